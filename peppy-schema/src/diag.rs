@@ -1,0 +1,487 @@
+//! Located diagnostics: one catalogue of error names and messages shared by
+//! the build script, the macro and the launcher.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use crate::source::{LineCol, SourceFile, Span};
+
+macro_rules! codes {
+    ($( $(#[$doc:meta])* $name:ident ),* $(,)?) => {
+        /// The name of a diagnostic. Names are stable: users search for them.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[non_exhaustive]
+        pub enum Code {
+            $( $(#[$doc])* $name, )*
+        }
+
+        impl Code {
+            /// The name as printed, e.g. `DuplicateLinkId`.
+            pub fn as_str(self) -> &'static str {
+                match self { $( Code::$name => stringify!($name), )* }
+            }
+        }
+    };
+}
+
+codes! {
+    /// The file could not be read.
+    CannotRead,
+    /// The file is larger than peppy documents may be.
+    DocumentTooLarge,
+    /// JSON5 syntax error.
+    Syntax,
+    /// Nesting deeper than documents may be.
+    NestingTooDeep,
+    /// An object has the same key twice.
+    DuplicateKey,
+    /// A key that this position does not accept.
+    UnknownKey,
+    /// A required key is absent.
+    MissingKey,
+    /// A value of the wrong JSON type.
+    WrongType,
+    /// A value of the right type but outside what is accepted.
+    InvalidValue,
+    /// `peppy_schema` is missing or names no known document kind.
+    UnknownSchema,
+    /// A document of another kind where this one was expected.
+    WrongDocumentKind,
+    /// A name (node, interface, instance, ...) with disallowed characters.
+    InvalidName,
+    /// A tag that is not a letter-led, dot-free label.
+    InvalidTag,
+    /// A topic, service or action name that cannot be a key segment.
+    InvalidEntryName,
+    /// Two entries of one list with the same name.
+    DuplicateEntryName,
+    /// The same `link_id` declared twice in `depends_on`.
+    DuplicateLinkId,
+    /// Two `from_any` slots for one `name:tag`.
+    ConflictingFromAny,
+    /// A consumed entry names a `link_id` that `depends_on` does not declare.
+    UndeclaredLinkId,
+    /// A consumed service or action without a `link_id`.
+    MissingLinkId,
+    /// A linked consumed topic that also states a `message_format`.
+    LinkedFormatGiven,
+    /// An external consumed topic without a `message_format`.
+    ExternalFormatMissing,
+    /// Both or neither of `run_cmd` / `container`.
+    ExecutionConflict,
+    /// An empty argv.
+    EmptyCommand,
+    /// A message format with no fields.
+    EmptyMessageFormat,
+    /// An unknown primitive type name.
+    UnknownType,
+    /// A field named `instance_id`.
+    ReservedFieldName,
+    /// A field name that cannot be a Rust identifier.
+    InvalidFieldName,
+    /// `$optional` where it is not allowed.
+    OptionalMisuse,
+    /// `$length` where it is not allowed, or a bad length.
+    LengthMisuse,
+    /// An array whose items are arrays.
+    NestedArray,
+    /// `$default` of the wrong type or range, or where defaults are not allowed.
+    InvalidDefault,
+    /// A service name the runtime reserves.
+    ReservedServiceName,
+    /// A node, interface or launcher that no repository provides.
+    DependencyNotFound,
+    /// A dependency was found but its document is invalid.
+    DependencyInvalid,
+    /// A linked entry names a topic, service or action the producer does not offer.
+    MissingOnProducer,
+    /// A sha256 pin that does not match the interface document.
+    InterfacePinMismatch,
+    /// The same `conforms_to` entry twice.
+    DuplicateConformance,
+    /// Two sources define the same topic, service or action name.
+    ConflictingDefinition,
+    /// The same `name:tag` in two repositories (the first wins).
+    DuplicateInRepositories,
+    /// A launcher source that cannot be used.
+    InvalidSource,
+    /// A launcher source kind that is not supported yet.
+    UnsupportedSource,
+    /// Two deployments of the same `name:tag`.
+    DuplicateDeployment,
+    /// A deployment without instances.
+    EmptyDeployment,
+    /// The same `instance_id` twice in a stack.
+    DuplicateInstanceId,
+    /// A pinned slot without a binding.
+    PinnedSlotUnbound,
+    /// A binding key that fits no slot.
+    DeadBindingKey,
+    /// The same binding key twice on one instance.
+    DuplicateBindingKey,
+    /// The reserved binding key `_`.
+    ReservedBindingKey,
+    /// A binding names an instance no deployment declares.
+    UnknownBindingTarget,
+    /// A node slot bound to an instance of another node.
+    BindingTargetMismatch,
+    /// An interface slot bound to an instance that does not conform.
+    BindingInterfaceNotConformed,
+    /// A parameter value of the wrong type or range.
+    ParameterTypeMismatch,
+    /// A required parameter is missing.
+    MissingParameter,
+    /// A parameter the schema does not declare.
+    UnknownParameter,
+    /// An environment variable the launcher refuses to set.
+    ForbiddenEnvVar,
+    /// A legacy spelling that still works (warning).
+    LegacySpelling,
+    /// A key that is accepted but has no effect (warning).
+    IgnoredKey,
+}
+
+impl fmt::Display for Code {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// How serious a diagnostic is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Severity {
+    /// The document is invalid.
+    Error,
+    /// The document works, but something deserves attention.
+    Warning,
+}
+
+impl Severity {
+    /// `error` or `warning`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Severity::Error => "error",
+            Severity::Warning => "warning",
+        }
+    }
+}
+
+/// One located finding about a document.
+#[derive(Debug, Clone)]
+pub struct Diagnostic {
+    /// Stable name of the problem.
+    pub code: Code,
+    /// Error or warning.
+    pub severity: Severity,
+    /// What was found (lowercase, no trailing period).
+    pub message: String,
+    /// What would be accepted, or a did-you-mean.
+    pub help: Option<String>,
+    /// Path of the key in the document, e.g. `interfaces.topics.emits[0].name`.
+    pub key_path: Option<String>,
+    file: Option<Arc<SourceFile>>,
+    file_path: Option<PathBuf>,
+    span: Option<Span>,
+}
+
+impl Diagnostic {
+    /// A new error with no location yet.
+    pub fn error(code: Code, message: impl Into<String>) -> Self {
+        Diagnostic {
+            code,
+            severity: Severity::Error,
+            message: message.into(),
+            help: None,
+            key_path: None,
+            file: None,
+            file_path: None,
+            span: None,
+        }
+    }
+
+    /// A new warning with no location yet.
+    pub fn warning(code: Code, message: impl Into<String>) -> Self {
+        Diagnostic {
+            severity: Severity::Warning,
+            ..Diagnostic::error(code, message)
+        }
+    }
+
+    /// Locates the diagnostic at `span` of `file`.
+    pub fn at(mut self, file: &Arc<SourceFile>, span: Span) -> Self {
+        self.file_path = Some(file.path().to_path_buf());
+        self.file = Some(file.clone());
+        self.span = Some(span);
+        self
+    }
+
+    /// Names the file when no text is available (e.g. it could not be read).
+    pub fn with_file_path(mut self, path: &Path) -> Self {
+        self.file_path = Some(path.to_path_buf());
+        self
+    }
+
+    /// Adds what would be accepted.
+    pub fn with_help(mut self, help: impl Into<String>) -> Self {
+        self.help = Some(help.into());
+        self
+    }
+
+    /// Sets the key path.
+    pub fn with_key_path(mut self, path: impl Into<String>) -> Self {
+        let path = path.into();
+        self.key_path = (!path.is_empty()).then_some(path);
+        self
+    }
+
+    /// Whether this is an error (not a warning).
+    pub fn is_error(&self) -> bool {
+        self.severity == Severity::Error
+    }
+
+    /// The file the diagnostic points into, if any.
+    pub fn file_path(&self) -> Option<&Path> {
+        self.file_path.as_deref()
+    }
+
+    /// The source text the diagnostic points into, if loaded.
+    pub fn source(&self) -> Option<&Arc<SourceFile>> {
+        self.file.as_ref()
+    }
+
+    /// The byte span, if located.
+    pub fn span(&self) -> Option<Span> {
+        self.span
+    }
+
+    /// Line and column, if located.
+    pub fn line_col(&self) -> Option<LineCol> {
+        Some(self.file.as_ref()?.line_col(self.span?.start))
+    }
+
+    /// `path:line:col: error: message (Code)`: the line editors jump to.
+    ///
+    /// `base` makes the path relative when it is inside `base`.
+    pub fn jump_line(&self, base: Option<&Path>) -> String {
+        let mut out = String::new();
+        if let Some(path) = &self.file_path {
+            let shown = base
+                .and_then(|b| path.strip_prefix(b).ok())
+                .unwrap_or(path);
+            out.push_str(&shown.display().to_string());
+            if let Some(lc) = self.line_col() {
+                out.push_str(&format!(":{}:{}", lc.line, lc.column));
+            }
+            out.push_str(": ");
+        }
+        out.push_str(&format!(
+            "{}: {} ({})",
+            self.severity.as_str(),
+            self.message,
+            self.code
+        ));
+        out
+    }
+
+    fn sort_key(&self) -> (Option<PathBuf>, usize, Severity) {
+        (
+            self.file_path.clone(),
+            self.span.map_or(0, |s| s.start),
+            self.severity,
+        )
+    }
+}
+
+impl fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.jump_line(None))?;
+        if let Some(help) = &self.help {
+            write!(f, "\n  help: {help}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for Diagnostic {}
+
+impl miette::SourceCode for SourceFile {
+    fn read_span<'a>(
+        &'a self,
+        span: &miette::SourceSpan,
+        context_lines_before: usize,
+        context_lines_after: usize,
+    ) -> Result<Box<dyn miette::SpanContents<'a> + 'a>, miette::MietteError> {
+        let inner = self
+            .text()
+            .read_span(span, context_lines_before, context_lines_after)?;
+        Ok(Box::new(miette::MietteSpanContents::new_named(
+            self.path().display().to_string(),
+            inner.data(),
+            *inner.span(),
+            inner.line(),
+            inner.column(),
+            inner.line_count(),
+        )))
+    }
+}
+
+impl miette::Diagnostic for Diagnostic {
+    fn code<'a>(&'a self) -> Option<Box<dyn fmt::Display + 'a>> {
+        Some(Box::new(self.code))
+    }
+
+    fn severity(&self) -> Option<miette::Severity> {
+        Some(match self.severity {
+            Severity::Error => miette::Severity::Error,
+            Severity::Warning => miette::Severity::Warning,
+        })
+    }
+
+    fn help<'a>(&'a self) -> Option<Box<dyn fmt::Display + 'a>> {
+        self.help
+            .as_ref()
+            .map(|h| Box::new(h) as Box<dyn fmt::Display>)
+    }
+
+    fn source_code(&self) -> Option<&dyn miette::SourceCode> {
+        self.file.as_deref().map(|f| f as &dyn miette::SourceCode)
+    }
+
+    fn labels(&self) -> Option<Box<dyn Iterator<Item = miette::LabeledSpan> + '_>> {
+        let span = self.span?;
+        self.file.as_ref()?;
+        let label = self.key_path.clone().unwrap_or_else(|| "here".to_string());
+        Some(Box::new(std::iter::once(miette::LabeledSpan::new(
+            Some(label),
+            span.start,
+            span.end.saturating_sub(span.start),
+        ))))
+    }
+}
+
+/// Every finding about one or more documents, errors and warnings together.
+#[derive(Debug, Clone, Default)]
+pub struct Diagnostics {
+    items: Vec<Diagnostic>,
+}
+
+impl Diagnostics {
+    /// No findings.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds one finding.
+    pub fn push(&mut self, diagnostic: Diagnostic) {
+        self.items.push(diagnostic);
+    }
+
+    /// Adds all findings of `other`.
+    pub fn extend(&mut self, other: Diagnostics) {
+        self.items.extend(other.items);
+    }
+
+    /// Whether any finding is an error.
+    pub fn has_errors(&self) -> bool {
+        self.items.iter().any(Diagnostic::is_error)
+    }
+
+    /// Whether there are no findings at all.
+    pub fn is_empty(&self) -> bool {
+        self.items.is_empty()
+    }
+
+    /// Number of findings.
+    pub fn len(&self) -> usize {
+        self.items.len()
+    }
+
+    /// Number of errors.
+    pub fn error_count(&self) -> usize {
+        self.items.iter().filter(|d| d.is_error()).count()
+    }
+
+    /// All findings, sorted by file and position.
+    pub fn sorted(&self) -> Vec<&Diagnostic> {
+        let mut v: Vec<&Diagnostic> = self.items.iter().collect();
+        v.sort_by_key(|d| d.sort_key());
+        v
+    }
+
+    /// Iterates in insertion order.
+    pub fn iter(&self) -> impl Iterator<Item = &Diagnostic> {
+        self.items.iter()
+    }
+
+    pub(crate) fn iter_mut(&mut self) -> impl Iterator<Item = &mut Diagnostic> {
+        self.items.iter_mut()
+    }
+
+    /// The findings that are errors.
+    pub fn errors(&self) -> impl Iterator<Item = &Diagnostic> {
+        self.items.iter().filter(|d| d.is_error())
+    }
+
+    /// Whether some finding has this code.
+    pub fn contains(&self, code: Code) -> bool {
+        self.items.iter().any(|d| d.code == code)
+    }
+
+    /// `Ok(value)` with the warnings when there are no errors, else all findings.
+    pub fn into_result<T>(self, value: T) -> Result<(T, Diagnostics), Diagnostics> {
+        if self.has_errors() {
+            Err(self)
+        } else {
+            Ok((value, self))
+        }
+    }
+}
+
+impl From<Diagnostic> for Diagnostics {
+    fn from(d: Diagnostic) -> Self {
+        Diagnostics { items: vec![d] }
+    }
+}
+
+impl IntoIterator for Diagnostics {
+    type Item = Diagnostic;
+    type IntoIter = std::vec::IntoIter<Diagnostic>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.items.into_iter()
+    }
+}
+
+impl fmt::Display for Diagnostics {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, d) in self.sorted().into_iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{d}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for Diagnostics {}
+
+/// The closest of `candidates` to `found`, when close enough to suggest.
+pub fn did_you_mean<'a>(found: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    candidates
+        .into_iter()
+        .map(|c| (strsim::jaro_winkler(found, c), c))
+        .filter(|(score, _)| *score > 0.8)
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, c)| c)
+}
+
+/// `` `a`, `b`, `c` `` for messages.
+pub(crate) fn list<'a>(items: impl IntoIterator<Item = &'a str>) -> String {
+    let v: Vec<String> = items.into_iter().map(|s| format!("`{s}`")).collect();
+    if v.is_empty() {
+        "(none)".to_string()
+    } else {
+        v.join(", ")
+    }
+}

@@ -1,0 +1,298 @@
+//! Any peppy document: its kind is read from `peppy_schema`, never from the
+//! file name.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use serde::Serialize;
+
+use crate::diag::{Code, Diagnostic, Diagnostics, did_you_mean, list};
+use crate::interface::{InterfaceDoc, parse_interface};
+use crate::json::{Node, Value};
+use crate::launcher::{LauncherDoc, parse_launcher};
+use crate::node::{NodeDoc, parse_node};
+use crate::read::{Reader, index};
+use crate::source::{SourceFile, sha256_hex};
+
+/// The kinds of peppy documents.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DocumentKind {
+    /// `node_v1` (or legacy `schema_version: 1`).
+    Node,
+    /// `interface_v1`.
+    Interface,
+    /// `launcher_v1`.
+    Launcher,
+    /// `peppy_repositories.json5`: a list of repositories.
+    Repositories,
+}
+
+impl DocumentKind {
+    /// `node`, `interface`, `launcher`, `repositories`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DocumentKind::Node => "node",
+            DocumentKind::Interface => "interface",
+            DocumentKind::Launcher => "launcher",
+            DocumentKind::Repositories => "repositories",
+        }
+    }
+}
+
+/// The `peppy_schema` values.
+pub const SCHEMAS: &[&str] = &["node_v1", "interface_v1", "launcher_v1"];
+
+/// The file name of a repositories list.
+pub const REPOSITORIES_FILE: &str = "peppy_repositories.json5";
+
+/// A parsed document of any kind.
+#[derive(Debug, Clone)]
+pub enum Document {
+    /// A node.
+    Node(NodeDoc),
+    /// An interface.
+    Interface(InterfaceDoc),
+    /// A launcher.
+    Launcher(LauncherDoc),
+    /// A repositories list.
+    Repositories(RepositoriesDoc),
+}
+
+impl Document {
+    /// This document's kind.
+    pub fn kind(&self) -> DocumentKind {
+        match self {
+            Document::Node(_) => DocumentKind::Node,
+            Document::Interface(_) => DocumentKind::Interface,
+            Document::Launcher(_) => DocumentKind::Launcher,
+            Document::Repositories(_) => DocumentKind::Repositories,
+        }
+    }
+}
+
+/// `peppy_repositories.json5`: where to look for nodes, interfaces and launchers.
+#[derive(Debug, Clone)]
+pub struct RepositoriesDoc {
+    /// The document's text.
+    pub file: Arc<SourceFile>,
+    /// Repository directories, resolved against the file's directory, in priority order.
+    pub paths: Vec<PathBuf>,
+}
+
+/// Reads a document's kind without validating the rest.
+pub fn detect_kind(root: &Node) -> Option<DocumentKind> {
+    match &root.value {
+        Value::Array(_) => Some(DocumentKind::Repositories),
+        Value::Object(_) => {
+            if let Some(s) = root.get("peppy_schema").and_then(Node::as_str) {
+                return match s {
+                    "node_v1" => Some(DocumentKind::Node),
+                    "interface_v1" => Some(DocumentKind::Interface),
+                    "launcher_v1" => Some(DocumentKind::Launcher),
+                    _ => None,
+                };
+            }
+            root.get("schema_version").map(|_| DocumentKind::Node)
+        }
+        _ => None,
+    }
+}
+
+/// The result of parsing: the document and its warnings, or every finding.
+pub type Parsed<T> = Result<(T, Diagnostics), Diagnostics>;
+
+/// Parses a document of any kind from text already loaded.
+pub fn parse_document(file: &Arc<SourceFile>, sha256: &str) -> Parsed<Document> {
+    let (root, mut diags) = crate::json::parse(file)?;
+    let kind = match detect_kind(&root) {
+        Some(k) => k,
+        None => {
+            diags.push(unknown_schema(file, &root));
+            return Err(diags);
+        }
+    };
+    parse_kind(file, sha256, &root, kind, diags)
+}
+
+/// Parses `file`, requiring it to be of `kind`.
+pub fn parse_as(file: &Arc<SourceFile>, sha256: &str, kind: DocumentKind) -> Parsed<Document> {
+    let (root, mut diags) = crate::json::parse(file)?;
+    match detect_kind(&root) {
+        Some(k) if k == kind => parse_kind(file, sha256, &root, kind, diags),
+        Some(other) => {
+            let at = root.get("peppy_schema").map_or(root.span, |n| n.span);
+            diags.push(
+                Diagnostic::error(
+                    Code::WrongDocumentKind,
+                    format!("expected a {} document, found a {} document", kind.as_str(), other.as_str()),
+                )
+                .at(file, at)
+                .with_key_path("peppy_schema"),
+            );
+            Err(diags)
+        }
+        None => {
+            diags.push(unknown_schema(file, &root));
+            Err(diags)
+        }
+    }
+}
+
+fn parse_kind(file: &Arc<SourceFile>, sha256: &str, root: &Node, kind: DocumentKind, mut diags: Diagnostics) -> Parsed<Document> {
+    let doc = match kind {
+        DocumentKind::Node => parse_node(file, root, &mut diags).map(Document::Node),
+        DocumentKind::Interface => parse_interface(file, sha256.to_string(), root, &mut diags).map(Document::Interface),
+        DocumentKind::Launcher => parse_launcher(file, root, &mut diags).map(Document::Launcher),
+        DocumentKind::Repositories => parse_repositories(file, root, &mut diags).map(Document::Repositories),
+    };
+    match doc {
+        Some(d) if !diags.has_errors() => Ok((d, diags)),
+        _ => {
+            if !diags.has_errors() {
+                // A parser returned nothing without saying why: never hide that.
+                diags.push(Diagnostic::error(Code::InvalidValue, "document is invalid").at(file, root.span));
+            }
+            Err(diags)
+        }
+    }
+}
+
+fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
+    match (&root.value, root.get("peppy_schema")) {
+        (Value::Object(_), Some(n)) => {
+            let found = n.as_str().map_or_else(|| n.value.kind().to_string(), |s| format!("`{s}`"));
+            let help = match n.as_str().and_then(|s| did_you_mean(s, SCHEMAS.iter().copied())) {
+                Some(s) => format!("did you mean `{s}`? known: {}", list(SCHEMAS.iter().copied())),
+                None => format!("known: {}", list(SCHEMAS.iter().copied())),
+            };
+            Diagnostic::error(Code::UnknownSchema, format!("unknown `peppy_schema` {found}"))
+                .at(file, n.span)
+                .with_key_path("peppy_schema")
+                .with_help(help)
+        }
+        (Value::Object(_), None) => Diagnostic::error(Code::UnknownSchema, "missing `peppy_schema`: cannot tell what kind of document this is")
+            .at(file, crate::source::Span::new(root.span.start, root.span.start + 1))
+            .with_help(format!("add `peppy_schema: \"node_v1\"` (or one of {})", list(SCHEMAS.iter().copied()))),
+        _ => Diagnostic::error(Code::UnknownSchema, format!("a peppy document is an object, found {}", root.value.kind()))
+            .at(file, root.span),
+    }
+}
+
+/// Reads and parses a document of any kind from disk.
+pub fn load_document(path: &Path) -> Parsed<Document> {
+    let (file, sha) = SourceFile::read(path).map_err(|d| Diagnostics::from(*d))?;
+    parse_document(&file, &sha)
+}
+
+/// Reads and parses a document that must be of `kind`.
+pub fn load_as(path: &Path, kind: DocumentKind) -> Parsed<Document> {
+    let (file, sha) = SourceFile::read(path).map_err(|d| Diagnostics::from(*d))?;
+    parse_as(&file, &sha, kind)
+}
+
+impl NodeDoc {
+    /// Reads and parses a node document (`peppy.json5`).
+    pub fn load(path: &Path) -> Parsed<NodeDoc> {
+        load_as(path, DocumentKind::Node).map(|(d, w)| match d {
+            Document::Node(n) => (n, w),
+            _ => unreachable!("load_as checked the kind"),
+        })
+    }
+
+    /// Parses a node document from text.
+    pub fn parse(path: impl Into<PathBuf>, text: impl Into<String>) -> Parsed<NodeDoc> {
+        let text = text.into();
+        let sha = sha256_hex(text.as_bytes());
+        parse_as(&SourceFile::new(path, text), &sha, DocumentKind::Node).map(|(d, w)| match d {
+            Document::Node(n) => (n, w),
+            _ => unreachable!("parse_as checked the kind"),
+        })
+    }
+}
+
+impl InterfaceDoc {
+    /// Reads and parses an interface document.
+    pub fn load(path: &Path) -> Parsed<InterfaceDoc> {
+        load_as(path, DocumentKind::Interface).map(|(d, w)| match d {
+            Document::Interface(i) => (i, w),
+            _ => unreachable!("load_as checked the kind"),
+        })
+    }
+
+    /// Parses an interface document from text (its sha256 is that of `text`).
+    pub fn parse(path: impl Into<PathBuf>, text: impl Into<String>) -> Parsed<InterfaceDoc> {
+        let text = text.into();
+        let sha = sha256_hex(text.as_bytes());
+        parse_as(&SourceFile::new(path, text), &sha, DocumentKind::Interface).map(|(d, w)| match d {
+            Document::Interface(i) => (i, w),
+            _ => unreachable!("parse_as checked the kind"),
+        })
+    }
+}
+
+impl LauncherDoc {
+    /// Reads and parses a launcher.
+    pub fn load(path: &Path) -> Parsed<LauncherDoc> {
+        load_as(path, DocumentKind::Launcher).map(|(d, w)| match d {
+            Document::Launcher(l) => (l, w),
+            _ => unreachable!("load_as checked the kind"),
+        })
+    }
+
+    /// Parses a launcher from text.
+    pub fn parse(path: impl Into<PathBuf>, text: impl Into<String>) -> Parsed<LauncherDoc> {
+        let text = text.into();
+        let sha = sha256_hex(text.as_bytes());
+        parse_as(&SourceFile::new(path, text), &sha, DocumentKind::Launcher).map(|(d, w)| match d {
+            Document::Launcher(l) => (l, w),
+            _ => unreachable!("parse_as checked the kind"),
+        })
+    }
+}
+
+impl RepositoriesDoc {
+    /// Reads and parses a `peppy_repositories.json5`.
+    pub fn load(path: &Path) -> Parsed<RepositoriesDoc> {
+        load_as(path, DocumentKind::Repositories).map(|(d, w)| match d {
+            Document::Repositories(r) => (r, w),
+            _ => unreachable!("load_as checked the kind"),
+        })
+    }
+}
+
+fn parse_repositories(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagnostics) -> Option<RepositoriesDoc> {
+    let mut r = Reader::new(file, diags);
+    let items = r.array(root, "")?;
+    let base = file.path().parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut paths = Vec::new();
+    for (i, item) in items.iter().enumerate() {
+        let ipath = index("", i);
+        let Some(obj) = r.object(item, &ipath, &["type", "path"]) else { continue };
+        let ty = r.required(&obj, "type").and_then(|t| r.string(t, &obj.path_of("type")).map(|s| (s, t.span)));
+        let path = r.required(&obj, "path").and_then(|p| r.string(p, &obj.path_of("path")));
+        match ty {
+            Some((t, _)) if t == "fs" => {}
+            Some((t, span)) if t == "git" || t == "url" => {
+                r.error_help(
+                    Code::UnsupportedSource,
+                    span,
+                    &obj.path_of("type"),
+                    format!("`{t}` repositories are not supported yet"),
+                    "check the repository out yourself and list it as `{ type: \"fs\", path: \"...\" }`",
+                );
+                continue;
+            }
+            Some((t, span)) => {
+                r.error_help(Code::InvalidValue, span, &obj.path_of("type"), format!("unknown repository type `{t}`"), "accepted: `fs`");
+                continue;
+            }
+            None => continue,
+        }
+        if let Some(p) = path {
+            let p = PathBuf::from(p);
+            paths.push(if p.is_absolute() { p } else { base.join(p) });
+        }
+    }
+    (!r.diags.has_errors()).then(|| RepositoriesDoc { file: file.clone(), paths })
+}

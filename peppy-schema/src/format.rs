@@ -1,0 +1,670 @@
+//! Message formats: the field types of topics, services and actions.
+//!
+//! Key order is kept: it is the field order of generated structs and of the
+//! wire encoding.
+
+use std::fmt::Write as _;
+
+use sha2::{Digest, Sha256};
+
+use crate::diag::{Code, did_you_mean, list};
+use crate::json::{Node, Value};
+use crate::names::check_field_name;
+use crate::read::{Loc, Reader, join};
+
+/// `$length` may be at most this (fixed arrays become `[T; N]` values).
+pub const MAX_FIXED_LENGTH: u64 = 65_536;
+
+/// A primitive type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Primitive {
+    /// `bool`
+    Bool,
+    /// `u8`
+    U8,
+    /// `u16`
+    U16,
+    /// `u32`
+    U32,
+    /// `u64`
+    U64,
+    /// `i8`
+    I8,
+    /// `i16`
+    I16,
+    /// `i32`
+    I32,
+    /// `i64`
+    I64,
+    /// `f32` (alias `float`)
+    F32,
+    /// `f64` (alias `double`)
+    F64,
+    /// `string` (alias `str`)
+    String,
+    /// `bytes`
+    Bytes,
+    /// `time`: a point in time (`std::time::SystemTime`)
+    Time,
+}
+
+/// Every accepted type spelling, aliases included.
+pub const TYPE_NAMES: &[&str] = &[
+    "bool", "u8", "u16", "u32", "u64", "i8", "i16", "i32", "i64", "f32", "f64", "float",
+    "double", "string", "str", "bytes", "time",
+];
+
+impl Primitive {
+    /// Parses a type name, aliases included.
+    pub fn parse(s: &str) -> Option<Primitive> {
+        Some(match s {
+            "bool" => Primitive::Bool,
+            "u8" => Primitive::U8,
+            "u16" => Primitive::U16,
+            "u32" => Primitive::U32,
+            "u64" => Primitive::U64,
+            "i8" => Primitive::I8,
+            "i16" => Primitive::I16,
+            "i32" => Primitive::I32,
+            "i64" => Primitive::I64,
+            "f32" | "float" => Primitive::F32,
+            "f64" | "double" => Primitive::F64,
+            "string" | "str" => Primitive::String,
+            "bytes" => Primitive::Bytes,
+            "time" => Primitive::Time,
+            _ => return None,
+        })
+    }
+
+    /// The canonical spelling.
+    pub fn name(self) -> &'static str {
+        match self {
+            Primitive::Bool => "bool",
+            Primitive::U8 => "u8",
+            Primitive::U16 => "u16",
+            Primitive::U32 => "u32",
+            Primitive::U64 => "u64",
+            Primitive::I8 => "i8",
+            Primitive::I16 => "i16",
+            Primitive::I32 => "i32",
+            Primitive::I64 => "i64",
+            Primitive::F32 => "f32",
+            Primitive::F64 => "f64",
+            Primitive::String => "string",
+            Primitive::Bytes => "bytes",
+            Primitive::Time => "time",
+        }
+    }
+
+    /// Numbers and `bool`: fixed-size values with no presence bit.
+    pub fn is_scalar(self) -> bool {
+        !matches!(self, Primitive::String | Primitive::Bytes | Primitive::Time)
+    }
+
+    /// The inclusive integer range, for integer types.
+    pub fn int_range(self) -> Option<(i128, i128)> {
+        Some(match self {
+            Primitive::U8 => (0, u8::MAX as i128),
+            Primitive::U16 => (0, u16::MAX as i128),
+            Primitive::U32 => (0, u32::MAX as i128),
+            Primitive::U64 => (0, u64::MAX as i128),
+            Primitive::I8 => (i8::MIN as i128, i8::MAX as i128),
+            Primitive::I16 => (i16::MIN as i128, i16::MAX as i128),
+            Primitive::I32 => (i32::MIN as i128, i32::MAX as i128),
+            Primitive::I64 => (i64::MIN as i128, i64::MAX as i128),
+            _ => return None,
+        })
+    }
+}
+
+/// A message format: the root object's fields, in declaration order.
+#[derive(Debug, Clone)]
+pub struct MessageFormat {
+    /// Root fields, in order.
+    pub fields: Vec<Field>,
+}
+
+/// One field of an object.
+#[derive(Debug, Clone)]
+pub struct Field {
+    /// The field name as declared.
+    pub name: String,
+    /// Its type.
+    pub ty: FieldType,
+    /// `$optional: true` (root fields only).
+    pub optional: bool,
+    /// Where the field's key is.
+    pub loc: Loc,
+}
+
+impl PartialEq for Field {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name && self.ty == other.ty && self.optional == other.optional
+    }
+}
+
+impl PartialEq for MessageFormat {
+    fn eq(&self, other: &Self) -> bool {
+        self.fields == other.fields
+    }
+}
+
+/// A field's type.
+#[derive(Debug, Clone, PartialEq)]
+pub enum FieldType {
+    /// A primitive.
+    Primitive(Primitive),
+    /// An array of primitives or objects (never of arrays).
+    Array {
+        /// The item type.
+        items: Box<FieldType>,
+        /// `$length`: a fixed-size array.
+        length: Option<u32>,
+    },
+    /// A nested object.
+    Object(Vec<Field>),
+}
+
+impl MessageFormat {
+    /// The canonical text of the format: names, types, order, optionality,
+    /// with aliases resolved and no whitespace, e.g.
+    /// `{header:{stamp:time,frame_id:u32},frame:[u8],note:string?}`.
+    pub fn canonical(&self) -> String {
+        let mut out = String::new();
+        write_fields(&mut out, &self.fields);
+        out
+    }
+
+    /// The format's fingerprint: the first 8 bytes of the sha256 of
+    /// [`canonical`](Self::canonical), big-endian. Two formats share a
+    /// fingerprint exactly when their wire encodings agree.
+    pub fn fingerprint(&self) -> u64 {
+        let digest = Sha256::digest(self.canonical().as_bytes());
+        let mut first = [0u8; 8];
+        first.copy_from_slice(&digest[..8]);
+        u64::from_be_bytes(first)
+    }
+}
+
+fn write_fields(out: &mut String, fields: &[Field]) {
+    out.push('{');
+    for (i, f) in fields.iter().enumerate() {
+        if i > 0 {
+            out.push(',');
+        }
+        out.push_str(&f.name);
+        out.push(':');
+        write_type(out, &f.ty);
+        if f.optional {
+            out.push('?');
+        }
+    }
+    out.push('}');
+}
+
+fn write_type(out: &mut String, ty: &FieldType) {
+    match ty {
+        FieldType::Primitive(p) => out.push_str(p.name()),
+        FieldType::Array { items, length } => {
+            out.push('[');
+            write_type(out, items);
+            if let Some(n) = length {
+                let _ = write!(out, ";{n}");
+            }
+            out.push(']');
+        }
+        FieldType::Object(fields) => write_fields(out, fields),
+    }
+}
+
+#[derive(Clone, Copy)]
+struct Place {
+    /// A field of the root object.
+    root: bool,
+    /// The `$items` of an array.
+    item: bool,
+}
+
+/// Parses a `message_format` value. Errors go to the reader; `None` when
+/// the format is unusable.
+pub(crate) fn parse_format(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<MessageFormat> {
+    let Value::Object(members) = &node.value else {
+        r.error(
+            Code::WrongType,
+            node.span,
+            path,
+            format!("expected an object of fields for `{path}`, found {}", node.value.kind()),
+        );
+        return None;
+    };
+    let mut ok = true;
+    let mut fields = Vec::new();
+    for m in members {
+        let field_path = join(path, &m.key);
+        if m.key.starts_with('$') {
+            r.error_help(
+                Code::UnknownKey,
+                m.key_span,
+                &field_path,
+                format!("`{}` is not allowed at the root of a message format", m.key),
+                "the root of a message format lists fields; `$type`, `$optional` and friends belong to a field",
+            );
+            ok = false;
+            continue;
+        }
+        match parse_field(r, &m.key, m.key_span, &m.value, &field_path, Place { root: true, item: false }) {
+            Some(f) => fields.push(f),
+            None => ok = false,
+        }
+    }
+    if members.is_empty() {
+        r.error_help(
+            Code::EmptyMessageFormat,
+            node.span,
+            path,
+            "message format has no fields",
+            "declare at least one field, or omit the key for a message with no payload",
+        );
+        return None;
+    }
+    ok.then_some(MessageFormat { fields })
+}
+
+fn parse_field(
+    r: &mut Reader<'_>,
+    name: &str,
+    key_span: crate::source::Span,
+    node: &Node,
+    path: &str,
+    place: Place,
+) -> Option<Field> {
+    let mut ok = true;
+    if name == "instance_id" {
+        r.error_help(
+            Code::ReservedFieldName,
+            key_span,
+            path,
+            "the field name `instance_id` is reserved",
+            "every message already carries its sender's instance id; rename the field (e.g. `source_id`)",
+        );
+        ok = false;
+    } else if let Err(why) = check_field_name(name) {
+        r.error(
+            Code::InvalidFieldName,
+            key_span,
+            path,
+            format!("invalid field name `{name}`: {why}"),
+        );
+        ok = false;
+    }
+    let (ty, optional) = parse_type(r, node, path, place)?;
+    ok.then(|| Field {
+        name: name.to_string(),
+        ty,
+        optional,
+        loc: r.loc(key_span, path),
+    })
+}
+
+fn unknown_type(r: &mut Reader<'_>, node: &Node, path: &str, found: &str) {
+    let help = match found {
+        "array" => "an array is written `{ $type: \"array\", $items: \"u8\" }`".to_string(),
+        "object" => "an object is written `{ field: \"u32\", ... }`".to_string(),
+        _ => match did_you_mean(found, TYPE_NAMES.iter().copied()) {
+            Some(s) => format!("did you mean `{s}`? types: {}", list(TYPE_NAMES.iter().copied())),
+            None => format!("types: {}, or an object, or an array", list(TYPE_NAMES.iter().copied())),
+        },
+    };
+    r.error_help(Code::UnknownType, node.span, path, format!("unknown type `{found}`"), help);
+}
+
+fn parse_type(r: &mut Reader<'_>, node: &Node, path: &str, place: Place) -> Option<(FieldType, bool)> {
+    let members = match &node.value {
+        Value::String(s) => {
+            return match Primitive::parse(s) {
+                Some(p) => Some((FieldType::Primitive(p), false)),
+                None => {
+                    unknown_type(r, node, path, s);
+                    None
+                }
+            };
+        }
+        Value::Object(members) => members,
+        other => {
+            r.error(
+                Code::WrongType,
+                node.span,
+                path,
+                format!(
+                    "expected a type name or an object for `{path}`, found {}",
+                    other.kind()
+                ),
+            );
+            return None;
+        }
+    };
+    let mut ok = true;
+    let type_node = node.get("$type");
+    let type_name = match type_node {
+        None => None,
+        Some(t) => match t.as_str() {
+            Some(s) => Some(s),
+            None => {
+                r.error(
+                    Code::WrongType,
+                    t.span,
+                    &join(path, "$type"),
+                    format!("expected a type name for `{path}.$type`, found {}", t.value.kind()),
+                );
+                return None;
+            }
+        },
+    };
+    enum Shape {
+        Object,
+        Array,
+        Primitive(Primitive),
+    }
+    let shape = match type_name {
+        None | Some("object") => Shape::Object,
+        Some("array") => Shape::Array,
+        Some(s) => match Primitive::parse(s) {
+            Some(p) => Shape::Primitive(p),
+            None => {
+                unknown_type(r, type_node.expect("type node present"), &join(path, "$type"), s);
+                return None;
+            }
+        },
+    };
+    let allowed: &[&str] = match shape {
+        Shape::Object => &["$type", "$optional"],
+        Shape::Array => &["$type", "$items", "$length", "$optional"],
+        Shape::Primitive(_) => &["$type", "$optional"],
+    };
+    for m in members {
+        let is_dollar = m.key.starts_with('$');
+        let accepted = allowed.contains(&m.key.as_str())
+            || (!is_dollar && matches!(shape, Shape::Object));
+        if accepted {
+            continue;
+        }
+        ok = false;
+        let m_path = join(path, &m.key);
+        match (&shape, m.key.as_str()) {
+            (_, "$length") => r.error_help(
+                Code::LengthMisuse,
+                m.key_span,
+                &m_path,
+                "`$length` is only allowed on arrays",
+                "write `{ $type: \"array\", $items: \"f64\", $length: 3 }`",
+            ),
+            (_, "$items") => r.error_help(
+                Code::UnknownKey,
+                m.key_span,
+                &m_path,
+                "`$items` is only allowed on arrays",
+                "add `$type: \"array\"`",
+            ),
+            (_, "$default") => r.error_help(
+                Code::UnknownKey,
+                m.key_span,
+                &m_path,
+                "`$default` is not allowed in message formats",
+                "defaults belong to `execution.parameters`",
+            ),
+            (Shape::Object, _) => r.unknown_key(m, path, allowed),
+            (_, _) if is_dollar => r.unknown_key(m, path, allowed),
+            (_, _) => r.error_help(
+                Code::UnknownKey,
+                m.key_span,
+                &m_path,
+                format!("unknown key `{}`: a field whose `$type` is not `object` has no sub-fields", m.key),
+                format!("accepted keys here: {}", list(allowed.iter().copied())),
+            ),
+        }
+    }
+    let optional = match node.get("$optional") {
+        None => false,
+        Some(o) => {
+            let opath = join(path, "$optional");
+            let value = r.bool(o, &opath);
+            let value = value.unwrap_or_else(|| {
+                ok = false;
+                false
+            });
+            if value {
+                if place.item {
+                    r.error_help(
+                        Code::OptionalMisuse,
+                        o.span,
+                        &opath,
+                        "`$optional` is not allowed on array items",
+                        "make the whole array optional instead (on a root-level field)",
+                    );
+                    ok = false;
+                } else if !place.root {
+                    r.error_help(
+                        Code::OptionalMisuse,
+                        o.span,
+                        &opath,
+                        "`$optional` is only allowed on root-level fields",
+                        "move the optional part to the root of the message format, or make its parent optional",
+                    );
+                    ok = false;
+                } else if let Shape::Primitive(p) = shape {
+                    if p.is_scalar() {
+                        r.error_help(
+                            Code::OptionalMisuse,
+                            o.span,
+                            &opath,
+                            format!("`$optional` is not allowed on `{}`: scalars have no presence bit", p.name()),
+                            "`$optional` works on `string`, `bytes`, `time`, arrays and objects",
+                        );
+                        ok = false;
+                    }
+                }
+            }
+            value
+        }
+    };
+    let ty = match shape {
+        Shape::Primitive(p) => FieldType::Primitive(p),
+        Shape::Object => {
+            let mut fields = Vec::new();
+            for m in members.iter().filter(|m| !m.key.starts_with('$')) {
+                match parse_field(r, &m.key, m.key_span, &m.value, &join(path, &m.key), Place { root: false, item: false }) {
+                    Some(f) => fields.push(f),
+                    None => ok = false,
+                }
+            }
+            if fields.is_empty() && ok {
+                r.error_help(
+                    Code::EmptyMessageFormat,
+                    node.span,
+                    path,
+                    "object has no fields",
+                    "declare at least one field, or remove the object",
+                );
+                ok = false;
+            }
+            FieldType::Object(fields)
+        }
+        Shape::Array => {
+            let items_path = join(path, "$items");
+            let Some(items_node) = node.get("$items") else {
+                r.error_help(
+                    Code::MissingKey,
+                    node.span,
+                    path,
+                    format!("missing required key `$items` in array `{path}`"),
+                    "write `{ $type: \"array\", $items: \"u8\" }`",
+                );
+                return None;
+            };
+            let is_nested_array = match &items_node.value {
+                Value::Object(_) => items_node.get("$type").and_then(Node::as_str) == Some("array"),
+                Value::String(s) => s == "array",
+                _ => false,
+            };
+            if is_nested_array {
+                r.error_help(
+                    Code::NestedArray,
+                    items_node.span,
+                    &items_path,
+                    "arrays of arrays are not supported",
+                    "wrap the inner array in an object: `$items: { values: { $type: \"array\", $items: \"f64\" } }`",
+                );
+                return None;
+            }
+            let (items, _) = parse_type(r, items_node, &items_path, Place { root: false, item: true })?;
+            let length = match node.get("$length") {
+                None => None,
+                Some(l) => {
+                    let lpath = join(path, "$length");
+                    match r.uint(l, &lpath, MAX_FIXED_LENGTH) {
+                        Some(0) => {
+                            r.error(Code::LengthMisuse, l.span, &lpath, "`$length` must be at least 1");
+                            ok = false;
+                            None
+                        }
+                        Some(n) => {
+                            let scalar = matches!(items, FieldType::Primitive(p) if p.is_scalar());
+                            if !scalar {
+                                r.error_help(
+                                    Code::LengthMisuse,
+                                    l.span,
+                                    &lpath,
+                                    "`$length` is only allowed when the items are numbers or `bool`",
+                                    "drop `$length` to get a variable-length array",
+                                );
+                                ok = false;
+                            }
+                            Some(n as u32)
+                        }
+                        None => {
+                            ok = false;
+                            None
+                        }
+                    }
+                }
+            };
+            FieldType::Array {
+                items: Box::new(items),
+                length,
+            }
+        }
+    };
+    ok.then_some((ty, optional))
+}
+
+/// A `message_format` that may be absent. `{}` is rejected by the parser, so
+/// `None` always means "no payload".
+pub(crate) fn parse_optional_format(
+    r: &mut Reader<'_>,
+    node: Option<&Node>,
+    path: &str,
+    ok: &mut bool,
+) -> Option<MessageFormat> {
+    let node = node?;
+    let f = parse_format(r, node, path);
+    if f.is_none() {
+        *ok = false;
+    }
+    f
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diag::Diagnostics;
+    use crate::source::SourceFile;
+
+    fn parse_text(text: &str) -> (Option<MessageFormat>, Diagnostics) {
+        let file = SourceFile::new("f.json5", text);
+        let (node, mut diags) = crate::json::parse(&file).unwrap();
+        let f = {
+            let mut r = Reader::new(&file, &mut diags);
+            parse_format(&mut r, &node, "message_format")
+        };
+        (f, diags)
+    }
+
+    fn codes(text: &str) -> Vec<Code> {
+        parse_text(text).1.iter().map(|d| d.code).collect()
+    }
+
+    #[test]
+    fn parses_every_shape_in_order() {
+        let (f, diags) = parse_text(
+            r#"{
+                header: { $type: "object", stamp: "time", frame_id: "u32" },
+                encoding: "str",
+                frame: { $type: "array", $items: "u8" },
+                pose: { $type: "array", $items: "double", $length: 7 },
+                points: { $type: "array", $items: { x: "float", y: "f32" } },
+                note: { $type: "string", $optional: true },
+                type: "bool",
+            }"#,
+        );
+        assert!(diags.is_empty(), "{diags}");
+        let f = f.unwrap();
+        assert_eq!(
+            f.canonical(),
+            "{header:{stamp:time,frame_id:u32},encoding:string,frame:[u8],pose:[f64;7],points:[{x:f32,y:f32}],note:string?,type:bool}"
+        );
+    }
+
+    #[test]
+    fn fingerprint_follows_order_names_and_types() {
+        let a = parse_text("{ a: 'u8', b: 'f64' }").0.unwrap();
+        let b = parse_text("{ b: 'f64', a: 'u8' }").0.unwrap();
+        let c = parse_text("{ a: 'u8', b: 'double' }").0.unwrap();
+        assert_ne!(a.fingerprint(), b.fingerprint());
+        assert_eq!(a.fingerprint(), c.fingerprint());
+        assert_eq!(a, c);
+    }
+
+    #[test]
+    fn rules_of_section_2_2() {
+        assert_eq!(codes("{}"), [Code::EmptyMessageFormat]);
+        assert_eq!(codes("{ a: {} }"), [Code::EmptyMessageFormat]);
+        assert_eq!(codes("{ a: 'big' }"), [Code::UnknownType]);
+        assert_eq!(codes("{ instance_id: 'u8' }"), [Code::ReservedFieldName]);
+        assert_eq!(codes("{ h: { instance_id: 'u8' } }"), [Code::ReservedFieldName]);
+        assert_eq!(codes("{ 'foo-bar': 'u8' }"), [Code::InvalidFieldName]);
+        assert_eq!(codes("{ a: { $type: 'u8', $optional: true } }"), [Code::OptionalMisuse]);
+        assert_eq!(codes("{ h: { s: { $type: 'string', $optional: true } } }"), [Code::OptionalMisuse]);
+        assert_eq!(
+            codes("{ a: { $type: 'array', $items: { $type: 'string', $optional: true } } }"),
+            [Code::OptionalMisuse]
+        );
+        assert!(parse_text("{ a: { $type: 'string', $optional: true } }").1.is_empty());
+        assert!(parse_text("{ a: { $type: 'array', $items: 'u8', $optional: true } }").1.is_empty());
+        assert_eq!(codes("{ a: { $type: 'array', $items: 'string', $length: 2 } }"), [Code::LengthMisuse]);
+        assert_eq!(codes("{ a: { $type: 'u8', $length: 2 } }"), [Code::LengthMisuse]);
+        assert_eq!(codes("{ a: { $type: 'array', $items: 'u8', $length: 0 } }"), [Code::LengthMisuse]);
+        assert_eq!(
+            codes("{ a: { $type: 'array', $items: { $type: 'array', $items: 'u8' } } }"),
+            [Code::NestedArray]
+        );
+        assert_eq!(codes("{ a: { $type: 'array' } }"), [Code::MissingKey]);
+        assert_eq!(codes("{ a: { $type: 'u8', $bogus: 1 } }"), [Code::UnknownKey]);
+        assert_eq!(codes("{ a: { $typo: 'u8', x: 'u8' } }"), [Code::UnknownKey]);
+        assert_eq!(codes("{ a: 3 }"), [Code::WrongType]);
+    }
+
+    #[test]
+    fn all_errors_are_collected() {
+        let (f, diags) = parse_text("{ a: 'nope', instance_id: 'u8', c: { $type: 'u8', $optional: true } }");
+        assert!(f.is_none());
+        assert_eq!(diags.error_count(), 3);
+    }
+
+    #[test]
+    fn did_you_mean_for_types() {
+        let (_, diags) = parse_text("{ a: 'u322' }");
+        let d = diags.iter().next().unwrap();
+        assert!(d.help.as_deref().unwrap().contains("did you mean `u32`"), "{d}");
+        assert_eq!(d.key_path.as_deref(), Some("message_format.a"));
+    }
+}

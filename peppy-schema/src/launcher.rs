@@ -1,0 +1,470 @@
+//! Launcher documents (`peppy_schema: "launcher_v1"`): which nodes to run,
+//! how many instances, and how their slots are bound.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use serde::Serialize;
+
+use crate::diag::{Code, Diagnostics, list};
+use crate::json::{Node, Value};
+use crate::names::{check_link_id, check_name, check_tag};
+use crate::node::{Identity, read_sha256};
+use crate::read::{Loc, Reader, index};
+use crate::source::SourceFile;
+
+/// Loader variables a launcher may not set: they change what code a
+/// process runs rather than how it behaves.
+pub const FORBIDDEN_ENV_VARS: &[&str] = &[
+    "LD_PRELOAD", "LD_LIBRARY_PATH", "LD_AUDIT", "LD_DEBUG", "DYLD_INSERT_LIBRARIES", "DYLD_LIBRARY_PATH",
+    "DYLD_FRAMEWORK_PATH", "BASH_ENV", "ENV", "CDPATH", "IFS", "SHELLOPTS", "BASHOPTS", "PS4", "PROMPT_COMMAND",
+    "GLOBIGNORE",
+];
+
+/// A parsed, validated launcher.
+#[derive(Debug, Clone)]
+pub struct LauncherDoc {
+    /// The document's text.
+    pub file: Arc<SourceFile>,
+    /// `deployments`, in order.
+    pub deployments: Vec<Deployment>,
+}
+
+/// One node and its instances.
+#[derive(Debug, Clone)]
+pub struct Deployment {
+    /// Where the node comes from.
+    pub source: Source,
+    /// Where `source` is.
+    pub source_loc: Loc,
+    /// Its instances.
+    pub instances: Vec<Instance>,
+}
+
+/// Where a deployment's node comes from.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum Source {
+    /// A directory (or its `peppy.json5`), relative to the launcher file.
+    Local {
+        /// The path as written.
+        path: PathBuf,
+    },
+    /// A node found in the repositories.
+    Repository {
+        /// `name:tag`.
+        identity: Identity,
+    },
+    /// A git repository checkout (not supported yet).
+    Git {
+        /// Repository URL.
+        repo: String,
+        /// Path of the node inside it.
+        path: String,
+        /// Branch, tag or commit.
+        reference: String,
+    },
+    /// An archive by URL and sha256 (not supported yet).
+    Archive {
+        /// Archive URL.
+        url: String,
+        /// Expected sha256.
+        sha256: String,
+    },
+}
+
+/// When a stopped instance is started again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RestartPolicy {
+    /// Never (the default).
+    #[default]
+    No,
+    /// When it exits with a failure.
+    OnFailure,
+    /// Whenever it exits, until the stack stops.
+    Always,
+}
+
+/// One instance of a deployment.
+#[derive(Debug, Clone)]
+pub struct Instance {
+    /// Unique across the stack.
+    pub instance_id: String,
+    /// Where `instance_id` is.
+    pub id_loc: Loc,
+    /// `bindings`, in document order.
+    pub bindings: Vec<Binding>,
+    /// `arguments` as written (checked against the node's parameters when planning).
+    pub arguments: Option<Node>,
+    /// Where `arguments` is.
+    pub arguments_loc: Option<Loc>,
+    /// `env_vars`, in document order.
+    pub env_vars: Vec<(String, String)>,
+    /// `restart`.
+    pub restart: RestartPolicy,
+}
+
+/// One `key: "producer_instance_id"` binding.
+#[derive(Debug, Clone)]
+pub struct Binding {
+    /// A pinned slot's link_id, or a free-form label.
+    pub key: String,
+    /// The producer instance.
+    pub target: String,
+    /// Where the key is.
+    pub key_loc: Loc,
+    /// Where the target is.
+    pub target_loc: Loc,
+}
+
+impl LauncherDoc {
+    /// Every instance with its deployment index.
+    pub fn instances(&self) -> impl Iterator<Item = (usize, &Instance)> {
+        self.deployments
+            .iter()
+            .enumerate()
+            .flat_map(|(i, d)| d.instances.iter().map(move |inst| (i, inst)))
+    }
+
+    /// The directory relative sources are resolved against.
+    pub fn base_dir(&self) -> PathBuf {
+        self.file
+            .path()
+            .parent()
+            .map(|p| if p.as_os_str().is_empty() { PathBuf::from(".") } else { p.to_path_buf() })
+            .unwrap_or_else(|| PathBuf::from("."))
+    }
+}
+
+pub(crate) fn parse_launcher(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagnostics) -> Option<LauncherDoc> {
+    let mut r = Reader::new(file, diags);
+    let obj = r.object(root, "", &["peppy_schema", "deployments"])?;
+    let list_node = r.required(&obj, "deployments")?;
+    let items = r.array(list_node, "deployments")?;
+    if items.is_empty() {
+        r.error(Code::InvalidValue, list_node.span, "deployments", "`deployments` is empty: a launcher runs at least one node");
+    }
+    let mut deployments = Vec::new();
+    for (i, item) in items.iter().enumerate() {
+        if let Some(d) = parse_deployment(&mut r, item, &index("deployments", i)) {
+            deployments.push(d);
+        }
+    }
+    // Syntactic stack-wide rules: unique instance ids, known binding targets.
+    let all: Vec<&Instance> = deployments.iter().flat_map(|d| d.instances.iter()).collect();
+    for (i, inst) in all.iter().enumerate() {
+        if let Some(first) = all[..i].iter().find(|o| o.instance_id == inst.instance_id) {
+            let lc = first.id_loc.file.line_col(first.id_loc.span.start);
+            r.diags.push(
+                inst.id_loc
+                    .error(Code::DuplicateInstanceId, format!("duplicate instance_id `{}`", inst.instance_id))
+                    .with_help(format!(
+                        "instance_ids are unique across the whole stack; `{}` is already used at line {}, column {}",
+                        inst.instance_id, lc.line, lc.column
+                    )),
+            );
+        }
+    }
+    let ids: Vec<&str> = all.iter().map(|i| i.instance_id.as_str()).collect();
+    for inst in &all {
+        for b in &inst.bindings {
+            if !ids.contains(&b.target.as_str()) {
+                let suggestion = crate::diag::did_you_mean(&b.target, ids.iter().copied());
+                let help = match suggestion {
+                    Some(s) => format!("did you mean `{s}`? instances in this launcher: {}", list(ids.iter().copied())),
+                    None => format!("instances in this launcher: {}", list(ids.iter().copied())),
+                };
+                r.diags.push(
+                    b.target_loc
+                        .error(
+                            Code::UnknownBindingTarget,
+                            format!(
+                                "binding `{}` on instance `{}` names `{}`, which no deployment declares",
+                                b.key, inst.instance_id, b.target
+                            ),
+                        )
+                        .with_help(help),
+                );
+            }
+        }
+    }
+    if r.diags.has_errors() {
+        return None;
+    }
+    Some(LauncherDoc { file: file.clone(), deployments })
+}
+
+fn parse_deployment(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Deployment> {
+    let obj = r.object(node, path, &["source", "instances"])?;
+    let source_node = r.required(&obj, "source");
+    let source = source_node.and_then(|s| parse_source(r, s, &obj.path_of("source")));
+    let mut instances = Vec::new();
+    let mut ok = true;
+    if let Some(list) = r.required(&obj, "instances") {
+        let ipath = obj.path_of("instances");
+        if let Some(items) = r.array(list, &ipath) {
+            if items.is_empty() {
+                r.error_help(
+                    Code::EmptyDeployment,
+                    list.span,
+                    &ipath,
+                    "deployment has no instances",
+                    "add `{ instance_id: \"...\" }`, or remove the deployment",
+                );
+                ok = false;
+            }
+            for (i, item) in items.iter().enumerate() {
+                match parse_instance(r, item, &index(&ipath, i)) {
+                    Some(inst) => instances.push(inst),
+                    None => ok = false,
+                }
+            }
+        }
+    }
+    let source_node = source_node?;
+    let source = source?;
+    ok.then(|| Deployment { source, source_loc: r.loc(source_node.span, &obj.path_of("source")), instances })
+}
+
+fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Source> {
+    let obj = r.object(node, path, &["local", "name", "tag", "repo", "path", "ref", "url", "sha256"])?;
+    let has = |k: &str| obj.get(k).is_some();
+    let shape = if has("local") {
+        "local"
+    } else if has("repo") || has("path") || has("ref") {
+        "git"
+    } else if has("url") {
+        "url"
+    } else if has("name") {
+        "name"
+    } else {
+        "none"
+    };
+    let allowed: &[&str] = match shape {
+        "local" => &["local"],
+        "git" => &["repo", "path", "ref"],
+        "url" => &["url", "sha256"],
+        "name" => &["name", "tag"],
+        _ => &[],
+    };
+    let stray: Vec<&str> = obj.members.iter().map(|m| m.key.as_str()).filter(|k| !allowed.contains(k)).collect();
+    if shape == "none" || !stray.is_empty() {
+        r.error_help(
+            Code::InvalidSource,
+            node.span,
+            path,
+            if shape == "none" {
+                "`source` names no node".to_string()
+            } else {
+                format!("`source` mixes `{shape}` keys with {}", list(stray.iter().copied()))
+            },
+            "a source is one of: `{ local: \"path\" }`, `{ name: \"n:t\" }`, `{ name, tag }`, `{ repo, path, ref }`, `{ url, sha256 }`",
+        );
+        return None;
+    }
+    match shape {
+        "local" => {
+            let p = r.string(obj.get("local")?, &obj.path_of("local"))?;
+            if p.trim().is_empty() {
+                r.error(Code::InvalidSource, node.span, path, "`source.local` is empty; give the node's directory relative to the launcher");
+                return None;
+            }
+            Some(Source::Local { path: PathBuf::from(p.trim()) })
+        }
+        "name" => {
+            let name_node = obj.get("name")?;
+            let name = r.string(name_node, &obj.path_of("name"))?;
+            let identity = match (name.split_once(':'), obj.get("tag")) {
+                (Some(_), Some(t)) => {
+                    r.error_help(
+                        Code::InvalidSource,
+                        t.span,
+                        &obj.path_of("tag"),
+                        format!("`source.name` `{name}` already has a tag"),
+                        "write either `{ name: \"n:t\" }` or `{ name: \"n\", tag: \"t\" }`",
+                    );
+                    return None;
+                }
+                (Some((n, t)), None) => Identity::new(n, t),
+                (None, Some(t)) => Identity::new(name.clone(), r.string(t, &obj.path_of("tag"))?),
+                (None, None) => {
+                    r.error_help(
+                        Code::InvalidSource,
+                        name_node.span,
+                        &obj.path_of("name"),
+                        format!("`source.name` `{name}` has no tag"),
+                        format!("write `{{ name: \"{name}:v1\" }}` or add `tag`"),
+                    );
+                    return None;
+                }
+            };
+            let mut ok = true;
+            if let Err(why) = check_name(&identity.name) {
+                r.error(Code::InvalidName, name_node.span, &obj.path_of("name"), format!("invalid node name `{}`: {why}", identity.name));
+                ok = false;
+            }
+            if let Err(why) = check_tag(&identity.tag, false) {
+                r.error(Code::InvalidTag, name_node.span, &obj.path_of("name"), format!("invalid tag `{}`: {why}", identity.tag));
+                ok = false;
+            }
+            ok.then_some(Source::Repository { identity })
+        }
+        "git" => {
+            let repo = r.required(&obj, "repo").and_then(|n| r.string(n, &obj.path_of("repo")));
+            let sub = r.required(&obj, "path").and_then(|n| r.string(n, &obj.path_of("path")));
+            let reference = r.required(&obj, "ref").and_then(|n| r.string(n, &obj.path_of("ref")));
+            let (repo, sub, reference) = (repo?, sub?, reference?);
+            if sub.starts_with('/') || sub.split('/').any(|c| c == "..") {
+                r.error(Code::InvalidSource, obj.get("path")?.span, &obj.path_of("path"), "`source.path` must be relative to the repository and stay inside it");
+                return None;
+            }
+            Some(Source::Git { repo, path: sub, reference })
+        }
+        _ => {
+            let url = r.string(obj.get("url")?, &obj.path_of("url"))?;
+            let sha = r.required(&obj, "sha256").and_then(|n| read_sha256(r, n, &obj.path_of("sha256")))?;
+            Some(Source::Archive { url, sha256: sha })
+        }
+    }
+}
+
+fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instance> {
+    let obj = r.object(node, path, &["instance_id", "bindings", "arguments", "env_vars", "restart"])?;
+    let mut ok = true;
+    let id = r.required(&obj, "instance_id").and_then(|n| {
+        let p = obj.path_of("instance_id");
+        let s = r.string(n, &p)?;
+        match check_name(&s) {
+            Ok(()) => Some((s, r.loc(n.span, &p))),
+            Err(why) => {
+                r.error(Code::InvalidName, n.span, &p, format!("invalid instance_id `{s}`: {why}"));
+                None
+            }
+        }
+    });
+    let mut bindings = Vec::new();
+    if let Some(b) = obj.get("bindings") {
+        let bpath = obj.path_of("bindings");
+        match &b.value {
+            Value::Object(members) => {
+                for m in members {
+                    let kpath = format!("{bpath}.{}", m.key);
+                    if m.key == "_" {
+                        r.error_help(
+                            Code::ReservedBindingKey,
+                            m.key_span,
+                            &kpath,
+                            "binding key `_` is reserved",
+                            "use a slot's link_id to pin it, or any other label to feed a from_any slot",
+                        );
+                        ok = false;
+                        continue;
+                    }
+                    if let Err(why) = check_link_id(&m.key) {
+                        r.error(Code::InvalidName, m.key_span, &kpath, format!("invalid binding key `{}`: {why}", m.key));
+                        ok = false;
+                        continue;
+                    }
+                    let Some(target) = r.string(&m.value, &kpath) else {
+                        ok = false;
+                        continue;
+                    };
+                    bindings.push(Binding {
+                        key: m.key.clone(),
+                        target,
+                        key_loc: r.loc(m.key_span, &kpath),
+                        target_loc: r.loc(m.value.span, &kpath),
+                    });
+                }
+            }
+            other => {
+                r.error(Code::WrongType, b.span, &bpath, format!("expected an object of `key: \"instance_id\"` for `{bpath}`, found {}", other.kind()));
+                ok = false;
+            }
+        }
+    }
+    // The JSON layer reports a repeated key; inside `bindings` that is rule 6.
+    if let (Some(b), Some((id, _))) = (obj.get("bindings"), &id) {
+        for d in r.diags.iter_mut() {
+            let inside = d.span().is_some_and(|s| s.start >= b.span.start && s.end <= b.span.end);
+            if d.code == Code::DuplicateKey && inside {
+                d.code = Code::DuplicateBindingKey;
+                d.message = format!("instance `{id}` has binding key {} twice", d.message.trim_start_matches("duplicate key "));
+                ok = false;
+            }
+        }
+    }
+    let (arguments, arguments_loc) = match obj.get("arguments") {
+        Some(a) => {
+            let apath = obj.path_of("arguments");
+            if !matches!(a.value, Value::Object(_)) {
+                r.error(Code::WrongType, a.span, &apath, format!("expected an object of parameter values for `{apath}`, found {}", a.value.kind()));
+                ok = false;
+            }
+            (Some(a.clone()), Some(r.loc(a.span, &apath)))
+        }
+        None => (None, None),
+    };
+    let mut env_vars = Vec::new();
+    if let Some(e) = obj.get("env_vars") {
+        let epath = obj.path_of("env_vars");
+        match &e.value {
+            Value::Object(members) => {
+                for m in members {
+                    let kpath = format!("{epath}.{}", m.key);
+                    let upper = m.key.to_ascii_uppercase();
+                    if m.key.is_empty() || m.key.contains('=') || m.key.contains('\0') {
+                        r.error(Code::ForbiddenEnvVar, m.key_span, &kpath, format!("invalid environment variable name {:?}", m.key));
+                        ok = false;
+                    } else if FORBIDDEN_ENV_VARS.contains(&upper.as_str()) {
+                        r.error_help(
+                            Code::ForbiddenEnvVar,
+                            m.key_span,
+                            &kpath,
+                            format!("`{}` may not be set by a launcher", m.key),
+                            "loader and shell start-up variables change which code runs; set them outside peppy if you must",
+                        );
+                        ok = false;
+                    }
+                    match r.string(&m.value, &kpath) {
+                        Some(v) => env_vars.push((m.key.clone(), v)),
+                        None => ok = false,
+                    }
+                }
+            }
+            other => {
+                r.error(Code::WrongType, e.span, &epath, format!("expected an object of `NAME: \"value\"` for `{epath}`, found {}", other.kind()));
+                ok = false;
+            }
+        }
+    }
+    let restart = match obj.get("restart") {
+        None => RestartPolicy::No,
+        Some(n) => {
+            let rpath = obj.path_of("restart");
+            match r.string(n, &rpath).as_deref() {
+                Some("no") => RestartPolicy::No,
+                Some("on-failure") => RestartPolicy::OnFailure,
+                Some("always") => RestartPolicy::Always,
+                Some(other) => {
+                    r.error_help(
+                        Code::InvalidValue,
+                        n.span,
+                        &rpath,
+                        format!("unknown restart policy `{other}`"),
+                        "accepted: `no`, `on-failure`, `always`",
+                    );
+                    ok = false;
+                    RestartPolicy::No
+                }
+                None => {
+                    ok = false;
+                    RestartPolicy::No
+                }
+            }
+        }
+    };
+    let (instance_id, id_loc) = id?;
+    ok.then_some(Instance { instance_id, id_loc, bindings, arguments, arguments_loc, env_vars, restart })
+}

@@ -1,0 +1,189 @@
+//! What names, tags, identifiers and key segments may look like.
+
+/// Rust keywords (all editions, including reserved ones): a field named like
+/// one is generated as a raw identifier (`type` -> `r#type`).
+const RUST_KEYWORDS: &[&str] = &[
+    "as", "break", "const", "continue", "crate", "else", "enum", "extern", "false", "fn", "for",
+    "if", "impl", "in", "let", "loop", "match", "mod", "move", "mut", "pub", "ref", "return",
+    "self", "Self", "static", "struct", "super", "trait", "true", "type", "unsafe", "use",
+    "where", "while", "async", "await", "dyn", "abstract", "become", "box", "do", "final",
+    "macro", "override", "priv", "typeof", "unsized", "virtual", "yield", "try", "gen",
+];
+
+/// Keywords that cannot be raw identifiers either.
+const NOT_RAW: &[&str] = &["self", "Self", "super", "crate", "_"];
+
+fn is_name_char(c: char) -> bool {
+    c.is_ascii_alphanumeric() || c == '_' || c == '-'
+}
+
+/// What a node, interface or instance name may contain, for messages.
+pub const NAME_CHARS: &str = "ASCII letters, digits, `_` and `-`";
+
+/// Checks a node / interface / instance name: non-empty, [`NAME_CHARS`] only.
+pub fn check_name(s: &str) -> Result<(), String> {
+    if s.is_empty() {
+        return Err("must not be empty".into());
+    }
+    if let Some(c) = s.chars().find(|c| !is_name_char(*c)) {
+        return Err(format!("contains {c:?}; allowed: {NAME_CHARS}"));
+    }
+    Ok(())
+}
+
+/// Checks a tag: a letter first, then letters, digits, `_`, `-` (no dots:
+/// tags are contract labels, not versions). Legacy documents also accept
+/// dotted versions such as `0.1.0`.
+pub fn check_tag(s: &str, legacy: bool) -> Result<(), String> {
+    if legacy {
+        if s.is_empty() {
+            return Err("must not be empty".into());
+        }
+        if let Some(c) = s.chars().find(|c| !is_name_char(*c) && *c != '.') {
+            return Err(format!("contains {c:?}; allowed: {NAME_CHARS} and `.`"));
+        }
+        return Ok(());
+    }
+    let mut chars = s.chars();
+    match chars.next() {
+        None => return Err("must not be empty".into()),
+        Some(c) if !c.is_ascii_alphabetic() => {
+            return Err(format!(
+                "must start with an ASCII letter (tags are contract labels like `v1`, not versions), found {c:?}"
+            ));
+        }
+        Some(_) => {}
+    }
+    if let Some(c) = chars.find(|c| !is_name_char(*c)) {
+        return Err(format!(
+            "contains {c:?}; allowed after the first letter: {NAME_CHARS}"
+        ));
+    }
+    Ok(())
+}
+
+/// Checks a `link_id` or binding key: [`NAME_CHARS`], at least one letter or
+/// digit (it becomes part of a Rust module name).
+pub fn check_link_id(s: &str) -> Result<(), String> {
+    check_name(s)?;
+    if !s.chars().any(|c| c.is_ascii_alphanumeric()) {
+        return Err("must contain at least one ASCII letter or digit".into());
+    }
+    Ok(())
+}
+
+/// Checks a topic, service or action name: it is a key segment on the wire
+/// and a Rust module name, so [`NAME_CHARS`] with at least one letter or digit.
+pub fn check_entry_name(s: &str) -> Result<(), String> {
+    check_link_id(s)
+}
+
+/// Checks a message or parameter field name: an ASCII Rust identifier
+/// (keywords are fine, they are escaped), not `_`, `self`, `Self`, `super` or
+/// `crate`.
+pub fn check_field_name(s: &str) -> Result<(), String> {
+    let mut chars = s.chars();
+    let first_ok = chars
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_');
+    if !first_ok || !s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+        return Err(
+            "must be an ASCII identifier: a letter or `_` first, then letters, digits or `_`"
+                .into(),
+        );
+    }
+    if NOT_RAW.contains(&s) {
+        return Err(format!("`{s}` cannot be a Rust identifier, even escaped"));
+    }
+    Ok(())
+}
+
+/// Whether `s` is a Rust keyword (so it needs `r#`).
+pub fn is_rust_keyword(s: &str) -> bool {
+    RUST_KEYWORDS.contains(&s)
+}
+
+/// The Rust module name for a topic, service, action, link id or tag:
+/// lowercase, every run of other characters as one `_`, a leading digit
+/// prefixed with `_`. Keywords are left to the caller to escape.
+pub fn module_name(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    let mut pending_sep = false;
+    for c in s.chars() {
+        if c.is_ascii_alphanumeric() {
+            if pending_sep && !out.is_empty() {
+                out.push('_');
+            }
+            pending_sep = false;
+            out.push(c.to_ascii_lowercase());
+        } else {
+            pending_sep = true;
+        }
+    }
+    if out.starts_with(|c: char| c.is_ascii_digit()) {
+        out.insert(0, '_');
+    }
+    out
+}
+
+/// `UpperCamelCase` of an identifier-like name (`frame_id` -> `FrameId`).
+pub fn upper_camel(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    let mut upper = true;
+    for c in s.chars() {
+        if c.is_ascii_alphanumeric() {
+            if upper {
+                out.push(c.to_ascii_uppercase());
+            } else {
+                out.push(c);
+            }
+            upper = false;
+        } else {
+            upper = true;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tags_are_labels_not_versions() {
+        for ok in ["v1", "donut", "v1-beta", "V_2"] {
+            assert!(check_tag(ok, false).is_ok(), "{ok}");
+        }
+        for bad in ["", "0.1.0", "v1.2", "1", "-v", "v 1"] {
+            assert!(check_tag(bad, false).is_err(), "{bad}");
+        }
+        assert!(check_tag("0.1.0", true).is_ok());
+        assert!(check_tag("0.1/0", true).is_err());
+    }
+
+    #[test]
+    fn names_and_fields() {
+        assert!(check_name("realsense_d405").is_ok());
+        assert!(check_name("zed-2i").is_ok());
+        assert!(check_name("a.b").is_err());
+        assert!(check_name("").is_err());
+        assert!(check_link_id("__").is_err());
+        assert!(check_field_name("type").is_ok());
+        assert!(check_field_name("_private").is_ok());
+        for bad in ["self", "_", "9lives", "foo-bar", "héllo", ""] {
+            assert!(check_field_name(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn module_and_type_names() {
+        assert_eq!(module_name("video-stream"), "video_stream");
+        assert_eq!(module_name("Video--Stream_"), "video_stream");
+        assert_eq!(module_name("1cam"), "_1cam");
+        assert_eq!(module_name("v1-beta"), "v1_beta");
+        assert_eq!(upper_camel("frame_id"), "FrameId");
+        assert_eq!(upper_camel("header"), "Header");
+        assert!(is_rust_keyword("type"));
+        assert!(!is_rust_keyword("header"));
+    }
+}
