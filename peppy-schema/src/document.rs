@@ -15,7 +15,7 @@ use crate::read::{Reader, index};
 use crate::source::{SourceFile, sha256_hex};
 
 /// The kinds of peppy documents.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum DocumentKind {
     /// `node_v1` (or legacy `schema_version: 1`).

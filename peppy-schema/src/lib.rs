@@ -30,7 +30,7 @@
 //! }"#).unwrap_err();
 //! let lines: Vec<String> = errors.sorted().iter().map(|d| d.jump_line(None)).collect();
 //! assert!(lines[0].starts_with("peppy.json5:3:38: error: invalid `manifest.tag` `0.1.0`"), "{}", lines[0]);
-//! assert!(lines[1].starts_with("peppy.json5:4:51: error: unknown key `bogus` in `execution`"), "{}", lines[1]);
+//! assert!(lines[1].starts_with("peppy.json5:4:52: error: unknown key `bogus` in `execution`"), "{}", lines[1]);
 //! ```
 
 mod diag;
@@ -43,8 +43,12 @@ mod launcher;
 pub mod names;
 mod node;
 mod params;
+mod plan;
 mod read;
+mod repos;
+mod resolve;
 mod source;
+mod stack;
 
 pub use diag::{Code, Diagnostic, Diagnostics, Severity, did_you_mean};
 pub use document::{
@@ -61,3 +65,7 @@ pub use node::{
 pub use params::{ParamError, ParamErrorKind, ParamField, ParamItem, ParamKind, ParameterSchema, check_leaf, describe};
 pub use read::Loc;
 pub use source::{LineCol, MAX_DOCUMENT_BYTES, SourceFile, Span, sha256_hex};
+pub use plan::{BindingPlan, InstancePlan, RouteFilter, SlotBinding, SlotPlan, compute_filters, plan_bindings};
+pub use repos::{Broken, Entry, REPOSITORIES_ENV, RepoIndex, RepositoryList, SKIPPED_DIRS};
+pub use resolve::{Origin, Provided, ResolvedCall, ResolvedNode, ResolvedTopic, SlotRef, UsedInterface, resolve_node};
+pub use stack::{DeployedNode, NodeCheck, RepoOptions, StackCheck, check_launcher, check_node, node_file};

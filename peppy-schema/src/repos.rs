@@ -1,0 +1,298 @@
+//! Repositories: where nodes, interfaces and launchers are found by
+//! `name:tag`, and the index built by scanning them.
+
+use std::collections::BTreeMap;
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use crate::diag::{Code, Diagnostic, Diagnostics};
+use crate::document::{Document, DocumentKind, REPOSITORIES_FILE, RepositoriesDoc, detect_kind, parse_document};
+use crate::interface::InterfaceDoc;
+use crate::node::{Identity, NodeDoc};
+use crate::source::SourceFile;
+
+/// The environment variable listing extra repositories (separated like `PATH`).
+pub const REPOSITORIES_ENV: &str = "PEPPY_REPOSITORIES";
+
+/// Directories never scanned.
+pub const SKIPPED_DIRS: &[&str] = &[".git", ".peppy", "target", "node_modules", ".venv", "__pycache__"];
+
+/// Where repositories come from, in priority order, and what was read to
+/// find them (for rebuild tracking).
+#[derive(Debug, Clone, Default)]
+pub struct RepositoryList {
+    /// Repository directories, highest priority first, without duplicates.
+    pub paths: Vec<PathBuf>,
+    /// `peppy_repositories.json5` files that were read.
+    pub files_read: Vec<PathBuf>,
+}
+
+impl RepositoryList {
+    /// Builds the list from, in order: `explicit` paths, the value of
+    /// `PEPPY_REPOSITORIES` (`env`), and the nearest
+    /// `peppy_repositories.json5` in `start_dir` or an ancestor.
+    pub fn discover(explicit: &[PathBuf], env: Option<&OsStr>, start_dir: &Path) -> Result<RepositoryList, Diagnostics> {
+        let mut list = RepositoryList::default();
+        for p in explicit {
+            list.add(p.clone());
+        }
+        if let Some(value) = env {
+            for p in std::env::split_paths(value).filter(|p| !p.as_os_str().is_empty()) {
+                list.add(p);
+            }
+        }
+        list.add_nearest_file(start_dir)?;
+        Ok(list)
+    }
+
+    /// Appends the repositories of the nearest `peppy_repositories.json5`
+    /// in `dir` or an ancestor (nothing if there is none).
+    pub fn add_nearest_file(&mut self, dir: &Path) -> Result<(), Diagnostics> {
+        let dir = absolute(dir);
+        for ancestor in dir.ancestors() {
+            let candidate = ancestor.join(REPOSITORIES_FILE);
+            if candidate.is_file() {
+                if self.files_read.contains(&candidate) {
+                    return Ok(());
+                }
+                let (doc, _) = RepositoriesDoc::load(&candidate)?;
+                self.files_read.push(candidate);
+                for p in doc.paths {
+                    self.add(p);
+                }
+                return Ok(());
+            }
+        }
+        Ok(())
+    }
+
+    fn add(&mut self, p: PathBuf) {
+        let p = absolute(&p);
+        if !self.paths.contains(&p) {
+            self.paths.push(p);
+        }
+    }
+}
+
+/// An absolute, normalised form of `p` (symlinks resolved when it exists).
+pub(crate) fn absolute(p: &Path) -> PathBuf {
+    if let Ok(c) = std::fs::canonicalize(p) {
+        return c;
+    }
+    let joined = if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        std::env::current_dir().map(|d| d.join(p)).unwrap_or_else(|_| p.to_path_buf())
+    };
+    let mut out = PathBuf::new();
+    for c in joined.components() {
+        match c {
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            std::path::Component::CurDir => {}
+            other => out.push(other),
+        }
+    }
+    out
+}
+
+/// One indexed document.
+#[derive(Debug, Clone)]
+pub struct Entry<T> {
+    /// The parsed document.
+    pub doc: Arc<T>,
+    /// Its file.
+    pub path: PathBuf,
+    /// The repository it was found in.
+    pub repository: PathBuf,
+}
+
+/// A document with a recognisable `name:tag` that failed validation.
+#[derive(Debug, Clone)]
+pub struct Broken {
+    /// Its file.
+    pub path: PathBuf,
+    /// Why it is invalid.
+    pub diagnostics: Diagnostics,
+}
+
+/// Nodes, interfaces and launchers of a list of repositories, by identity.
+#[derive(Debug, Clone, Default)]
+pub struct RepoIndex {
+    repositories: Vec<PathBuf>,
+    nodes: BTreeMap<Identity, Vec<Entry<NodeDoc>>>,
+    interfaces: BTreeMap<Identity, Vec<Entry<InterfaceDoc>>>,
+    launchers: BTreeMap<String, Vec<PathBuf>>,
+    broken: BTreeMap<(DocumentKind, Identity), Broken>,
+    findings: Diagnostics,
+}
+
+impl RepoIndex {
+    /// Scans `repositories` in order. Problems that do not stop the scan
+    /// (duplicates, missing directories, unreadable files) become warnings
+    /// in [`findings`](Self::findings).
+    pub fn scan(repositories: &[PathBuf]) -> RepoIndex {
+        let mut index = RepoIndex { repositories: repositories.to_vec(), ..RepoIndex::default() };
+        for repo in repositories {
+            if !repo.is_dir() {
+                index.findings.push(
+                    Diagnostic::warning(Code::DependencyNotFound, format!("repository `{}` is not a directory; skipped", repo.display()))
+                        .with_file_path(repo),
+                );
+                continue;
+            }
+            let walker = walkdir::WalkDir::new(repo).sort_by_file_name().into_iter().filter_entry(|e| {
+                e.depth() == 0
+                    || !(e.file_type().is_dir()
+                        && e.file_name().to_str().is_some_and(|n| SKIPPED_DIRS.contains(&n) || n.starts_with('.')))
+            });
+            for entry in walker {
+                let entry = match entry {
+                    Ok(e) => e,
+                    Err(e) => {
+                        index.findings.push(Diagnostic::warning(Code::CannotRead, format!("while scanning `{}`: {e}", repo.display())));
+                        continue;
+                    }
+                };
+                let path = entry.path();
+                if !entry.file_type().is_file() || path.extension() != Some(OsStr::new("json5")) {
+                    continue;
+                }
+                index.add_file(path, repo);
+            }
+        }
+        index
+    }
+
+    fn add_file(&mut self, path: &Path, repo: &Path) {
+        let Ok((file, sha)) = SourceFile::read(path) else {
+            // Unreadable files are not ours to judge here; `validate` reports them.
+            return;
+        };
+        let is_node_file = path.file_name() == Some(OsStr::new("peppy.json5"));
+        let Ok((root, _)) = crate::json::parse(&file) else {
+            return;
+        };
+        let kind = detect_kind(&root);
+        match kind {
+            Some(DocumentKind::Node) if !is_node_file => return,
+            Some(DocumentKind::Node | DocumentKind::Interface | DocumentKind::Launcher) => {}
+            _ => return,
+        }
+        match parse_document(&file, &sha) {
+            Ok((Document::Node(n), _)) => {
+                let id = n.identity();
+                self.insert_node(id, Entry { doc: Arc::new(n), path: path.to_path_buf(), repository: repo.to_path_buf() });
+            }
+            Ok((Document::Interface(i), _)) => {
+                let id = i.identity.clone();
+                let entries = self.interfaces.entry(id.clone()).or_default();
+                if let Some(first) = entries.first() {
+                    self.findings.push(duplicate(&id, &first.path, path));
+                }
+                entries.push(Entry { doc: Arc::new(i), path: path.to_path_buf(), repository: repo.to_path_buf() });
+            }
+            Ok((Document::Launcher(_), _)) => {
+                let stem = path.file_stem().and_then(OsStr::to_str).unwrap_or_default().to_string();
+                self.launchers.entry(stem).or_default().push(path.to_path_buf());
+            }
+            Ok((Document::Repositories(_), _)) => {}
+            Err(diagnostics) => {
+                if let (Some(kind), Some(id)) = (kind, peek_identity(&root)) {
+                    self.broken.entry((kind, id)).or_insert(Broken { path: path.to_path_buf(), diagnostics });
+                }
+            }
+        }
+    }
+
+    /// Adds a node ahead of everything scanned (a launcher's deployed nodes
+    /// win over repository copies of the same `name:tag`).
+    pub fn overlay_node(&mut self, doc: Arc<NodeDoc>, path: PathBuf) {
+        let id = doc.identity();
+        let entries = self.nodes.entry(id).or_default();
+        if entries.first().is_some_and(|e| e.path == path) {
+            return;
+        }
+        let repository = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        entries.insert(0, Entry { doc, path, repository });
+    }
+
+    fn insert_node(&mut self, id: Identity, entry: Entry<NodeDoc>) {
+        let entries = self.nodes.entry(id.clone()).or_default();
+        if let Some(first) = entries.first() {
+            self.findings.push(duplicate(&id, &first.path, &entry.path));
+        }
+        entries.push(entry);
+    }
+
+    /// The repositories scanned, in priority order.
+    pub fn repositories(&self) -> &[PathBuf] {
+        &self.repositories
+    }
+
+    /// The winning node document for `id`.
+    pub fn node(&self, id: &Identity) -> Option<&Entry<NodeDoc>> {
+        self.nodes.get(id).and_then(|v| v.first())
+    }
+
+    /// Every interface document for `id`, winner first.
+    pub fn interfaces(&self, id: &Identity) -> &[Entry<InterfaceDoc>] {
+        self.interfaces.get(id).map_or(&[], Vec::as_slice)
+    }
+
+    /// The winning interface document for `id`.
+    pub fn interface(&self, id: &Identity) -> Option<&Entry<InterfaceDoc>> {
+        self.interfaces(id).first()
+    }
+
+    /// A launcher by file stem.
+    pub fn launcher(&self, stem: &str) -> Option<&Path> {
+        self.launchers.get(stem).and_then(|v| v.first()).map(PathBuf::as_path)
+    }
+
+    /// An invalid document that claims `id`.
+    pub fn broken(&self, kind: DocumentKind, id: &Identity) -> Option<&Broken> {
+        self.broken.get(&(kind, id.clone()))
+    }
+
+    /// Every indexed node identity.
+    pub fn node_ids(&self) -> impl Iterator<Item = &Identity> {
+        self.nodes.keys()
+    }
+
+    /// Every indexed interface identity.
+    pub fn interface_ids(&self) -> impl Iterator<Item = &Identity> {
+        self.interfaces.keys()
+    }
+
+    /// Warnings from the scan.
+    pub fn findings(&self) -> &Diagnostics {
+        &self.findings
+    }
+
+    /// `` `a`, `b` `` list of repositories for "not found" messages.
+    pub fn searched(&self) -> String {
+        if self.repositories.is_empty() {
+            return "no repositories are configured (pass a path, set PEPPY_REPOSITORIES, or add a peppy_repositories.json5)".to_string();
+        }
+        let list: Vec<String> = self.repositories.iter().map(|p| format!("`{}`", p.display())).collect();
+        format!("searched {}", list.join(", "))
+    }
+}
+
+fn duplicate(id: &Identity, first: &Path, second: &Path) -> Diagnostic {
+    Diagnostic::warning(
+        Code::DuplicateInRepositories,
+        format!("`{id}` is defined twice: `{}` wins over `{}`", first.display(), second.display()),
+    )
+    .with_file_path(second)
+    .with_help("repositories earlier in the list win; remove or rename one of them")
+}
+
+/// `manifest.name` / `manifest.tag` of a document, without validating it.
+fn peek_identity(root: &crate::json::Node) -> Option<Identity> {
+    let m = root.get("manifest")?;
+    Some(Identity::new(m.get("name")?.as_str()?, m.get("tag")?.as_str()?))
+}

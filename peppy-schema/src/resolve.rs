@@ -1,0 +1,379 @@
+//! Resolution: everything code generation and the launcher need about one
+//! node, with its conformed interfaces and dependency slots looked up in
+//! the repositories and sha256 pins checked.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use serde::Serialize;
+
+use crate::diag::{Code, Diagnostic, Diagnostics, list};
+use crate::document::DocumentKind;
+use crate::entries::{ActionDecl, EntryKind, QosProfile, ServiceDecl, TopicDecl};
+use crate::format::MessageFormat;
+use crate::interface::InterfaceDoc;
+use crate::node::{Dependency, Identity, NodeDoc, SlotKind, TopicSource};
+use crate::read::Loc;
+use crate::repos::{Entry, RepoIndex};
+
+/// Where a topic, service or action lives on the wire: a node's own
+/// declaration, or one inherited from an interface it conforms to. The two
+/// never cross, even with equal names.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind", content = "identity")]
+pub enum Origin {
+    /// Declared by the node itself (`node/<name>/<tag>`).
+    Node(Identity),
+    /// Inherited from a conformed interface (`interface/<name>/<tag>`).
+    Interface(Identity),
+}
+
+/// An entry a node provides, with where it comes from.
+#[derive(Debug, Clone)]
+pub struct Provided<T> {
+    /// The declaration (from the node or the interface document).
+    pub decl: T,
+    /// Its wire identity.
+    pub origin: Origin,
+}
+
+/// The slot a linked entry is consumed through.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct SlotRef {
+    /// The slot's link_id.
+    pub link_id: String,
+    /// Node or interface slot.
+    pub kind: SlotKind,
+    /// The producer node or interface of the slot.
+    pub target: Identity,
+    /// Whether the slot takes any number of producers.
+    pub from_any: bool,
+}
+
+/// A consumed topic, resolved.
+#[derive(Debug, Clone)]
+pub struct ResolvedTopic {
+    /// Topic name.
+    pub name: String,
+    /// The slot, or `None` for an external topic.
+    pub slot: Option<SlotRef>,
+    /// The producer-side wire identity (`None` for external topics, which
+    /// accept any emitter).
+    pub origin: Option<Origin>,
+    /// Payload format (`None`: no payload).
+    pub format: Option<MessageFormat>,
+    /// The producer's QoS profile (external topics: `standard`).
+    pub qos: QosProfile,
+    /// Where the consumer declares it.
+    pub loc: Loc,
+}
+
+/// A consumed service or action, resolved through its slot.
+#[derive(Debug, Clone)]
+pub struct ResolvedCall<T> {
+    /// The slot.
+    pub slot: SlotRef,
+    /// The producer-side declaration.
+    pub decl: T,
+    /// The producer-side wire identity.
+    pub origin: Origin,
+    /// Where the consumer declares it.
+    pub loc: Loc,
+}
+
+/// An interface document a node depends on or conforms to.
+#[derive(Debug, Clone)]
+pub struct UsedInterface {
+    /// The document.
+    pub doc: Arc<InterfaceDoc>,
+    /// Its file.
+    pub path: PathBuf,
+}
+
+/// One node with everything it provides and consumes resolved.
+#[derive(Debug, Clone)]
+pub struct ResolvedNode {
+    /// The node's own document.
+    pub node: Arc<NodeDoc>,
+    /// Conformed interfaces, in `conforms_to` order.
+    pub conformed: Vec<UsedInterface>,
+    /// Own emitted topics, then those of each conformed interface.
+    pub emitted_topics: Vec<Provided<TopicDecl>>,
+    /// Own exposed services, then conformed ones.
+    pub exposed_services: Vec<Provided<ServiceDecl>>,
+    /// Own exposed actions, then conformed ones.
+    pub exposed_actions: Vec<Provided<ActionDecl>>,
+    /// Consumed topics, in declaration order.
+    pub consumed_topics: Vec<ResolvedTopic>,
+    /// Consumed services, in declaration order.
+    pub consumed_services: Vec<ResolvedCall<ServiceDecl>>,
+    /// Consumed actions, in declaration order.
+    pub consumed_actions: Vec<ResolvedCall<ActionDecl>>,
+    /// Every file read to resolve the node (for rebuild tracking).
+    pub files: Vec<PathBuf>,
+}
+
+/// What a node offers: own entries and those inherited through `conforms_to`.
+struct Offer {
+    topics: Vec<Provided<TopicDecl>>,
+    services: Vec<Provided<ServiceDecl>>,
+    actions: Vec<Provided<ActionDecl>>,
+}
+
+impl Offer {
+    fn names(&self, kind: EntryKind) -> Vec<&str> {
+        match kind {
+            EntryKind::Topic => self.topics.iter().map(|t| t.decl.name.as_str()).collect(),
+            EntryKind::Service => self.services.iter().map(|t| t.decl.name.as_str()).collect(),
+            EntryKind::Action => self.actions.iter().map(|t| t.decl.name.as_str()).collect(),
+        }
+    }
+}
+
+/// Resolves `node` (whose file is `node_path`) against `index`.
+pub fn resolve_node(node: Arc<NodeDoc>, node_path: PathBuf, index: &RepoIndex) -> Result<(ResolvedNode, Diagnostics), Diagnostics> {
+    let mut diags = Diagnostics::new();
+    let mut files = vec![node_path];
+
+    // What this node provides.
+    let mut conformed = Vec::new();
+    let own = Origin::Node(node.identity());
+    let mut emitted_topics: Vec<Provided<TopicDecl>> = node.emits.iter().map(|t| Provided { decl: t.clone(), origin: own.clone() }).collect();
+    let mut exposed_services: Vec<Provided<ServiceDecl>> =
+        node.exposed_services.iter().map(|s| Provided { decl: s.clone(), origin: own.clone() }).collect();
+    let mut exposed_actions: Vec<Provided<ActionDecl>> =
+        node.exposed_actions.iter().map(|a| Provided { decl: a.clone(), origin: own.clone() }).collect();
+    for c in &node.conforms_to {
+        let Some(entry) = find_interface(index, &c.target, c.sha256.as_deref(), &c.loc, "conforms to", &mut diags) else {
+            continue;
+        };
+        files.push(entry.path.clone());
+        let origin = Origin::Interface(c.target.clone());
+        emitted_topics.extend(entry.doc.topics.iter().map(|t| Provided { decl: t.clone(), origin: origin.clone() }));
+        exposed_services.extend(entry.doc.services.iter().map(|s| Provided { decl: s.clone(), origin: origin.clone() }));
+        exposed_actions.extend(entry.doc.actions.iter().map(|a| Provided { decl: a.clone(), origin: origin.clone() }));
+        conformed.push(UsedInterface { doc: entry.doc.clone(), path: entry.path.clone() });
+    }
+
+    // What each slot offers.
+    let mut offers: Vec<(&Dependency, Offer)> = Vec::new();
+    for dep in &node.dependencies {
+        let offer = match dep.kind {
+            SlotKind::Interface => {
+                let Some(entry) = find_interface(index, &dep.target, dep.sha256.as_deref(), &dep.loc, "depends on", &mut diags) else {
+                    continue;
+                };
+                files.push(entry.path.clone());
+                let origin = Origin::Interface(dep.target.clone());
+                Offer {
+                    topics: entry.doc.topics.iter().map(|t| Provided { decl: t.clone(), origin: origin.clone() }).collect(),
+                    services: entry.doc.services.iter().map(|t| Provided { decl: t.clone(), origin: origin.clone() }).collect(),
+                    actions: entry.doc.actions.iter().map(|t| Provided { decl: t.clone(), origin: origin.clone() }).collect(),
+                }
+            }
+            SlotKind::Node => {
+                let Some(entry) = find_node(index, &dep.target, &dep.loc, &mut diags) else { continue };
+                files.push(entry.path.clone());
+                match producer_offer(&entry.doc, index, dep, &mut files, &mut diags) {
+                    Some(o) => o,
+                    None => continue,
+                }
+            }
+        };
+        offers.push((dep, offer));
+    }
+
+    let slot_of = |dep: &Dependency| SlotRef {
+        link_id: dep.link_id.clone(),
+        kind: dep.kind,
+        target: dep.target.clone(),
+        from_any: dep.from_any,
+    };
+    let mut consumed_topics = Vec::new();
+    for t in &node.consumed_topics {
+        match &t.source {
+            TopicSource::External(format) => consumed_topics.push(ResolvedTopic {
+                name: t.name.clone(),
+                slot: None,
+                origin: None,
+                format: Some(format.clone()),
+                qos: QosProfile::Standard,
+                loc: t.loc.clone(),
+            }),
+            TopicSource::Linked { link_id } => {
+                let Some((dep, offer)) = offers.iter().find(|(d, _)| &d.link_id == link_id) else { continue };
+                match offer.topics.iter().find(|p| p.decl.name == t.name) {
+                    Some(p) => consumed_topics.push(ResolvedTopic {
+                        name: t.name.clone(),
+                        slot: Some(slot_of(dep)),
+                        origin: Some(p.origin.clone()),
+                        format: p.decl.format.clone(),
+                        qos: p.decl.qos,
+                        loc: t.loc.clone(),
+                    }),
+                    None => diags.push(missing_on_producer(&t.loc, EntryKind::Topic, &t.name, dep, offer)),
+                }
+            }
+        }
+    }
+    let mut consumed_services = Vec::new();
+    for s in &node.consumed_services {
+        let Some((dep, offer)) = offers.iter().find(|(d, _)| d.link_id == s.link_id) else { continue };
+        match offer.services.iter().find(|p| p.decl.name == s.name) {
+            Some(p) => consumed_services.push(ResolvedCall { slot: slot_of(dep), decl: p.decl.clone(), origin: p.origin.clone(), loc: s.loc.clone() }),
+            None => diags.push(missing_on_producer(&s.loc, EntryKind::Service, &s.name, dep, offer)),
+        }
+    }
+    let mut consumed_actions = Vec::new();
+    for a in &node.consumed_actions {
+        let Some((dep, offer)) = offers.iter().find(|(d, _)| d.link_id == a.link_id) else { continue };
+        match offer.actions.iter().find(|p| p.decl.name == a.name) {
+            Some(p) => consumed_actions.push(ResolvedCall { slot: slot_of(dep), decl: p.decl.clone(), origin: p.origin.clone(), loc: a.loc.clone() }),
+            None => diags.push(missing_on_producer(&a.loc, EntryKind::Action, &a.name, dep, offer)),
+        }
+    }
+
+    files.sort();
+    files.dedup();
+    let resolved = ResolvedNode {
+        node,
+        conformed,
+        emitted_topics,
+        exposed_services,
+        exposed_actions,
+        consumed_topics,
+        consumed_services,
+        consumed_actions,
+        files,
+    };
+    diags.into_result(resolved)
+}
+
+/// A producer node's offer: own entries win a name clash with conformed ones.
+fn producer_offer(
+    producer: &NodeDoc,
+    index: &RepoIndex,
+    dep: &Dependency,
+    files: &mut Vec<PathBuf>,
+    diags: &mut Diagnostics,
+) -> Option<Offer> {
+    let own = Origin::Node(producer.identity());
+    let mut offer = Offer {
+        topics: producer.emits.iter().map(|t| Provided { decl: t.clone(), origin: own.clone() }).collect(),
+        services: producer.exposed_services.iter().map(|s| Provided { decl: s.clone(), origin: own.clone() }).collect(),
+        actions: producer.exposed_actions.iter().map(|a| Provided { decl: a.clone(), origin: own.clone() }).collect(),
+    };
+    for c in &producer.conforms_to {
+        // The producer's own pins are checked when the producer is built; here
+        // we only need the contract it inherits.
+        let Some(entry) = index.interface(&c.target) else {
+            diags.push(
+                dep.loc
+                    .error(
+                        Code::DependencyNotFound,
+                        format!("dependency `{}` conforms to interface `{}`, which no repository provides", dep.target, c.target),
+                    )
+                    .with_help(index.searched()),
+            );
+            return None;
+        };
+        files.push(entry.path.clone());
+        let origin = Origin::Interface(c.target.clone());
+        for t in &entry.doc.topics {
+            if !offer.topics.iter().any(|p| p.decl.name == t.name) {
+                offer.topics.push(Provided { decl: t.clone(), origin: origin.clone() });
+            }
+        }
+        for s in &entry.doc.services {
+            if !offer.services.iter().any(|p| p.decl.name == s.name) {
+                offer.services.push(Provided { decl: s.clone(), origin: origin.clone() });
+            }
+        }
+        for a in &entry.doc.actions {
+            if !offer.actions.iter().any(|p| p.decl.name == a.name) {
+                offer.actions.push(Provided { decl: a.clone(), origin: origin.clone() });
+            }
+        }
+    }
+    Some(offer)
+}
+
+fn missing_on_producer(loc: &Loc, kind: EntryKind, name: &str, dep: &Dependency, offer: &Offer) -> Diagnostic {
+    let what = match dep.kind {
+        SlotKind::Node => format!("node `{}`", dep.target),
+        SlotKind::Interface => format!("interface `{}`", dep.target),
+    };
+    let offered = offer.names(kind);
+    let help = match crate::diag::did_you_mean(name, offered.iter().copied()) {
+        Some(s) => format!("did you mean `{s}`? {what} offers {kind}s: {}", list(offered.iter().copied())),
+        None => format!("{what} offers {kind}s: {}", list(offered.iter().copied())),
+    };
+    loc.error(
+        Code::MissingOnProducer,
+        format!("slot `{}` ({what}) has no {kind} `{name}`", dep.link_id),
+    )
+    .with_help(help)
+}
+
+fn find_node<'i>(index: &'i RepoIndex, id: &Identity, loc: &Loc, diags: &mut Diagnostics) -> Option<&'i Entry<NodeDoc>> {
+    if let Some(e) = index.node(id) {
+        return Some(e);
+    }
+    diags.push(not_found(index, DocumentKind::Node, id, loc));
+    None
+}
+
+fn not_found(index: &RepoIndex, kind: DocumentKind, id: &Identity, loc: &Loc) -> Diagnostic {
+    if let Some(b) = index.broken(kind, id) {
+        let first = b.diagnostics.sorted().first().map(|d| d.jump_line(None)).unwrap_or_default();
+        return loc
+            .error(
+                Code::DependencyInvalid,
+                format!("{} `{id}` is defined in `{}`, but that document is invalid", kind.as_str(), b.path.display()),
+            )
+            .with_help(format!("first problem: {first} (run `peppy-launch validate {}`)", b.path.display()));
+    }
+    let known: Vec<String> = match kind {
+        DocumentKind::Interface => index.interface_ids().map(ToString::to_string).collect(),
+        _ => index.node_ids().map(ToString::to_string).collect(),
+    };
+    let mut help = index.searched();
+    if let Some(s) = crate::diag::did_you_mean(&id.to_string(), known.iter().map(String::as_str)) {
+        help = format!("did you mean `{s}`? {help}");
+    }
+    loc.error(Code::DependencyNotFound, format!("no repository provides {} `{id}`", kind.as_str())).with_help(help)
+}
+
+fn find_interface<'i>(
+    index: &'i RepoIndex,
+    id: &Identity,
+    pin: Option<&str>,
+    loc: &Loc,
+    relation: &str,
+    diags: &mut Diagnostics,
+) -> Option<&'i Entry<InterfaceDoc>> {
+    let candidates = index.interfaces(id);
+    if candidates.is_empty() {
+        diags.push(not_found(index, DocumentKind::Interface, id, loc));
+        return None;
+    }
+    let Some(pin) = pin else { return candidates.first() };
+    if let Some(e) = candidates.iter().find(|e| e.doc.sha256 == pin) {
+        return Some(e);
+    }
+    let actual: Vec<String> = candidates.iter().map(|e| format!("`{}` in `{}`", e.doc.sha256, e.path.display())).collect();
+    diags.push(
+        loc.error(
+            Code::InterfacePinMismatch,
+            format!(
+                "this node {relation} `{id}` pinned to sha256 `{pin}`, but the interface document has sha256 {}",
+                actual.join(", ")
+            ),
+        )
+        .with_help(format!(
+            "the interface changed since it was pinned: review the change, then set `sha256: \"{}\"` (or restore the pinned revision)",
+            candidates[0].doc.sha256
+        )),
+    );
+    None
+}

@@ -1,0 +1,209 @@
+//! End-to-end checks from a file on disk: one node (what the build script
+//! and the macro need) or a whole launcher (what `check` and `up` share).
+
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use crate::diag::{Code, Diagnostics};
+use crate::launcher::{LauncherDoc, Source};
+use crate::node::NodeDoc;
+use crate::plan::{BindingPlan, plan_bindings};
+use crate::repos::{REPOSITORIES_ENV, RepoIndex, RepositoryList, absolute};
+use crate::resolve::{ResolvedNode, resolve_node};
+
+/// Where to look for repositories besides the nearest
+/// `peppy_repositories.json5`.
+#[derive(Debug, Clone, Default)]
+pub struct RepoOptions {
+    /// Explicit repository paths (highest priority).
+    pub explicit: Vec<PathBuf>,
+    /// The value of `PEPPY_REPOSITORIES`; `None` reads the process environment.
+    pub env: Option<OsString>,
+}
+
+impl RepoOptions {
+    fn env_value(&self) -> Option<OsString> {
+        self.env.clone().or_else(|| std::env::var_os(REPOSITORIES_ENV))
+    }
+}
+
+/// A node resolved from its `peppy.json5`.
+#[derive(Debug, Clone)]
+pub struct NodeCheck {
+    /// The resolved node.
+    pub resolved: ResolvedNode,
+    /// The repositories used, and the files read to find them.
+    pub repositories: RepositoryList,
+    /// Warnings.
+    pub warnings: Diagnostics,
+}
+
+/// Loads and resolves the node document at `path` (a `peppy.json5` or its
+/// directory).
+pub fn check_node(path: &Path, options: &RepoOptions) -> Result<NodeCheck, Diagnostics> {
+    let file = node_file(path);
+    let (doc, mut warnings) = NodeDoc::load(&file)?;
+    let dir = file.parent().map(Path::to_path_buf).unwrap_or_default();
+    let repositories = RepositoryList::discover(&options.explicit, options.env_value().as_deref(), &dir)?;
+    let index = RepoIndex::scan(&repositories.paths);
+    let (resolved, more) = resolve_node(Arc::new(doc), absolute(&file), &index)?;
+    warnings.extend(more);
+    Ok(NodeCheck { resolved, repositories, warnings })
+}
+
+/// `dir/peppy.json5` for a directory, else the path itself.
+pub fn node_file(path: &Path) -> PathBuf {
+    if path.is_dir() { path.join("peppy.json5") } else { path.to_path_buf() }
+}
+
+/// One deployment of a checked launcher.
+#[derive(Debug, Clone)]
+pub struct DeployedNode {
+    /// The node's directory (where `build_cmd` and `run_cmd` run).
+    pub dir: PathBuf,
+    /// The resolved node.
+    pub resolved: ResolvedNode,
+}
+
+/// A launcher checked end to end: every source found, every node resolved,
+/// every binding planned.
+#[derive(Debug, Clone)]
+pub struct StackCheck {
+    /// The launcher.
+    pub launcher: LauncherDoc,
+    /// `deployments[i]` is the node of `launcher.deployments[i]`.
+    pub deployments: Vec<DeployedNode>,
+    /// The binding plan.
+    pub plan: BindingPlan,
+    /// Repositories used.
+    pub repositories: Vec<PathBuf>,
+    /// Warnings.
+    pub warnings: Diagnostics,
+}
+
+/// Checks the launcher at `path`: all errors of every stage are collected.
+pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, Diagnostics> {
+    let (launcher, mut diags) = LauncherDoc::load(path)?;
+    let base = absolute(&launcher.base_dir());
+    let mut repositories = RepositoryList::discover(&options.explicit, options.env_value().as_deref(), &base)?;
+    // Local nodes bring their own nearest repositories list.
+    for d in &launcher.deployments {
+        if let Source::Local { path } = &d.source {
+            let dir = base.join(path);
+            let dir = if dir.is_file() { dir.parent().map(Path::to_path_buf).unwrap_or(dir) } else { dir };
+            if let Err(e) = repositories.add_nearest_file(&dir) {
+                diags.extend(e);
+            }
+        }
+    }
+    let mut index = RepoIndex::scan(&repositories.paths);
+
+    // Load every deployment's node.
+    let mut loaded: Vec<Option<(Arc<NodeDoc>, PathBuf)>> = Vec::new();
+    for d in &launcher.deployments {
+        let node = match &d.source {
+            Source::Local { path } => {
+                let file = node_file(&base.join(path));
+                if !file.is_file() {
+                    diags.push(
+                        d.source_loc
+                            .error(Code::InvalidSource, format!("`{}` has no node: `{}` does not exist", path.display(), file.display()))
+                            .with_help("`local` is a node's directory (or its peppy.json5), relative to the launcher file"),
+                    );
+                    None
+                } else {
+                    match NodeDoc::load(&file) {
+                        Ok((doc, w)) => {
+                            diags.extend(w);
+                            Some((Arc::new(doc), absolute(&file)))
+                        }
+                        Err(e) => {
+                            diags.extend(e);
+                            None
+                        }
+                    }
+                }
+            }
+            Source::Repository { identity } => match index.node(identity) {
+                Some(e) => Some((e.doc.clone(), e.path.clone())),
+                None => {
+                    let why = match index.broken(crate::document::DocumentKind::Node, identity) {
+                        Some(b) => format!("`{}` defines it but is invalid (run `peppy-launch validate` on it)", b.path.display()),
+                        None => index.searched(),
+                    };
+                    diags.push(
+                        d.source_loc
+                            .error(Code::DependencyNotFound, format!("no repository provides node `{identity}`"))
+                            .with_help(why),
+                    );
+                    None
+                }
+            },
+            Source::Git { .. } | Source::Archive { .. } => {
+                let kind = if matches!(d.source, Source::Git { .. }) { "git (`repo`/`path`/`ref`)" } else { "archive (`url`/`sha256`)" };
+                diags.push(
+                    d.source_loc
+                        .error(Code::UnsupportedSource, format!("{kind} sources are not supported yet"))
+                        .with_help("check the node out locally and use `{ local: \"path\" }`, or add its repository and use `{ name: \"n:t\" }`"),
+                );
+                None
+            }
+        };
+        loaded.push(node);
+    }
+    // What the launcher deploys is what its consumers depend on.
+    for (doc, path) in loaded.iter().flatten() {
+        index.overlay_node(doc.clone(), path.clone());
+    }
+    diags.extend(index.findings().clone());
+
+    let mut deployments = Vec::new();
+    let mut resolved_ok = Vec::new();
+    for entry in &loaded {
+        match entry {
+            Some((doc, path)) => match resolve_node(doc.clone(), path.clone(), &index) {
+                Ok((resolved, w)) => {
+                    diags.extend(w);
+                    resolved_ok.push(true);
+                    deployments.push(Some(DeployedNode {
+                        dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+                        resolved,
+                    }));
+                }
+                Err(e) => {
+                    diags.extend(e);
+                    resolved_ok.push(false);
+                    deployments.push(None);
+                }
+            },
+            None => {
+                resolved_ok.push(false);
+                deployments.push(None);
+            }
+        }
+    }
+    // Bindings only need manifests, so plan even when a node's own
+    // resolution failed: the user sees binding errors in the same run.
+    let nodes: Vec<Option<&NodeDoc>> = loaded.iter().map(|e| e.as_ref().map(|(d, _)| d.as_ref())).collect();
+    let plan = match plan_bindings(&launcher, &nodes) {
+        Ok((plan, w)) => {
+            diags.extend(w);
+            Some(plan)
+        }
+        Err(e) => {
+            diags.extend(e);
+            None
+        }
+    };
+    if diags.has_errors() {
+        return Err(diags);
+    }
+    Ok(StackCheck {
+        launcher,
+        deployments: deployments.into_iter().map(|d| d.expect("no errors means every node resolved")).collect(),
+        plan: plan.expect("no errors means a plan"),
+        repositories: repositories.paths,
+        warnings: diags,
+    })
+}
