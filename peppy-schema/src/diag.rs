@@ -293,13 +293,11 @@ impl Diagnostic {
     }
 }
 
+/// The message alone, as errors display; [`Diagnostic::jump_line`] adds the
+/// location and [`Diagnostics`]' `Display` adds help texts.
 impl fmt::Display for Diagnostic {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.jump_line(None))?;
-        if let Some(help) = &self.help {
-            write!(f, "\n  help: {help}")?;
-        }
-        Ok(())
+        f.write_str(&self.message)
     }
 }
 
@@ -458,7 +456,10 @@ impl fmt::Display for Diagnostics {
             if i > 0 {
                 writeln!(f)?;
             }
-            write!(f, "{d}")?;
+            f.write_str(&d.jump_line(None))?;
+            if let Some(help) = &d.help {
+                write!(f, "\n  help: {help}")?;
+            }
         }
         Ok(())
     }
