@@ -1,0 +1,114 @@
+use crate::support::{jump_lines, peppy_launch, root};
+
+#[test]
+fn multi_camera_plan_names_every_slot_and_producer() {
+    let run = peppy_launch(&root(), &["check", "examples/launchers/multi_camera.json5"]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    let recon = run.stdout.split("recon_1").nth(1).expect("recon_1 in the plan");
+    let slot = |link: &str| recon.lines().find(|l| l.trim_start().starts_with(link)).unwrap_or_else(|| panic!("{link} in {recon}")).to_string();
+    assert!(slot("left_cam").contains("<- rs_left") && slot("left_cam").contains("pinned"));
+    assert!(slot("right_cam").contains("<- rs_right"));
+    assert!(slot("backup_cams").contains("<- zed_overhead") && slot("backup_cams").contains("from_any"));
+    assert!(run.stdout.contains(r#"parameters: {"width":1280,"height":720,"frames_per_second":15}"#), "{}", run.stdout);
+}
+
+#[test]
+fn unbound_from_any_slot_prints_any() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("stack.json5"),
+        format!(
+            r#"{{ peppy_schema: "launcher_v1", deployments: [
+                {{ source: {{ name: "realsense_d405:v1" }}, instances: [{{ instance_id: "cam" }}] }},
+                {{ source: {{ name: "camera_mosaic:v1" }}, instances: [{{ instance_id: "mosaic" }}] }},
+            ] }}"#
+        ),
+    )
+    .unwrap();
+    let repo = root().join("examples");
+    let run = peppy_launch(dir.path(), &["check", "stack.json5", "--repo", repo.to_str().unwrap()]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    assert!(run.stdout.lines().any(|l| l.contains("extras <- (any)")), "{}", run.stdout);
+}
+
+#[test]
+fn json_plan_is_machine_readable() {
+    let run = peppy_launch(&root(), &["check", "--format", "json", "examples/launchers/three_realsense.json5"]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    let v: serde_json::Value = serde_json::from_str(&run.stdout).expect("json on stdout");
+    assert_eq!(v["valid"], true);
+    let mosaic = v["plan"]["instances"].as_array().unwrap().iter().find(|i| i["instance_id"] == "mosaic_1").unwrap();
+    let extras = &mosaic["slots"][0];
+    assert_eq!(extras["link_id"], "extras");
+    assert_eq!(extras["binding"]["kind"], "from_any_bound");
+    assert_eq!(extras["binding"]["producers"], serde_json::json!(["rs_front", "rs_back_left", "rs_back_right"]));
+    assert_eq!(extras["filter"]["kind"], "only_from");
+}
+
+#[test]
+fn non_conforming_producer_is_rejected_with_a_jump_line() {
+    let run = peppy_launch(&root(), &["check", "examples/launchers/wrong_interface.json5"]);
+    assert_eq!(run.code, 2);
+    assert!(run.stdout.is_empty(), "no plan for an invalid stack: {}", run.stdout);
+    let lines = jump_lines(&run.stderr);
+    assert_eq!(lines.len(), 1, "{}", run.stderr);
+    assert!(
+        lines[0].starts_with("examples/launchers/wrong_interface.json5:21:55: error: binding `right_cam` on instance `recon_1`"),
+        "{}",
+        lines[0]
+    );
+    assert!(lines[0].ends_with("(BindingInterfaceNotConformed)"));
+    assert!(run.stderr.contains("nothing was built or started"));
+    // The snippet points at the offending value.
+    assert!(run.stderr.contains(r#"bindings: { left_cam: "rs_left", right_cam: "impostor" },"#));
+}
+
+#[test]
+fn json_errors_carry_code_and_position() {
+    let run = peppy_launch(&root(), &["check", "--format=json", "examples/launchers/wrong_interface.json5"]);
+    assert_eq!(run.code, 2);
+    let v: serde_json::Value = serde_json::from_str(&run.stdout).unwrap();
+    assert_eq!(v["valid"], false);
+    assert!(v["plan"].is_null());
+    let d = &v["diagnostics"][0];
+    assert_eq!(d["code"], "BindingInterfaceNotConformed");
+    assert_eq!((d["line"].as_u64(), d["column"].as_u64()), (Some(21), Some(55)));
+    assert_eq!(d["key_path"], "deployments[2].instances[0].bindings.right_cam");
+}
+
+#[test]
+fn every_error_of_a_stack_is_reported_in_one_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let launcher = r#"{
+  peppy_schema: "launcher_v1",
+  deployments: [
+    { source: { name: "realsense_d405:v1" }, instances: [{ instance_id: "cam", arguments: { width: -1 } }] },
+    { source: { name: "video_reconstruction:v1" }, instances: [
+      { instance_id: "recon", bindings: { left_cam: "cam", typo_slot: "recon" } },
+    ] },
+    { source: { name: "no_such_node:v1" }, instances: [{ instance_id: "ghost" }] },
+  ],
+}"#;
+    std::fs::write(dir.path().join("bad.json5"), launcher).unwrap();
+    let repo = root().join("examples");
+    let run = peppy_launch(dir.path(), &["check", "bad.json5", "--repo", repo.to_str().unwrap()]);
+    assert_eq!(run.code, 2);
+    let lines = jump_lines(&run.stderr);
+    let codes: Vec<&str> = lines.iter().map(|l| l.rsplit('(').next().unwrap().trim_end_matches(')')).collect();
+    assert_eq!(
+        codes,
+        ["ParameterTypeMismatch", "PinnedSlotUnbound", "DeadBindingKey", "DependencyNotFound"],
+        "{}",
+        run.stderr
+    );
+    // Sorted by position, each with its line.
+    assert!(lines[0].starts_with("bad.json5:4:100: "), "{}", lines[0]);
+    assert!(lines[3].starts_with("bad.json5:8:15: "), "{}", lines[3]);
+}
+
+#[test]
+fn missing_launcher_is_a_clean_error() {
+    let run = peppy_launch(&root(), &["check", "does/not/exist.json5"]);
+    assert_eq!(run.code, 2);
+    assert!(run.stderr.contains("does/not/exist.json5: error: cannot read"), "{}", run.stderr);
+}

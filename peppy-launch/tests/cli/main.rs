@@ -1,0 +1,6 @@
+//! End-to-end tests of the `peppy-launch` binary: real files, real process,
+//! exit codes and output as users see them.
+
+mod check;
+mod support;
+mod validate;
