@@ -3,7 +3,9 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use peppy_schema::{Diagnostics, RepoOptions, RouteFilter, SlotBinding, SlotKind, StackCheck, check_launcher};
+use peppy_schema::{
+    Diagnostics, RepoOptions, RouteFilter, SlotBinding, SlotKind, StackCheck, check_launcher,
+};
 use serde::Serialize;
 
 use crate::cli::{CheckArgs, Format};
@@ -20,7 +22,10 @@ struct JsonReport<'a> {
 }
 
 pub(crate) fn run(args: &CheckArgs) -> u8 {
-    let options = RepoOptions { explicit: args.repos.clone(), env: None };
+    let options = RepoOptions {
+        explicit: args.repos.clone(),
+        env: None,
+    };
     let result = check_launcher(&args.launcher, &options);
     let (diags, stack) = match &result {
         Ok(stack) => (stack.warnings.clone(), Some(stack)),
@@ -30,7 +35,14 @@ pub(crate) fn run(args: &CheckArgs) -> u8 {
         Format::Json => report::print_json(&JsonReport {
             valid: stack.is_some(),
             launcher: args.launcher.display().to_string(),
-            repositories: stack.map(|s| s.repositories.iter().map(|p| p.display().to_string()).collect()).unwrap_or_default(),
+            repositories: stack
+                .map(|s| {
+                    s.repositories
+                        .iter()
+                        .map(|p| p.display().to_string())
+                        .collect()
+                })
+                .unwrap_or_default(),
             diagnostics: report::json_list(&diags),
             plan: stack.map(|s| &s.plan),
         }),
@@ -44,7 +56,11 @@ pub(crate) fn run(args: &CheckArgs) -> u8 {
             }
         }
     }
-    if stack.is_some() { exit::OK } else { exit::INVALID }
+    if stack.is_some() {
+        exit::OK
+    } else {
+        exit::INVALID
+    }
 }
 
 fn summary(diags: &Diagnostics) {
@@ -58,7 +74,11 @@ fn summary(diags: &Diagnostics) {
 
 fn relative(p: &Path) -> String {
     let base = report::cwd();
-    base.as_deref().and_then(|b| p.strip_prefix(b).ok()).unwrap_or(p).display().to_string()
+    base.as_deref()
+        .and_then(|b| p.strip_prefix(b).ok())
+        .unwrap_or(p)
+        .display()
+        .to_string()
 }
 
 /// The plan as people read it: each instance, each slot and what fills it.
@@ -66,16 +86,41 @@ pub(crate) fn render_plan(stack: &StackCheck) -> String {
     let mut out = String::new();
     let _ = writeln!(out, "launcher: {}", relative(stack.launcher.file.path()));
     let repos: Vec<String> = stack.repositories.iter().map(|p| relative(p)).collect();
-    let _ = writeln!(out, "repositories: {}", if repos.is_empty() { "(none)".to_string() } else { repos.join(", ") });
+    let _ = writeln!(
+        out,
+        "repositories: {}",
+        if repos.is_empty() {
+            "(none)".to_string()
+        } else {
+            repos.join(", ")
+        }
+    );
     let _ = writeln!(out, "instances:");
-    let width = stack.plan.instances.iter().map(|i| i.instance_id.len()).max().unwrap_or(0);
+    let width = stack
+        .plan
+        .instances
+        .iter()
+        .map(|i| i.instance_id.len())
+        .max()
+        .unwrap_or(0);
     for inst in &stack.plan.instances {
         let dir = &stack.deployments[inst.deployment].dir;
-        let _ = writeln!(out, "  {:width$}  {}  {}", inst.instance_id, inst.node, relative(dir));
+        let _ = writeln!(
+            out,
+            "  {:width$}  {}  {}",
+            inst.instance_id,
+            inst.node,
+            relative(dir)
+        );
         if inst.parameters.as_object().is_some_and(|m| !m.is_empty()) {
             let _ = writeln!(out, "  {:width$}    parameters: {}", "", inst.parameters);
         }
-        let slot_width = inst.slots.iter().map(|s| s.link_id.len()).max().unwrap_or(0);
+        let slot_width = inst
+            .slots
+            .iter()
+            .map(|s| s.link_id.len())
+            .max()
+            .unwrap_or(0);
         let mut rows = Vec::new();
         for slot in &inst.slots {
             let kind = match slot.kind {
@@ -84,15 +129,24 @@ pub(crate) fn render_plan(stack: &StackCheck) -> String {
             };
             let (mode, fill) = match (&slot.binding, &slot.filter) {
                 (SlotBinding::Pinned { producer }, _) => ("pinned", producer.clone()),
-                (SlotBinding::FromAnyBound { .. }, RouteFilter::OnlyFrom(set)) if set.is_empty() => {
-                    ("from_any", "(nothing: every bound producer is pinned by a sibling slot)".to_string())
+                (SlotBinding::FromAnyBound { .. }, RouteFilter::OnlyFrom(set))
+                    if set.is_empty() =>
+                {
+                    (
+                        "from_any",
+                        "(nothing: every bound producer is pinned by a sibling slot)".to_string(),
+                    )
                 }
-                (SlotBinding::FromAnyBound { .. }, RouteFilter::OnlyFrom(set)) => {
-                    ("from_any", set.iter().cloned().collect::<Vec<_>>().join(", "))
-                }
+                (SlotBinding::FromAnyBound { .. }, RouteFilter::OnlyFrom(set)) => (
+                    "from_any",
+                    set.iter().cloned().collect::<Vec<_>>().join(", "),
+                ),
                 (SlotBinding::FromAnyUnbound, RouteFilter::AnyExcept(set)) => (
                     "from_any",
-                    format!("(any) except {}", set.iter().cloned().collect::<Vec<_>>().join(", ")),
+                    format!(
+                        "(any) except {}",
+                        set.iter().cloned().collect::<Vec<_>>().join(", ")
+                    ),
                 ),
                 (_, _) => ("from_any", "(any)".to_string()),
             };
@@ -100,7 +154,11 @@ pub(crate) fn render_plan(stack: &StackCheck) -> String {
         }
         let fill_width = rows.iter().map(|r| r.1.len()).max().unwrap_or(0);
         for (slot, fill, what) in rows {
-            let _ = writeln!(out, "  {:width$}    {:slot_width$} <- {fill:fill_width$}  ({what})", "", slot.link_id);
+            let _ = writeln!(
+                out,
+                "  {:width$}    {:slot_width$} <- {fill:fill_width$}  ({what})",
+                "", slot.link_id
+            );
         }
     }
     out

@@ -20,17 +20,27 @@ fn colour() -> bool {
 /// Prints every finding with its snippet, then the compact list editors jump
 /// through, to stderr.
 pub(crate) fn print_human(diags: &Diagnostics) {
-    let theme = if colour() { GraphicalTheme::unicode() } else { GraphicalTheme::unicode_nocolor() };
+    let theme = if colour() {
+        GraphicalTheme::unicode()
+    } else {
+        GraphicalTheme::unicode_nocolor()
+    };
     let handler = GraphicalReportHandler::new_themed(theme).with_context_lines(2);
     let base = cwd();
     let mut out = String::new();
     for d in diags.sorted() {
         let mut rendered = String::new();
-        if handler.render_report(&mut rendered, d as &dyn miette::Diagnostic).is_ok() {
+        if handler
+            .render_report(&mut rendered, d as &dyn miette::Diagnostic)
+            .is_ok()
+        {
             out.push_str(&rendered);
         }
         if let (None, Some(path)) = (d.source(), d.file_path()) {
-            out.push_str(&format!("  in {}\n", shown(path, base.as_deref()).display()));
+            out.push_str(&format!(
+                "  in {}\n",
+                shown(path, base.as_deref()).display()
+            ));
         }
         out.push('\n');
     }
@@ -67,7 +77,9 @@ impl JsonDiagnostic {
             severity: d.severity.as_str(),
             message: d.message.clone(),
             help: d.help.clone(),
-            file: d.file_path().map(|p| shown(p, base.as_deref()).display().to_string()),
+            file: d
+                .file_path()
+                .map(|p| shown(p, base.as_deref()).display().to_string()),
             line: lc.map(|l| l.line),
             column: lc.map(|l| l.column),
             key_path: d.key_path.clone(),
@@ -77,7 +89,11 @@ impl JsonDiagnostic {
 
 /// Every finding as JSON, sorted by position.
 pub(crate) fn json_list(diags: &Diagnostics) -> Vec<JsonDiagnostic> {
-    diags.sorted().into_iter().map(JsonDiagnostic::new).collect()
+    diags
+        .sorted()
+        .into_iter()
+        .map(JsonDiagnostic::new)
+        .collect()
 }
 
 /// Writes one JSON value and a newline to stdout.

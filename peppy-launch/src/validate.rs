@@ -2,7 +2,9 @@
 
 use std::path::{Path, PathBuf};
 
-use peppy_schema::{Code, Diagnostic, Diagnostics, Document, SKIPPED_DIRS, SourceFile, detect_kind, parse_document};
+use peppy_schema::{
+    Code, Diagnostic, Diagnostics, Document, SKIPPED_DIRS, SourceFile, detect_kind, parse_document,
+};
 use serde::Serialize;
 
 use crate::cli::{Format, ValidateArgs};
@@ -48,7 +50,13 @@ pub(crate) fn run(args: &ValidateArgs) -> u8 {
         } else if path.exists() {
             checked.extend(check_file(path, true));
         } else {
-            usage.push(Diagnostic::error(Code::CannotRead, format!("`{}` does not exist", path.display())).with_file_path(path));
+            usage.push(
+                Diagnostic::error(
+                    Code::CannotRead,
+                    format!("`{}` does not exist", path.display()),
+                )
+                .with_file_path(path),
+            );
         }
     }
     let mut all = usage.clone();
@@ -61,7 +69,13 @@ pub(crate) fn run(args: &ValidateArgs) -> u8 {
     match args.format {
         Format::Json => {
             let base = report::cwd();
-            let shown = |p: &Path| base.as_deref().and_then(|b| p.strip_prefix(b).ok()).unwrap_or(p).display().to_string();
+            let shown = |p: &Path| {
+                base.as_deref()
+                    .and_then(|b| p.strip_prefix(b).ok())
+                    .unwrap_or(p)
+                    .display()
+                    .to_string()
+            };
             let mut documents: Vec<JsonDocument> = checked
                 .iter()
                 .map(|c| JsonDocument {
@@ -72,15 +86,29 @@ pub(crate) fn run(args: &ValidateArgs) -> u8 {
                 })
                 .collect();
             if !usage.is_empty() {
-                documents.push(JsonDocument { path: String::new(), kind: None, valid: false, diagnostics: report::json_list(&usage) });
+                documents.push(JsonDocument {
+                    path: String::new(),
+                    kind: None,
+                    valid: false,
+                    diagnostics: report::json_list(&usage),
+                });
             }
-            report::print_json(&JsonReport { valid, errors, warnings, documents, skipped: skipped.iter().map(|p| shown(p)).collect() });
+            report::print_json(&JsonReport {
+                valid,
+                errors,
+                warnings,
+                documents,
+                skipped: skipped.iter().map(|p| shown(p)).collect(),
+            });
         }
         Format::Human => {
             if !all.is_empty() {
                 report::print_human(&all);
             }
-            let invalid = checked.iter().filter(|c| c.diagnostics.has_errors()).count();
+            let invalid = checked
+                .iter()
+                .filter(|c| c.diagnostics.has_errors())
+                .count();
             eprintln!(
                 "{}: {} checked, {} invalid; {}, {}",
                 if valid { "valid" } else { "invalid" },
@@ -97,14 +125,32 @@ pub(crate) fn run(args: &ValidateArgs) -> u8 {
 /// Every `*.json5` under `dir`, skipping build and VCS directories.
 fn documents_in(dir: &Path, problems: &mut Diagnostics) -> Vec<PathBuf> {
     let mut out = Vec::new();
-    let walker = walkdir::WalkDir::new(dir).sort_by_file_name().into_iter().filter_entry(|e| {
-        e.depth() == 0 || !(e.file_type().is_dir() && e.file_name().to_str().is_some_and(|n| SKIPPED_DIRS.contains(&n) || n.starts_with('.')))
-    });
+    let walker = walkdir::WalkDir::new(dir)
+        .sort_by_file_name()
+        .into_iter()
+        .filter_entry(|e| {
+            e.depth() == 0
+                || !(e.file_type().is_dir()
+                    && e.file_name()
+                        .to_str()
+                        .is_some_and(|n| SKIPPED_DIRS.contains(&n) || n.starts_with('.')))
+        });
     for entry in walker {
         match entry {
-            Ok(e) if e.file_type().is_file() && e.path().extension().is_some_and(|x| x == "json5") => out.push(e.into_path()),
+            Ok(e)
+                if e.file_type().is_file()
+                    && e.path().extension().is_some_and(|x| x == "json5") =>
+            {
+                out.push(e.into_path())
+            }
             Ok(_) => {}
-            Err(e) => problems.push(Diagnostic::error(Code::CannotRead, format!("cannot read `{}`: {e}", dir.display())).with_file_path(dir)),
+            Err(e) => problems.push(
+                Diagnostic::error(
+                    Code::CannotRead,
+                    format!("cannot read `{}`: {e}", dir.display()),
+                )
+                .with_file_path(dir),
+            ),
         }
     }
     out
@@ -116,7 +162,13 @@ fn documents_in(dir: &Path, problems: &mut Diagnostics) -> Vec<PathBuf> {
 fn check_file(path: &Path, explicit: bool) -> Option<Checked> {
     let (file, sha) = match SourceFile::read(path) {
         Ok(v) => v,
-        Err(d) => return Some(Checked { path: path.to_path_buf(), kind: None, diagnostics: Diagnostics::from(*d) }),
+        Err(d) => {
+            return Some(Checked {
+                path: path.to_path_buf(),
+                kind: None,
+                diagnostics: Diagnostics::from(*d),
+            });
+        }
     };
     if !explicit && !is_peppy_named(path) {
         if let Ok((root, _)) = peppy_schema::json::parse(&file) {
@@ -130,11 +182,16 @@ fn check_file(path: &Path, explicit: bool) -> Option<Checked> {
         Ok((doc, warnings)) => (Some(kind_name(&doc)), warnings),
         Err(d) => (None, d),
     };
-    Some(Checked { path: path.to_path_buf(), kind, diagnostics })
+    Some(Checked {
+        path: path.to_path_buf(),
+        kind,
+        diagnostics,
+    })
 }
 
 fn is_peppy_named(path: &Path) -> bool {
-    path.file_name().is_some_and(|n| n == "peppy.json5" || n == peppy_schema::REPOSITORIES_FILE)
+    path.file_name()
+        .is_some_and(|n| n == "peppy.json5" || n == peppy_schema::REPOSITORIES_FILE)
 }
 
 fn kind_name(doc: &Document) -> &'static str {

@@ -266,9 +266,7 @@ impl Diagnostic {
     pub fn jump_line(&self, base: Option<&Path>) -> String {
         let mut out = String::new();
         if let Some(path) = &self.file_path {
-            let shown = base
-                .and_then(|b| path.strip_prefix(b).ok())
-                .unwrap_or(path);
+            let shown = base.and_then(|b| path.strip_prefix(b).ok()).unwrap_or(path);
             out.push_str(&shown.display().to_string());
             if let Some(lc) = self.line_col() {
                 out.push_str(&format!(":{}:{}", lc.line, lc.column));
@@ -468,7 +466,10 @@ impl fmt::Display for Diagnostics {
 impl std::error::Error for Diagnostics {}
 
 /// The closest of `candidates` to `found`, when close enough to suggest.
-pub fn did_you_mean<'a>(found: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+pub fn did_you_mean<'a>(
+    found: &str,
+    candidates: impl IntoIterator<Item = &'a str>,
+) -> Option<&'a str> {
     candidates
         .into_iter()
         .map(|c| (strsim::jaro_winkler(found, c), c))

@@ -125,7 +125,11 @@ pub fn parse_as(file: &Arc<SourceFile>, sha256: &str, kind: DocumentKind) -> Par
             diags.push(
                 Diagnostic::error(
                     Code::WrongDocumentKind,
-                    format!("expected a {} document, found a {} document", kind.as_str(), other.as_str()),
+                    format!(
+                        "expected a {} document, found a {} document",
+                        kind.as_str(),
+                        other.as_str()
+                    ),
                 )
                 .at(file, at)
                 .with_key_path("peppy_schema"),
@@ -139,19 +143,32 @@ pub fn parse_as(file: &Arc<SourceFile>, sha256: &str, kind: DocumentKind) -> Par
     }
 }
 
-fn parse_kind(file: &Arc<SourceFile>, sha256: &str, root: &Node, kind: DocumentKind, mut diags: Diagnostics) -> Parsed<Document> {
+fn parse_kind(
+    file: &Arc<SourceFile>,
+    sha256: &str,
+    root: &Node,
+    kind: DocumentKind,
+    mut diags: Diagnostics,
+) -> Parsed<Document> {
     let doc = match kind {
         DocumentKind::Node => parse_node(file, root, &mut diags).map(Document::Node),
-        DocumentKind::Interface => parse_interface(file, sha256.to_string(), root, &mut diags).map(Document::Interface),
+        DocumentKind::Interface => {
+            parse_interface(file, sha256.to_string(), root, &mut diags).map(Document::Interface)
+        }
         DocumentKind::Launcher => parse_launcher(file, root, &mut diags).map(Document::Launcher),
-        DocumentKind::Repositories => parse_repositories(file, root, &mut diags).map(Document::Repositories),
+        DocumentKind::Repositories => {
+            parse_repositories(file, root, &mut diags).map(Document::Repositories)
+        }
     };
     match doc {
         Some(d) if !diags.has_errors() => Ok((d, diags)),
         _ => {
             if !diags.has_errors() {
                 // A parser returned nothing without saying why: never hide that.
-                diags.push(Diagnostic::error(Code::InvalidValue, "document is invalid").at(file, root.span));
+                diags.push(
+                    Diagnostic::error(Code::InvalidValue, "document is invalid")
+                        .at(file, root.span),
+                );
             }
             Err(diags)
         }
@@ -161,21 +178,44 @@ fn parse_kind(file: &Arc<SourceFile>, sha256: &str, root: &Node, kind: DocumentK
 fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
     match (&root.value, root.get("peppy_schema")) {
         (Value::Object(_), Some(n)) => {
-            let found = n.as_str().map_or_else(|| n.value.kind().to_string(), |s| format!("`{s}`"));
-            let help = match n.as_str().and_then(|s| did_you_mean(s, SCHEMAS.iter().copied())) {
-                Some(s) => format!("did you mean `{s}`? known: {}", list(SCHEMAS.iter().copied())),
+            let found = n
+                .as_str()
+                .map_or_else(|| n.value.kind().to_string(), |s| format!("`{s}`"));
+            let help = match n
+                .as_str()
+                .and_then(|s| did_you_mean(s, SCHEMAS.iter().copied()))
+            {
+                Some(s) => format!(
+                    "did you mean `{s}`? known: {}",
+                    list(SCHEMAS.iter().copied())
+                ),
                 None => format!("known: {}", list(SCHEMAS.iter().copied())),
             };
-            Diagnostic::error(Code::UnknownSchema, format!("unknown `peppy_schema` {found}"))
-                .at(file, n.span)
-                .with_key_path("peppy_schema")
-                .with_help(help)
+            Diagnostic::error(
+                Code::UnknownSchema,
+                format!("unknown `peppy_schema` {found}"),
+            )
+            .at(file, n.span)
+            .with_key_path("peppy_schema")
+            .with_help(help)
         }
-        (Value::Object(_), None) => Diagnostic::error(Code::UnknownSchema, "missing `peppy_schema`: cannot tell what kind of document this is")
-            .at(file, crate::source::Span::new(root.span.start, root.span.start + 1))
-            .with_help(format!("add `peppy_schema: \"node_v1\"` (or one of {})", list(SCHEMAS.iter().copied()))),
-        _ => Diagnostic::error(Code::UnknownSchema, format!("a peppy document is an object, found {}", root.value.kind()))
-            .at(file, root.span),
+        (Value::Object(_), None) => Diagnostic::error(
+            Code::UnknownSchema,
+            "missing `peppy_schema`: cannot tell what kind of document this is",
+        )
+        .at(
+            file,
+            crate::source::Span::new(root.span.start, root.span.start + 1),
+        )
+        .with_help(format!(
+            "add `peppy_schema: \"node_v1\"` (or one of {})",
+            list(SCHEMAS.iter().copied())
+        )),
+        _ => Diagnostic::error(
+            Code::UnknownSchema,
+            format!("a peppy document is an object, found {}", root.value.kind()),
+        )
+        .at(file, root.span),
     }
 }
 
@@ -224,10 +264,12 @@ impl InterfaceDoc {
     pub fn parse(path: impl Into<PathBuf>, text: impl Into<String>) -> Parsed<InterfaceDoc> {
         let text = text.into();
         let sha = sha256_hex(text.as_bytes());
-        parse_as(&SourceFile::new(path, text), &sha, DocumentKind::Interface).map(|(d, w)| match d {
-            Document::Interface(i) => (i, w),
-            _ => unreachable!("parse_as checked the kind"),
-        })
+        parse_as(&SourceFile::new(path, text), &sha, DocumentKind::Interface).map(
+            |(d, w)| match d {
+                Document::Interface(i) => (i, w),
+                _ => unreachable!("parse_as checked the kind"),
+            },
+        )
     }
 }
 
@@ -261,16 +303,30 @@ impl RepositoriesDoc {
     }
 }
 
-fn parse_repositories(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagnostics) -> Option<RepositoriesDoc> {
+fn parse_repositories(
+    file: &Arc<SourceFile>,
+    root: &Node,
+    diags: &mut Diagnostics,
+) -> Option<RepositoriesDoc> {
     let mut r = Reader::new(file, diags);
     let items = r.array(root, "")?;
-    let base = file.path().parent().map(Path::to_path_buf).unwrap_or_default();
+    let base = file
+        .path()
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
     let mut paths = Vec::new();
     for (i, item) in items.iter().enumerate() {
         let ipath = index("", i);
-        let Some(obj) = r.object(item, &ipath, &["type", "path"]) else { continue };
-        let ty = r.required(&obj, "type").and_then(|t| r.string(t, &obj.path_of("type")).map(|s| (s, t.span)));
-        let path = r.required(&obj, "path").and_then(|p| r.string(p, &obj.path_of("path")));
+        let Some(obj) = r.object(item, &ipath, &["type", "path"]) else {
+            continue;
+        };
+        let ty = r
+            .required(&obj, "type")
+            .and_then(|t| r.string(t, &obj.path_of("type")).map(|s| (s, t.span)));
+        let path = r
+            .required(&obj, "path")
+            .and_then(|p| r.string(p, &obj.path_of("path")));
         match ty {
             Some((t, _)) if t == "fs" => {}
             Some((t, span)) if t == "git" || t == "url" => {
@@ -284,7 +340,13 @@ fn parse_repositories(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagnosti
                 continue;
             }
             Some((t, span)) => {
-                r.error_help(Code::InvalidValue, span, &obj.path_of("type"), format!("unknown repository type `{t}`"), "accepted: `fs`");
+                r.error_help(
+                    Code::InvalidValue,
+                    span,
+                    &obj.path_of("type"),
+                    format!("unknown repository type `{t}`"),
+                    "accepted: `fs`",
+                );
                 continue;
             }
             None => continue,
@@ -294,5 +356,8 @@ fn parse_repositories(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagnosti
             paths.push(if p.is_absolute() { p } else { base.join(p) });
         }
     }
-    (!r.diags.has_errors()).then(|| RepositoriesDoc { file: file.clone(), paths })
+    (!r.diags.has_errors()).then(|| RepositoriesDoc {
+        file: file.clone(),
+        paths,
+    })
 }

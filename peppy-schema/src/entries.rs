@@ -140,7 +140,12 @@ impl fmt::Display for EntryKind {
     }
 }
 
-pub(crate) fn parse_qos(r: &mut Reader<'_>, node: Option<&Node>, path: &str, ok: &mut bool) -> QosProfile {
+pub(crate) fn parse_qos(
+    r: &mut Reader<'_>,
+    node: Option<&Node>,
+    path: &str,
+    ok: &mut bool,
+) -> QosProfile {
     let Some(node) = node else {
         return QosProfile::default();
     };
@@ -152,10 +157,19 @@ pub(crate) fn parse_qos(r: &mut Reader<'_>, node: Option<&Node>, path: &str, ok:
         Some(q) => q,
         None => {
             let help = match did_you_mean(&s, QOS_NAMES.iter().copied()) {
-                Some(c) => format!("did you mean `{c}`? profiles: {}", list(QOS_NAMES.iter().copied())),
+                Some(c) => format!(
+                    "did you mean `{c}`? profiles: {}",
+                    list(QOS_NAMES.iter().copied())
+                ),
                 None => format!("profiles: {}", list(QOS_NAMES.iter().copied())),
             };
-            r.error_help(Code::InvalidValue, node.span, path, format!("unknown qos_profile `{s}`"), help);
+            r.error_help(
+                Code::InvalidValue,
+                node.span,
+                path,
+                format!("unknown qos_profile `{s}`"),
+                help,
+            );
             *ok = false;
             QosProfile::default()
         }
@@ -184,14 +198,24 @@ pub(crate) fn parse_entry_name(
 }
 
 /// Reports names that appear twice in one list.
-pub(crate) fn check_unique<'a>(r: &mut Reader<'_>, kind: EntryKind, entries: impl IntoIterator<Item = (&'a str, &'a Loc)>) {
+pub(crate) fn check_unique<'a>(
+    r: &mut Reader<'_>,
+    kind: EntryKind,
+    entries: impl IntoIterator<Item = (&'a str, &'a Loc)>,
+) {
     let mut seen: Vec<(&str, &Loc)> = Vec::new();
     for (name, loc) in entries {
         if let Some((_, first)) = seen.iter().find(|(n, _)| *n == name) {
             let lc = first.file.line_col(first.span.start);
             let d = loc
-                .error(Code::DuplicateEntryName, format!("duplicate {kind} name `{name}`"))
-                .with_help(format!("`{name}` is already declared at line {}, column {}", lc.line, lc.column));
+                .error(
+                    Code::DuplicateEntryName,
+                    format!("duplicate {kind} name `{name}`"),
+                )
+                .with_help(format!(
+                    "`{name}` is already declared at line {}, column {}",
+                    lc.line, lc.column
+                ));
             r.diags.push(d);
         } else {
             seen.push((name, loc));
@@ -203,40 +227,93 @@ pub(crate) fn parse_topic(r: &mut Reader<'_>, node: &Node, path: &str) -> Option
     let obj = r.object(node, path, &["name", "qos_profile", "message_format"])?;
     let mut ok = true;
     let name = parse_entry_name(r, &obj, EntryKind::Topic);
-    let qos = parse_qos(r, obj.get("qos_profile"), &obj.path_of("qos_profile"), &mut ok);
-    let format = parse_optional_format(r, obj.get("message_format"), &obj.path_of("message_format"), &mut ok);
+    let qos = parse_qos(
+        r,
+        obj.get("qos_profile"),
+        &obj.path_of("qos_profile"),
+        &mut ok,
+    );
+    let format = parse_optional_format(
+        r,
+        obj.get("message_format"),
+        &obj.path_of("message_format"),
+        &mut ok,
+    );
     let (name, loc) = name?;
-    ok.then_some(TopicDecl { name, qos, format, loc })
+    ok.then_some(TopicDecl {
+        name,
+        qos,
+        format,
+        loc,
+    })
 }
 
 pub(crate) fn parse_service(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<ServiceDecl> {
-    let obj = r.object(node, path, &["name", "request_message_format", "response_message_format"])?;
+    let obj = r.object(
+        node,
+        path,
+        &["name", "request_message_format", "response_message_format"],
+    )?;
     let mut ok = true;
     let name = parse_entry_name(r, &obj, EntryKind::Service);
     if let Some((n, loc)) = &name {
         if RESERVED_SERVICE_NAMES.contains(&n.as_str()) {
             r.diags.push(
-                loc.error(Code::ReservedServiceName, format!("service name `{n}` is reserved by the runtime"))
-                    .with_help(format!("reserved: {}; pick another name", list(RESERVED_SERVICE_NAMES.iter().copied()))),
+                loc.error(
+                    Code::ReservedServiceName,
+                    format!("service name `{n}` is reserved by the runtime"),
+                )
+                .with_help(format!(
+                    "reserved: {}; pick another name",
+                    list(RESERVED_SERVICE_NAMES.iter().copied())
+                )),
             );
             ok = false;
         }
     }
-    let request = parse_optional_format(r, obj.get("request_message_format"), &obj.path_of("request_message_format"), &mut ok);
-    let response = parse_optional_format(r, obj.get("response_message_format"), &obj.path_of("response_message_format"), &mut ok);
+    let request = parse_optional_format(
+        r,
+        obj.get("request_message_format"),
+        &obj.path_of("request_message_format"),
+        &mut ok,
+    );
+    let response = parse_optional_format(
+        r,
+        obj.get("response_message_format"),
+        &obj.path_of("response_message_format"),
+        &mut ok,
+    );
     let (name, loc) = name?;
-    ok.then_some(ServiceDecl { name, request, response, loc })
+    ok.then_some(ServiceDecl {
+        name,
+        request,
+        response,
+        loc,
+    })
 }
 
 pub(crate) fn parse_action(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<ActionDecl> {
-    let obj = r.object(node, path, &["name", "goal_service", "feedback_topic", "result_service"])?;
+    let obj = r.object(
+        node,
+        path,
+        &["name", "goal_service", "feedback_topic", "result_service"],
+    )?;
     let mut ok = true;
     let name = parse_entry_name(r, &obj, EntryKind::Action);
     let mut goal = None;
     if let Some(g) = obj.get("goal_service") {
         let gpath = obj.path_of("goal_service");
-        if let Some(gobj) = r.object(g, &gpath, &["request_message_format", "response_message_format"]) {
-            goal = parse_optional_format(r, gobj.get("request_message_format"), &gobj.path_of("request_message_format"), &mut ok);
+        if let Some(gobj) = r.object(
+            g,
+            &gpath,
+            &["request_message_format", "response_message_format"],
+        ) {
+            goal = parse_optional_format(
+                r,
+                gobj.get("request_message_format"),
+                &gobj.path_of("request_message_format"),
+                &mut ok,
+            );
             if let Some(m) = gobj.member("response_message_format") {
                 r.warn_help(
                     Code::IgnoredKey,
@@ -254,12 +331,19 @@ pub(crate) fn parse_action(r: &mut Reader<'_>, node: &Node, path: &str) -> Optio
     if let Some(f) = obj.get("feedback_topic") {
         let fpath = obj.path_of("feedback_topic");
         if let Some(fobj) = r.object(f, &fpath, &["qos_profile", "message_format"]) {
-            let qos = parse_qos(r, fobj.get("qos_profile"), &fobj.path_of("qos_profile"), &mut ok);
+            let qos = parse_qos(
+                r,
+                fobj.get("qos_profile"),
+                &fobj.path_of("qos_profile"),
+                &mut ok,
+            );
             match r.required(&fobj, "message_format") {
-                Some(mf) => match crate::format::parse_format(r, mf, &fobj.path_of("message_format")) {
-                    Some(format) => feedback = Some(FeedbackDecl { qos, format }),
-                    None => ok = false,
-                },
+                Some(mf) => {
+                    match crate::format::parse_format(r, mf, &fobj.path_of("message_format")) {
+                        Some(format) => feedback = Some(FeedbackDecl { qos, format }),
+                        None => ok = false,
+                    }
+                }
                 None => ok = false,
             }
         } else {
@@ -269,8 +353,17 @@ pub(crate) fn parse_action(r: &mut Reader<'_>, node: &Node, path: &str) -> Optio
     let mut result = None;
     if let Some(s) = obj.get("result_service") {
         let spath = obj.path_of("result_service");
-        if let Some(sobj) = r.object(s, &spath, &["request_message_format", "response_message_format"]) {
-            result = parse_optional_format(r, sobj.get("response_message_format"), &sobj.path_of("response_message_format"), &mut ok);
+        if let Some(sobj) = r.object(
+            s,
+            &spath,
+            &["request_message_format", "response_message_format"],
+        ) {
+            result = parse_optional_format(
+                r,
+                sobj.get("response_message_format"),
+                &sobj.path_of("response_message_format"),
+                &mut ok,
+            );
             if let Some(m) = sobj.member("request_message_format") {
                 r.warn_help(
                     Code::IgnoredKey,
@@ -285,7 +378,13 @@ pub(crate) fn parse_action(r: &mut Reader<'_>, node: &Node, path: &str) -> Optio
         }
     }
     let (name, loc) = name?;
-    ok.then_some(ActionDecl { name, goal, feedback, result, loc })
+    ok.then_some(ActionDecl {
+        name,
+        goal,
+        feedback,
+        result,
+        loc,
+    })
 }
 
 /// Parses a list with `item` and checks names are unique.

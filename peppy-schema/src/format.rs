@@ -50,8 +50,8 @@ pub enum Primitive {
 
 /// Every accepted type spelling, aliases included.
 pub const TYPE_NAMES: &[&str] = &[
-    "bool", "u8", "u16", "u32", "u64", "i8", "i16", "i32", "i64", "f32", "f64", "float",
-    "double", "string", "str", "bytes", "time",
+    "bool", "u8", "u16", "u32", "u64", "i8", "i16", "i32", "i64", "f32", "f64", "float", "double",
+    "string", "str", "bytes", "time",
 ];
 
 impl Primitive {
@@ -233,7 +233,10 @@ pub(crate) fn parse_format(r: &mut Reader<'_>, node: &Node, path: &str) -> Optio
             Code::WrongType,
             node.span,
             path,
-            format!("expected an object of fields for `{path}`, found {}", node.value.kind()),
+            format!(
+                "expected an object of fields for `{path}`, found {}",
+                node.value.kind()
+            ),
         );
         return None;
     };
@@ -252,7 +255,17 @@ pub(crate) fn parse_format(r: &mut Reader<'_>, node: &Node, path: &str) -> Optio
             ok = false;
             continue;
         }
-        match parse_field(r, &m.key, m.key_span, &m.value, &field_path, Place { root: true, item: false }) {
+        match parse_field(
+            r,
+            &m.key,
+            m.key_span,
+            &m.value,
+            &field_path,
+            Place {
+                root: true,
+                item: false,
+            },
+        ) {
             Some(f) => fields.push(f),
             None => ok = false,
         }
@@ -311,14 +324,31 @@ fn unknown_type(r: &mut Reader<'_>, node: &Node, path: &str, found: &str) {
         "array" => "an array is written `{ $type: \"array\", $items: \"u8\" }`".to_string(),
         "object" => "an object is written `{ field: \"u32\", ... }`".to_string(),
         _ => match did_you_mean(found, TYPE_NAMES.iter().copied()) {
-            Some(s) => format!("did you mean `{s}`? types: {}", list(TYPE_NAMES.iter().copied())),
-            None => format!("types: {}, or an object, or an array", list(TYPE_NAMES.iter().copied())),
+            Some(s) => format!(
+                "did you mean `{s}`? types: {}",
+                list(TYPE_NAMES.iter().copied())
+            ),
+            None => format!(
+                "types: {}, or an object, or an array",
+                list(TYPE_NAMES.iter().copied())
+            ),
         },
     };
-    r.error_help(Code::UnknownType, node.span, path, format!("unknown type `{found}`"), help);
+    r.error_help(
+        Code::UnknownType,
+        node.span,
+        path,
+        format!("unknown type `{found}`"),
+        help,
+    );
 }
 
-fn parse_type(r: &mut Reader<'_>, node: &Node, path: &str, place: Place) -> Option<(FieldType, bool)> {
+fn parse_type(
+    r: &mut Reader<'_>,
+    node: &Node,
+    path: &str,
+    place: Place,
+) -> Option<(FieldType, bool)> {
     let members = match &node.value {
         Value::String(s) => {
             return match Primitive::parse(s) {
@@ -354,7 +384,10 @@ fn parse_type(r: &mut Reader<'_>, node: &Node, path: &str, place: Place) -> Opti
                     Code::WrongType,
                     t.span,
                     &join(path, "$type"),
-                    format!("expected a type name for `{path}.$type`, found {}", t.value.kind()),
+                    format!(
+                        "expected a type name for `{path}.$type`, found {}",
+                        t.value.kind()
+                    ),
                 );
                 return None;
             }
@@ -371,7 +404,12 @@ fn parse_type(r: &mut Reader<'_>, node: &Node, path: &str, place: Place) -> Opti
         Some(s) => match Primitive::parse(s) {
             Some(p) => Shape::Primitive(p),
             None => {
-                unknown_type(r, type_node.expect("type node present"), &join(path, "$type"), s);
+                unknown_type(
+                    r,
+                    type_node.expect("type node present"),
+                    &join(path, "$type"),
+                    s,
+                );
                 return None;
             }
         },
@@ -383,8 +421,8 @@ fn parse_type(r: &mut Reader<'_>, node: &Node, path: &str, place: Place) -> Opti
     };
     for m in members {
         let is_dollar = m.key.starts_with('$');
-        let accepted = allowed.contains(&m.key.as_str())
-            || (!is_dollar && matches!(shape, Shape::Object));
+        let accepted =
+            allowed.contains(&m.key.as_str()) || (!is_dollar && matches!(shape, Shape::Object));
         if accepted {
             continue;
         }
@@ -418,7 +456,10 @@ fn parse_type(r: &mut Reader<'_>, node: &Node, path: &str, place: Place) -> Opti
                 Code::UnknownKey,
                 m.key_span,
                 &m_path,
-                format!("unknown key `{}`: a field whose `$type` is not `object` has no sub-fields", m.key),
+                format!(
+                    "unknown key `{}`: a field whose `$type` is not `object` has no sub-fields",
+                    m.key
+                ),
                 format!("accepted keys here: {}", list(allowed.iter().copied())),
             ),
         }
@@ -457,7 +498,10 @@ fn parse_type(r: &mut Reader<'_>, node: &Node, path: &str, place: Place) -> Opti
                             Code::OptionalMisuse,
                             o.span,
                             &opath,
-                            format!("`$optional` is not allowed on `{}`: scalars have no presence bit", p.name()),
+                            format!(
+                                "`$optional` is not allowed on `{}`: scalars have no presence bit",
+                                p.name()
+                            ),
                             "`$optional` works on `string`, `bytes`, `time`, arrays and objects",
                         );
                         ok = false;
@@ -472,7 +516,17 @@ fn parse_type(r: &mut Reader<'_>, node: &Node, path: &str, place: Place) -> Opti
         Shape::Object => {
             let mut fields = Vec::new();
             for m in members.iter().filter(|m| !m.key.starts_with('$')) {
-                match parse_field(r, &m.key, m.key_span, &m.value, &join(path, &m.key), Place { root: false, item: false }) {
+                match parse_field(
+                    r,
+                    &m.key,
+                    m.key_span,
+                    &m.value,
+                    &join(path, &m.key),
+                    Place {
+                        root: false,
+                        item: false,
+                    },
+                ) {
                     Some(f) => fields.push(f),
                     None => ok = false,
                 }
@@ -516,14 +570,27 @@ fn parse_type(r: &mut Reader<'_>, node: &Node, path: &str, place: Place) -> Opti
                 );
                 return None;
             }
-            let (items, _) = parse_type(r, items_node, &items_path, Place { root: false, item: true })?;
+            let (items, _) = parse_type(
+                r,
+                items_node,
+                &items_path,
+                Place {
+                    root: false,
+                    item: true,
+                },
+            )?;
             let length = match node.get("$length") {
                 None => None,
                 Some(l) => {
                     let lpath = join(path, "$length");
                     match r.uint(l, &lpath, MAX_FIXED_LENGTH) {
                         Some(0) => {
-                            r.error(Code::LengthMisuse, l.span, &lpath, "`$length` must be at least 1");
+                            r.error(
+                                Code::LengthMisuse,
+                                l.span,
+                                &lpath,
+                                "`$length` must be at least 1",
+                            );
                             ok = false;
                             None
                         }
@@ -630,32 +697,62 @@ mod tests {
         assert_eq!(codes("{ a: {} }"), [Code::EmptyMessageFormat]);
         assert_eq!(codes("{ a: 'big' }"), [Code::UnknownType]);
         assert_eq!(codes("{ instance_id: 'u8' }"), [Code::ReservedFieldName]);
-        assert_eq!(codes("{ h: { instance_id: 'u8' } }"), [Code::ReservedFieldName]);
+        assert_eq!(
+            codes("{ h: { instance_id: 'u8' } }"),
+            [Code::ReservedFieldName]
+        );
         assert_eq!(codes("{ 'foo-bar': 'u8' }"), [Code::InvalidFieldName]);
-        assert_eq!(codes("{ a: { $type: 'u8', $optional: true } }"), [Code::OptionalMisuse]);
-        assert_eq!(codes("{ h: { s: { $type: 'string', $optional: true } } }"), [Code::OptionalMisuse]);
+        assert_eq!(
+            codes("{ a: { $type: 'u8', $optional: true } }"),
+            [Code::OptionalMisuse]
+        );
+        assert_eq!(
+            codes("{ h: { s: { $type: 'string', $optional: true } } }"),
+            [Code::OptionalMisuse]
+        );
         assert_eq!(
             codes("{ a: { $type: 'array', $items: { $type: 'string', $optional: true } } }"),
             [Code::OptionalMisuse]
         );
-        assert!(parse_text("{ a: { $type: 'string', $optional: true } }").1.is_empty());
-        assert!(parse_text("{ a: { $type: 'array', $items: 'u8', $optional: true } }").1.is_empty());
-        assert_eq!(codes("{ a: { $type: 'array', $items: 'string', $length: 2 } }"), [Code::LengthMisuse]);
-        assert_eq!(codes("{ a: { $type: 'u8', $length: 2 } }"), [Code::LengthMisuse]);
-        assert_eq!(codes("{ a: { $type: 'array', $items: 'u8', $length: 0 } }"), [Code::LengthMisuse]);
+        assert!(
+            parse_text("{ a: { $type: 'string', $optional: true } }")
+                .1
+                .is_empty()
+        );
+        assert!(
+            parse_text("{ a: { $type: 'array', $items: 'u8', $optional: true } }")
+                .1
+                .is_empty()
+        );
+        assert_eq!(
+            codes("{ a: { $type: 'array', $items: 'string', $length: 2 } }"),
+            [Code::LengthMisuse]
+        );
+        assert_eq!(
+            codes("{ a: { $type: 'u8', $length: 2 } }"),
+            [Code::LengthMisuse]
+        );
+        assert_eq!(
+            codes("{ a: { $type: 'array', $items: 'u8', $length: 0 } }"),
+            [Code::LengthMisuse]
+        );
         assert_eq!(
             codes("{ a: { $type: 'array', $items: { $type: 'array', $items: 'u8' } } }"),
             [Code::NestedArray]
         );
         assert_eq!(codes("{ a: { $type: 'array' } }"), [Code::MissingKey]);
-        assert_eq!(codes("{ a: { $type: 'u8', $bogus: 1 } }"), [Code::UnknownKey]);
+        assert_eq!(
+            codes("{ a: { $type: 'u8', $bogus: 1 } }"),
+            [Code::UnknownKey]
+        );
         assert_eq!(codes("{ a: { $typo: 'u8', x: 'u8' } }"), [Code::UnknownKey]);
         assert_eq!(codes("{ a: 3 }"), [Code::WrongType]);
     }
 
     #[test]
     fn all_errors_are_collected() {
-        let (f, diags) = parse_text("{ a: 'nope', instance_id: 'u8', c: { $type: 'u8', $optional: true } }");
+        let (f, diags) =
+            parse_text("{ a: 'nope', instance_id: 'u8', c: { $type: 'u8', $optional: true } }");
         assert!(f.is_none());
         assert_eq!(diags.error_count(), 3);
     }
@@ -664,7 +761,10 @@ mod tests {
     fn did_you_mean_for_types() {
         let (_, diags) = parse_text("{ a: 'u322' }");
         let d = diags.iter().next().unwrap();
-        assert!(d.help.as_deref().unwrap().contains("did you mean `u32`"), "{d}");
+        assert!(
+            d.help.as_deref().unwrap().contains("did you mean `u32`"),
+            "{d}"
+        );
         assert_eq!(d.key_path.as_deref(), Some("message_format.a"));
     }
 }

@@ -5,8 +5,8 @@ use std::sync::Arc;
 
 use crate::diag::{Code, Diagnostics};
 use crate::entries::{
-    ActionDecl, EntryKind, ServiceDecl, TopicDecl, action_name, parse_action, parse_list, parse_service, parse_topic,
-    service_name, topic_name,
+    ActionDecl, EntryKind, ServiceDecl, TopicDecl, action_name, parse_action, parse_list,
+    parse_service, parse_topic, service_name, topic_name,
 };
 use crate::json::Node;
 use crate::names::{check_name, check_tag};
@@ -53,7 +53,12 @@ pub(crate) fn parse_interface(
                 match check_name(&s) {
                     Ok(()) => Some((s, r.loc(n.span, "manifest.name"))),
                     Err(why) => {
-                        r.error(Code::InvalidName, n.span, "manifest.name", format!("invalid `manifest.name` `{s}`: {why}"));
+                        r.error(
+                            Code::InvalidName,
+                            n.span,
+                            "manifest.name",
+                            format!("invalid `manifest.name` `{s}`: {why}"),
+                        );
                         None
                     }
                 }
@@ -63,7 +68,12 @@ pub(crate) fn parse_interface(
                 match check_tag(&s, false) {
                     Ok(()) => Some(s),
                     Err(why) => {
-                        r.error(Code::InvalidTag, t.span, "manifest.tag", format!("invalid `manifest.tag` `{s}`: {why}"));
+                        r.error(
+                            Code::InvalidTag,
+                            t.span,
+                            "manifest.tag",
+                            format!("invalid `manifest.tag` `{s}`: {why}"),
+                        );
                         None
                     }
                 }
@@ -81,14 +91,47 @@ pub(crate) fn parse_interface(
     let mut actions = Vec::new();
     if let Some(i) = r.required(&obj, "interfaces") {
         if let Some(iobj) = r.object(i, "interfaces", &["topics", "services", "actions"]) {
-            topics = parse_list(&mut r, iobj.get("topics"), "interfaces.topics", EntryKind::Topic, &mut ok, parse_topic, topic_name);
-            services = parse_list(&mut r, iobj.get("services"), "interfaces.services", EntryKind::Service, &mut ok, parse_service, service_name);
-            actions = parse_list(&mut r, iobj.get("actions"), "interfaces.actions", EntryKind::Action, &mut ok, parse_action, action_name);
+            topics = parse_list(
+                &mut r,
+                iobj.get("topics"),
+                "interfaces.topics",
+                EntryKind::Topic,
+                &mut ok,
+                parse_topic,
+                topic_name,
+            );
+            services = parse_list(
+                &mut r,
+                iobj.get("services"),
+                "interfaces.services",
+                EntryKind::Service,
+                &mut ok,
+                parse_service,
+                service_name,
+            );
+            actions = parse_list(
+                &mut r,
+                iobj.get("actions"),
+                "interfaces.actions",
+                EntryKind::Action,
+                &mut ok,
+                parse_action,
+                action_name,
+            );
         }
     }
     if r.diags.has_errors() || !ok {
         return None;
     }
     let (identity, name_loc) = identity?;
-    Some(InterfaceDoc { file: file.clone(), sha256, identity, name_loc, labels, topics, services, actions })
+    Some(InterfaceDoc {
+        file: file.clone(),
+        sha256,
+        identity,
+        name_loc,
+        labels,
+        topics,
+        services,
+        actions,
+    })
 }

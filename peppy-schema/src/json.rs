@@ -78,10 +78,7 @@ impl Number {
             _ => (false, raw),
         };
         let sign = if negative { -1.0 } else { 1.0 };
-        if let Some(hex) = body
-            .strip_prefix("0x")
-            .or_else(|| body.strip_prefix("0X"))
-        {
+        if let Some(hex) = body.strip_prefix("0x").or_else(|| body.strip_prefix("0X")) {
             let v = i128::from_str_radix(hex, 16).ok()?;
             return Some(Number::Int(if negative { -v } else { v }));
         }
@@ -328,10 +325,7 @@ mod tests {
         .unwrap();
         assert!(diags.is_empty());
         assert_eq!(node.get("unquoted").unwrap().as_str(), Some("single"));
-        assert_eq!(
-            node.get("q").unwrap().value,
-            Value::Number(Number::Int(31))
-        );
+        assert_eq!(node.get("q").unwrap().value, Value::Number(Number::Int(31)));
         assert_eq!(
             node.get("neg").unwrap().value,
             Value::Number(Number::Float(-0.5))
@@ -340,7 +334,10 @@ mod tests {
             node.get("inf").unwrap().value,
             Value::Number(Number::Float(f64::NEG_INFINITY))
         );
-        assert_eq!(node.get("plus").unwrap().value, Value::Number(Number::Int(3)));
+        assert_eq!(
+            node.get("plus").unwrap().value,
+            Value::Number(Number::Int(3))
+        );
         assert_eq!(node.get("s").unwrap().as_str(), Some("ab"));
     }
 
@@ -353,7 +350,10 @@ mod tests {
         };
         assert_eq!(members[0].key, "b");
         assert_eq!(members[1].key, "a");
-        assert_eq!(&text[members[1].key_span.start..members[1].key_span.end], "a");
+        assert_eq!(
+            &text[members[1].key_span.start..members[1].key_span.end],
+            "a"
+        );
     }
 
     #[test]
@@ -381,7 +381,11 @@ mod tests {
             assert!(err.contains(Code::NestingTooDeep), "{err}");
         }
         // Just past our own limit, but well within the parser's.
-        let text = format!("{}1{}", "[".repeat(MAX_DEPTH + 1), "]".repeat(MAX_DEPTH + 1));
+        let text = format!(
+            "{}1{}",
+            "[".repeat(MAX_DEPTH + 1),
+            "]".repeat(MAX_DEPTH + 1)
+        );
         let err = parse_str(&text).unwrap_err();
         assert!(err.contains(Code::NestingTooDeep));
         let text = format!("{}1{}", "[".repeat(MAX_DEPTH), "]".repeat(MAX_DEPTH));
@@ -391,7 +395,15 @@ mod tests {
     #[test]
     fn oversize_and_empty_documents_are_errors() {
         let big = format!("{{a: \"{}\"}}", "x".repeat(MAX_DOCUMENT_BYTES));
-        assert!(parse_str(&big).unwrap_err().contains(Code::DocumentTooLarge));
-        assert!(parse_str("  // nothing\n").unwrap_err().contains(Code::Syntax));
+        assert!(
+            parse_str(&big)
+                .unwrap_err()
+                .contains(Code::DocumentTooLarge)
+        );
+        assert!(
+            parse_str("  // nothing\n")
+                .unwrap_err()
+                .contains(Code::Syntax)
+        );
     }
 }

@@ -16,8 +16,21 @@ use crate::source::SourceFile;
 /// Loader variables a launcher may not set: they change what code a
 /// process runs rather than how it behaves.
 pub const FORBIDDEN_ENV_VARS: &[&str] = &[
-    "LD_PRELOAD", "LD_LIBRARY_PATH", "LD_AUDIT", "LD_DEBUG", "DYLD_INSERT_LIBRARIES", "DYLD_LIBRARY_PATH",
-    "DYLD_FRAMEWORK_PATH", "BASH_ENV", "ENV", "CDPATH", "IFS", "SHELLOPTS", "BASHOPTS", "PS4", "PROMPT_COMMAND",
+    "LD_PRELOAD",
+    "LD_LIBRARY_PATH",
+    "LD_AUDIT",
+    "LD_DEBUG",
+    "DYLD_INSERT_LIBRARIES",
+    "DYLD_LIBRARY_PATH",
+    "DYLD_FRAMEWORK_PATH",
+    "BASH_ENV",
+    "ENV",
+    "CDPATH",
+    "IFS",
+    "SHELLOPTS",
+    "BASHOPTS",
+    "PS4",
+    "PROMPT_COMMAND",
     "GLOBIGNORE",
 ];
 
@@ -132,18 +145,33 @@ impl LauncherDoc {
         self.file
             .path()
             .parent()
-            .map(|p| if p.as_os_str().is_empty() { PathBuf::from(".") } else { p.to_path_buf() })
+            .map(|p| {
+                if p.as_os_str().is_empty() {
+                    PathBuf::from(".")
+                } else {
+                    p.to_path_buf()
+                }
+            })
             .unwrap_or_else(|| PathBuf::from("."))
     }
 }
 
-pub(crate) fn parse_launcher(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagnostics) -> Option<LauncherDoc> {
+pub(crate) fn parse_launcher(
+    file: &Arc<SourceFile>,
+    root: &Node,
+    diags: &mut Diagnostics,
+) -> Option<LauncherDoc> {
     let mut r = Reader::new(file, diags);
     let obj = r.object(root, "", &["peppy_schema", "deployments"])?;
     let list_node = r.required(&obj, "deployments")?;
     let items = r.array(list_node, "deployments")?;
     if items.is_empty() {
-        r.error(Code::InvalidValue, list_node.span, "deployments", "`deployments` is empty: a launcher runs at least one node");
+        r.error(
+            Code::InvalidValue,
+            list_node.span,
+            "deployments",
+            "`deployments` is empty: a launcher runs at least one node",
+        );
     }
     let mut deployments = Vec::new();
     for (i, item) in items.iter().enumerate() {
@@ -152,7 +180,10 @@ pub(crate) fn parse_launcher(file: &Arc<SourceFile>, root: &Node, diags: &mut Di
         }
     }
     // Syntactic stack-wide rules: unique instance ids, known binding targets.
-    let all: Vec<&Instance> = deployments.iter().flat_map(|d| d.instances.iter()).collect();
+    let all: Vec<&Instance> = deployments
+        .iter()
+        .flat_map(|d| d.instances.iter())
+        .collect();
     for (i, inst) in all.iter().enumerate() {
         if let Some(first) = all[..i].iter().find(|o| o.instance_id == inst.instance_id) {
             let lc = first.id_loc.file.line_col(first.id_loc.span.start);
@@ -172,7 +203,10 @@ pub(crate) fn parse_launcher(file: &Arc<SourceFile>, root: &Node, diags: &mut Di
             if !ids.contains(&b.target.as_str()) {
                 let suggestion = crate::diag::did_you_mean(&b.target, ids.iter().copied());
                 let help = match suggestion {
-                    Some(s) => format!("did you mean `{s}`? instances in this launcher: {}", list(ids.iter().copied())),
+                    Some(s) => format!(
+                        "did you mean `{s}`? instances in this launcher: {}",
+                        list(ids.iter().copied())
+                    ),
                     None => format!("instances in this launcher: {}", list(ids.iter().copied())),
                 };
                 r.diags.push(
@@ -192,7 +226,10 @@ pub(crate) fn parse_launcher(file: &Arc<SourceFile>, root: &Node, diags: &mut Di
     if r.diags.has_errors() {
         return None;
     }
-    Some(LauncherDoc { file: file.clone(), deployments })
+    Some(LauncherDoc {
+        file: file.clone(),
+        deployments,
+    })
 }
 
 fn parse_deployment(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Deployment> {
@@ -224,11 +261,21 @@ fn parse_deployment(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Deplo
     }
     let source_node = source_node?;
     let source = source?;
-    ok.then(|| Deployment { source, source_loc: r.loc(source_node.span, &obj.path_of("source")), instances })
+    ok.then(|| Deployment {
+        source,
+        source_loc: r.loc(source_node.span, &obj.path_of("source")),
+        instances,
+    })
 }
 
 fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Source> {
-    let obj = r.object(node, path, &["local", "name", "tag", "repo", "path", "ref", "url", "sha256"])?;
+    let obj = r.object(
+        node,
+        path,
+        &[
+            "local", "name", "tag", "repo", "path", "ref", "url", "sha256",
+        ],
+    )?;
     let has = |k: &str| obj.get(k).is_some();
     let shape = if has("local") {
         "local"
@@ -248,7 +295,12 @@ fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Source> {
         "name" => &["name", "tag"],
         _ => &[],
     };
-    let stray: Vec<&str> = obj.members.iter().map(|m| m.key.as_str()).filter(|k| !allowed.contains(k)).collect();
+    let stray: Vec<&str> = obj
+        .members
+        .iter()
+        .map(|m| m.key.as_str())
+        .filter(|k| !allowed.contains(k))
+        .collect();
     if shape == "none" || !stray.is_empty() {
         r.error_help(
             Code::InvalidSource,
@@ -267,10 +319,17 @@ fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Source> {
         "local" => {
             let p = r.string(obj.get("local")?, &obj.path_of("local"))?;
             if p.trim().is_empty() {
-                r.error(Code::InvalidSource, node.span, path, "`source.local` is empty; give the node's directory relative to the launcher");
+                r.error(
+                    Code::InvalidSource,
+                    node.span,
+                    path,
+                    "`source.local` is empty; give the node's directory relative to the launcher",
+                );
                 return None;
             }
-            Some(Source::Local { path: PathBuf::from(p.trim()) })
+            Some(Source::Local {
+                path: PathBuf::from(p.trim()),
+            })
         }
         "name" => {
             let name_node = obj.get("name")?;
@@ -301,36 +360,73 @@ fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Source> {
             };
             let mut ok = true;
             if let Err(why) = check_name(&identity.name) {
-                r.error(Code::InvalidName, name_node.span, &obj.path_of("name"), format!("invalid node name `{}`: {why}", identity.name));
+                r.error(
+                    Code::InvalidName,
+                    name_node.span,
+                    &obj.path_of("name"),
+                    format!("invalid node name `{}`: {why}", identity.name),
+                );
                 ok = false;
             }
             if let Err(why) = check_tag(&identity.tag, false) {
-                r.error(Code::InvalidTag, name_node.span, &obj.path_of("name"), format!("invalid tag `{}`: {why}", identity.tag));
+                r.error(
+                    Code::InvalidTag,
+                    name_node.span,
+                    &obj.path_of("name"),
+                    format!("invalid tag `{}`: {why}", identity.tag),
+                );
                 ok = false;
             }
             ok.then_some(Source::Repository { identity })
         }
         "git" => {
-            let repo = r.required(&obj, "repo").and_then(|n| r.string(n, &obj.path_of("repo")));
-            let sub = r.required(&obj, "path").and_then(|n| r.string(n, &obj.path_of("path")));
-            let reference = r.required(&obj, "ref").and_then(|n| r.string(n, &obj.path_of("ref")));
+            let repo = r
+                .required(&obj, "repo")
+                .and_then(|n| r.string(n, &obj.path_of("repo")));
+            let sub = r
+                .required(&obj, "path")
+                .and_then(|n| r.string(n, &obj.path_of("path")));
+            let reference = r
+                .required(&obj, "ref")
+                .and_then(|n| r.string(n, &obj.path_of("ref")));
             let (repo, sub, reference) = (repo?, sub?, reference?);
             if sub.starts_with('/') || sub.split('/').any(|c| c == "..") {
-                r.error(Code::InvalidSource, obj.get("path")?.span, &obj.path_of("path"), "`source.path` must be relative to the repository and stay inside it");
+                r.error(
+                    Code::InvalidSource,
+                    obj.get("path")?.span,
+                    &obj.path_of("path"),
+                    "`source.path` must be relative to the repository and stay inside it",
+                );
                 return None;
             }
-            Some(Source::Git { repo, path: sub, reference })
+            Some(Source::Git {
+                repo,
+                path: sub,
+                reference,
+            })
         }
         _ => {
             let url = r.string(obj.get("url")?, &obj.path_of("url"))?;
-            let sha = r.required(&obj, "sha256").and_then(|n| read_sha256(r, n, &obj.path_of("sha256")))?;
+            let sha = r
+                .required(&obj, "sha256")
+                .and_then(|n| read_sha256(r, n, &obj.path_of("sha256")))?;
             Some(Source::Archive { url, sha256: sha })
         }
     }
 }
 
 fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instance> {
-    let obj = r.object(node, path, &["instance_id", "bindings", "arguments", "env_vars", "restart"])?;
+    let obj = r.object(
+        node,
+        path,
+        &[
+            "instance_id",
+            "bindings",
+            "arguments",
+            "env_vars",
+            "restart",
+        ],
+    )?;
     let mut ok = true;
     let id = r.required(&obj, "instance_id").and_then(|n| {
         let p = obj.path_of("instance_id");
@@ -338,7 +434,12 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
         match check_name(&s) {
             Ok(()) => Some((s, r.loc(n.span, &p))),
             Err(why) => {
-                r.error(Code::InvalidName, n.span, &p, format!("invalid instance_id `{s}`: {why}"));
+                r.error(
+                    Code::InvalidName,
+                    n.span,
+                    &p,
+                    format!("invalid instance_id `{s}`: {why}"),
+                );
                 None
             }
         }
@@ -362,7 +463,12 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
                         continue;
                     }
                     if let Err(why) = check_link_id(&m.key) {
-                        r.error(Code::InvalidName, m.key_span, &kpath, format!("invalid binding key `{}`: {why}", m.key));
+                        r.error(
+                            Code::InvalidName,
+                            m.key_span,
+                            &kpath,
+                            format!("invalid binding key `{}`: {why}", m.key),
+                        );
                         ok = false;
                         continue;
                     }
@@ -379,7 +485,15 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
                 }
             }
             other => {
-                r.error(Code::WrongType, b.span, &bpath, format!("expected an object of `key: \"instance_id\"` for `{bpath}`, found {}", other.kind()));
+                r.error(
+                    Code::WrongType,
+                    b.span,
+                    &bpath,
+                    format!(
+                        "expected an object of `key: \"instance_id\"` for `{bpath}`, found {}",
+                        other.kind()
+                    ),
+                );
                 ok = false;
             }
         }
@@ -387,10 +501,15 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
     // The JSON layer reports a repeated key; inside `bindings` that is rule 6.
     if let (Some(b), Some((id, _))) = (obj.get("bindings"), &id) {
         for d in r.diags.iter_mut() {
-            let inside = d.span().is_some_and(|s| s.start >= b.span.start && s.end <= b.span.end);
+            let inside = d
+                .span()
+                .is_some_and(|s| s.start >= b.span.start && s.end <= b.span.end);
             if d.code == Code::DuplicateKey && inside {
                 d.code = Code::DuplicateBindingKey;
-                d.message = format!("instance `{id}` has binding key {} twice", d.message.trim_start_matches("duplicate key "));
+                d.message = format!(
+                    "instance `{id}` has binding key {} twice",
+                    d.message.trim_start_matches("duplicate key ")
+                );
                 ok = false;
             }
         }
@@ -399,7 +518,15 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
         Some(a) => {
             let apath = obj.path_of("arguments");
             if !matches!(a.value, Value::Object(_)) {
-                r.error(Code::WrongType, a.span, &apath, format!("expected an object of parameter values for `{apath}`, found {}", a.value.kind()));
+                r.error(
+                    Code::WrongType,
+                    a.span,
+                    &apath,
+                    format!(
+                        "expected an object of parameter values for `{apath}`, found {}",
+                        a.value.kind()
+                    ),
+                );
                 ok = false;
             }
             (Some(a.clone()), Some(r.loc(a.span, &apath)))
@@ -415,7 +542,12 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
                     let kpath = format!("{epath}.{}", m.key);
                     let upper = m.key.to_ascii_uppercase();
                     if m.key.is_empty() || m.key.contains('=') || m.key.contains('\0') {
-                        r.error(Code::ForbiddenEnvVar, m.key_span, &kpath, format!("invalid environment variable name {:?}", m.key));
+                        r.error(
+                            Code::ForbiddenEnvVar,
+                            m.key_span,
+                            &kpath,
+                            format!("invalid environment variable name {:?}", m.key),
+                        );
                         ok = false;
                     } else if FORBIDDEN_ENV_VARS.contains(&upper.as_str()) {
                         r.error_help(
@@ -434,7 +566,15 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
                 }
             }
             other => {
-                r.error(Code::WrongType, e.span, &epath, format!("expected an object of `NAME: \"value\"` for `{epath}`, found {}", other.kind()));
+                r.error(
+                    Code::WrongType,
+                    e.span,
+                    &epath,
+                    format!(
+                        "expected an object of `NAME: \"value\"` for `{epath}`, found {}",
+                        other.kind()
+                    ),
+                );
                 ok = false;
             }
         }
@@ -466,5 +606,13 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
         }
     };
     let (instance_id, id_loc) = id?;
-    ok.then_some(Instance { instance_id, id_loc, bindings, arguments, arguments_loc, env_vars, restart })
+    ok.then_some(Instance {
+        instance_id,
+        id_loc,
+        bindings,
+        arguments,
+        arguments_loc,
+        env_vars,
+        restart,
+    })
 }

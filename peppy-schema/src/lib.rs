@@ -52,20 +52,36 @@ mod stack;
 
 pub use diag::{Code, Diagnostic, Diagnostics, Severity, did_you_mean};
 pub use document::{
-    DocumentKind, Document, Parsed, REPOSITORIES_FILE, RepositoriesDoc, SCHEMAS, detect_kind, load_as, load_document,
-    parse_as, parse_document,
+    Document, DocumentKind, Parsed, REPOSITORIES_FILE, RepositoriesDoc, SCHEMAS, detect_kind,
+    load_as, load_document, parse_as, parse_document,
 };
-pub use entries::{ActionDecl, EntryKind, FeedbackDecl, QOS_NAMES, QosProfile, RESERVED_SERVICE_NAMES, ServiceDecl, TopicDecl};
+pub use entries::{
+    ActionDecl, EntryKind, FeedbackDecl, QOS_NAMES, QosProfile, RESERVED_SERVICE_NAMES,
+    ServiceDecl, TopicDecl,
+};
 pub use format::{Field, FieldType, MAX_FIXED_LENGTH, MessageFormat, Primitive, TYPE_NAMES};
 pub use interface::InterfaceDoc;
-pub use launcher::{Binding, Deployment, FORBIDDEN_ENV_VARS, Instance, LauncherDoc, RestartPolicy, Source};
-pub use node::{
-    ConsumedRef, ConsumedTopic, Container, Dependency, Execution, Identity, InterfaceRef, NodeDoc, SlotKind, TopicSource,
+pub use launcher::{
+    Binding, Deployment, FORBIDDEN_ENV_VARS, Instance, LauncherDoc, RestartPolicy, Source,
 };
-pub use params::{ParamError, ParamErrorKind, ParamField, ParamItem, ParamKind, ParameterSchema, check_leaf, describe};
+pub use node::{
+    ConsumedRef, ConsumedTopic, Container, Dependency, Execution, Identity, InterfaceRef, NodeDoc,
+    SlotKind, TopicSource,
+};
+pub use params::{
+    ParamError, ParamErrorKind, ParamField, ParamItem, ParamKind, ParameterSchema, check_leaf,
+    describe,
+};
+pub use plan::{
+    BindingPlan, InstancePlan, RouteFilter, SlotBinding, SlotPlan, compute_filters, plan_bindings,
+};
 pub use read::Loc;
-pub use source::{LineCol, MAX_DOCUMENT_BYTES, SourceFile, Span, sha256_hex};
-pub use plan::{BindingPlan, InstancePlan, RouteFilter, SlotBinding, SlotPlan, compute_filters, plan_bindings};
 pub use repos::{Broken, Entry, REPOSITORIES_ENV, RepoIndex, RepositoryList, SKIPPED_DIRS};
-pub use resolve::{Origin, Provided, ResolvedCall, ResolvedNode, ResolvedTopic, SlotRef, UsedInterface, resolve_node};
-pub use stack::{DeployedNode, NodeCheck, RepoOptions, StackCheck, check_launcher, check_node, node_file};
+pub use resolve::{
+    Origin, Provided, ResolvedCall, ResolvedNode, ResolvedTopic, SlotRef, UsedInterface,
+    resolve_node,
+};
+pub use source::{LineCol, MAX_DOCUMENT_BYTES, SourceFile, Span, sha256_hex};
+pub use stack::{
+    DeployedNode, NodeCheck, RepoOptions, StackCheck, check_launcher, check_node, node_file,
+};

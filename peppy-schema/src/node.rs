@@ -65,13 +65,17 @@ pub struct Identity {
 impl Identity {
     /// `name:tag`.
     pub fn new(name: impl Into<String>, tag: impl Into<String>) -> Self {
-        Identity { name: name.into(), tag: tag.into() }
+        Identity {
+            name: name.into(),
+            tag: tag.into(),
+        }
     }
 
     /// Parses `name:tag`.
     pub fn parse(s: &str) -> Option<Identity> {
         let (name, tag) = s.split_once(':')?;
-        (!name.is_empty() && !tag.is_empty() && !tag.contains(':')).then(|| Identity::new(name, tag))
+        (!name.is_empty() && !tag.is_empty() && !tag.contains(':'))
+            .then(|| Identity::new(name, tag))
     }
 }
 
@@ -213,7 +217,11 @@ impl NodeDoc {
 const LEGACY_HELP: &str = "legacy `schema_version: 1` spelling";
 
 /// Parses a node document from its root value.
-pub(crate) fn parse_node(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagnostics) -> Option<NodeDoc> {
+pub(crate) fn parse_node(
+    file: &Arc<SourceFile>,
+    root: &Node,
+    diags: &mut Diagnostics,
+) -> Option<NodeDoc> {
     let mut r = Reader::new(file, diags);
     let legacy = root.get("schema_version").is_some() && root.get("peppy_schema").is_none();
     let top_keys: &[&str] = if legacy {
@@ -249,7 +257,13 @@ pub(crate) fn parse_node(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagno
         };
         if let Some(mobj) = r.object(m, "manifest", keys) {
             name = read_identity_part(&mut r, &mobj, "name", |s| check_name(s), Code::InvalidName);
-            tag = read_identity_part(&mut r, &mobj, "tag", |s| check_tag(s, legacy), Code::InvalidTag);
+            tag = read_identity_part(
+                &mut r,
+                &mobj,
+                "tag",
+                |s| check_tag(s, legacy),
+                Code::InvalidTag,
+            );
             if let Some(l) = mobj.get("labels") {
                 labels = r.string_list(l, "manifest.labels").unwrap_or_default();
             }
@@ -281,7 +295,8 @@ pub(crate) fn parse_node(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagno
     let execution = if legacy {
         parse_legacy_process(&mut r, &root_obj, legacy_language)
     } else {
-        r.required(&root_obj, "execution").and_then(|e| parse_execution(&mut r, e))
+        r.required(&root_obj, "execution")
+            .and_then(|e| parse_execution(&mut r, e))
     };
     if execution.is_none() {
         ok = false;
@@ -296,28 +311,71 @@ pub(crate) fn parse_node(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagno
     let mut exposed_actions = Vec::new();
     let mut consumed_actions = Vec::new();
     if let Some(i) = root_obj.get("interfaces") {
-        if let Some(iobj) = r.object(i, "interfaces", &["topics", "services", "actions", "conforms_to"]) {
+        if let Some(iobj) = r.object(
+            i,
+            "interfaces",
+            &["topics", "services", "actions", "conforms_to"],
+        ) {
             conforms_to = parse_conforms_to(&mut r, iobj.get("conforms_to"), &mut ok);
             if let Some(t) = iobj.get("topics") {
                 if let Some(tobj) = r.object(t, "interfaces.topics", &["emits", "consumes"]) {
-                    emits = parse_list(&mut r, tobj.get("emits"), "interfaces.topics.emits", EntryKind::Topic, &mut ok, parse_topic, topic_name);
-                    consumed_topics = parse_consumed_topics(&mut r, tobj.get("consumes"), legacy, &mut ok);
+                    emits = parse_list(
+                        &mut r,
+                        tobj.get("emits"),
+                        "interfaces.topics.emits",
+                        EntryKind::Topic,
+                        &mut ok,
+                        parse_topic,
+                        topic_name,
+                    );
+                    consumed_topics =
+                        parse_consumed_topics(&mut r, tobj.get("consumes"), legacy, &mut ok);
                 } else {
                     ok = false;
                 }
             }
             if let Some(s) = iobj.get("services") {
                 if let Some(sobj) = r.object(s, "interfaces.services", &["exposes", "consumes"]) {
-                    exposed_services = parse_list(&mut r, sobj.get("exposes"), "interfaces.services.exposes", EntryKind::Service, &mut ok, parse_service, service_name);
-                    consumed_services = parse_consumed_refs(&mut r, sobj.get("consumes"), "interfaces.services.consumes", EntryKind::Service, legacy, &mut ok);
+                    exposed_services = parse_list(
+                        &mut r,
+                        sobj.get("exposes"),
+                        "interfaces.services.exposes",
+                        EntryKind::Service,
+                        &mut ok,
+                        parse_service,
+                        service_name,
+                    );
+                    consumed_services = parse_consumed_refs(
+                        &mut r,
+                        sobj.get("consumes"),
+                        "interfaces.services.consumes",
+                        EntryKind::Service,
+                        legacy,
+                        &mut ok,
+                    );
                 } else {
                     ok = false;
                 }
             }
             if let Some(a) = iobj.get("actions") {
                 if let Some(aobj) = r.object(a, "interfaces.actions", &["exposes", "consumes"]) {
-                    exposed_actions = parse_list(&mut r, aobj.get("exposes"), "interfaces.actions.exposes", EntryKind::Action, &mut ok, parse_action, action_name);
-                    consumed_actions = parse_consumed_refs(&mut r, aobj.get("consumes"), "interfaces.actions.consumes", EntryKind::Action, legacy, &mut ok);
+                    exposed_actions = parse_list(
+                        &mut r,
+                        aobj.get("exposes"),
+                        "interfaces.actions.exposes",
+                        EntryKind::Action,
+                        &mut ok,
+                        parse_action,
+                        action_name,
+                    );
+                    consumed_actions = parse_consumed_refs(
+                        &mut r,
+                        aobj.get("consumes"),
+                        "interfaces.actions.consumes",
+                        EntryKind::Action,
+                        legacy,
+                        &mut ok,
+                    );
                 } else {
                     ok = false;
                 }
@@ -334,8 +392,16 @@ pub(crate) fn parse_node(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagno
             TopicSource::Linked { link_id } => Some((link_id.as_str(), &t.loc, EntryKind::Topic)),
             TopicSource::External(_) => None,
         })
-        .chain(consumed_services.iter().map(|s| (s.link_id.as_str(), &s.loc, EntryKind::Service)))
-        .chain(consumed_actions.iter().map(|a| (a.link_id.as_str(), &a.loc, EntryKind::Action)));
+        .chain(
+            consumed_services
+                .iter()
+                .map(|s| (s.link_id.as_str(), &s.loc, EntryKind::Service)),
+        )
+        .chain(
+            consumed_actions
+                .iter()
+                .map(|a| (a.link_id.as_str(), &a.loc, EntryKind::Action)),
+        );
     for (link_id, loc, kind) in consumed_links {
         if !dependencies.iter().any(|d| d.link_id == link_id) {
             let declared: Vec<&str> = dependencies.iter().map(|d| d.link_id.as_str()).collect();
@@ -354,7 +420,12 @@ pub(crate) fn parse_node(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagno
     }
 
     // two consumed entries generating the same module
-    check_consumed_modules(&mut r, &consumed_topics, &consumed_services, &consumed_actions);
+    check_consumed_modules(
+        &mut r,
+        &consumed_topics,
+        &consumed_services,
+        &consumed_actions,
+    );
 
     if !ok || r.diags.has_errors() {
         return None;
@@ -380,10 +451,17 @@ pub(crate) fn parse_node(file: &Arc<SourceFile>, root: &Node, diags: &mut Diagno
     })
 }
 
-fn check_consumed_modules(r: &mut Reader<'_>, topics: &[ConsumedTopic], services: &[ConsumedRef], actions: &[ConsumedRef]) {
+fn check_consumed_modules(
+    r: &mut Reader<'_>,
+    topics: &[ConsumedTopic],
+    services: &[ConsumedRef],
+    actions: &[ConsumedRef],
+) {
     let topic_modules = topics.iter().map(|t| {
         let module = match &t.source {
-            TopicSource::Linked { link_id } => format!("{}_{}", module_name(link_id), module_name(&t.name)),
+            TopicSource::Linked { link_id } => {
+                format!("{}_{}", module_name(link_id), module_name(&t.name))
+            }
             TopicSource::External(_) => module_name(&t.name),
         };
         (module, &t.loc)
@@ -394,10 +472,17 @@ fn check_consumed_modules(r: &mut Reader<'_>, topics: &[ConsumedTopic], services
 }
 
 fn consumed_module(c: &ConsumedRef) -> (String, &Loc) {
-    (format!("{}_{}", module_name(&c.link_id), module_name(&c.name)), &c.loc)
+    (
+        format!("{}_{}", module_name(&c.link_id), module_name(&c.name)),
+        &c.loc,
+    )
 }
 
-fn check_modules<'a>(r: &mut Reader<'_>, category: &str, modules: impl Iterator<Item = (String, &'a Loc)>) {
+fn check_modules<'a>(
+    r: &mut Reader<'_>,
+    category: &str,
+    modules: impl Iterator<Item = (String, &'a Loc)>,
+) {
     let mut seen: Vec<(String, &Loc)> = Vec::new();
     for (module, loc) in modules {
         if let Some((_, first)) = seen.iter().find(|(m, _)| *m == module) {
@@ -426,7 +511,12 @@ fn read_identity_part(
     let path = obj.path_of(key);
     let value = r.string(node, &path)?;
     if let Err(why) = check(&value) {
-        r.error(code, node.span, &path, format!("invalid `{path}` `{value}`: {why}"));
+        r.error(
+            code,
+            node.span,
+            &path,
+            format!("invalid `{path}` `{value}`: {why}"),
+        );
         return None;
     }
     Some((value, r.loc(node.span, &path)))
@@ -435,7 +525,11 @@ fn read_identity_part(
 /// Checks a sha256 pin's spelling: 64 lowercase hex characters.
 pub(crate) fn read_sha256(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<String> {
     let s = r.string(node, path)?;
-    if s.len() != 64 || !s.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b)) {
+    if s.len() != 64
+        || !s
+            .bytes()
+            .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
+    {
         r.error_help(
             Code::InvalidValue,
             node.span,
@@ -452,7 +546,10 @@ fn parse_depends_on(r: &mut Reader<'_>, node: &Node, legacy: bool) -> Option<Vec
     let obj = r.object(node, "manifest.depends_on", &["nodes", "interfaces"])?;
     let mut ok = true;
     let mut deps = Vec::new();
-    for (key, kind) in [("nodes", SlotKind::Node), ("interfaces", SlotKind::Interface)] {
+    for (key, kind) in [
+        ("nodes", SlotKind::Node),
+        ("interfaces", SlotKind::Interface),
+    ] {
         let Some(list) = obj.get(key) else { continue };
         let path = obj.path_of(key);
         let Some(items) = r.array(list, &path) else {
@@ -480,7 +577,10 @@ fn parse_depends_on(r: &mut Reader<'_>, node: &Node, legacy: bool) -> Option<Vec
             ok = false;
         }
         if d.from_any {
-            if let Some(first) = deps[..i].iter().find(|e| e.from_any && e.target == d.target) {
+            if let Some(first) = deps[..i]
+                .iter()
+                .find(|e| e.from_any && e.target == d.target)
+            {
                 r.diags.push(
                     d.loc
                         .error(
@@ -496,7 +596,13 @@ fn parse_depends_on(r: &mut Reader<'_>, node: &Node, legacy: bool) -> Option<Vec
     ok.then_some(deps)
 }
 
-fn parse_dependency(r: &mut Reader<'_>, node: &Node, path: &str, kind: SlotKind, legacy: bool) -> Option<Dependency> {
+fn parse_dependency(
+    r: &mut Reader<'_>,
+    node: &Node,
+    path: &str,
+    kind: SlotKind,
+    legacy: bool,
+) -> Option<Dependency> {
     let keys: &[&str] = match (kind, legacy) {
         (SlotKind::Node, false) => &["name", "tag", "link_id", "from_any"],
         (SlotKind::Node, true) => &["name", "tag", "link_id", "local_id", "from_any"],
@@ -554,7 +660,12 @@ fn read_link_id(r: &mut Reader<'_>, obj: &Obj<'_>, key: &str) -> Option<String> 
     let path = obj.path_of(key);
     let s = r.string(node, &path)?;
     if let Err(why) = check_link_id(&s) {
-        r.error(Code::InvalidName, node.span, &path, format!("invalid link_id `{s}`: {why}"));
+        r.error(
+            Code::InvalidName,
+            node.span,
+            &path,
+            format!("invalid link_id `{s}`: {why}"),
+        );
         return None;
     }
     Some(s)
@@ -590,10 +701,15 @@ fn parse_conforms_to(r: &mut Reader<'_>, node: Option<&Node>, ok: &mut bool) -> 
             *ok = false;
             continue;
         };
-        let entry = InterfaceRef { target: Identity::new(name, tag), sha256, loc: r.loc(item.span, &ipath) };
+        let entry = InterfaceRef {
+            target: Identity::new(name, tag),
+            sha256,
+            loc: r.loc(item.span, &ipath),
+        };
         let clash = out.iter().find(|e| {
             e.target == entry.target
-                || (e.target.name == entry.target.name && module_name(&e.target.tag) == module_name(&entry.target.tag))
+                || (e.target.name == entry.target.name
+                    && module_name(&e.target.tag) == module_name(&entry.target.tag))
         });
         if let Some(first) = clash {
             let what = if first.target == entry.target {
@@ -607,7 +723,12 @@ fn parse_conforms_to(r: &mut Reader<'_>, node: Option<&Node>, ok: &mut bool) -> 
                     module_name(&entry.target.tag)
                 )
             };
-            r.diags.push(entry.loc.error(Code::DuplicateConformance, what).with_help("list each interface once"));
+            r.diags.push(
+                entry
+                    .loc
+                    .error(Code::DuplicateConformance, what)
+                    .with_help("list each interface once"),
+            );
             *ok = false;
             continue;
         }
@@ -616,7 +737,12 @@ fn parse_conforms_to(r: &mut Reader<'_>, node: Option<&Node>, ok: &mut bool) -> 
     out
 }
 
-fn parse_consumed_topics(r: &mut Reader<'_>, node: Option<&Node>, legacy: bool, ok: &mut bool) -> Vec<ConsumedTopic> {
+fn parse_consumed_topics(
+    r: &mut Reader<'_>,
+    node: Option<&Node>,
+    legacy: bool,
+    ok: &mut bool,
+) -> Vec<ConsumedTopic> {
     let Some(node) = node else { return Vec::new() };
     let path = "interfaces.topics.consumes";
     let Some(items) = r.array(node, path) else {
@@ -648,8 +774,11 @@ fn parse_consumed_topics(r: &mut Reader<'_>, node: Option<&Node>, legacy: bool, 
                 );
                 None
             }
-            (Some(key), None) => read_link_id(r, &obj, key).map(|link_id| TopicSource::Linked { link_id }),
-            (None, Some(mf)) => parse_format(r, &mf.value, &obj.path_of("message_format")).map(TopicSource::External),
+            (Some(key), None) => {
+                read_link_id(r, &obj, key).map(|link_id| TopicSource::Linked { link_id })
+            }
+            (None, Some(mf)) => parse_format(r, &mf.value, &obj.path_of("message_format"))
+                .map(TopicSource::External),
             (None, None) => {
                 r.error_help(
                     Code::ExternalFormatMissing,
@@ -662,7 +791,11 @@ fn parse_consumed_topics(r: &mut Reader<'_>, node: Option<&Node>, legacy: bool, 
             }
         };
         match (name, source) {
-            (Some((name, _)), Some(source)) => out.push(ConsumedTopic { name, source, loc: r.loc(item.span, &ipath) }),
+            (Some((name, _)), Some(source)) => out.push(ConsumedTopic {
+                name,
+                source,
+                loc: r.loc(item.span, &ipath),
+            }),
             _ => *ok = false,
         }
     }
@@ -705,7 +838,11 @@ fn parse_consumed_refs(
     let mut out = Vec::new();
     for (i, item) in items.iter().enumerate() {
         let ipath = index(path, i);
-        let keys: &[&str] = if legacy { &["name", "link_id", "local_node_id"] } else { &["name", "link_id"] };
+        let keys: &[&str] = if legacy {
+            &["name", "link_id", "local_node_id"]
+        } else {
+            &["name", "link_id"]
+        };
         let Some(obj) = r.object(item, &ipath, keys) else {
             *ok = false;
             continue;
@@ -727,7 +864,11 @@ fn parse_consumed_refs(
             }
         };
         match (name, link) {
-            (Some((name, _)), Some(link_id)) => out.push(ConsumedRef { link_id, name, loc: r.loc(item.span, &ipath) }),
+            (Some((name, _)), Some(link_id)) => out.push(ConsumedRef {
+                link_id,
+                name,
+                loc: r.loc(item.span, &ipath),
+            }),
             _ => *ok = false,
         }
     }
@@ -737,26 +878,54 @@ fn parse_consumed_refs(
 fn parse_command(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Vec<String>> {
     let argv = r.string_list(node, path)?;
     if argv.is_empty() || argv[0].trim().is_empty() {
-        r.error(Code::EmptyCommand, node.span, path, format!("`{path}` must name a program: an argv like [\"cargo\", \"run\"]"));
+        r.error(
+            Code::EmptyCommand,
+            node.span,
+            path,
+            format!("`{path}` must name a program: an argv like [\"cargo\", \"run\"]"),
+        );
         return None;
     }
     Some(argv)
 }
 
 fn parse_execution(r: &mut Reader<'_>, node: &Node) -> Option<Execution> {
-    let obj = r.object(node, "execution", &["language", "build_cmd", "run_cmd", "parameters", "container"])?;
+    let obj = r.object(
+        node,
+        "execution",
+        &[
+            "language",
+            "build_cmd",
+            "run_cmd",
+            "parameters",
+            "container",
+        ],
+    )?;
     let mut ok = true;
-    let language = r.required(&obj, "language").and_then(|l| r.string(l, "execution.language"));
+    let language = r
+        .required(&obj, "language")
+        .and_then(|l| r.string(l, "execution.language"));
     if let Some(l) = &language {
         if l.trim().is_empty() {
-            r.error(Code::InvalidValue, obj.get("language").expect("present").span, "execution.language", "`execution.language` must not be empty");
+            r.error(
+                Code::InvalidValue,
+                obj.get("language").expect("present").span,
+                "execution.language",
+                "`execution.language` must not be empty",
+            );
             ok = false;
         }
     }
-    let build_cmd = obj.get("build_cmd").map(|b| parse_command(r, b, "execution.build_cmd"));
-    let run_cmd = obj.get("run_cmd").map(|b| parse_command(r, b, "execution.run_cmd"));
+    let build_cmd = obj
+        .get("build_cmd")
+        .map(|b| parse_command(r, b, "execution.build_cmd"));
+    let run_cmd = obj
+        .get("run_cmd")
+        .map(|b| parse_command(r, b, "execution.run_cmd"));
     let container = obj.get("container").map(|c| parse_container(r, c));
-    let parameters = obj.get("parameters").map(|p| parse_parameters(r, p, "execution.parameters"));
+    let parameters = obj
+        .get("parameters")
+        .map(|p| parse_parameters(r, p, "execution.parameters"));
     match (&run_cmd, &container) {
         (Some(_), Some(_)) => {
             r.error_help(
@@ -813,7 +982,13 @@ fn parse_execution(r: &mut Reader<'_>, node: &Node) -> Option<Execution> {
         None => ParameterSchema::default(),
     };
     let language = language?;
-    ok.then_some(Execution { language, build_cmd, run_cmd, container, parameters })
+    ok.then_some(Execution {
+        language,
+        build_cmd,
+        run_cmd,
+        container,
+        parameters,
+    })
 }
 
 fn parse_container(r: &mut Reader<'_>, node: &Node) -> Option<Container> {
@@ -821,9 +996,17 @@ fn parse_container(r: &mut Reader<'_>, node: &Node) -> Option<Container> {
     let obj = r.object(
         node,
         path,
-        &["def_file", "mount_paths", "apptainer_build_extra_args", "apptainer_run_extra_args", "lima_shell_extra_args"],
+        &[
+            "def_file",
+            "mount_paths",
+            "apptainer_build_extra_args",
+            "apptainer_run_extra_args",
+            "lima_shell_extra_args",
+        ],
     )?;
-    let def_file = r.required(&obj, "def_file").and_then(|d| r.string(d, &obj.path_of("def_file")));
+    let def_file = r
+        .required(&obj, "def_file")
+        .and_then(|d| r.string(d, &obj.path_of("def_file")));
     let mut list = |key: &str| -> Option<Vec<String>> {
         match obj.get(key) {
             Some(n) => r.string_list(n, &obj.path_of(key)),
@@ -843,13 +1026,22 @@ fn parse_container(r: &mut Reader<'_>, node: &Node) -> Option<Container> {
     })
 }
 
-fn parse_legacy_process(r: &mut Reader<'_>, root: &Obj<'_>, language: Option<String>) -> Option<Execution> {
+fn parse_legacy_process(
+    r: &mut Reader<'_>,
+    root: &Obj<'_>,
+    language: Option<String>,
+) -> Option<Execution> {
     let language = match language {
         Some(l) => Some(l),
         None => {
             if let Some(m) = root.get("manifest") {
                 if m.get("language").is_none() {
-                    r.error(Code::MissingKey, m.span, "manifest", "missing required key `language` in `manifest` (legacy form)");
+                    r.error(
+                        Code::MissingKey,
+                        m.span,
+                        "manifest",
+                        "missing required key `language` in `manifest` (legacy form)",
+                    );
                 }
             }
             None
@@ -860,7 +1052,13 @@ fn parse_legacy_process(r: &mut Reader<'_>, root: &Obj<'_>, language: Option<Str
     let mut ok = true;
     let build_cmd = match obj.member("add_cmd") {
         Some(m) => {
-            r.warn_help(Code::LegacySpelling, m.key_span, "process.add_cmd", format!("{LEGACY_HELP}: `process.add_cmd`"), "write `execution.build_cmd`");
+            r.warn_help(
+                Code::LegacySpelling,
+                m.key_span,
+                "process.add_cmd",
+                format!("{LEGACY_HELP}: `process.add_cmd`"),
+                "write `execution.build_cmd`",
+            );
             let v = parse_command(r, &m.value, "process.add_cmd");
             ok &= v.is_some();
             v
@@ -870,13 +1068,25 @@ fn parse_legacy_process(r: &mut Reader<'_>, root: &Obj<'_>, language: Option<Str
     let run_cmd = match r.required(&obj, "start_cmd") {
         Some(n) => {
             let m = obj.member("start_cmd").expect("present");
-            r.warn_help(Code::LegacySpelling, m.key_span, "process.start_cmd", format!("{LEGACY_HELP}: `process.start_cmd`"), "write `execution.run_cmd`");
+            r.warn_help(
+                Code::LegacySpelling,
+                m.key_span,
+                "process.start_cmd",
+                format!("{LEGACY_HELP}: `process.start_cmd`"),
+                "write `execution.run_cmd`",
+            );
             parse_command(r, n, "process.start_cmd")
         }
         None => None,
     };
     if let Some(m) = root.member("process") {
-        r.warn_help(Code::LegacySpelling, m.key_span, "process", format!("{LEGACY_HELP}: `process`"), "write `execution`");
+        r.warn_help(
+            Code::LegacySpelling,
+            m.key_span,
+            "process",
+            format!("{LEGACY_HELP}: `process`"),
+            "write `execution`",
+        );
     }
     let language = language?;
     let run_cmd = run_cmd?;

@@ -7,7 +7,7 @@
 use serde_json::{Map, Value as Json};
 
 use crate::diag::{Code, did_you_mean, list};
-use crate::format::{Primitive, TYPE_NAMES, MAX_FIXED_LENGTH};
+use crate::format::{MAX_FIXED_LENGTH, Primitive, TYPE_NAMES};
 use crate::json::{Node, Value};
 use crate::names::check_field_name;
 use crate::read::{Loc, Reader, join};
@@ -112,9 +112,18 @@ impl ParamError {
                 "pass it (`{}=...` on the command line, or under `arguments` in a launcher) or give it a `$default`",
                 self.path
             )),
-            ParamErrorKind::Unknown { suggestion, accepted } => Some(match suggestion {
-                Some(s) => format!("did you mean `{s}`? parameters here: {}", list(accepted.iter().map(String::as_str))),
-                None => format!("parameters here: {}", list(accepted.iter().map(String::as_str))),
+            ParamErrorKind::Unknown {
+                suggestion,
+                accepted,
+            } => Some(match suggestion {
+                Some(s) => format!(
+                    "did you mean `{s}`? parameters here: {}",
+                    list(accepted.iter().map(String::as_str))
+                ),
+                None => format!(
+                    "parameters here: {}",
+                    list(accepted.iter().map(String::as_str))
+                ),
             }),
             ParamErrorKind::TypeMismatch { .. } => None,
         }
@@ -168,7 +177,13 @@ fn describe_found(v: &Json) -> String {
 
 /// Checks one primitive value; returns it normalised (`bytes` as an array).
 pub fn check_leaf(ty: Primitive, v: &Json) -> Result<Json, String> {
-    let mismatch = || Err(format!("expects {}, found {}", describe(ty), describe_found(v)));
+    let mismatch = || {
+        Err(format!(
+            "expects {}, found {}",
+            describe(ty),
+            describe_found(v)
+        ))
+    };
     match ty {
         Primitive::Bool => match v {
             Json::Bool(_) => Ok(v.clone()),
@@ -237,12 +252,20 @@ impl ParameterSchema {
             }
         };
         let out = resolve_group(&self.fields, map, "", &mut errors);
-        if errors.is_empty() { Ok(Json::Object(out)) } else { Err(errors) }
+        if errors.is_empty() {
+            Ok(Json::Object(out))
+        } else {
+            Err(errors)
+        }
     }
 }
 
 fn dot(parent: &str, key: &str) -> String {
-    if parent.is_empty() { key.to_string() } else { format!("{parent}.{key}") }
+    if parent.is_empty() {
+        key.to_string()
+    } else {
+        format!("{parent}.{key}")
+    }
 }
 
 fn resolve_group(
@@ -259,7 +282,8 @@ fn resolve_group(
                 errors.push(ParamError {
                     path: dot(path, key),
                     kind: ParamErrorKind::Unknown {
-                        suggestion: did_you_mean(key, accepted.iter().map(String::as_str)).map(str::to_string),
+                        suggestion: did_you_mean(key, accepted.iter().map(String::as_str))
+                            .map(str::to_string),
                         accepted,
                     },
                 });
@@ -276,11 +300,19 @@ fn resolve_group(
     out
 }
 
-fn resolve_field(kind: &ParamKind, given: Option<&Json>, path: &str, errors: &mut Vec<ParamError>) -> Option<Json> {
+fn resolve_field(
+    kind: &ParamKind,
+    given: Option<&Json>,
+    path: &str,
+    errors: &mut Vec<ParamError>,
+) -> Option<Json> {
     let mismatch = |errors: &mut Vec<ParamError>, expected: String, found: &Json| {
         errors.push(ParamError {
             path: path.to_string(),
-            kind: ParamErrorKind::TypeMismatch { expected, found: describe_found(found) },
+            kind: ParamErrorKind::TypeMismatch {
+                expected,
+                found: describe_found(found),
+            },
         });
     };
     match (kind, given) {
@@ -291,11 +323,18 @@ fn resolve_field(kind: &ParamKind, given: Option<&Json>, path: &str, errors: &mu
                 None
             }
         },
-        (ParamKind::Leaf { default: Some(d), .. }, None) => Some(d.clone()),
+        (
+            ParamKind::Leaf {
+                default: Some(d), ..
+            },
+            None,
+        ) => Some(d.clone()),
         (ParamKind::Leaf { ty, default: None }, None) => {
             errors.push(ParamError {
                 path: path.to_string(),
-                kind: ParamErrorKind::Missing { expected: describe(*ty) },
+                kind: ParamErrorKind::Missing {
+                    expected: describe(*ty),
+                },
             });
             None
         }
@@ -319,34 +358,57 @@ fn resolve_field(kind: &ParamKind, given: Option<&Json>, path: &str, errors: &mu
                         Err(_) => mismatch_at(errors, &ipath, describe(*p), item),
                     },
                     ParamItem::Object(fields) => match item {
-                        Json::Object(m) => out.push(Json::Object(resolve_group(fields, Some(m), &ipath, errors))),
+                        Json::Object(m) => {
+                            out.push(Json::Object(resolve_group(fields, Some(m), &ipath, errors)))
+                        }
                         other => mismatch_at(errors, &ipath, "an object".into(), other),
                     },
                 }
             }
             Some(Json::Array(out))
         }
-        (ParamKind::Array { default: Some(d), .. }, None) => Some(d.clone()),
-        (ParamKind::Array { items, length, default: None }, None) => {
+        (
+            ParamKind::Array {
+                default: Some(d), ..
+            },
+            None,
+        ) => Some(d.clone()),
+        (
+            ParamKind::Array {
+                items,
+                length,
+                default: None,
+            },
+            None,
+        ) => {
             errors.push(ParamError {
                 path: path.to_string(),
-                kind: ParamErrorKind::Missing { expected: describe_array(items, *length) },
+                kind: ParamErrorKind::Missing {
+                    expected: describe_array(items, *length),
+                },
             });
             None
         }
-        (ParamKind::Group(fields), Some(Json::Object(m))) => Some(Json::Object(resolve_group(fields, Some(m), path, errors))),
+        (ParamKind::Group(fields), Some(Json::Object(m))) => {
+            Some(Json::Object(resolve_group(fields, Some(m), path, errors)))
+        }
         (ParamKind::Group(_), Some(other)) => {
             mismatch(errors, "an object (a parameter group)".into(), other);
             None
         }
-        (ParamKind::Group(fields), None) => Some(Json::Object(resolve_group(fields, None, path, errors))),
+        (ParamKind::Group(fields), None) => {
+            Some(Json::Object(resolve_group(fields, None, path, errors)))
+        }
     }
 }
 
 fn mismatch_at(errors: &mut Vec<ParamError>, path: &str, expected: String, found: &Json) {
     errors.push(ParamError {
         path: path.to_string(),
-        kind: ParamErrorKind::TypeMismatch { expected, found: describe_found(found) },
+        kind: ParamErrorKind::TypeMismatch {
+            expected,
+            found: describe_found(found),
+        },
     });
 }
 
@@ -362,13 +424,20 @@ fn describe_array(items: &ParamItem, length: Option<u32>) -> String {
 }
 
 /// Parses `execution.parameters`.
-pub(crate) fn parse_parameters(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<ParameterSchema> {
+pub(crate) fn parse_parameters(
+    r: &mut Reader<'_>,
+    node: &Node,
+    path: &str,
+) -> Option<ParameterSchema> {
     let Value::Object(members) = &node.value else {
         r.error(
             Code::WrongType,
             node.span,
             path,
-            format!("expected an object of parameters for `{path}`, found {}", node.value.kind()),
+            format!(
+                "expected an object of parameters for `{path}`, found {}",
+                node.value.kind()
+            ),
         );
         return None;
     };
@@ -376,7 +445,12 @@ pub(crate) fn parse_parameters(r: &mut Reader<'_>, node: &Node, path: &str) -> O
     Some(ParameterSchema { fields })
 }
 
-fn parse_fields(r: &mut Reader<'_>, members: &[crate::json::Member], path: &str, in_item: bool) -> Option<Vec<ParamField>> {
+fn parse_fields(
+    r: &mut Reader<'_>,
+    members: &[crate::json::Member],
+    path: &str,
+    in_item: bool,
+) -> Option<Vec<ParamField>> {
     let mut ok = true;
     let mut fields = Vec::new();
     for m in members {
@@ -393,12 +467,21 @@ fn parse_fields(r: &mut Reader<'_>, members: &[crate::json::Member], path: &str,
             continue;
         }
         if let Err(why) = check_field_name(&m.key) {
-            r.error(Code::InvalidFieldName, m.key_span, &fpath, format!("invalid parameter name `{}`: {why}", m.key));
+            r.error(
+                Code::InvalidFieldName,
+                m.key_span,
+                &fpath,
+                format!("invalid parameter name `{}`: {why}", m.key),
+            );
             ok = false;
             continue;
         }
         match parse_param(r, &m.value, &fpath, in_item) {
-            Some(kind) => fields.push(ParamField { name: m.key.clone(), kind, loc: r.loc(m.key_span, &fpath) }),
+            Some(kind) => fields.push(ParamField {
+                name: m.key.clone(),
+                kind,
+                loc: r.loc(m.key_span, &fpath),
+            }),
             None => ok = false,
         }
     }
@@ -409,10 +492,22 @@ fn parse_primitive_name(r: &mut Reader<'_>, node: &Node, path: &str, s: &str) ->
     let p = Primitive::parse(s);
     if p.is_none() {
         let help = match did_you_mean(s, TYPE_NAMES.iter().copied()) {
-            Some(c) => format!("did you mean `{c}`? types: {}", list(TYPE_NAMES.iter().copied())),
-            None => format!("types: {}, a group (an object) or an array", list(TYPE_NAMES.iter().copied())),
+            Some(c) => format!(
+                "did you mean `{c}`? types: {}",
+                list(TYPE_NAMES.iter().copied())
+            ),
+            None => format!(
+                "types: {}, a group (an object) or an array",
+                list(TYPE_NAMES.iter().copied())
+            ),
         };
-        r.error_help(Code::UnknownType, node.span, path, format!("unknown type `{s}`"), help);
+        r.error_help(
+            Code::UnknownType,
+            node.span,
+            path,
+            format!("unknown type `{s}`"),
+            help,
+        );
     }
     p
 }
@@ -464,7 +559,11 @@ fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Op
         None | Some("object") => {
             for key in ["$default", "$items", "$length"] {
                 if let Some(m) = members.iter().find(|m| m.key == key) {
-                    let code = if key == "$default" { Code::InvalidDefault } else { Code::UnknownKey };
+                    let code = if key == "$default" {
+                        Code::InvalidDefault
+                    } else {
+                        Code::UnknownKey
+                    };
                     r.error_help(
                         code,
                         m.key_span,
@@ -475,9 +574,18 @@ fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Op
                     ok = false;
                 }
             }
-            let children: Vec<crate::json::Member> = members.iter().filter(|m| !m.key.starts_with('$')).cloned().collect();
+            let children: Vec<crate::json::Member> = members
+                .iter()
+                .filter(|m| !m.key.starts_with('$'))
+                .cloned()
+                .collect();
             if children.is_empty() {
-                r.error(Code::InvalidValue, node.span, path, format!("parameter group `{path}` has no parameters"));
+                r.error(
+                    Code::InvalidValue,
+                    node.span,
+                    path,
+                    format!("parameter group `{path}` has no parameters"),
+                );
                 return None;
             }
             ParamKind::Group(parse_fields(r, &children, path, in_item)?)
@@ -499,18 +607,35 @@ fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Op
             };
             let ipath = join(path, "$items");
             let items = match &items_node.value {
-                Value::String(s) => ParamItem::Primitive(parse_primitive_name(r, items_node, &ipath, s)?),
+                Value::String(s) => {
+                    ParamItem::Primitive(parse_primitive_name(r, items_node, &ipath, s)?)
+                }
                 Value::Object(_) => match parse_param(r, items_node, &ipath, true)? {
                     ParamKind::Leaf { ty, default: None } => ParamItem::Primitive(ty),
                     ParamKind::Group(fields) => ParamItem::Object(fields),
                     ParamKind::Array { .. } => {
-                        r.error(Code::NestedArray, items_node.span, &ipath, "arrays of arrays are not supported");
+                        r.error(
+                            Code::NestedArray,
+                            items_node.span,
+                            &ipath,
+                            "arrays of arrays are not supported",
+                        );
                         return None;
                     }
-                    ParamKind::Leaf { default: Some(_), .. } => return None,
+                    ParamKind::Leaf {
+                        default: Some(_), ..
+                    } => return None,
                 },
                 other => {
-                    r.error(Code::WrongType, items_node.span, &ipath, format!("expected a type name or an object for `{ipath}`, found {}", other.kind()));
+                    r.error(
+                        Code::WrongType,
+                        items_node.span,
+                        &ipath,
+                        format!(
+                            "expected a type name or an object for `{ipath}`, found {}",
+                            other.kind()
+                        ),
+                    );
                     return None;
                 }
             };
@@ -520,7 +645,12 @@ fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Op
                     let lpath = join(path, "$length");
                     match r.uint(l, &lpath, MAX_FIXED_LENGTH) {
                         Some(0) | None => {
-                            r.error(Code::LengthMisuse, l.span, &lpath, "`$length` must be a positive integer");
+                            r.error(
+                                Code::LengthMisuse,
+                                l.span,
+                                &lpath,
+                                "`$length` must be a positive integer",
+                            );
                             ok = false;
                             None
                         }
@@ -534,21 +664,35 @@ fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Op
                     let dpath = join(path, "$default");
                     match &items {
                         ParamItem::Object(_) => {
-                            r.error(Code::InvalidDefault, d.span, &dpath, "`$default` is not supported on arrays of objects");
+                            r.error(
+                                Code::InvalidDefault,
+                                d.span,
+                                &dpath,
+                                "`$default` is not supported on arrays of objects",
+                            );
                             ok = false;
                             None
                         }
                         ParamItem::Primitive(p) => {
                             let mut errors = Vec::new();
                             let v = resolve_field(
-                                &ParamKind::Array { items: ParamItem::Primitive(*p), length, default: None },
+                                &ParamKind::Array {
+                                    items: ParamItem::Primitive(*p),
+                                    length,
+                                    default: None,
+                                },
                                 Some(&d.to_json()),
                                 "$default",
                                 &mut errors,
                             );
                             for e in &errors {
                                 let at = item_node(d, &e.path).unwrap_or(d);
-                                r.error(Code::InvalidDefault, at.span, &dpath, format!("invalid `$default`: {}", e_message(e)));
+                                r.error(
+                                    Code::InvalidDefault,
+                                    at.span,
+                                    &dpath,
+                                    format!("invalid `$default`: {}", e_message(e)),
+                                );
                             }
                             if !errors.is_empty() {
                                 ok = false;
@@ -558,7 +702,11 @@ fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Op
                     }
                 }
             };
-            ParamKind::Array { items, length, default }
+            ParamKind::Array {
+                items,
+                length,
+                default,
+            }
         }
         Some(s) => {
             let type_node = node.get("$type").expect("present");
@@ -569,7 +717,12 @@ fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Op
             }
             for key in ["$items", "$length"] {
                 if let Some(m) = members.iter().find(|m| m.key == key) {
-                    r.error(Code::UnknownKey, m.key_span, &join(path, key), format!("`{key}` is only allowed on array parameters"));
+                    r.error(
+                        Code::UnknownKey,
+                        m.key_span,
+                        &join(path, key),
+                        format!("`{key}` is only allowed on array parameters"),
+                    );
                     ok = false;
                 }
             }
@@ -578,7 +731,12 @@ fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Op
                 Some(d) => {
                     let dpath = join(path, "$default");
                     if in_item {
-                        r.error(Code::InvalidDefault, d.span, &dpath, "`$default` is not allowed inside array items");
+                        r.error(
+                            Code::InvalidDefault,
+                            d.span,
+                            &dpath,
+                            "`$default` is not allowed inside array items",
+                        );
                         ok = false;
                         None
                     } else if matches!(ty, Primitive::Bytes | Primitive::Time) {
@@ -595,7 +753,12 @@ fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Op
                         match check_leaf(ty, &d.to_json()) {
                             Ok(v) => Some(v),
                             Err(why) => {
-                                r.error(Code::InvalidDefault, d.span, &dpath, format!("invalid `$default`: `{path}` {why}"));
+                                r.error(
+                                    Code::InvalidDefault,
+                                    d.span,
+                                    &dpath,
+                                    format!("invalid `$default`: `{path}` {why}"),
+                                );
                                 ok = false;
                                 None
                             }
@@ -611,14 +774,20 @@ fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Op
 
 fn e_message(e: &ParamError) -> String {
     match &e.kind {
-        ParamErrorKind::TypeMismatch { expected, found } => format!("expects {expected}, found {found}"),
+        ParamErrorKind::TypeMismatch { expected, found } => {
+            format!("expects {expected}, found {found}")
+        }
         _ => e.to_string(),
     }
 }
 
 /// The array element a `$default[i]` error path points at.
 fn item_node<'n>(d: &'n Node, path: &str) -> Option<&'n Node> {
-    let i: usize = path.strip_prefix("$default[")?.strip_suffix(']')?.parse().ok()?;
+    let i: usize = path
+        .strip_prefix("$default[")?
+        .strip_suffix(']')?
+        .parse()
+        .ok()?;
     match &d.value {
         Value::Array(items) => items.get(i),
         _ => None,
@@ -648,14 +817,38 @@ mod tests {
 
     #[test]
     fn defaults_are_type_and_range_checked() {
-        assert_eq!(codes("{ a: { $type: 'u8', $default: 300 } }"), [Code::InvalidDefault]);
-        assert_eq!(codes("{ a: { $type: 'u16', $default: -1 } }"), [Code::InvalidDefault]);
-        assert_eq!(codes("{ a: { $type: 'u16', $default: 'x' } }"), [Code::InvalidDefault]);
-        assert_eq!(codes("{ a: { $type: 'f32', $default: 1e300 } }"), [Code::InvalidDefault]);
-        assert_eq!(codes("{ a: { $type: 'bytes', $default: 'x' } }"), [Code::InvalidDefault]);
-        assert_eq!(codes("{ a: { $type: 'time', $default: 1 } }"), [Code::InvalidDefault]);
-        assert_eq!(codes("{ g: { $default: 1, x: 'u8' } }"), [Code::InvalidDefault]);
-        assert_eq!(codes("{ a: { $type: 'u8', $optional: true } }"), [Code::OptionalMisuse]);
+        assert_eq!(
+            codes("{ a: { $type: 'u8', $default: 300 } }"),
+            [Code::InvalidDefault]
+        );
+        assert_eq!(
+            codes("{ a: { $type: 'u16', $default: -1 } }"),
+            [Code::InvalidDefault]
+        );
+        assert_eq!(
+            codes("{ a: { $type: 'u16', $default: 'x' } }"),
+            [Code::InvalidDefault]
+        );
+        assert_eq!(
+            codes("{ a: { $type: 'f32', $default: 1e300 } }"),
+            [Code::InvalidDefault]
+        );
+        assert_eq!(
+            codes("{ a: { $type: 'bytes', $default: 'x' } }"),
+            [Code::InvalidDefault]
+        );
+        assert_eq!(
+            codes("{ a: { $type: 'time', $default: 1 } }"),
+            [Code::InvalidDefault]
+        );
+        assert_eq!(
+            codes("{ g: { $default: 1, x: 'u8' } }"),
+            [Code::InvalidDefault]
+        );
+        assert_eq!(
+            codes("{ a: { $type: 'u8', $optional: true } }"),
+            [Code::OptionalMisuse]
+        );
         assert_eq!(codes("{ a: 'u9' }"), [Code::UnknownType]);
         assert_eq!(
             codes("{ a: { $type: 'array', $items: 'u8', $length: 2, $default: [1, 2, 3] } }"),
@@ -676,27 +869,41 @@ mod tests {
         );
         assert!(diags.is_empty(), "{diags}");
         let s = s.unwrap();
-        let out = s.resolve(&json!({ "device": { "serial": "abc" } })).unwrap();
+        let out = s
+            .resolve(&json!({ "device": { "serial": "abc" } }))
+            .unwrap();
         assert_eq!(
             out,
             json!({ "fps": 30, "video": { "width": 640, "height": 480 }, "device": { "serial": "abc", "port": 1 } })
         );
-        let errs = s.resolve(&json!({ "fps": 70000, "devise": {} })).unwrap_err();
+        let errs = s
+            .resolve(&json!({ "fps": 70000, "devise": {} }))
+            .unwrap_err();
         let paths: Vec<(&str, Code)> = errs.iter().map(|e| (e.path.as_str(), e.code())).collect();
         assert_eq!(
             paths,
-            [("devise", Code::UnknownParameter), ("fps", Code::ParameterTypeMismatch), ("device.serial", Code::MissingParameter)]
+            [
+                ("devise", Code::UnknownParameter),
+                ("fps", Code::ParameterTypeMismatch),
+                ("device.serial", Code::MissingParameter)
+            ]
         );
         assert!(errs[0].help().unwrap().contains("did you mean `device`"));
     }
 
     #[test]
     fn arrays_and_bytes_values() {
-        let (s, _) = schema("{ l: { $type: 'array', $items: 'f64', $length: 3 }, b: 'bytes', o: { $type: 'array', $items: { x: 'u8' } } }");
+        let (s, _) = schema(
+            "{ l: { $type: 'array', $items: 'f64', $length: 3 }, b: 'bytes', o: { $type: 'array', $items: { x: 'u8' } } }",
+        );
         let s = s.unwrap();
-        let out = s.resolve(&json!({ "l": [1, 2, 3.5], "b": "hi", "o": [{ "x": 1 }] })).unwrap();
+        let out = s
+            .resolve(&json!({ "l": [1, 2, 3.5], "b": "hi", "o": [{ "x": 1 }] }))
+            .unwrap();
         assert_eq!(out["b"], json!([104, 105]));
-        let errs = s.resolve(&json!({ "l": [1, 2], "b": [300], "o": [{ "x": 999 }] })).unwrap_err();
+        let errs = s
+            .resolve(&json!({ "l": [1, 2], "b": [300], "o": [{ "x": 999 }] }))
+            .unwrap_err();
         let paths: Vec<&str> = errs.iter().map(|e| e.path.as_str()).collect();
         assert_eq!(paths, ["l", "b", "o[0].x"]);
     }

@@ -104,19 +104,28 @@ impl BindingPlan {
 /// Checks every binding rule of SPEC 6.1 and builds the plan. `nodes[i]` is
 /// the node of `launcher.deployments[i]`, or `None` when it could not be
 /// loaded (its instances are then skipped; the reason is reported elsewhere).
-pub fn plan_bindings(launcher: &LauncherDoc, nodes: &[Option<&NodeDoc>]) -> Result<(BindingPlan, Diagnostics), Diagnostics> {
+pub fn plan_bindings(
+    launcher: &LauncherDoc,
+    nodes: &[Option<&NodeDoc>],
+) -> Result<(BindingPlan, Diagnostics), Diagnostics> {
     let mut diags = Diagnostics::new();
 
     // Two deployments of one node.
     for (i, node) in nodes.iter().enumerate() {
         let Some(node) = node else { continue };
-        if let Some(first) = nodes[..i].iter().position(|n| n.is_some_and(|n| n.identity() == node.identity())) {
+        if let Some(first) = nodes[..i]
+            .iter()
+            .position(|n| n.is_some_and(|n| n.identity() == node.identity()))
+        {
             let first_loc = &launcher.deployments[first].source_loc;
             let lc = first_loc.file.line_col(first_loc.span.start);
             diags.push(
                 launcher.deployments[i]
                     .source_loc
-                    .error(Code::DuplicateDeployment, format!("`{}` is deployed twice", node.identity()))
+                    .error(
+                        Code::DuplicateDeployment,
+                        format!("`{}` is deployed twice", node.identity()),
+                    )
                     .with_help(format!(
                         "put all its instances in the deployment at line {}, column {}",
                         lc.line, lc.column
@@ -126,7 +135,10 @@ pub fn plan_bindings(launcher: &LauncherDoc, nodes: &[Option<&NodeDoc>]) -> Resu
     }
 
     let producer = |id: &str| -> Option<&NodeDoc> {
-        launcher.instances().find(|(_, inst)| inst.instance_id == id).and_then(|(d, _)| nodes[d])
+        launcher
+            .instances()
+            .find(|(_, inst)| inst.instance_id == id)
+            .and_then(|(d, _)| nodes[d])
     };
 
     let mut instances = Vec::new();
@@ -221,7 +233,12 @@ fn plan_instance<'a>(
         .filter(|d| !d.from_any)
         .map(|d| (d.link_id.clone(), None))
         .collect();
-    let mut from_any: Vec<(&Dependency, Vec<String>)> = node.dependencies.iter().filter(|d| d.from_any).map(|d| (d, Vec::new())).collect();
+    let mut from_any: Vec<(&Dependency, Vec<String>)> = node
+        .dependencies
+        .iter()
+        .filter(|d| d.from_any)
+        .map(|d| (d, Vec::new()))
+        .collect();
     from_any.sort_by(|a, b| a.0.link_id.cmp(&b.0.link_id));
     let mut keyed_but_failed: Vec<&str> = Vec::new();
 
@@ -239,7 +256,8 @@ fn plan_instance<'a>(
                 continue;
             }
             if dep.from_any {
-                if let Some((_, list)) = from_any.iter_mut().find(|(d, _)| d.link_id == dep.link_id) {
+                if let Some((_, list)) = from_any.iter_mut().find(|(d, _)| d.link_id == dep.link_id)
+                {
                     list.push(b.target.clone());
                 }
             } else if let Some((_, slot)) = pinned.iter_mut().find(|(l, _)| *l == dep.link_id) {
@@ -251,7 +269,11 @@ fn plan_instance<'a>(
         match from_any.iter_mut().find(|(d, _)| fills(d, target)) {
             Some((_, list)) => list.push(b.target.clone()),
             None => {
-                let declared: Vec<&str> = node.dependencies.iter().map(|d| d.link_id.as_str()).collect();
+                let declared: Vec<&str> = node
+                    .dependencies
+                    .iter()
+                    .map(|d| d.link_id.as_str())
+                    .collect();
                 let from_any_slots: Vec<String> = node
                     .dependencies
                     .iter()
@@ -259,9 +281,16 @@ fn plan_instance<'a>(
                     .map(|d| format!("`{}` ({})", d.link_id, describe_slot(d)))
                     .collect();
                 let help = if declared.is_empty() {
-                    format!("node `{}` declares no slots (`manifest.depends_on` is empty); remove the binding", node.identity())
+                    format!(
+                        "node `{}` declares no slots (`manifest.depends_on` is empty); remove the binding",
+                        node.identity()
+                    )
                 } else if from_any_slots.is_empty() {
-                    format!("declared link_ids: {}; a free-form key needs a from_any slot, and `{}` has none", list(declared.iter().copied()), node.identity())
+                    format!(
+                        "declared link_ids: {}; a free-form key needs a from_any slot, and `{}` has none",
+                        list(declared.iter().copied()),
+                        node.identity()
+                    )
                 } else {
                     format!(
                         "declared link_ids: {}; from_any slots: {}; `{}` deploys `{}`",
@@ -292,11 +321,28 @@ fn plan_instance<'a>(
     let mut slots = Vec::new();
     for dep in &node.dependencies {
         let binding = if dep.from_any {
-            let list = &from_any.iter().find(|(d, _)| d.link_id == dep.link_id).expect("from_any slot").1;
-            if list.is_empty() { SlotBinding::FromAnyUnbound } else { SlotBinding::FromAnyBound { producers: list.clone() } }
+            let list = &from_any
+                .iter()
+                .find(|(d, _)| d.link_id == dep.link_id)
+                .expect("from_any slot")
+                .1;
+            if list.is_empty() {
+                SlotBinding::FromAnyUnbound
+            } else {
+                SlotBinding::FromAnyBound {
+                    producers: list.clone(),
+                }
+            }
         } else {
-            match &pinned.iter().find(|(l, _)| *l == dep.link_id).expect("pinned slot").1 {
-                Some(p) => SlotBinding::Pinned { producer: p.clone() },
+            match &pinned
+                .iter()
+                .find(|(l, _)| *l == dep.link_id)
+                .expect("pinned slot")
+                .1
+            {
+                Some(p) => SlotBinding::Pinned {
+                    producer: p.clone(),
+                },
                 None => {
                     if !keyed_but_failed.contains(&dep.link_id.as_str()) {
                         let fit = candidates(dep, launcher, nodes);
@@ -307,13 +353,23 @@ fn plan_instance<'a>(
                                 describe_slot(dep)
                             )
                         } else {
-                            format!("add `bindings: {{ {}: \"{}\" }}`; instances that fit: {}", dep.link_id, fit[0], list(fit.iter().map(String::as_str)))
+                            format!(
+                                "add `bindings: {{ {}: \"{}\" }}`; instances that fit: {}",
+                                dep.link_id,
+                                fit[0],
+                                list(fit.iter().map(String::as_str))
+                            )
                         };
                         diags.push(
                             inst.id_loc
                                 .error(
                                     Code::PinnedSlotUnbound,
-                                    format!("instance `{}`: pinned slot `{}` ({}) is unbound", inst.instance_id, dep.link_id, describe_slot(dep)),
+                                    format!(
+                                        "instance `{}`: pinned slot `{}` ({}) is unbound",
+                                        inst.instance_id,
+                                        dep.link_id,
+                                        describe_slot(dep)
+                                    ),
                                 )
                                 .with_help(help),
                         );
@@ -322,7 +378,13 @@ fn plan_instance<'a>(
                 }
             }
         };
-        slots.push(SlotPlan { link_id: dep.link_id.clone(), kind: dep.kind, target: dep.target.clone(), binding, filter: RouteFilter::Any });
+        slots.push(SlotPlan {
+            link_id: dep.link_id.clone(),
+            kind: dep.kind,
+            target: dep.target.clone(),
+            binding,
+            filter: RouteFilter::Any,
+        });
     }
     compute_filters(&mut slots);
     slots
@@ -333,10 +395,21 @@ fn plan_instance<'a>(
 /// producers claimed by siblings. Siblings are slots of the same kind and
 /// `name:tag`.
 pub fn compute_filters(slots: &mut [SlotPlan]) {
-    let snapshot: Vec<(SlotKind, Identity, String, SlotBinding)> =
-        slots.iter().map(|s| (s.kind, s.target.clone(), s.link_id.clone(), s.binding.clone())).collect();
+    let snapshot: Vec<(SlotKind, Identity, String, SlotBinding)> = slots
+        .iter()
+        .map(|s| {
+            (
+                s.kind,
+                s.target.clone(),
+                s.link_id.clone(),
+                s.binding.clone(),
+            )
+        })
+        .collect();
     for slot in slots.iter_mut() {
-        let siblings = snapshot.iter().filter(|(k, t, l, _)| *k == slot.kind && *t == slot.target && *l != slot.link_id);
+        let siblings = snapshot
+            .iter()
+            .filter(|(k, t, l, _)| *k == slot.kind && *t == slot.target && *l != slot.link_id);
         slot.filter = match &slot.binding {
             SlotBinding::Pinned { producer } => RouteFilter::Pin(producer.clone()),
             SlotBinding::FromAnyBound { producers } => {
@@ -346,7 +419,13 @@ pub fn compute_filters(slots: &mut [SlotPlan]) {
                         _ => None,
                     })
                     .collect();
-                RouteFilter::OnlyFrom(producers.iter().filter(|p| !pinned_elsewhere.contains(p.as_str())).cloned().collect())
+                RouteFilter::OnlyFrom(
+                    producers
+                        .iter()
+                        .filter(|p| !pinned_elsewhere.contains(p.as_str()))
+                        .cloned()
+                        .collect(),
+                )
             }
             SlotBinding::FromAnyUnbound => {
                 let claimed: BTreeSet<String> = siblings
@@ -356,14 +435,21 @@ pub fn compute_filters(slots: &mut [SlotPlan]) {
                         SlotBinding::FromAnyUnbound => Vec::new(),
                     })
                     .collect();
-                if claimed.is_empty() { RouteFilter::Any } else { RouteFilter::AnyExcept(claimed) }
+                if claimed.is_empty() {
+                    RouteFilter::Any
+                } else {
+                    RouteFilter::AnyExcept(claimed)
+                }
             }
         };
     }
 }
 
 fn fill_parameters(inst: &Instance, node: &NodeDoc, diags: &mut Diagnostics) -> serde_json::Value {
-    let given = inst.arguments.as_ref().map_or(serde_json::Value::Null, |a| a.to_json());
+    let given = inst
+        .arguments
+        .as_ref()
+        .map_or(serde_json::Value::Null, |a| a.to_json());
     match node.execution.parameters.resolve(&given) {
         Ok(v) => v,
         Err(errors) => {
@@ -373,11 +459,16 @@ fn fill_parameters(inst: &Instance, node: &NodeDoc, diags: &mut Diagnostics) -> 
                         let at = parameter_node(args, &e.path).map_or(loc.span, |n| n.span);
                         (loc.file.clone(), at, format!("{}.{}", loc.key_path, e.path))
                     }
-                    _ => (inst.id_loc.file.clone(), inst.id_loc.span, inst.id_loc.key_path.clone()),
+                    _ => (
+                        inst.id_loc.file.clone(),
+                        inst.id_loc.span,
+                        inst.id_loc.key_path.clone(),
+                    ),
                 };
-                let mut d = Diagnostic::error(e.code(), format!("instance `{}`: {e}", inst.instance_id))
-                    .at(&file, span)
-                    .with_key_path(path);
+                let mut d =
+                    Diagnostic::error(e.code(), format!("instance `{}`: {e}", inst.instance_id))
+                        .at(&file, span)
+                        .with_key_path(path);
                 if let Some(h) = e.help() {
                     d = d.with_help(match e.kind {
                         crate::params::ParamErrorKind::Missing { .. } => format!("add it under `arguments`, or give it a `$default` in the node's `execution.parameters`"),

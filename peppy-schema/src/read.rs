@@ -146,7 +146,12 @@ impl<'a> Reader<'a> {
 
     /// An object whose keys must all be in `allowed`; unknown keys are
     /// reported (with a did-you-mean) and otherwise ignored.
-    pub(crate) fn object<'n>(&mut self, node: &'n Node, path: &str, allowed: &[&str]) -> Option<Obj<'n>> {
+    pub(crate) fn object<'n>(
+        &mut self,
+        node: &'n Node,
+        path: &str,
+        allowed: &[&str],
+    ) -> Option<Obj<'n>> {
         let Value::Object(members) = &node.value else {
             self.wrong_type(node, path, "an object");
             return None;
@@ -167,8 +172,14 @@ impl<'a> Reader<'a> {
         let legacy = LEGACY_KEYS
             .iter()
             .find(|(old, new)| *old == m.key && allowed.contains(new));
-        let help = match legacy.map(|(_, new)| *new).or_else(|| did_you_mean(&m.key, allowed.iter().copied())) {
-            Some(s) => format!("did you mean `{s}`? accepted keys here: {}", list(allowed.iter().copied())),
+        let help = match legacy
+            .map(|(_, new)| *new)
+            .or_else(|| did_you_mean(&m.key, allowed.iter().copied()))
+        {
+            Some(s) => format!(
+                "did you mean `{s}`? accepted keys here: {}",
+                list(allowed.iter().copied())
+            ),
             None => format!("accepted keys here: {}", list(allowed.iter().copied())),
         };
         let where_ = if parent.is_empty() {

@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use crate::diag::{Code, Diagnostic, Diagnostics};
-use crate::document::{Document, DocumentKind, REPOSITORIES_FILE, RepositoriesDoc, detect_kind, parse_document};
+use crate::document::{
+    Document, DocumentKind, REPOSITORIES_FILE, RepositoriesDoc, detect_kind, parse_document,
+};
 use crate::interface::InterfaceDoc;
 use crate::node::{Identity, NodeDoc};
 use crate::source::SourceFile;
@@ -16,7 +18,14 @@ use crate::source::SourceFile;
 pub const REPOSITORIES_ENV: &str = "PEPPY_REPOSITORIES";
 
 /// Directories never scanned.
-pub const SKIPPED_DIRS: &[&str] = &[".git", ".peppy", "target", "node_modules", ".venv", "__pycache__"];
+pub const SKIPPED_DIRS: &[&str] = &[
+    ".git",
+    ".peppy",
+    "target",
+    "node_modules",
+    ".venv",
+    "__pycache__",
+];
 
 /// Where repositories come from, in priority order, and what was read to
 /// find them (for rebuild tracking).
@@ -32,7 +41,11 @@ impl RepositoryList {
     /// Builds the list from, in order: `explicit` paths, the value of
     /// `PEPPY_REPOSITORIES` (`env`), and the nearest
     /// `peppy_repositories.json5` in `start_dir` or an ancestor.
-    pub fn discover(explicit: &[PathBuf], env: Option<&OsStr>, start_dir: &Path) -> Result<RepositoryList, Diagnostics> {
+    pub fn discover(
+        explicit: &[PathBuf],
+        env: Option<&OsStr>,
+        start_dir: &Path,
+    ) -> Result<RepositoryList, Diagnostics> {
         let mut list = RepositoryList::default();
         for p in explicit {
             list.add(p.clone());
@@ -83,7 +96,9 @@ pub(crate) fn absolute(p: &Path) -> PathBuf {
     let joined = if p.is_absolute() {
         p.to_path_buf()
     } else {
-        std::env::current_dir().map(|d| d.join(p)).unwrap_or_else(|_| p.to_path_buf())
+        std::env::current_dir()
+            .map(|d| d.join(p))
+            .unwrap_or_else(|_| p.to_path_buf())
     };
     let mut out = PathBuf::new();
     for c in joined.components() {
@@ -134,25 +149,42 @@ impl RepoIndex {
     /// (duplicates, missing directories, unreadable files) become warnings
     /// in [`findings`](Self::findings).
     pub fn scan(repositories: &[PathBuf]) -> RepoIndex {
-        let mut index = RepoIndex { repositories: repositories.to_vec(), ..RepoIndex::default() };
+        let mut index = RepoIndex {
+            repositories: repositories.to_vec(),
+            ..RepoIndex::default()
+        };
         for repo in repositories {
             if !repo.is_dir() {
                 index.findings.push(
-                    Diagnostic::warning(Code::DependencyNotFound, format!("repository `{}` is not a directory; skipped", repo.display()))
-                        .with_file_path(repo),
+                    Diagnostic::warning(
+                        Code::DependencyNotFound,
+                        format!(
+                            "repository `{}` is not a directory; skipped",
+                            repo.display()
+                        ),
+                    )
+                    .with_file_path(repo),
                 );
                 continue;
             }
-            let walker = walkdir::WalkDir::new(repo).sort_by_file_name().into_iter().filter_entry(|e| {
-                e.depth() == 0
-                    || !(e.file_type().is_dir()
-                        && e.file_name().to_str().is_some_and(|n| SKIPPED_DIRS.contains(&n) || n.starts_with('.')))
-            });
+            let walker = walkdir::WalkDir::new(repo)
+                .sort_by_file_name()
+                .into_iter()
+                .filter_entry(|e| {
+                    e.depth() == 0
+                        || !(e.file_type().is_dir()
+                            && e.file_name()
+                                .to_str()
+                                .is_some_and(|n| SKIPPED_DIRS.contains(&n) || n.starts_with('.')))
+                });
             for entry in walker {
                 let entry = match entry {
                     Ok(e) => e,
                     Err(e) => {
-                        index.findings.push(Diagnostic::warning(Code::CannotRead, format!("while scanning `{}`: {e}", repo.display())));
+                        index.findings.push(Diagnostic::warning(
+                            Code::CannotRead,
+                            format!("while scanning `{}`: {e}", repo.display()),
+                        ));
                         continue;
                     }
                 };
@@ -184,7 +216,14 @@ impl RepoIndex {
         match parse_document(&file, &sha) {
             Ok((Document::Node(n), _)) => {
                 let id = n.identity();
-                self.insert_node(id, Entry { doc: Arc::new(n), path: path.to_path_buf(), repository: repo.to_path_buf() });
+                self.insert_node(
+                    id,
+                    Entry {
+                        doc: Arc::new(n),
+                        path: path.to_path_buf(),
+                        repository: repo.to_path_buf(),
+                    },
+                );
             }
             Ok((Document::Interface(i), _)) => {
                 let id = i.identity.clone();
@@ -192,16 +231,30 @@ impl RepoIndex {
                 if let Some(first) = entries.first() {
                     self.findings.push(duplicate(&id, &first.path, path));
                 }
-                entries.push(Entry { doc: Arc::new(i), path: path.to_path_buf(), repository: repo.to_path_buf() });
+                entries.push(Entry {
+                    doc: Arc::new(i),
+                    path: path.to_path_buf(),
+                    repository: repo.to_path_buf(),
+                });
             }
             Ok((Document::Launcher(_), _)) => {
-                let stem = path.file_stem().and_then(OsStr::to_str).unwrap_or_default().to_string();
-                self.launchers.entry(stem).or_default().push(path.to_path_buf());
+                let stem = path
+                    .file_stem()
+                    .and_then(OsStr::to_str)
+                    .unwrap_or_default()
+                    .to_string();
+                self.launchers
+                    .entry(stem)
+                    .or_default()
+                    .push(path.to_path_buf());
             }
             Ok((Document::Repositories(_), _)) => {}
             Err(diagnostics) => {
                 if let (Some(kind), Some(id)) = (kind, peek_identity(&root)) {
-                    self.broken.entry((kind, id)).or_insert(Broken { path: path.to_path_buf(), diagnostics });
+                    self.broken.entry((kind, id)).or_insert(Broken {
+                        path: path.to_path_buf(),
+                        diagnostics,
+                    });
                 }
             }
         }
@@ -216,7 +269,14 @@ impl RepoIndex {
             return;
         }
         let repository = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        entries.insert(0, Entry { doc, path, repository });
+        entries.insert(
+            0,
+            Entry {
+                doc,
+                path,
+                repository,
+            },
+        );
     }
 
     fn insert_node(&mut self, id: Identity, entry: Entry<NodeDoc>) {
@@ -249,7 +309,10 @@ impl RepoIndex {
 
     /// A launcher by file stem.
     pub fn launcher(&self, stem: &str) -> Option<&Path> {
-        self.launchers.get(stem).and_then(|v| v.first()).map(PathBuf::as_path)
+        self.launchers
+            .get(stem)
+            .and_then(|v| v.first())
+            .map(PathBuf::as_path)
     }
 
     /// An invalid document that claims `id`.
@@ -277,7 +340,11 @@ impl RepoIndex {
         if self.repositories.is_empty() {
             return "no repositories are configured (pass a path, set PEPPY_REPOSITORIES, or add a peppy_repositories.json5)".to_string();
         }
-        let list: Vec<String> = self.repositories.iter().map(|p| format!("`{}`", p.display())).collect();
+        let list: Vec<String> = self
+            .repositories
+            .iter()
+            .map(|p| format!("`{}`", p.display()))
+            .collect();
         format!("searched {}", list.join(", "))
     }
 }
@@ -285,7 +352,11 @@ impl RepoIndex {
 fn duplicate(id: &Identity, first: &Path, second: &Path) -> Diagnostic {
     Diagnostic::warning(
         Code::DuplicateInRepositories,
-        format!("`{id}` is defined twice: `{}` wins over `{}`", first.display(), second.display()),
+        format!(
+            "`{id}` is defined twice: `{}` wins over `{}`",
+            first.display(),
+            second.display()
+        ),
     )
     .with_file_path(second)
     .with_help("repositories earlier in the list win; remove or rename one of them")
@@ -294,5 +365,8 @@ fn duplicate(id: &Identity, first: &Path, second: &Path) -> Diagnostic {
 /// `manifest.name` / `manifest.tag` of a document, without validating it.
 fn peek_identity(root: &crate::json::Node) -> Option<Identity> {
     let m = root.get("manifest")?;
-    Some(Identity::new(m.get("name")?.as_str()?, m.get("tag")?.as_str()?))
+    Some(Identity::new(
+        m.get("name")?.as_str()?,
+        m.get("tag")?.as_str()?,
+    ))
 }

@@ -131,28 +131,70 @@ impl Offer {
 }
 
 /// Resolves `node` (whose file is `node_path`) against `index`.
-pub fn resolve_node(node: Arc<NodeDoc>, node_path: PathBuf, index: &RepoIndex) -> Result<(ResolvedNode, Diagnostics), Diagnostics> {
+pub fn resolve_node(
+    node: Arc<NodeDoc>,
+    node_path: PathBuf,
+    index: &RepoIndex,
+) -> Result<(ResolvedNode, Diagnostics), Diagnostics> {
     let mut diags = Diagnostics::new();
     let mut files = vec![node_path];
 
     // What this node provides.
     let mut conformed = Vec::new();
     let own = Origin::Node(node.identity());
-    let mut emitted_topics: Vec<Provided<TopicDecl>> = node.emits.iter().map(|t| Provided { decl: t.clone(), origin: own.clone() }).collect();
-    let mut exposed_services: Vec<Provided<ServiceDecl>> =
-        node.exposed_services.iter().map(|s| Provided { decl: s.clone(), origin: own.clone() }).collect();
-    let mut exposed_actions: Vec<Provided<ActionDecl>> =
-        node.exposed_actions.iter().map(|a| Provided { decl: a.clone(), origin: own.clone() }).collect();
+    let mut emitted_topics: Vec<Provided<TopicDecl>> = node
+        .emits
+        .iter()
+        .map(|t| Provided {
+            decl: t.clone(),
+            origin: own.clone(),
+        })
+        .collect();
+    let mut exposed_services: Vec<Provided<ServiceDecl>> = node
+        .exposed_services
+        .iter()
+        .map(|s| Provided {
+            decl: s.clone(),
+            origin: own.clone(),
+        })
+        .collect();
+    let mut exposed_actions: Vec<Provided<ActionDecl>> = node
+        .exposed_actions
+        .iter()
+        .map(|a| Provided {
+            decl: a.clone(),
+            origin: own.clone(),
+        })
+        .collect();
     for c in &node.conforms_to {
-        let Some(entry) = find_interface(index, &c.target, c.sha256.as_deref(), &c.loc, "conforms to", &mut diags) else {
+        let Some(entry) = find_interface(
+            index,
+            &c.target,
+            c.sha256.as_deref(),
+            &c.loc,
+            "conforms to",
+            &mut diags,
+        ) else {
             continue;
         };
         files.push(entry.path.clone());
         let origin = Origin::Interface(c.target.clone());
-        emitted_topics.extend(entry.doc.topics.iter().map(|t| Provided { decl: t.clone(), origin: origin.clone() }));
-        exposed_services.extend(entry.doc.services.iter().map(|s| Provided { decl: s.clone(), origin: origin.clone() }));
-        exposed_actions.extend(entry.doc.actions.iter().map(|a| Provided { decl: a.clone(), origin: origin.clone() }));
-        conformed.push(UsedInterface { doc: entry.doc.clone(), path: entry.path.clone() });
+        emitted_topics.extend(entry.doc.topics.iter().map(|t| Provided {
+            decl: t.clone(),
+            origin: origin.clone(),
+        }));
+        exposed_services.extend(entry.doc.services.iter().map(|s| Provided {
+            decl: s.clone(),
+            origin: origin.clone(),
+        }));
+        exposed_actions.extend(entry.doc.actions.iter().map(|a| Provided {
+            decl: a.clone(),
+            origin: origin.clone(),
+        }));
+        conformed.push(UsedInterface {
+            doc: entry.doc.clone(),
+            path: entry.path.clone(),
+        });
     }
 
     // What each slot offers.
@@ -160,19 +202,52 @@ pub fn resolve_node(node: Arc<NodeDoc>, node_path: PathBuf, index: &RepoIndex) -
     for dep in &node.dependencies {
         let offer = match dep.kind {
             SlotKind::Interface => {
-                let Some(entry) = find_interface(index, &dep.target, dep.sha256.as_deref(), &dep.loc, "depends on", &mut diags) else {
+                let Some(entry) = find_interface(
+                    index,
+                    &dep.target,
+                    dep.sha256.as_deref(),
+                    &dep.loc,
+                    "depends on",
+                    &mut diags,
+                ) else {
                     continue;
                 };
                 files.push(entry.path.clone());
                 let origin = Origin::Interface(dep.target.clone());
                 Offer {
-                    topics: entry.doc.topics.iter().map(|t| Provided { decl: t.clone(), origin: origin.clone() }).collect(),
-                    services: entry.doc.services.iter().map(|t| Provided { decl: t.clone(), origin: origin.clone() }).collect(),
-                    actions: entry.doc.actions.iter().map(|t| Provided { decl: t.clone(), origin: origin.clone() }).collect(),
+                    topics: entry
+                        .doc
+                        .topics
+                        .iter()
+                        .map(|t| Provided {
+                            decl: t.clone(),
+                            origin: origin.clone(),
+                        })
+                        .collect(),
+                    services: entry
+                        .doc
+                        .services
+                        .iter()
+                        .map(|t| Provided {
+                            decl: t.clone(),
+                            origin: origin.clone(),
+                        })
+                        .collect(),
+                    actions: entry
+                        .doc
+                        .actions
+                        .iter()
+                        .map(|t| Provided {
+                            decl: t.clone(),
+                            origin: origin.clone(),
+                        })
+                        .collect(),
                 }
             }
             SlotKind::Node => {
-                let Some(entry) = find_node(index, &dep.target, &dep.loc, &mut diags) else { continue };
+                let Some(entry) = find_node(index, &dep.target, &dep.loc, &mut diags) else {
+                    continue;
+                };
                 files.push(entry.path.clone());
                 match producer_offer(&entry.doc, index, dep, &mut files, &mut diags) {
                     Some(o) => o,
@@ -201,7 +276,9 @@ pub fn resolve_node(node: Arc<NodeDoc>, node_path: PathBuf, index: &RepoIndex) -
                 loc: t.loc.clone(),
             }),
             TopicSource::Linked { link_id } => {
-                let Some((dep, offer)) = offers.iter().find(|(d, _)| &d.link_id == link_id) else { continue };
+                let Some((dep, offer)) = offers.iter().find(|(d, _)| &d.link_id == link_id) else {
+                    continue;
+                };
                 match offer.topics.iter().find(|p| p.decl.name == t.name) {
                     Some(p) => consumed_topics.push(ResolvedTopic {
                         name: t.name.clone(),
@@ -211,25 +288,57 @@ pub fn resolve_node(node: Arc<NodeDoc>, node_path: PathBuf, index: &RepoIndex) -
                         qos: p.decl.qos,
                         loc: t.loc.clone(),
                     }),
-                    None => diags.push(missing_on_producer(&t.loc, EntryKind::Topic, &t.name, dep, offer)),
+                    None => diags.push(missing_on_producer(
+                        &t.loc,
+                        EntryKind::Topic,
+                        &t.name,
+                        dep,
+                        offer,
+                    )),
                 }
             }
         }
     }
     let mut consumed_services = Vec::new();
     for s in &node.consumed_services {
-        let Some((dep, offer)) = offers.iter().find(|(d, _)| d.link_id == s.link_id) else { continue };
+        let Some((dep, offer)) = offers.iter().find(|(d, _)| d.link_id == s.link_id) else {
+            continue;
+        };
         match offer.services.iter().find(|p| p.decl.name == s.name) {
-            Some(p) => consumed_services.push(ResolvedCall { slot: slot_of(dep), decl: p.decl.clone(), origin: p.origin.clone(), loc: s.loc.clone() }),
-            None => diags.push(missing_on_producer(&s.loc, EntryKind::Service, &s.name, dep, offer)),
+            Some(p) => consumed_services.push(ResolvedCall {
+                slot: slot_of(dep),
+                decl: p.decl.clone(),
+                origin: p.origin.clone(),
+                loc: s.loc.clone(),
+            }),
+            None => diags.push(missing_on_producer(
+                &s.loc,
+                EntryKind::Service,
+                &s.name,
+                dep,
+                offer,
+            )),
         }
     }
     let mut consumed_actions = Vec::new();
     for a in &node.consumed_actions {
-        let Some((dep, offer)) = offers.iter().find(|(d, _)| d.link_id == a.link_id) else { continue };
+        let Some((dep, offer)) = offers.iter().find(|(d, _)| d.link_id == a.link_id) else {
+            continue;
+        };
         match offer.actions.iter().find(|p| p.decl.name == a.name) {
-            Some(p) => consumed_actions.push(ResolvedCall { slot: slot_of(dep), decl: p.decl.clone(), origin: p.origin.clone(), loc: a.loc.clone() }),
-            None => diags.push(missing_on_producer(&a.loc, EntryKind::Action, &a.name, dep, offer)),
+            Some(p) => consumed_actions.push(ResolvedCall {
+                slot: slot_of(dep),
+                decl: p.decl.clone(),
+                origin: p.origin.clone(),
+                loc: a.loc.clone(),
+            }),
+            None => diags.push(missing_on_producer(
+                &a.loc,
+                EntryKind::Action,
+                &a.name,
+                dep,
+                offer,
+            )),
         }
     }
 
@@ -259,9 +368,30 @@ fn producer_offer(
 ) -> Option<Offer> {
     let own = Origin::Node(producer.identity());
     let mut offer = Offer {
-        topics: producer.emits.iter().map(|t| Provided { decl: t.clone(), origin: own.clone() }).collect(),
-        services: producer.exposed_services.iter().map(|s| Provided { decl: s.clone(), origin: own.clone() }).collect(),
-        actions: producer.exposed_actions.iter().map(|a| Provided { decl: a.clone(), origin: own.clone() }).collect(),
+        topics: producer
+            .emits
+            .iter()
+            .map(|t| Provided {
+                decl: t.clone(),
+                origin: own.clone(),
+            })
+            .collect(),
+        services: producer
+            .exposed_services
+            .iter()
+            .map(|s| Provided {
+                decl: s.clone(),
+                origin: own.clone(),
+            })
+            .collect(),
+        actions: producer
+            .exposed_actions
+            .iter()
+            .map(|a| Provided {
+                decl: a.clone(),
+                origin: own.clone(),
+            })
+            .collect(),
     };
     for c in &producer.conforms_to {
         // The producer's own pins are checked when the producer is built; here
@@ -281,31 +411,49 @@ fn producer_offer(
         let origin = Origin::Interface(c.target.clone());
         for t in &entry.doc.topics {
             if !offer.topics.iter().any(|p| p.decl.name == t.name) {
-                offer.topics.push(Provided { decl: t.clone(), origin: origin.clone() });
+                offer.topics.push(Provided {
+                    decl: t.clone(),
+                    origin: origin.clone(),
+                });
             }
         }
         for s in &entry.doc.services {
             if !offer.services.iter().any(|p| p.decl.name == s.name) {
-                offer.services.push(Provided { decl: s.clone(), origin: origin.clone() });
+                offer.services.push(Provided {
+                    decl: s.clone(),
+                    origin: origin.clone(),
+                });
             }
         }
         for a in &entry.doc.actions {
             if !offer.actions.iter().any(|p| p.decl.name == a.name) {
-                offer.actions.push(Provided { decl: a.clone(), origin: origin.clone() });
+                offer.actions.push(Provided {
+                    decl: a.clone(),
+                    origin: origin.clone(),
+                });
             }
         }
     }
     Some(offer)
 }
 
-fn missing_on_producer(loc: &Loc, kind: EntryKind, name: &str, dep: &Dependency, offer: &Offer) -> Diagnostic {
+fn missing_on_producer(
+    loc: &Loc,
+    kind: EntryKind,
+    name: &str,
+    dep: &Dependency,
+    offer: &Offer,
+) -> Diagnostic {
     let what = match dep.kind {
         SlotKind::Node => format!("node `{}`", dep.target),
         SlotKind::Interface => format!("interface `{}`", dep.target),
     };
     let offered = offer.names(kind);
     let help = match crate::diag::did_you_mean(name, offered.iter().copied()) {
-        Some(s) => format!("did you mean `{s}`? {what} offers {kind}s: {}", list(offered.iter().copied())),
+        Some(s) => format!(
+            "did you mean `{s}`? {what} offers {kind}s: {}",
+            list(offered.iter().copied())
+        ),
         None => format!("{what} offers {kind}s: {}", list(offered.iter().copied())),
     };
     loc.error(
@@ -315,7 +463,12 @@ fn missing_on_producer(loc: &Loc, kind: EntryKind, name: &str, dep: &Dependency,
     .with_help(help)
 }
 
-fn find_node<'i>(index: &'i RepoIndex, id: &Identity, loc: &Loc, diags: &mut Diagnostics) -> Option<&'i Entry<NodeDoc>> {
+fn find_node<'i>(
+    index: &'i RepoIndex,
+    id: &Identity,
+    loc: &Loc,
+    diags: &mut Diagnostics,
+) -> Option<&'i Entry<NodeDoc>> {
     if let Some(e) = index.node(id) {
         return Some(e);
     }
@@ -325,13 +478,25 @@ fn find_node<'i>(index: &'i RepoIndex, id: &Identity, loc: &Loc, diags: &mut Dia
 
 fn not_found(index: &RepoIndex, kind: DocumentKind, id: &Identity, loc: &Loc) -> Diagnostic {
     if let Some(b) = index.broken(kind, id) {
-        let first = b.diagnostics.sorted().first().map(|d| d.jump_line(None)).unwrap_or_default();
+        let first = b
+            .diagnostics
+            .sorted()
+            .first()
+            .map(|d| d.jump_line(None))
+            .unwrap_or_default();
         return loc
             .error(
                 Code::DependencyInvalid,
-                format!("{} `{id}` is defined in `{}`, but that document is invalid", kind.as_str(), b.path.display()),
+                format!(
+                    "{} `{id}` is defined in `{}`, but that document is invalid",
+                    kind.as_str(),
+                    b.path.display()
+                ),
             )
-            .with_help(format!("first problem: {first} (run `peppy-launch validate {}`)", b.path.display()));
+            .with_help(format!(
+                "first problem: {first} (run `peppy-launch validate {}`)",
+                b.path.display()
+            ));
     }
     let known: Vec<String> = match kind {
         DocumentKind::Interface => index.interface_ids().map(ToString::to_string).collect(),
@@ -341,7 +506,11 @@ fn not_found(index: &RepoIndex, kind: DocumentKind, id: &Identity, loc: &Loc) ->
     if let Some(s) = crate::diag::did_you_mean(&id.to_string(), known.iter().map(String::as_str)) {
         help = format!("did you mean `{s}`? {help}");
     }
-    loc.error(Code::DependencyNotFound, format!("no repository provides {} `{id}`", kind.as_str())).with_help(help)
+    loc.error(
+        Code::DependencyNotFound,
+        format!("no repository provides {} `{id}`", kind.as_str()),
+    )
+    .with_help(help)
 }
 
 fn find_interface<'i>(
@@ -357,11 +526,16 @@ fn find_interface<'i>(
         diags.push(not_found(index, DocumentKind::Interface, id, loc));
         return None;
     }
-    let Some(pin) = pin else { return candidates.first() };
+    let Some(pin) = pin else {
+        return candidates.first();
+    };
     if let Some(e) = candidates.iter().find(|e| e.doc.sha256 == pin) {
         return Some(e);
     }
-    let actual: Vec<String> = candidates.iter().map(|e| format!("`{}` in `{}`", e.doc.sha256, e.path.display())).collect();
+    let actual: Vec<String> = candidates
+        .iter()
+        .map(|e| format!("`{}` in `{}`", e.doc.sha256, e.path.display()))
+        .collect();
     diags.push(
         loc.error(
             Code::InterfacePinMismatch,

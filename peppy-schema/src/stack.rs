@@ -24,7 +24,9 @@ pub struct RepoOptions {
 
 impl RepoOptions {
     fn env_value(&self) -> Option<OsString> {
-        self.env.clone().or_else(|| std::env::var_os(REPOSITORIES_ENV))
+        self.env
+            .clone()
+            .or_else(|| std::env::var_os(REPOSITORIES_ENV))
     }
 }
 
@@ -45,16 +47,25 @@ pub fn check_node(path: &Path, options: &RepoOptions) -> Result<NodeCheck, Diagn
     let file = node_file(path);
     let (doc, mut warnings) = NodeDoc::load(&file)?;
     let dir = file.parent().map(Path::to_path_buf).unwrap_or_default();
-    let repositories = RepositoryList::discover(&options.explicit, options.env_value().as_deref(), &dir)?;
+    let repositories =
+        RepositoryList::discover(&options.explicit, options.env_value().as_deref(), &dir)?;
     let index = RepoIndex::scan(&repositories.paths);
     let (resolved, more) = resolve_node(Arc::new(doc), absolute(&file), &index)?;
     warnings.extend(more);
-    Ok(NodeCheck { resolved, repositories, warnings })
+    Ok(NodeCheck {
+        resolved,
+        repositories,
+        warnings,
+    })
 }
 
 /// `dir/peppy.json5` for a directory, else the path itself.
 pub fn node_file(path: &Path) -> PathBuf {
-    if path.is_dir() { path.join("peppy.json5") } else { path.to_path_buf() }
+    if path.is_dir() {
+        path.join("peppy.json5")
+    } else {
+        path.to_path_buf()
+    }
 }
 
 /// One deployment of a checked launcher.
@@ -86,12 +97,17 @@ pub struct StackCheck {
 pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, Diagnostics> {
     let (launcher, mut diags) = LauncherDoc::load(path)?;
     let base = absolute(&launcher.base_dir());
-    let mut repositories = RepositoryList::discover(&options.explicit, options.env_value().as_deref(), &base)?;
+    let mut repositories =
+        RepositoryList::discover(&options.explicit, options.env_value().as_deref(), &base)?;
     // Local nodes bring their own nearest repositories list.
     for d in &launcher.deployments {
         if let Source::Local { path } = &d.source {
             let dir = base.join(path);
-            let dir = if dir.is_file() { dir.parent().map(Path::to_path_buf).unwrap_or(dir) } else { dir };
+            let dir = if dir.is_file() {
+                dir.parent().map(Path::to_path_buf).unwrap_or(dir)
+            } else {
+                dir
+            };
             if let Err(e) = repositories.add_nearest_file(&dir) {
                 diags.extend(e);
             }
@@ -129,19 +145,29 @@ pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, 
                 Some(e) => Some((e.doc.clone(), e.path.clone())),
                 None => {
                     let why = match index.broken(crate::document::DocumentKind::Node, identity) {
-                        Some(b) => format!("`{}` defines it but is invalid (run `peppy-launch validate` on it)", b.path.display()),
+                        Some(b) => format!(
+                            "`{}` defines it but is invalid (run `peppy-launch validate` on it)",
+                            b.path.display()
+                        ),
                         None => index.searched(),
                     };
                     diags.push(
                         d.source_loc
-                            .error(Code::DependencyNotFound, format!("no repository provides node `{identity}`"))
+                            .error(
+                                Code::DependencyNotFound,
+                                format!("no repository provides node `{identity}`"),
+                            )
                             .with_help(why),
                     );
                     None
                 }
             },
             Source::Git { .. } | Source::Archive { .. } => {
-                let kind = if matches!(d.source, Source::Git { .. }) { "git (`repo`/`path`/`ref`)" } else { "archive (`url`/`sha256`)" };
+                let kind = if matches!(d.source, Source::Git { .. }) {
+                    "git (`repo`/`path`/`ref`)"
+                } else {
+                    "archive (`url`/`sha256`)"
+                };
                 diags.push(
                     d.source_loc
                         .error(Code::UnsupportedSource, format!("{kind} sources are not supported yet"))
@@ -185,7 +211,10 @@ pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, 
     }
     // Bindings only need manifests, so plan even when a node's own
     // resolution failed: the user sees binding errors in the same run.
-    let nodes: Vec<Option<&NodeDoc>> = loaded.iter().map(|e| e.as_ref().map(|(d, _)| d.as_ref())).collect();
+    let nodes: Vec<Option<&NodeDoc>> = loaded
+        .iter()
+        .map(|e| e.as_ref().map(|(d, _)| d.as_ref()))
+        .collect();
     let plan = match plan_bindings(&launcher, &nodes) {
         Ok((plan, w)) => {
             diags.extend(w);
@@ -201,7 +230,10 @@ pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, 
     }
     Ok(StackCheck {
         launcher,
-        deployments: deployments.into_iter().map(|d| d.expect("no errors means every node resolved")).collect(),
+        deployments: deployments
+            .into_iter()
+            .map(|d| d.expect("no errors means every node resolved"))
+            .collect(),
         plan: plan.expect("no errors means a plan"),
         repositories: repositories.paths,
         warnings: diags,

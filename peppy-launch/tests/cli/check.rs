@@ -4,12 +4,29 @@ use crate::support::{jump_lines, peppy_launch, root};
 fn multi_camera_plan_names_every_slot_and_producer() {
     let run = peppy_launch(&root(), &["check", "examples/launchers/multi_camera.json5"]);
     assert_eq!(run.code, 0, "{}", run.stderr);
-    let recon = run.stdout.split("recon_1").nth(1).expect("recon_1 in the plan");
-    let slot = |link: &str| recon.lines().find(|l| l.trim_start().starts_with(link)).unwrap_or_else(|| panic!("{link} in {recon}")).to_string();
+    let recon = run
+        .stdout
+        .split("recon_1")
+        .nth(1)
+        .expect("recon_1 in the plan");
+    let slot = |link: &str| {
+        recon
+            .lines()
+            .find(|l| l.trim_start().starts_with(link))
+            .unwrap_or_else(|| panic!("{link} in {recon}"))
+            .to_string()
+    };
     assert!(slot("left_cam").contains("<- rs_left") && slot("left_cam").contains("pinned"));
     assert!(slot("right_cam").contains("<- rs_right"));
-    assert!(slot("backup_cams").contains("<- zed_overhead") && slot("backup_cams").contains("from_any"));
-    assert!(run.stdout.contains(r#"parameters: {"width":1280,"height":720,"frames_per_second":15}"#), "{}", run.stdout);
+    assert!(
+        slot("backup_cams").contains("<- zed_overhead") && slot("backup_cams").contains("from_any")
+    );
+    assert!(
+        run.stdout
+            .contains(r#"parameters: {"width":1280,"height":720,"frames_per_second":15}"#),
+        "{}",
+        run.stdout
+    );
 }
 
 #[test]
@@ -26,30 +43,60 @@ fn unbound_from_any_slot_prints_any() {
     )
     .unwrap();
     let repo = root().join("examples");
-    let run = peppy_launch(dir.path(), &["check", "stack.json5", "--repo", repo.to_str().unwrap()]);
+    let run = peppy_launch(
+        dir.path(),
+        &["check", "stack.json5", "--repo", repo.to_str().unwrap()],
+    );
     assert_eq!(run.code, 0, "{}", run.stderr);
-    assert!(run.stdout.lines().any(|l| l.contains("extras <- (any)")), "{}", run.stdout);
+    assert!(
+        run.stdout.lines().any(|l| l.contains("extras <- (any)")),
+        "{}",
+        run.stdout
+    );
 }
 
 #[test]
 fn json_plan_is_machine_readable() {
-    let run = peppy_launch(&root(), &["check", "--format", "json", "examples/launchers/three_realsense.json5"]);
+    let run = peppy_launch(
+        &root(),
+        &[
+            "check",
+            "--format",
+            "json",
+            "examples/launchers/three_realsense.json5",
+        ],
+    );
     assert_eq!(run.code, 0, "{}", run.stderr);
     let v: serde_json::Value = serde_json::from_str(&run.stdout).expect("json on stdout");
     assert_eq!(v["valid"], true);
-    let mosaic = v["plan"]["instances"].as_array().unwrap().iter().find(|i| i["instance_id"] == "mosaic_1").unwrap();
+    let mosaic = v["plan"]["instances"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|i| i["instance_id"] == "mosaic_1")
+        .unwrap();
     let extras = &mosaic["slots"][0];
     assert_eq!(extras["link_id"], "extras");
     assert_eq!(extras["binding"]["kind"], "from_any_bound");
-    assert_eq!(extras["binding"]["producers"], serde_json::json!(["rs_front", "rs_back_left", "rs_back_right"]));
+    assert_eq!(
+        extras["binding"]["producers"],
+        serde_json::json!(["rs_front", "rs_back_left", "rs_back_right"])
+    );
     assert_eq!(extras["filter"]["kind"], "only_from");
 }
 
 #[test]
 fn non_conforming_producer_is_rejected_with_a_jump_line() {
-    let run = peppy_launch(&root(), &["check", "examples/launchers/wrong_interface.json5"]);
+    let run = peppy_launch(
+        &root(),
+        &["check", "examples/launchers/wrong_interface.json5"],
+    );
     assert_eq!(run.code, 2);
-    assert!(run.stdout.is_empty(), "no plan for an invalid stack: {}", run.stdout);
+    assert!(
+        run.stdout.is_empty(),
+        "no plan for an invalid stack: {}",
+        run.stdout
+    );
     let lines = jump_lines(&run.stderr);
     assert_eq!(lines.len(), 1, "{}", run.stderr);
     assert!(
@@ -60,20 +107,36 @@ fn non_conforming_producer_is_rejected_with_a_jump_line() {
     assert!(lines[0].ends_with("(BindingInterfaceNotConformed)"));
     assert!(run.stderr.contains("nothing was built or started"));
     // The snippet points at the offending value.
-    assert!(run.stderr.contains(r#"bindings: { left_cam: "rs_left", right_cam: "impostor" },"#));
+    assert!(
+        run.stderr
+            .contains(r#"bindings: { left_cam: "rs_left", right_cam: "impostor" },"#)
+    );
 }
 
 #[test]
 fn json_errors_carry_code_and_position() {
-    let run = peppy_launch(&root(), &["check", "--format=json", "examples/launchers/wrong_interface.json5"]);
+    let run = peppy_launch(
+        &root(),
+        &[
+            "check",
+            "--format=json",
+            "examples/launchers/wrong_interface.json5",
+        ],
+    );
     assert_eq!(run.code, 2);
     let v: serde_json::Value = serde_json::from_str(&run.stdout).unwrap();
     assert_eq!(v["valid"], false);
     assert!(v["plan"].is_null());
     let d = &v["diagnostics"][0];
     assert_eq!(d["code"], "BindingInterfaceNotConformed");
-    assert_eq!((d["line"].as_u64(), d["column"].as_u64()), (Some(21), Some(55)));
-    assert_eq!(d["key_path"], "deployments[2].instances[0].bindings.right_cam");
+    assert_eq!(
+        (d["line"].as_u64(), d["column"].as_u64()),
+        (Some(21), Some(55))
+    );
+    assert_eq!(
+        d["key_path"],
+        "deployments[2].instances[0].bindings.right_cam"
+    );
 }
 
 #[test]
@@ -91,13 +154,24 @@ fn every_error_of_a_stack_is_reported_in_one_run() {
 }"#;
     std::fs::write(dir.path().join("bad.json5"), launcher).unwrap();
     let repo = root().join("examples");
-    let run = peppy_launch(dir.path(), &["check", "bad.json5", "--repo", repo.to_str().unwrap()]);
+    let run = peppy_launch(
+        dir.path(),
+        &["check", "bad.json5", "--repo", repo.to_str().unwrap()],
+    );
     assert_eq!(run.code, 2);
     let lines = jump_lines(&run.stderr);
-    let codes: Vec<&str> = lines.iter().map(|l| l.rsplit('(').next().unwrap().trim_end_matches(')')).collect();
+    let codes: Vec<&str> = lines
+        .iter()
+        .map(|l| l.rsplit('(').next().unwrap().trim_end_matches(')'))
+        .collect();
     assert_eq!(
         codes,
-        ["ParameterTypeMismatch", "PinnedSlotUnbound", "DeadBindingKey", "DependencyNotFound"],
+        [
+            "ParameterTypeMismatch",
+            "PinnedSlotUnbound",
+            "DeadBindingKey",
+            "DependencyNotFound"
+        ],
         "{}",
         run.stderr
     );
@@ -110,5 +184,10 @@ fn every_error_of_a_stack_is_reported_in_one_run() {
 fn missing_launcher_is_a_clean_error() {
     let run = peppy_launch(&root(), &["check", "does/not/exist.json5"]);
     assert_eq!(run.code, 2);
-    assert!(run.stderr.contains("does/not/exist.json5: error: cannot read"), "{}", run.stderr);
+    assert!(
+        run.stderr
+            .contains("does/not/exist.json5: error: cannot read"),
+        "{}",
+        run.stderr
+    );
 }

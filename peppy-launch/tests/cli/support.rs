@@ -3,7 +3,10 @@ use std::process::{Command, Output};
 
 /// The workspace root, where `examples/` lives.
 pub(crate) fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("workspace root").to_path_buf()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("workspace root")
+        .to_path_buf()
 }
 
 pub(crate) struct Run {
@@ -15,7 +18,11 @@ pub(crate) struct Run {
 /// Runs `peppy-launch args...` in `dir` with no colour and no inherited
 /// repository list.
 pub(crate) fn peppy_launch(dir: &Path, args: &[&str]) -> Run {
-    let Output { status, stdout, stderr } = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+    let Output {
+        status,
+        stdout,
+        stderr,
+    } = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
         .args(args)
         .current_dir(dir)
         .env("NO_COLOR", "1")

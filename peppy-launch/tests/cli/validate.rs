@@ -28,21 +28,55 @@ fn invalid_documents_exit_2_with_sorted_located_errors() {
     assert_eq!(run.code, 2);
     let lines = jump_lines(&run.stderr);
     assert_eq!(lines.len(), 4, "{}", run.stderr);
-    assert!(lines[0].starts_with("./peppy.json5:3:33: error: invalid `manifest.tag` `v1.2`"), "{}", lines[0]);
-    assert!(lines[1].starts_with("./peppy.json5:5:23: error: unknown key `qos_profil`"), "{}", lines[1]);
-    assert!(lines[2].starts_with("./peppy.json5:5:73: error: unknown type `u322`"), "{}", lines[2]);
-    assert!(lines[3].contains("`instance_id` is reserved"), "{}", lines[3]);
+    assert!(
+        lines[0].starts_with("./peppy.json5:3:33: error: invalid `manifest.tag` `v1.2`"),
+        "{}",
+        lines[0]
+    );
+    assert!(
+        lines[1].starts_with("./peppy.json5:5:23: error: unknown key `qos_profil`"),
+        "{}",
+        lines[1]
+    );
+    assert!(
+        lines[2].starts_with("./peppy.json5:5:73: error: unknown type `u322`"),
+        "{}",
+        lines[2]
+    );
+    assert!(
+        lines[3].contains("`instance_id` is reserved"),
+        "{}",
+        lines[3]
+    );
     assert!(run.stderr.contains("did you mean `qos_profile`?"));
     assert!(run.stderr.contains("did you mean `u32`?"));
-    assert!(run.stderr.contains("1 document checked, 1 invalid"), "a non-peppy json5 file is skipped: {}", run.stderr);
+    assert!(
+        run.stderr.contains("1 document checked, 1 invalid"),
+        "a non-peppy json5 file is skipped: {}",
+        run.stderr
+    );
 }
 
 #[test]
 fn json_output_lists_documents() {
-    let run = peppy_launch(&root(), &["validate", "--format", "json", "examples/interfaces", "examples/nodes/robot_arm"]);
+    let run = peppy_launch(
+        &root(),
+        &[
+            "validate",
+            "--format",
+            "json",
+            "examples/interfaces",
+            "examples/nodes/robot_arm",
+        ],
+    );
     assert_eq!(run.code, 0, "{}", run.stderr);
     let v: serde_json::Value = serde_json::from_str(&run.stdout).unwrap();
-    let kinds: Vec<&str> = v["documents"].as_array().unwrap().iter().map(|d| d["kind"].as_str().unwrap()).collect();
+    let kinds: Vec<&str> = v["documents"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d["kind"].as_str().unwrap())
+        .collect();
     assert_eq!(kinds, ["interface", "node"]);
     assert_eq!(v["errors"], 0);
 }
@@ -54,10 +88,25 @@ fn hostile_input_is_an_error_not_a_crash() {
     std::fs::write(dir.path().join("deep.json5"), deep).unwrap();
     std::fs::write(dir.path().join("binary.json5"), [0xff, 0xfe, 0x00, 0x41]).unwrap();
     std::fs::write(dir.path().join("empty.json5"), "").unwrap();
-    let run = peppy_launch(dir.path(), &["validate", "--format", "json", "deep.json5", "binary.json5", "empty.json5"]);
+    let run = peppy_launch(
+        dir.path(),
+        &[
+            "validate",
+            "--format",
+            "json",
+            "deep.json5",
+            "binary.json5",
+            "empty.json5",
+        ],
+    );
     assert_eq!(run.code, 2, "{}", run.stderr);
     let v: serde_json::Value = serde_json::from_str(&run.stdout).unwrap();
-    let codes: Vec<&str> = v["documents"].as_array().unwrap().iter().map(|d| d["diagnostics"][0]["code"].as_str().unwrap()).collect();
+    let codes: Vec<&str> = v["documents"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d["diagnostics"][0]["code"].as_str().unwrap())
+        .collect();
     assert_eq!(codes, ["NestingTooDeep", "Syntax", "Syntax"]);
 }
 
