@@ -170,12 +170,13 @@ fn check_file(path: &Path, explicit: bool) -> Option<Checked> {
             });
         }
     };
-    if !explicit && !is_peppy_named(path) {
-        if let Ok((root, _)) = peppy_schema::json::parse(&file) {
-            let claims = root.get("peppy_schema").is_some() || root.get("schema_version").is_some();
-            if detect_kind(&root).is_none() && !claims {
-                return None;
-            }
+    if !explicit
+        && !is_peppy_named(path)
+        && let Ok((root, _)) = peppy_schema::json::parse(&file)
+    {
+        let claims = root.get("peppy_schema").is_some() || root.get("schema_version").is_some();
+        if detect_kind(&root).is_none() && !claims {
+            return None;
         }
     }
     let (kind, diagnostics) = match parse_document(&file, &sha) {

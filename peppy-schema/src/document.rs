@@ -48,6 +48,10 @@ pub const REPOSITORIES_FILE: &str = "peppy_repositories.json5";
 
 /// A parsed document of any kind.
 #[derive(Debug, Clone)]
+#[expect(
+    clippy::large_enum_variant,
+    reason = "built once per file read; boxing would only add a hop"
+)]
 pub enum Document {
     /// A node.
     Node(NodeDoc),

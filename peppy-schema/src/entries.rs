@@ -256,20 +256,20 @@ pub(crate) fn parse_service(r: &mut Reader<'_>, node: &Node, path: &str) -> Opti
     )?;
     let mut ok = true;
     let name = parse_entry_name(r, &obj, EntryKind::Service);
-    if let Some((n, loc)) = &name {
-        if RESERVED_SERVICE_NAMES.contains(&n.as_str()) {
-            r.diags.push(
-                loc.error(
-                    Code::ReservedServiceName,
-                    format!("service name `{n}` is reserved by the runtime"),
-                )
-                .with_help(format!(
-                    "reserved: {}; pick another name",
-                    list(RESERVED_SERVICE_NAMES.iter().copied())
-                )),
-            );
-            ok = false;
-        }
+    if let Some((n, loc)) = &name
+        && RESERVED_SERVICE_NAMES.contains(&n.as_str())
+    {
+        r.diags.push(
+            loc.error(
+                Code::ReservedServiceName,
+                format!("service name `{n}` is reserved by the runtime"),
+            )
+            .with_help(format!(
+                "reserved: {}; pick another name",
+                list(RESERVED_SERVICE_NAMES.iter().copied())
+            )),
+        );
+        ok = false;
     }
     let request = parse_optional_format(
         r,

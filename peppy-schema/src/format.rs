@@ -492,20 +492,20 @@ fn parse_type(
                         "move the optional part to the root of the message format, or make its parent optional",
                     );
                     ok = false;
-                } else if let Shape::Primitive(p) = shape {
-                    if p.is_scalar() {
-                        r.error_help(
-                            Code::OptionalMisuse,
-                            o.span,
-                            &opath,
-                            format!(
-                                "`$optional` is not allowed on `{}`: scalars have no presence bit",
-                                p.name()
-                            ),
-                            "`$optional` works on `string`, `bytes`, `time`, arrays and objects",
-                        );
-                        ok = false;
-                    }
+                } else if let Shape::Primitive(p) = shape
+                    && p.is_scalar()
+                {
+                    r.error_help(
+                        Code::OptionalMisuse,
+                        o.span,
+                        &opath,
+                        format!(
+                            "`$optional` is not allowed on `{}`: scalars have no presence bit",
+                            p.name()
+                        ),
+                        "`$optional` works on `string`, `bytes`, `time`, arrays and objects",
+                    );
+                    ok = false;
                 }
             }
             value

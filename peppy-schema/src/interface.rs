@@ -46,79 +46,79 @@ pub(crate) fn parse_interface(
     let mut ok = true;
     let mut identity = None;
     let mut labels = Vec::new();
-    if let Some(m) = r.required(&obj, "manifest") {
-        if let Some(mobj) = r.object(m, "manifest", &["name", "tag", "labels"]) {
-            let name = r.required(&mobj, "name").and_then(|n| {
-                let s = r.string(n, "manifest.name")?;
-                match check_name(&s) {
-                    Ok(()) => Some((s, r.loc(n.span, "manifest.name"))),
-                    Err(why) => {
-                        r.error(
-                            Code::InvalidName,
-                            n.span,
-                            "manifest.name",
-                            format!("invalid `manifest.name` `{s}`: {why}"),
-                        );
-                        None
-                    }
+    if let Some(m) = r.required(&obj, "manifest")
+        && let Some(mobj) = r.object(m, "manifest", &["name", "tag", "labels"])
+    {
+        let name = r.required(&mobj, "name").and_then(|n| {
+            let s = r.string(n, "manifest.name")?;
+            match check_name(&s) {
+                Ok(()) => Some((s, r.loc(n.span, "manifest.name"))),
+                Err(why) => {
+                    r.error(
+                        Code::InvalidName,
+                        n.span,
+                        "manifest.name",
+                        format!("invalid `manifest.name` `{s}`: {why}"),
+                    );
+                    None
                 }
-            });
-            let tag = r.required(&mobj, "tag").and_then(|t| {
-                let s = r.string(t, "manifest.tag")?;
-                match check_tag(&s, false) {
-                    Ok(()) => Some(s),
-                    Err(why) => {
-                        r.error(
-                            Code::InvalidTag,
-                            t.span,
-                            "manifest.tag",
-                            format!("invalid `manifest.tag` `{s}`: {why}"),
-                        );
-                        None
-                    }
+            }
+        });
+        let tag = r.required(&mobj, "tag").and_then(|t| {
+            let s = r.string(t, "manifest.tag")?;
+            match check_tag(&s, false) {
+                Ok(()) => Some(s),
+                Err(why) => {
+                    r.error(
+                        Code::InvalidTag,
+                        t.span,
+                        "manifest.tag",
+                        format!("invalid `manifest.tag` `{s}`: {why}"),
+                    );
+                    None
                 }
-            });
-            if let Some(l) = mobj.get("labels") {
-                labels = r.string_list(l, "manifest.labels").unwrap_or_default();
             }
-            if let (Some(n), Some(t)) = (name, tag) {
-                identity = Some((Identity::new(n.0, t), n.1));
-            }
+        });
+        if let Some(l) = mobj.get("labels") {
+            labels = r.string_list(l, "manifest.labels").unwrap_or_default();
+        }
+        if let (Some(n), Some(t)) = (name, tag) {
+            identity = Some((Identity::new(n.0, t), n.1));
         }
     }
     let mut topics = Vec::new();
     let mut services = Vec::new();
     let mut actions = Vec::new();
-    if let Some(i) = r.required(&obj, "interfaces") {
-        if let Some(iobj) = r.object(i, "interfaces", &["topics", "services", "actions"]) {
-            topics = parse_list(
-                &mut r,
-                iobj.get("topics"),
-                "interfaces.topics",
-                EntryKind::Topic,
-                &mut ok,
-                parse_topic,
-                topic_name,
-            );
-            services = parse_list(
-                &mut r,
-                iobj.get("services"),
-                "interfaces.services",
-                EntryKind::Service,
-                &mut ok,
-                parse_service,
-                service_name,
-            );
-            actions = parse_list(
-                &mut r,
-                iobj.get("actions"),
-                "interfaces.actions",
-                EntryKind::Action,
-                &mut ok,
-                parse_action,
-                action_name,
-            );
-        }
+    if let Some(i) = r.required(&obj, "interfaces")
+        && let Some(iobj) = r.object(i, "interfaces", &["topics", "services", "actions"])
+    {
+        topics = parse_list(
+            &mut r,
+            iobj.get("topics"),
+            "interfaces.topics",
+            EntryKind::Topic,
+            &mut ok,
+            parse_topic,
+            topic_name,
+        );
+        services = parse_list(
+            &mut r,
+            iobj.get("services"),
+            "interfaces.services",
+            EntryKind::Service,
+            &mut ok,
+            parse_service,
+            service_name,
+        );
+        actions = parse_list(
+            &mut r,
+            iobj.get("actions"),
+            "interfaces.actions",
+            EntryKind::Action,
+            &mut ok,
+            parse_action,
+            action_name,
+        );
     }
     if r.diags.has_errors() || !ok {
         return None;

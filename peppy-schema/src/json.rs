@@ -87,10 +87,11 @@ impl Number {
             "NaN" => return Some(Number::Float(f64::NAN)),
             _ => {}
         }
-        if body.bytes().all(|b| b.is_ascii_digit()) && !body.is_empty() {
-            if let Ok(v) = body.parse::<i128>() {
-                return Some(Number::Int(if negative { -v } else { v }));
-            }
+        if body.bytes().all(|b| b.is_ascii_digit())
+            && !body.is_empty()
+            && let Ok(v) = body.parse::<i128>()
+        {
+            return Some(Number::Int(if negative { -v } else { v }));
         }
         let mut text = body.to_string();
         if text.starts_with('.') {

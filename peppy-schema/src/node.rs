@@ -231,16 +231,14 @@ pub(crate) fn parse_node(
     };
     let root_obj = r.object(root, "", top_keys)?;
     let mut ok = true;
-    if legacy {
-        if let Some(v) = root_obj.member("schema_version") {
-            r.warn_help(
-                Code::LegacySpelling,
-                v.key_span,
-                "schema_version",
-                format!("{LEGACY_HELP}: `schema_version: 1`"),
-                "write `peppy_schema: \"node_v1\"`",
-            );
-        }
+    if legacy && let Some(v) = root_obj.member("schema_version") {
+        r.warn_help(
+            Code::LegacySpelling,
+            v.key_span,
+            "schema_version",
+            format!("{LEGACY_HELP}: `schema_version: 1`"),
+            "write `peppy_schema: \"node_v1\"`",
+        );
     }
 
     // manifest
@@ -256,7 +254,7 @@ pub(crate) fn parse_node(
             &["name", "tag", "labels", "depends_on"]
         };
         if let Some(mobj) = r.object(m, "manifest", keys) {
-            name = read_identity_part(&mut r, &mobj, "name", |s| check_name(s), Code::InvalidName);
+            name = read_identity_part(&mut r, &mobj, "name", check_name, Code::InvalidName);
             tag = read_identity_part(
                 &mut r,
                 &mobj,
@@ -273,17 +271,15 @@ pub(crate) fn parse_node(
                     None => ok = false,
                 }
             }
-            if legacy {
-                if let Some(lang) = mobj.member("language") {
-                    r.warn_help(
-                        Code::LegacySpelling,
-                        lang.key_span,
-                        "manifest.language",
-                        format!("{LEGACY_HELP}: `manifest.language`"),
-                        "write `execution.language`",
-                    );
-                    legacy_language = r.string(&lang.value, "manifest.language");
-                }
+            if legacy && let Some(lang) = mobj.member("language") {
+                r.warn_help(
+                    Code::LegacySpelling,
+                    lang.key_span,
+                    "manifest.language",
+                    format!("{LEGACY_HELP}: `manifest.language`"),
+                    "write `execution.language`",
+                );
+                legacy_language = r.string(&lang.value, "manifest.language");
             }
         }
     }
@@ -576,12 +572,12 @@ fn parse_depends_on(r: &mut Reader<'_>, node: &Node, legacy: bool) -> Option<Vec
             );
             ok = false;
         }
-        if d.from_any {
-            if let Some(first) = deps[..i]
+        if d.from_any
+            && let Some(first) = deps[..i]
                 .iter()
                 .find(|e| e.from_any && e.target == d.target)
-            {
-                r.diags.push(
+        {
+            r.diags.push(
                     d.loc
                         .error(
                             Code::ConflictingFromAny,
@@ -589,8 +585,7 @@ fn parse_depends_on(r: &mut Reader<'_>, node: &Node, legacy: bool) -> Option<Vec
                         )
                         .with_help("at most one entry per name:tag may be `from_any`; one from_any slot takes every producer of that kind"),
                 );
-                ok = false;
-            }
+            ok = false;
         }
     }
     ok.then_some(deps)
@@ -610,7 +605,7 @@ fn parse_dependency(
     };
     let obj = r.object(node, path, keys)?;
     let mut ok = true;
-    let name = read_identity_part(r, &obj, "name", |s| check_name(s), Code::InvalidName);
+    let name = read_identity_part(r, &obj, "name", check_name, Code::InvalidName);
     let tag = read_identity_part(r, &obj, "tag", |s| check_tag(s, legacy), Code::InvalidTag);
     let link_key = if legacy && obj.get("link_id").is_none() && obj.get("local_id").is_some() {
         if let Some(m) = obj.member("local_id") {
@@ -685,7 +680,7 @@ fn parse_conforms_to(r: &mut Reader<'_>, node: Option<&Node>, ok: &mut bool) -> 
             *ok = false;
             continue;
         };
-        let name = read_identity_part(r, &obj, "name", |s| check_name(s), Code::InvalidName);
+        let name = read_identity_part(r, &obj, "name", check_name, Code::InvalidName);
         let tag = read_identity_part(r, &obj, "tag", |s| check_tag(s, false), Code::InvalidTag);
         let sha256 = match obj.get("sha256") {
             Some(s) => match read_sha256(r, s, &obj.path_of("sha256")) {
@@ -807,17 +802,15 @@ fn link_key(r: &mut Reader<'_>, obj: &Obj<'_>, legacy: bool) -> Option<&'static 
     if obj.get("link_id").is_some() {
         return Some("link_id");
     }
-    if legacy {
-        if let Some(m) = obj.member("local_node_id") {
-            r.warn_help(
-                Code::LegacySpelling,
-                m.key_span,
-                &obj.path_of("local_node_id"),
-                format!("{LEGACY_HELP}: `local_node_id`"),
-                "write `link_id`",
-            );
-            return Some("local_node_id");
-        }
+    if legacy && let Some(m) = obj.member("local_node_id") {
+        r.warn_help(
+            Code::LegacySpelling,
+            m.key_span,
+            &obj.path_of("local_node_id"),
+            format!("{LEGACY_HELP}: `local_node_id`"),
+            "write `link_id`",
+        );
+        return Some("local_node_id");
     }
     None
 }
@@ -905,16 +898,16 @@ fn parse_execution(r: &mut Reader<'_>, node: &Node) -> Option<Execution> {
     let language = r
         .required(&obj, "language")
         .and_then(|l| r.string(l, "execution.language"));
-    if let Some(l) = &language {
-        if l.trim().is_empty() {
-            r.error(
-                Code::InvalidValue,
-                obj.get("language").expect("present").span,
-                "execution.language",
-                "`execution.language` must not be empty",
-            );
-            ok = false;
-        }
+    if let Some(l) = &language
+        && l.trim().is_empty()
+    {
+        r.error(
+            Code::InvalidValue,
+            obj.get("language").expect("present").span,
+            "execution.language",
+            "`execution.language` must not be empty",
+        );
+        ok = false;
     }
     let build_cmd = obj
         .get("build_cmd")
@@ -1034,15 +1027,15 @@ fn parse_legacy_process(
     let language = match language {
         Some(l) => Some(l),
         None => {
-            if let Some(m) = root.get("manifest") {
-                if m.get("language").is_none() {
-                    r.error(
-                        Code::MissingKey,
-                        m.span,
-                        "manifest",
-                        "missing required key `language` in `manifest` (legacy form)",
-                    );
-                }
+            if let Some(m) = root.get("manifest")
+                && m.get("language").is_none()
+            {
+                r.error(
+                    Code::MissingKey,
+                    m.span,
+                    "manifest",
+                    "missing required key `language` in `manifest` (legacy form)",
+                );
             }
             None
         }

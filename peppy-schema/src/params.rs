@@ -343,11 +343,11 @@ fn resolve_field(
                 mismatch(errors, describe_array(items, *length), v);
                 return None;
             };
-            if let Some(n) = length {
-                if values.len() != *n as usize {
-                    mismatch(errors, describe_array(items, *length), v);
-                    return None;
-                }
+            if let Some(n) = length
+                && values.len() != *n as usize
+            {
+                mismatch(errors, describe_array(items, *length), v);
+                return None;
             }
             let mut out = Vec::with_capacity(values.len());
             for (i, item) in values.iter().enumerate() {

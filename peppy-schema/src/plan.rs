@@ -471,7 +471,7 @@ fn fill_parameters(inst: &Instance, node: &NodeDoc, diags: &mut Diagnostics) -> 
                         .with_key_path(path);
                 if let Some(h) = e.help() {
                     d = d.with_help(match e.kind {
-                        crate::params::ParamErrorKind::Missing { .. } => format!("add it under `arguments`, or give it a `$default` in the node's `execution.parameters`"),
+                        crate::params::ParamErrorKind::Missing { .. } => "add it under `arguments`, or give it a `$default` in the node's `execution.parameters`".to_string(),
                         _ => h,
                     });
                 }
