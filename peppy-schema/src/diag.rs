@@ -17,6 +17,9 @@ macro_rules! codes {
         }
 
         impl Code {
+            /// Every code, in catalogue order.
+            pub const ALL: &'static [Code] = &[$( Code::$name, )*];
+
             /// The name as printed, e.g. `DuplicateLinkId`.
             pub fn as_str(self) -> &'static str {
                 match self { $( Code::$name => stringify!($name), )* }
@@ -485,5 +488,21 @@ pub(crate) fn list<'a>(items: impl IntoIterator<Item = &'a str>) -> String {
         "(none)".to_string()
     } else {
         v.join(", ")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_code_is_documented() {
+        let doc = include_str!("../../docs/DOCUMENTS.md");
+        for code in Code::ALL {
+            assert!(
+                doc.contains(&format!("| `{code}` |")),
+                "docs/DOCUMENTS.md does not list `{code}`"
+            );
+        }
     }
 }

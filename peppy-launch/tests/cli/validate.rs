@@ -118,3 +118,22 @@ fn usage_errors_exit_2() {
     assert_eq!(missing.code, 2);
     assert!(missing.stderr.contains("`no/such/path` does not exist"));
 }
+
+#[test]
+fn reference_documents_stay_valid() {
+    let run = peppy_launch(&root(), &["validate", "--format", "json", "docs/reference"]);
+    assert_eq!(run.code, 0, "{}{}", run.stdout, run.stderr);
+    let v: serde_json::Value = serde_json::from_str(&run.stdout).unwrap();
+    let mut kinds: Vec<&str> = v["documents"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d["kind"].as_str().unwrap())
+        .collect();
+    kinds.sort();
+    assert_eq!(kinds, ["interface", "launcher", "node"]);
+    assert_eq!(
+        v["warnings"], 0,
+        "reference documents use current spellings only"
+    );
+}
