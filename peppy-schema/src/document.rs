@@ -29,6 +29,16 @@ pub enum DocumentKind {
 }
 
 impl DocumentKind {
+    /// `a node`, `an interface`, ... for messages.
+    fn article(self) -> &'static str {
+        match self {
+            DocumentKind::Interface => "an interface",
+            DocumentKind::Node => "a node",
+            DocumentKind::Launcher => "a launcher",
+            DocumentKind::Repositories => "a repositories",
+        }
+    }
+
     /// `node`, `interface`, `launcher`, `repositories`.
     pub fn as_str(self) -> &'static str {
         match self {
@@ -130,9 +140,9 @@ pub fn parse_as(file: &Arc<SourceFile>, sha256: &str, kind: DocumentKind) -> Par
                 Diagnostic::error(
                     Code::WrongDocumentKind,
                     format!(
-                        "expected a {} document, found a {} document",
-                        kind.as_str(),
-                        other.as_str()
+                        "expected {} document, found {} document",
+                        kind.article(),
+                        other.article()
                     ),
                 )
                 .at(file, at)

@@ -12,7 +12,7 @@ use crate::entries::{
     parse_list, parse_service, parse_topic, service_name, topic_name,
 };
 use crate::format::{MessageFormat, parse_format};
-use crate::json::Node;
+use crate::json::{Node, Value};
 use crate::names::{check_link_id, check_name, check_tag, module_name};
 use crate::params::{ParameterSchema, parse_parameters};
 use crate::read::{Loc, Obj, Reader, index};
@@ -398,9 +398,12 @@ pub(crate) fn parse_node(
                 .iter()
                 .map(|a| (a.link_id.as_str(), &a.loc, EntryKind::Action)),
         );
+    // Judged against every link_id written in `depends_on`, so that an error
+    // in one of its entries does not also make every consumer of it "undeclared".
+    let written = written_link_ids(root, legacy);
     for (link_id, loc, kind) in consumed_links {
-        if !dependencies.iter().any(|d| d.link_id == link_id) {
-            let declared: Vec<&str> = dependencies.iter().map(|d| d.link_id.as_str()).collect();
+        if !written.iter().any(|w| w == link_id) {
+            let declared: Vec<&str> = written.iter().map(String::as_str).collect();
             r.diags.push(
                 loc.error(
                     Code::UndeclaredLinkId,
@@ -445,6 +448,32 @@ pub(crate) fn parse_node(
         exposed_actions,
         consumed_actions,
     })
+}
+
+/// Every `link_id` written in `manifest.depends_on` (and legacy `local_id`),
+/// whether or not its entry is otherwise valid: in order, once each.
+fn written_link_ids(root: &Node, legacy: bool) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    let Some(deps) = root.get("manifest").and_then(|m| m.get("depends_on")) else {
+        return out;
+    };
+    for list in ["nodes", "interfaces"] {
+        let Some(Value::Array(items)) = deps.get(list).map(|n| &n.value) else {
+            continue;
+        };
+        for item in items {
+            let id = item
+                .get("link_id")
+                .or_else(|| if legacy { item.get("local_id") } else { None })
+                .and_then(Node::as_str);
+            if let Some(id) = id
+                && !out.iter().any(|o| o == id)
+            {
+                out.push(id.to_string());
+            }
+        }
+    }
+    out
 }
 
 fn check_consumed_modules(

@@ -144,21 +144,37 @@ pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, 
             Source::Repository { identity } => match index.node(identity) {
                 Some(e) => Some((e.doc.clone(), e.path.clone())),
                 None => {
-                    let why = match index.broken(crate::document::DocumentKind::Node, identity) {
-                        Some(b) => format!(
-                            "`{}` defines it but is invalid (run `peppy-launch validate` on it)",
-                            b.path.display()
-                        ),
-                        None => index.searched(),
-                    };
-                    diags.push(
-                        d.source_loc
+                    let diag = match index.broken(crate::document::DocumentKind::Node, identity) {
+                        // Found, but invalid: say so, like a broken dependency.
+                        Some(b) => {
+                            let first = b
+                                .diagnostics
+                                .sorted()
+                                .first()
+                                .map(|first| first.jump_line(None))
+                                .unwrap_or_default();
+                            d.source_loc
+                                .error(
+                                    Code::DependencyInvalid,
+                                    format!(
+                                        "node `{identity}` is defined in `{}`, but that document is invalid",
+                                        b.path.display()
+                                    ),
+                                )
+                                .with_help(format!(
+                                    "first problem: {first} (run `peppy-launch validate {}`)",
+                                    b.path.display()
+                                ))
+                        }
+                        None => d
+                            .source_loc
                             .error(
                                 Code::DependencyNotFound,
                                 format!("no repository provides node `{identity}`"),
                             )
-                            .with_help(why),
-                    );
+                            .with_help(index.searched()),
+                    };
+                    diags.push(diag);
                     None
                 }
             },

@@ -1,0 +1,28 @@
+//! Integration tests of peppy-schema, one binary with one module per area:
+//! node rules, the legacy form, message formats, parameters, launcher rules,
+//! repositories, resolution, the binding plan, the shipped examples and a
+//! reviewed snapshot of rendered errors.
+
+#[path = "schema/support.rs"]
+mod support;
+
+#[path = "schema/binding_plan.rs"]
+mod binding_plan;
+#[path = "schema/examples.rs"]
+mod examples;
+#[path = "schema/formats.rs"]
+mod formats;
+#[path = "schema/launcher_rules.rs"]
+mod launcher_rules;
+#[path = "schema/legacy.rs"]
+mod legacy;
+#[path = "schema/node_rules.rs"]
+mod node_rules;
+#[path = "schema/parameters.rs"]
+mod parameters;
+#[path = "schema/rendering.rs"]
+mod rendering;
+#[path = "schema/repositories.rs"]
+mod repositories;
+#[path = "schema/resolution.rs"]
+mod resolution;

@@ -1,0 +1,401 @@
+//! SPEC 1.4 / 6.1 / 6.2: launcher documents on their own (and the source
+//! kinds `check_launcher` refuses).
+
+use std::path::PathBuf;
+
+use peppy_schema::{Code, Diagnostics, Identity, LauncherDoc, RestartPolicy, Source};
+
+use crate::support::*;
+
+fn launcher_err(text: &str) -> Diagnostics {
+    match LauncherDoc::parse("stack.json5", text) {
+        Ok(_) => panic!("expected errors:\n{text}"),
+        Err(e) => e,
+    }
+}
+
+fn launcher_ok(text: &str) -> LauncherDoc {
+    match LauncherDoc::parse("stack.json5", text) {
+        Ok((l, w)) => {
+            assert!(w.is_empty(), "{w}");
+            l
+        }
+        Err(e) => panic!("expected a valid launcher, got:\n{e}"),
+    }
+}
+
+#[test]
+fn instance_ids_are_unique_across_deployments() {
+    let text = r#"{
+  peppy_schema: "launcher_v1",
+  deployments: [
+    { source: { name: "cam:v1" }, instances: [{ instance_id: "cam_1" }, { instance_id: "cam_2" }] },
+    { source: { name: "lidar:v1" }, instances: [{ instance_id: "cam_1" }] },
+  ],
+}"#;
+    let errors = launcher_err(text);
+    assert_eq!(codes(&errors), [Code::DuplicateInstanceId]);
+    let d = one(&errors, Code::DuplicateInstanceId);
+    assert_at(
+        d,
+        Code::DuplicateInstanceId,
+        "deployments[1].instances[0].instance_id",
+        text,
+        r#""cam_1" }] },
+  ],"#,
+    );
+    assert_eq!(d.message, "duplicate instance_id `cam_1`");
+    let (line, col) = pos(text, r#""cam_1""#);
+    assert!(
+        help(d).contains(&format!("already used at line {line}, column {col}")),
+        "{d}"
+    );
+}
+
+#[test]
+fn binding_targets_must_be_declared() {
+    let text = r#"{
+  peppy_schema: "launcher_v1",
+  deployments: [
+    { source: { name: "cam:v1" }, instances: [{ instance_id: "rs_left" }] },
+    { source: { name: "recon:v1" }, instances: [{ instance_id: "recon", bindings: { left_cam: "rs_lfet", right_cam: "zzz" } }] },
+  ],
+}"#;
+    let errors = launcher_err(text);
+    let found = all(&errors, Code::UnknownBindingTarget);
+    assert_eq!(errors.len(), 2, "{errors}");
+    assert_at(
+        found[0],
+        Code::UnknownBindingTarget,
+        "deployments[1].instances[0].bindings.left_cam",
+        text,
+        r#""rs_lfet""#,
+    );
+    assert_eq!(
+        found[0].message,
+        "binding `left_cam` on instance `recon` names `rs_lfet`, which no deployment declares"
+    );
+    assert_eq!(
+        help(found[0]),
+        "did you mean `rs_left`? instances in this launcher: `rs_left`, `recon`"
+    );
+    assert_eq!(
+        help(found[1]),
+        "instances in this launcher: `rs_left`, `recon`"
+    );
+}
+
+#[test]
+fn reserved_and_duplicate_binding_keys() {
+    let text = r#"{
+  peppy_schema: "launcher_v1",
+  deployments: [
+    { source: { name: "cam:v1" }, instances: [{ instance_id: "a" }, { instance_id: "b" }] },
+    { source: { name: "recon:v1" }, instances: [
+      { instance_id: "r1", bindings: { _: "a" } },
+      { instance_id: "r2", bindings: { left: "a", left: "b" } },
+    ] },
+  ],
+}"#;
+    let errors = launcher_err(text);
+    assert_eq!(
+        codes(&errors),
+        [Code::ReservedBindingKey, Code::DuplicateBindingKey]
+    );
+    let reserved = one(&errors, Code::ReservedBindingKey);
+    assert_at(
+        reserved,
+        Code::ReservedBindingKey,
+        "deployments[1].instances[0].bindings._",
+        text,
+        "_:",
+    );
+    assert_eq!(reserved.message, "binding key `_` is reserved");
+    let dup = one(&errors, Code::DuplicateBindingKey);
+    assert_eq!(lc(dup), pos_nth(text, "left:", 1));
+    assert_eq!(dup.message, "instance `r2` has binding key `left` twice");
+    assert!(
+        help(dup).contains(&format!(
+            "line {}, column {}",
+            pos(text, "left:").0,
+            pos(text, "left:").1
+        )),
+        "{dup}"
+    );
+}
+
+#[test]
+fn deployments_need_instances() {
+    let text = r#"{
+  peppy_schema: "launcher_v1",
+  deployments: [
+    { source: { name: "cam:v1" }, instances: [] },
+  ],
+}"#;
+    let errors = launcher_err(text);
+    assert_eq!(codes(&errors), [Code::EmptyDeployment]);
+    assert_at(
+        one(&errors, Code::EmptyDeployment),
+        Code::EmptyDeployment,
+        "deployments[0].instances",
+        text,
+        "[] }",
+    );
+
+    let errors = launcher_err(r#"{ peppy_schema: "launcher_v1", deployments: [] }"#);
+    assert_eq!(codes(&errors), [Code::InvalidValue]);
+    let errors = launcher_err(r#"{ peppy_schema: "launcher_v1" }"#);
+    assert_eq!(codes(&errors), [Code::MissingKey]);
+}
+
+#[test]
+fn source_forms() {
+    let text = r#"{
+  peppy_schema: "launcher_v1",
+  deployments: [
+    { source: { name: "cam:v1" }, instances: [{ instance_id: "a" }] },
+    { source: { name: "lidar", tag: "v2" }, instances: [{ instance_id: "b" }] },
+    { source: { local: "../nodes/recon" }, instances: [{ instance_id: "c" }] },
+    { source: { repo: "https://example.invalid/x.git", path: "nodes/imu", ref: "main" }, instances: [{ instance_id: "d" }] },
+    { source: { url: "file:///tmp/x.tar.gz", sha256: "0000000000000000000000000000000000000000000000000000000000000000" }, instances: [{ instance_id: "e" }] },
+  ],
+}"#;
+    let l = launcher_ok(text);
+    let sources: Vec<&Source> = l.deployments.iter().map(|d| &d.source).collect();
+    assert_eq!(
+        sources,
+        [
+            &Source::Repository {
+                identity: Identity::new("cam", "v1")
+            },
+            &Source::Repository {
+                identity: Identity::new("lidar", "v2")
+            },
+            &Source::Local {
+                path: PathBuf::from("../nodes/recon")
+            },
+            &Source::Git {
+                repo: "https://example.invalid/x.git".into(),
+                path: "nodes/imu".into(),
+                reference: "main".into()
+            },
+            &Source::Archive {
+                url: "file:///tmp/x.tar.gz".into(),
+                sha256: "0".repeat(64)
+            },
+        ]
+    );
+    assert_eq!(
+        l.deployments[2].source_loc.key_path,
+        "deployments[2].source"
+    );
+    let ids: Vec<&str> = l.instances().map(|(_, i)| i.instance_id.as_str()).collect();
+    assert_eq!(ids, ["a", "b", "c", "d", "e"]);
+}
+
+#[test]
+fn malformed_sources() {
+    let cases: &[(&str, Code, &str)] = &[
+        (
+            r#"{ name: "cam" }"#,
+            Code::InvalidSource,
+            "`source.name` `cam` has no tag",
+        ),
+        (
+            r#"{ name: "cam:v1", tag: "v1" }"#,
+            Code::InvalidSource,
+            "`source.name` `cam:v1` already has a tag",
+        ),
+        (
+            r#"{ local: "x", name: "cam:v1" }"#,
+            Code::InvalidSource,
+            "`source` mixes `local` keys with `name`",
+        ),
+        (r#"{}"#, Code::InvalidSource, "`source` names no node"),
+        (
+            r#"{ local: "  " }"#,
+            Code::InvalidSource,
+            "`source.local` is empty",
+        ),
+        (
+            r#"{ name: "cam:1.0" }"#,
+            Code::InvalidTag,
+            "invalid tag `1.0`",
+        ),
+        (
+            r#"{ name: "my cam:v1" }"#,
+            Code::InvalidName,
+            "invalid node name `my cam`",
+        ),
+        (
+            r#"{ repo: "r", path: "../up", ref: "main" }"#,
+            Code::InvalidSource,
+            "must be relative to the repository",
+        ),
+        (
+            r#"{ url: "file:///x", sha256: "abc" }"#,
+            Code::InvalidValue,
+            "must be 64 lowercase hex characters",
+        ),
+        (
+            r#"{ url: "file:///x" }"#,
+            Code::MissingKey,
+            "missing required key `sha256`",
+        ),
+    ];
+    for (source, code, message) in cases {
+        let text = format!(
+            r#"{{ peppy_schema: "launcher_v1", deployments: [{{ source: {source}, instances: [{{ instance_id: "a" }}] }}] }}"#
+        );
+        let errors = launcher_err(&text);
+        assert_eq!(codes(&errors), [*code], "{source}: {errors}");
+        let d = one(&errors, *code);
+        assert!(d.message.contains(message), "{source}: {d}");
+        assert!(key(d).starts_with("deployments[0].source"), "{d}");
+    }
+}
+
+#[test]
+fn loader_env_vars_are_forbidden() {
+    let text = r#"{
+  peppy_schema: "launcher_v1",
+  deployments: [
+    { source: { name: "cam:v1" }, instances: [
+      { instance_id: "a", env_vars: { RUST_LOG: "debug", LD_PRELOAD: "/tmp/evil.so" } },
+      { instance_id: "b", env_vars: { ld_library_path: "/tmp" } },
+    ] },
+  ],
+}"#;
+    let errors = launcher_err(text);
+    let found = all(&errors, Code::ForbiddenEnvVar);
+    assert_eq!(errors.len(), 2, "{errors}");
+    assert_at(
+        found[0],
+        Code::ForbiddenEnvVar,
+        "deployments[0].instances[0].env_vars.LD_PRELOAD",
+        text,
+        "LD_PRELOAD",
+    );
+    assert_eq!(
+        found[0].message,
+        "`LD_PRELOAD` may not be set by a launcher"
+    );
+    assert_eq!(
+        key(found[1]),
+        "deployments[0].instances[1].env_vars.ld_library_path"
+    );
+
+    let ok = launcher_ok(
+        r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "cam:v1" }, instances: [
+            { instance_id: "a", env_vars: { RUST_LOG: "debug", CAMERA: "front" } } ] }] }"#,
+    );
+    let env = &ok.deployments[0].instances[0].env_vars;
+    assert_eq!(
+        env,
+        &[
+            ("RUST_LOG".to_string(), "debug".to_string()),
+            ("CAMERA".to_string(), "front".to_string())
+        ]
+    );
+}
+
+#[test]
+fn restart_policies() {
+    let l = launcher_ok(
+        r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "cam:v1" }, instances: [
+            { instance_id: "a" },
+            { instance_id: "b", restart: "no" },
+            { instance_id: "c", restart: "on-failure" },
+            { instance_id: "d", restart: "always" },
+        ] }] }"#,
+    );
+    let policies: Vec<RestartPolicy> = l.instances().map(|(_, i)| i.restart).collect();
+    assert_eq!(
+        policies,
+        [
+            RestartPolicy::No,
+            RestartPolicy::No,
+            RestartPolicy::OnFailure,
+            RestartPolicy::Always
+        ]
+    );
+
+    let text = r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "cam:v1" }, instances: [
+            { instance_id: "a", restart: "on_failure" },
+            { instance_id: "b", restart: true },
+        ] }] }"#;
+    let errors = launcher_err(text);
+    assert_eq!(codes(&errors), [Code::InvalidValue, Code::WrongType]);
+    let d = one(&errors, Code::InvalidValue);
+    assert_at(
+        d,
+        Code::InvalidValue,
+        "deployments[0].instances[0].restart",
+        text,
+        r#""on_failure""#,
+    );
+    assert_eq!(d.message, "unknown restart policy `on_failure`");
+    assert_eq!(help(d), "accepted: `no`, `on-failure`, `always`");
+}
+
+#[test]
+fn instance_shape() {
+    let text = r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "cam:v1" }, instances: [
+            { instance_id: "a.b", binding: {}, arguments: [1] },
+        ] }] }"#;
+    let errors = launcher_err(text);
+    let got: Vec<(Code, &str)> = errors.sorted().iter().map(|d| (d.code, key(d))).collect();
+    assert_eq!(
+        got,
+        [
+            (Code::InvalidName, "deployments[0].instances[0].instance_id"),
+            (Code::UnknownKey, "deployments[0].instances[0].binding"),
+            (Code::WrongType, "deployments[0].instances[0].arguments"),
+        ]
+    );
+    assert!(help(one(&errors, Code::UnknownKey)).starts_with("did you mean `bindings`?"));
+}
+
+#[test]
+fn remote_sources_are_not_supported_yet() {
+    let tree = Tree::new();
+    let text = r#"{
+  peppy_schema: "launcher_v1",
+  deployments: [
+    { source: { repo: "file:///srv/git/cams.git", path: "nodes/cam", ref: "v1" }, instances: [{ instance_id: "a" }] },
+    { source: { url: "file:///srv/cam.tar.gz", sha256: "1111111111111111111111111111111111111111111111111111111111111111" }, instances: [{ instance_id: "b" }] },
+  ],
+}"#;
+    let path = tree.write("stack.json5", text);
+    let errors = stack_err(&path);
+    let found = all(&errors, Code::UnsupportedSource);
+    assert_eq!(errors.error_count(), 2, "{errors}");
+    assert_at(
+        found[0],
+        Code::UnsupportedSource,
+        "deployments[0].source",
+        text,
+        "{ repo:",
+    );
+    assert_eq!(
+        found[0].message,
+        "git (`repo`/`path`/`ref`) sources are not supported yet"
+    );
+    assert_at(
+        found[1],
+        Code::UnsupportedSource,
+        "deployments[1].source",
+        text,
+        "{ url:",
+    );
+    assert_eq!(
+        found[1].message,
+        "archive (`url`/`sha256`) sources are not supported yet"
+    );
+    assert!(
+        help(found[0]).contains("{ local: \"path\" }"),
+        "{}",
+        found[0]
+    );
+    assert_eq!(found[0].file_path(), Some(path.as_path()));
+}
