@@ -468,17 +468,27 @@ impl fmt::Display for Diagnostics {
 
 impl std::error::Error for Diagnostics {}
 
-/// The closest of `candidates` to `found`, when close enough to suggest.
+/// The closest of `candidates` to `found`, when close enough to suggest:
+/// at most one edit away (two for longer names), or very similar by
+/// Jaro-Winkler.
 pub fn did_you_mean<'a>(
     found: &str,
     candidates: impl IntoIterator<Item = &'a str>,
 ) -> Option<&'a str> {
+    let max_edits = if found.chars().count() >= 6 { 2 } else { 1 };
     candidates
         .into_iter()
-        .map(|c| (strsim::jaro_winkler(found, c), c))
-        .filter(|(score, _)| *score > 0.8)
-        .max_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, c)| c)
+        .filter(|c| *c != found)
+        .map(|c| {
+            (
+                strsim::osa_distance(found, c),
+                strsim::jaro_winkler(found, c),
+                c,
+            )
+        })
+        .filter(|(edits, jw, _)| *edits <= max_edits || *jw > 0.85)
+        .min_by(|a, b| a.0.cmp(&b.0).then(b.1.total_cmp(&a.1)))
+        .map(|(_, _, c)| c)
 }
 
 /// `` `a`, `b`, `c` `` for messages.

@@ -169,7 +169,9 @@ fn parse_kind(
         DocumentKind::Interface => {
             parse_interface(file, sha256.to_string(), root, &mut diags).map(Document::Interface)
         }
-        DocumentKind::Launcher => parse_launcher(file, root, &mut diags).map(Document::Launcher),
+        DocumentKind::Launcher => {
+            parse_launcher(file, root, &mut diags, true).map(Document::Launcher)
+        }
         DocumentKind::Repositories => {
             parse_repositories(file, root, &mut diags).map(Document::Repositories)
         }
@@ -304,6 +306,23 @@ impl LauncherDoc {
             Document::Launcher(l) => (l, w),
             _ => unreachable!("parse_as checked the kind"),
         })
+    }
+}
+
+/// Reads a launcher without rules 7 and 8 (see `stack_rules`), so that the
+/// binding plan can report them together with every other binding error.
+pub(crate) fn load_launcher_for_plan(path: &Path) -> Parsed<LauncherDoc> {
+    let (file, _) = SourceFile::read(path).map_err(|d| Diagnostics::from(*d))?;
+    let (root, mut diags) = crate::json::parse(&file)?;
+    match detect_kind(&root) {
+        Some(DocumentKind::Launcher) => match parse_launcher(&file, &root, &mut diags, false) {
+            Some(doc) if !diags.has_errors() => Ok((doc, diags)),
+            _ => Err(diags),
+        },
+        // Not a launcher: let the common path report the kind.
+        _ => Err(parse_as(&file, "", DocumentKind::Launcher)
+            .err()
+            .unwrap_or_default()),
     }
 }
 

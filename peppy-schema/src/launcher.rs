@@ -160,6 +160,7 @@ pub(crate) fn parse_launcher(
     file: &Arc<SourceFile>,
     root: &Node,
     diags: &mut Diagnostics,
+    cross_check: bool,
 ) -> Option<LauncherDoc> {
     let mut r = Reader::new(file, diags);
     let obj = r.object(root, "", &["peppy_schema", "deployments"])?;
@@ -179,7 +180,28 @@ pub(crate) fn parse_launcher(
             deployments.push(d);
         }
     }
-    // Syntactic stack-wide rules: unique instance ids, known binding targets.
+    if r.diags.has_errors() {
+        return None;
+    }
+    let doc = LauncherDoc {
+        file: file.clone(),
+        deployments,
+    };
+    if cross_check {
+        r.diags.extend(stack_rules(&doc));
+        if r.diags.has_errors() {
+            return None;
+        }
+    }
+    Some(doc)
+}
+
+/// Rules 7 and 8 of SPEC 6.1, which need the whole launcher: unique
+/// instance ids and binding targets that exist. Run by every parse of a
+/// launcher document and by the binding plan.
+pub fn stack_rules(doc: &LauncherDoc) -> Diagnostics {
+    let mut diags = Diagnostics::new();
+    let deployments = &doc.deployments;
     let all: Vec<&Instance> = deployments
         .iter()
         .flat_map(|d| d.instances.iter())
@@ -187,7 +209,7 @@ pub(crate) fn parse_launcher(
     for (i, inst) in all.iter().enumerate() {
         if let Some(first) = all[..i].iter().find(|o| o.instance_id == inst.instance_id) {
             let lc = first.id_loc.file.line_col(first.id_loc.span.start);
-            r.diags.push(
+            diags.push(
                 inst.id_loc
                     .error(Code::DuplicateInstanceId, format!("duplicate instance_id `{}`", inst.instance_id))
                     .with_help(format!(
@@ -197,7 +219,9 @@ pub(crate) fn parse_launcher(
             );
         }
     }
-    let ids: Vec<&str> = all.iter().map(|i| i.instance_id.as_str()).collect();
+    let mut ids: Vec<&str> = all.iter().map(|i| i.instance_id.as_str()).collect();
+    ids.sort_unstable();
+    ids.dedup();
     for inst in &all {
         for b in &inst.bindings {
             if !ids.contains(&b.target.as_str()) {
@@ -209,7 +233,7 @@ pub(crate) fn parse_launcher(
                     ),
                     None => format!("instances in this launcher: {}", list(ids.iter().copied())),
                 };
-                r.diags.push(
+                diags.push(
                     b.target_loc
                         .error(
                             Code::UnknownBindingTarget,
@@ -223,13 +247,7 @@ pub(crate) fn parse_launcher(
             }
         }
     }
-    if r.diags.has_errors() {
-        return None;
-    }
-    Some(LauncherDoc {
-        file: file.clone(),
-        deployments,
-    })
+    diags
 }
 
 fn parse_deployment(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Deployment> {
@@ -368,7 +386,8 @@ fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Source> {
                 );
                 ok = false;
             }
-            if let Err(why) = check_tag(&identity.tag, false) {
+            // Dotted tags exist in legacy documents; the repository lookup decides.
+            if let Err(why) = check_tag(&identity.tag, true) {
                 r.error(
                     Code::InvalidTag,
                     name_node.span,

@@ -63,6 +63,7 @@ pub use format::{Field, FieldType, MAX_FIXED_LENGTH, MessageFormat, Primitive, T
 pub use interface::InterfaceDoc;
 pub use launcher::{
     Binding, Deployment, FORBIDDEN_ENV_VARS, Instance, LauncherDoc, RestartPolicy, Source,
+    stack_rules,
 };
 pub use node::{
     ConsumedRef, ConsumedTopic, Container, Dependency, Execution, Identity, InterfaceRef, NodeDoc,

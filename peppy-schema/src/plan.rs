@@ -3,14 +3,14 @@
 
 use std::collections::BTreeSet;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::diag::{Code, Diagnostic, Diagnostics, list};
 use crate::launcher::{Binding, Instance, LauncherDoc, RestartPolicy};
 use crate::node::{Dependency, Identity, NodeDoc, SlotKind};
 
 /// What fills one slot.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", tag = "kind")]
 pub enum SlotBinding {
     /// A pinned slot bound to one producer.
@@ -28,7 +28,7 @@ pub enum SlotBinding {
 }
 
 /// Which producers' messages a consumer keeps for one slot (SPEC 5).
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", tag = "kind", content = "producers")]
 pub enum RouteFilter {
     /// Only this producer.
@@ -108,7 +108,7 @@ pub fn plan_bindings(
     launcher: &LauncherDoc,
     nodes: &[Option<&NodeDoc>],
 ) -> Result<(BindingPlan, Diagnostics), Diagnostics> {
-    let mut diags = Diagnostics::new();
+    let mut diags = crate::launcher::stack_rules(launcher);
 
     // Two deployments of one node.
     for (i, node) in nodes.iter().enumerate() {

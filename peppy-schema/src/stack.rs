@@ -95,7 +95,7 @@ pub struct StackCheck {
 
 /// Checks the launcher at `path`: all errors of every stage are collected.
 pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, Diagnostics> {
-    let (launcher, mut diags) = LauncherDoc::load(path)?;
+    let (launcher, mut diags) = crate::document::load_launcher_for_plan(path)?;
     let base = absolute(&launcher.base_dir());
     let mut repositories =
         RepositoryList::discover(&options.explicit, options.env_value().as_deref(), &base)?;

@@ -218,9 +218,9 @@ fn malformed_sources() {
             "`source.local` is empty",
         ),
         (
-            r#"{ name: "cam:1.0" }"#,
+            r#"{ name: "cam:v 1" }"#,
             Code::InvalidTag,
-            "invalid tag `1.0`",
+            "invalid tag `v 1`",
         ),
         (
             r#"{ name: "my cam:v1" }"#,
@@ -398,4 +398,37 @@ fn remote_sources_are_not_supported_yet() {
         found[0]
     );
     assert_eq!(found[0].file_path(), Some(path.as_path()));
+}
+
+/// Rules 7 and 8 are reported together with binding and parameter errors
+/// by `check_launcher`, and on their own by a document-level parse.
+#[test]
+fn stack_rules_join_the_binding_plan_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let examples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+    let launcher = r#"{ peppy_schema: "launcher_v1", deployments: [
+        { source: { name: "realsense_d405:v1" }, instances: [{ instance_id: "cam" }, { instance_id: "cam" }] },
+        { source: { name: "video_reconstruction:v1" }, instances: [
+            { instance_id: "recon", bindings: { left_cam: "cma", right_cam: "cam", junk: "recon", } },
+        ] },
+    ] }"#;
+    let path = dir.path().join("l.json5");
+    std::fs::write(&path, launcher).unwrap();
+    let options = peppy_schema::RepoOptions {
+        explicit: vec![examples],
+        env: Some(Default::default()),
+    };
+    let err = peppy_schema::check_launcher(&path, &options).unwrap_err();
+    let mut codes: Vec<peppy_schema::Code> = err.errors().map(|d| d.code).collect();
+    codes.sort();
+    let mut expected = vec![
+        peppy_schema::Code::DuplicateInstanceId,
+        peppy_schema::Code::UnknownBindingTarget,
+        peppy_schema::Code::DeadBindingKey,
+    ];
+    expected.sort();
+    assert_eq!(codes, expected, "{err}");
+    let parse_only = peppy_schema::LauncherDoc::load(&path).unwrap_err();
+    assert!(parse_only.contains(peppy_schema::Code::DuplicateInstanceId));
+    assert!(parse_only.contains(peppy_schema::Code::UnknownBindingTarget));
 }
