@@ -219,9 +219,13 @@ pub fn stack_rules(doc: &LauncherDoc) -> Diagnostics {
             );
         }
     }
-    let mut ids: Vec<&str> = all.iter().map(|i| i.instance_id.as_str()).collect();
-    ids.sort_unstable();
-    ids.dedup();
+    // In launcher order, each once.
+    let mut ids: Vec<&str> = Vec::new();
+    for inst in &all {
+        if !ids.contains(&inst.instance_id.as_str()) {
+            ids.push(&inst.instance_id);
+        }
+    }
     for inst in &all {
         for b in &inst.bindings {
             if !ids.contains(&b.target.as_str()) {
