@@ -34,12 +34,10 @@ fn unbound_from_any_slot_prints_any() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(
         dir.path().join("stack.json5"),
-        format!(
-            r#"{{ peppy_schema: "launcher_v1", deployments: [
-                {{ source: {{ name: "realsense_d405:v1" }}, instances: [{{ instance_id: "cam" }}] }},
-                {{ source: {{ name: "camera_mosaic:v1" }}, instances: [{{ instance_id: "mosaic" }}] }},
-            ] }}"#
-        ),
+        r#"{ peppy_schema: "launcher_v1", deployments: [
+                { source: { name: "realsense_d405:v1" }, instances: [{ instance_id: "cam" }] },
+                { source: { name: "camera_mosaic:v1" }, instances: [{ instance_id: "mosaic" }] },
+            ] }"#,
     )
     .unwrap();
     let repo = root().join("examples");
