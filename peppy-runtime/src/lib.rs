@@ -1,9 +1,53 @@
 //! # peppy-runtime
 //!
 //! What generated peppy code calls at run time: one Zenoh session per node,
-//! typed topics, services and actions, and consumer-side routing of the
-//! launcher's bindings.
+//! typed topics and services, and consumer-side routing of the launcher's
+//! bindings.
 //!
-//! Status: not implemented yet. This crate holds its place in the workspace
-//! so that the facade and the generator can depend on it; it exports nothing
-//! that pretends to work.
+//! A node's `main` is one call:
+//!
+//! ```ignore
+//! NodeBuilder::<Parameters>::new().run(|params, runner| async move {
+//!     // spawn tasks that emit, consume and serve; watch
+//!     // runner.cancellation_token() to stop cleanly
+//!     Ok(())
+//! })
+//! ```
+//!
+//! Start-up inputs come from the launcher (`PEPPY_RUNTIME_CONFIG`) or, in a
+//! plain `cargo run`, from flags: `--instance-id ID`, `--bind KEY@INSTANCE`,
+//! `--params FILE.json`, `--namespace NS`, `--connect` / `--listen ENDPOINT`
+//! and `key=value` parameter overrides.
+//!
+//! The wire format (key expressions, attachments, payload encoding) is in
+//! [`wire`] and docs/WIRE.md.
+
+mod error;
+mod node;
+mod qos;
+mod services;
+pub mod spec;
+mod startup;
+mod topics;
+pub mod wire;
+
+pub use error::{Error, Result};
+pub use node::{NodeBuilder, NodeRunner};
+pub use peppy_schema::QosProfile as QoSProfile;
+pub use services::{Caller, Reply};
+pub use startup::{
+    DEFAULT_NAMESPACE, Endpoints, RUNTIME_CONFIG_ENV, STANDALONE_CORE, StandaloneConfig,
+    StartupConfig,
+};
+pub use tokio_util::sync::CancellationToken;
+
+/// What generated code calls. Not a stable API for hand-written code.
+#[doc(hidden)]
+pub mod codegen {
+    pub use crate::services::{Caller, Reply, call, handle_next};
+    pub use crate::spec::*;
+    pub use crate::topics::{emit, next_message};
+    pub use crate::wire::codec::{Decode, DecodeError, Decoder, Encode};
+    pub use peppy_schema::QosProfile;
+    pub use serde;
+}

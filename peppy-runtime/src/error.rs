@@ -1,0 +1,100 @@
+//! The runtime's errors.
+
+use peppy_schema::ParamError;
+
+/// Everything a peppy runtime call can fail with.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// Nobody answered: no server of that service was reachable.
+    #[error("service `{service}`{} is unreachable: no server answered", for_instance(.instance))]
+    ServiceUnreachable {
+        /// The service.
+        service: String,
+        /// The targeted instance, if pinned.
+        instance: Option<String>,
+    },
+    /// A server accepted the request but did not reply in time.
+    #[error("service `{service}`{} accepted the request but did not reply in time", for_instance(.instance))]
+    ServiceTimeout {
+        /// The service.
+        service: String,
+        /// The server instance.
+        instance: Option<String>,
+    },
+    /// The server's handler returned an error (its text is the reason).
+    #[error("service `{service}` failed on `{instance}`: {reason}")]
+    ServiceError {
+        /// The service.
+        service: String,
+        /// The server instance.
+        instance: String,
+        /// The handler's error text.
+        reason: String,
+    },
+    /// A message or reply could not be decoded.
+    #[error("cannot decode {what}: {source}")]
+    Decode {
+        /// What was being decoded.
+        what: String,
+        /// Why.
+        #[source]
+        source: crate::wire::codec::DecodeError,
+    },
+    /// Start-up inputs are missing or invalid (flags, runtime config file, bindings).
+    #[error("{0}")]
+    Startup(String),
+    /// Parameter values do not fit the node's parameter schema.
+    #[error("invalid parameters:{}", params_list(.0))]
+    Parameters(Vec<ParamError>),
+    /// The node is shutting down.
+    #[error("the node is shutting down")]
+    ShuttingDown,
+    /// A consumed entry was used that this node does not declare.
+    #[error("`{0}` is not declared by this node")]
+    Undeclared(String),
+    /// The transport failed.
+    #[error("zenoh: {0}")]
+    Transport(String),
+    /// The node's own setup code failed.
+    #[error("{0}")]
+    User(String),
+}
+
+fn for_instance(instance: &Option<String>) -> String {
+    instance
+        .as_ref()
+        .map(|i| format!(" on `{i}`"))
+        .unwrap_or_default()
+}
+
+fn params_list(errors: &[ParamError]) -> String {
+    errors
+        .iter()
+        .map(|e| match e.help() {
+            Some(h) => format!("\n  - {e} ({h})"),
+            None => format!("\n  - {e}"),
+        })
+        .collect()
+}
+
+impl From<zenoh::Error> for Error {
+    fn from(e: zenoh::Error) -> Self {
+        Error::Transport(e.to_string())
+    }
+}
+
+impl From<String> for Error {
+    fn from(s: String) -> Self {
+        Error::User(s)
+    }
+}
+
+impl From<&str> for Error {
+    fn from(s: &str) -> Self {
+        Error::User(s.to_string())
+    }
+}
+
+/// `Result` with the runtime's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,381 @@
+//! The node entry point ([`NodeBuilder`]) and the handle node code works
+//! with ([`NodeRunner`]).
+
+use std::collections::HashMap;
+use std::future::Future;
+use std::marker::PhantomData;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+use peppy_schema::{NodeDoc, SlotPlan};
+use tokio_util::sync::CancellationToken;
+use tracing::{info, warn};
+use zenoh::pubsub::{Publisher, Subscriber};
+use zenoh::query::Queryable;
+
+use crate::error::{Error, Result};
+use crate::qos;
+use crate::services::{self, ServiceInbox};
+use crate::spec::{ConsumedTopicSpec, NodeDescriptor, NodeParameters, ServiceSpec, TopicSpec};
+use crate::startup::{self, RUNTIME_CONFIG_ENV, StandaloneConfig, Startup};
+use crate::topics::{self, Inbox, Intake};
+use crate::wire::keys::{Channel, entry_key};
+
+/// Builds and runs a node: reads its start-up inputs, opens one Zenoh
+/// session, declares every subscription and service, runs your setup code,
+/// then keeps the node up until Ctrl-C, SIGTERM or
+/// [`NodeRunner::cancellation_token`] fires.
+pub struct NodeBuilder<P> {
+    standalone: StandaloneConfig,
+    args: Option<Vec<String>>,
+    runtime_config: Option<Option<PathBuf>>,
+    _parameters: PhantomData<fn() -> P>,
+}
+
+impl<P: NodeParameters> Default for NodeBuilder<P> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<P: NodeParameters> NodeBuilder<P> {
+    /// A builder reading the process's command line and environment.
+    pub fn new() -> Self {
+        NodeBuilder {
+            standalone: StandaloneConfig::default(),
+            args: None,
+            runtime_config: None,
+            _parameters: PhantomData,
+        }
+    }
+
+    /// Fallbacks for a plain `cargo run` without a launcher.
+    pub fn standalone(mut self, config: StandaloneConfig) -> Self {
+        self.standalone = config;
+        self
+    }
+
+    /// Uses these arguments instead of the process's (the first is the program name).
+    pub fn with_args<I: IntoIterator<Item = S>, S: Into<String>>(mut self, args: I) -> Self {
+        self.args = Some(args.into_iter().map(Into::into).collect());
+        self
+    }
+
+    /// Uses this runtime-config file (or none) instead of `PEPPY_RUNTIME_CONFIG`.
+    pub fn with_runtime_config(mut self, path: Option<PathBuf>) -> Self {
+        self.runtime_config = Some(path);
+        self
+    }
+
+    /// Runs the node to completion on its own multi-threaded tokio runtime.
+    /// `setup` runs once; spawn long-running work from it.
+    pub fn run<F, Fut>(self, setup: F) -> Result<()>
+    where
+        F: FnOnce(P, Arc<NodeRunner>) -> Fut,
+        Fut: Future<Output = Result<()>>,
+    {
+        init_logging();
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .enable_all()
+            .build()
+            .map_err(|e| Error::Startup(format!("cannot start the tokio runtime: {e}")))?;
+        let result = runtime.block_on(async move {
+            let (params, runner) = self.start().await?;
+            let outcome = match setup(params, runner.clone()).await {
+                Ok(()) => {
+                    wait_for_stop(&runner).await;
+                    Ok(())
+                }
+                Err(e) => Err(e),
+            };
+            runner.shutdown().await;
+            outcome
+        });
+        if let Err(e) = &result {
+            tracing::error!("{e}");
+        }
+        result
+    }
+
+    /// Starts the node inside an existing tokio runtime and returns its
+    /// parameters and runner without waiting for a stop (tests, embedding).
+    /// Call [`NodeRunner::shutdown`] when done.
+    pub async fn start(self) -> Result<(P, Arc<NodeRunner>)> {
+        let descriptor = P::descriptor();
+        let (doc, _) =
+            NodeDoc::parse(descriptor.document_path, descriptor.document).map_err(|d| {
+                Error::Startup(format!(
+                    "the node document compiled into this binary is invalid (rebuild it):\n{d}"
+                ))
+            })?;
+        let args = self.args.unwrap_or_else(|| std::env::args().collect());
+        let config_file = self
+            .runtime_config
+            .unwrap_or_else(|| std::env::var_os(RUNTIME_CONFIG_ENV).map(PathBuf::from));
+        let startup = startup::load(&doc, args, config_file, &self.standalone)?;
+        let params: P = serde_json::from_value(startup.parameters.clone()).map_err(|e| {
+            Error::Startup(format!(
+                "parameters do not fit this node's Parameters type: {e}"
+            ))
+        })?;
+        let runner = NodeRunner::open(&doc, descriptor, startup).await?;
+        Ok((params, runner))
+    }
+}
+
+fn init_logging() {
+    let filter = tracing_subscriber::EnvFilter::try_from_env("RUST_LOG")
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=warn"));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
+}
+
+async fn wait_for_stop(runner: &NodeRunner) {
+    #[cfg(unix)]
+    let terminate = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let terminate = std::future::pending::<()>();
+    tokio::select! {
+        _ = tokio::signal::ctrl_c() => info!("interrupted; shutting down"),
+        () = terminate => info!("terminated; shutting down"),
+        () = runner.cancellation_token().cancelled() => info!("cancelled; shutting down"),
+    }
+}
+
+fn address<T>(spec: &'static T) -> usize {
+    spec as *const T as usize
+}
+
+/// A running node: its identity, its Zenoh session, and what generated code
+/// uses to publish, receive and call.
+pub struct NodeRunner {
+    session: zenoh::Session,
+    node_name: String,
+    node_tag: String,
+    instance_id: String,
+    core_node: String,
+    namespace: String,
+    token: CancellationToken,
+    slots: Vec<SlotPlan>,
+    publishers: HashMap<usize, Publisher<'static>>,
+    inboxes: HashMap<usize, Inbox>,
+    service_inboxes: HashMap<usize, (ServiceInbox, String)>,
+    entities: Mutex<Entities>,
+}
+
+#[derive(Default)]
+struct Entities {
+    subscribers: Vec<Subscriber<()>>,
+    queryables: Vec<Queryable<()>>,
+}
+
+impl std::fmt::Debug for NodeRunner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("NodeRunner")
+            .field(
+                "node",
+                &format_args!("{}:{}", self.node_name, self.node_tag),
+            )
+            .field("instance_id", &self.instance_id)
+            .field("namespace", &self.namespace)
+            .finish_non_exhaustive()
+    }
+}
+
+impl NodeRunner {
+    async fn open(
+        doc: &NodeDoc,
+        descriptor: &'static NodeDescriptor,
+        startup: Startup,
+    ) -> Result<Arc<NodeRunner>> {
+        let config = startup.config.zenoh.zenoh_config()?;
+        let session = zenoh::open(config).await?;
+        let mut runner = NodeRunner {
+            session,
+            node_name: doc.name.clone(),
+            node_tag: doc.tag.clone(),
+            instance_id: startup.config.instance_id.clone(),
+            core_node: startup.config.core_node.clone(),
+            namespace: startup.config.namespace.clone(),
+            token: CancellationToken::new(),
+            slots: startup.slots,
+            publishers: HashMap::new(),
+            inboxes: HashMap::new(),
+            service_inboxes: HashMap::new(),
+            entities: Mutex::new(Entities::default()),
+        };
+        let mut entities = Entities::default();
+        for spec in descriptor.emitted_topics {
+            let owner = spec
+                .owner
+                .resolve(&runner.node_name, &runner.node_tag)
+                .expect("emitted topics have an owner");
+            let key = entry_key(
+                &runner.namespace,
+                Channel::Topic,
+                &owner,
+                spec.name,
+                &runner.core_node,
+                &runner.instance_id,
+            );
+            let publisher = runner
+                .session
+                .declare_publisher(key)
+                .congestion_control(qos::congestion(spec.qos))
+                .priority(qos::priority(spec.qos))
+                .express(qos::express(spec.qos))
+                .await?;
+            runner.publishers.insert(address(*spec), publisher);
+        }
+        let mismatch = mismatch_reporter();
+        for spec in descriptor.consumed_topics {
+            let filter = match spec.link_id {
+                Some(link) => runner.slot(link)?.filter.clone(),
+                None => peppy_schema::RouteFilter::Any,
+            };
+            let selector = topics::subscription_selector(&runner, spec, &filter);
+            let (intake, inbox) = Intake::new(spec, filter, mismatch.clone());
+            let subscriber = runner
+                .session
+                .declare_subscriber(selector)
+                .callback(move |s| intake.accept(s))
+                .await?;
+            entities.subscribers.push(subscriber);
+            runner.inboxes.insert(address(*spec), inbox);
+        }
+        for spec in descriptor.exposed_services {
+            let key = services::server_key(&runner, spec);
+            let (tx, rx) = flume::bounded(64);
+            let queryable = runner
+                .session
+                .declare_queryable(key.clone())
+                .complete(true)
+                .callback(services::intake(spec, key.clone(), tx))
+                .await?;
+            entities.queryables.push(queryable);
+            runner
+                .service_inboxes
+                .insert(address(*spec), (ServiceInbox { rx }, key));
+        }
+        runner.entities = Mutex::new(entities);
+        info!(
+            node = %format_args!("{}:{}", runner.node_name, runner.node_tag),
+            instance = %runner.instance_id,
+            namespace = %runner.namespace,
+            "node up"
+        );
+        Ok(Arc::new(runner))
+    }
+
+    /// This instance's id.
+    pub fn instance_id(&self) -> &str {
+        &self.instance_id
+    }
+
+    /// The launch that started this instance (`standalone` for `cargo run`).
+    pub fn core_node(&self) -> &str {
+        &self.core_node
+    }
+
+    /// The namespace every key of this node lives under.
+    pub fn namespace(&self) -> &str {
+        &self.namespace
+    }
+
+    /// This node's name.
+    pub fn node_name(&self) -> &str {
+        &self.node_name
+    }
+
+    /// This node's tag.
+    pub fn node_tag(&self) -> &str {
+        &self.node_tag
+    }
+
+    /// Fires when the node stops; spawned tasks watch it to end cleanly.
+    pub fn cancellation_token(&self) -> &CancellationToken {
+        &self.token
+    }
+
+    /// The Zenoh session, for anything peppy does not wrap.
+    pub fn session(&self) -> &zenoh::Session {
+        &self.session
+    }
+
+    /// The slots of this instance with what fills them.
+    pub fn slots(&self) -> &[SlotPlan] {
+        &self.slots
+    }
+
+    /// The slot named `link_id`.
+    pub fn slot(&self, link_id: &str) -> Result<&SlotPlan> {
+        self.slots
+            .iter()
+            .find(|s| s.link_id == link_id)
+            .ok_or_else(|| Error::Undeclared(format!("slot `{link_id}`")))
+    }
+
+    pub(crate) fn publisher(&self, spec: &'static TopicSpec) -> Result<&Publisher<'static>> {
+        self.publishers
+            .get(&address(spec))
+            .ok_or_else(|| Error::Undeclared(format!("emitted topic `{}`", spec.name)))
+    }
+
+    pub(crate) fn inbox(&self, spec: &'static ConsumedTopicSpec) -> Result<&Inbox> {
+        self.inboxes
+            .get(&address(spec))
+            .ok_or_else(|| Error::Undeclared(format!("consumed topic `{}`", spec.name)))
+    }
+
+    pub(crate) fn service_inbox(&self, spec: &'static ServiceSpec) -> Result<&ServiceInbox> {
+        self.service_inboxes
+            .get(&address(spec))
+            .map(|(i, _)| i)
+            .ok_or_else(|| Error::Undeclared(format!("exposed service `{}`", spec.name)))
+    }
+
+    pub(crate) fn service_key(&self, spec: &'static ServiceSpec) -> String {
+        self.service_inboxes
+            .get(&address(spec))
+            .map(|(_, k)| k.clone())
+            .unwrap_or_default()
+    }
+
+    /// Stops the node: cancels the token, undeclares every subscription and
+    /// service, and closes the session. Idempotent.
+    pub async fn shutdown(&self) {
+        self.token.cancel();
+        let entities =
+            std::mem::take(&mut *self.entities.lock().unwrap_or_else(|p| p.into_inner()));
+        for s in entities.subscribers {
+            let _ = s.undeclare().await;
+        }
+        for q in entities.queryables {
+            let _ = q.undeclare().await;
+        }
+        if let Err(e) = self.session.close().await {
+            warn!("closing the zenoh session: {e}");
+        }
+    }
+}
+
+/// Logs a fingerprint mismatch once per producer.
+fn mismatch_reporter() -> Arc<dyn Fn(&'static ConsumedTopicSpec, String, u64) + Send + Sync> {
+    Arc::new(
+        |spec: &'static ConsumedTopicSpec, producer: String, theirs: u64| {
+            warn!(
+                "dropping topic `{}` from `{producer}`: its message format (fingerprint {theirs:016x}) differs from this node's {} (fingerprint {:016x}); rebuild the two nodes against the same format",
+                spec.name, spec.format.canonical, spec.format.fingerprint
+            );
+        },
+    )
+}

@@ -1,0 +1,346 @@
+//! Services: a queryable per exposed service that lives as long as the
+//! node and queues requests, and calls that go straight to a bound
+//! producer or discover one.
+
+use std::time::Duration;
+
+use peppy_schema::{RouteFilter, SlotBinding};
+use tokio::time::Instant;
+use tracing::{debug, warn};
+use zenoh::Wait;
+use zenoh::query::{ConsolidationMode, Query, QueryTarget};
+
+use crate::error::{Error, Result};
+use crate::node::NodeRunner;
+use crate::spec::{ConsumedServiceSpec, FormatSpec, ServiceSpec};
+use crate::wire::attachment::{self, QueryHeader, QueryKind, ReplyStatus};
+use crate::wire::codec::{Decode, Encode, from_bytes, to_bytes};
+use crate::wire::keys::{Channel, entry_key, entry_selector, parse_entry_key};
+
+/// Longest a discovery probe waits for servers to say they are there.
+const PROBE_TIMEOUT: Duration = Duration::from_millis(500);
+
+/// Requests waiting for `handle_next_request`.
+pub(crate) struct ServiceInbox {
+    pub(crate) rx: flume::Receiver<Pending>,
+}
+
+pub(crate) struct Pending {
+    query: Query,
+    header: QueryHeader,
+}
+
+/// The queryable callback: answer probes, check the request format, ack
+/// and queue requests.
+pub(crate) fn intake(
+    spec: &'static ServiceSpec,
+    key: String,
+    tx: flume::Sender<Pending>,
+) -> impl Fn(Query) + Send + Sync + 'static {
+    move |query: Query| {
+        let Some(header) = query
+            .attachment()
+            .and_then(|a| QueryHeader::decode(&a.to_bytes()))
+        else {
+            debug!(
+                service = spec.name,
+                "dropping a query without a valid peppy attachment"
+            );
+            return;
+        };
+        let reply = |status: ReplyStatus, payload: Vec<u8>| {
+            if let Err(e) = query
+                .reply(key.as_str(), payload)
+                .attachment(attachment::reply(status, spec.response.fingerprint))
+                .wait()
+            {
+                debug!(service = spec.name, error = %e, "reply failed");
+            }
+        };
+        match header.kind {
+            QueryKind::Probe => reply(ReplyStatus::Present, Vec::new()),
+            QueryKind::Request if header.fingerprint != spec.request.fingerprint => {
+                warn!(service = spec.name, caller = %header.instance, "refusing a request whose format differs from this server's");
+                reply(
+                    ReplyStatus::FormatMismatch,
+                    spec.request.canonical.as_bytes().to_vec(),
+                );
+            }
+            QueryKind::Request => {
+                reply(ReplyStatus::Ack, Vec::new());
+                if tx.send(Pending { query, header }).is_err() {
+                    debug!(service = spec.name, "service inbox closed");
+                }
+            }
+        }
+    }
+}
+
+/// Who called.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Caller {
+    /// The caller's instance id.
+    pub instance_id: String,
+    /// The caller's core node.
+    pub core_node: String,
+}
+
+/// Serves the next request of an exposed service with `handler`. A request
+/// that does not decode is answered with an error and `Ok(())` is returned,
+/// so a serving loop keeps going.
+pub async fn handle_next<Req, Resp, F>(
+    runner: &NodeRunner,
+    spec: &'static ServiceSpec,
+    handler: F,
+) -> Result<()>
+where
+    Req: Decode,
+    Resp: Encode,
+    F: FnOnce(Caller, Req) -> Result<Resp>,
+{
+    let inbox = runner.service_inbox(spec)?;
+    let pending = tokio::select! {
+        p = inbox.rx.recv_async() => p.map_err(|_| Error::ShuttingDown)?,
+        () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
+    };
+    let key = runner.service_key(spec);
+    let caller = Caller {
+        instance_id: pending.header.instance.clone(),
+        core_node: pending.header.core.clone(),
+    };
+    let payload = pending
+        .query
+        .payload()
+        .map(|p| p.to_bytes().into_owned())
+        .unwrap_or_default();
+    let (status, body) = match from_bytes::<Req>(&payload) {
+        Err(e) => {
+            warn!(service = spec.name, caller = %caller.instance_id, error = %e, "refusing a request that does not decode");
+            (
+                ReplyStatus::HandlerError,
+                format!("request does not decode: {e}").into_bytes(),
+            )
+        }
+        Ok(req) => match handler(caller, req) {
+            Ok(resp) => (ReplyStatus::Ok, to_bytes(&resp)),
+            Err(e) => (ReplyStatus::HandlerError, e.to_string().into_bytes()),
+        },
+    };
+    pending
+        .query
+        .reply(key.as_str(), body)
+        .attachment(attachment::reply(status, spec.response.fingerprint))
+        .await
+        .map_err(Error::from)
+}
+
+/// A service response with the server's identity.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reply<T> {
+    /// The server's instance id.
+    pub instance_id: String,
+    /// The server's core node.
+    pub core_node: String,
+    /// The response.
+    pub data: T,
+}
+
+/// Calls a consumed service through its slot: straight to the bound
+/// producer for pinned slots (and from_any slots bound to one producer),
+/// else to the first server the slot's filter accepts. The request is
+/// encoded before the returned future first runs.
+pub fn call<'a, Req, Resp>(
+    runner: &'a NodeRunner,
+    spec: &'static ConsumedServiceSpec,
+    timeout: Duration,
+    request: &Req,
+) -> impl Future<Output = Result<Reply<Resp>>> + Send + 'a
+where
+    Req: Encode + ?Sized,
+    Resp: Decode + Send + 'a,
+{
+    let payload = to_bytes(request);
+    async move {
+        let deadline = Instant::now() + timeout;
+        let slot = runner.slot(spec.link_id)?;
+        let target = match (&slot.binding, &slot.filter) {
+            (SlotBinding::Pinned { producer }, _) => producer.clone(),
+            (_, RouteFilter::OnlyFrom(set)) if set.len() == 1 => {
+                set.iter().next().cloned().expect("one producer")
+            }
+            (_, filter) => discover(runner, spec, filter, deadline).await?,
+        };
+        request_to(runner, spec, &target, deadline, payload).await
+    }
+}
+
+fn owner_selector(
+    runner: &NodeRunner,
+    spec: &ConsumedServiceSpec,
+    instance: Option<&str>,
+) -> String {
+    let owner = spec.owner.resolve(runner.node_name(), runner.node_tag());
+    entry_selector(
+        runner.namespace(),
+        Channel::Service,
+        owner.as_ref(),
+        spec.name,
+        None,
+        instance,
+    )
+}
+
+fn header(runner: &NodeRunner, kind: QueryKind, format: FormatSpec) -> Vec<u8> {
+    QueryHeader {
+        kind,
+        fingerprint: format.fingerprint,
+        core: runner.core_node().to_string(),
+        instance: runner.instance_id().to_string(),
+    }
+    .encode()
+}
+
+/// Asks every server of the slot's kind to say it is there; the first the
+/// slot's filter accepts wins.
+async fn discover(
+    runner: &NodeRunner,
+    spec: &ConsumedServiceSpec,
+    filter: &RouteFilter,
+    deadline: Instant,
+) -> Result<String> {
+    let budget = deadline
+        .saturating_duration_since(Instant::now())
+        .min(PROBE_TIMEOUT);
+    let replies = runner
+        .session()
+        .get(owner_selector(runner, spec, None))
+        .attachment(header(runner, QueryKind::Probe, spec.request))
+        .target(QueryTarget::All)
+        .consolidation(ConsolidationMode::None)
+        .timeout(budget)
+        .await?;
+    while let Ok(reply) = replies.recv_async().await {
+        let Ok(sample) = reply.result() else { continue };
+        let Some(sender) = parse_entry_key(sample.key_expr().as_str()) else {
+            continue;
+        };
+        if filter.accepts(&sender.instance) {
+            return Ok(sender.instance);
+        }
+    }
+    Err(Error::ServiceUnreachable {
+        service: spec.name.to_string(),
+        instance: None,
+    })
+}
+
+async fn request_to<Resp: Decode>(
+    runner: &NodeRunner,
+    spec: &ConsumedServiceSpec,
+    instance: &str,
+    deadline: Instant,
+    payload: Vec<u8>,
+) -> Result<Reply<Resp>> {
+    let budget = deadline.saturating_duration_since(Instant::now());
+    let replies = runner
+        .session()
+        .get(owner_selector(runner, spec, Some(instance)))
+        .payload(payload)
+        .attachment(header(runner, QueryKind::Request, spec.request))
+        .target(QueryTarget::All)
+        .consolidation(ConsolidationMode::None)
+        .timeout(budget.max(Duration::from_millis(1)))
+        .await?;
+    let mut acked = false;
+    let unreachable = || Error::ServiceUnreachable {
+        service: spec.name.to_string(),
+        instance: Some(instance.to_string()),
+    };
+    loop {
+        let reply = tokio::select! {
+            r = replies.recv_async() => match r {
+                Ok(r) => r,
+                Err(_) => break,
+            },
+            () = tokio::time::sleep_until(deadline) => break,
+            () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
+        };
+        let Ok(sample) = reply.result() else { continue };
+        let Some(sender) = parse_entry_key(sample.key_expr().as_str()) else {
+            continue;
+        };
+        let Some((status, fingerprint)) = sample
+            .attachment()
+            .and_then(|a| attachment::parse_reply(&a.to_bytes()))
+        else {
+            continue;
+        };
+        let body = sample.payload().to_bytes();
+        match status {
+            ReplyStatus::Ack | ReplyStatus::Present => acked = true,
+            ReplyStatus::Ok if fingerprint != spec.response.fingerprint => {
+                return Err(Error::ServiceError {
+                    service: spec.name.to_string(),
+                    instance: sender.instance,
+                    reason: format!(
+                        "the server's response format differs from this node's ({}); rebuild one side",
+                        spec.response.canonical
+                    ),
+                });
+            }
+            ReplyStatus::Ok => {
+                let data = from_bytes::<Resp>(&body).map_err(|source| Error::Decode {
+                    what: format!("response of `{}`", spec.name),
+                    source,
+                })?;
+                return Ok(Reply {
+                    instance_id: sender.instance,
+                    core_node: sender.core,
+                    data,
+                });
+            }
+            ReplyStatus::HandlerError => {
+                return Err(Error::ServiceError {
+                    service: spec.name.to_string(),
+                    instance: sender.instance,
+                    reason: String::from_utf8_lossy(&body).into_owned(),
+                });
+            }
+            ReplyStatus::FormatMismatch => {
+                return Err(Error::ServiceError {
+                    service: spec.name.to_string(),
+                    instance: sender.instance,
+                    reason: format!(
+                        "the server expects request format {}, this node sends {}; rebuild one side",
+                        String::from_utf8_lossy(&body),
+                        spec.request.canonical
+                    ),
+                });
+            }
+        }
+    }
+    if acked {
+        Err(Error::ServiceTimeout {
+            service: spec.name.to_string(),
+            instance: Some(instance.to_string()),
+        })
+    } else {
+        Err(unreachable())
+    }
+}
+
+/// The key a server replies on and serves.
+pub(crate) fn server_key(runner: &NodeRunner, spec: &ServiceSpec) -> String {
+    let owner = spec
+        .owner
+        .resolve(runner.node_name(), runner.node_tag())
+        .expect("exposed services have an owner");
+    entry_key(
+        runner.namespace(),
+        Channel::Service,
+        &owner,
+        spec.name,
+        runner.core_node(),
+        runner.instance_id(),
+    )
+}

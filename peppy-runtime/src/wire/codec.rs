@@ -1,0 +1,407 @@
+//! The payload encoding: fields in declaration order, little-endian, no
+//! field names, no padding. See docs/WIRE.md for the byte layout.
+//!
+//! Generated message structs implement [`Encode`] and [`Decode`] by
+//! encoding their fields in order; everything schema-independent is here.
+//! Decoding never panics and never allocates more than the input could
+//! hold: every length is checked against the bytes that remain.
+
+use std::fmt;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+/// Why bytes could not be decoded as a message.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DecodeError {
+    /// Byte offset where decoding failed.
+    pub offset: usize,
+    /// What was wrong there.
+    pub reason: String,
+}
+
+impl fmt::Display for DecodeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "invalid payload at byte {}: {}",
+            self.offset, self.reason
+        )
+    }
+}
+
+impl std::error::Error for DecodeError {}
+
+/// Reads values from a payload.
+#[derive(Debug)]
+pub struct Decoder<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Decoder<'a> {
+    /// Starts at the first byte.
+    pub fn new(bytes: &'a [u8]) -> Self {
+        Decoder { bytes, pos: 0 }
+    }
+
+    /// Bytes not yet read.
+    pub fn remaining(&self) -> usize {
+        self.bytes.len() - self.pos
+    }
+
+    /// An error at the current position.
+    pub fn error(&self, reason: impl Into<String>) -> DecodeError {
+        DecodeError {
+            offset: self.pos,
+            reason: reason.into(),
+        }
+    }
+
+    /// The next `n` bytes.
+    pub fn take(&mut self, n: usize) -> Result<&'a [u8], DecodeError> {
+        if n > self.remaining() {
+            return Err(self.error(format!("needs {n} more bytes, {} left", self.remaining())));
+        }
+        let out = &self.bytes[self.pos..self.pos + n];
+        self.pos += n;
+        Ok(out)
+    }
+
+    fn array<const N: usize>(&mut self) -> Result<[u8; N], DecodeError> {
+        let mut out = [0u8; N];
+        out.copy_from_slice(self.take(N)?);
+        Ok(out)
+    }
+
+    /// A `u32` element count, checked against what the remaining bytes can hold.
+    pub fn count(&mut self, min_item_size: usize) -> Result<usize, DecodeError> {
+        let at = self.pos;
+        let n = u32::from_le_bytes(self.array()?) as usize;
+        if n.saturating_mul(min_item_size.max(1)) > self.remaining() && min_item_size > 0 {
+            return Err(DecodeError {
+                offset: at,
+                reason: format!(
+                    "length {n} exceeds the {} bytes that remain",
+                    self.remaining()
+                ),
+            });
+        }
+        Ok(n)
+    }
+
+    /// Fails unless every byte was consumed.
+    pub fn finish(self) -> Result<(), DecodeError> {
+        if self.remaining() == 0 {
+            Ok(())
+        } else {
+            Err(self.error(format!("{} unexpected trailing bytes", self.remaining())))
+        }
+    }
+}
+
+/// A value that can be written to a payload.
+pub trait Encode {
+    /// Appends the value's bytes.
+    fn encode(&self, out: &mut Vec<u8>);
+
+    /// Appends a slice of values (bytes are copied in one go).
+    fn encode_slice(items: &[Self], out: &mut Vec<u8>)
+    where
+        Self: Sized,
+    {
+        for item in items {
+            item.encode(out);
+        }
+    }
+}
+
+/// A value that can be read from a payload.
+pub trait Decode: Sized {
+    /// The fewest bytes an encoded value takes (bounds allocations).
+    const MIN_SIZE: usize;
+
+    /// Reads one value.
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError>;
+
+    /// Reads `n` values (bytes are copied in one go).
+    fn decode_vec(d: &mut Decoder<'_>, n: usize) -> Result<Vec<Self>, DecodeError> {
+        let mut out = Vec::with_capacity(n);
+        for _ in 0..n {
+            out.push(Self::decode(d)?);
+        }
+        Ok(out)
+    }
+}
+
+/// Encodes a whole message.
+pub fn to_bytes<T: Encode + ?Sized>(value: &T) -> Vec<u8> {
+    let mut out = Vec::new();
+    value.encode(&mut out);
+    out
+}
+
+/// Decodes a whole message; trailing bytes are an error.
+pub fn from_bytes<T: Decode>(bytes: &[u8]) -> Result<T, DecodeError> {
+    let mut d = Decoder::new(bytes);
+    let v = T::decode(&mut d)?;
+    d.finish()?;
+    Ok(v)
+}
+
+macro_rules! numbers {
+    ($($t:ty),*) => {$(
+        impl Encode for $t {
+            fn encode(&self, out: &mut Vec<u8>) {
+                out.extend_from_slice(&self.to_le_bytes());
+            }
+        }
+        impl Decode for $t {
+            const MIN_SIZE: usize = std::mem::size_of::<$t>();
+            fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+                Ok(<$t>::from_le_bytes(d.array()?))
+            }
+        }
+    )*};
+}
+numbers!(u16, u32, u64, i8, i16, i32, i64, f32, f64);
+
+impl Encode for u8 {
+    fn encode(&self, out: &mut Vec<u8>) {
+        out.push(*self);
+    }
+    fn encode_slice(items: &[Self], out: &mut Vec<u8>) {
+        out.extend_from_slice(items);
+    }
+}
+
+impl Decode for u8 {
+    const MIN_SIZE: usize = 1;
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        Ok(d.take(1)?[0])
+    }
+    fn decode_vec(d: &mut Decoder<'_>, n: usize) -> Result<Vec<Self>, DecodeError> {
+        Ok(d.take(n)?.to_vec())
+    }
+}
+
+impl Encode for bool {
+    fn encode(&self, out: &mut Vec<u8>) {
+        out.push(u8::from(*self));
+    }
+}
+
+impl Decode for bool {
+    const MIN_SIZE: usize = 1;
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        match d.take(1)?[0] {
+            0 => Ok(false),
+            1 => Ok(true),
+            b => Err(DecodeError {
+                offset: d.pos - 1,
+                reason: format!("bool byte is {b}, expected 0 or 1"),
+            }),
+        }
+    }
+}
+
+impl Encode for String {
+    fn encode(&self, out: &mut Vec<u8>) {
+        self.as_str().encode(out);
+    }
+}
+
+impl Encode for str {
+    fn encode(&self, out: &mut Vec<u8>) {
+        (self.len() as u32).encode(out);
+        out.extend_from_slice(self.as_bytes());
+    }
+}
+
+impl Decode for String {
+    const MIN_SIZE: usize = 4;
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        let n = d.count(1)?;
+        let at = d.pos;
+        let bytes = d.take(n)?;
+        String::from_utf8(bytes.to_vec()).map_err(|e| DecodeError {
+            offset: at + e.utf8_error().valid_up_to(),
+            reason: "string is not valid UTF-8".into(),
+        })
+    }
+}
+
+impl Encode for SystemTime {
+    fn encode(&self, out: &mut Vec<u8>) {
+        let (secs, nanos) = match self.duration_since(UNIX_EPOCH) {
+            Ok(d) => (d.as_secs() as i64, d.subsec_nanos()),
+            Err(e) => {
+                // Before the epoch: floor seconds, positive nanoseconds.
+                let d = e.duration();
+                let secs = -(d.as_secs() as i64);
+                match d.subsec_nanos() {
+                    0 => (secs, 0),
+                    n => (secs - 1, 1_000_000_000 - n),
+                }
+            }
+        };
+        secs.encode(out);
+        nanos.encode(out);
+    }
+}
+
+impl Decode for SystemTime {
+    const MIN_SIZE: usize = 12;
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        let at = d.pos;
+        let secs = i64::decode(d)?;
+        let nanos = u32::decode(d)?;
+        let bad = |reason: &str| DecodeError {
+            offset: at,
+            reason: reason.into(),
+        };
+        if nanos >= 1_000_000_000 {
+            return Err(bad("time nanoseconds out of range"));
+        }
+        let t = if secs >= 0 {
+            UNIX_EPOCH.checked_add(Duration::new(secs as u64, nanos))
+        } else {
+            UNIX_EPOCH
+                .checked_sub(Duration::from_secs(secs.unsigned_abs()))
+                .and_then(|t| t.checked_add(Duration::from_nanos(u64::from(nanos))))
+        };
+        t.ok_or_else(|| bad("time out of range for this platform"))
+    }
+}
+
+impl<T: Encode> Encode for Vec<T> {
+    fn encode(&self, out: &mut Vec<u8>) {
+        (self.len() as u32).encode(out);
+        T::encode_slice(self, out);
+    }
+}
+
+impl<T: Decode> Decode for Vec<T> {
+    const MIN_SIZE: usize = 4;
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        let n = d.count(T::MIN_SIZE)?;
+        T::decode_vec(d, n)
+    }
+}
+
+impl<T: Encode, const N: usize> Encode for [T; N] {
+    fn encode(&self, out: &mut Vec<u8>) {
+        T::encode_slice(self, out);
+    }
+}
+
+impl<T: Decode, const N: usize> Decode for [T; N] {
+    const MIN_SIZE: usize = T::MIN_SIZE * N;
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        if T::MIN_SIZE.saturating_mul(N) > d.remaining() {
+            return Err(d.error(format!(
+                "fixed array of {N} needs more bytes than the {} left",
+                d.remaining()
+            )));
+        }
+        let items = T::decode_vec(d, N)?;
+        items.try_into().map_err(|_| d.error("fixed array length"))
+    }
+}
+
+impl<T: Encode> Encode for Option<T> {
+    fn encode(&self, out: &mut Vec<u8>) {
+        match self {
+            None => out.push(0),
+            Some(v) => {
+                out.push(1);
+                v.encode(out);
+            }
+        }
+    }
+}
+
+impl<T: Decode> Decode for Option<T> {
+    const MIN_SIZE: usize = 1;
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        match d.take(1)?[0] {
+            0 => Ok(None),
+            1 => T::decode(d).map(Some),
+            b => Err(DecodeError {
+                offset: d.pos - 1,
+                reason: format!("presence byte is {b}, expected 0 or 1"),
+            }),
+        }
+    }
+}
+
+/// A message with no payload.
+impl Encode for () {
+    fn encode(&self, _: &mut Vec<u8>) {}
+}
+
+impl Decode for () {
+    const MIN_SIZE: usize = 0;
+    fn decode(_: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn golden_bytes_of_every_primitive() {
+        let mut out = Vec::new();
+        true.encode(&mut out);
+        7u8.encode(&mut out);
+        0x0102u16.encode(&mut out);
+        (-2i32).encode(&mut out);
+        1.5f32.encode(&mut out);
+        "hé".encode(&mut out);
+        vec![1u8, 2].encode(&mut out);
+        [1u16, 2].encode(&mut out);
+        Some(3u8).encode(&mut out);
+        None::<u8>.encode(&mut out);
+        (UNIX_EPOCH + Duration::new(2, 5)).encode(&mut out);
+        assert_eq!(
+            out,
+            [
+                1, // bool
+                7, // u8
+                0x02, 0x01, // u16 LE
+                0xfe, 0xff, 0xff, 0xff, // i32 -2
+                0x00, 0x00, 0xc0, 0x3f, // f32 1.5
+                3, 0, 0, 0, b'h', 0xc3, 0xa9, // string: u32 length + UTF-8
+                2, 0, 0, 0, 1, 2, // Vec<u8>: u32 count + items
+                1, 0, 2, 0, // [u16; 2]: items only
+                1, 3, // Some(3u8)
+                0, // None
+                2, 0, 0, 0, 0, 0, 0, 0, 5, 0, 0, 0, // time: i64 secs + u32 nanos
+            ]
+        );
+    }
+
+    #[test]
+    fn time_before_the_epoch_round_trips() {
+        let t = UNIX_EPOCH - Duration::new(1, 250);
+        let bytes = to_bytes(&t);
+        assert_eq!(&bytes[..8], &(-2i64).to_le_bytes());
+        assert_eq!(from_bytes::<SystemTime>(&bytes).unwrap(), t);
+    }
+
+    #[test]
+    fn hostile_lengths_fail_without_allocating() {
+        let err = from_bytes::<Vec<u64>>(&[0xff, 0xff, 0xff, 0xff, 1, 2]).unwrap_err();
+        assert!(err.reason.contains("exceeds"), "{err}");
+        assert!(from_bytes::<String>(&[2, 0, 0, 0, 0xff, 0xfe]).is_err());
+        assert!(from_bytes::<bool>(&[2]).is_err());
+        assert!(from_bytes::<Option<u8>>(&[9, 1]).is_err());
+        assert!(from_bytes::<[u32; 4]>(&[1, 2, 3]).is_err());
+        assert!(
+            from_bytes::<SystemTime>(&[0; 8].iter().chain(&[0xff; 4]).copied().collect::<Vec<_>>())
+                .is_err()
+        );
+        let trailing = from_bytes::<u8>(&[1, 2]).unwrap_err();
+        assert!(trailing.reason.contains("trailing"));
+    }
+}

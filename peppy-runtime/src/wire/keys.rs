@@ -1,0 +1,211 @@
+//! Zenoh key expressions. Every key starts with `peppy/<namespace>/`, so two
+//! stacks in different namespaces never see each other's traffic; the
+//! sender's identity (core node and instance id) is in the key, so a
+//! subscriber can pin a producer with the key alone.
+//!
+//! ```text
+//! peppy/<ns>/topic/<kind>/<name>/<tag>/<topic>/<core>/<instance>
+//! peppy/<ns>/service/<kind>/<name>/<tag>/<service>/<core>/<instance>
+//! peppy/<ns>/action/<kind>/<name>/<tag>/<action>/<core>/<instance>/<goal|cancel|result>
+//! peppy/<ns>/action/<kind>/<name>/<tag>/<action>/<core>/<instance>/feedback/<goal_id>
+//! ```
+//!
+//! `<kind>` is `node` for a node's own declarations and `interface` for
+//! entries inherited through `conforms_to`: the two never match each other.
+
+use std::fmt;
+
+/// Whose contract an entry belongs to on the wire.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Owner<'a> {
+    /// A node's own declaration.
+    Node {
+        /// Node name.
+        name: &'a str,
+        /// Node tag.
+        tag: &'a str,
+    },
+    /// An entry of a conformed interface.
+    Interface {
+        /// Interface name.
+        name: &'a str,
+        /// Interface tag.
+        tag: &'a str,
+    },
+}
+
+impl fmt::Display for Owner<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Owner::Node { name, tag } => write!(f, "node/{name}/{tag}"),
+            Owner::Interface { name, tag } => write!(f, "interface/{name}/{tag}"),
+        }
+    }
+}
+
+/// The three kinds of keys.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Channel {
+    /// Topic publications.
+    Topic,
+    /// Service queries.
+    Service,
+    /// Action sub-services and feedback.
+    Action,
+}
+
+impl Channel {
+    fn as_str(self) -> &'static str {
+        match self {
+            Channel::Topic => "topic",
+            Channel::Service => "service",
+            Channel::Action => "action",
+        }
+    }
+}
+
+/// Whether `s` can be one key segment: non-empty, no `/`, and none of
+/// zenoh's special characters.
+pub fn is_segment(s: &str) -> bool {
+    !s.is_empty()
+        && !s.contains(['/', '*', '$', '#', '?', '@'])
+        && !s.chars().any(char::is_whitespace)
+}
+
+/// The key one producer instance publishes on (or serves) for an entry.
+pub fn entry_key(
+    ns: &str,
+    channel: Channel,
+    owner: &Owner<'_>,
+    entry: &str,
+    core: &str,
+    instance: &str,
+) -> String {
+    format!(
+        "peppy/{ns}/{}/{owner}/{entry}/{core}/{instance}",
+        channel.as_str()
+    )
+}
+
+/// A selector over producers: `None` parts match any value.
+pub fn entry_selector(
+    ns: &str,
+    channel: Channel,
+    owner: Option<&Owner<'_>>,
+    entry: &str,
+    core: Option<&str>,
+    instance: Option<&str>,
+) -> String {
+    let owner = owner.map_or_else(|| "*/*/*".to_string(), ToString::to_string);
+    format!(
+        "peppy/{ns}/{}/{owner}/{entry}/{}/{}",
+        channel.as_str(),
+        core.unwrap_or("*"),
+        instance.unwrap_or("*")
+    )
+}
+
+/// The sender identity at the end of an entry key.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Sender {
+    /// The owner kind, `node` or `interface`.
+    pub kind: String,
+    /// The owner's name.
+    pub name: String,
+    /// The owner's tag.
+    pub tag: String,
+    /// The entry (topic, service, action) name.
+    pub entry: String,
+    /// The sender's core node.
+    pub core: String,
+    /// The sender's instance id.
+    pub instance: String,
+}
+
+/// Parses `peppy/<ns>/<channel>/<kind>/<name>/<tag>/<entry>/<core>/<instance>[/...]`.
+pub fn parse_entry_key(key: &str) -> Option<Sender> {
+    let mut parts = key.split('/');
+    if parts.next()? != "peppy" {
+        return None;
+    }
+    let _ns = parts.next()?;
+    let _channel = parts.next()?;
+    let kind = parts.next()?;
+    if kind != "node" && kind != "interface" {
+        return None;
+    }
+    let s = Sender {
+        kind: kind.to_string(),
+        name: parts.next()?.to_string(),
+        tag: parts.next()?.to_string(),
+        entry: parts.next()?.to_string(),
+        core: parts.next()?.to_string(),
+        instance: parts.next()?.to_string(),
+    };
+    (is_segment(&s.core) && is_segment(&s.instance)).then_some(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn golden_keys() {
+        let cam = Owner::Interface {
+            name: "depth_camera",
+            tag: "v1",
+        };
+        assert_eq!(
+            entry_key(
+                "lab",
+                Channel::Topic,
+                &cam,
+                "video_stream",
+                "launch-1",
+                "rs_left"
+            ),
+            "peppy/lab/topic/interface/depth_camera/v1/video_stream/launch-1/rs_left"
+        );
+        assert_eq!(
+            entry_selector(
+                "lab",
+                Channel::Topic,
+                Some(&cam),
+                "video_stream",
+                None,
+                Some("rs_left")
+            ),
+            "peppy/lab/topic/interface/depth_camera/v1/video_stream/*/rs_left"
+        );
+        assert_eq!(
+            entry_selector("lab", Channel::Topic, None, "joint_commands", None, None),
+            "peppy/lab/topic/*/*/*/joint_commands/*/*"
+        );
+        let arm = Owner::Node {
+            name: "robot_arm",
+            tag: "v1",
+        };
+        assert_eq!(
+            entry_key("lab", Channel::Service, &arm, "home", "c", "arm"),
+            "peppy/lab/service/node/robot_arm/v1/home/c/arm"
+        );
+    }
+
+    #[test]
+    fn parses_sender_identity() {
+        let s =
+            parse_entry_key("peppy/lab/topic/node/robot_arm/v1/joint_states/c1/arm/extra").unwrap();
+        assert_eq!(
+            (
+                s.kind.as_str(),
+                s.name.as_str(),
+                s.instance.as_str(),
+                s.core.as_str()
+            ),
+            ("node", "robot_arm", "arm", "c1")
+        );
+        assert!(parse_entry_key("peppy/lab/topic/other/x/v1/t/c/i").is_none());
+        assert!(parse_entry_key("peppy/lab/topic/node/x/v1/t/c").is_none());
+        assert!(parse_entry_key("elsewhere/lab/topic/node/x/v1/t/c/i").is_none());
+    }
+}

@@ -1,0 +1,6 @@
+//! The wire format: key expressions, attachments and the payload codec.
+//! docs/WIRE.md describes it for implementers in other languages.
+
+pub mod attachment;
+pub mod codec;
+pub mod keys;

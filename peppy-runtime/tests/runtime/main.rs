@@ -1,0 +1,8 @@
+//! The runtime over real Zenoh sessions on loopback: an in-process router on
+//! an explicit port (no multicast scouting), a fresh namespace per test,
+//! hand-written message types, and every wait bounded.
+
+mod routing;
+mod services;
+mod support;
+mod topics;

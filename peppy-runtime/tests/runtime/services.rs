@@ -1,0 +1,230 @@
+//! Services: pinned calls, discovery for unbound from_any slots, and the
+//! three failure kinds.
+
+use std::time::Duration;
+
+use peppy_runtime::Error;
+use peppy_runtime::codegen::{
+    ConsumedServiceSpec, FormatSpec, OwnerSpec, ServiceSpec, call, handle_next,
+};
+
+use crate::support::{WAIT, hub, namespace, start, test_node};
+
+const INFO_REQ: FormatSpec = FormatSpec::EMPTY;
+const INFO_RESP: FormatSpec = FormatSpec {
+    fingerprint: 0x42,
+    canonical: "{width:u32,height:u32}",
+};
+const DEPTH_CAMERA: OwnerSpec = OwnerSpec::Interface {
+    name: "depth_camera",
+    tag: "v1",
+};
+
+static INFO: ServiceSpec = ServiceSpec {
+    owner: DEPTH_CAMERA,
+    name: "video_stream_info",
+    request: INFO_REQ,
+    response: INFO_RESP,
+};
+static SCALE: ServiceSpec = ServiceSpec {
+    owner: OwnerSpec::Own,
+    name: "scale",
+    request: FormatSpec {
+        fingerprint: 0x51,
+        canonical: "{x:u32}",
+    },
+    response: FormatSpec {
+        fingerprint: 0x52,
+        canonical: "{y:u32}",
+    },
+};
+
+test_node!(
+    Camera,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "realsense_d405", tag: "v1" },
+         interfaces: { conforms_to: [{ name: "depth_camera", tag: "v1" }],
+                       services: { exposes: [{ name: "scale", request_message_format: { x: "u32" }, response_message_format: { y: "u32" } }] } },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [], consumes: [], serves: [INFO, SCALE]
+);
+
+static LEFT_INFO: ConsumedServiceSpec = ConsumedServiceSpec {
+    link_id: "left_cam",
+    owner: DEPTH_CAMERA,
+    name: "video_stream_info",
+    request: INFO_REQ,
+    response: INFO_RESP,
+};
+static ANY_INFO: ConsumedServiceSpec = ConsumedServiceSpec {
+    link_id: "backup_cams",
+    owner: DEPTH_CAMERA,
+    name: "video_stream_info",
+    request: INFO_REQ,
+    response: INFO_RESP,
+};
+static LEFT_SCALE: ConsumedServiceSpec = ConsumedServiceSpec {
+    link_id: "left_node",
+    owner: OwnerSpec::Node {
+        name: "realsense_d405",
+        tag: "v1",
+    },
+    name: "scale",
+    request: FormatSpec {
+        fingerprint: 0x51,
+        canonical: "{x:u32}",
+    },
+    response: FormatSpec {
+        fingerprint: 0x52,
+        canonical: "{y:u32}",
+    },
+};
+
+test_node!(
+    Recon,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "video_reconstruction", tag: "v1", depends_on: {
+           interfaces: [
+             { name: "depth_camera", tag: "v1", link_id: "left_cam" },
+             { name: "depth_camera", tag: "v1", link_id: "backup_cams", from_any: true } ],
+           nodes: [ { name: "realsense_d405", tag: "v1", link_id: "left_node" } ] } },
+         interfaces: { services: { consumes: [
+           { link_id: "left_cam", name: "video_stream_info" },
+           { link_id: "backup_cams", name: "video_stream_info" },
+           { link_id: "left_node", name: "scale" } ] } },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [], consumes: [], serves: []
+);
+
+/// Serves `video_stream_info` forever, answering with `width`.
+fn serve_info(runner: std::sync::Arc<peppy_runtime::NodeRunner>, width: u32) {
+    tokio::spawn(async move {
+        while handle_next::<(), [u32; 2], _>(&runner, &INFO, |_, ()| Ok([width, 480]))
+            .await
+            .is_ok()
+        {}
+    });
+}
+
+async fn call_until_up<T>(f: impl AsyncFn() -> peppy_runtime::Result<T>) -> T {
+    tokio::time::timeout(WAIT, async {
+        loop {
+            match f().await {
+                Ok(v) => return v,
+                Err(Error::ServiceUnreachable { .. }) => {
+                    tokio::time::sleep(Duration::from_millis(50)).await
+                }
+                Err(e) => panic!("{e}"),
+            }
+        }
+    })
+    .await
+    .expect("the server became reachable")
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn pinned_and_discovered_calls_reach_the_right_server() {
+    let hub = hub().await;
+    let ns = namespace("svc");
+    let (_, recon) = start::<Recon>(
+        &hub,
+        &ns,
+        "recon",
+        &["--bind", "left_cam@rs_left", "--bind", "left_node@rs_left"],
+    )
+    .await;
+    let (_, left) = start::<Camera>(&hub, &ns, "rs_left", &[]).await;
+    let (_, other) = start::<Camera>(&hub, &ns, "rs_other", &[]).await;
+    serve_info(left.clone(), 640);
+    serve_info(other.clone(), 1280);
+
+    let r = call_until_up(async || {
+        call::<(), [u32; 2]>(&recon, &LEFT_INFO, Duration::from_secs(2), &()).await
+    })
+    .await;
+    assert_eq!((r.instance_id.as_str(), r.data), ("rs_left", [640, 480]));
+    assert_eq!(r.core_node, "standalone");
+    // Unbound from_any: any camera except the one a sibling pins.
+    let r = call_until_up(async || {
+        call::<(), [u32; 2]>(&recon, &ANY_INFO, Duration::from_secs(2), &()).await
+    })
+    .await;
+    assert_eq!((r.instance_id.as_str(), r.data), ("rs_other", [1280, 480]));
+    for r in [&recon, &left, &other] {
+        r.shutdown().await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn unreachable_timeout_and_handler_errors_are_distinct() {
+    let hub = hub().await;
+    let ns = namespace("svc-errors");
+    let (_, recon) = start::<Recon>(
+        &hub,
+        &ns,
+        "recon",
+        &["--bind", "left_cam@rs_left", "--bind", "left_node@rs_left"],
+    )
+    .await;
+    // Nobody serves yet.
+    let err = call::<u32, u32>(&recon, &LEFT_SCALE, Duration::from_millis(500), &1)
+        .await
+        .unwrap_err();
+    assert!(matches!(err, Error::ServiceUnreachable { .. }), "{err}");
+
+    let (_, cam) = start::<Camera>(&hub, &ns, "rs_left", &[]).await;
+    // The server is up (its queryable acks) but nobody handles the request.
+    let err = tokio::time::timeout(WAIT, async {
+        loop {
+            match call::<u32, u32>(&recon, &LEFT_SCALE, Duration::from_millis(500), &1).await {
+                Err(Error::ServiceUnreachable { .. }) => continue,
+                other => return other,
+            }
+        }
+    })
+    .await
+    .unwrap()
+    .unwrap_err();
+    assert!(matches!(err, Error::ServiceTimeout { .. }), "{err}");
+
+    // A handler error comes back with its text.
+    let server = cam.clone();
+    tokio::spawn(async move {
+        while handle_next::<u32, u32, _>(&server, &SCALE, |caller, x| {
+            if x == 0 {
+                Err(format!("cannot scale zero for {}", caller.instance_id).into())
+            } else {
+                Ok(x * 2)
+            }
+        })
+        .await
+        .is_ok()
+        {}
+    });
+    let err = call::<u32, u32>(&recon, &LEFT_SCALE, Duration::from_secs(5), &0)
+        .await
+        .unwrap_err();
+    match err {
+        Error::ServiceError {
+            reason, instance, ..
+        } => {
+            assert_eq!(reason, "cannot scale zero for recon");
+            assert_eq!(instance, "rs_left");
+        }
+        other => panic!("{other}"),
+    }
+    // Concurrent callers are all served by one queryable.
+    let calls = (1..=8u32).map(|x| {
+        let recon = recon.clone();
+        tokio::spawn(async move {
+            call::<u32, u32>(&recon, &LEFT_SCALE, Duration::from_secs(5), &x)
+                .await
+                .map(|r| r.data)
+        })
+    });
+    let mut results = Vec::new();
+    for c in calls {
+        results.push(c.await.unwrap().unwrap());
+    }
+    assert_eq!(results, (1..=8).map(|x| x * 2).collect::<Vec<_>>());
+    recon.shutdown().await;
+    cam.shutdown().await;
+}

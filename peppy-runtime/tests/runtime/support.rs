@@ -1,0 +1,163 @@
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::Duration;
+
+use peppy_runtime::codegen::{Decode, DecodeError, Decoder, Encode, NodeParameters};
+use peppy_runtime::{NodeBuilder, NodeRunner};
+
+/// Every wait in these tests is bounded by this.
+pub(crate) const WAIT: Duration = Duration::from_secs(20);
+
+/// A Zenoh router on a free loopback port, standing in for the launcher's.
+pub(crate) struct Hub {
+    _session: zenoh::Session,
+    pub(crate) endpoint: String,
+}
+
+pub(crate) async fn hub() -> Hub {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let mut config = zenoh::Config::default();
+    config.insert_json5("mode", "\"router\"").unwrap();
+    config
+        .insert_json5("listen/endpoints", &format!("[\"{endpoint}\"]"))
+        .unwrap();
+    config
+        .insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    let session = zenoh::open(config).await.unwrap();
+    Hub {
+        _session: session,
+        endpoint,
+    }
+}
+
+static COUNTER: AtomicU32 = AtomicU32::new(0);
+
+/// A namespace no other test uses.
+pub(crate) fn namespace(test: &str) -> String {
+    format!(
+        "{test}-{}-{}",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    )
+}
+
+/// Starts a node of type `P` as `instance` with extra flags.
+pub(crate) async fn start<P: NodeParameters>(
+    hub: &Hub,
+    ns: &str,
+    instance: &str,
+    extra: &[&str],
+) -> (P, Arc<NodeRunner>) {
+    let mut args = vec![
+        "node",
+        "--instance-id",
+        instance,
+        "--namespace",
+        ns,
+        "--connect",
+        &hub.endpoint,
+    ];
+    args.extend_from_slice(extra);
+    tokio::time::timeout(
+        WAIT,
+        NodeBuilder::<P>::new()
+            .with_runtime_config(None)
+            .with_args(args)
+            .start(),
+    )
+    .await
+    .expect("node start timed out")
+    .expect("node starts")
+}
+
+/// Like [`start`], returning the error.
+pub(crate) async fn try_start<P: NodeParameters>(
+    hub: &Hub,
+    ns: &str,
+    instance: &str,
+    extra: &[&str],
+) -> peppy_runtime::Result<(P, Arc<NodeRunner>)> {
+    let mut args = vec![
+        "node",
+        "--instance-id",
+        instance,
+        "--namespace",
+        ns,
+        "--connect",
+        &hub.endpoint,
+    ];
+    args.extend_from_slice(extra);
+    NodeBuilder::<P>::new()
+        .with_runtime_config(None)
+        .with_args(args)
+        .start()
+        .await
+}
+
+/// A frame: what the camera tests send.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Frame {
+    pub(crate) seq: u32,
+    pub(crate) data: Vec<u8>,
+}
+
+impl Encode for Frame {
+    fn encode(&self, out: &mut Vec<u8>) {
+        self.seq.encode(out);
+        self.data.encode(out);
+    }
+}
+
+impl Decode for Frame {
+    const MIN_SIZE: usize = 8;
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        Ok(Frame {
+            seq: Decode::decode(d)?,
+            data: Decode::decode(d)?,
+        })
+    }
+}
+
+/// Defines a parameters type whose node is described by `$doc` and the given specs.
+macro_rules! test_node {
+    ($ty:ident, $doc:expr, emits: [$($e:expr),*], consumes: [$($c:expr),*], serves: [$($s:expr),*]) => {
+        #[derive(Debug, serde::Deserialize)]
+        pub(crate) struct $ty {}
+        impl peppy_runtime::codegen::NodeParameters for $ty {
+            fn descriptor() -> &'static peppy_runtime::codegen::NodeDescriptor {
+                static D: peppy_runtime::codegen::NodeDescriptor = peppy_runtime::codegen::NodeDescriptor {
+                    document: $doc,
+                    document_path: concat!(stringify!($ty), ".json5"),
+                    emitted_topics: &[$(&$e),*],
+                    consumed_topics: &[$(&$c),*],
+                    exposed_services: &[$(&$s),*],
+                };
+                &D
+            }
+        }
+    };
+}
+pub(crate) use test_node;
+
+/// Emits `make(seq)` on `spec` every `period` until the runner stops.
+pub(crate) fn keep_emitting<M: Encode + Send + 'static>(
+    runner: Arc<NodeRunner>,
+    spec: &'static peppy_runtime::codegen::TopicSpec,
+    period: Duration,
+    make: impl Fn(u32) -> M + Send + 'static,
+) {
+    tokio::spawn(async move {
+        let mut seq = 0;
+        while !runner.cancellation_token().is_cancelled() {
+            let _ = peppy_runtime::codegen::emit(&runner, spec, &make(seq)).await;
+            seq += 1;
+            tokio::time::sleep(period).await;
+        }
+    });
+}

@@ -1,0 +1,243 @@
+//! Topic delivery: nothing lost between calls, external topics, format
+//! fingerprints.
+
+use std::time::Duration;
+
+use peppy_runtime::codegen::{
+    ConsumedTopicSpec, Decode, DecodeError, Decoder, Encode, FormatSpec, OwnerSpec, QosProfile,
+    TopicSpec, emit, next_message,
+};
+
+use crate::support::{WAIT, hub, namespace, start, test_node};
+
+#[derive(Debug, Clone, PartialEq)]
+struct Command {
+    target: [f64; 3],
+    max_velocity: f64,
+}
+
+impl Encode for Command {
+    fn encode(&self, out: &mut Vec<u8>) {
+        self.target.encode(out);
+        self.max_velocity.encode(out);
+    }
+}
+
+impl Decode for Command {
+    const MIN_SIZE: usize = 32;
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        Ok(Command {
+            target: Decode::decode(d)?,
+            max_velocity: Decode::decode(d)?,
+        })
+    }
+}
+
+const COMMAND: FormatSpec = FormatSpec {
+    fingerprint: 0xc0ffee,
+    canonical: "{target_positions:[f64;3],max_velocity:f64}",
+};
+const OLD_COMMAND: FormatSpec = FormatSpec {
+    fingerprint: 0xdead,
+    canonical: "{target_positions:[f32;3]}",
+};
+
+static COMMANDS_OUT: TopicSpec = TopicSpec {
+    owner: OwnerSpec::Own,
+    name: "joint_commands",
+    qos: QosProfile::Reliable,
+    format: COMMAND,
+};
+static OLD_COMMANDS_OUT: TopicSpec = TopicSpec {
+    owner: OwnerSpec::Own,
+    name: "joint_commands",
+    qos: QosProfile::Reliable,
+    format: OLD_COMMAND,
+};
+static COMMANDS_IN: ConsumedTopicSpec = ConsumedTopicSpec {
+    link_id: None,
+    owner: OwnerSpec::Any,
+    name: "joint_commands",
+    qos: QosProfile::Standard,
+    format: COMMAND,
+};
+
+test_node!(
+    Controller,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "arm_controller", tag: "v1" },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [COMMANDS_OUT], consumes: [], serves: []
+);
+
+test_node!(
+    OldController,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "teleop", tag: "v1" },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [OLD_COMMANDS_OUT], consumes: [], serves: []
+);
+
+test_node!(
+    Arm,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "robot_arm", tag: "v1" },
+         interfaces: { topics: { consumes: [{ name: "joint_commands", message_format: { target_positions: { $type: "array", $items: "f64", $length: 3 }, max_velocity: "f64" } }] } },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [], consumes: [COMMANDS_IN], serves: []
+);
+
+static RELIABLE_OUT: TopicSpec = TopicSpec {
+    owner: OwnerSpec::Own,
+    name: "ticks",
+    qos: QosProfile::Reliable,
+    format: FormatSpec {
+        fingerprint: 7,
+        canonical: "{n:u32}",
+    },
+};
+static RELIABLE_IN: ConsumedTopicSpec = ConsumedTopicSpec {
+    link_id: Some("src"),
+    owner: OwnerSpec::Node {
+        name: "ticker",
+        tag: "v1",
+    },
+    name: "ticks",
+    qos: QosProfile::Reliable,
+    format: FormatSpec {
+        fingerprint: 7,
+        canonical: "{n:u32}",
+    },
+};
+
+test_node!(
+    Ticker,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "ticker", tag: "v1" },
+         interfaces: { topics: { emits: [{ name: "ticks", qos_profile: "reliable", message_format: { n: "u32" } }] } },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [RELIABLE_OUT], consumes: [], serves: []
+);
+
+test_node!(
+    Counter,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "counter", tag: "v1", depends_on: { nodes: [{ name: "ticker", tag: "v1", link_id: "src" }] } },
+         interfaces: { topics: { consumes: [{ link_id: "src", name: "ticks" }] } },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [], consumes: [RELIABLE_IN], serves: []
+);
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn external_topics_come_from_any_emitter_with_a_matching_format() {
+    let hub = hub().await;
+    let ns = namespace("external");
+    let (_, arm) = start::<Arm>(&hub, &ns, "arm", &[]).await;
+    let (_, controller) = start::<Controller>(&hub, &ns, "controller", &[]).await;
+    let (_, old) = start::<OldController>(&hub, &ns, "old_teleop", &[]).await;
+    let sender = tokio::spawn({
+        let (controller, old) = (controller.clone(), old.clone());
+        async move {
+            for i in 0..200u32 {
+                let c = Command {
+                    target: [f64::from(i), 0.5, -1.0],
+                    max_velocity: 1.0,
+                };
+                emit(&controller, &COMMANDS_OUT, &c).await.unwrap();
+                // Same topic name, another format: must never be decoded.
+                emit(&old, &OLD_COMMANDS_OUT, &[1.0f32, 2.0, 3.0])
+                    .await
+                    .unwrap();
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        }
+    });
+    tokio::time::timeout(WAIT, async {
+        for _ in 0..10 {
+            let (from, c): (String, Command) =
+                next_message(&arm, &COMMANDS_IN, None).await.unwrap();
+            assert_eq!(from, "controller", "only the matching format is delivered");
+            assert_eq!(c.target[1..], [0.5, -1.0]);
+        }
+    })
+    .await
+    .expect("commands arrive");
+    sender.abort();
+    for r in [&arm, &controller, &old] {
+        r.shutdown().await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn nothing_is_lost_between_calls_on_a_reliable_topic() {
+    let hub = hub().await;
+    let ns = namespace("lossless");
+    let (_, counter) = start::<Counter>(&hub, &ns, "counter", &["--bind", "src@ticker"]).await;
+    let (_, ticker) = start::<Ticker>(&hub, &ns, "ticker", &[]).await;
+    // Wait until the subscription is matched, then send a burst while the
+    // consumer is not reading.
+    tokio::time::timeout(WAIT, async {
+        loop {
+            emit(&ticker, &RELIABLE_OUT, &u32::MAX).await.unwrap();
+            if tokio::time::timeout(
+                Duration::from_millis(100),
+                next_message::<u32>(&counter, &RELIABLE_IN, None),
+            )
+            .await
+            .is_ok()
+            {
+                break;
+            }
+        }
+    })
+    .await
+    .expect("subscription matched");
+    for n in 0..200u32 {
+        emit(&ticker, &RELIABLE_OUT, &n).await.unwrap();
+    }
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let mut got = Vec::new();
+    tokio::time::timeout(WAIT, async {
+        while got.len() < 200 {
+            let (_, n): (String, u32) = next_message(&counter, &RELIABLE_IN, None).await.unwrap();
+            if n != u32::MAX {
+                got.push(n);
+            }
+        }
+    })
+    .await
+    .unwrap_or_else(|_| panic!("only {} of 200 arrived", got.len()));
+    assert_eq!(got, (0..200).collect::<Vec<_>>());
+    counter.shutdown().await;
+    ticker.shutdown().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn from_core_node_filters_by_launch() {
+    let hub = hub().await;
+    let ns = namespace("core");
+    let (_, counter) = start::<Counter>(&hub, &ns, "counter", &["--bind", "src@ticker"]).await;
+    let (_, ticker) = start::<Ticker>(&hub, &ns, "ticker", &[]).await;
+    let sender = tokio::spawn({
+        let ticker = ticker.clone();
+        async move {
+            for n in 0..400u32 {
+                let _ = emit(&ticker, &RELIABLE_OUT, &n).await;
+                tokio::time::sleep(Duration::from_millis(10)).await;
+            }
+        }
+    });
+    // Standalone instances belong to the `standalone` core node.
+    let (_, n) = tokio::time::timeout(
+        WAIT,
+        next_message::<u32>(&counter, &RELIABLE_IN, Some("standalone")),
+    )
+    .await
+    .unwrap()
+    .unwrap();
+    assert!(n < 400);
+    let other = tokio::time::timeout(
+        Duration::from_millis(500),
+        next_message::<u32>(&counter, &RELIABLE_IN, Some("another-launch")),
+    )
+    .await;
+    assert!(other.is_err(), "no message is from another launch");
+    sender.abort();
+    counter.shutdown().await;
+    ticker.shutdown().await;
+}
