@@ -47,6 +47,12 @@ pub enum Error {
     /// Parameter values do not fit the node's parameter schema.
     #[error("invalid parameters:{}", params_list(.0))]
     Parameters(Vec<ParamError>),
+    /// An action goal's feedback stream ended (the goal is terminal).
+    #[error("the feedback stream of action `{action}` has ended")]
+    FeedbackEnded {
+        /// The action.
+        action: String,
+    },
     /// The node is shutting down.
     #[error("the node is shutting down")]
     ShuttingDown,

@@ -22,6 +22,7 @@
 //! The wire format (key expressions, attachments, payload encoding) is in
 //! [`wire`] and docs/WIRE.md.
 
+mod actions;
 mod error;
 mod node;
 mod qos;
@@ -31,6 +32,9 @@ mod startup;
 mod topics;
 pub mod wire;
 
+pub use actions::{
+    CancelState, DEFAULT_RESULT_RETENTION, GoalClient, GoalContext, IncomingGoal, Outcome,
+};
 pub use error::{Error, Result};
 pub use node::{NodeBuilder, NodeRunner};
 pub use peppy_schema::QosProfile as QoSProfile;
@@ -44,6 +48,9 @@ pub use tokio_util::sync::CancellationToken;
 /// What generated code calls. Not a stable API for hand-written code.
 #[doc(hidden)]
 pub mod codegen {
+    pub use crate::actions::{
+        CancelState, GoalClient, GoalContext, IncomingGoal, Outcome, next_goal, send_goal,
+    };
     pub use crate::services::{Caller, Reply, call, handle_next};
     pub use crate::spec::*;
     pub use crate::topics::{emit, next_message};

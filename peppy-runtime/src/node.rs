@@ -13,10 +13,13 @@ use tracing::{info, warn};
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::query::Queryable;
 
+use crate::actions::{self, DEFAULT_RESULT_RETENTION, PendingGoal, Registry};
 use crate::error::{Error, Result};
 use crate::qos;
 use crate::services::{self, ServiceInbox};
-use crate::spec::{ConsumedTopicSpec, NodeDescriptor, NodeParameters, ServiceSpec, TopicSpec};
+use crate::spec::{
+    ActionSpec, ConsumedTopicSpec, NodeDescriptor, NodeParameters, ServiceSpec, TopicSpec,
+};
 use crate::startup::{self, RUNTIME_CONFIG_ENV, StandaloneConfig, Startup};
 use crate::topics::{self, Inbox, Intake};
 use crate::wire::keys::{Channel, entry_key};
@@ -29,6 +32,7 @@ pub struct NodeBuilder<P> {
     standalone: StandaloneConfig,
     args: Option<Vec<String>>,
     runtime_config: Option<Option<PathBuf>>,
+    retention: std::time::Duration,
     _parameters: PhantomData<fn() -> P>,
 }
 
@@ -45,6 +49,7 @@ impl<P: NodeParameters> NodeBuilder<P> {
             standalone: StandaloneConfig::default(),
             args: None,
             runtime_config: None,
+            retention: DEFAULT_RESULT_RETENTION,
             _parameters: PhantomData,
         }
     }
@@ -64,6 +69,13 @@ impl<P: NodeParameters> NodeBuilder<P> {
     /// Uses this runtime-config file (or none) instead of `PEPPY_RUNTIME_CONFIG`.
     pub fn with_runtime_config(mut self, path: Option<PathBuf>) -> Self {
         self.runtime_config = Some(path);
+        self
+    }
+
+    /// How long exposed actions keep a finished goal's result for its
+    /// caller (default 30 s); after that the caller gets `Expired`.
+    pub fn action_result_retention(mut self, retention: std::time::Duration) -> Self {
+        self.retention = retention;
         self
     }
 
@@ -118,7 +130,7 @@ impl<P: NodeParameters> NodeBuilder<P> {
                 "parameters do not fit this node's Parameters type: {e}"
             ))
         })?;
-        let runner = NodeRunner::open(&doc, descriptor, startup).await?;
+        let runner = NodeRunner::open(&doc, descriptor, startup, self.retention).await?;
         Ok((params, runner))
     }
 }
@@ -169,6 +181,7 @@ pub struct NodeRunner {
     publishers: HashMap<usize, Publisher<'static>>,
     inboxes: HashMap<usize, Inbox>,
     service_inboxes: HashMap<usize, (ServiceInbox, String)>,
+    action_servers: HashMap<usize, (flume::Receiver<PendingGoal>, Arc<Registry>)>,
     entities: Mutex<Entities>,
 }
 
@@ -196,6 +209,7 @@ impl NodeRunner {
         doc: &NodeDoc,
         descriptor: &'static NodeDescriptor,
         startup: Startup,
+        retention: std::time::Duration,
     ) -> Result<Arc<NodeRunner>> {
         let config = startup.config.zenoh.zenoh_config()?;
         let session = zenoh::open(config).await?;
@@ -211,6 +225,7 @@ impl NodeRunner {
             publishers: HashMap::new(),
             inboxes: HashMap::new(),
             service_inboxes: HashMap::new(),
+            action_servers: HashMap::new(),
             entities: Mutex::new(Entities::default()),
         };
         let mut entities = Entities::default();
@@ -265,6 +280,47 @@ impl NodeRunner {
             runner
                 .service_inboxes
                 .insert(address(*spec), (ServiceInbox { rx }, key));
+        }
+        for spec in descriptor.exposed_actions {
+            let base = actions::server_base_key(&runner, spec);
+            let registry = Registry::new(spec, base.clone(), runner.session.clone(), retention);
+            let (tx, rx) = flume::bounded(64);
+            let goal_key = format!("{base}/goal");
+            let goal = runner
+                .session
+                .declare_queryable(goal_key.clone())
+                .complete(true)
+                .callback(actions::goal_intake(spec, goal_key, tx))
+                .await?;
+            let r = registry.clone();
+            let cancel = runner
+                .session
+                .declare_queryable(format!("{base}/cancel"))
+                .complete(true)
+                .callback(move |q| r.on_cancel(q))
+                .await?;
+            let r = registry.clone();
+            let result = runner
+                .session
+                .declare_queryable(format!("{base}/result"))
+                .complete(true)
+                .callback(move |q| r.on_result(q))
+                .await?;
+            entities.queryables.extend([goal, cancel, result]);
+            let (r, token) = (registry.clone(), runner.token.clone());
+            tokio::spawn(async move {
+                let mut tick = tokio::time::interval((retention / 4).clamp(
+                    std::time::Duration::from_millis(10),
+                    std::time::Duration::from_secs(1),
+                ));
+                loop {
+                    tokio::select! {
+                        _ = tick.tick() => r.sweep(),
+                        () = token.cancelled() => break,
+                    }
+                }
+            });
+            runner.action_servers.insert(address(*spec), (rx, registry));
         }
         runner.entities = Mutex::new(entities);
         info!(
@@ -341,6 +397,16 @@ impl NodeRunner {
             .get(&address(spec))
             .map(|(i, _)| i)
             .ok_or_else(|| Error::Undeclared(format!("exposed service `{}`", spec.name)))
+    }
+
+    pub(crate) fn action_server(
+        &self,
+        spec: &'static ActionSpec,
+    ) -> Result<(&flume::Receiver<PendingGoal>, &Arc<Registry>)> {
+        self.action_servers
+            .get(&address(spec))
+            .map(|(rx, r)| (rx, r))
+            .ok_or_else(|| Error::Undeclared(format!("exposed action `{}`", spec.name)))
     }
 
     pub(crate) fn service_key(&self, spec: &'static ServiceSpec) -> String {

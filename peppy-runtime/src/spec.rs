@@ -116,6 +116,38 @@ pub struct ConsumedServiceSpec {
     pub response: FormatSpec,
 }
 
+/// An action this node exposes.
+#[derive(Debug)]
+pub struct ActionSpec {
+    /// Own or conformed.
+    pub owner: OwnerSpec,
+    /// Action name.
+    pub name: &'static str,
+    /// Goal request format.
+    pub goal: FormatSpec,
+    /// Feedback format ([`FormatSpec::EMPTY`] when the action has no feedback).
+    pub feedback: FormatSpec,
+    /// Result format.
+    pub result: FormatSpec,
+}
+
+/// An action this node calls.
+#[derive(Debug)]
+pub struct ConsumedActionSpec {
+    /// The slot.
+    pub link_id: &'static str,
+    /// The producer side's owner.
+    pub owner: OwnerSpec,
+    /// Action name.
+    pub name: &'static str,
+    /// Goal request format.
+    pub goal: FormatSpec,
+    /// Feedback format.
+    pub feedback: FormatSpec,
+    /// Result format.
+    pub result: FormatSpec,
+}
+
 /// Everything the runtime must set up before the node's code runs.
 #[derive(Debug)]
 pub struct NodeDescriptor {
@@ -129,6 +161,9 @@ pub struct NodeDescriptor {
     pub consumed_topics: &'static [&'static ConsumedTopicSpec],
     /// Services it exposes (queryables live as long as the node).
     pub exposed_services: &'static [&'static ServiceSpec],
+    /// Actions it exposes (their goal, cancel and result queryables live as
+    /// long as the node).
+    pub exposed_actions: &'static [&'static ActionSpec],
 }
 
 /// Implemented by a node's generated `Parameters` type: ties the parameter

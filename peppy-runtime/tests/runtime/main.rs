@@ -2,6 +2,7 @@
 //! an explicit port (no multicast scouting), a fresh namespace per test,
 //! hand-written message types, and every wait bounded.
 
+mod actions;
 mod routing;
 mod services;
 mod support;

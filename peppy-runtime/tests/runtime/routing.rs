@@ -39,7 +39,7 @@ test_node!(
     r#"{ peppy_schema: "node_v1", manifest: { name: "realsense_d405", tag: "v1" },
          interfaces: { conforms_to: [{ name: "depth_camera", tag: "v1" }] },
          execution: { language: "rust", run_cmd: ["x"] } }"#,
-    emits: [CAM_VIDEO], consumes: [], serves: []
+    emits: [CAM_VIDEO], consumes: [], serves: [], actions: []
 );
 
 test_node!(
@@ -47,7 +47,7 @@ test_node!(
     r#"{ peppy_schema: "node_v1", manifest: { name: "zed_2i", tag: "v1" },
          interfaces: { conforms_to: [{ name: "depth_camera", tag: "v1" }] },
          execution: { language: "rust", run_cmd: ["x"] } }"#,
-    emits: [CAM_VIDEO], consumes: [], serves: []
+    emits: [CAM_VIDEO], consumes: [], serves: [], actions: []
 );
 
 // Named like the interface, same topic and format, but no conforms_to.
@@ -56,7 +56,7 @@ test_node!(
     r#"{ peppy_schema: "node_v1", manifest: { name: "depth_camera", tag: "v1" },
          interfaces: { topics: { emits: [{ name: "video_stream", message_format: { seq: "u32", data: { $type: "array", $items: "u8" } } }] } },
          execution: { language: "rust", run_cmd: ["x"] } }"#,
-    emits: [IMPOSTOR_VIDEO], consumes: [], serves: []
+    emits: [IMPOSTOR_VIDEO], consumes: [], serves: [], actions: []
 );
 
 static LEFT: ConsumedTopicSpec = ConsumedTopicSpec {
@@ -92,7 +92,7 @@ test_node!(
            { link_id: "right_cam", name: "video_stream" },
            { link_id: "backup_cams", name: "video_stream" } ] } },
          execution: { language: "rust", run_cmd: ["x"] } }"#,
-    emits: [], consumes: [LEFT, RIGHT, BACKUP], serves: []
+    emits: [], consumes: [LEFT, RIGHT, BACKUP], serves: [], actions: []
 );
 
 fn frame(seq: u32) -> Frame {

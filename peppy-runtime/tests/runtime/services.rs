@@ -45,7 +45,7 @@ test_node!(
          interfaces: { conforms_to: [{ name: "depth_camera", tag: "v1" }],
                        services: { exposes: [{ name: "scale", request_message_format: { x: "u32" }, response_message_format: { y: "u32" } }] } },
          execution: { language: "rust", run_cmd: ["x"] } }"#,
-    emits: [], consumes: [], serves: [INFO, SCALE]
+    emits: [], consumes: [], serves: [INFO, SCALE], actions: []
 );
 
 static LEFT_INFO: ConsumedServiceSpec = ConsumedServiceSpec {
@@ -91,7 +91,7 @@ test_node!(
            { link_id: "backup_cams", name: "video_stream_info" },
            { link_id: "left_node", name: "scale" } ] } },
          execution: { language: "rust", run_cmd: ["x"] } }"#,
-    emits: [], consumes: [], serves: []
+    emits: [], consumes: [], serves: [], actions: []
 );
 
 /// Serves `video_stream_info` forever, answering with `width`.

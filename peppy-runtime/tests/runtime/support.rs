@@ -126,7 +126,7 @@ impl Decode for Frame {
 
 /// Defines a parameters type whose node is described by `$doc` and the given specs.
 macro_rules! test_node {
-    ($ty:ident, $doc:expr, emits: [$($e:expr),*], consumes: [$($c:expr),*], serves: [$($s:expr),*]) => {
+    ($ty:ident, $doc:expr, emits: [$($e:expr),*], consumes: [$($c:expr),*], serves: [$($s:expr),*], actions: [$($a:expr),*]) => {
         #[derive(Debug, serde::Deserialize)]
         pub(crate) struct $ty {}
         impl peppy_runtime::codegen::NodeParameters for $ty {
@@ -137,6 +137,7 @@ macro_rules! test_node {
                     emitted_topics: &[$(&$e),*],
                     consumed_topics: &[$(&$c),*],
                     exposed_services: &[$(&$s),*],
+                    exposed_actions: &[$(&$a),*],
                 };
                 &D
             }

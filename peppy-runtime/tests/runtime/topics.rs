@@ -66,14 +66,14 @@ test_node!(
     Controller,
     r#"{ peppy_schema: "node_v1", manifest: { name: "arm_controller", tag: "v1" },
          execution: { language: "rust", run_cmd: ["x"] } }"#,
-    emits: [COMMANDS_OUT], consumes: [], serves: []
+    emits: [COMMANDS_OUT], consumes: [], serves: [], actions: []
 );
 
 test_node!(
     OldController,
     r#"{ peppy_schema: "node_v1", manifest: { name: "teleop", tag: "v1" },
          execution: { language: "rust", run_cmd: ["x"] } }"#,
-    emits: [OLD_COMMANDS_OUT], consumes: [], serves: []
+    emits: [OLD_COMMANDS_OUT], consumes: [], serves: [], actions: []
 );
 
 test_node!(
@@ -81,7 +81,7 @@ test_node!(
     r#"{ peppy_schema: "node_v1", manifest: { name: "robot_arm", tag: "v1" },
          interfaces: { topics: { consumes: [{ name: "joint_commands", message_format: { target_positions: { $type: "array", $items: "f64", $length: 3 }, max_velocity: "f64" } }] } },
          execution: { language: "rust", run_cmd: ["x"] } }"#,
-    emits: [], consumes: [COMMANDS_IN], serves: []
+    emits: [], consumes: [COMMANDS_IN], serves: [], actions: []
 );
 
 static RELIABLE_OUT: TopicSpec = TopicSpec {
@@ -112,7 +112,7 @@ test_node!(
     r#"{ peppy_schema: "node_v1", manifest: { name: "ticker", tag: "v1" },
          interfaces: { topics: { emits: [{ name: "ticks", qos_profile: "reliable", message_format: { n: "u32" } }] } },
          execution: { language: "rust", run_cmd: ["x"] } }"#,
-    emits: [RELIABLE_OUT], consumes: [], serves: []
+    emits: [RELIABLE_OUT], consumes: [], serves: [], actions: []
 );
 
 test_node!(
@@ -120,7 +120,7 @@ test_node!(
     r#"{ peppy_schema: "node_v1", manifest: { name: "counter", tag: "v1", depends_on: { nodes: [{ name: "ticker", tag: "v1", link_id: "src" }] } },
          interfaces: { topics: { consumes: [{ link_id: "src", name: "ticks" }] } },
          execution: { language: "rust", run_cmd: ["x"] } }"#,
-    emits: [], consumes: [RELIABLE_IN], serves: []
+    emits: [], consumes: [RELIABLE_IN], serves: [], actions: []
 );
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -1,0 +1,886 @@
+//! Actions: a goal service (accept or reject with a reason), a per-goal
+//! feedback stream, a cancel service and a result service that parks the
+//! caller until the goal is terminal. Several goals run concurrently on one
+//! server; results are kept for a retention period, then reported
+//! `Expired`; a worker that drops its goal without finishing it reports
+//! `Abandoned`.
+//!
+//! Keys (see [`crate::wire::keys`]): the action's entry key followed by
+//! `/goal`, `/cancel`, `/result`, and `/feedback/<goal_id>`.
+
+use std::collections::{HashMap, VecDeque};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use peppy_schema::{RouteFilter, SlotBinding};
+use tokio::time::Instant;
+use tokio_util::sync::CancellationToken;
+use tracing::{debug, warn};
+use zenoh::Wait;
+use zenoh::query::{ConsolidationMode, Query, QueryTarget};
+
+use crate::error::{Error, Result};
+use crate::node::NodeRunner;
+use crate::services::Caller;
+use crate::spec::{ActionSpec, ConsumedActionSpec};
+use crate::wire::attachment::{self, QueryHeader, QueryKind, ReplyStatus};
+use crate::wire::codec::{Decode, Decoder, Encode, from_bytes, to_bytes};
+use crate::wire::keys::{Channel, entry_key, entry_selector, parse_entry_key};
+
+/// How long a terminal goal's result stays available.
+pub const DEFAULT_RESULT_RETENTION: Duration = Duration::from_secs(30);
+
+/// How many expired goal ids are remembered (to answer `Expired`, not unknown).
+const EXPIRED_MEMORY: usize = 4096;
+
+/// Attachment of the last message of a goal's feedback stream.
+const END_OF_FEEDBACK: [u8; 2] = [attachment::VERSION, 0xEE];
+
+/// How a goal ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Terminal {
+    Completed = 0,
+    Cancelled = 1,
+    Abandoned = 2,
+    Expired = 3,
+}
+
+enum GoalState {
+    Active {
+        cancel: CancellationToken,
+        waiters: Vec<Query>,
+    },
+    Done {
+        how: Terminal,
+        body: Vec<u8>,
+        at: Instant,
+    },
+}
+
+/// The goals of one exposed action.
+pub(crate) struct Registry {
+    spec: &'static ActionSpec,
+    goals: Mutex<HashMap<String, GoalState>>,
+    expired: Mutex<VecDeque<String>>,
+    retention: Duration,
+    base_key: String,
+    session: zenoh::Session,
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+fn reply_result(query: &Query, key: &str, how: Terminal, body: &[u8], fingerprint: u64) {
+    let mut payload = vec![how as u8];
+    payload.extend_from_slice(body);
+    if let Err(e) = query
+        .reply(key, payload)
+        .attachment(attachment::reply(ReplyStatus::Ok, fingerprint))
+        .wait()
+    {
+        debug!(error = %e, "result reply failed");
+    }
+}
+
+impl Registry {
+    pub(crate) fn new(
+        spec: &'static ActionSpec,
+        base_key: String,
+        session: zenoh::Session,
+        retention: Duration,
+    ) -> Arc<Registry> {
+        Arc::new(Registry {
+            spec,
+            goals: Mutex::new(HashMap::new()),
+            expired: Mutex::new(VecDeque::new()),
+            retention,
+            base_key,
+            session,
+        })
+    }
+
+    fn key(&self, suffix: &str) -> String {
+        format!("{}/{suffix}", self.base_key)
+    }
+
+    fn feedback_key(&self, goal_id: &str) -> String {
+        format!("{}/feedback/{goal_id}", self.base_key)
+    }
+
+    /// Moves a goal to a terminal state (first call wins), answers parked
+    /// result queries and closes the feedback stream.
+    fn finish(&self, goal_id: &str, how: Terminal, body: Vec<u8>) -> bool {
+        let waiters = {
+            let mut goals = lock(&self.goals);
+            match goals.get_mut(goal_id) {
+                Some(state @ GoalState::Active { .. }) => {
+                    let GoalState::Active { waiters, .. } = std::mem::replace(
+                        state,
+                        GoalState::Done {
+                            how,
+                            body: body.clone(),
+                            at: Instant::now(),
+                        },
+                    ) else {
+                        unreachable!("matched Active")
+                    };
+                    waiters
+                }
+                _ => return false,
+            }
+        };
+        let key = self.key("result");
+        for q in waiters {
+            reply_result(&q, &key, how, &body, self.spec.result.fingerprint);
+        }
+        if let Err(e) = self
+            .session
+            .put(self.feedback_key(goal_id), Vec::<u8>::new())
+            .attachment(END_OF_FEEDBACK.to_vec())
+            .wait()
+        {
+            debug!(error = %e, "end-of-feedback publish failed");
+        }
+        true
+    }
+
+    /// Drops results older than the retention period, remembering their ids.
+    pub(crate) fn sweep(&self) {
+        let now = Instant::now();
+        let mut expired_now = Vec::new();
+        lock(&self.goals).retain(|id, state| match state {
+            GoalState::Done { at, .. } if now.duration_since(*at) > self.retention => {
+                expired_now.push(id.clone());
+                false
+            }
+            _ => true,
+        });
+        let mut expired = lock(&self.expired);
+        for id in expired_now {
+            expired.push_back(id);
+            if expired.len() > EXPIRED_MEMORY {
+                expired.pop_front();
+            }
+        }
+    }
+
+    /// The cancel queryable.
+    pub(crate) fn on_cancel(&self, query: Query) {
+        let Some(goal_id) = goal_id_of(&query) else {
+            return;
+        };
+        let state = match lock(&self.goals).get(&goal_id) {
+            Some(GoalState::Active { cancel, .. }) => {
+                cancel.cancel();
+                CancelState::Signalled
+            }
+            Some(GoalState::Done { .. }) => CancelState::AlreadyTerminal,
+            None if lock(&self.expired).contains(&goal_id) => CancelState::AlreadyTerminal,
+            None => CancelState::Unknown,
+        };
+        let _ = query
+            .reply(self.key("cancel"), vec![state as u8])
+            .attachment(attachment::reply(ReplyStatus::Ok, 0))
+            .wait();
+    }
+
+    /// The result queryable: answer at once when terminal, else park.
+    pub(crate) fn on_result(&self, query: Query) {
+        let Some(goal_id) = goal_id_of(&query) else {
+            return;
+        };
+        let key = self.key("result");
+        let mut goals = lock(&self.goals);
+        match goals.get_mut(&goal_id) {
+            Some(GoalState::Active { waiters, .. }) => {
+                let _ = query
+                    .reply(key.as_str(), Vec::<u8>::new())
+                    .attachment(attachment::reply(ReplyStatus::Ack, 0))
+                    .wait();
+                waiters.push(query);
+            }
+            Some(GoalState::Done { how, body, .. }) => {
+                reply_result(&query, &key, *how, body, self.spec.result.fingerprint)
+            }
+            None if lock(&self.expired).contains(&goal_id) => reply_result(
+                &query,
+                &key,
+                Terminal::Expired,
+                &[],
+                self.spec.result.fingerprint,
+            ),
+            None => {
+                let _ = query
+                    .reply(
+                        key.as_str(),
+                        format!("no goal `{goal_id}` on this server").into_bytes(),
+                    )
+                    .attachment(attachment::reply(ReplyStatus::HandlerError, 0))
+                    .wait();
+            }
+        }
+    }
+}
+
+/// The goal id a cancel or result query names (its payload).
+fn goal_id_of(query: &Query) -> Option<String> {
+    let payload = query.payload()?.to_bytes();
+    let id = from_bytes::<String>(&payload).ok()?;
+    is_goal_id(&id).then_some(id)
+}
+
+fn is_goal_id(s: &str) -> bool {
+    !s.is_empty()
+        && s.len() <= 64
+        && s.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+}
+
+/// A goal waiting for the server's decision.
+pub(crate) struct PendingGoal {
+    query: Query,
+    header: QueryHeader,
+    goal_id: String,
+    body: Vec<u8>,
+}
+
+/// The goal queryable: ack, check the format, queue for the decider.
+pub(crate) fn goal_intake(
+    spec: &'static ActionSpec,
+    key: String,
+    tx: flume::Sender<PendingGoal>,
+) -> impl Fn(Query) + Send + Sync + 'static {
+    move |query: Query| {
+        let Some(header) = query
+            .attachment()
+            .and_then(|a| QueryHeader::decode(&a.to_bytes()))
+        else {
+            debug!(
+                action = spec.name,
+                "dropping a goal without a valid peppy attachment"
+            );
+            return;
+        };
+        let reply = |status: ReplyStatus, payload: Vec<u8>| {
+            let _ = query
+                .reply(key.as_str(), payload)
+                .attachment(attachment::reply(status, 0))
+                .wait();
+        };
+        if header.kind == QueryKind::Probe {
+            return reply(ReplyStatus::Present, Vec::new());
+        }
+        if header.fingerprint != spec.goal.fingerprint {
+            return reply(
+                ReplyStatus::FormatMismatch,
+                spec.goal.canonical.as_bytes().to_vec(),
+            );
+        }
+        let payload = query
+            .payload()
+            .map(|p| p.to_bytes().into_owned())
+            .unwrap_or_default();
+        let mut d = Decoder::new(&payload);
+        let goal_id = match String::decode(&mut d) {
+            Ok(id) if is_goal_id(&id) => id,
+            _ => {
+                return reply(
+                    ReplyStatus::HandlerError,
+                    b"malformed goal envelope".to_vec(),
+                );
+            }
+        };
+        let body = payload[payload.len() - d.remaining()..].to_vec();
+        reply(ReplyStatus::Ack, Vec::new());
+        let _ = tx.send(PendingGoal {
+            query,
+            header,
+            goal_id,
+            body,
+        });
+    }
+}
+
+/// A goal request, before the server decides.
+pub struct IncomingGoal<G> {
+    pending: PendingGoal,
+    registry: Arc<Registry>,
+    /// Who sent it.
+    pub caller: Caller,
+    /// The goal's data.
+    pub data: G,
+}
+
+impl<G> std::fmt::Debug for IncomingGoal<G> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("IncomingGoal")
+            .field("goal_id", &self.pending.goal_id)
+            .field("caller", &self.caller)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The goal response every action uses: `{ accepted, error_message }`.
+fn goal_response(accepted: bool, error: Option<String>) -> Vec<u8> {
+    let mut out = to_bytes(&accepted);
+    error.encode(&mut out);
+    out
+}
+
+impl<G> IncomingGoal<G> {
+    /// The goal's id.
+    pub fn goal_id(&self) -> &str {
+        &self.pending.goal_id
+    }
+
+    /// Accepts the goal: it is registered before the caller hears back, so
+    /// an immediate cancel or result request finds it.
+    pub fn accept(self) -> Result<GoalContext> {
+        let token = CancellationToken::new();
+        lock(&self.registry.goals).insert(
+            self.pending.goal_id.clone(),
+            GoalState::Active {
+                cancel: token.clone(),
+                waiters: Vec::new(),
+            },
+        );
+        self.pending
+            .query
+            .reply(self.registry.key("goal"), goal_response(true, None))
+            .attachment(attachment::reply(ReplyStatus::Ok, 0))
+            .wait()?;
+        Ok(GoalContext {
+            goal_id: self.pending.goal_id,
+            registry: self.registry,
+            cancel: token,
+            finished: false,
+        })
+    }
+
+    /// Rejects the goal with a reason the caller sees.
+    pub fn reject(self, reason: impl Into<String>) -> Result<()> {
+        self.pending
+            .query
+            .reply(
+                self.registry.key("goal"),
+                goal_response(false, Some(reason.into())),
+            )
+            .attachment(attachment::reply(ReplyStatus::Ok, 0))
+            .wait()
+            .map_err(Error::from)
+    }
+}
+
+/// Waits for the next goal of an exposed action. A goal whose data does
+/// not decode is rejected and skipped.
+pub async fn next_goal<G: Decode>(
+    runner: &NodeRunner,
+    spec: &'static ActionSpec,
+) -> Result<IncomingGoal<G>> {
+    let (rx, registry) = runner.action_server(spec)?;
+    loop {
+        let pending = tokio::select! {
+            p = rx.recv_async() => p.map_err(|_| Error::ShuttingDown)?,
+            () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
+        };
+        match from_bytes::<G>(&pending.body) {
+            Ok(data) => {
+                let caller = Caller {
+                    instance_id: pending.header.instance.clone(),
+                    core_node: pending.header.core.clone(),
+                };
+                return Ok(IncomingGoal {
+                    pending,
+                    registry: registry.clone(),
+                    caller,
+                    data,
+                });
+            }
+            Err(e) => {
+                warn!(action = spec.name, caller = %pending.header.instance, error = %e, "rejecting a goal that does not decode");
+                let _ = pending
+                    .query
+                    .reply(
+                        registry.key("goal"),
+                        goal_response(false, Some(format!("goal does not decode: {e}"))),
+                    )
+                    .attachment(attachment::reply(ReplyStatus::Ok, 0))
+                    .await;
+            }
+        }
+    }
+}
+
+/// An accepted goal on the server. Finish it with [`complete`](Self::complete)
+/// or [`complete_cancelled`](Self::complete_cancelled); dropping it
+/// unfinished reports `Abandoned` to the caller.
+pub struct GoalContext {
+    goal_id: String,
+    registry: Arc<Registry>,
+    cancel: CancellationToken,
+    finished: bool,
+}
+
+impl std::fmt::Debug for GoalContext {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GoalContext")
+            .field("goal_id", &self.goal_id)
+            .finish_non_exhaustive()
+    }
+}
+
+impl GoalContext {
+    /// The goal's id.
+    pub fn goal_id(&self) -> &str {
+        &self.goal_id
+    }
+
+    /// Resolves when the caller asks to cancel.
+    pub async fn cancel_signal(&self) {
+        self.cancel.cancelled().await;
+    }
+
+    /// Whether the caller asked to cancel.
+    pub fn is_cancelled(&self) -> bool {
+        self.cancel.is_cancelled()
+    }
+
+    /// Publishes one feedback message on this goal's stream.
+    pub async fn publish_feedback<F: Encode + ?Sized>(&self, feedback: &F) -> Result<()> {
+        let payload = to_bytes(feedback);
+        self.registry
+            .session
+            .put(self.registry.feedback_key(&self.goal_id), payload)
+            .attachment(attachment::topic(self.registry.spec.feedback.fingerprint))
+            .await
+            .map_err(Error::from)
+    }
+
+    /// Finishes the goal successfully with its result.
+    pub fn complete<R: Encode + ?Sized>(mut self, result: &R) -> Result<()> {
+        self.finished = true;
+        self.registry
+            .finish(&self.goal_id, Terminal::Completed, to_bytes(result));
+        Ok(())
+    }
+
+    /// Finishes the goal as cancelled, with a (partial) result.
+    pub fn complete_cancelled<R: Encode + ?Sized>(mut self, result: &R) -> Result<()> {
+        self.finished = true;
+        self.registry
+            .finish(&self.goal_id, Terminal::Cancelled, to_bytes(result));
+        Ok(())
+    }
+}
+
+impl Drop for GoalContext {
+    fn drop(&mut self) {
+        if !self.finished
+            && self
+                .registry
+                .finish(&self.goal_id, Terminal::Abandoned, Vec::new())
+        {
+            warn!(action = self.registry.spec.name, goal = %self.goal_id, "goal dropped without a result: reported as abandoned");
+        }
+    }
+}
+
+/// How a goal ended, as its caller sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outcome<R> {
+    /// Finished with a result.
+    Completed(R),
+    /// Cancelled, with a (partial) result.
+    Cancelled(R),
+    /// The server dropped the goal without a result.
+    Abandoned,
+    /// The result was not fetched within the retention period.
+    Expired,
+}
+
+/// The answer to a cancel request.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CancelState {
+    /// The goal was running; its worker was signalled.
+    Signalled = 0,
+    /// The goal had already ended.
+    AlreadyTerminal = 1,
+    /// The server does not know the goal.
+    Unknown = 2,
+}
+
+/// A goal sent to an action server, seen from the caller.
+pub struct GoalClient {
+    session: zenoh::Session,
+    base_key: String,
+    action: &'static str,
+    goal_id: String,
+    spec: &'static ConsumedActionSpec,
+    feedback: flume::Receiver<Option<Vec<u8>>>,
+    _subscriber: zenoh::pubsub::Subscriber<()>,
+    /// Whether the server accepted the goal.
+    pub accepted: bool,
+    /// The server's reason when it rejected the goal.
+    pub error_message: Option<String>,
+    /// The server's instance id.
+    pub instance_id: String,
+    /// The server's core node.
+    pub core_node: String,
+}
+
+impl std::fmt::Debug for GoalClient {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GoalClient")
+            .field("goal_id", &self.goal_id)
+            .field("accepted", &self.accepted)
+            .field("server", &self.instance_id)
+            .finish_non_exhaustive()
+    }
+}
+
+static GOAL_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+fn new_goal_id() -> String {
+    use std::hash::{BuildHasher, Hasher};
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u64(GOAL_COUNTER.fetch_add(1, Ordering::Relaxed));
+    h.write_u32(std::process::id());
+    format!("{:016x}", h.finish())
+}
+
+fn query_header(runner: &NodeRunner, kind: QueryKind, fingerprint: u64) -> Vec<u8> {
+    QueryHeader {
+        kind,
+        fingerprint,
+        core: runner.core_node().to_string(),
+        instance: runner.instance_id().to_string(),
+    }
+    .encode()
+}
+
+/// Sends a goal through the action's slot and waits for the server's
+/// decision (accepted or rejected). The feedback stream is subscribed
+/// before the goal is sent, so no feedback is missed.
+pub fn send_goal<'a, G: Encode + ?Sized>(
+    runner: &'a NodeRunner,
+    spec: &'static ConsumedActionSpec,
+    timeout: Duration,
+    goal: &G,
+) -> impl Future<Output = Result<GoalClient>> + Send + 'a {
+    let body = to_bytes(goal);
+    async move {
+        let deadline = Instant::now() + timeout;
+        let owner = spec.owner.resolve(runner.node_name(), runner.node_tag());
+        let slot = runner.slot(spec.link_id)?;
+        let selector = |instance: Option<&str>, suffix: &str| {
+            format!(
+                "{}/{suffix}",
+                entry_selector(
+                    runner.namespace(),
+                    Channel::Action,
+                    owner.as_ref(),
+                    spec.name,
+                    None,
+                    instance
+                )
+            )
+        };
+        let target = match (&slot.binding, &slot.filter) {
+            (SlotBinding::Pinned { producer }, _) => producer.clone(),
+            (_, RouteFilter::OnlyFrom(set)) if set.len() == 1 => {
+                set.iter().next().cloned().expect("one producer")
+            }
+            (_, filter) => {
+                let budget = deadline
+                    .saturating_duration_since(Instant::now())
+                    .min(Duration::from_millis(500));
+                let replies = runner
+                    .session()
+                    .get(selector(None, "goal"))
+                    .attachment(query_header(
+                        runner,
+                        QueryKind::Probe,
+                        spec.goal.fingerprint,
+                    ))
+                    .target(QueryTarget::All)
+                    .consolidation(ConsolidationMode::None)
+                    .timeout(budget)
+                    .await?;
+                let mut found = None;
+                while let Ok(reply) = replies.recv_async().await {
+                    let Ok(sample) = reply.result() else { continue };
+                    if let Some(s) = parse_entry_key(sample.key_expr().as_str())
+                        && filter.accepts(&s.instance)
+                    {
+                        found = Some(s.instance);
+                        break;
+                    }
+                }
+                found.ok_or_else(|| Error::ServiceUnreachable {
+                    service: format!("{} (action goal)", spec.name),
+                    instance: None,
+                })?
+            }
+        };
+        let goal_id = new_goal_id();
+        let (tx, rx) = flume::unbounded();
+        let feedback_fp = spec.feedback.fingerprint;
+        let subscriber = runner
+            .session()
+            .declare_subscriber(format!(
+                "{}/feedback/{goal_id}",
+                entry_selector(
+                    runner.namespace(),
+                    Channel::Action,
+                    owner.as_ref(),
+                    spec.name,
+                    None,
+                    Some(&target)
+                )
+            ))
+            .callback(move |sample| {
+                let att = sample
+                    .attachment()
+                    .map(|a| a.to_bytes().into_owned())
+                    .unwrap_or_default();
+                if att == END_OF_FEEDBACK {
+                    let _ = tx.send(None);
+                } else if attachment::parse_topic(&att) == Some(feedback_fp) {
+                    let _ = tx.send(Some(sample.payload().to_bytes().into_owned()));
+                } else {
+                    debug!("dropping feedback with another format");
+                }
+            })
+            .await?;
+        let mut payload = to_bytes(goal_id.as_str());
+        payload.extend_from_slice(&body);
+        let budget = deadline
+            .saturating_duration_since(Instant::now())
+            .max(Duration::from_millis(1));
+        let replies = runner
+            .session()
+            .get(selector(Some(&target), "goal"))
+            .payload(payload)
+            .attachment(query_header(
+                runner,
+                QueryKind::Request,
+                spec.goal.fingerprint,
+            ))
+            .target(QueryTarget::All)
+            .consolidation(ConsolidationMode::None)
+            .timeout(budget)
+            .await?;
+        let mut acked = false;
+        let service = format!("{} (action goal)", spec.name);
+        while let Ok(reply) = replies.recv_async().await {
+            let Ok(sample) = reply.result() else { continue };
+            let Some(sender) = parse_entry_key(sample.key_expr().as_str()) else {
+                continue;
+            };
+            let Some((status, _)) = sample
+                .attachment()
+                .and_then(|a| attachment::parse_reply(&a.to_bytes()))
+            else {
+                continue;
+            };
+            let body = sample.payload().to_bytes();
+            match status {
+                ReplyStatus::Ack | ReplyStatus::Present => acked = true,
+                ReplyStatus::Ok => {
+                    let mut d = Decoder::new(&body);
+                    let accepted = bool::decode(&mut d).map_err(|source| Error::Decode {
+                        what: "goal response".into(),
+                        source,
+                    })?;
+                    let error_message =
+                        Option::<String>::decode(&mut d).map_err(|source| Error::Decode {
+                            what: "goal response".into(),
+                            source,
+                        })?;
+                    let base_key = entry_key(
+                        runner.namespace(),
+                        Channel::Action,
+                        &owner.expect("consumed actions have an owner"),
+                        spec.name,
+                        &sender.core,
+                        &sender.instance,
+                    );
+                    return Ok(GoalClient {
+                        session: runner.session().clone(),
+                        base_key,
+                        action: spec.name,
+                        goal_id,
+                        spec,
+                        feedback: rx,
+                        _subscriber: subscriber,
+                        accepted,
+                        error_message,
+                        instance_id: sender.instance,
+                        core_node: sender.core,
+                    });
+                }
+                ReplyStatus::HandlerError | ReplyStatus::FormatMismatch => {
+                    return Err(Error::ServiceError {
+                        service,
+                        instance: sender.instance,
+                        reason: String::from_utf8_lossy(&body).into_owned(),
+                    });
+                }
+            }
+        }
+        Err(if acked {
+            Error::ServiceTimeout {
+                service,
+                instance: Some(target),
+            }
+        } else {
+            Error::ServiceUnreachable {
+                service,
+                instance: Some(target),
+            }
+        })
+    }
+}
+
+impl GoalClient {
+    /// The goal's id.
+    pub fn goal_id(&self) -> &str {
+        &self.goal_id
+    }
+
+    /// The next feedback message; [`Error::FeedbackEnded`] once the goal is
+    /// terminal and every feedback message was read.
+    pub async fn next_feedback<F: Decode>(&mut self) -> Result<F> {
+        loop {
+            match self.feedback.recv_async().await {
+                Ok(Some(bytes)) => match from_bytes::<F>(&bytes) {
+                    Ok(f) => return Ok(f),
+                    Err(e) => {
+                        warn!(action = self.action, error = %e, "dropping feedback that does not decode")
+                    }
+                },
+                Ok(None) | Err(_) => {
+                    return Err(Error::FeedbackEnded {
+                        action: self.action.to_string(),
+                    });
+                }
+            }
+        }
+    }
+
+    async fn ask(&self, suffix: &str, timeout: Duration) -> Result<Vec<u8>> {
+        let replies = self
+            .session
+            .get(format!("{}/{suffix}", self.base_key))
+            .payload(to_bytes(self.goal_id.as_str()))
+            .attachment(
+                QueryHeader {
+                    kind: QueryKind::Request,
+                    fingerprint: 0,
+                    core: String::new(),
+                    instance: String::new(),
+                }
+                .encode(),
+            )
+            .target(QueryTarget::All)
+            .consolidation(ConsolidationMode::None)
+            .timeout(timeout.max(Duration::from_millis(1)))
+            .await?;
+        let service = format!("{} (action {suffix})", self.action);
+        let mut acked = false;
+        while let Ok(reply) = replies.recv_async().await {
+            let Ok(sample) = reply.result() else { continue };
+            let Some((status, fingerprint)) = sample
+                .attachment()
+                .and_then(|a| attachment::parse_reply(&a.to_bytes()))
+            else {
+                continue;
+            };
+            let body = sample.payload().to_bytes().into_owned();
+            match status {
+                ReplyStatus::Ack | ReplyStatus::Present => acked = true,
+                ReplyStatus::Ok
+                    if suffix == "result" && fingerprint != self.spec.result.fingerprint =>
+                {
+                    return Err(Error::ServiceError {
+                        service,
+                        instance: self.instance_id.clone(),
+                        reason: format!(
+                            "the server's result format differs from this node's ({})",
+                            self.spec.result.canonical
+                        ),
+                    });
+                }
+                ReplyStatus::Ok => return Ok(body),
+                ReplyStatus::HandlerError | ReplyStatus::FormatMismatch => {
+                    return Err(Error::ServiceError {
+                        service,
+                        instance: self.instance_id.clone(),
+                        reason: String::from_utf8_lossy(&body).into_owned(),
+                    });
+                }
+            }
+        }
+        Err(if acked {
+            Error::ServiceTimeout {
+                service,
+                instance: Some(self.instance_id.clone()),
+            }
+        } else {
+            Error::ServiceUnreachable {
+                service,
+                instance: Some(self.instance_id.clone()),
+            }
+        })
+    }
+
+    /// Waits (up to `timeout`) until the goal is terminal and returns how it ended.
+    pub async fn result<R: Decode>(&self, timeout: Duration) -> Result<Outcome<R>> {
+        let body = self.ask("result", timeout).await?;
+        let decode = |bytes: &[u8]| {
+            from_bytes::<R>(bytes).map_err(|source| Error::Decode {
+                what: format!("result of `{}`", self.action),
+                source,
+            })
+        };
+        match body.split_first() {
+            Some((0, rest)) => Ok(Outcome::Completed(decode(rest)?)),
+            Some((1, rest)) => Ok(Outcome::Cancelled(decode(rest)?)),
+            Some((2, _)) => Ok(Outcome::Abandoned),
+            Some((3, _)) => Ok(Outcome::Expired),
+            _ => Err(Error::ServiceError {
+                service: self.action.to_string(),
+                instance: self.instance_id.clone(),
+                reason: "malformed result".into(),
+            }),
+        }
+    }
+
+    /// Asks the server to cancel the goal.
+    pub async fn cancel(&self, timeout: Duration) -> Result<CancelState> {
+        let body = self.ask("cancel", timeout).await?;
+        Ok(match body.first() {
+            Some(0) => CancelState::Signalled,
+            Some(1) => CancelState::AlreadyTerminal,
+            _ => CancelState::Unknown,
+        })
+    }
+}
+
+/// The base key of an exposed action on this node.
+pub(crate) fn server_base_key(runner: &NodeRunner, spec: &ActionSpec) -> String {
+    let owner = spec
+        .owner
+        .resolve(runner.node_name(), runner.node_tag())
+        .expect("exposed actions have an owner");
+    entry_key(
+        runner.namespace(),
+        Channel::Action,
+        &owner,
+        spec.name,
+        runner.core_node(),
+        runner.instance_id(),
+    )
+}
