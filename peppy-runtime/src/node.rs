@@ -189,6 +189,7 @@ pub struct NodeRunner {
 struct Entities {
     subscribers: Vec<Subscriber<()>>,
     queryables: Vec<Queryable<()>>,
+    liveliness: Option<zenoh::liveliness::LivelinessToken>,
 }
 
 impl std::fmt::Debug for NodeRunner {
@@ -251,7 +252,32 @@ impl NodeRunner {
                 .await?;
             runner.publishers.insert(address(*spec), publisher);
         }
-        let mismatch = mismatch_reporter();
+        // Other nodes ask this node for the text of a format whose
+        // fingerprint they do not know, to name both sides of a mismatch.
+        let mut served = std::collections::HashSet::new();
+        for spec in descriptor.emitted_topics {
+            if !served.insert(spec.format.fingerprint) {
+                continue;
+            }
+            let key = format_key(
+                &runner.namespace,
+                spec.format.fingerprint,
+                &runner.instance_id,
+            );
+            let canonical = spec.format.canonical;
+            let reply_key = key.clone();
+            let q = runner
+                .session
+                .declare_queryable(key)
+                .callback(move |q| {
+                    let _ = zenoh::Wait::wait(
+                        q.reply(reply_key.as_str(), canonical.as_bytes().to_vec()),
+                    );
+                })
+                .await?;
+            entities.queryables.push(q);
+        }
+        let mismatch = mismatch_reporter(runner.session.clone(), runner.namespace.clone());
         for spec in descriptor.consumed_topics {
             let filter = match spec.link_id {
                 Some(link) => runner.slot(link)?.filter.clone(),
@@ -322,6 +348,16 @@ impl NodeRunner {
             });
             runner.action_servers.insert(address(*spec), (rx, registry));
         }
+        // Presence: withdrawn when the node shuts down or dies.
+        let live = format!(
+            "peppy/{}/live/{}/{}/{}/{}",
+            runner.namespace,
+            runner.core_node,
+            runner.instance_id,
+            runner.node_name,
+            runner.node_tag
+        );
+        entities.liveliness = Some(runner.session.liveliness().declare_token(live).await?);
         runner.entities = Mutex::new(entities);
         info!(
             node = %format_args!("{}:{}", runner.node_name, runner.node_tag),
@@ -428,6 +464,9 @@ impl NodeRunner {
         for q in entities.queryables {
             let _ = q.undeclare().await;
         }
+        if let Some(token) = entities.liveliness {
+            let _ = token.undeclare().await;
+        }
         if let Err(e) = self.session.close().await {
             warn!("closing the zenoh session: {e}");
         }
@@ -435,13 +474,35 @@ impl NodeRunner {
 }
 
 /// Logs a fingerprint mismatch once per producer.
-fn mismatch_reporter() -> Arc<dyn Fn(&'static ConsumedTopicSpec, String, u64) + Send + Sync> {
+/// `peppy/<ns>/format/<fingerprint>/<instance>`: answers a format's canonical text.
+fn format_key(ns: &str, fingerprint: u64, instance: &str) -> String {
+    format!("peppy/{ns}/format/{fingerprint:016x}/{instance}")
+}
+
+/// Logs a fingerprint mismatch once per producer, naming both formats: the
+/// producer's text is asked from the producer itself.
+fn mismatch_reporter(
+    session: zenoh::Session,
+    ns: String,
+) -> Arc<dyn Fn(&'static ConsumedTopicSpec, String, u64) + Send + Sync> {
+    let handle = tokio::runtime::Handle::current();
     Arc::new(
-        |spec: &'static ConsumedTopicSpec, producer: String, theirs: u64| {
+        move |spec: &'static ConsumedTopicSpec, producer: String, theirs: u64| {
+            let (session, key) = (session.clone(), format_key(&ns, theirs, &producer));
+            handle.spawn(async move {
+            let mut their_text = format!("(fingerprint {theirs:016x})");
+            if let Ok(replies) = session.get(key).timeout(std::time::Duration::from_secs(2)).await {
+                if let Ok(reply) = replies.recv_async().await {
+                    if let Ok(sample) = reply.result() {
+                        their_text = format!("{} (fingerprint {theirs:016x})", String::from_utf8_lossy(&sample.payload().to_bytes()));
+                    }
+                }
+            }
             warn!(
-                "dropping topic `{}` from `{producer}`: its message format (fingerprint {theirs:016x}) differs from this node's {} (fingerprint {:016x}); rebuild the two nodes against the same format",
+                "dropping topic `{}` from `{producer}`: it sends {their_text}, this node expects {} (fingerprint {:016x}); rebuild the two nodes against the same format",
                 spec.name, spec.format.canonical, spec.format.fingerprint
             );
+        });
         },
     )
 }

@@ -300,3 +300,53 @@ async fn a_pinned_slot_without_binding_fails_at_start_up() {
         "{text}"
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_node_is_visible_while_up_and_gone_after_shutdown() {
+    let hub = hub().await;
+    let ns = namespace("live");
+    let (_, cam) = start::<Camera>(&hub, &ns, "rs_left", &[]).await;
+    let present = |hub: &crate::support::Hub| {
+        let (session, ns) = (hub.session.clone(), ns.clone());
+        async move {
+            let replies = session
+                .liveliness()
+                .get(format!("peppy/{ns}/live/**"))
+                .timeout(Duration::from_secs(2))
+                .await
+                .unwrap();
+            let mut keys = Vec::new();
+            while let Ok(r) = replies.recv_async().await {
+                if let Ok(s) = r.result() {
+                    keys.push(s.key_expr().to_string());
+                }
+            }
+            keys
+        }
+    };
+    let keys = tokio::time::timeout(WAIT, async {
+        loop {
+            let keys = present(&hub).await;
+            if !keys.is_empty() {
+                return keys;
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    })
+    .await
+    .expect("the node's liveliness token appears");
+    assert_eq!(
+        keys,
+        [format!(
+            "peppy/{ns}/live/standalone/rs_left/realsense_d405/v1"
+        )]
+    );
+    cam.shutdown().await;
+    tokio::time::timeout(WAIT, async {
+        while !present(&hub).await.is_empty() {
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    })
+    .await
+    .expect("the liveliness token is withdrawn at shutdown");
+}

@@ -10,7 +10,7 @@ pub(crate) const WAIT: Duration = Duration::from_secs(20);
 
 /// A Zenoh router on a free loopback port, standing in for the launcher's.
 pub(crate) struct Hub {
-    _session: zenoh::Session,
+    pub(crate) session: zenoh::Session,
     pub(crate) endpoint: String,
 }
 
@@ -30,10 +30,7 @@ pub(crate) async fn hub() -> Hub {
         .insert_json5("scouting/multicast/enabled", "false")
         .unwrap();
     let session = zenoh::open(config).await.unwrap();
-    Hub {
-        _session: session,
-        endpoint,
-    }
+    Hub { session, endpoint }
 }
 
 static COUNTER: AtomicU32 = AtomicU32::new(0);
