@@ -491,12 +491,11 @@ fn mismatch_reporter(
             let (session, key) = (session.clone(), format_key(&ns, theirs, &producer));
             handle.spawn(async move {
             let mut their_text = format!("(fingerprint {theirs:016x})");
-            if let Ok(replies) = session.get(key).timeout(std::time::Duration::from_secs(2)).await {
-                if let Ok(reply) = replies.recv_async().await {
-                    if let Ok(sample) = reply.result() {
-                        their_text = format!("{} (fingerprint {theirs:016x})", String::from_utf8_lossy(&sample.payload().to_bytes()));
-                    }
-                }
+            if let Ok(replies) = session.get(key).timeout(std::time::Duration::from_secs(2)).await
+                && let Ok(reply) = replies.recv_async().await
+                && let Ok(sample) = reply.result()
+            {
+                their_text = format!("{} (fingerprint {theirs:016x})", String::from_utf8_lossy(&sample.payload().to_bytes()));
             }
             warn!(
                 "dropping topic `{}` from `{producer}`: it sends {their_text}, this node expects {} (fingerprint {:016x}); rebuild the two nodes against the same format",

@@ -405,3 +405,119 @@ mod tests {
         assert!(trailing.reason.contains("trailing"));
     }
 }
+
+#[cfg(test)]
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[derive(Debug, Clone, PartialEq)]
+    struct Frame {
+        stamp: SystemTime,
+        id: u32,
+        encoding: String,
+        pose: [f64; 3],
+        data: Vec<u8>,
+        points: Vec<(f32, i16)>,
+        note: Option<String>,
+        flag: bool,
+    }
+
+    impl Encode for Frame {
+        fn encode(&self, out: &mut Vec<u8>) {
+            self.stamp.encode(out);
+            self.id.encode(out);
+            self.encoding.encode(out);
+            self.pose.encode(out);
+            self.data.encode(out);
+            (self.points.len() as u32).encode(out);
+            for (x, y) in &self.points {
+                x.encode(out);
+                y.encode(out);
+            }
+            self.note.encode(out);
+            self.flag.encode(out);
+        }
+    }
+
+    impl Decode for Frame {
+        const MIN_SIZE: usize = 12 + 4 + 4 + 24 + 4 + 4 + 1 + 1;
+        fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+            let stamp = Decode::decode(d)?;
+            let id = Decode::decode(d)?;
+            let encoding = Decode::decode(d)?;
+            let pose = Decode::decode(d)?;
+            let data = Decode::decode(d)?;
+            let n = d.count(6)?;
+            let mut points = Vec::with_capacity(n);
+            for _ in 0..n {
+                points.push((f32::decode(d)?, i16::decode(d)?));
+            }
+            Ok(Frame {
+                stamp,
+                id,
+                encoding,
+                pose,
+                data,
+                points,
+                note: Decode::decode(d)?,
+                flag: Decode::decode(d)?,
+            })
+        }
+    }
+
+    fn frame() -> impl Strategy<Value = Frame> {
+        (
+            (any::<u32>(), 0u32..1_000_000_000, any::<bool>()),
+            any::<u32>(),
+            ".{0,16}",
+            proptest::array::uniform3(-1e9f64..1e9),
+            proptest::collection::vec(any::<u8>(), 0..64),
+            proptest::collection::vec((-1e6f32..1e6, any::<i16>()), 0..8),
+            proptest::option::of(".{0,8}"),
+            any::<bool>(),
+        )
+            .prop_map(
+                |((secs, nanos, before), id, encoding, pose, data, points, note, flag)| {
+                    let offset = Duration::new(u64::from(secs), nanos);
+                    let stamp = if before {
+                        UNIX_EPOCH - offset
+                    } else {
+                        UNIX_EPOCH + offset
+                    };
+                    Frame {
+                        stamp,
+                        id,
+                        encoding,
+                        pose,
+                        data,
+                        points,
+                        note,
+                        flag,
+                    }
+                },
+            )
+    }
+
+    proptest! {
+        #[test]
+        fn every_message_round_trips(f in frame()) {
+            prop_assert_eq!(from_bytes::<Frame>(&to_bytes(&f)).unwrap(), f);
+        }
+
+        #[test]
+        fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..256)) {
+            let _ = from_bytes::<Frame>(&bytes);
+            let _ = from_bytes::<Vec<String>>(&bytes);
+            let _ = from_bytes::<Option<Vec<[u64; 2]>>>(&bytes);
+            let _ = from_bytes::<SystemTime>(&bytes);
+        }
+
+        #[test]
+        fn truncated_messages_are_errors(f in frame(), cut in any::<prop::sample::Index>()) {
+            let bytes = to_bytes(&f);
+            let at = cut.index(bytes.len());
+            prop_assert!(from_bytes::<Frame>(&bytes[..at]).is_err());
+        }
+    }
+}
