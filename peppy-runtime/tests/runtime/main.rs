@@ -3,6 +3,7 @@
 //! hand-written message types, and every wait bounded.
 
 mod actions;
+mod process;
 mod routing;
 mod services;
 mod support;
