@@ -211,8 +211,8 @@ async fn unreachable_timeout_and_handler_errors_are_distinct() {
         }
         other => panic!("{other}"),
     }
-    // Concurrent callers are all served by one queryable.
-    let calls = (1..=8u32).map(|x| {
+    // Ten concurrent callers are all served by one queryable.
+    let calls = (1..=10u32).map(|x| {
         let recon = recon.clone();
         tokio::spawn(async move {
             call::<u32, u32>(&recon, &LEFT_SCALE, Duration::from_secs(5), &x)
@@ -224,7 +224,7 @@ async fn unreachable_timeout_and_handler_errors_are_distinct() {
     for c in calls {
         results.push(c.await.unwrap().unwrap());
     }
-    assert_eq!(results, (1..=8).map(|x| x * 2).collect::<Vec<_>>());
+    assert_eq!(results, (1..=10).map(|x| x * 2).collect::<Vec<_>>());
     recon.shutdown().await;
     cam.shutdown().await;
 }

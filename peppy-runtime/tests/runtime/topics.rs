@@ -70,6 +70,13 @@ test_node!(
 );
 
 test_node!(
+    Teleop,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "teleop_planner", tag: "v2" },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [COMMANDS_OUT], consumes: [], serves: [], actions: []
+);
+
+test_node!(
     OldController,
     r#"{ peppy_schema: "node_v1", manifest: { name: "teleop", tag: "v1" },
          execution: { language: "rust", run_cmd: ["x"] } }"#,
@@ -129,16 +136,18 @@ async fn external_topics_come_from_any_emitter_with_a_matching_format() {
     let ns = namespace("external");
     let (_, arm) = start::<Arm>(&hub, &ns, "arm", &[]).await;
     let (_, controller) = start::<Controller>(&hub, &ns, "controller", &[]).await;
+    let (_, teleop) = start::<Teleop>(&hub, &ns, "teleop", &[]).await;
     let (_, old) = start::<OldController>(&hub, &ns, "old_teleop", &[]).await;
     let sender = tokio::spawn({
-        let (controller, old) = (controller.clone(), old.clone());
+        let (controller, teleop, old) = (controller.clone(), teleop.clone(), old.clone());
         async move {
-            for i in 0..200u32 {
+            for i in 0..500u32 {
                 let c = Command {
                     target: [f64::from(i), 0.5, -1.0],
                     max_velocity: 1.0,
                 };
                 emit(&controller, &COMMANDS_OUT, &c).await.unwrap();
+                emit(&teleop, &COMMANDS_OUT, &c).await.unwrap();
                 // Same topic name, another format: must never be decoded.
                 emit(&old, &OLD_COMMANDS_OUT, &[1.0f32, 2.0, 3.0])
                     .await
@@ -147,18 +156,27 @@ async fn external_topics_come_from_any_emitter_with_a_matching_format() {
             }
         }
     });
+    let mut seen = std::collections::BTreeSet::new();
     tokio::time::timeout(WAIT, async {
-        for _ in 0..10 {
+        while seen.len() < 2 {
             let (from, c): (String, Command) =
                 next_message(&arm, &COMMANDS_IN, None).await.unwrap();
-            assert_eq!(from, "controller", "only the matching format is delivered");
+            assert_ne!(
+                from, "old_teleop",
+                "a sender with another format is never decoded"
+            );
             assert_eq!(c.target[1..], [0.5, -1.0]);
+            seen.insert(from);
         }
     })
     .await
-    .expect("commands arrive");
+    .expect("commands from both matching emitters arrive");
+    assert_eq!(
+        seen.into_iter().collect::<Vec<_>>(),
+        ["controller", "teleop"]
+    );
     sender.abort();
-    for r in [&arm, &controller, &old] {
+    for r in [&arm, &controller, &teleop, &old] {
         r.shutdown().await;
     }
 }
@@ -187,22 +205,34 @@ async fn nothing_is_lost_between_calls_on_a_reliable_topic() {
     })
     .await
     .expect("subscription matched");
-    for n in 0..200u32 {
-        emit(&ticker, &RELIABLE_OUT, &n).await.unwrap();
-    }
+    // A 2 000-message burst; the reader starts late and reads slowly at
+    // first, so the queue fills and back-pressure holds the sender.
+    const BURST: u32 = 2_000;
+    let sender = tokio::spawn({
+        let ticker = ticker.clone();
+        async move {
+            for n in 0..BURST {
+                emit(&ticker, &RELIABLE_OUT, &n).await.unwrap();
+            }
+        }
+    });
     tokio::time::sleep(Duration::from_millis(300)).await;
     let mut got = Vec::new();
     tokio::time::timeout(WAIT, async {
-        while got.len() < 200 {
+        while got.len() < BURST as usize {
             let (_, n): (String, u32) = next_message(&counter, &RELIABLE_IN, None).await.unwrap();
             if n != u32::MAX {
                 got.push(n);
             }
+            if got.len() < 50 {
+                tokio::time::sleep(Duration::from_millis(2)).await;
+            }
         }
     })
     .await
-    .unwrap_or_else(|_| panic!("only {} of 200 arrived", got.len()));
-    assert_eq!(got, (0..200).collect::<Vec<_>>());
+    .unwrap_or_else(|_| panic!("only {} of {BURST} arrived", got.len()));
+    sender.await.unwrap();
+    assert_eq!(got, (0..BURST).collect::<Vec<_>>());
     counter.shutdown().await;
     ticker.shutdown().await;
 }
