@@ -1,0 +1,320 @@
+//! Round-trip latency of peppy topics next to raw Zenoh, in the same run,
+//! over the same in-process router on loopback. Run in release:
+//!
+//! ```sh
+//! cargo bench -p peppy-runtime --bench latency
+//! ```
+//!
+//! Each side sends a ping carrying a sequence number and a 64-byte payload;
+//! the other side answers with a pong; the time until the matching pong
+//! arrives is one sample. Reported: p50, p90 and mean per side, and the
+//! peppy / raw ratio.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use peppy_runtime::codegen::{
+    ConsumedTopicSpec, Decode, DecodeError, Decoder, Encode, FormatSpec, NodeDescriptor,
+    NodeParameters, OwnerSpec, QosProfile, TopicSpec, emit, next_message,
+};
+use peppy_runtime::{NodeBuilder, NodeRunner};
+
+const WARMUP: usize = 200;
+const SAMPLES: usize = 2_000;
+const FORMAT: FormatSpec = FormatSpec {
+    fingerprint: 0xbe7c,
+    canonical: "{seq:u64,pad:[u8]}",
+};
+
+static PING_OUT: TopicSpec = TopicSpec {
+    owner: OwnerSpec::Own,
+    name: "ping",
+    qos: QosProfile::Reliable,
+    format: FORMAT,
+};
+static PONG_OUT: TopicSpec = TopicSpec {
+    owner: OwnerSpec::Own,
+    name: "pong",
+    qos: QosProfile::Reliable,
+    format: FORMAT,
+};
+static PING_IN: ConsumedTopicSpec = ConsumedTopicSpec {
+    link_id: Some("pinger"),
+    owner: OwnerSpec::Node {
+        name: "pinger",
+        tag: "v1",
+    },
+    name: "ping",
+    qos: QosProfile::Reliable,
+    format: FORMAT,
+};
+static PONG_IN: ConsumedTopicSpec = ConsumedTopicSpec {
+    link_id: Some("ponger"),
+    owner: OwnerSpec::Node {
+        name: "ponger",
+        tag: "v1",
+    },
+    name: "pong",
+    qos: QosProfile::Reliable,
+    format: FORMAT,
+};
+
+#[derive(serde::Deserialize)]
+struct Pinger {}
+impl NodeParameters for Pinger {
+    fn descriptor() -> &'static NodeDescriptor {
+        static D: NodeDescriptor = NodeDescriptor {
+            document: r#"{ peppy_schema: "node_v1", manifest: { name: "pinger", tag: "v1", depends_on: { nodes: [{ name: "ponger", tag: "v1", link_id: "ponger" }] } },
+                interfaces: { topics: { emits: [{ name: "ping", qos_profile: "reliable", message_format: { seq: "u64", pad: { $type: "array", $items: "u8" } } }],
+                                        consumes: [{ link_id: "ponger", name: "pong" }] } },
+                execution: { language: "rust", run_cmd: ["x"] } }"#,
+            document_path: "pinger.json5",
+            emitted_topics: &[&PING_OUT],
+            consumed_topics: &[&PONG_IN],
+            exposed_services: &[],
+            exposed_actions: &[],
+        };
+        &D
+    }
+}
+
+#[derive(serde::Deserialize)]
+struct Ponger {}
+impl NodeParameters for Ponger {
+    fn descriptor() -> &'static NodeDescriptor {
+        static D: NodeDescriptor = NodeDescriptor {
+            document: r#"{ peppy_schema: "node_v1", manifest: { name: "ponger", tag: "v1", depends_on: { nodes: [{ name: "pinger", tag: "v1", link_id: "pinger" }] } },
+                interfaces: { topics: { emits: [{ name: "pong", qos_profile: "reliable", message_format: { seq: "u64", pad: { $type: "array", $items: "u8" } } }],
+                                        consumes: [{ link_id: "pinger", name: "ping" }] } },
+                execution: { language: "rust", run_cmd: ["x"] } }"#,
+            document_path: "ponger.json5",
+            emitted_topics: &[&PONG_OUT],
+            consumed_topics: &[&PING_IN],
+            exposed_services: &[],
+            exposed_actions: &[],
+        };
+        &D
+    }
+}
+
+#[derive(Clone)]
+struct Msg {
+    seq: u64,
+    pad: Vec<u8>,
+}
+
+impl Encode for Msg {
+    fn encode(&self, out: &mut Vec<u8>) {
+        self.seq.encode(out);
+        self.pad.encode(out);
+    }
+}
+
+impl Decode for Msg {
+    const MIN_SIZE: usize = 12;
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        Ok(Msg {
+            seq: Decode::decode(d)?,
+            pad: Decode::decode(d)?,
+        })
+    }
+}
+
+struct Stats {
+    p50: Duration,
+    p90: Duration,
+    mean: Duration,
+}
+
+fn stats(mut samples: Vec<Duration>) -> Stats {
+    samples.sort();
+    let at = |q: f64| samples[((samples.len() as f64 * q).ceil() as usize).saturating_sub(1)];
+    let mean = samples.iter().sum::<Duration>() / samples.len() as u32;
+    Stats {
+        p50: at(0.5),
+        p90: at(0.9),
+        mean,
+    }
+}
+
+async fn peppy_round_trips(endpoint: &str) -> Vec<Duration> {
+    let args = |id: &str, bind: &str| {
+        vec![
+            "bench".to_string(),
+            "--instance-id".into(),
+            id.into(),
+            "--namespace".into(),
+            "bench".into(),
+            "--connect".into(),
+            endpoint.into(),
+            "--bind".into(),
+            bind.into(),
+        ]
+    };
+    let (_, ponger): (_, Arc<NodeRunner>) = NodeBuilder::<Ponger>::new()
+        .with_runtime_config(None)
+        .with_args(args("ponger", "pinger@pinger"))
+        .start()
+        .await
+        .unwrap();
+    let (_, pinger): (_, Arc<NodeRunner>) = NodeBuilder::<Pinger>::new()
+        .with_runtime_config(None)
+        .with_args(args("pinger", "ponger@ponger"))
+        .start()
+        .await
+        .unwrap();
+    let echo = tokio::spawn({
+        let ponger = ponger.clone();
+        async move {
+            while let Ok((_, m)) = next_message::<Msg>(&ponger, &PING_IN, None).await {
+                let _ = emit(&ponger, &PONG_OUT, &m).await;
+            }
+        }
+    });
+    let pad = vec![7u8; 64];
+    // Wait until both directions are matched.
+    loop {
+        emit(
+            &pinger,
+            &PING_OUT,
+            &Msg {
+                seq: u64::MAX,
+                pad: pad.clone(),
+            },
+        )
+        .await
+        .unwrap();
+        if tokio::time::timeout(
+            Duration::from_millis(100),
+            next_message::<Msg>(&pinger, &PONG_IN, None),
+        )
+        .await
+        .is_ok()
+        {
+            break;
+        }
+    }
+    let mut samples = Vec::with_capacity(SAMPLES);
+    for seq in 0..(WARMUP + SAMPLES) as u64 {
+        let start = Instant::now();
+        emit(
+            &pinger,
+            &PING_OUT,
+            &Msg {
+                seq,
+                pad: pad.clone(),
+            },
+        )
+        .await
+        .unwrap();
+        loop {
+            let (_, got) = next_message::<Msg>(&pinger, &PONG_IN, None).await.unwrap();
+            if got.seq == seq {
+                break;
+            }
+        }
+        if seq as usize >= WARMUP {
+            samples.push(start.elapsed());
+        }
+    }
+    echo.abort();
+    pinger.shutdown().await;
+    ponger.shutdown().await;
+    samples
+}
+
+async fn raw_round_trips(endpoint: &str) -> Vec<Duration> {
+    let config = || {
+        let mut c = zenoh::Config::default();
+        c.insert_json5("connect/endpoints", &format!("[\"{endpoint}\"]"))
+            .unwrap();
+        c.insert_json5("scouting/multicast/enabled", "false")
+            .unwrap();
+        c
+    };
+    let a = zenoh::open(config()).await.unwrap();
+    let b = zenoh::open(config()).await.unwrap();
+    let pong_pub = b
+        .declare_publisher("bench/raw/pong")
+        .congestion_control(zenoh::qos::CongestionControl::Block)
+        .await
+        .unwrap();
+    let _echo = b
+        .declare_subscriber("bench/raw/ping")
+        .callback(move |s| {
+            let _ = zenoh::Wait::wait(pong_pub.put(s.payload().clone()));
+        })
+        .await
+        .unwrap();
+    let ping_pub = a
+        .declare_publisher("bench/raw/ping")
+        .congestion_control(zenoh::qos::CongestionControl::Block)
+        .await
+        .unwrap();
+    let pongs = a
+        .declare_subscriber("bench/raw/pong")
+        .with(flume::bounded(256))
+        .await
+        .unwrap();
+    let message = |seq: u64| {
+        let mut m = seq.to_le_bytes().to_vec();
+        m.extend_from_slice(&[7u8; 64]);
+        m
+    };
+    loop {
+        ping_pub.put(message(u64::MAX)).await.unwrap();
+        if tokio::time::timeout(Duration::from_millis(100), pongs.recv_async())
+            .await
+            .is_ok()
+        {
+            break;
+        }
+    }
+    let mut samples = Vec::with_capacity(SAMPLES);
+    for seq in 0..(WARMUP + SAMPLES) as u64 {
+        let start = Instant::now();
+        ping_pub.put(message(seq)).await.unwrap();
+        loop {
+            let s = pongs.recv_async().await.unwrap();
+            let bytes = s.payload().to_bytes();
+            if bytes[..8] == seq.to_le_bytes() {
+                break;
+            }
+        }
+        if seq as usize >= WARMUP {
+            samples.push(start.elapsed());
+        }
+    }
+    samples
+}
+
+fn main() {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+        let endpoint = format!("tcp/127.0.0.1:{port}");
+        let mut c = zenoh::Config::default();
+        c.insert_json5("mode", "\"router\"").unwrap();
+        c.insert_json5("listen/endpoints", &format!("[\"{endpoint}\"]")).unwrap();
+        c.insert_json5("scouting/multicast/enabled", "false").unwrap();
+        let _router = zenoh::open(c).await.unwrap();
+        // Alternate to spread machine noise over both.
+        let raw1 = stats(raw_round_trips(&endpoint).await);
+        let peppy1 = stats(peppy_round_trips(&endpoint).await);
+        let raw2 = stats(raw_round_trips(&endpoint).await);
+        let peppy2 = stats(peppy_round_trips(&endpoint).await);
+        println!("round trip, {SAMPLES} samples per run, 64-byte payload, reliable, via a router on loopback");
+        println!("{:<12} {:>10} {:>10} {:>10}", "run", "p50", "p90", "mean");
+        for (name, s) in [("raw zenoh 1", &raw1), ("peppy 1", &peppy1), ("raw zenoh 2", &raw2), ("peppy 2", &peppy2)] {
+            println!("{name:<12} {:>10.1?} {:>10.1?} {:>10.1?}", s.p50, s.p90, s.mean);
+        }
+        let ratio = |p: Duration, r: Duration| p.as_secs_f64() / r.as_secs_f64();
+        let p50 = (ratio(peppy1.p50, raw1.p50) + ratio(peppy2.p50, raw2.p50)) / 2.0;
+        let p90 = (ratio(peppy1.p90, raw1.p90) + ratio(peppy2.p90, raw2.p90)) / 2.0;
+        println!("peppy / raw: p50 x{p50:.2}, p90 x{p90:.2}");
+    });
+}
