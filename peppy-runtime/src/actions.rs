@@ -294,12 +294,19 @@ pub(crate) fn goal_intake(
         };
         let body = payload[payload.len() - d.remaining()..].to_vec();
         reply(ReplyStatus::Ack, Vec::new());
-        let _ = tx.send(PendingGoal {
+        // Never block Zenoh's delivery thread: a full queue answers busy.
+        if let Err(flume::TrySendError::Full(p)) = tx.try_send(PendingGoal {
             query,
             header,
             goal_id,
             body,
-        });
+        }) {
+            let _ = p
+                .query
+                .reply(key.as_str(), b"server busy: too many queued goals".to_vec())
+                .attachment(attachment::reply(ReplyStatus::HandlerError, 0))
+                .wait();
+        }
     }
 }
 

@@ -68,8 +68,26 @@ pub(crate) fn intake(
             }
             QueryKind::Request => {
                 reply(ReplyStatus::Ack, Vec::new());
-                if tx.send(Pending { query, header }).is_err() {
-                    debug!(service = spec.name, "service inbox closed");
+                // Never block Zenoh's delivery thread: a full inbox answers busy.
+                match tx.try_send(Pending { query, header }) {
+                    Ok(()) => {}
+                    Err(flume::TrySendError::Full(p)) => {
+                        warn!(service = spec.name, caller = %p.header.instance, "request queue full; answering busy");
+                        let _ = p
+                            .query
+                            .reply(
+                                key.as_str(),
+                                b"server busy: too many queued requests".to_vec(),
+                            )
+                            .attachment(attachment::reply(
+                                ReplyStatus::HandlerError,
+                                spec.response.fingerprint,
+                            ))
+                            .wait();
+                    }
+                    Err(flume::TrySendError::Disconnected(_)) => {
+                        debug!(service = spec.name, "service inbox closed")
+                    }
                 }
             }
         }
