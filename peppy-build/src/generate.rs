@@ -1,0 +1,836 @@
+//! The generator: a resolved node in, the items of its `peppygen` module
+//! out. Pure: no file system, no environment.
+
+use peppy_schema::names::module_name;
+use peppy_schema::{
+    Diagnostics, EntryKind, InterfaceRef, Loc, MessageFormat, Origin, Provided, QosProfile,
+    ResolvedCall, ResolvedNode, ResolvedTopic, ServiceDecl, TopicDecl,
+};
+use proc_macro2::{Ident, TokenStream};
+use quote::quote;
+
+use crate::naming::{NameKind, Names, ident, module, short_location, type_prefix};
+use crate::params;
+use crate::types::{Structs, args, format_spec, many_args_allow, snake_allow};
+
+/// Generates the items of a node's `peppygen` module: the module tree of
+/// SPEC 4 (`emitted_topics`, `consumed_topics`, `exposed_services`,
+/// `consumed_services`, `exposed_actions`, `consumed_actions`,
+/// `parameters`) and the root re-exports.
+///
+/// The node document's path (`node.node.file`) should be absolute: the
+/// generated code embeds the document with `include_str!`.
+///
+/// Errors are names the generated Rust cannot hold: two entries that map to
+/// one module name, or two nested structs with one type name. Each is a
+/// located diagnostic, like the schema's own.
+pub fn generate(node: &ResolvedNode) -> Result<TokenStream, Diagnostics> {
+    let mut g = Gen {
+        node,
+        diags: Diagnostics::new(),
+    };
+    let tokens = crate::docs::format_docs(g.tree());
+    if g.diags.has_errors() {
+        Err(g.diags)
+    } else {
+        Ok(tokens)
+    }
+}
+
+/// Items that stand in for the generated ones when the document has
+/// errors: the top-level modules and the re-exports, so that user code
+/// naming them does not add unresolved-name errors to the real one.
+pub fn stub() -> TokenStream {
+    let modules = CATEGORIES.iter().map(|(name, _)| {
+        let id = ident(name);
+        quote!(pub mod #id {})
+    });
+    crate::docs::format_docs(quote! {
+        pub use ::peppy::codegen::{Error, NodeRunner, QoSProfile, Result, StandaloneConfig};
+        pub type NodeBuilder<P = self::parameters::Parameters> = ::peppy::codegen::NodeBuilder<P>;
+        pub use self::parameters::Parameters;
+        pub mod parameters {
+            #[derive(::peppy::codegen::serde::Deserialize)]
+            #[serde(crate = "::peppy::codegen::serde")]
+            pub struct Parameters {}
+            impl ::peppy::codegen::NodeParameters for Parameters {
+                fn descriptor() -> &'static ::peppy::codegen::NodeDescriptor {
+                    ::core::unimplemented!()
+                }
+            }
+        }
+        #(#modules)*
+    })
+}
+
+/// The entry categories, in the order they are generated, with their docs.
+const CATEGORIES: &[(&str, &str)] = &[
+    (
+        "emitted_topics",
+        "Topics this node emits, one module each with `Message` and `emit`.",
+    ),
+    (
+        "consumed_topics",
+        "Topics this node consumes, one module each with `Message` and `on_next_message_received`: `<link_id>_<topic>` through a slot, `<topic>` for an external topic.",
+    ),
+    (
+        "exposed_services",
+        "Services this node exposes, one module each with `Request`, `Response` and `handle_next_request`.",
+    ),
+    (
+        "consumed_services",
+        "Services this node calls, one module `<link_id>_<service>` each with `Request`, `Response` and `poll`.",
+    ),
+    ("exposed_actions", "Actions this node exposes."),
+    (
+        "consumed_actions",
+        "Actions this node calls, one module `<link_id>_<action>` each.",
+    ),
+];
+
+/// Names the runtime entry points use besides the fields.
+const RESERVED_ARGS: &[&str] = &["node_runner", "message", "SPEC"];
+
+struct Gen<'a> {
+    node: &'a ResolvedNode,
+    diags: Diagnostics,
+}
+
+/// One generated category module: its items and the paths (below the
+/// category) of the `SPEC` statics the node descriptor lists.
+#[derive(Default)]
+struct Category {
+    items: TokenStream,
+    specs: Vec<Vec<Ident>>,
+}
+
+/// One provided entry, as the module-tree builder sees it.
+struct Offered {
+    name: String,
+    loc: Loc,
+    origin: Origin,
+    body: TokenStream,
+}
+
+/// A conformed entry that also gets its flat name.
+struct Flat {
+    module: String,
+    name: String,
+    interface: String,
+    path: Vec<Ident>,
+}
+
+impl Gen<'_> {
+    fn tree(&mut self) -> TokenStream {
+        let emitted = self.emitted_topics();
+        let consumed_topics = self.consumed_topics();
+        let exposed = self.exposed_services();
+        let consumed_services = self.consumed_services();
+        let exposed_actions = Category::default();
+        let consumed_actions = Category::default();
+
+        let spec_refs = |category: &str, c: &Category| -> Vec<TokenStream> {
+            let cat = ident(category);
+            c.specs
+                .iter()
+                .map(|path| quote!(&super::#cat::#(#path::)*SPEC))
+                .collect()
+        };
+        let descriptor = params::Descriptor {
+            document_path: self.node.node.file.path().display().to_string(),
+            emitted_topics: spec_refs("emitted_topics", &emitted),
+            consumed_topics: spec_refs("consumed_topics", &consumed_topics),
+            exposed_services: spec_refs("exposed_services", &exposed),
+            exposed_actions: spec_refs("exposed_actions", &exposed_actions),
+        };
+        let parameters = params::parameters(self.node, &descriptor, &mut self.diags);
+
+        let source = short_location(&self.node.node.name_loc);
+        let identity = self.node.node.identity();
+        let categories = [
+            emitted,
+            consumed_topics,
+            exposed,
+            consumed_services,
+            exposed_actions,
+            consumed_actions,
+        ];
+        let modules = CATEGORIES.iter().zip(categories).map(|((name, doc), c)| {
+            let id = ident(name);
+            let items = c.items;
+            let doc = format!("{doc}\n\nGenerated from node `{identity}` (`{source}`).");
+            quote! {
+                #[doc = #doc]
+                #[allow(dead_code)]
+                pub mod #id {
+                    #items
+                }
+            }
+        });
+        let params_doc = format!(
+            "The parameters of node `{identity}` (`execution.parameters`), and the node's descriptor."
+        );
+        quote! {
+            #[doc = "Re-exported from peppy, so node code needs only `peppygen`."]
+            pub use ::peppy::codegen::{Error, NodeRunner, QoSProfile, Result, StandaloneConfig};
+            #[doc = "Builds and runs this node: `NodeBuilder::new().run(|params: Parameters, runner| async move { Ok(()) })`."]
+            #[allow(dead_code)]
+            pub type NodeBuilder<P = self::parameters::Parameters> = ::peppy::codegen::NodeBuilder<P>;
+            #[doc = "This node's parameters."]
+            pub use self::parameters::Parameters;
+            #[doc = #params_doc]
+            #[allow(dead_code)]
+            pub mod parameters {
+                #parameters
+            }
+            #(#modules)*
+        }
+    }
+
+    fn emitted_topics(&mut self) -> Category {
+        let node = self.node;
+        let offered: Vec<Offered> = node
+            .emitted_topics
+            .iter()
+            .map(|p| Offered {
+                name: p.decl.name.clone(),
+                loc: p.decl.loc.clone(),
+                origin: p.origin.clone(),
+                body: self.emitted_topic(p),
+            })
+            .collect();
+        self.provided(offered, EntryKind::Topic)
+    }
+
+    fn exposed_services(&mut self) -> Category {
+        let node = self.node;
+        let offered: Vec<Offered> = node
+            .exposed_services
+            .iter()
+            .map(|p| Offered {
+                name: p.decl.name.clone(),
+                loc: p.decl.loc.clone(),
+                origin: p.origin.clone(),
+                body: self.exposed_service(p),
+            })
+            .collect();
+        self.provided(offered, EntryKind::Service)
+    }
+
+    /// Lays out provided entries: own entries by name; conformed ones under
+    /// `<interface>::<tag>::<name>`, and also by name when no other entry
+    /// of the category takes that name.
+    fn provided(&mut self, offered: Vec<Offered>, kind: EntryKind) -> Category {
+        let mut category = Category::default();
+        let mut names = Names::default();
+        let mut own_modules: Vec<String> = Vec::new();
+        for o in offered
+            .iter()
+            .filter(|o| matches!(o.origin, Origin::Node(_)))
+        {
+            let m = module(&o.name);
+            let what = format!("{kind} `{}`", o.name);
+            if !names.claim(NameKind::Module, &m, &what, &o.loc, &mut self.diags) {
+                continue;
+            }
+            let id = ident(&m);
+            let body = &o.body;
+            let doc = entry_doc(kind, &o.name, &o.origin, &o.loc);
+            category.items.extend(quote! {
+                #[doc = #doc]
+                pub mod #id {
+                    #body
+                }
+            });
+            category.specs.push(vec![id]);
+            own_modules.push(m);
+        }
+
+        // Conformed entries, grouped by interface name, then tag.
+        let mut groups: Vec<(String, Vec<&InterfaceRef>)> = Vec::new();
+        for c in &self.node.node.conforms_to {
+            let origin = Origin::Interface(c.target.clone());
+            if !offered.iter().any(|o| o.origin == origin) {
+                continue;
+            }
+            let m = module(&c.target.name);
+            match groups.iter_mut().find(|(g, _)| *g == m) {
+                Some((_, list)) => list.push(c),
+                None => groups.push((m, vec![c])),
+            }
+        }
+        let iface_modules: Vec<String> = groups.iter().map(|(m, _)| m.clone()).collect();
+        let conformed_modules: Vec<String> = offered
+            .iter()
+            .filter(|o| matches!(o.origin, Origin::Interface(_)))
+            .map(|o| module(&o.name))
+            .collect();
+        let mut flat: Vec<Flat> = Vec::new();
+        for (iface_mod, refs) in &groups {
+            let first = refs[0];
+            let what = format!("interface `{}`", first.target.name);
+            if !names.claim(
+                NameKind::Module,
+                iface_mod,
+                &what,
+                &first.loc,
+                &mut self.diags,
+            ) {
+                continue;
+            }
+            let iface_id = ident(iface_mod);
+            let mut tags = Names::default();
+            let mut tag_items = TokenStream::new();
+            for r in refs {
+                let tag_mod = module(&r.target.tag);
+                let what = format!("interface `{}`", r.target);
+                if !tags.claim(NameKind::Module, &tag_mod, &what, &r.loc, &mut self.diags) {
+                    continue;
+                }
+                let tag_id = ident(&tag_mod);
+                let mut entries = Names::default();
+                let mut entry_items = TokenStream::new();
+                let origin = Origin::Interface(r.target.clone());
+                for o in offered.iter().filter(|o| o.origin == origin) {
+                    let m = module(&o.name);
+                    let what = format!("{kind} `{}` of interface `{}`", o.name, r.target);
+                    if !entries.claim(NameKind::Module, &m, &what, &o.loc, &mut self.diags) {
+                        continue;
+                    }
+                    let id = ident(&m);
+                    let body = &o.body;
+                    let doc = entry_doc(kind, &o.name, &o.origin, &o.loc);
+                    entry_items.extend(quote! {
+                        #[doc = #doc]
+                        pub mod #id {
+                            #body
+                        }
+                    });
+                    let path = vec![iface_id.clone(), tag_id.clone(), id];
+                    category.specs.push(path.clone());
+                    let unambiguous = !own_modules.contains(&m)
+                        && conformed_modules.iter().filter(|c| **c == m).count() == 1
+                        && !iface_modules.contains(&m);
+                    if unambiguous {
+                        flat.push(Flat {
+                            module: m,
+                            name: o.name.clone(),
+                            interface: r.target.to_string(),
+                            path,
+                        });
+                    }
+                }
+                let doc = format!(
+                    "The {kind}s of interface `{}`, which this node conforms to.",
+                    r.target
+                );
+                tag_items.extend(quote! {
+                    #[doc = #doc]
+                    pub mod #tag_id {
+                        #entry_items
+                    }
+                });
+            }
+            let doc = format!("The {kind}s of interface `{}`, by tag.", first.target.name);
+            category.items.extend(quote! {
+                #[doc = #doc]
+                pub mod #iface_id {
+                    #tag_items
+                }
+            });
+        }
+        for f in flat {
+            let doc = format!(
+                "The {kind} `{}` of interface `{}` under its own name (no other {kind} of this node generates module `{}`).",
+                f.name, f.interface, f.module
+            );
+            let path = &f.path;
+            category.items.extend(quote! {
+                #[doc = #doc]
+                pub use self::#(#path)::*;
+            });
+        }
+        category
+    }
+
+    fn consumed_topics(&mut self) -> Category {
+        let mut category = Category::default();
+        let mut names = Names::default();
+        let node = self.node;
+        for t in &node.consumed_topics {
+            let m = match &t.slot {
+                Some(slot) => format!("{}_{}", module_name(&slot.link_id), module_name(&t.name)),
+                None => module(&t.name),
+            };
+            let m = module(&m);
+            let what = match &t.slot {
+                Some(slot) => format!("consumed topic `{}` of slot `{}`", t.name, slot.link_id),
+                None => format!("external consumed topic `{}`", t.name),
+            };
+            if !names.claim(NameKind::Module, &m, &what, &t.loc, &mut self.diags) {
+                continue;
+            }
+            let id = ident(&m);
+            let body = self.consumed_topic(t);
+            let doc = consumed_topic_doc(t);
+            category.items.extend(quote! {
+                #[doc = #doc]
+                pub mod #id {
+                    #body
+                }
+            });
+            category.specs.push(vec![id]);
+        }
+        category
+    }
+
+    fn consumed_services(&mut self) -> Category {
+        let mut category = Category::default();
+        let mut names = Names::default();
+        let node = self.node;
+        for s in &node.consumed_services {
+            let m = module(&format!(
+                "{}_{}",
+                module_name(&s.slot.link_id),
+                module_name(&s.decl.name)
+            ));
+            let what = format!(
+                "consumed service `{}` of slot `{}`",
+                s.decl.name, s.slot.link_id
+            );
+            if !names.claim(NameKind::Module, &m, &what, &s.loc, &mut self.diags) {
+                continue;
+            }
+            let id = ident(&m);
+            let body = self.consumed_service(s);
+            let doc = format!(
+                "Calls service `{}` of {}, through slot `{}` (declared at `{}`; the service is declared at `{}`).",
+                s.decl.name,
+                origin_text(&s.origin),
+                s.slot.link_id,
+                short_location(&s.loc),
+                short_location(&s.decl.loc)
+            );
+            category.items.extend(quote! {
+                #[doc = #doc]
+                pub mod #id {
+                    #body
+                }
+            });
+        }
+        category
+    }
+
+    /// `emitted_topics::<topic>`: `Message`, `SPEC`, `emit`.
+    fn emitted_topic(&mut self, p: &Provided<TopicDecl>) -> TokenStream {
+        let decl = &p.decl;
+        let mut names = Names::with_fixed(&["Message"]);
+        let mut structs = Structs {
+            names: &mut names,
+            diags: &mut self.diags,
+            out: TokenStream::new(),
+        };
+        let doc = format!("A message of topic `{}`.", decl.name);
+        structs.message("Message", "Message", decl.format.as_ref(), &doc);
+        let types = structs.out;
+        let fields = fields_of(decl.format.as_ref());
+        let a = args("Message", fields, RESERVED_ARGS);
+        let params = &a.params;
+        let inits = &a.inits;
+        let allow_snake = snake_allow(fields);
+        let allow_many = many_args_allow(fields.len() + 1);
+        let name = &decl.name;
+        let owner = owner(&p.origin, true);
+        let qos = qos(decl.qos);
+        let format = format_spec(decl.format.as_ref());
+        let emit_doc =
+            format!("Publishes one message on `{name}`, the fields in declaration order.");
+        quote! {
+            #types
+
+            #[doc = "What the runtime knows about this topic."]
+            pub(crate) static SPEC: ::peppy::codegen::TopicSpec = ::peppy::codegen::TopicSpec {
+                owner: #owner,
+                name: #name,
+                qos: #qos,
+                format: #format,
+            };
+
+            #[doc = #emit_doc]
+            #allow_snake
+            #allow_many
+            pub async fn emit(
+                node_runner: &::peppy::codegen::NodeRunner,
+                #(#params),*
+            ) -> ::peppy::codegen::Result<()> {
+                let message = Message { #(#inits),* };
+                ::peppy::codegen::emit(node_runner, &SPEC, &message).await
+            }
+        }
+    }
+
+    /// `consumed_topics::<module>`: `Message`, `SPEC`, `on_next_message_received`.
+    fn consumed_topic(&mut self, t: &ResolvedTopic) -> TokenStream {
+        let mut names = Names::with_fixed(&["Message"]);
+        let mut structs = Structs {
+            names: &mut names,
+            diags: &mut self.diags,
+            out: TokenStream::new(),
+        };
+        let doc = format!("A message of topic `{}`.", t.name);
+        structs.message("Message", "Message", t.format.as_ref(), &doc);
+        let types = structs.out;
+        let link_id = match &t.slot {
+            Some(s) => {
+                let l = &s.link_id;
+                quote!(::core::option::Option::Some(#l))
+            }
+            None => quote!(::core::option::Option::None),
+        };
+        let owner = match &t.origin {
+            Some(o) => owner(o, false),
+            None => quote!(::peppy::codegen::OwnerSpec::Any),
+        };
+        let name = &t.name;
+        let qos = qos(t.qos);
+        let format = format_spec(t.format.as_ref());
+        quote! {
+            #types
+
+            #[doc = "What the runtime knows about this topic."]
+            pub(crate) static SPEC: ::peppy::codegen::ConsumedTopicSpec = ::peppy::codegen::ConsumedTopicSpec {
+                link_id: #link_id,
+                owner: #owner,
+                name: #name,
+                qos: #qos,
+                format: #format,
+            };
+
+            #[doc = "Waits for the next message: `(producer instance id, message)`. Messages are queued from node start-up, so none is lost between calls. `from_core_node: Some(id)` keeps only messages from instances started by that launch."]
+            pub async fn on_next_message_received(
+                node_runner: &::peppy::codegen::NodeRunner,
+                from_core_node: ::core::option::Option<&str>,
+            ) -> ::peppy::codegen::Result<(::std::string::String, Message)> {
+                ::peppy::codegen::next_message(node_runner, &SPEC, from_core_node).await
+            }
+        }
+    }
+
+    /// `exposed_services::<service>`: `Request`, `Response`, `SPEC`,
+    /// `handle_next_request`.
+    fn exposed_service(&mut self, p: &Provided<ServiceDecl>) -> TokenStream {
+        let decl = &p.decl;
+        let prefix = type_prefix(&decl.name);
+        let mut fixed = vec!["Request"];
+        if decl.request.is_some() {
+            fixed.push("RequestData");
+        }
+        if decl.response.is_some() {
+            fixed.push("Response");
+        }
+        let mut names = Names::with_fixed(&fixed);
+        let mut structs = Structs {
+            names: &mut names,
+            diags: &mut self.diags,
+            out: TokenStream::new(),
+        };
+        let name = &decl.name;
+        if let Some(req) = &decl.request {
+            let doc = format!("The request data of service `{name}`.");
+            structs.message("RequestData", &prefix, Some(req), &doc);
+        }
+        if let Some(resp) = &decl.response {
+            let doc = format!("The response of service `{name}`; build it with `Response::new`.");
+            structs.message("Response", "Response", Some(resp), &doc);
+        }
+        let types = structs.out;
+
+        let (data_field, data_type, data_init) = match &decl.request {
+            Some(_) => (
+                quote! {
+                    #[doc = "The request."]
+                    pub data: RequestData,
+                },
+                quote!(RequestData),
+                quote!(data,),
+            ),
+            None => (quote!(), quote!(()), quote!()),
+        };
+        let data_pat = if decl.request.is_some() {
+            quote!(data)
+        } else {
+            quote!(())
+        };
+        let (response_type, constructor) = match &decl.response {
+            Some(resp) => {
+                let a = args("Response", &resp.fields, &[]);
+                let params = &a.params;
+                let inits = &a.inits;
+                let allow_snake = snake_allow(&resp.fields);
+                let allow_many = many_args_allow(resp.fields.len());
+                (
+                    quote!(Response),
+                    quote! {
+                        impl Response {
+                            #[doc = "A response from its fields, in declaration order."]
+                            #allow_snake
+                            #allow_many
+                            pub fn new(#(#params),*) -> Self {
+                                Self { #(#inits),* }
+                            }
+                        }
+                    },
+                )
+            }
+            None => (quote!(()), quote!()),
+        };
+        let owner = owner(&p.origin, true);
+        let request_format = format_spec(decl.request.as_ref());
+        let response_format = format_spec(decl.response.as_ref());
+        let request_doc = format!(
+            "A request to service `{name}`, with the caller's identity{}.",
+            if decl.request.is_some() {
+                " and its data"
+            } else {
+                " (the service takes no request data)"
+            }
+        );
+        let handle_doc = format!(
+            "Serves the next request of `{name}` with `handler`; call it in a loop. Requests are queued from node start-up, so concurrent callers are all served. A handler error is returned to the caller as its reason{}.",
+            if decl.response.is_some() {
+                ""
+            } else {
+                " (the service has no response data: the handler returns `Ok(())`)"
+            }
+        );
+        quote! {
+            #types
+
+            #constructor
+
+            #[doc = #request_doc]
+            #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
+            pub struct Request {
+                #[doc = "The caller's instance id."]
+                pub instance_id: ::std::string::String,
+                #[doc = "The launch (core node) that started the caller."]
+                pub core_node: ::std::string::String,
+                #data_field
+            }
+
+            #[doc = "What the runtime knows about this service."]
+            pub(crate) static SPEC: ::peppy::codegen::ServiceSpec = ::peppy::codegen::ServiceSpec {
+                owner: #owner,
+                name: #name,
+                request: #request_format,
+                response: #response_format,
+            };
+
+            #[doc = #handle_doc]
+            pub async fn handle_next_request<F>(
+                node_runner: &::peppy::codegen::NodeRunner,
+                handler: F,
+            ) -> ::peppy::codegen::Result<()>
+            where
+                F: ::core::ops::FnOnce(Request) -> ::peppy::codegen::Result<#response_type>,
+            {
+                ::peppy::codegen::handle_next(
+                    node_runner,
+                    &SPEC,
+                    |caller: ::peppy::codegen::Caller, #data_pat: #data_type| {
+                        handler(Request {
+                            instance_id: caller.instance_id,
+                            core_node: caller.core_node,
+                            #data_init
+                        })
+                    },
+                )
+                .await
+            }
+        }
+    }
+
+    /// `consumed_services::<link_id>_<service>`: `Request`, `Response`,
+    /// `SPEC`, `poll`.
+    fn consumed_service(&mut self, s: &ResolvedCall<ServiceDecl>) -> TokenStream {
+        let decl = &s.decl;
+        let prefix = type_prefix(&decl.name);
+        let mut fixed = vec!["Response"];
+        if decl.request.is_some() {
+            fixed.push("Request");
+        }
+        if decl.response.is_some() {
+            fixed.push("ResponseData");
+        }
+        let mut names = Names::with_fixed(&fixed);
+        let mut structs = Structs {
+            names: &mut names,
+            diags: &mut self.diags,
+            out: TokenStream::new(),
+        };
+        let name = &decl.name;
+        if let Some(req) = &decl.request {
+            let doc = format!("A request to service `{name}`; build it with `Request::new`.");
+            structs.message("Request", &prefix, Some(req), &doc);
+        }
+        if let Some(resp) = &decl.response {
+            let doc = format!("The response data of service `{name}`.");
+            structs.message("ResponseData", "ResponseData", Some(resp), &doc);
+        }
+        let types = structs.out;
+        let constructor = match &decl.request {
+            Some(req) => {
+                let a = args(&prefix, &req.fields, &[]);
+                let params = &a.params;
+                let inits = &a.inits;
+                let allow_snake = snake_allow(&req.fields);
+                let allow_many = many_args_allow(req.fields.len());
+                quote! {
+                    impl Request {
+                        #[doc = "A request from its fields, in declaration order."]
+                        #allow_snake
+                        #allow_many
+                        pub fn new(#(#params),*) -> Self {
+                            Self { #(#inits),* }
+                        }
+                    }
+                }
+            }
+            None => quote!(),
+        };
+        let (request_param, request_ref) = match &decl.request {
+            Some(_) => (quote!(request: Request,), quote!(&request)),
+            None => (quote!(), quote!(&())),
+        };
+        let (data_field, data_type, data_init) = match &decl.response {
+            Some(_) => (
+                quote! {
+                    #[doc = "The response."]
+                    pub data: ResponseData,
+                },
+                quote!(ResponseData),
+                quote!(data: reply.data,),
+            ),
+            None => (quote!(), quote!(()), quote!()),
+        };
+        let link_id = &s.slot.link_id;
+        let owner = owner(&s.origin, false);
+        let request_format = format_spec(decl.request.as_ref());
+        let response_format = format_spec(decl.response.as_ref());
+        let poll_doc = format!(
+            "Calls `{name}` through slot `{link_id}` and waits at most `timeout` for the response: straight to the bound producer when the slot is pinned, else to the first producer the slot accepts. Fails with `ServiceUnreachable` (nobody answered), `ServiceTimeout` (accepted, no reply in time) or `ServiceError` (the handler failed)."
+        );
+        quote! {
+            #types
+
+            #constructor
+
+            #[doc = "A response with the server's identity."]
+            #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
+            pub struct Response {
+                #[doc = "The server's instance id."]
+                pub instance_id: ::std::string::String,
+                #[doc = "The launch (core node) that started the server."]
+                pub core_node: ::std::string::String,
+                #data_field
+            }
+
+            #[doc = "What the runtime knows about this service."]
+            pub(crate) static SPEC: ::peppy::codegen::ConsumedServiceSpec = ::peppy::codegen::ConsumedServiceSpec {
+                link_id: #link_id,
+                owner: #owner,
+                name: #name,
+                request: #request_format,
+                response: #response_format,
+            };
+
+            #[doc = #poll_doc]
+            pub async fn poll(
+                node_runner: &::peppy::codegen::NodeRunner,
+                timeout: ::core::time::Duration,
+                #request_param
+            ) -> ::peppy::codegen::Result<Response> {
+                let reply: ::peppy::codegen::Reply<#data_type> =
+                    ::peppy::codegen::call(node_runner, &SPEC, timeout, #request_ref).await?;
+                ::core::result::Result::Ok(Response {
+                    instance_id: reply.instance_id,
+                    core_node: reply.core_node,
+                    #data_init
+                })
+            }
+        }
+    }
+}
+
+fn fields_of(format: Option<&MessageFormat>) -> &[peppy_schema::Field] {
+    format.map(|f| f.fields.as_slice()).unwrap_or(&[])
+}
+
+fn capitalised(kind: EntryKind) -> String {
+    let s = kind.to_string();
+    let mut c = s.chars();
+    match c.next() {
+        Some(f) => f.to_uppercase().chain(c).collect(),
+        None => s,
+    }
+}
+
+fn origin_text(origin: &Origin) -> String {
+    match origin {
+        Origin::Node(id) => format!("node `{id}`"),
+        Origin::Interface(id) => format!("interface `{id}`"),
+    }
+}
+
+fn entry_doc(kind: EntryKind, name: &str, origin: &Origin, loc: &Loc) -> String {
+    let from = match origin {
+        Origin::Node(_) => "declared by this node".to_string(),
+        Origin::Interface(id) => format!("inherited from interface `{id}`"),
+    };
+    format!(
+        "{} `{name}`, {from} (`{}`).",
+        capitalised(kind),
+        short_location(loc)
+    )
+}
+
+fn consumed_topic_doc(t: &ResolvedTopic) -> String {
+    match (&t.slot, &t.origin) {
+        (Some(slot), Some(origin)) => format!(
+            "Receives topic `{}` of {} through slot `{}` (declared at `{}`).",
+            t.name,
+            origin_text(origin),
+            slot.link_id,
+            short_location(&t.loc)
+        ),
+        _ => format!(
+            "Receives topic `{}` from any node that emits it in this format (external, declared at `{}`).",
+            t.name,
+            short_location(&t.loc)
+        ),
+    }
+}
+
+/// The `OwnerSpec` of an entry; `own` entries of this node are `Own`.
+fn owner(origin: &Origin, own: bool) -> TokenStream {
+    match origin {
+        Origin::Node(_) if own => quote!(::peppy::codegen::OwnerSpec::Own),
+        Origin::Node(id) => {
+            let (name, tag) = (&id.name, &id.tag);
+            quote!(::peppy::codegen::OwnerSpec::Node { name: #name, tag: #tag })
+        }
+        Origin::Interface(id) => {
+            let (name, tag) = (&id.name, &id.tag);
+            quote!(::peppy::codegen::OwnerSpec::Interface { name: #name, tag: #tag })
+        }
+    }
+}
+
+fn qos(q: QosProfile) -> TokenStream {
+    match q {
+        QosProfile::SensorData => quote!(::peppy::codegen::QosProfile::SensorData),
+        QosProfile::Standard => quote!(::peppy::codegen::QosProfile::Standard),
+        QosProfile::Reliable => quote!(::peppy::codegen::QosProfile::Reliable),
+        QosProfile::Critical => quote!(::peppy::codegen::QosProfile::Critical),
+    }
+}
