@@ -25,6 +25,17 @@ pub(crate) enum Command {
     ///
     /// Exit code 0 when the stack is valid, 2 otherwise.
     Check(CheckArgs),
+    /// Run a launcher: check everything (start nothing if anything is
+    /// wrong), build each node once, start every instance with its
+    /// bindings, parameters, namespace and Zenoh endpoints, multiplex their
+    /// output, supervise, and stop cleanly on Ctrl-C.
+    ///
+    /// `peppy-launch LAUNCHER` is the same. Exit codes: 0 clean stop,
+    /// 1 an instance failed (or its restart budget ran out), 2 invalid.
+    Up(UpArgs),
+    /// Print the stack as Graphviz DOT: instances, bindings, dashed `(any)`
+    /// edges for unbound from_any slots, dotted edges for external topics.
+    Graph(GraphArgs),
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -57,4 +68,41 @@ pub(crate) struct CheckArgs {
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Human)]
     pub(crate) format: Format,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct UpArgs {
+    /// The launcher file.
+    #[arg(value_name = "LAUNCHER")]
+    pub(crate) launcher: PathBuf,
+    /// An extra repository directory (repeatable).
+    #[arg(long = "repo", value_name = "DIR")]
+    pub(crate) repos: Vec<PathBuf>,
+    /// Skip the nodes' build commands.
+    #[arg(long)]
+    pub(crate) no_build: bool,
+    /// The namespace to run in (default: derived from the launcher path).
+    #[arg(long, value_name = "NS")]
+    pub(crate) namespace: Option<String>,
+    /// Where the launch's Zenoh router listens (repeatable; default a free
+    /// loopback port). Listen on a LAN address to let other hosts join.
+    #[arg(long, value_name = "ENDPOINT")]
+    pub(crate) listen: Vec<String>,
+    /// Another router or peer to connect to, e.g. a zenohd or another
+    /// host's launch (repeatable).
+    #[arg(long, value_name = "ENDPOINT")]
+    pub(crate) connect: Vec<String>,
+    /// Seconds between SIGINT and SIGTERM when stopping.
+    #[arg(long, value_name = "SECONDS", default_value_t = 5.0)]
+    pub(crate) grace: f64,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct GraphArgs {
+    /// The launcher file.
+    #[arg(value_name = "LAUNCHER")]
+    pub(crate) launcher: PathBuf,
+    /// An extra repository directory (repeatable).
+    #[arg(long = "repo", value_name = "DIR")]
+    pub(crate) repos: Vec<PathBuf>,
 }

@@ -1,0 +1,260 @@
+//! Running instances: each in its own process group with a parent-death
+//! signal, restarted per its policy, and stopped in escalating steps.
+//!
+//! Stop sequence (SPEC 6.4): SIGINT to every instance's group, wait up to
+//! the grace period, SIGTERM, wait 5 s, SIGKILL. A second Ctrl-C kills at
+//! once. Every wait has a deadline.
+
+use std::path::PathBuf;
+use std::process::{ExitStatus, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use peppy_schema::RestartPolicy;
+use tokio::process::{Child, Command};
+use tokio::time::Instant;
+use tokio_util::sync::CancellationToken;
+
+use crate::output::{Output, open_log, pump};
+
+/// How long after SIGTERM before SIGKILL.
+const TERM_TIMEOUT: Duration = Duration::from_secs(5);
+/// Restarts allowed in a row before the instance is given up.
+const RESTART_BUDGET: u32 = 5;
+/// A run at least this long resets the restart budget.
+const HEALTHY_RUN: Duration = Duration::from_secs(30);
+
+/// One instance to run.
+#[derive(Debug, Clone)]
+pub(crate) struct InstanceSpec {
+    pub(crate) id: String,
+    pub(crate) dir: PathBuf,
+    pub(crate) argv: Vec<String>,
+    pub(crate) env: Vec<(String, String)>,
+    pub(crate) restart: RestartPolicy,
+    pub(crate) log: PathBuf,
+}
+
+/// How an instance ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum Ended {
+    /// Exited with status 0 on its own.
+    Finished,
+    /// Stopped on request within the grace period.
+    Stopped,
+    /// Did not stop within the grace period and was killed.
+    ForceKilled,
+    /// Exited with a failure and was not restarted.
+    Failed(String),
+    /// Kept failing; the restart budget ran out.
+    BudgetExhausted(String),
+}
+
+impl Ended {
+    pub(crate) fn is_failure(&self) -> bool {
+        matches!(self, Ended::Failed(_) | Ended::BudgetExhausted(_))
+    }
+}
+
+/// Stop requests shared by every instance.
+#[derive(Clone, Default)]
+pub(crate) struct StopSignals {
+    /// First Ctrl-C: stop gracefully; no more restarts.
+    pub(crate) stop: CancellationToken,
+    /// Second Ctrl-C: kill now.
+    pub(crate) kill: CancellationToken,
+}
+
+fn describe(status: ExitStatus) -> String {
+    use std::os::unix::process::ExitStatusExt;
+    match (status.code(), status.signal()) {
+        (Some(c), _) => format!("exited with status {c}"),
+        (None, Some(s)) => format!("killed by signal {s}"),
+        _ => "exited".to_string(),
+    }
+}
+
+fn signal_group(pid: u32, signal: libc::c_int) {
+    // SAFETY: killpg only sends a signal; a stale group id fails with ESRCH.
+    unsafe {
+        libc::killpg(pid as libc::pid_t, signal);
+    }
+}
+
+/// Starts one process of `spec`, its output pumped to `out` and its log.
+pub(crate) fn spawn(
+    spec: &InstanceSpec,
+    out: &Arc<Output>,
+) -> std::io::Result<(Child, Vec<tokio::task::JoinHandle<()>>)> {
+    let program = {
+        let p = PathBuf::from(&spec.argv[0]);
+        if p.components().count() > 1 && p.is_relative() {
+            spec.dir.join(p)
+        } else {
+            p
+        }
+    };
+    let mut cmd = Command::new(&program);
+    cmd.args(&spec.argv[1..])
+        .current_dir(&spec.dir)
+        .envs(spec.env.iter().map(|(k, v)| (k, v)))
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .process_group(0)
+        .kill_on_drop(false);
+    // SAFETY: prctl is async-signal-safe; it only sets a flag on the child.
+    unsafe {
+        cmd.pre_exec(|| {
+            #[cfg(target_os = "linux")]
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let mut child = cmd.spawn().map_err(|e| {
+        std::io::Error::new(
+            e.kind(),
+            format!("cannot start `{}`: {e}", program.display()),
+        )
+    })?;
+    let log = Arc::new(Mutex::new(open_log(&spec.log)?));
+    let mut pumps = Vec::new();
+    if let Some(o) = child.stdout.take() {
+        pumps.push(tokio::spawn(pump(
+            o,
+            spec.id.clone(),
+            out.clone(),
+            log.clone(),
+        )));
+    }
+    if let Some(e) = child.stderr.take() {
+        pumps.push(tokio::spawn(pump(e, spec.id.clone(), out.clone(), log)));
+    }
+    Ok((child, pumps))
+}
+
+/// Stops one running child: SIGINT, grace, SIGTERM, 5 s, SIGKILL (or at
+/// once on a kill request). Leaves nothing of its process group behind.
+async fn stop_child(
+    child: &mut Child,
+    grace: Duration,
+    signals: &StopSignals,
+    out: &Output,
+    id: &str,
+) -> Ended {
+    let Some(pid) = child.id() else {
+        return Ended::Stopped;
+    };
+    let steps = [(libc::SIGINT, grace), (libc::SIGTERM, TERM_TIMEOUT)];
+    for (signal, wait) in steps {
+        if signals.kill.is_cancelled() {
+            break;
+        }
+        signal_group(pid, signal);
+        tokio::select! {
+            _ = child.wait() => {
+                signal_group(pid, libc::SIGKILL);
+                return Ended::Stopped;
+            }
+            () = tokio::time::sleep(wait) => {}
+            () = signals.kill.cancelled() => break,
+        }
+    }
+    signal_group(pid, libc::SIGKILL);
+    let _ = tokio::time::timeout(Duration::from_secs(5), child.wait()).await;
+    out.note(&format!("`{id}` did not stop in time: force-killed"));
+    Ended::ForceKilled
+}
+
+/// Runs an already started instance until it ends for good (restarting it
+/// per its policy) or a stop is requested.
+pub(crate) async fn supervise(
+    spec: InstanceSpec,
+    mut child: Child,
+    mut pumps: Vec<tokio::task::JoinHandle<()>>,
+    grace: Duration,
+    signals: StopSignals,
+    out: Arc<Output>,
+) -> Ended {
+    let mut failures_in_a_row = 0u32;
+    let mut started = Instant::now();
+    loop {
+        let status = tokio::select! {
+            s = child.wait() => s,
+            () = signals.stop.cancelled() => {
+                let ended = stop_child(&mut child, grace, &signals, &out, &spec.id).await;
+                drain(&mut pumps).await;
+                return ended;
+            }
+        };
+        // The instance's main process is gone: clear anything it left in its group.
+        if let Some(pid) = child.id() {
+            signal_group(pid, libc::SIGKILL);
+        }
+        drain(&mut pumps).await;
+        let (ok, what) = match status {
+            Ok(s) => (s.success(), describe(s)),
+            Err(e) => (false, format!("could not be waited for: {e}")),
+        };
+        let restart = match spec.restart {
+            RestartPolicy::Always => true,
+            RestartPolicy::OnFailure => !ok,
+            RestartPolicy::No => false,
+        };
+        if !restart || signals.stop.is_cancelled() {
+            return if ok {
+                out.note(&format!("`{}` {what}", spec.id));
+                Ended::Finished
+            } else {
+                out.note(&format!(
+                    "`{}` failed: {what} (log: {})",
+                    spec.id,
+                    spec.log.display()
+                ));
+                Ended::Failed(what)
+            };
+        }
+        if started.elapsed() >= HEALTHY_RUN {
+            failures_in_a_row = 0;
+        }
+        failures_in_a_row += 1;
+        if failures_in_a_row > RESTART_BUDGET {
+            out.note(&format!(
+                "`{}` {what}; restart budget of {RESTART_BUDGET} used up, giving up (log: {})",
+                spec.id,
+                spec.log.display()
+            ));
+            return Ended::BudgetExhausted(what);
+        }
+        let backoff = Duration::from_millis(250 * 2u64.pow(failures_in_a_row - 1))
+            .min(Duration::from_secs(8));
+        out.note(&format!(
+            "`{}` {what}; restarting in {backoff:.1?} ({failures_in_a_row}/{RESTART_BUDGET})",
+            spec.id
+        ));
+        tokio::select! {
+            () = tokio::time::sleep(backoff) => {}
+            () = signals.stop.cancelled() => return if ok { Ended::Finished } else { Ended::Failed(what) },
+        }
+        match spawn(&spec, &out) {
+            Ok((c, p)) => {
+                child = c;
+                pumps = p;
+                started = Instant::now();
+            }
+            Err(e) => {
+                out.note(&format!("`{}` could not be restarted: {e}", spec.id));
+                return Ended::Failed(e.to_string());
+            }
+        }
+    }
+}
+
+/// Waits (bounded) for an instance's output to be fully copied.
+async fn drain(pumps: &mut Vec<tokio::task::JoinHandle<()>>) {
+    for p in pumps.drain(..) {
+        let _ = tokio::time::timeout(Duration::from_secs(2), p).await;
+    }
+}
