@@ -113,6 +113,28 @@ pub struct Generated {
     pub check: NodeCheck,
 }
 
+impl Generated {
+    /// Every file the generated code depends on: the node document, the
+    /// interface and dependency documents it resolved through, and the
+    /// `peppy_repositories.json5` files read to find them.
+    pub fn files_read(&self) -> Vec<PathBuf> {
+        files_read(&self.check)
+    }
+
+    /// The lines a build script prints so cargo reruns it exactly when
+    /// one of [`files_read`](Self::files_read) or `PEPPY_REPOSITORIES`
+    /// changes.
+    pub fn cargo_lines(&self) -> Vec<String> {
+        let mut lines = vec![format!("cargo:rerun-if-env-changed={REPOSITORIES_ENV}")];
+        lines.extend(
+            self.files_read()
+                .iter()
+                .map(|f| format!("cargo:rerun-if-changed={}", f.display())),
+        );
+        lines
+    }
+}
+
 impl Config {
     /// The defaults: `CARGO_MANIFEST_DIR/peppy.json5`, repositories from
     /// `PEPPY_REPOSITORIES` and the nearest `peppy_repositories.json5`,
@@ -204,7 +226,6 @@ impl Config {
     /// stderr the way cargo prints errors and returned.
     pub fn sync(&self) -> Result<(), Error> {
         let base = self.base()?;
-        println!("cargo:rerun-if-env-changed={REPOSITORIES_ENV}");
         let generated = match self.generate() {
             Ok(g) => g,
             Err(e) => {
@@ -213,6 +234,9 @@ impl Config {
                     diagnostics,
                 } = &e
                 {
+                    // A failed build script reruns anyway; these keep cargo
+                    // from rescanning the whole package meanwhile.
+                    println!("cargo:rerun-if-env-changed={REPOSITORIES_ENV}");
                     println!("cargo:rerun-if-changed={}", manifest.display());
                     let mut stderr = std::io::stderr().lock();
                     for d in diagnostics.sorted() {
@@ -222,14 +246,8 @@ impl Config {
                 return Err(e);
             }
         };
-        for file in generated
-            .check
-            .resolved
-            .files
-            .iter()
-            .chain(&generated.check.repositories.files_read)
-        {
-            println!("cargo:rerun-if-changed={}", file.display());
+        for line in generated.cargo_lines() {
+            println!("{line}");
         }
         for w in generated.check.warnings.sorted() {
             let line = render(w, &base).replace('\n', " ");
@@ -244,6 +262,20 @@ impl Config {
         let text = pretty(&generated.tokens)?;
         write_if_changed(&out_dir.join(OUTPUT_FILE), text.as_bytes())
     }
+}
+
+/// Every file a node's generated code depends on, sorted.
+pub(crate) fn files_read(check: &NodeCheck) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = check
+        .resolved
+        .files
+        .iter()
+        .chain(&check.repositories.files_read)
+        .cloned()
+        .collect();
+    files.sort();
+    files.dedup();
+    files
 }
 
 /// The generated items as a formatted Rust file, `@generated` line first.

@@ -60,8 +60,7 @@ pub fn expand(attr: TokenStream, item: TokenStream, manifest_dir: Option<&Path>)
 
     let (body, files) = match check_node(&path, &RepoOptions::default()) {
         Ok(check) => {
-            let mut files = check.resolved.files.clone();
-            files.extend(check.repositories.files_read.iter().cloned());
+            let files = crate::config::files_read(&check);
             match generate(&check.resolved) {
                 Ok(tokens) => (tokens, files),
                 Err(diags) => (errors(diags.sorted(), base, lit.span()), files),

@@ -169,7 +169,7 @@ fn clash(kind: NameKind, name: &str, what: &str, loc: &Loc, first: &Claim) -> Di
                 ),
             )
             .with_help(
-                "nested structs are named after their field (`header` -> `MessageHeader`, array items `...Item`); rename one of the fields",
+                "nested structs are named after their parent and field (`header` -> `MessageHeader`, parameter group `video.encoder` -> `VideoEncoder`, array items `...Item`); rename one of the two",
             ),
         NameKind::Module => loc
             .error(
