@@ -1,0 +1,352 @@
+//! `peppy-launch up` with real child processes: shell nodes that behave and
+//! misbehave (ignore signals, crash, spawn grandchildren, flood stdout).
+
+use std::io::Read;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A node directory whose `run_cmd` is `sh -c script`.
+fn shell_node(dir: &Path, name: &str, script: &str) {
+    std::fs::create_dir_all(dir.join(name)).unwrap();
+    let doc = serde_json::json!({
+        "peppy_schema": "node_v1",
+        "manifest": { "name": name, "tag": "v1" },
+        "execution": { "language": "shell", "run_cmd": ["sh", "-c", script] },
+    });
+    std::fs::write(dir.join(name).join("peppy.json5"), doc.to_string()).unwrap();
+}
+
+fn launcher(dir: &Path, deployments: &[(&str, &str, &str)]) {
+    let deployments: Vec<serde_json::Value> = deployments
+        .iter()
+        .map(|(node, id, restart)| {
+            serde_json::json!({ "source": { "local": node }, "instances": [{ "instance_id": id, "restart": restart }] })
+        })
+        .collect();
+    let doc = serde_json::json!({ "peppy_schema": "launcher_v1", "deployments": deployments });
+    std::fs::write(dir.join("stack.json5"), doc.to_string()).unwrap();
+}
+
+fn launch(dir: &Path, extra: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+        .arg("stack.json5")
+        .args(extra)
+        .current_dir(dir)
+        .env("NO_COLOR", "1")
+        .env_remove("PEPPY_REPOSITORIES")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+fn wait_for_file(path: &Path, within: Duration) -> String {
+    let deadline = Instant::now() + within;
+    loop {
+        if let Ok(s) = std::fs::read_to_string(path) {
+            if !s.trim().is_empty() {
+                return s;
+            }
+        }
+        assert!(
+            Instant::now() < deadline,
+            "{} did not appear within {within:?}",
+            path.display()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn alive(pid: &str) -> bool {
+    Path::new(&format!("/proc/{}", pid.trim())).exists() && {
+        // A zombie is dead for our purposes only once reaped; check its state.
+        let stat =
+            std::fs::read_to_string(format!("/proc/{}/stat", pid.trim())).unwrap_or_default();
+        !stat.split_whitespace().nth(2).is_some_and(|s| s == "Z")
+    }
+}
+
+fn interrupt(child: &Child) {
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status()
+            .unwrap()
+            .success()
+    );
+}
+
+/// Waits for the launcher to exit; returns its exit code, stderr, and how long it took.
+fn finish(mut child: Child, within: Duration) -> (i32, String, Duration) {
+    let start = Instant::now();
+    let mut stderr = child.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = stderr.read_to_string(&mut s);
+        s
+    });
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if start.elapsed() > within {
+            let _ = child.kill();
+            panic!("peppy-launch did not exit within {within:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    (
+        status.code().unwrap_or(-1),
+        reader.join().unwrap(),
+        start.elapsed(),
+    )
+}
+
+#[test]
+fn an_invalid_launcher_starts_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    shell_node(dir.path(), "marker", "touch started; sleep 60");
+    let doc = r#"{ peppy_schema: "launcher_v1", deployments: [
+        { source: { local: "marker" }, instances: [{ instance_id: "m", bindings: { nope: "ghost" } }] } ] }"#;
+    std::fs::write(dir.path().join("stack.json5"), doc).unwrap();
+    let (code, stderr, _) = finish(launch(dir.path(), &[]), Duration::from_secs(20));
+    assert_eq!(code, 2, "{stderr}");
+    assert!(stderr.contains("UnknownBindingTarget"), "{stderr}");
+    assert!(stderr.contains("nothing was built or started"));
+    std::thread::sleep(Duration::from_millis(200));
+    assert!(
+        !dir.path().join("marker/started").exists(),
+        "no instance may start"
+    );
+    assert!(
+        !dir.path().join(".peppy").exists(),
+        "no run directory either"
+    );
+}
+
+#[test]
+fn ctrl_c_stops_everything_even_a_node_that_ignores_signals() {
+    let dir = tempfile::tempdir().unwrap();
+    // Writes its own pid and a grandchild's, then ignores SIGINT and SIGTERM.
+    shell_node(
+        dir.path(),
+        "stubborn",
+        "trap '' INT TERM; sleep 1000 & echo $! > grandchild.pid; echo $$ > pid; while true; do sleep 1; done",
+    );
+    shell_node(dir.path(), "polite", "echo $$ > pid; exec sleep 1000");
+    launcher(
+        dir.path(),
+        &[("stubborn", "stubborn", "no"), ("polite", "polite", "no")],
+    );
+    let child = launch(dir.path(), &["--grace", "1"]);
+    let pid = wait_for_file(&dir.path().join("stubborn/pid"), Duration::from_secs(20));
+    let grandchild = wait_for_file(
+        &dir.path().join("stubborn/grandchild.pid"),
+        Duration::from_secs(20),
+    );
+    let polite = wait_for_file(&dir.path().join("polite/pid"), Duration::from_secs(20));
+    assert!(alive(&pid) && alive(&grandchild) && alive(&polite));
+    interrupt(&child);
+    let (code, stderr, took) = finish(child, Duration::from_secs(20));
+    // SIGINT, 1 s grace, SIGTERM, 5 s, SIGKILL: well under 8 s.
+    assert!(took < Duration::from_secs(8), "stopping took {took:?}");
+    assert_eq!(code, 0, "a user-requested stop is clean: {stderr}");
+    assert!(
+        stderr.contains("`stubborn` did not stop in time: force-killed"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("`polite` stopped"), "{stderr}");
+    for p in [&pid, &grandchild, &polite] {
+        assert!(!alive(p), "process {p} was left behind");
+    }
+}
+
+#[test]
+fn a_second_ctrl_c_kills_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    shell_node(
+        dir.path(),
+        "stubborn",
+        "trap '' INT TERM; echo $$ > pid; while true; do sleep 1; done",
+    );
+    launcher(dir.path(), &[("stubborn", "stubborn", "no")]);
+    let child = launch(dir.path(), &["--grace", "30"]);
+    let pid = wait_for_file(&dir.path().join("stubborn/pid"), Duration::from_secs(20));
+    interrupt(&child);
+    std::thread::sleep(Duration::from_millis(300));
+    interrupt(&child);
+    let (code, stderr, took) = finish(child, Duration::from_secs(20));
+    assert!(
+        took < Duration::from_secs(5),
+        "a second Ctrl-C does not wait for the grace period: {took:?}"
+    );
+    assert_eq!(code, 0, "{stderr}");
+    assert!(!alive(&pid));
+}
+
+#[test]
+fn a_crashing_node_is_restarted_with_its_instance_id() {
+    let dir = tempfile::tempdir().unwrap();
+    // Crashes twice, then stays up; records the instance id it was given each time.
+    shell_node(
+        dir.path(),
+        "flaky",
+        r#"n=$(cat runs 2>/dev/null || echo 0); n=$((n+1)); echo $n > runs; grep -o '"instance_id": *"[^"]*"' "$PEPPY_RUNTIME_CONFIG" >> ids; if [ $n -lt 3 ]; then echo crash $n; exit 3; fi; echo up; exec sleep 1000"#,
+    );
+    launcher(dir.path(), &[("flaky", "flaky_1", "on-failure")]);
+    let child = launch(dir.path(), &[]);
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while std::fs::read_to_string(dir.path().join("flaky/runs"))
+        .unwrap_or_default()
+        .trim()
+        != "3"
+    {
+        assert!(Instant::now() < deadline, "not restarted twice");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    std::thread::sleep(Duration::from_millis(200));
+    interrupt(&child);
+    let (code, stderr, _) = finish(child, Duration::from_secs(20));
+    assert_eq!(code, 0, "{stderr}");
+    let ids = std::fs::read_to_string(dir.path().join("flaky/ids")).unwrap();
+    assert_eq!(ids.lines().count(), 3);
+    assert!(ids.lines().all(|l| l.contains("\"flaky_1\"")), "{ids}");
+    assert!(
+        stderr.contains("`flaky_1` exited with status 3; restarting"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("[flaky_1] crash 1"),
+        "output is prefixed: {stderr}"
+    );
+}
+
+#[test]
+fn exit_codes_for_a_crash_and_an_exhausted_restart_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    shell_node(dir.path(), "crash", "echo bye; exit 7");
+    launcher(dir.path(), &[("crash", "crash", "no")]);
+    let (code, stderr, _) = finish(launch(dir.path(), &[]), Duration::from_secs(20));
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("`crash` failed: exited with status 7"),
+        "{stderr}"
+    );
+    // The log file has the instance's output.
+    let runs = dir.path().join(".peppy/runs");
+    let run = std::fs::read_dir(&runs)
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    assert_eq!(
+        std::fs::read_to_string(run.join("crash.log")).unwrap(),
+        "bye\n"
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    shell_node(dir.path(), "crash", "exit 7");
+    launcher(dir.path(), &[("crash", "crash", "always")]);
+    let (code, stderr, _) = finish(launch(dir.path(), &[]), Duration::from_secs(30));
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("restart budget of 5 used up"), "{stderr}");
+
+    let dir = tempfile::tempdir().unwrap();
+    shell_node(dir.path(), "done", "echo finished");
+    launcher(dir.path(), &[("done", "done", "no")]);
+    let (code, stderr, _) = finish(launch(dir.path(), &[]), Duration::from_secs(20));
+    assert_eq!(code, 0, "all instances finished cleanly: {stderr}");
+}
+
+#[test]
+fn a_start_failure_stops_what_was_started_and_names_the_instance() {
+    let dir = tempfile::tempdir().unwrap();
+    shell_node(dir.path(), "fine", "echo $$ > pid; exec sleep 1000");
+    std::fs::create_dir_all(dir.path().join("broken")).unwrap();
+    std::fs::write(
+        dir.path().join("broken/peppy.json5"),
+        r#"{ peppy_schema: "node_v1", manifest: { name: "broken", tag: "v1" }, execution: { language: "rust", run_cmd: ["./no-such-binary"] } }"#,
+    )
+    .unwrap();
+    launcher(
+        dir.path(),
+        &[("fine", "fine", "no"), ("broken", "broken", "no")],
+    );
+    let (code, stderr, _) = finish(launch(dir.path(), &[]), Duration::from_secs(20));
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("instance `broken` failed to start"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("broken.log"), "names its log: {stderr}");
+    assert!(
+        stderr.contains("`fine` stopped"),
+        "the started instance was stopped: {stderr}"
+    );
+    // It may have been stopped before its shell wrote its pid.
+    if let Ok(pid) = std::fs::read_to_string(dir.path().join("fine/pid")) {
+        assert!(!alive(&pid), "the started instance is gone");
+    }
+}
+
+#[test]
+fn a_stdout_flood_neither_blocks_the_child_nor_ctrl_c() {
+    let dir = tempfile::tempdir().unwrap();
+    // 50 MB of output, then a marker file: reached only if the pipe is drained.
+    shell_node(
+        dir.path(),
+        "flood",
+        "yes 0123456789abcdef0123456789abcdef0123456789abcdef | head -c 50000000; touch flooded; exec sleep 1000",
+    );
+    launcher(dir.path(), &[("flood", "flood", "no")]);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+        .arg("stack.json5")
+        .current_dir(dir.path())
+        .env("NO_COLOR", "1")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    wait_for_file_exists(&dir.path().join("flood/flooded"), Duration::from_secs(60));
+    interrupt(&child);
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(15),
+            "Ctrl-C did not stop the launch"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert_eq!(status.code(), Some(0));
+    let runs = dir.path().join(".peppy/runs");
+    let run = std::fs::read_dir(&runs)
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let logged = std::fs::metadata(run.join("flood.log")).unwrap().len();
+    assert!(
+        logged >= 50_000_000,
+        "the whole flood reached the log: {logged} bytes"
+    );
+}
+
+fn wait_for_file_exists(path: &Path, within: Duration) {
+    let deadline = Instant::now() + within;
+    while !path.exists() {
+        assert!(
+            Instant::now() < deadline,
+            "{} did not appear within {within:?}",
+            path.display()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
