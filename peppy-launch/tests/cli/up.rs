@@ -45,10 +45,10 @@ fn launch(dir: &Path, extra: &[&str]) -> Child {
 fn wait_for_file(path: &Path, within: Duration) -> String {
     let deadline = Instant::now() + within;
     loop {
-        if let Ok(s) = std::fs::read_to_string(path) {
-            if !s.trim().is_empty() {
-                return s;
-            }
+        if let Ok(s) = std::fs::read_to_string(path)
+            && !s.trim().is_empty()
+        {
+            return s;
         }
         assert!(
             Instant::now() < deadline,
@@ -64,7 +64,7 @@ fn alive(pid: &str) -> bool {
         // A zombie is dead for our purposes only once reaped; check its state.
         let stat =
             std::fs::read_to_string(format!("/proc/{}/stat", pid.trim())).unwrap_or_default();
-        !stat.split_whitespace().nth(2).is_some_and(|s| s == "Z")
+        stat.split_whitespace().nth(2).is_none_or(|s| s != "Z")
     }
 }
 
