@@ -33,6 +33,12 @@ pub(crate) enum Command {
     /// `peppy-launch LAUNCHER` is the same. Exit codes: 0 clean stop,
     /// 1 an instance failed (or its restart budget ran out), 2 invalid.
     Up(UpArgs),
+    /// Run one node (a `name:tag` from the repositories, or a path) with
+    /// the same checks of its bindings and parameters as a launcher, e.g.
+    /// `peppy-launch run video_reconstruction:v1 --instance-id rec_1 --bind rear_camera@cam_1`.
+    /// Without `--connect` it joins (or hosts) the local hub on
+    /// tcp/127.0.0.1:7447, so several `run`s find each other.
+    Run(RunArgs),
     /// Print the stack as Graphviz DOT: instances, bindings, dashed `(any)`
     /// edges for unbound from_any slots, dotted edges for external topics.
     Graph(GraphArgs),
@@ -105,4 +111,38 @@ pub(crate) struct GraphArgs {
     /// An extra repository directory (repeatable).
     #[arg(long = "repo", value_name = "DIR")]
     pub(crate) repos: Vec<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct RunArgs {
+    /// The node: `name:tag` from the repositories, or a path.
+    #[arg(value_name = "NODE")]
+    pub(crate) node: String,
+    /// The instance id (default: a readable random id).
+    #[arg(long, value_name = "ID")]
+    pub(crate) instance_id: Option<String>,
+    /// Bind a slot: `--bind left_cam@rs_left` (repeatable).
+    #[arg(long = "bind", value_name = "KEY@INSTANCE")]
+    pub(crate) bind: Vec<String>,
+    /// Parameter values, `key=value` (dot-paths for groups).
+    #[arg(value_name = "KEY=VALUE")]
+    pub(crate) overrides: Vec<String>,
+    /// An extra repository directory (repeatable).
+    #[arg(long = "repo", value_name = "DIR")]
+    pub(crate) repos: Vec<PathBuf>,
+    /// The namespace to join (default: `default`).
+    #[arg(long, value_name = "NS")]
+    pub(crate) namespace: Option<String>,
+    /// Endpoints to connect to (e.g. a launch's router).
+    #[arg(long, value_name = "ENDPOINT")]
+    pub(crate) connect: Vec<String>,
+    /// Endpoints for the node to listen on.
+    #[arg(long, value_name = "ENDPOINT")]
+    pub(crate) listen: Vec<String>,
+    /// Skip the node's build command.
+    #[arg(long)]
+    pub(crate) no_build: bool,
+    /// Seconds between SIGINT and SIGTERM when stopping.
+    #[arg(long, value_name = "SECONDS", default_value_t = 5.0)]
+    pub(crate) grace: f64,
 }

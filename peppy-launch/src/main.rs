@@ -6,6 +6,7 @@ mod cli;
 mod graph;
 mod output;
 mod report;
+mod run_node;
 mod supervise;
 mod up;
 mod validate;
@@ -32,13 +33,14 @@ fn main() -> ExitCode {
         cli::Command::Check(args) => check::run(&args),
         cli::Command::Up(args) => up::run(&args),
         cli::Command::Graph(args) => graph::run(&args),
+        cli::Command::Run(args) => run_node::run(&args),
     };
     ExitCode::from(code)
 }
 
 /// `peppy-launch LAUNCHER ...` means `peppy-launch up LAUNCHER ...`.
 fn with_default_command(mut args: Vec<std::ffi::OsString>) -> Vec<std::ffi::OsString> {
-    const COMMANDS: &[&str] = &["validate", "check", "up", "graph", "help"];
+    const COMMANDS: &[&str] = &["validate", "check", "up", "run", "graph", "help"];
     if let Some(first) = args.get(1).and_then(|a| a.to_str())
         && !first.starts_with('-')
         && !COMMANDS.contains(&first)

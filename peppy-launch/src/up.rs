@@ -225,6 +225,69 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> u8 {
         .map(|e| e.replace("0.0.0.0", "127.0.0.1").replace("[::]", "[::1]"))
         .collect();
 
+    let planned: Vec<Result<Planned, String>> = stack
+        .plan
+        .instances
+        .iter()
+        .map(|inst| {
+            let deployment = &stack.deployments[inst.deployment];
+            let node = &deployment.resolved.node;
+            let argv = node.execution.run_cmd.clone().ok_or_else(|| {
+                format!(
+                    "`{}` runs in a container, which peppy-launch does not run yet",
+                    inst.instance_id
+                )
+            })?;
+            Ok(Planned {
+                config: StartupConfig {
+                    instance_id: inst.instance_id.clone(),
+                    core_node: core_node.clone(),
+                    namespace: namespace.clone(),
+                    bindings: inst
+                        .slots
+                        .iter()
+                        .map(|s| (s.link_id.clone(), s.binding.clone()))
+                        .collect::<BTreeMap<_, _>>(),
+                    parameters: inst.parameters.clone(),
+                    zenoh: Endpoints {
+                        mode: None,
+                        listen: Vec::new(),
+                        connect: node_connect.clone(),
+                        multicast_scouting: false,
+                    },
+                },
+                node: node.identity().to_string(),
+                dir: deployment.dir.clone(),
+                argv,
+                env: inst.env_vars.clone(),
+                restart: inst.restart,
+            })
+        })
+        .collect();
+    let code = run_instances(planned, &run_dir, Duration::from_secs_f64(args.grace), out).await;
+    let _ = router.close().await;
+    code
+}
+
+/// One instance ready to start.
+pub(crate) struct Planned {
+    pub(crate) config: StartupConfig,
+    pub(crate) node: String,
+    pub(crate) dir: std::path::PathBuf,
+    pub(crate) argv: Vec<String>,
+    pub(crate) env: Vec<(String, String)>,
+    pub(crate) restart: peppy_schema::RestartPolicy,
+}
+
+/// Starts every instance in order (stopping those started if one cannot
+/// start), supervises them until they end or Ctrl-C, and returns the exit
+/// code: 0 clean, 1 a failure.
+pub(crate) async fn run_instances(
+    planned: Vec<Result<Planned, String>>,
+    run_dir: &Path,
+    grace: Duration,
+    out: Arc<Output>,
+) -> u8 {
     let signals = StopSignals::default();
     let ctrl_c = {
         let signals = signals.clone();
@@ -238,80 +301,58 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> u8 {
             signals.kill.cancel();
         })
     };
-
-    let grace = Duration::from_secs_f64(args.grace);
     let mut running = Vec::new();
     let mut start_failure = None;
-    for inst in &stack.plan.instances {
-        let deployment = &stack.deployments[inst.deployment];
-        let node = &deployment.resolved.node;
-        let Some(argv) = node.execution.run_cmd.clone() else {
-            start_failure = Some(format!(
-                "`{}` runs in a container, which peppy-launch does not run yet",
-                inst.instance_id
-            ));
-            break;
+    for p in planned {
+        let p = match p {
+            Ok(p) => p,
+            Err(e) => {
+                start_failure = Some(e);
+                break;
+            }
         };
-        let config = StartupConfig {
-            instance_id: inst.instance_id.clone(),
-            core_node: core_node.clone(),
-            namespace: namespace.clone(),
-            bindings: inst
-                .slots
-                .iter()
-                .map(|s| (s.link_id.clone(), s.binding.clone()))
-                .collect::<BTreeMap<_, _>>(),
-            parameters: inst.parameters.clone(),
-            zenoh: Endpoints {
-                mode: None,
-                listen: Vec::new(),
-                connect: node_connect.clone(),
-                multicast_scouting: false,
-            },
-        };
-        let config_path = run_dir.join(format!("{}.json", inst.instance_id));
+        let id = p.config.instance_id.clone();
+        let config_path = run_dir.join(format!("{id}.json"));
         if let Err(e) = std::fs::write(
             &config_path,
-            serde_json::to_vec_pretty(&config).unwrap_or_default(),
+            serde_json::to_vec_pretty(&p.config).unwrap_or_default(),
         ) {
             start_failure = Some(format!("cannot write {}: {e}", config_path.display()));
             break;
         }
-        let mut env: Vec<(String, String)> = inst.env_vars.clone();
+        let mut env = p.env;
         env.push((
             peppy_runtime::RUNTIME_CONFIG_ENV.to_string(),
             config_path.display().to_string(),
         ));
         let spec = InstanceSpec {
-            id: inst.instance_id.clone(),
-            dir: deployment.dir.clone(),
-            argv,
+            id: id.clone(),
+            dir: p.dir,
+            argv: p.argv,
             env,
-            restart: inst.restart,
-            log: run_dir.join(format!("{}.log", inst.instance_id)),
+            restart: p.restart,
+            log: run_dir.join(format!("{id}.log")),
         };
         match supervise::spawn(&spec, &out) {
             Ok((child, pumps)) => {
                 out.note(&format!(
-                    "started `{}` ({}) as pid {}",
-                    spec.id,
-                    node.identity(),
+                    "started `{id}` ({}) as pid {}",
+                    p.node,
                     child.id().unwrap_or(0)
                 ));
                 let task = tokio::spawn(supervise::supervise(
-                    spec.clone(),
+                    spec,
                     child,
                     pumps,
                     grace,
                     signals.clone(),
                     out.clone(),
                 ));
-                running.push((spec.id.clone(), task));
+                running.push((id, task));
             }
             Err(e) => {
                 start_failure = Some(format!(
-                    "instance `{}` failed to start: {e} (log: {})",
-                    spec.id,
+                    "instance `{id}` failed to start: {e} (log: {})",
                     spec.log.display()
                 ));
                 break;
@@ -323,7 +364,6 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> u8 {
         out.note("stopping the instances already started");
         signals.stop.cancel();
     }
-
     let mut failed = start_failure.is_some();
     for (id, task) in running {
         match task.await {
@@ -340,7 +380,6 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> u8 {
         }
     }
     ctrl_c.abort();
-    let _ = router.close().await;
     if failed {
         out.note("done: an instance failed");
         exit::FAILED

@@ -41,7 +41,7 @@ pub use peppy_schema::QosProfile as QoSProfile;
 pub use services::{Caller, Reply};
 pub use startup::{
     DEFAULT_NAMESPACE, Endpoints, RUNTIME_CONFIG_ENV, STANDALONE_CORE, StandaloneConfig,
-    StartupConfig,
+    StartupConfig, startup_from_flags,
 };
 pub use tokio_util::sync::CancellationToken;
 

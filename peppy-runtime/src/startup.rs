@@ -219,6 +219,22 @@ pub(crate) fn load(
     })
 }
 
+/// What a standalone command line (`--instance-id`, `--bind`, `--params`,
+/// `key=value`, ...) means for the node `doc`: the start-up config it
+/// describes, with bindings checked and parameters filled. `peppy-launch run`
+/// hands this to the node it starts.
+pub fn startup_from_flags(doc: &NodeDoc, args: Vec<String>) -> Result<StartupConfig> {
+    let s = load(doc, args, None, &StandaloneConfig::default())?;
+    let mut config = s.config;
+    config.bindings = s
+        .slots
+        .into_iter()
+        .map(|slot| (slot.link_id, slot.binding))
+        .collect();
+    config.parameters = s.parameters;
+    Ok(config)
+}
+
 fn read_config_file(path: &Path) -> Result<StartupConfig> {
     let text = std::fs::read_to_string(path).map_err(|e| {
         Error::Startup(format!(
@@ -440,9 +456,7 @@ fn slots_from_flags(doc: &NodeDoc, binds: &[(String, String)]) -> Result<Vec<Slo
         }
     }
     slots_from_config(doc, &bindings).map_err(|e| match e {
-        Error::Startup(m) => {
-            Error::Startup(m.replace("missing in the runtime config", "not bound"))
-        }
+        Error::Startup(m) => Error::Startup(m.replace(" (missing in the runtime config)", "")),
         other => other,
     })
 }

@@ -350,3 +350,84 @@ fn wait_for_file_exists(path: &Path, within: Duration) {
         std::thread::sleep(Duration::from_millis(50));
     }
 }
+
+#[test]
+fn run_starts_one_node_with_checked_bindings_and_typed_parameters() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir_all(dir.path().join("echo")).unwrap();
+    let doc = serde_json::json!({
+        "peppy_schema": "node_v1",
+        "manifest": { "name": "echo", "tag": "v1", "depends_on": { "nodes": [{ "name": "cam", "tag": "v1", "link_id": "source" }] } },
+        "execution": {
+            "language": "shell",
+            "run_cmd": ["sh", "-c", "cat \"$PEPPY_RUNTIME_CONFIG\"; echo; echo END"],
+            "parameters": { "rate": { "$type": "f64", "$default": 10 }, "label": "string" },
+        },
+    });
+    std::fs::write(dir.path().join("echo/peppy.json5"), doc.to_string()).unwrap();
+    shell_node(dir.path(), "cam", "sleep 1");
+    std::fs::write(
+        dir.path().join("peppy_repositories.json5"),
+        r#"[{ type: "fs", path: "." }]"#,
+    )
+    .unwrap();
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+            .arg("run")
+            .args(args)
+            .current_dir(dir.path())
+            .env("NO_COLOR", "1")
+            .output()
+            .unwrap()
+    };
+    let unbound = run(&["echo", "label=x"]);
+    assert_eq!(unbound.status.code(), Some(2));
+    let text = String::from_utf8_lossy(&unbound.stderr);
+    assert!(
+        text.contains("slot `source`") && text.contains("--bind source@"),
+        "{text}"
+    );
+
+    let missing = run(&["echo", "--bind", "source@cam_1"]);
+    assert_eq!(missing.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&missing.stderr).contains("missing required parameter `label`")
+    );
+
+    let ok = run(&[
+        "echo",
+        "--instance-id",
+        "echo_1",
+        "--bind",
+        "source@cam_1",
+        "--namespace",
+        "lab",
+        "label=123",
+        "--connect",
+        "tcp/127.0.0.1:9",
+    ]);
+    let text = String::from_utf8_lossy(&ok.stderr);
+    assert_eq!(ok.status.code(), Some(0), "{text}");
+    let json: String = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("[echo_1] "))
+        .take_while(|l| *l != "END")
+        .collect::<Vec<_>>()
+        .join("\n");
+    let config: serde_json::Value =
+        serde_json::from_str(&json).unwrap_or_else(|e| panic!("{e}: {json}"));
+    assert_eq!(config["instance_id"], "echo_1");
+    assert_eq!(config["namespace"], "lab");
+    assert_eq!(
+        config["bindings"]["source"],
+        serde_json::json!({ "kind": "pinned", "producer": "cam_1" })
+    );
+    assert_eq!(
+        config["parameters"],
+        serde_json::json!({ "rate": 10, "label": "123" })
+    );
+    assert_eq!(
+        config["zenoh"]["connect"],
+        serde_json::json!(["tcp/127.0.0.1:9"])
+    );
+}
