@@ -1,0 +1,4 @@
+#[peppy::node("pass/topics.json5")]
+fn peppygen() {}
+
+fn main() {}

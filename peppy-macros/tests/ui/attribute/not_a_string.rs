@@ -1,0 +1,4 @@
+#[peppy::node(peppy_json5)]
+mod peppygen {}
+
+fn main() {}

@@ -1,0 +1,4 @@
+#[peppy::node("formats/empty_format.json5")]
+mod peppygen {}
+
+fn main() {}

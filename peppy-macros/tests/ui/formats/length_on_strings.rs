@@ -1,0 +1,4 @@
+#[peppy::node("formats/length_on_strings.json5")]
+mod peppygen {}
+
+fn main() {}

@@ -1,0 +1,4 @@
+#[peppy::node("formats/length_without_array.json5")]
+mod peppygen {}
+
+fn main() {}

@@ -1,0 +1,4 @@
+#[peppy::node("formats/nested_array.json5")]
+mod peppygen {}
+
+fn main() {}

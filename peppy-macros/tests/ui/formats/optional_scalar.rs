@@ -1,0 +1,4 @@
+#[peppy::node("formats/optional_scalar.json5")]
+mod peppygen {}
+
+fn main() {}

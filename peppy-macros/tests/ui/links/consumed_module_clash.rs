@@ -1,0 +1,4 @@
+#[peppy::node("links/consumed_module_clash.json5")]
+mod peppygen {}
+
+fn main() {}

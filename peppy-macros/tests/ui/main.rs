@@ -1,0 +1,31 @@
+//! The attribute through rustc (trybuild): every compile error a schema
+//! mistake produces, located in the JSON5 file, and compiling (and running)
+//! node code against every generated API shape.
+//!
+//! Cases live in `tests/ui/<category>/<case>.rs` with their document in
+//! `<case>.json5` and the expected compiler output in `<case>.stderr`
+//! (regenerate with `TRYBUILD=overwrite cargo test -p peppy-macros` and
+//! review the diff). Document paths in the cases are relative to this
+//! directory, through `PEPPY_MACRO_MANIFEST_DIR`.
+
+#[test]
+fn ui() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ui");
+    // SAFETY: this binary has this one test, so no other thread reads the
+    // environment while it is set; trybuild's cargo inherits it.
+    unsafe { std::env::set_var(peppy_build::macro_support::MANIFEST_DIR_OVERRIDE, &dir) };
+    let t = trybuild::TestCases::new();
+    t.pass("tests/ui/pass/*.rs");
+    for category in [
+        "attribute",
+        "formats",
+        "links",
+        "names",
+        "params",
+        "resolution",
+        "syntax",
+        "usage",
+    ] {
+        t.compile_fail(format!("tests/ui/{category}/*.rs"));
+    }
+}

@@ -1,0 +1,4 @@
+#[peppy::node("params/optional_parameter.json5")]
+mod peppygen {}
+
+fn main() {}

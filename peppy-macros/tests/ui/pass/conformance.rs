@@ -1,0 +1,43 @@
+#![deny(warnings)]
+
+#[peppy::node("pass/conformance.json5")]
+mod peppygen {}
+
+use std::time::SystemTime;
+
+use peppygen::emitted_topics::{self, depth_camera, uvc_camera};
+use peppygen::exposed_services;
+use peppygen::{NodeRunner, Result};
+
+async fn produce(runner: &NodeRunner) -> Result<()> {
+    // Defined by three interfaces: only the nested paths exist.
+    depth_camera::v1::video_stream::emit(
+        runner,
+        depth_camera::v1::video_stream::MessageHeader { stamp: SystemTime::now(), frame_id: 1 },
+        "rgb8".into(),
+        640,
+        480,
+        vec![0; 4],
+    )
+    .await?;
+    depth_camera::v2::video_stream::emit(runner, SystemTime::now(), vec![1, 2]).await?;
+    uvc_camera::v1_beta::video_stream::emit(runner, vec![0xff, 0xd8]).await?;
+    // Unambiguous conformed entries also have their flat names.
+    emitted_topics::calibrated::emit(runner).await?;
+    depth_camera::v2::calibrated::emit(runner).await?;
+    emitted_topics::status::emit(runner, true).await?;
+    exposed_services::video_stream_info::handle_next_request(runner, |_| {
+        Ok(exposed_services::video_stream_info::Response::new(640, 480, 30, "rgb8".into()))
+    })
+    .await?;
+    exposed_services::uvc_camera::v1_beta::set_exposure::handle_next_request(runner, |request| {
+        let _: u32 = request.data.micros;
+        Ok(())
+    })
+    .await?;
+    exposed_services::set_exposure::handle_next_request(runner, |_| Ok(())).await
+}
+
+fn main() {
+    let _ = produce;
+}

@@ -1,0 +1,4 @@
+#[peppy::node("resolution/sha256_pin_mismatch.json5")]
+mod peppygen {}
+
+fn main() {}

@@ -1,0 +1,4 @@
+#[peppy::node("syntax/unknown_key.json5")]
+mod peppygen {}
+
+fn main() {}
