@@ -250,8 +250,11 @@ impl Config {
             println!("{line}");
         }
         for w in generated.check.warnings.sorted() {
-            let line = render(w, &base).replace('\n', " ");
-            println!("cargo:warning={line}");
+            // Cargo shows one line per warning: the location, then the help.
+            let text = crate::macro_support::message(w, &base);
+            for line in text.lines() {
+                println!("cargo:warning={line}");
+            }
         }
         let out_dir = match &self.out_dir {
             Some(d) => d.clone(),

@@ -76,9 +76,8 @@ fn outside_a_build_script_the_missing_variable_is_named() {
         .manifest_dir(fixtures().join("robot_arm"))
         .repositories_env(None)
         .sync()
-        .map(|_| ())
-        .or_else(|e| match e {
-            peppy_build::Error::MissingEnv(v) => Err(v),
+        .map_err(|e| match e {
+            peppy_build::Error::MissingEnv(v) => v,
             other => panic!("{other}"),
         });
     // `cargo test` sets no OUT_DIR for integration tests.
