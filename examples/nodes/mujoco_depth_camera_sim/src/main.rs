@@ -28,6 +28,7 @@ fn frame(w: u32, h: u32, t: u32) -> Vec<u8> {
 fn main() -> Result<()> {
     NodeBuilder::new().run(|params: Parameters, runner| async move {
         let (width, height, fps) = (params.width, params.height, params.frames_per_second.max(1));
+        let fail_after = params.fail_after_frames;
         eprintln!(
             "mujoco_depth_camera_sim `{}`: {width}x{height} @ {fps} fps",
             runner.instance_id()
@@ -66,6 +67,10 @@ fn main() -> Result<()> {
                     eprintln!("emit failed: {e}");
                 }
                 frame_id = frame_id.wrapping_add(1);
+                if fail_after != 0 && frame_id >= fail_after {
+                    eprintln!("simulated dropout after {frame_id} frames");
+                    std::process::exit(3);
+                }
             }
         });
         Ok(())
