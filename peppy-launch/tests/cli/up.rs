@@ -150,8 +150,8 @@ fn ctrl_c_stops_everything_even_a_node_that_ignores_signals() {
     assert!(alive(&pid) && alive(&grandchild) && alive(&polite));
     interrupt(&child);
     let (code, stderr, took) = finish(child, Duration::from_secs(20));
-    // SIGINT, 1 s grace, SIGTERM, 5 s, SIGKILL: well under 8 s.
-    assert!(took < Duration::from_secs(8), "stopping took {took:?}");
+    // SIGINT, 1 s grace, SIGTERM, 5 s, SIGKILL: about 6 s (slack for a loaded machine).
+    assert!(took < Duration::from_secs(12), "stopping took {took:?}");
     assert_eq!(code, 0, "a user-requested stop is clean: {stderr}");
     assert!(
         stderr.contains("`stubborn` did not stop in time: force-killed"),
