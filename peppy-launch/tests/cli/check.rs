@@ -189,3 +189,78 @@ fn missing_launcher_is_a_clean_error() {
         run.stderr
     );
 }
+
+#[test]
+fn readme_commands_on_the_arm_loop() {
+    let check = peppy_launch(
+        &root(),
+        &["check", "examples/launchers/robot_arm_loop.json5"],
+    );
+    assert_eq!(check.code, 0, "{}", check.stderr);
+    assert!(
+        check.stdout.contains("robot_arm <- arm"),
+        "{}",
+        check.stdout
+    );
+    assert!(
+        check
+            .stdout
+            .contains(r#"parameters: {"step":0.05,"max_velocity":1.0}"#),
+        "{}",
+        check.stdout
+    );
+    let graph = peppy_launch(
+        &root(),
+        &["graph", "examples/launchers/robot_arm_loop.json5"],
+    );
+    assert_eq!(graph.code, 0, "{}", graph.stderr);
+    assert!(graph.stdout.starts_with("digraph \"robot_arm_loop\" {"));
+    assert!(
+        graph
+            .stdout
+            .contains(r#""arm" -> "controller" [label="robot_arm"];"#),
+        "{}",
+        graph.stdout
+    );
+    assert!(
+        graph.stdout.contains(
+            r#""controller" -> "arm" [label="joint_commands (external)", style=dotted];"#
+        )
+    );
+}
+
+#[test]
+fn graph_draws_any_edges_for_unbound_from_any_slots() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("stack.json5"),
+        r#"{ peppy_schema: "launcher_v1", deployments: [
+                { source: { name: "realsense_d405:v1" }, instances: [{ instance_id: "cam" }] },
+                { source: { name: "camera_mosaic:v1" }, instances: [{ instance_id: "mosaic" }] },
+                { source: { name: "video_reconstruction:v1" }, instances: [{ instance_id: "recon", bindings: { left_cam: "cam", right_cam: "cam" } }] },
+            ] }"#,
+    )
+    .unwrap();
+    let repo = root().join("examples");
+    let graph = peppy_launch(
+        dir.path(),
+        &["graph", "stack.json5", "--repo", repo.to_str().unwrap()],
+    );
+    assert_eq!(graph.code, 0, "{}", graph.stderr);
+    // mosaic's extras takes any camera: a dashed edge from `cam`.
+    assert!(
+        graph
+            .stdout
+            .contains(r#""cam" -> "mosaic" [label="extras (any)", style=dashed];"#),
+        "{}",
+        graph.stdout
+    );
+    // recon's backup_cams excludes `cam` (pinned by its siblings): an (any) placeholder.
+    assert!(
+        graph.stdout.contains(
+            r#""recon.backup_cams.any" -> "recon" [label="backup_cams (any)", style=dashed];"#
+        ),
+        "{}",
+        graph.stdout
+    );
+}

@@ -431,3 +431,24 @@ fn run_starts_one_node_with_checked_bindings_and_typed_parameters() {
         serde_json::json!(["tcp/127.0.0.1:9"])
     );
 }
+
+#[test]
+fn a_killed_launcher_leaves_no_orphans() {
+    let dir = tempfile::tempdir().unwrap();
+    shell_node(dir.path(), "orphan", "echo $$ > pid; exec sleep 1000");
+    launcher(dir.path(), &[("orphan", "orphan", "no")]);
+    let mut child = launch(dir.path(), &[]);
+    let pid = wait_for_file(&dir.path().join("orphan/pid"), Duration::from_secs(20));
+    assert!(alive(&pid));
+    // SIGKILL: the launcher gets no chance to stop anything itself.
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while alive(&pid) {
+        assert!(
+            Instant::now() < deadline,
+            "the node outlived its launcher (parent-death signal)"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
