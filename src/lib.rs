@@ -82,6 +82,36 @@ pub mod codegen {
     pub use peppy_runtime::codegen::*;
     pub use peppy_runtime::{Error, NodeBuilder, NodeRunner, QoSProfile, Result, StandaloneConfig};
 
+    /// An action server's decision on a goal; the goal response format of
+    /// every action (`{ accepted, error_message }`), fixed by the framework.
+    #[derive(Debug, Clone, PartialEq, Eq, Default)]
+    pub struct GoalResponse {
+        /// Whether the goal was accepted.
+        pub accepted: bool,
+        /// Why it was rejected.
+        pub error_message: Option<String>,
+    }
+
+    impl GoalResponse {
+        /// A decision from its fields.
+        pub fn new(accepted: bool, error_message: Option<String>) -> Self {
+            GoalResponse {
+                accepted,
+                error_message,
+            }
+        }
+
+        /// Accepts the goal.
+        pub fn accept() -> Self {
+            Self::new(true, None)
+        }
+
+        /// Rejects the goal; the caller sees `reason`.
+        pub fn reject(reason: impl Into<String>) -> Self {
+            Self::new(false, Some(reason.into()))
+        }
+    }
+
     /// Serde helpers for parameter types serde does not cover the way peppy
     /// documents them: `time` as seconds since the Unix epoch, and
     /// fixed-length arrays of any length.

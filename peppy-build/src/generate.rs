@@ -81,19 +81,22 @@ const CATEGORIES: &[(&str, &str)] = &[
         "consumed_services",
         "Services this node calls, one module `<link_id>_<service>` each with `Request`, `Response` and `poll`.",
     ),
-    ("exposed_actions", "Actions this node exposes."),
+    (
+        "exposed_actions",
+        "Actions this node exposes, one module each with `ActionHandle` (`expose`, `handle_goal_next_request`) and `GoalContext`.",
+    ),
     (
         "consumed_actions",
-        "Actions this node calls, one module `<link_id>_<action>` each.",
+        "Actions this node calls, one module `<link_id>_<action>` each with `GoalRequest` and `ActionHandle` (`fire_goal`, `on_next_feedback_message`, `get_result`, `cancel_goal`).",
     ),
 ];
 
 /// Names the runtime entry points use besides the fields.
-const RESERVED_ARGS: &[&str] = &["node_runner", "message", "SPEC"];
+pub(crate) const RESERVED_ARGS: &[&str] = &["node_runner", "message", "SPEC"];
 
-struct Gen<'a> {
-    node: &'a ResolvedNode,
-    diags: Diagnostics,
+pub(crate) struct Gen<'a> {
+    pub(crate) node: &'a ResolvedNode,
+    pub(crate) diags: Diagnostics,
 }
 
 /// One generated category module: its items and the paths (below the
@@ -126,8 +129,8 @@ impl Gen<'_> {
         let consumed_topics = self.consumed_topics();
         let exposed = self.exposed_services();
         let consumed_services = self.consumed_services();
-        let exposed_actions = Category::default();
-        let consumed_actions = Category::default();
+        let exposed_actions = self.exposed_actions();
+        let consumed_actions = self.consumed_actions();
 
         let spec_refs = |category: &str, c: &Category| -> Vec<TokenStream> {
             let cat = ident(category);
@@ -215,6 +218,58 @@ impl Gen<'_> {
             })
             .collect();
         self.provided(offered, EntryKind::Service)
+    }
+
+    fn exposed_actions(&mut self) -> Category {
+        let node = self.node;
+        let offered: Vec<Offered> = node
+            .exposed_actions
+            .iter()
+            .map(|p| Offered {
+                name: p.decl.name.clone(),
+                loc: p.decl.loc.clone(),
+                origin: p.origin.clone(),
+                body: self.exposed_action(p),
+            })
+            .collect();
+        self.provided(offered, EntryKind::Action)
+    }
+
+    fn consumed_actions(&mut self) -> Category {
+        let mut category = Category::default();
+        let mut names = Names::default();
+        let node = self.node;
+        for a in &node.consumed_actions {
+            let m = module(&format!(
+                "{}_{}",
+                module_name(&a.slot.link_id),
+                module_name(&a.decl.name)
+            ));
+            let what = format!(
+                "consumed action `{}` of slot `{}`",
+                a.decl.name, a.slot.link_id
+            );
+            if !names.claim(NameKind::Module, &m, &what, &a.loc, &mut self.diags) {
+                continue;
+            }
+            let id = ident(&m);
+            let body = self.consumed_action(a);
+            let doc = format!(
+                "Calls action `{}` of {}, through slot `{}` (declared at `{}`; the action is declared at `{}`).",
+                a.decl.name,
+                origin_text(&a.origin),
+                a.slot.link_id,
+                short_location(&a.loc),
+                short_location(&a.decl.loc)
+            );
+            category.items.extend(quote! {
+                #[doc = #doc]
+                pub mod #id {
+                    #body
+                }
+            });
+        }
+        category
     }
 
     /// Lays out provided entries: own entries by name; conformed ones under
@@ -812,7 +867,7 @@ fn consumed_topic_doc(t: &ResolvedTopic) -> String {
 }
 
 /// The `OwnerSpec` of an entry; `own` entries of this node are `Own`.
-fn owner(origin: &Origin, own: bool) -> TokenStream {
+pub(crate) fn owner(origin: &Origin, own: bool) -> TokenStream {
     match origin {
         Origin::Node(_) if own => quote!(::peppy::codegen::OwnerSpec::Own),
         Origin::Node(id) => {
@@ -826,7 +881,7 @@ fn owner(origin: &Origin, own: bool) -> TokenStream {
     }
 }
 
-fn qos(q: QosProfile) -> TokenStream {
+pub(crate) fn qos(q: QosProfile) -> TokenStream {
     match q {
         QosProfile::SensorData => quote!(::peppy::codegen::QosProfile::SensorData),
         QosProfile::Standard => quote!(::peppy::codegen::QosProfile::Standard),

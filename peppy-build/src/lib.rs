@@ -80,6 +80,7 @@
 //! their own name too. Generated code reaches the runtime only through
 //! `::peppy::codegen`, by absolute paths.
 
+mod actions;
 mod config;
 mod docs;
 mod generate;

@@ -6,7 +6,7 @@ mod peppygen {}
 use std::time::SystemTime;
 
 use peppygen::emitted_topics::{self, depth_camera, uvc_camera};
-use peppygen::exposed_services;
+use peppygen::{exposed_actions, exposed_services};
 use peppygen::{NodeRunner, Result};
 
 async fn produce(runner: &NodeRunner) -> Result<()> {
@@ -35,7 +35,22 @@ async fn produce(runner: &NodeRunner) -> Result<()> {
         Ok(())
     })
     .await?;
-    exposed_services::set_exposure::handle_next_request(runner, |_| Ok(())).await
+    exposed_services::set_exposure::handle_next_request(runner, |_| Ok(())).await?;
+    // An inherited action, nested and flat.
+    let mut nested = exposed_actions::depth_camera::v2::calibrate::ActionHandle::expose(runner).await?;
+    let mut flat = exposed_actions::calibrate::ActionHandle::expose(runner).await?;
+    if let Some(ctx) = flat
+        .handle_goal_next_request(|goal| {
+            let _: (u8, u8) = (goal.data.board.rows, goal.data.board.cols);
+            Ok(exposed_actions::calibrate::GoalResponse::accept())
+        })
+        .await?
+    {
+        ctx.publish_feedback(12).await?;
+        ctx.complete(0.25).await?;
+    }
+    let _ = nested.handle_goal_next_request(|_| Ok(exposed_actions::calibrate::GoalResponse::reject("busy"))).await?;
+    Ok(())
 }
 
 fn main() {

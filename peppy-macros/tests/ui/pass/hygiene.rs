@@ -18,6 +18,11 @@ struct Future;
 struct Clone;
 struct Debug;
 struct PartialEq;
+struct Fn;
+struct FnOnce;
+struct ToString;
+struct Copy;
+struct Default;
 struct u8;
 struct bool;
 mod core {}
@@ -33,5 +38,11 @@ mod topics {}
 
 #[::peppy::node("pass/parameters.json5")]
 mod params {}
+
+#[::peppy::node("pass/actions.json5")]
+mod actions {}
+
+#[::peppy::node("pass/conformance.json5")]
+mod conformance {}
 
 fn main() {}
