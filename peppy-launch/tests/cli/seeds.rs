@@ -204,6 +204,17 @@ fn simulated_cameras_swap_in_without_consumer_changes() {
 #[test]
 fn robot_arm_loop_runs_both_ways() {
     let mut launch = Launch::up("examples/launchers/robot_arm_loop.json5", &[]);
+    // First the controller homes the arm with its move_arm action: goal,
+    // feedback, result.
+    launch.expect("with the homing goal", BUILD_AND_START, |l| {
+        l.starts_with("[arm]") && l.contains("move_arm goal") && l.contains("from controller")
+    });
+    launch.expect("with homing feedback", Duration::from_secs(30), |l| {
+        l.starts_with("[controller]") && l.contains("rad to go")
+    });
+    launch.expect("with the homing result", Duration::from_secs(30), |l| {
+        l.contains("homed by arm: reached=true")
+    });
     launch.expect("with the controller's 40th cycle", BUILD_AND_START, |l| {
         l.starts_with("[controller]") && l.contains("cycle 40:")
     });
@@ -212,7 +223,6 @@ fn robot_arm_loop_runs_both_ways() {
         Duration::from_secs(30),
         |l| l.starts_with("[arm]") && l.contains("command 40 from controller"),
     );
-    // The controller's parameter override (step 0.05) reached it.
     assert_eq!(launch.stop(), 0);
 }
 

@@ -6,30 +6,82 @@
 #[peppy::node("peppy.json5")]
 mod peppygen {}
 
+use std::time::Duration;
+
+use peppygen::consumed_actions::robot_arm_move_arm;
 use peppygen::consumed_topics::robot_arm_joint_states;
 use peppygen::emitted_topics::joint_commands;
-use peppygen::{NodeBuilder, Parameters, Result};
+use peppygen::{NodeBuilder, NodeRunner, Parameters, QoSProfile, Result};
 
-fn next_target(current: &[f64; 3], step: f64) -> [f64; 3] {
-    // Sweep the first joint back and forth between -1 and 1 rad.
-    let mut t = *current;
-    t[0] = if current[0] > 1.0 {
-        -1.0
-    } else {
-        current[0] + step
+/// Sends the arm home with its `move_arm` action, following its progress.
+async fn home(runner: &NodeRunner, max_velocity: f64) -> Result<()> {
+    let goal = robot_arm_move_arm::GoalRequest::new([0.5, 0.0, 0.0], max_velocity);
+    let mut handle = loop {
+        match robot_arm_move_arm::ActionHandle::fire_goal(
+            runner,
+            Duration::from_secs(2),
+            goal.clone(),
+            QoSProfile::Standard,
+        )
+        .await
+        {
+            Ok(h) => break h,
+            // The arm may start after us.
+            Err(_) if !runner.cancellation_token().is_cancelled() => {
+                tokio::time::sleep(Duration::from_millis(300)).await
+            }
+            Err(e) => return Err(e),
+        }
     };
+    if !handle.data.accepted {
+        println!(
+            "homing refused: {}",
+            handle.data.error_message.unwrap_or_default()
+        );
+        return Ok(());
+    }
+    while let Ok(feedback) = handle.on_next_feedback_message().await {
+        println!("homing: {:.2} rad to go", feedback.remaining);
+    }
+    let result = handle.get_result(Duration::from_secs(30)).await?;
+    match result.outcome {
+        robot_arm_move_arm::ResultOutcome::Completed(r) => {
+            println!(
+                "homed by {}: reached={} at {:?}",
+                result.instance_id, r.reached, r.final_positions
+            )
+        }
+        other => println!("homing ended: {other:?}"),
+    }
+    Ok(())
+}
+
+/// Sweeps the first joint back and forth between -1 and 1 rad, turning
+/// around at either end.
+fn next_target(current: &[f64; 3], step: f64, direction: &mut f64) -> [f64; 3] {
+    if current[0] >= 1.0 - 1e-9 {
+        *direction = -1.0;
+    } else if current[0] <= -1.0 + 1e-9 {
+        *direction = 1.0;
+    }
+    let mut t = *current;
+    t[0] = (current[0] + *direction * step).clamp(-1.0, 1.0);
     t
 }
 
 fn main() -> Result<()> {
     NodeBuilder::new().run(|params: Parameters, runner| async move {
         tokio::spawn(async move {
+            if let Err(e) = home(&runner, params.max_velocity).await {
+                eprintln!("homing failed: {e}");
+            }
             let mut cycle = 0u64;
+            let mut direction = 1.0;
             while let Ok((arm, state)) =
                 robot_arm_joint_states::on_next_message_received(&runner, None).await
             {
                 cycle += 1;
-                let target = next_target(&state.positions, params.step);
+                let target = next_target(&state.positions, params.step, &mut direction);
                 if cycle == 1 || cycle.is_multiple_of(20) {
                     println!(
                         "cycle {cycle}: {arm} at {:?} -> target {:?}",

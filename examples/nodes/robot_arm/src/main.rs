@@ -10,6 +10,7 @@ use std::time::{Duration, SystemTime};
 
 use peppygen::consumed_topics::joint_commands;
 use peppygen::emitted_topics::joint_states;
+use peppygen::exposed_actions::move_arm;
 use peppygen::{NodeBuilder, Parameters, Result};
 
 #[derive(Clone, Copy, Default)]
@@ -43,6 +44,61 @@ fn main() -> Result<()> {
                 let mut j = state.lock().unwrap_or_else(|p| p.into_inner());
                 j.target = command.target_positions;
                 j.max_velocity = command.max_velocity;
+            }
+        });
+
+        // The move_arm action: accept goals with a positive speed, report the
+        // remaining distance, finish when reached (or cancelled).
+        let (server, state) = (runner.clone(), joints.clone());
+        tokio::spawn(async move {
+            let Ok(mut action) = move_arm::ActionHandle::expose(&server).await else {
+                return;
+            };
+            while let Ok(Some(goal)) = action
+                .handle_goal_next_request(|request| {
+                    if request.data.max_velocity > 0.0 {
+                        Ok(move_arm::GoalResponse::accept())
+                    } else {
+                        Ok(move_arm::GoalResponse::reject(
+                            "max_velocity must be positive",
+                        ))
+                    }
+                })
+                .await
+            {
+                let state = state.clone();
+                tokio::spawn(async move {
+                    let data = goal.request().data.clone();
+                    println!(
+                        "move_arm goal {} from {}: to {:?}",
+                        goal.goal_id(),
+                        goal.request().instance_id,
+                        data.target_positions
+                    );
+                    {
+                        let mut j = state.lock().unwrap_or_else(|p| p.into_inner());
+                        j.target = data.target_positions;
+                        j.max_velocity = data.max_velocity;
+                    }
+                    loop {
+                        let position = state.lock().unwrap_or_else(|p| p.into_inner()).position;
+                        let remaining = position
+                            .iter()
+                            .zip(data.target_positions)
+                            .map(|(p, t)| (t - p).abs())
+                            .fold(0.0, f64::max);
+                        if goal.is_cancelled() {
+                            let _ = goal.complete_cancelled(false, position).await;
+                            return;
+                        }
+                        if remaining < 1e-3 {
+                            let _ = goal.complete(true, position).await;
+                            return;
+                        }
+                        let _ = goal.publish_feedback(remaining).await;
+                        tokio::time::sleep(Duration::from_millis(100)).await;
+                    }
+                });
             }
         });
 
