@@ -97,7 +97,7 @@ impl Gen<'_> {
         let (data_field, data_type, data_init) = match &decl.goal {
             Some(_) => (
                 quote! {
-                    #[doc = "The goal data."]
+                    #[doc = " The goal data."]
                     pub data: GoalRequestData,
                 },
                 quote!(GoalRequestData),
@@ -110,7 +110,7 @@ impl Gen<'_> {
                 let m = method(&pre.feedback, &fb.format.fields);
                 let (params, inits, allows) = (&m.params, &m.inits, &m.allows);
                 quote! {
-                    #[doc = "Publishes one feedback message on this goal's stream, the fields in declaration order."]
+                    #[doc = " Publishes one feedback message on this goal's stream, the fields in declaration order."]
                     #allows
                     pub async fn publish_feedback(&self, #(#params),*) -> ::peppy::codegen::Result<()> {
                         let message = #feedback_id { #(#inits),* };
@@ -127,31 +127,31 @@ impl Gen<'_> {
         let goal_format = format_spec(decl.goal.as_ref());
         let feedback_format = format_spec(decl.feedback.as_ref().map(|f| &f.format));
         let result_format = format_spec(decl.result.as_ref());
-        let goal_doc = format!(
+        let goal_doc = crate::docs::Doc::new(format!(
             "A goal sent to action `{name}`, with the caller's identity{}.",
             if decl.goal.is_some() {
                 " and its data"
             } else {
                 " (the action takes no goal data)"
             }
-        );
+        ));
         quote! {
             #types
 
-            #[doc = "The server's decision on a goal: `GoalResponse::accept()` or `GoalResponse::reject(reason)`."]
+            #[doc = " The server's decision on a goal: `GoalResponse::accept()` or `GoalResponse::reject(reason)`."]
             pub use ::peppy::codegen::GoalResponse;
 
-            #[doc = #goal_doc]
+            #goal_doc
             #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
             pub struct GoalRequest {
-                #[doc = "The caller's instance id."]
+                #[doc = " The caller's instance id."]
                 pub instance_id: ::std::string::String,
-                #[doc = "The launch (core node) that started the caller."]
+                #[doc = " The launch (core node) that started the caller."]
                 pub core_node: ::std::string::String,
                 #data_field
             }
 
-            #[doc = "What the runtime knows about this action."]
+            #[doc = " What the runtime knows about this action."]
             pub(crate) static SPEC: ::peppy::codegen::ActionSpec = ::peppy::codegen::ActionSpec {
                 owner: #owner,
                 name: #name,
@@ -160,19 +160,19 @@ impl Gen<'_> {
                 result: #result_format,
             };
 
-            #[doc = "This node's server of the action. Its goal, cancel and result services live as long as the node; several goals may run at once."]
+            #[doc = " This node's server of the action. Its goal, cancel and result services live as long as the node; several goals may run at once."]
             #[derive(::core::fmt::Debug)]
             pub struct ActionHandle<'a> {
                 node_runner: &'a ::peppy::codegen::NodeRunner,
             }
 
             impl<'a> ActionHandle<'a> {
-                #[doc = "The action's server on this node."]
+                #[doc = " The action's server on this node."]
                 pub async fn expose(node_runner: &'a ::peppy::codegen::NodeRunner) -> ::peppy::codegen::Result<Self> {
                     ::core::result::Result::Ok(ActionHandle { node_runner })
                 }
 
-                #[doc = "Waits for the next goal and lets `decider` accept or reject it. Rejected goals (and goals `decider` fails on, with its error as the reason) are answered and skipped; an accepted goal is returned to be worked on. `None` once the node stops."]
+                #[doc = " Waits for the next goal and lets `decider` accept or reject it. Rejected goals (and goals `decider` fails on, with its error as the reason) are answered and skipped; an accepted goal is returned to be worked on. `None` once the node stops."]
                 pub async fn handle_goal_next_request<F>(
                     &mut self,
                     decider: F,
@@ -209,7 +209,7 @@ impl Gen<'_> {
                 }
             }
 
-            #[doc = "An accepted goal being worked on. Finish it with `complete` or `complete_cancelled`; dropping it unfinished reports `Abandoned` to the caller."]
+            #[doc = " An accepted goal being worked on. Finish it with `complete` or `complete_cancelled`; dropping it unfinished reports `Abandoned` to the caller."]
             #[derive(::core::fmt::Debug)]
             pub struct GoalContext {
                 inner: ::peppy::codegen::GoalContext,
@@ -217,36 +217,36 @@ impl Gen<'_> {
             }
 
             impl GoalContext {
-                #[doc = "The goal as the caller sent it."]
+                #[doc = " The goal as the caller sent it."]
                 pub fn request(&self) -> &GoalRequest {
                     &self.request
                 }
 
-                #[doc = "The goal's id."]
+                #[doc = " The goal's id."]
                 pub fn goal_id(&self) -> &str {
                     self.inner.goal_id()
                 }
 
-                #[doc = "Resolves when the caller asks to cancel the goal."]
+                #[doc = " Resolves when the caller asks to cancel the goal."]
                 pub async fn cancel_signal(&self) {
                     self.inner.cancel_signal().await
                 }
 
-                #[doc = "Whether the caller asked to cancel the goal."]
+                #[doc = " Whether the caller asked to cancel the goal."]
                 pub fn is_cancelled(&self) -> bool {
                     self.inner.is_cancelled()
                 }
 
                 #publish
 
-                #[doc = "Finishes the goal successfully with its result, the fields in declaration order."]
+                #[doc = " Finishes the goal successfully with its result, the fields in declaration order."]
                 #allows
                 pub async fn complete(self, #(#params),*) -> ::peppy::codegen::Result<()> {
                     let result = #result_id { #(#inits),* };
                     self.inner.complete(&result)
                 }
 
-                #[doc = "Finishes the goal as cancelled, with a (partial) result."]
+                #[doc = " Finishes the goal as cancelled, with a (partial) result."]
                 #allows
                 pub async fn complete_cancelled(self, #(#params),*) -> ::peppy::codegen::Result<()> {
                     let result = #result_id { #(#inits),* };
@@ -312,7 +312,7 @@ impl Gen<'_> {
                 };
                 quote! {
                     impl GoalRequest {
-                        #[doc = "A goal from its fields, in declaration order."]
+                        #[doc = " A goal from its fields, in declaration order."]
                         #allows
                         pub fn new(#(#params),*) -> Self {
                             Self { #(#inits),* }
@@ -328,7 +328,7 @@ impl Gen<'_> {
         };
         let feedback = match &decl.feedback {
             Some(_) => quote! {
-                #[doc = "The next feedback message of this goal; `Error::FeedbackEnded` once the goal is terminal and every feedback message was read."]
+                #[doc = " The next feedback message of this goal; `Error::FeedbackEnded` once the goal is terminal and every feedback message was read."]
                 pub async fn on_next_feedback_message(&mut self) -> ::peppy::codegen::Result<FeedbackMessage> {
                     self.inner.next_feedback::<FeedbackMessage>().await
                 }
@@ -338,16 +338,16 @@ impl Gen<'_> {
         let (outcome, result_type, completed, cancelled) = match &decl.result {
             Some(_) => (
                 quote! {
-                    #[doc = "How a goal ended."]
+                    #[doc = " How a goal ended."]
                     #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
                     pub enum ResultOutcome {
-                        #[doc = "Finished with a result."]
+                        #[doc = " Finished with a result."]
                         Completed(ResultResponseData),
-                        #[doc = "Cancelled, with a (partial) result."]
+                        #[doc = " Cancelled, with a (partial) result."]
                         Cancelled(ResultResponseData),
-                        #[doc = "The server dropped the goal without a result."]
+                        #[doc = " The server dropped the goal without a result."]
                         Abandoned,
-                        #[doc = "The result was not fetched within the server's retention period (30 s)."]
+                        #[doc = " The result was not fetched within the server's retention period (30 s)."]
                         Expired,
                     }
                 },
@@ -357,16 +357,16 @@ impl Gen<'_> {
             ),
             None => (
                 quote! {
-                    #[doc = "How a goal ended (the action has no result data)."]
+                    #[doc = " How a goal ended (the action has no result data)."]
                     #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::marker::Copy, ::core::cmp::PartialEq, ::core::cmp::Eq)]
                     pub enum ResultOutcome {
-                        #[doc = "Finished."]
+                        #[doc = " Finished."]
                         Completed,
-                        #[doc = "Cancelled."]
+                        #[doc = " Cancelled."]
                         Cancelled,
-                        #[doc = "The server dropped the goal without a result."]
+                        #[doc = " The server dropped the goal without a result."]
                         Abandoned,
-                        #[doc = "The result was not fetched within the server's retention period (30 s)."]
+                        #[doc = " The result was not fetched within the server's retention period (30 s)."]
                         Expired,
                     }
                 },
@@ -391,37 +391,37 @@ impl Gen<'_> {
 
             #constructor
 
-            #[doc = "The server's decision on the goal: `accepted`, and `error_message` when rejected."]
+            #[doc = " The server's decision on the goal: `accepted`, and `error_message` when rejected."]
             pub use ::peppy::codegen::GoalResponse as GoalResponseData;
 
-            #[doc = "The answer to a cancel request."]
+            #[doc = " The answer to a cancel request."]
             pub use ::peppy::codegen::CancelState;
 
             #outcome
 
-            #[doc = "How the goal ended, with the server's identity."]
+            #[doc = " How the goal ended, with the server's identity."]
             #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
             pub struct ResultResponse {
-                #[doc = "The server's instance id."]
+                #[doc = " The server's instance id."]
                 pub instance_id: ::std::string::String,
-                #[doc = "The launch (core node) that started the server."]
+                #[doc = " The launch (core node) that started the server."]
                 pub core_node: ::std::string::String,
-                #[doc = "How the goal ended."]
+                #[doc = " How the goal ended."]
                 pub outcome: ResultOutcome,
             }
 
-            #[doc = "The server's answer to a cancel request, with its identity."]
+            #[doc = " The server's answer to a cancel request, with its identity."]
             #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
             pub struct CancelResponse {
-                #[doc = "The server's instance id."]
+                #[doc = " The server's instance id."]
                 pub instance_id: ::std::string::String,
-                #[doc = "The launch (core node) that started the server."]
+                #[doc = " The launch (core node) that started the server."]
                 pub core_node: ::std::string::String,
-                #[doc = "What the cancel request did."]
+                #[doc = " What the cancel request did."]
                 pub state: CancelState,
             }
 
-            #[doc = "What the runtime knows about this action."]
+            #[doc = " What the runtime knows about this action."]
             pub(crate) static SPEC: ::peppy::codegen::ConsumedActionSpec = ::peppy::codegen::ConsumedActionSpec {
                 link_id: #link_id,
                 owner: #owner,
@@ -431,16 +431,16 @@ impl Gen<'_> {
                 result: #result_format,
             };
 
-            #[doc = "A goal sent to the action's server. `data.accepted` says whether it was accepted (and `data.error_message` why not)."]
+            #[doc = " A goal sent to the action's server. `data.accepted` says whether it was accepted (and `data.error_message` why not)."]
             #[derive(::core::fmt::Debug)]
             pub struct ActionHandle {
                 inner: ::peppy::codegen::GoalClient,
-                #[doc = "The server's decision."]
+                #[doc = " The server's decision."]
                 pub data: GoalResponseData,
             }
 
             impl ActionHandle {
-                #[doc = "Sends a goal through the slot (straight to a pinned producer, else to the first the slot accepts) and waits at most `timeout` for the decision; returns after a rejection too (check `data.accepted`). The feedback stream is subscribed before the goal is sent, so no feedback is missed. `feedback_qos` is accepted for compatibility: feedback travels with the server's declared QoS."]
+                #[doc = " Sends a goal through the slot (straight to a pinned producer, else to the first the slot accepts) and waits at most `timeout` for the decision; returns after a rejection too (check `data.accepted`). The feedback stream is subscribed before the goal is sent, so no feedback is missed. `feedback_qos` is accepted for compatibility: feedback travels with the server's declared QoS."]
                 pub async fn fire_goal(
                     node_runner: &::peppy::codegen::NodeRunner,
                     timeout: ::core::time::Duration,
@@ -453,14 +453,14 @@ impl Gen<'_> {
                     ::core::result::Result::Ok(ActionHandle { inner, data })
                 }
 
-                #[doc = "The goal's id."]
+                #[doc = " The goal's id."]
                 pub fn goal_id(&self) -> &str {
                     self.inner.goal_id()
                 }
 
                 #feedback
 
-                #[doc = "Waits (at most `timeout`) until the goal is terminal and returns how it ended. Results stay available for 30 s after the goal ends, then `Expired`."]
+                #[doc = " Waits (at most `timeout`) until the goal is terminal and returns how it ended. Results stay available for 30 s after the goal ends, then `Expired`."]
                 pub async fn get_result(
                     &self,
                     timeout: ::core::time::Duration,
@@ -478,7 +478,7 @@ impl Gen<'_> {
                     })
                 }
 
-                #[doc = "Asks the server to cancel the goal and waits at most `timeout` for its answer."]
+                #[doc = " Asks the server to cancel the goal and waits at most `timeout` for its answer."]
                 pub async fn cancel_goal(
                     &self,
                     timeout: ::core::time::Duration,

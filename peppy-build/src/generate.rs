@@ -29,7 +29,7 @@ pub fn generate(node: &ResolvedNode) -> Result<TokenStream, Diagnostics> {
         node,
         diags: Diagnostics::new(),
     };
-    let tokens = crate::docs::format_docs(g.tree());
+    let tokens = g.tree();
     if g.diags.has_errors() {
         Err(g.diags)
     } else {
@@ -45,7 +45,7 @@ pub fn stub() -> TokenStream {
         let id = ident(name);
         quote!(pub mod #id {})
     });
-    crate::docs::format_docs(quote! {
+    quote! {
         pub use ::peppy::codegen::{Error, NodeRunner, QoSProfile, Result, StandaloneConfig};
         pub type NodeBuilder<P = self::parameters::Parameters> = ::peppy::codegen::NodeBuilder<P>;
         pub use self::parameters::Parameters;
@@ -60,7 +60,7 @@ pub fn stub() -> TokenStream {
             }
         }
         #(#modules)*
-    })
+    }
 }
 
 /// The entry categories, in the order they are generated, with their docs.
@@ -161,27 +161,29 @@ impl Gen<'_> {
         let modules = CATEGORIES.iter().zip(categories).map(|((name, doc), c)| {
             let id = ident(name);
             let items = c.items;
-            let doc = format!("{doc}\n\nGenerated from node `{identity}` (`{source}`).");
+            let doc = crate::docs::Doc::new(format!(
+                "{doc}\n\nGenerated from node `{identity}` (`{source}`)."
+            ));
             quote! {
-                #[doc = #doc]
+                #doc
                 #[allow(dead_code)]
                 pub mod #id {
                     #items
                 }
             }
         });
-        let params_doc = format!(
+        let params_doc = crate::docs::Doc::new(format!(
             "The parameters of node `{identity}` (`execution.parameters`), and the node's descriptor."
-        );
+        ));
         quote! {
-            #[doc = "Re-exported from peppy, so node code needs only `peppygen`."]
+            #[doc = " Re-exported from peppy, so node code needs only `peppygen`."]
             pub use ::peppy::codegen::{Error, NodeRunner, QoSProfile, Result, StandaloneConfig};
-            #[doc = "Builds and runs this node: `NodeBuilder::new().run(|params: Parameters, runner| async move { Ok(()) })`."]
+            #[doc = " Builds and runs this node: `NodeBuilder::new().run(|params: Parameters, runner| async move { Ok(()) })`."]
             #[allow(dead_code)]
             pub type NodeBuilder<P = self::parameters::Parameters> = ::peppy::codegen::NodeBuilder<P>;
-            #[doc = "This node's parameters."]
+            #[doc = " This node's parameters."]
             pub use self::parameters::Parameters;
-            #[doc = #params_doc]
+            #params_doc
             #[allow(dead_code)]
             pub mod parameters {
                 #parameters
@@ -254,16 +256,16 @@ impl Gen<'_> {
             }
             let id = ident(&m);
             let body = self.consumed_action(a);
-            let doc = format!(
+            let doc = crate::docs::Doc::new(format!(
                 "Calls action `{}` of {}, through slot `{}` (declared at `{}`; the action is declared at `{}`).",
                 a.decl.name,
                 origin_text(&a.origin),
                 a.slot.link_id,
                 short_location(&a.loc),
                 short_location(&a.decl.loc)
-            );
+            ));
             category.items.extend(quote! {
-                #[doc = #doc]
+                #doc
                 pub mod #id {
                     #body
                 }
@@ -290,9 +292,9 @@ impl Gen<'_> {
             }
             let id = ident(&m);
             let body = &o.body;
-            let doc = entry_doc(kind, &o.name, &o.origin, &o.loc);
+            let doc = crate::docs::Doc::new(entry_doc(kind, &o.name, &o.origin, &o.loc));
             category.items.extend(quote! {
-                #[doc = #doc]
+                #doc
                 pub mod #id {
                     #body
                 }
@@ -354,9 +356,9 @@ impl Gen<'_> {
                     }
                     let id = ident(&m);
                     let body = &o.body;
-                    let doc = entry_doc(kind, &o.name, &o.origin, &o.loc);
+                    let doc = crate::docs::Doc::new(entry_doc(kind, &o.name, &o.origin, &o.loc));
                     entry_items.extend(quote! {
-                        #[doc = #doc]
+                        #doc
                         pub mod #id {
                             #body
                         }
@@ -375,33 +377,36 @@ impl Gen<'_> {
                         });
                     }
                 }
-                let doc = format!(
+                let doc = crate::docs::Doc::new(format!(
                     "The {kind}s of interface `{}`, which this node conforms to.",
                     r.target
-                );
+                ));
                 tag_items.extend(quote! {
-                    #[doc = #doc]
+                    #doc
                     pub mod #tag_id {
                         #entry_items
                     }
                 });
             }
-            let doc = format!("The {kind}s of interface `{}`, by tag.", first.target.name);
+            let doc = crate::docs::Doc::new(format!(
+                "The {kind}s of interface `{}`, by tag.",
+                first.target.name
+            ));
             category.items.extend(quote! {
-                #[doc = #doc]
+                #doc
                 pub mod #iface_id {
                     #tag_items
                 }
             });
         }
         for f in flat {
-            let doc = format!(
+            let doc = crate::docs::Doc::new(format!(
                 "The {kind} `{}` of interface `{}` under its own name (no other {kind} of this node generates module `{}`).",
                 f.name, f.interface, f.module
-            );
+            ));
             let path = &f.path;
             category.items.extend(quote! {
-                #[doc = #doc]
+                #doc
                 pub use self::#(#path)::*;
             });
         }
@@ -427,9 +432,9 @@ impl Gen<'_> {
             }
             let id = ident(&m);
             let body = self.consumed_topic(t);
-            let doc = consumed_topic_doc(t);
+            let doc = crate::docs::Doc::new(consumed_topic_doc(t));
             category.items.extend(quote! {
-                #[doc = #doc]
+                #doc
                 pub mod #id {
                     #body
                 }
@@ -458,16 +463,16 @@ impl Gen<'_> {
             }
             let id = ident(&m);
             let body = self.consumed_service(s);
-            let doc = format!(
+            let doc = crate::docs::Doc::new(format!(
                 "Calls service `{}` of {}, through slot `{}` (declared at `{}`; the service is declared at `{}`).",
                 s.decl.name,
                 origin_text(&s.origin),
                 s.slot.link_id,
                 short_location(&s.loc),
                 short_location(&s.decl.loc)
-            );
+            ));
             category.items.extend(quote! {
-                #[doc = #doc]
+                #doc
                 pub mod #id {
                     #body
                 }
@@ -498,12 +503,13 @@ impl Gen<'_> {
         let owner = owner(&p.origin, true);
         let qos = qos(decl.qos);
         let format = format_spec(decl.format.as_ref());
-        let emit_doc =
-            format!("Publishes one message on `{name}`, the fields in declaration order.");
+        let emit_doc = crate::docs::Doc::new(format!(
+            "Publishes one message on `{name}`, the fields in declaration order."
+        ));
         quote! {
             #types
 
-            #[doc = "What the runtime knows about this topic."]
+            #[doc = " What the runtime knows about this topic."]
             pub(crate) static SPEC: ::peppy::codegen::TopicSpec = ::peppy::codegen::TopicSpec {
                 owner: #owner,
                 name: #name,
@@ -511,7 +517,7 @@ impl Gen<'_> {
                 format: #format,
             };
 
-            #[doc = #emit_doc]
+            #emit_doc
             #allow_snake
             #allow_many
             pub async fn emit(
@@ -552,7 +558,7 @@ impl Gen<'_> {
         quote! {
             #types
 
-            #[doc = "What the runtime knows about this topic."]
+            #[doc = " What the runtime knows about this topic."]
             pub(crate) static SPEC: ::peppy::codegen::ConsumedTopicSpec = ::peppy::codegen::ConsumedTopicSpec {
                 link_id: #link_id,
                 owner: #owner,
@@ -561,7 +567,7 @@ impl Gen<'_> {
                 format: #format,
             };
 
-            #[doc = "Waits for the next message: `(producer instance id, message)`. Messages are queued from node start-up, so none is lost between calls. `from_core_node: Some(id)` keeps only messages from instances started by that launch."]
+            #[doc = " Waits for the next message: `(producer instance id, message)`. Messages are queued from node start-up, so none is lost between calls. `from_core_node: Some(id)` keeps only messages from instances started by that launch."]
             pub async fn on_next_message_received(
                 node_runner: &::peppy::codegen::NodeRunner,
                 from_core_node: ::core::option::Option<&str>,
@@ -603,7 +609,7 @@ impl Gen<'_> {
         let (data_field, data_type, data_init) = match &decl.request {
             Some(_) => (
                 quote! {
-                    #[doc = "The request."]
+                    #[doc = " The request."]
                     pub data: RequestData,
                 },
                 quote!(RequestData),
@@ -627,7 +633,7 @@ impl Gen<'_> {
                     quote!(Response),
                     quote! {
                         impl Response {
-                            #[doc = "A response from its fields, in declaration order."]
+                            #[doc = " A response from its fields, in declaration order."]
                             #allow_snake
                             #allow_many
                             pub fn new(#(#params),*) -> Self {
@@ -642,38 +648,38 @@ impl Gen<'_> {
         let owner = owner(&p.origin, true);
         let request_format = format_spec(decl.request.as_ref());
         let response_format = format_spec(decl.response.as_ref());
-        let request_doc = format!(
+        let request_doc = crate::docs::Doc::new(format!(
             "A request to service `{name}`, with the caller's identity{}.",
             if decl.request.is_some() {
                 " and its data"
             } else {
                 " (the service takes no request data)"
             }
-        );
-        let handle_doc = format!(
+        ));
+        let handle_doc = crate::docs::Doc::new(format!(
             "Serves the next request of `{name}` with `handler`; call it in a loop. Requests are queued from node start-up, so concurrent callers are all served. A handler error is returned to the caller as its reason{}.",
             if decl.response.is_some() {
                 ""
             } else {
                 " (the service has no response data: the handler returns `Ok(())`)"
             }
-        );
+        ));
         quote! {
             #types
 
             #constructor
 
-            #[doc = #request_doc]
+            #request_doc
             #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
             pub struct Request {
-                #[doc = "The caller's instance id."]
+                #[doc = " The caller's instance id."]
                 pub instance_id: ::std::string::String,
-                #[doc = "The launch (core node) that started the caller."]
+                #[doc = " The launch (core node) that started the caller."]
                 pub core_node: ::std::string::String,
                 #data_field
             }
 
-            #[doc = "What the runtime knows about this service."]
+            #[doc = " What the runtime knows about this service."]
             pub(crate) static SPEC: ::peppy::codegen::ServiceSpec = ::peppy::codegen::ServiceSpec {
                 owner: #owner,
                 name: #name,
@@ -681,7 +687,7 @@ impl Gen<'_> {
                 response: #response_format,
             };
 
-            #[doc = #handle_doc]
+            #handle_doc
             pub async fn handle_next_request<F>(
                 node_runner: &::peppy::codegen::NodeRunner,
                 handler: F,
@@ -742,7 +748,7 @@ impl Gen<'_> {
                 let allow_many = many_args_allow(req.fields.len());
                 quote! {
                     impl Request {
-                        #[doc = "A request from its fields, in declaration order."]
+                        #[doc = " A request from its fields, in declaration order."]
                         #allow_snake
                         #allow_many
                         pub fn new(#(#params),*) -> Self {
@@ -760,7 +766,7 @@ impl Gen<'_> {
         let (data_field, data_type, data_init) = match &decl.response {
             Some(_) => (
                 quote! {
-                    #[doc = "The response."]
+                    #[doc = " The response."]
                     pub data: ResponseData,
                 },
                 quote!(ResponseData),
@@ -772,25 +778,25 @@ impl Gen<'_> {
         let owner = owner(&s.origin, false);
         let request_format = format_spec(decl.request.as_ref());
         let response_format = format_spec(decl.response.as_ref());
-        let poll_doc = format!(
+        let poll_doc = crate::docs::Doc::new(format!(
             "Calls `{name}` through slot `{link_id}` and waits at most `timeout` for the response: straight to the bound producer when the slot is pinned, else to the first producer the slot accepts. Fails with `ServiceUnreachable` (nobody answered), `ServiceTimeout` (accepted, no reply in time) or `ServiceError` (the handler failed)."
-        );
+        ));
         quote! {
             #types
 
             #constructor
 
-            #[doc = "A response with the server's identity."]
+            #[doc = " A response with the server's identity."]
             #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
             pub struct Response {
-                #[doc = "The server's instance id."]
+                #[doc = " The server's instance id."]
                 pub instance_id: ::std::string::String,
-                #[doc = "The launch (core node) that started the server."]
+                #[doc = " The launch (core node) that started the server."]
                 pub core_node: ::std::string::String,
                 #data_field
             }
 
-            #[doc = "What the runtime knows about this service."]
+            #[doc = " What the runtime knows about this service."]
             pub(crate) static SPEC: ::peppy::codegen::ConsumedServiceSpec = ::peppy::codegen::ConsumedServiceSpec {
                 link_id: #link_id,
                 owner: #owner,
@@ -799,7 +805,7 @@ impl Gen<'_> {
                 response: #response_format,
             };
 
-            #[doc = #poll_doc]
+            #poll_doc
             pub async fn poll(
                 node_runner: &::peppy::codegen::NodeRunner,
                 timeout: ::core::time::Duration,

@@ -98,22 +98,23 @@ impl ParamGen<'_> {
     /// The struct `name` for a group's `fields`; nested groups and array
     /// items are named from `prefix` (empty for the root).
     fn group(&mut self, name: &str, prefix: &str, fields: &[ParamField], doc: &str) {
+        let doc = crate::docs::Doc::new(doc);
         let mut decls = Vec::new();
         for f in fields {
             let (ty, with) = self.field_type(prefix, f);
             let id = field_ident(&f.name);
-            let fdoc = format!(
+            let fdoc = crate::docs::Doc::new(format!(
                 "`{}`: {} (declared at `{}`).",
                 f.name,
                 describe(&f.kind),
                 short_location(&f.loc)
-            );
+            ));
             let with = with.map(|w| {
                 let path = format!("::peppy::codegen::params::{w}");
                 quote!(#[serde(with = #path)])
             });
             decls.push(quote! {
-                #[doc = #fdoc]
+                #fdoc
                 #with
                 pub #id: #ty,
             });
@@ -125,7 +126,7 @@ impl ParamGen<'_> {
         };
         let id = ident(name);
         self.out.extend(quote! {
-            #[doc = #doc]
+            #doc
             #[derive(
                 ::core::fmt::Debug,
                 ::core::clone::Clone,

@@ -106,9 +106,9 @@ impl Structs<'_> {
 
     fn unit(&mut self, name: &str, doc: &str) {
         let name = ident(name);
-        let doc = format!("{doc}\n\nThis message has no payload.");
+        let doc = crate::docs::Doc::new(format!("{doc}\n\nThis message has no payload."));
         self.out.extend(quote! {
-            #[doc = #doc]
+            #doc
             #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::marker::Copy, ::core::cmp::PartialEq, ::core::cmp::Eq, ::core::default::Default)]
             pub struct #name;
 
@@ -129,6 +129,7 @@ impl Structs<'_> {
 
     /// A struct with `fields` and its codec impls.
     fn object(&mut self, name: &str, prefix: &str, fields: &[Field], doc: &str) {
+        let doc = crate::docs::Doc::new(doc);
         let mut decls = Vec::new();
         let mut encodes = Vec::new();
         let mut decodes = Vec::new();
@@ -136,9 +137,9 @@ impl Structs<'_> {
         for f in fields {
             let ty = self.field_type(prefix, f);
             let id = field_ident(&f.name);
-            let fdoc = field_doc(f);
+            let fdoc = crate::docs::Doc::new(field_doc(f));
             decls.push(quote! {
-                #[doc = #fdoc]
+                #fdoc
                 pub #id: #ty,
             });
             encodes.push(quote! {
@@ -157,7 +158,7 @@ impl Structs<'_> {
         let allow = snake_allow(fields);
         let name = ident(name);
         self.out.extend(quote! {
-            #[doc = #doc]
+            #doc
             #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
             #allow
             pub struct #name {
@@ -295,14 +296,38 @@ pub(crate) fn args(prefix: &str, fields: &[Field], reserved: &[&str]) -> Args {
     Args { params, inits }
 }
 
-/// The type of a field without generating (or claiming) nested structs again.
+/// The type of a field, naming nested structs without generating them
+/// (the struct holding the field generates them).
 fn quiet_type(prefix: &str, f: &Field) -> TokenStream {
-    let mut names = Names::default();
-    let mut diags = Diagnostics::new();
-    Structs {
-        names: &mut names,
-        diags: &mut diags,
-        out: TokenStream::new(),
+    fn type_of(prefix: &str, field: &str, ty: &FieldType) -> TokenStream {
+        match ty {
+            FieldType::Primitive(p) => primitive_type(*p),
+            FieldType::Object(_) => {
+                let id = ident(&nested_type(prefix, field));
+                quote!(#id)
+            }
+            FieldType::Array { items, length } => {
+                let item = match items.as_ref() {
+                    FieldType::Object(_) => {
+                        let id = ident(&format!("{}Item", nested_type(prefix, field)));
+                        quote!(#id)
+                    }
+                    other => type_of(prefix, field, other),
+                };
+                match length {
+                    Some(n) => {
+                        let n = Literal::usize_unsuffixed(*n as usize);
+                        quote!([#item; #n])
+                    }
+                    None => quote!(::std::vec::Vec<#item>),
+                }
+            }
+        }
     }
-    .field_type(prefix, f)
+    let inner = type_of(prefix, &f.name, &f.ty);
+    if f.optional {
+        quote!(::core::option::Option<#inner>)
+    } else {
+        inner
+    }
 }

@@ -4,6 +4,7 @@
 
 mod equivalence;
 mod errors;
+mod scale;
 mod snapshots;
 mod support;
 mod sync;
