@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use peppy_schema::{
-    Code, Diagnostic, Diagnostics, Document, SKIPPED_DIRS, SourceFile, detect_kind, parse_document,
+    Code, Diagnostic, Diagnostics, Document, SourceFile, detect_kind, parse_document,
 };
 use serde::Serialize;
 
@@ -125,25 +125,9 @@ pub(crate) fn run(args: &ValidateArgs) -> u8 {
 /// Every `*.json5` under `dir`, skipping build and VCS directories.
 fn documents_in(dir: &Path, problems: &mut Diagnostics) -> Vec<PathBuf> {
     let mut out = Vec::new();
-    let walker = walkdir::WalkDir::new(dir)
-        .sort_by_file_name()
-        .into_iter()
-        .filter_entry(|e| {
-            e.depth() == 0
-                || !(e.file_type().is_dir()
-                    && e.file_name()
-                        .to_str()
-                        .is_some_and(|n| SKIPPED_DIRS.contains(&n) || n.starts_with('.')))
-        });
-    for entry in walker {
+    for entry in peppy_schema::json5_files(dir) {
         match entry {
-            Ok(e)
-                if e.file_type().is_file()
-                    && e.path().extension().is_some_and(|x| x == "json5") =>
-            {
-                out.push(e.into_path())
-            }
-            Ok(_) => {}
+            Ok(path) => out.push(path),
             Err(e) => problems.push(
                 Diagnostic::error(
                     Code::CannotRead,

@@ -77,7 +77,9 @@ pub use plan::{
     BindingPlan, InstancePlan, RouteFilter, SlotBinding, SlotPlan, compute_filters, plan_bindings,
 };
 pub use read::Loc;
-pub use repos::{Broken, Entry, REPOSITORIES_ENV, RepoIndex, RepositoryList, SKIPPED_DIRS};
+pub use repos::{
+    Broken, Entry, REPOSITORIES_ENV, RepoIndex, RepositoryList, SKIPPED_DIRS, json5_files,
+};
 pub use resolve::{
     Origin, Provided, ResolvedCall, ResolvedNode, ResolvedTopic, SlotRef, UsedInterface,
     resolve_node,

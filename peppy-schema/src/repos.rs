@@ -113,6 +113,30 @@ pub(crate) fn absolute(p: &Path) -> PathBuf {
     out
 }
 
+/// Every `*.json5` file under `dir`, in name order, skipping build, VCS and
+/// hidden directories ([`SKIPPED_DIRS`]). Walk errors are returned in place.
+pub fn json5_files(dir: &Path) -> impl Iterator<Item = Result<PathBuf, walkdir::Error>> {
+    walkdir::WalkDir::new(dir)
+        .sort_by_file_name()
+        .into_iter()
+        .filter_entry(|e| {
+            e.depth() == 0
+                || !(e.file_type().is_dir()
+                    && e.file_name()
+                        .to_str()
+                        .is_some_and(|n| SKIPPED_DIRS.contains(&n) || n.starts_with('.')))
+        })
+        .filter_map(|entry| match entry {
+            Ok(e)
+                if e.file_type().is_file() && e.path().extension() == Some(OsStr::new("json5")) =>
+            {
+                Some(Ok(e.into_path()))
+            }
+            Ok(_) => None,
+            Err(e) => Some(Err(e)),
+        })
+}
+
 /// One indexed document.
 #[derive(Debug, Clone)]
 pub struct Entry<T> {
@@ -167,19 +191,9 @@ impl RepoIndex {
                 );
                 continue;
             }
-            let walker = walkdir::WalkDir::new(repo)
-                .sort_by_file_name()
-                .into_iter()
-                .filter_entry(|e| {
-                    e.depth() == 0
-                        || !(e.file_type().is_dir()
-                            && e.file_name()
-                                .to_str()
-                                .is_some_and(|n| SKIPPED_DIRS.contains(&n) || n.starts_with('.')))
-                });
-            for entry in walker {
-                let entry = match entry {
-                    Ok(e) => e,
+            for entry in json5_files(repo) {
+                let path = match entry {
+                    Ok(p) => p,
                     Err(e) => {
                         index.findings.push(Diagnostic::warning(
                             Code::CannotRead,
@@ -188,10 +202,7 @@ impl RepoIndex {
                         continue;
                     }
                 };
-                let path = entry.path();
-                if !entry.file_type().is_file() || path.extension() != Some(OsStr::new("json5")) {
-                    continue;
-                }
+                let path = path.as_path();
                 index.add_file(path, repo);
             }
         }
