@@ -23,7 +23,7 @@ fn multi_camera_plan_names_every_slot_and_producer() {
     );
     assert!(
         run.stdout
-            .contains(r#"parameters: {"width":1280,"height":720,"frames_per_second":15}"#),
+            .contains(r#"parameters: {"width":160,"height":120,"frames_per_second":10}"#),
         "{}",
         run.stdout
     );
