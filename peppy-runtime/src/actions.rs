@@ -575,7 +575,7 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
     spec: &'static ConsumedActionSpec,
     timeout: Duration,
     goal: &G,
-) -> impl Future<Output = Result<GoalClient>> + Send + 'a {
+) -> impl Future<Output = Result<GoalClient>> + Send + use<'a, G> {
     let body = to_bytes(goal);
     async move {
         let deadline = Instant::now() + timeout;

@@ -172,7 +172,7 @@ pub fn call<'a, Req, Resp>(
     spec: &'static ConsumedServiceSpec,
     timeout: Duration,
     request: &Req,
-) -> impl Future<Output = Result<Reply<Resp>>> + Send + 'a
+) -> impl Future<Output = Result<Reply<Resp>>> + Send + use<'a, Req, Resp>
 where
     Req: Encode + ?Sized,
     Resp: Decode + Send + 'a,

@@ -159,7 +159,7 @@ pub fn emit<'a, M: Encode + ?Sized>(
     runner: &'a NodeRunner,
     spec: &'static TopicSpec,
     message: &M,
-) -> impl Future<Output = Result<()>> + Send + 'a {
+) -> impl Future<Output = Result<()>> + Send + use<'a, M> {
     let payload = to_bytes(message);
     async move {
         let publisher = runner.publisher(spec)?;
@@ -195,4 +195,15 @@ pub async fn next_message<M: Decode>(
             }
         }
     }
+}
+
+/// The message is encoded when `emit` is called, so a temporary works:
+/// the returned future does not borrow it.
+#[cfg(test)]
+#[expect(dead_code, reason = "compiling it is the test")]
+fn emit_accepts_a_temporary<'a>(
+    runner: &'a NodeRunner,
+    spec: &'static TopicSpec,
+) -> impl Future<Output = Result<()>> + use<'a> {
+    emit(runner, spec, &vec![1u8, 2, 3])
 }
