@@ -13,7 +13,7 @@ use crate::cli::RunArgs;
 use crate::exit;
 use crate::output::Output;
 use crate::report;
-use crate::up::{Planned, run_instances};
+use crate::up::{Planned, open_router, run_instances};
 
 /// The well-known local port: the first `run` listens here, later ones join.
 const LOCAL_HUB: &str = "tcp/127.0.0.1:7447";
@@ -111,7 +111,7 @@ pub(crate) fn run(args: &RunArgs) -> u8 {
         // machine hosts it, later ones connect to it.
         let mut _hub = None;
         config.zenoh.connect = if args.connect.is_empty() {
-            if let Ok(session) = open_hub().await {
+            if let Ok(session) = open_router(&[LOCAL_HUB.to_string()], &[]).await {
                 _hub = Some(session);
             }
             vec![LOCAL_HUB.to_string()]
@@ -145,14 +145,6 @@ pub(crate) fn run(args: &RunArgs) -> u8 {
         )
         .await
     })
-}
-
-async fn open_hub() -> Result<zenoh::Session, zenoh::Error> {
-    let mut c = zenoh::Config::default();
-    c.insert_json5("mode", "\"router\"")?;
-    c.insert_json5("listen/endpoints", &format!("[\"{LOCAL_HUB}\"]"))?;
-    c.insert_json5("scouting/multicast/enabled", "false")?;
-    zenoh::open(c).await
 }
 
 /// `NODE` is a path to a node (directory or peppy.json5) or a `name:tag`

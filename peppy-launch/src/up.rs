@@ -75,7 +75,10 @@ fn free_local_endpoint() -> std::io::Result<String> {
     Ok(format!("tcp/127.0.0.1:{port}"))
 }
 
-async fn open_router(listen: &[String], connect: &[String]) -> Result<zenoh::Session, String> {
+pub(crate) async fn open_router(
+    listen: &[String],
+    connect: &[String],
+) -> Result<zenoh::Session, String> {
     let mut config = zenoh::Config::default();
     let set = |c: &mut zenoh::Config, k: &str, v: serde_json::Value| {
         c.insert_json5(k, &v.to_string())
