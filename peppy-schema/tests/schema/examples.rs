@@ -69,7 +69,17 @@ fn every_example_document_parses_without_findings() {
     for entry in walk(&examples_dir()) {
         let (doc, warnings) =
             load_document(&entry).unwrap_or_else(|e| panic!("{}:\n{e}", entry.display()));
-        assert!(warnings.is_empty(), "{}: {warnings}", entry.display());
+        // Only the legacy-form example warns, and only about legacy spellings.
+        let legacy = entry.ends_with("nodes/gripper/peppy.json5");
+        assert!(
+            warnings.is_empty()
+                || (legacy
+                    && warnings
+                        .iter()
+                        .all(|w| w.code == peppy_schema::Code::LegacySpelling)),
+            "{}: {warnings}",
+            entry.display()
+        );
         kinds.push(doc.kind());
     }
     let count = |k: DocumentKind| kinds.iter().filter(|x| **x == k).count();
@@ -254,11 +264,11 @@ fn multi_camera_plans_pinned_cameras_and_a_bound_backup() {
     );
     assert_eq!(
         s.plan.instance("rs_left").unwrap().parameters,
-        json!({ "width": 640, "height": 480, "frames_per_second": 30 })
+        json!({ "width": 160, "height": 120, "frames_per_second": 15 })
     );
     assert_eq!(
         s.plan.instance("zed_overhead").unwrap().parameters,
-        json!({ "width": 1280, "height": 720, "frames_per_second": 15 })
+        json!({ "width": 160, "height": 120, "frames_per_second": 10 })
     );
     assert_eq!(
         s.deployments[2].dir,
@@ -298,7 +308,7 @@ fn multi_camera_sim_swaps_the_producer_and_keeps_the_consumer() {
     );
     assert_eq!(
         sim.plan.instance("rs_left").unwrap().parameters,
-        json!({ "width": 320, "height": 240, "frames_per_second": 60 })
+        json!({ "width": 160, "height": 120, "frames_per_second": 20, "fail_after_frames": 0 })
     );
     assert_eq!(recon_slots(&sim), recon_slots(&real));
     assert_eq!(
