@@ -53,7 +53,7 @@
 //! ```
 //!
 //! Or generate from a build script (`peppy-build` as a build-dependency,
-//! `fn main() { peppy_build::sync().expect("peppy.json5"); }` in `build.rs`)
+//! `fn main() { peppy_build::sync(); }` in `build.rs`)
 //! and write `peppy::include_generated!();` instead of the attribute: the
 //! module is the same.
 

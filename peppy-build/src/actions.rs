@@ -160,19 +160,20 @@ impl Gen<'_> {
                 result: #result_format,
             };
 
-            #[doc = " This node's server of the action. Its goal, cancel and result services live as long as the node; several goals may run at once."]
+            #[doc = " This node's server of the action. Its goal, cancel and result services live as long as the node; several goals may run at once. The handle owns what it needs (it does not borrow the runner), so it can move into a spawned task."]
             #[derive(::core::fmt::Debug)]
-            pub struct ActionHandle<'a> {
-                node_runner: &'a ::peppy::codegen::NodeRunner,
+            pub struct ActionHandle {
+                server: ::peppy::codegen::GoalServer,
             }
 
-            impl<'a> ActionHandle<'a> {
-                #[doc = " The action's server on this node."]
-                pub async fn expose(node_runner: &'a ::peppy::codegen::NodeRunner) -> ::peppy::codegen::Result<Self> {
-                    ::core::result::Result::Ok(ActionHandle { node_runner })
+            impl ActionHandle {
+                #[doc = " The action's server on this node. `&runner` may be an `&Arc<NodeRunner>`; the handle keeps no borrow of it."]
+                pub async fn expose(node_runner: &::peppy::codegen::NodeRunner) -> ::peppy::codegen::Result<Self> {
+                    let server = ::peppy::codegen::GoalServer::new(node_runner, &SPEC)?;
+                    ::core::result::Result::Ok(ActionHandle { server })
                 }
 
-                #[doc = " Waits for the next goal and lets `decider` accept or reject it. Rejected goals (and goals `decider` fails on, with its error as the reason) are answered and skipped; an accepted goal is returned to be worked on. `None` once the node stops."]
+                #[doc = " Waits for the next goal and lets `decider` accept or reject it. Rejected goals (and goals `decider` fails on, with its error as the reason) are answered and skipped; an accepted goal is returned to be worked on. `None` once the node stops: at once if it was waiting, after a short pause if called on an already stopped node, so a loop that ignores the result parks instead of spinning."]
                 pub async fn handle_goal_next_request<F>(
                     &mut self,
                     decider: F,
@@ -181,7 +182,7 @@ impl Gen<'_> {
                     F: ::core::ops::Fn(&GoalRequest) -> ::peppy::codegen::Result<GoalResponse>,
                 {
                     loop {
-                        let incoming = match ::peppy::codegen::next_goal::<#data_type>(self.node_runner, &SPEC).await {
+                        let incoming = match self.server.next::<#data_type>().await {
                             ::core::result::Result::Ok(incoming) => incoming,
                             ::core::result::Result::Err(::peppy::codegen::Error::ShuttingDown) => {
                                 return ::core::result::Result::Ok(::core::option::Option::None);
@@ -328,7 +329,7 @@ impl Gen<'_> {
         };
         let feedback = match &decl.feedback {
             Some(_) => quote! {
-                #[doc = " The next feedback message of this goal; `Error::FeedbackEnded` once the goal is terminal and every feedback message was read."]
+                #[doc = " The next feedback message of this goal; `Error::FeedbackEnded` once the goal is terminal and every feedback message was read; `Error::ShuttingDown` once this node stops."]
                 pub async fn on_next_feedback_message(&mut self) -> ::peppy::codegen::Result<FeedbackMessage> {
                     self.inner.next_feedback::<FeedbackMessage>().await
                 }

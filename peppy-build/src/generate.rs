@@ -567,7 +567,7 @@ impl Gen<'_> {
                 format: #format,
             };
 
-            #[doc = " Waits for the next message: `(producer instance id, message)`. Messages are queued from node start-up, so none is lost between calls. `from_core_node: Some(id)` keeps only messages from instances started by that launch."]
+            #[doc = " Waits for the next message: `(producer instance id, message)`. Messages are queued from node start-up, so none is lost between calls. `from_core_node: Some(id)` keeps only messages from instances started by that launch. `Error::ShuttingDown` once the node stops, after a short pause when called on a stopped node, so a loop ignoring it does not spin."]
             pub async fn on_next_message_received(
                 node_runner: &::peppy::codegen::NodeRunner,
                 from_core_node: ::core::option::Option<&str>,
@@ -657,7 +657,7 @@ impl Gen<'_> {
             }
         ));
         let handle_doc = crate::docs::Doc::new(format!(
-            "Serves the next request of `{name}` with `handler`; call it in a loop. Requests are queued from node start-up, so concurrent callers are all served. A handler error is returned to the caller as its reason{}.",
+            "Serves the next request of `{name}` with `handler`; call it in a loop. Requests are queued from node start-up, so concurrent callers are all served. A handler error is returned to the caller as its reason{}. `Error::ShuttingDown` once the node stops, after a short pause when called on a stopped node, so a loop ignoring it does not spin.",
             if decl.response.is_some() {
                 ""
             } else {

@@ -20,7 +20,7 @@
 //!
 //! ```ignore
 //! fn main() {
-//!     peppy_build::sync().expect("peppy.json5");
+//!     peppy_build::sync();
 //! }
 //! ```
 //!
@@ -44,8 +44,8 @@
 //! generates the same items inline (the `peppy-macros` crate calls
 //! [`generate`] too).
 //!
-//! A schema error fails the build with every problem located, the way cargo
-//! prints errors:
+//! A schema error fails the build (the build script exits with status 1, no
+//! panic) with every problem located, the way cargo prints errors:
 //!
 //! ```text
 //! error[UnknownType]: unknown type `u322`
@@ -62,9 +62,11 @@
 //! peppy_build::Config::new()
 //!     .manifest("config/peppy.json5") // relative to CARGO_MANIFEST_DIR
 //!     .repository("../interfaces")    // searched before PEPPY_REPOSITORIES
-//!     .sync()
-//!     .expect("peppy.json5");
+//!     .sync();
 //! ```
+//!
+//! [`try_sync`] and [`Config::try_sync`] return the [`Error`] instead of
+//! ending the build script.
 //!
 //! ## The generated module
 //!
@@ -90,5 +92,7 @@ mod naming;
 mod params;
 mod types;
 
-pub use config::{Config, Error, GENERATED_HEADER, Generated, OUTPUT_FILE, pretty, render, sync};
+pub use config::{
+    Config, Error, GENERATED_HEADER, Generated, OUTPUT_FILE, Synced, pretty, render, sync, try_sync,
+};
 pub use generate::{generate, stub};

@@ -9,7 +9,7 @@ use peppy_schema::{
 use serde::Serialize;
 
 use crate::cli::{CheckArgs, Format};
-use crate::exit;
+use crate::error::{LaunchError, Result};
 use crate::report::{self, JsonDiagnostic};
 
 #[derive(Serialize)]
@@ -21,7 +21,7 @@ struct JsonReport<'a> {
     plan: Option<&'a peppy_schema::BindingPlan>,
 }
 
-pub(crate) fn run(args: &CheckArgs) -> u8 {
+pub(crate) fn run(args: &CheckArgs) -> Result {
     let options = RepoOptions {
         explicit: args.repos.clone(),
         env: None,
@@ -56,10 +56,11 @@ pub(crate) fn run(args: &CheckArgs) -> u8 {
             }
         }
     }
-    if stack.is_some() {
-        exit::OK
-    } else {
-        exit::INVALID
+    match stack {
+        Some(_) => Ok(()),
+        None => Err(LaunchError::Invalid {
+            errors: diags.error_count(),
+        }),
     }
 }
 

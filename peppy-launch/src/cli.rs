@@ -1,13 +1,14 @@
 //! Command-line interface.
 
 use std::path::PathBuf;
+use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-/// Validate, check and (soon) run stacks of peppy nodes.
+/// Validate, check and run stacks of peppy nodes.
 #[derive(Debug, Parser)]
 #[command(name = "peppy-launch", version, about, long_about = None)]
-pub(crate) struct Cli {
+pub struct Cli {
     #[command(subcommand)]
     pub(crate) command: Command,
 }
@@ -99,8 +100,8 @@ pub(crate) struct UpArgs {
     #[arg(long, value_name = "ENDPOINT")]
     pub(crate) connect: Vec<String>,
     /// Seconds between SIGINT and SIGTERM when stopping.
-    #[arg(long, value_name = "SECONDS", default_value_t = 5.0)]
-    pub(crate) grace: f64,
+    #[arg(long, value_name = "SECONDS", default_value = "5", value_parser = parse_grace)]
+    pub(crate) grace: Duration,
 }
 
 #[derive(Debug, Args)]
@@ -143,6 +144,38 @@ pub(crate) struct RunArgs {
     #[arg(long)]
     pub(crate) no_build: bool,
     /// Seconds between SIGINT and SIGTERM when stopping.
-    #[arg(long, value_name = "SECONDS", default_value_t = 5.0)]
-    pub(crate) grace: f64,
+    #[arg(long, value_name = "SECONDS", default_value = "5", value_parser = parse_grace)]
+    pub(crate) grace: Duration,
+}
+
+/// The longest grace period accepted: an hour is already longer than any
+/// node should need to stop.
+const MAX_GRACE_SECONDS: f64 = 3600.0;
+
+/// `--grace`: a finite number of seconds from 0 to an hour.
+fn parse_grace(s: &str) -> Result<Duration, String> {
+    let seconds: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
+    if !seconds.is_finite() || !(0.0..=MAX_GRACE_SECONDS).contains(&seconds) {
+        return Err(format!(
+            "`{s}` is out of range: give seconds from 0 to {MAX_GRACE_SECONDS}"
+        ));
+    }
+    Ok(Duration::from_secs_f64(seconds))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grace_takes_finite_seconds_in_range() {
+        assert_eq!(parse_grace("1.5"), Ok(Duration::from_millis(1500)));
+        assert_eq!(parse_grace("0"), Ok(Duration::ZERO));
+        for bad in ["-1", "NaN", "inf", "-inf", "1e300", "soon", ""] {
+            assert!(parse_grace(bad).is_err(), "{bad}");
+        }
+    }
 }

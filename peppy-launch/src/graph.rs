@@ -2,12 +2,15 @@
 
 use std::fmt::Write as _;
 
-use peppy_schema::{NodeDoc, RepoOptions, SlotBinding, SlotKind, StackCheck, check_launcher};
+use peppy_schema::{
+    NodeDoc, Producer, RepoOptions, SlotBinding, SlotKind, StackCheck, check_launcher, conformances,
+};
 
 use crate::cli::GraphArgs;
-use crate::{exit, report};
+use crate::error::{LaunchError, Result};
+use crate::report;
 
-pub(crate) fn run(args: &GraphArgs) -> u8 {
+pub(crate) fn run(args: &GraphArgs) -> Result {
     let options = RepoOptions {
         explicit: args.repos.clone(),
         env: None,
@@ -15,11 +18,13 @@ pub(crate) fn run(args: &GraphArgs) -> u8 {
     match check_launcher(&args.launcher, &options) {
         Ok(stack) => {
             print!("{}", dot(&stack));
-            exit::OK
+            Ok(())
         }
         Err(diags) => {
             report::print_human(&diags);
-            exit::INVALID
+            Err(LaunchError::Invalid {
+                errors: diags.error_count(),
+            })
         }
     }
 }
@@ -33,11 +38,14 @@ fn quote(s: &str) -> String {
     )
 }
 
+/// Whether `producer` can fill a slot: the binding engine's rule.
 fn fills(kind: SlotKind, target: &peppy_schema::Identity, producer: &NodeDoc) -> bool {
-    match kind {
-        SlotKind::Node => &producer.identity() == target,
-        SlotKind::Interface => producer.conforms_to(target),
+    let conforms = conformances(producer);
+    Producer {
+        node: &producer.identity(),
+        conforms_to: &conforms,
     }
+    .fits(kind, target)
 }
 
 /// Instances are boxes; pinned and bound edges are solid and labelled with

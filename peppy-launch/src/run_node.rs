@@ -3,14 +3,15 @@
 
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::time::Duration;
 
 use peppy_schema::{
-    DocumentKind, Identity, NodeDoc, RepoIndex, RepoOptions, RepositoryList, check_node, node_file,
+    DocumentKind, Identity, Launch, NodeDoc, RepoIndex, RepoOptions, RepositoryList, check_node,
+    node_file,
 };
 
 use crate::cli::RunArgs;
-use crate::exit;
+use crate::error::{LaunchError, Result};
+use crate::executable;
 use crate::output::Output;
 use crate::report;
 use crate::up::{Planned, open_router, run_instances};
@@ -18,18 +19,12 @@ use crate::up::{Planned, open_router, run_instances};
 /// The well-known local port: the first `run` listens here, later ones join.
 const LOCAL_HUB: &str = "tcp/127.0.0.1:7447";
 
-pub(crate) fn run(args: &RunArgs) -> u8 {
+pub(crate) fn run(args: &RunArgs) -> Result {
     let options = RepoOptions {
         explicit: args.repos.clone(),
         env: None,
     };
-    let file = match locate(&args.node, &options) {
-        Ok(f) => f,
-        Err(message) => {
-            eprintln!("peppy-launch: {message}");
-            return exit::INVALID;
-        }
-    };
+    let file = locate(&args.node, &options).map_err(LaunchError::Usage)?;
     let check = match check_node(&file, &options) {
         Ok(c) => c,
         Err(diags) => {
@@ -38,7 +33,9 @@ pub(crate) fn run(args: &RunArgs) -> u8 {
                 "invalid: {}; nothing was started",
                 report::count(diags.error_count(), "error")
             );
-            return exit::INVALID;
+            return Err(LaunchError::Invalid {
+                errors: diags.error_count(),
+            });
         }
     };
     let doc: &NodeDoc = &check.resolved.node;
@@ -53,60 +50,33 @@ pub(crate) fn run(args: &RunArgs) -> u8 {
         flags.extend(["--namespace".into(), ns.clone()]);
     }
     flags.extend(args.overrides.iter().cloned());
-    let mut config = match peppy_runtime::startup_from_flags(doc, flags) {
-        Ok(c) => c,
-        Err(e) => {
-            eprintln!("peppy-launch: {e}");
-            return exit::INVALID;
-        }
-    };
+    let mut config = peppy_runtime::startup_from_flags(doc, flags)?;
     config.core_node = format!("run-{:x}", std::process::id());
-    let Some(argv) = doc.execution.run_cmd.clone() else {
-        eprintln!(
-            "peppy-launch: `{}` runs in a container, which peppy-launch does not run yet",
+    if let Launch::Container(_) = doc.execution.launch() {
+        return Err(LaunchError::Usage(format!(
+            "`{}` runs in a container, which peppy-launch does not start yet",
             doc.identity()
-        );
-        return exit::INVALID;
-    };
+        )));
+    }
     let dir = file.parent().map(PathBuf::from).unwrap_or_default();
-    let runtime = match tokio::runtime::Builder::new_multi_thread()
+    let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
-    {
-        Ok(r) => r,
-        Err(e) => {
-            eprintln!("peppy-launch: cannot start the tokio runtime: {e}");
-            return exit::FAILED;
-        }
-    };
+        .map_err(|e| LaunchError::Setup(format!("cannot start the tokio runtime: {e}")))?;
     runtime.block_on(async move {
         let out = Arc::new(Output::new(&[config.instance_id.as_str()]));
-        if !args.no_build
-            && let Some(cmd) = &doc.execution.build_cmd
-        {
+        let build = !args.no_build;
+        if build && let Some(cmd) = executable::build_of(&doc.execution) {
             out.note(&format!("building {}: {}", doc.identity(), cmd.join(" ")));
-            match tokio::process::Command::new(&cmd[0])
-                .args(&cmd[1..])
-                .current_dir(&dir)
-                .output()
-                .await
-            {
-                Ok(o) if o.status.success() => {}
-                Ok(o) => {
-                    out.note(&format!(
-                        "the build of {} failed:\n{}{}",
-                        doc.identity(),
-                        String::from_utf8_lossy(&o.stdout),
-                        String::from_utf8_lossy(&o.stderr)
-                    ));
-                    return exit::FAILED;
-                }
-                Err(e) => {
-                    out.note(&format!("cannot run the build of {}: {e}", doc.identity()));
-                    return exit::FAILED;
-                }
-            }
         }
+        let argv = executable::prepare(
+            &doc.identity().to_string(),
+            &doc.name,
+            &dir,
+            &doc.execution,
+            build,
+        )
+        .await?;
         // Join the given endpoints, or the local hub: the first `run` on a
         // machine hosts it, later ones connect to it.
         let mut _hub = None;
@@ -120,10 +90,8 @@ pub(crate) fn run(args: &RunArgs) -> u8 {
         };
         config.zenoh.listen = args.listen.clone();
         let run_dir = std::env::temp_dir().join(format!("peppy-run-{}", std::process::id()));
-        if let Err(e) = std::fs::create_dir_all(&run_dir) {
-            out.note(&format!("cannot create {}: {e}", run_dir.display()));
-            return exit::FAILED;
-        }
+        std::fs::create_dir_all(&run_dir)
+            .map_err(|e| LaunchError::Setup(format!("cannot create {}: {e}", run_dir.display())))?;
         out.note(&format!(
             "namespace {}; log in {}",
             config.namespace,
@@ -137,19 +105,13 @@ pub(crate) fn run(args: &RunArgs) -> u8 {
             restart: peppy_schema::RestartPolicy::No,
             config,
         };
-        run_instances(
-            vec![Ok(planned)],
-            &run_dir,
-            Duration::from_secs_f64(args.grace),
-            out,
-        )
-        .await
+        run_instances(vec![Ok(planned)], &run_dir, args.grace, out).await
     })
 }
 
 /// `NODE` is a path to a node (directory or peppy.json5) or a `name:tag`
 /// found in the repositories.
-fn locate(node: &str, options: &RepoOptions) -> Result<PathBuf, String> {
+fn locate(node: &str, options: &RepoOptions) -> std::result::Result<PathBuf, String> {
     let as_path = PathBuf::from(node);
     if as_path.exists() {
         return Ok(node_file(&as_path));

@@ -180,6 +180,8 @@ pub(crate) async fn supervise(
 ) -> Ended {
     let mut failures_in_a_row = 0u32;
     let mut started = Instant::now();
+    // Taken now: once `wait` has returned, the child no longer knows its pid.
+    let mut group = child.id();
     loop {
         let status = tokio::select! {
             s = child.wait() => s,
@@ -190,7 +192,7 @@ pub(crate) async fn supervise(
             }
         };
         // The instance's main process is gone: clear anything it left in its group.
-        if let Some(pid) = child.id() {
+        if let Some(pid) = group {
             signal_group(pid, libc::SIGKILL);
         }
         drain(&mut pumps).await;
@@ -241,6 +243,7 @@ pub(crate) async fn supervise(
         match spawn(&spec, &out) {
             Ok((c, p)) => {
                 child = c;
+                group = child.id();
                 pumps = p;
                 started = Instant::now();
             }

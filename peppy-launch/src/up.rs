@@ -1,21 +1,22 @@
 //! `peppy-launch up LAUNCHER`: check everything, build each node once, start
 //! a Zenoh router and every instance, supervise, and stop cleanly.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 
 use peppy_runtime::{Endpoints, StartupConfig};
-use peppy_schema::{RepoOptions, StackCheck, check_launcher};
+use peppy_schema::{Identity, RepoOptions, StackCheck, check_launcher};
 
 use crate::cli::UpArgs;
-use crate::exit;
+use crate::error::LaunchError;
+use crate::executable::{self, ExecutableError};
 use crate::output::Output;
 use crate::report;
 use crate::supervise::{self, Ended, InstanceSpec, StopSignals};
 
-pub(crate) fn run(args: &UpArgs) -> u8 {
+pub(crate) fn run(args: &UpArgs) -> Outcome {
     let options = RepoOptions {
         explicit: args.repos.clone(),
         env: None,
@@ -28,22 +29,18 @@ pub(crate) fn run(args: &UpArgs) -> u8 {
                 "invalid: {}; nothing was built or started",
                 report::count(diags.error_count(), "error")
             );
-            return exit::INVALID;
+            return Err(LaunchError::Invalid {
+                errors: diags.error_count(),
+            });
         }
     };
     if !stack.warnings.is_empty() {
         report::print_human(&stack.warnings);
     }
-    let runtime = match tokio::runtime::Builder::new_multi_thread()
+    let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
-    {
-        Ok(r) => r,
-        Err(e) => {
-            eprintln!("peppy-launch: cannot start the tokio runtime: {e}");
-            return exit::FAILED;
-        }
-    };
+        .map_err(|e| LaunchError::Setup(format!("cannot start the tokio runtime: {e}")))?;
     runtime.block_on(launch(stack, args))
 }
 
@@ -95,61 +92,46 @@ pub(crate) async fn open_router(
         .map_err(|e| format!("cannot open the launch's zenoh router on {listen:?}: {e}"))
 }
 
-/// Runs every node's `build_cmd` once, in its directory; output is shown
-/// only when a build fails.
-async fn build_all(stack: &StackCheck, out: &Output) -> Result<(), String> {
-    let mut seen = Vec::new();
-    let builds: Vec<(&Path, &Vec<String>, String)> = stack
+type Outcome = crate::error::Result;
+
+/// Builds every deployed node once, in its directory (output is shown only
+/// when a build fails), and returns the argv that starts each node.
+async fn prepare_all(
+    stack: &StackCheck,
+    out: &Output,
+    build: bool,
+) -> Result<HashMap<Identity, Vec<String>>, ExecutableError> {
+    let total = stack
         .deployments
         .iter()
-        .filter_map(|d| {
-            let node = &d.resolved.node;
-            node.execution
-                .build_cmd
-                .as_ref()
-                .map(|cmd| (d.dir.as_path(), cmd, node.identity().to_string()))
-        })
-        .filter(|(dir, cmd, _)| {
-            let key = (dir.to_path_buf(), (*cmd).clone());
-            let new = !seen.contains(&key);
-            seen.push(key);
-            new
-        })
-        .collect();
-    for (i, (dir, cmd, name)) in builds.iter().enumerate() {
-        out.note(&format!(
-            "building {name} ({}/{}): {}",
-            i + 1,
-            builds.len(),
-            cmd.join(" ")
-        ));
-        let output = tokio::process::Command::new(&cmd[0])
-            .args(&cmd[1..])
-            .current_dir(dir)
-            .stdin(std::process::Stdio::null())
-            .output()
-            .await
-            .map_err(|e| {
-                format!(
-                    "cannot run the build of {name} (`{}` in {}): {e}",
-                    cmd.join(" "),
-                    dir.display()
-                )
-            })?;
-        if !output.status.success() {
-            let mut text = String::from_utf8_lossy(&output.stdout).into_owned();
-            text.push_str(&String::from_utf8_lossy(&output.stderr));
-            return Err(format!(
-                "the build of {name} failed (`{}` in {}):\n{text}",
-                cmd.join(" "),
-                dir.display()
+        .filter(|d| build && executable::build_of(&d.resolved.node.execution).is_some())
+        .count();
+    let mut programs = HashMap::new();
+    let mut built = 0;
+    for d in &stack.deployments {
+        let node = &d.resolved.node;
+        let identity = node.identity();
+        if build && let Some(cmd) = executable::build_of(&node.execution) {
+            built += 1;
+            out.note(&format!(
+                "building {identity} ({built}/{total}): {}",
+                cmd.join(" ")
             ));
         }
+        let argv = executable::prepare(
+            &identity.to_string(),
+            &node.name,
+            &d.dir,
+            &node.execution,
+            build,
+        )
+        .await?;
+        programs.insert(identity, argv);
     }
-    Ok(())
+    Ok(programs)
 }
 
-async fn launch(stack: StackCheck, args: &UpArgs) -> u8 {
+async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     let ids: Vec<&str> = stack
         .plan
         .instances
@@ -162,8 +144,9 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> u8 {
         .clone()
         .unwrap_or_else(|| default_namespace(&args.launcher));
     if let Err(why) = peppy_schema::names::check_name(&namespace) {
-        out.note(&format!("invalid --namespace `{namespace}`: {why}"));
-        return exit::INVALID;
+        return Err(LaunchError::Usage(format!(
+            "invalid --namespace `{namespace}`: {why}"
+        )));
     }
     let core_node = format!("launch-{:x}", std::process::id());
     let run_dir = stack
@@ -184,11 +167,10 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> u8 {
         match std::fs::create_dir_all(&run_dir).and_then(|()| std::fs::canonicalize(&run_dir)) {
             Ok(d) => d,
             Err(e) => {
-                out.note(&format!(
+                return Err(LaunchError::Setup(format!(
                     "cannot create the run directory {}: {e}",
                     run_dir.display()
-                ));
-                return exit::FAILED;
+                )));
             }
         };
     out.note(&format!(
@@ -196,31 +178,18 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> u8 {
         run_dir.display()
     ));
 
-    if !args.no_build
-        && let Err(e) = build_all(&stack, &out).await
-    {
-        out.note(&e);
-        return exit::FAILED;
-    }
+    let programs = prepare_all(&stack, &out, !args.no_build).await?;
 
     let listen = if args.listen.is_empty() {
-        match free_local_endpoint() {
-            Ok(e) => vec![e],
-            Err(e) => {
-                out.note(&format!("cannot find a free local port: {e}"));
-                return exit::FAILED;
-            }
-        }
+        let endpoint = free_local_endpoint()
+            .map_err(|e| LaunchError::Setup(format!("cannot find a free local port: {e}")))?;
+        vec![endpoint]
     } else {
         args.listen.clone()
     };
-    let router = match open_router(&listen, &args.connect).await {
-        Ok(r) => r,
-        Err(e) => {
-            out.note(&e);
-            return exit::FAILED;
-        }
-    };
+    let router = open_router(&listen, &args.connect)
+        .await
+        .map_err(LaunchError::Setup)?;
     // Nodes reach each other through the launch's router; a listen address
     // on all interfaces is still reached locally on loopback.
     let node_connect: Vec<String> = listen
@@ -235,12 +204,10 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> u8 {
         .map(|inst| {
             let deployment = &stack.deployments[inst.deployment];
             let node = &deployment.resolved.node;
-            let argv = node.execution.run_cmd.clone().ok_or_else(|| {
-                format!(
-                    "`{}` runs in a container, which peppy-launch does not run yet",
-                    inst.instance_id
-                )
-            })?;
+            let argv = programs
+                .get(&node.identity())
+                .cloned()
+                .ok_or_else(|| format!("no program for `{}`", inst.instance_id))?;
             Ok(Planned {
                 config: StartupConfig {
                     instance_id: inst.instance_id.clone(),
@@ -267,7 +234,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> u8 {
             })
         })
         .collect();
-    let code = run_instances(planned, &run_dir, Duration::from_secs_f64(args.grace), out).await;
+    let code = run_instances(planned, &run_dir, args.grace, out).await;
     let _ = router.close().await;
     code
 }
@@ -283,14 +250,14 @@ pub(crate) struct Planned {
 }
 
 /// Starts every instance in order (stopping those started if one cannot
-/// start), supervises them until they end or Ctrl-C, and returns the exit
-/// code: 0 clean, 1 a failure.
+/// start), supervises them until they end or Ctrl-C: clean, or
+/// `InstanceFailed`.
 pub(crate) async fn run_instances(
     planned: Vec<Result<Planned, String>>,
     run_dir: &Path,
     grace: Duration,
     out: Arc<Output>,
-) -> u8 {
+) -> Outcome {
     let signals = StopSignals::default();
     let ctrl_c = {
         let signals = signals.clone();
@@ -385,10 +352,10 @@ pub(crate) async fn run_instances(
     ctrl_c.abort();
     if failed {
         out.note("done: an instance failed");
-        exit::FAILED
+        Err(LaunchError::InstanceFailed)
     } else {
         out.note("done");
-        exit::OK
+        Ok(())
     }
 }
 

@@ -8,7 +8,7 @@ use peppy_schema::{
 use serde::Serialize;
 
 use crate::cli::{Format, ValidateArgs};
-use crate::exit;
+use crate::error::{LaunchError, Result};
 use crate::report::{self, JsonDiagnostic};
 
 /// The outcome for one file.
@@ -35,7 +35,7 @@ struct JsonReport {
     skipped: Vec<String>,
 }
 
-pub(crate) fn run(args: &ValidateArgs) -> u8 {
+pub(crate) fn run(args: &ValidateArgs) -> Result {
     let mut checked = Vec::new();
     let mut skipped = Vec::new();
     let mut usage = Diagnostics::new();
@@ -119,7 +119,11 @@ pub(crate) fn run(args: &ValidateArgs) -> u8 {
             );
         }
     }
-    if valid { exit::OK } else { exit::INVALID }
+    if valid {
+        Ok(())
+    } else {
+        Err(LaunchError::Invalid { errors })
+    }
 }
 
 /// Every `*.json5` under `dir`, skipping build and VCS directories.

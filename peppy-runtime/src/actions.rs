@@ -13,7 +13,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use peppy_schema::{RouteFilter, SlotBinding};
 use tokio::time::Instant;
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, warn};
@@ -24,6 +23,8 @@ use crate::error::{Error, Result};
 use crate::node::NodeRunner;
 use crate::services::Caller;
 use crate::spec::{ActionSpec, ConsumedActionSpec};
+use crate::stop;
+use crate::target;
 use crate::wire::attachment::{self, QueryHeader, QueryKind, ReplyStatus};
 use crate::wire::codec::{Decode, Decoder, Encode, from_bytes, to_bytes};
 use crate::wire::keys::{Channel, entry_key, entry_selector, parse_entry_key};
@@ -380,44 +381,87 @@ impl<G> IncomingGoal<G> {
     }
 }
 
-/// Waits for the next goal of an exposed action. A goal whose data does
-/// not decode is rejected and skipped.
+/// The goal queue of one exposed action on this node. It owns what it needs
+/// (not the [`NodeRunner`]), so it can move into a spawned task; several
+/// servers of one action share its queue, each goal going to one of them.
+pub struct GoalServer {
+    spec: &'static ActionSpec,
+    rx: flume::Receiver<PendingGoal>,
+    registry: Arc<Registry>,
+    stop: CancellationToken,
+}
+
+impl std::fmt::Debug for GoalServer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GoalServer")
+            .field("action", &self.spec.name)
+            .finish_non_exhaustive()
+    }
+}
+
+impl GoalServer {
+    /// The server of `spec` on this node; [`Error::Undeclared`] if the node
+    /// does not expose it.
+    pub fn new(runner: &NodeRunner, spec: &'static ActionSpec) -> Result<GoalServer> {
+        let (rx, registry) = runner.action_server(spec)?;
+        Ok(GoalServer {
+            spec,
+            rx: rx.clone(),
+            registry: registry.clone(),
+            stop: runner.cancellation_token().clone(),
+        })
+    }
+
+    /// Waits for the next goal. A goal whose data does not decode is
+    /// rejected and skipped.
+    ///
+    /// Once the node stops it returns [`Error::ShuttingDown`]: at once if it
+    /// was waiting, after a short pause if called on an already stopped
+    /// node, so a loop that ignores the error parks instead of spinning.
+    pub async fn next<G: Decode>(&self) -> Result<IncomingGoal<G>> {
+        if self.stop.is_cancelled() {
+            return Err(stop::refused().await);
+        }
+        loop {
+            let pending = tokio::select! {
+                p = self.rx.recv_async() => p.map_err(|_| Error::ShuttingDown)?,
+                () = self.stop.cancelled() => return Err(Error::ShuttingDown),
+            };
+            match from_bytes::<G>(&pending.body) {
+                Ok(data) => {
+                    let caller = Caller {
+                        instance_id: pending.header.instance.clone(),
+                        core_node: pending.header.core.clone(),
+                    };
+                    return Ok(IncomingGoal {
+                        pending,
+                        registry: self.registry.clone(),
+                        caller,
+                        data,
+                    });
+                }
+                Err(e) => {
+                    warn!(action = self.spec.name, caller = %pending.header.instance, error = %e, "rejecting a goal that does not decode");
+                    let _ = pending
+                        .query
+                        .reply(
+                            self.registry.key("goal"),
+                            goal_response(false, Some(format!("goal does not decode: {e}"))),
+                        )
+                        .attachment(attachment::reply(ReplyStatus::Ok, 0))
+                        .await;
+                }
+            }
+        }
+    }
+}
+
+/// Waits for the next goal of an exposed action, as [`GoalServer::next`].
 pub async fn next_goal<G: Decode>(
     runner: &NodeRunner,
     spec: &'static ActionSpec,
 ) -> Result<IncomingGoal<G>> {
-    let (rx, registry) = runner.action_server(spec)?;
-    loop {
-        let pending = tokio::select! {
-            p = rx.recv_async() => p.map_err(|_| Error::ShuttingDown)?,
-            () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
-        };
-        match from_bytes::<G>(&pending.body) {
-            Ok(data) => {
-                let caller = Caller {
-                    instance_id: pending.header.instance.clone(),
-                    core_node: pending.header.core.clone(),
-                };
-                return Ok(IncomingGoal {
-                    pending,
-                    registry: registry.clone(),
-                    caller,
-                    data,
-                });
-            }
-            Err(e) => {
-                warn!(action = spec.name, caller = %pending.header.instance, error = %e, "rejecting a goal that does not decode");
-                let _ = pending
-                    .query
-                    .reply(
-                        registry.key("goal"),
-                        goal_response(false, Some(format!("goal does not decode: {e}"))),
-                    )
-                    .attachment(attachment::reply(ReplyStatus::Ok, 0))
-                    .await;
-            }
-        }
-    }
+    GoalServer::new(runner, spec)?.next().await
 }
 
 /// An accepted goal on the server. Finish it with [`complete`](Self::complete)
@@ -454,8 +498,13 @@ impl GoalContext {
         self.cancel.is_cancelled()
     }
 
-    /// Publishes one feedback message on this goal's stream.
+    /// Publishes one feedback message on this goal's stream. Once the
+    /// node's session is closed it returns [`Error::ShuttingDown`] after a
+    /// short pause.
     pub async fn publish_feedback<F: Encode + ?Sized>(&self, feedback: &F) -> Result<()> {
+        if self.registry.session.is_closed() {
+            return Err(stop::refused().await);
+        }
         let payload = to_bytes(feedback);
         self.registry
             .session
@@ -527,6 +576,7 @@ pub struct GoalClient {
     spec: &'static ConsumedActionSpec,
     feedback: flume::Receiver<Option<Vec<u8>>>,
     _subscriber: zenoh::pubsub::Subscriber<()>,
+    stop: CancellationToken,
     /// Whether the server accepted the goal.
     pub accepted: bool,
     /// The server's reason when it rejected the goal.
@@ -557,19 +607,10 @@ fn new_goal_id() -> String {
     format!("{:016x}", h.finish())
 }
 
-fn query_header(runner: &NodeRunner, kind: QueryKind, fingerprint: u64) -> Vec<u8> {
-    QueryHeader {
-        kind,
-        fingerprint,
-        core: runner.core_node().to_string(),
-        instance: runner.instance_id().to_string(),
-    }
-    .encode()
-}
-
 /// Sends a goal through the action's slot and waits for the server's
 /// decision (accepted or rejected). The feedback stream is subscribed
-/// before the goal is sent, so no feedback is missed.
+/// before the goal is sent, so no feedback is missed. On an already stopped
+/// node it returns [`Error::ShuttingDown`] after a short pause.
 pub fn send_goal<'a, G: Encode + ?Sized>(
     runner: &'a NodeRunner,
     spec: &'static ConsumedActionSpec,
@@ -578,59 +619,21 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
 ) -> impl Future<Output = Result<GoalClient>> + Send + use<'a, G> {
     let body = to_bytes(goal);
     async move {
+        if runner.cancellation_token().is_cancelled() {
+            return Err(stop::refused().await);
+        }
         let deadline = Instant::now() + timeout;
         let owner = spec.owner.resolve(runner.node_name(), runner.node_tag());
-        let slot = runner.slot(spec.link_id)?;
-        let selector = |instance: Option<&str>, suffix: &str| {
-            format!(
-                "{}/{suffix}",
-                entry_selector(
-                    runner.namespace(),
-                    Channel::Action,
-                    owner.as_ref(),
-                    spec.name,
-                    None,
-                    instance
-                )
-            )
+        let entry = target::Entry {
+            link_id: spec.link_id,
+            owner: spec.owner,
+            channel: Channel::Action,
+            name: spec.name,
+            suffix: Some("goal"),
+            fingerprint: spec.goal.fingerprint,
+            describe: format!("{} (action goal)", spec.name),
         };
-        let target = match (&slot.binding, &slot.filter) {
-            (SlotBinding::Pinned { producer }, _) => producer.clone(),
-            (_, RouteFilter::OnlyFrom(set)) if set.len() == 1 => {
-                set.iter().next().cloned().expect("one producer")
-            }
-            (_, filter) => {
-                let budget = deadline
-                    .saturating_duration_since(Instant::now())
-                    .min(Duration::from_millis(500));
-                let replies = runner
-                    .session()
-                    .get(selector(None, "goal"))
-                    .attachment(query_header(
-                        runner,
-                        QueryKind::Probe,
-                        spec.goal.fingerprint,
-                    ))
-                    .target(QueryTarget::All)
-                    .consolidation(ConsolidationMode::None)
-                    .timeout(budget)
-                    .await?;
-                let mut found = None;
-                while let Ok(reply) = replies.recv_async().await {
-                    let Ok(sample) = reply.result() else { continue };
-                    if let Some(s) = parse_entry_key(sample.key_expr().as_str())
-                        && filter.accepts(&s.instance)
-                    {
-                        found = Some(s.instance);
-                        break;
-                    }
-                }
-                found.ok_or_else(|| Error::ServiceUnreachable {
-                    service: format!("{} (action goal)", spec.name),
-                    instance: None,
-                })?
-            }
-        };
+        let target = target::choose(runner, &entry, deadline).await?;
         let goal_id = new_goal_id();
         let (tx, rx) = flume::unbounded();
         let feedback_fp = spec.feedback.fingerprint;
@@ -668,9 +671,9 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
             .max(Duration::from_millis(1));
         let replies = runner
             .session()
-            .get(selector(Some(&target), "goal"))
+            .get(entry.selector(runner, Some(&target)))
             .payload(payload)
-            .attachment(query_header(
+            .attachment(target::header(
                 runner,
                 QueryKind::Request,
                 spec.goal.fingerprint,
@@ -680,7 +683,7 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
             .timeout(budget)
             .await?;
         let mut acked = false;
-        let service = format!("{} (action goal)", spec.name);
+        let service = entry.describe.clone();
         while let Ok(reply) = replies.recv_async().await {
             let Ok(sample) = reply.result() else { continue };
             let Some(sender) = parse_entry_key(sample.key_expr().as_str()) else {
@@ -722,6 +725,7 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
                         spec,
                         feedback: rx,
                         _subscriber: subscriber,
+                        stop: runner.cancellation_token().clone(),
                         accepted,
                         error_message,
                         instance_id: sender.instance,
@@ -758,10 +762,19 @@ impl GoalClient {
     }
 
     /// The next feedback message; [`Error::FeedbackEnded`] once the goal is
-    /// terminal and every feedback message was read.
+    /// terminal and every feedback message was read. Once this node stops
+    /// it returns [`Error::ShuttingDown`]: at once if it was waiting, after
+    /// a short pause if called on an already stopped node.
     pub async fn next_feedback<F: Decode>(&mut self) -> Result<F> {
+        if self.stop.is_cancelled() {
+            return Err(stop::refused().await);
+        }
         loop {
-            match self.feedback.recv_async().await {
+            let next = tokio::select! {
+                next = self.feedback.recv_async() => next,
+                () = self.stop.cancelled() => return Err(Error::ShuttingDown),
+            };
+            match next {
                 Ok(Some(bytes)) => match from_bytes::<F>(&bytes) {
                     Ok(f) => return Ok(f),
                     Err(e) => {
@@ -778,6 +791,9 @@ impl GoalClient {
     }
 
     async fn ask(&self, suffix: &str, timeout: Duration) -> Result<Vec<u8>> {
+        if self.stop.is_cancelled() {
+            return Err(stop::refused().await);
+        }
         let replies = self
             .session
             .get(format!("{}/{suffix}", self.base_key))
@@ -797,7 +813,14 @@ impl GoalClient {
             .await?;
         let service = format!("{} (action {suffix})", self.action);
         let mut acked = false;
-        while let Ok(reply) = replies.recv_async().await {
+        loop {
+            let reply = tokio::select! {
+                r = replies.recv_async() => match r {
+                    Ok(r) => r,
+                    Err(_) => break,
+                },
+                () = self.stop.cancelled() => return Err(Error::ShuttingDown),
+            };
             let Ok(sample) = reply.result() else { continue };
             let Some((status, fingerprint)) = sample
                 .attachment()
@@ -843,7 +866,9 @@ impl GoalClient {
         })
     }
 
-    /// Waits (up to `timeout`) until the goal is terminal and returns how it ended.
+    /// Waits (up to `timeout`) until the goal is terminal and returns how it
+    /// ended. Once this node stops it returns [`Error::ShuttingDown`], as
+    /// [`next_feedback`](Self::next_feedback) does.
     pub async fn result<R: Decode>(&self, timeout: Duration) -> Result<Outcome<R>> {
         let body = self.ask("result", timeout).await?;
         let decode = |bytes: &[u8]| {
@@ -865,7 +890,8 @@ impl GoalClient {
         }
     }
 
-    /// Asks the server to cancel the goal.
+    /// Asks the server to cancel the goal. Once this node stops it returns
+    /// [`Error::ShuttingDown`], as [`next_feedback`](Self::next_feedback) does.
     pub async fn cancel(&self, timeout: Duration) -> Result<CancelState> {
         let body = self.ask("cancel", timeout).await?;
         Ok(match body.first() {

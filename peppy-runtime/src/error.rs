@@ -1,6 +1,6 @@
 //! The runtime's errors.
 
-use peppy_schema::ParamError;
+use peppy_schema::{BindError, ParamError};
 
 /// Everything a peppy runtime call can fail with.
 #[derive(Debug, thiserror::Error)]
@@ -44,6 +44,10 @@ pub enum Error {
     /// Start-up inputs are missing or invalid (flags, runtime config file, bindings).
     #[error("{0}")]
     Startup(String),
+    /// Bindings were refused: the rules, codes and messages of
+    /// `peppy-launch check`, with help spelled for the command line.
+    #[error("invalid bindings:{}", bindings_list(.0))]
+    Bindings(Vec<BindError>),
     /// Parameter values do not fit the node's parameter schema.
     #[error("invalid parameters:{}", params_list(.0))]
     Parameters(Vec<ParamError>),
@@ -72,6 +76,20 @@ fn for_instance(instance: &Option<String>) -> String {
         .as_ref()
         .map(|i| format!(" on `{i}`"))
         .unwrap_or_default()
+}
+
+fn bindings_list(errors: &[BindError]) -> String {
+    errors
+        .iter()
+        .map(|e| {
+            let help = e.command_line_help();
+            if help.is_empty() {
+                format!("\n  - {e} ({})", e.code())
+            } else {
+                format!("\n  - {e} ({})\n    help: {help}", e.code())
+            }
+        })
+        .collect()
 }
 
 fn params_list(errors: &[ParamError]) -> String {

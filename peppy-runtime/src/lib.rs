@@ -19,21 +19,30 @@
 //! `--params FILE.json`, `--namespace NS`, `--connect` / `--listen ENDPOINT`
 //! and `key=value` parameter overrides.
 //!
+//! Once the node stops, waiting calls return [`Error::ShuttingDown`] at
+//! once, and a call made on an already stopped node returns it after a
+//! short pause, so loops that ignore it park instead of spinning (see
+//! docs/RUNNING.md, "Stopping").
+//!
 //! The wire format (key expressions, attachments, payload encoding) is in
 //! [`wire`] and docs/WIRE.md.
 
 mod actions;
 mod error;
+mod members;
 mod node;
 mod qos;
 mod services;
 pub mod spec;
 mod startup;
+mod stop;
+mod target;
 mod topics;
 pub mod wire;
 
 pub use actions::{
-    CancelState, DEFAULT_RESULT_RETENTION, GoalClient, GoalContext, IncomingGoal, Outcome,
+    CancelState, DEFAULT_RESULT_RETENTION, GoalClient, GoalContext, GoalServer, IncomingGoal,
+    Outcome,
 };
 pub use error::{Error, Result};
 pub use node::{NodeBuilder, NodeRunner};
@@ -49,7 +58,8 @@ pub use tokio_util::sync::CancellationToken;
 #[doc(hidden)]
 pub mod codegen {
     pub use crate::actions::{
-        CancelState, GoalClient, GoalContext, IncomingGoal, Outcome, next_goal, send_goal,
+        CancelState, GoalClient, GoalContext, GoalServer, IncomingGoal, Outcome, next_goal,
+        send_goal,
     };
     pub use crate::services::{Caller, Reply, call, handle_next};
     pub use crate::spec::*;

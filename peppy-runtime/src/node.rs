@@ -7,7 +7,7 @@ use std::marker::PhantomData;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
-use peppy_schema::{NodeDoc, SlotPlan};
+use peppy_schema::{NodeDoc, SlotKind, SlotPlan};
 use tokio_util::sync::CancellationToken;
 use tracing::{info, warn};
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -15,14 +15,20 @@ use zenoh::query::Queryable;
 
 use crate::actions::{self, DEFAULT_RESULT_RETENTION, PendingGoal, Registry};
 use crate::error::{Error, Result};
+use crate::members::Members;
 use crate::qos;
 use crate::services::{self, ServiceInbox};
 use crate::spec::{
-    ActionSpec, ConsumedTopicSpec, NodeDescriptor, NodeParameters, ServiceSpec, TopicSpec,
+    ActionSpec, ConsumedTopicSpec, NodeDescriptor, NodeParameters, OwnerSpec, ServiceSpec,
+    TopicSpec,
 };
 use crate::startup::{self, RUNTIME_CONFIG_ENV, StandaloneConfig, Startup};
 use crate::topics::{self, Inbox, Intake};
-use crate::wire::keys::{Channel, entry_key};
+use crate::wire::keys::{Channel, entry_key, liveliness_key};
+
+/// How long [`NodeBuilder::run`] waits, once the node has shut down, for
+/// its tasks that do not yield and its blocking tasks before it returns.
+const TASKS_STOP_BOUND: std::time::Duration = std::time::Duration::from_millis(250);
 
 /// Builds and runs a node: reads its start-up inputs, opens one Zenoh
 /// session, declares every subscription and service, runs your setup code,
@@ -81,6 +87,12 @@ impl<P: NodeParameters> NodeBuilder<P> {
 
     /// Runs the node to completion on its own multi-threaded tokio runtime.
     /// `setup` runs once; spawn long-running work from it.
+    ///
+    /// A stop (Ctrl-C, SIGTERM, the cancellation token) is prompt whatever
+    /// the node's tasks do: a `setup` still running is dropped, the node
+    /// shuts down, then its spawned tasks are dropped at their next
+    /// `.await`; tasks that do not yield and blocking tasks are waited for at
+    /// most 250 ms before `run` returns.
     pub fn run<F, Fut>(self, setup: F) -> Result<()>
     where
         F: FnOnce(P, Arc<NodeRunner>) -> Fut,
@@ -93,16 +105,24 @@ impl<P: NodeParameters> NodeBuilder<P> {
             .map_err(|e| Error::Startup(format!("cannot start the tokio runtime: {e}")))?;
         let result = runtime.block_on(async move {
             let (params, runner) = self.start().await?;
-            let outcome = match setup(params, runner.clone()).await {
-                Ok(()) => {
-                    wait_for_stop(&runner).await;
-                    Ok(())
-                }
-                Err(e) => Err(e),
+            let stop = wait_for_stop(&runner);
+            tokio::pin!(stop);
+            let outcome = tokio::select! {
+                r = setup(params, runner.clone()) => match r {
+                    Ok(()) => {
+                        stop.await;
+                        Ok(())
+                    }
+                    Err(e) => Err(e),
+                },
+                () = &mut stop => Ok(()),
             };
             runner.shutdown().await;
             outcome
         });
+        // Dropping the runtime would wait for every task, forever for one
+        // that never yields; the launcher would then SIGKILL the node.
+        runtime.shutdown_timeout(TASKS_STOP_BOUND);
         if let Err(e) = &result {
             tracing::error!("{e}");
         }
@@ -282,13 +302,20 @@ impl NodeRunner {
             entities.queryables.push(q);
         }
         let mismatch = mismatch_reporter(runner.session.clone(), runner.namespace.clone());
+        let mut trackers = HashMap::new();
         for spec in descriptor.consumed_topics {
             let filter = match spec.link_id {
                 Some(link) => runner.slot(link)?.filter.clone(),
                 None => peppy_schema::RouteFilter::Any,
             };
+            let members = match (spec.link_id, spec.owner) {
+                (Some(link), OwnerSpec::Interface { .. }) => {
+                    runner.node_slot_members(link, &mut trackers).await?
+                }
+                _ => None,
+            };
             let selector = topics::subscription_selector(&runner, spec, &filter);
-            let (intake, inbox) = Intake::new(spec, filter, mismatch.clone());
+            let (intake, inbox) = Intake::new(spec, filter, members, mismatch.clone());
             let subscriber = runner
                 .session
                 .declare_subscriber(selector)
@@ -353,13 +380,12 @@ impl NodeRunner {
             runner.action_servers.insert(address(*spec), (rx, registry));
         }
         // Presence: withdrawn when the node shuts down or dies.
-        let live = format!(
-            "peppy/{}/live/{}/{}/{}/{}",
-            runner.namespace,
-            runner.core_node,
-            runner.instance_id,
-            runner.node_name,
-            runner.node_tag
+        let live = liveliness_key(
+            &runner.namespace,
+            &runner.core_node,
+            &runner.instance_id,
+            &runner.node_name,
+            &runner.node_tag,
         );
         entities.liveliness = Some(runner.session.liveliness().declare_token(live).await?);
         runner.entities = Mutex::new(entities);
@@ -410,6 +436,34 @@ impl NodeRunner {
     /// The slots of this instance with what fills them.
     pub fn slots(&self) -> &[SlotPlan] {
         &self.slots
+    }
+
+    /// For a node slot, the tracker of its node's instances (shared by the
+    /// slot's entries); `None` for an interface slot, whose key already
+    /// names what it accepts.
+    async fn node_slot_members(
+        &self,
+        link_id: &str,
+        cache: &mut HashMap<String, Arc<Members>>,
+    ) -> Result<Option<Arc<Members>>> {
+        let slot = self.slot(link_id)?;
+        if slot.kind != SlotKind::Node {
+            return Ok(None);
+        }
+        if let Some(m) = cache.get(link_id) {
+            return Ok(Some(m.clone()));
+        }
+        let m = Arc::new(
+            Members::track(
+                &self.session,
+                &self.namespace,
+                &slot.target.name,
+                &slot.target.tag,
+            )
+            .await?,
+        );
+        cache.insert(link_id.to_string(), m.clone());
+        Ok(Some(m))
     }
 
     /// The slot named `link_id`.

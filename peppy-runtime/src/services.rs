@@ -4,7 +4,6 @@
 
 use std::time::Duration;
 
-use peppy_schema::{RouteFilter, SlotBinding};
 use tokio::time::Instant;
 use tracing::{debug, warn};
 use zenoh::Wait;
@@ -12,13 +11,12 @@ use zenoh::query::{ConsolidationMode, Query, QueryTarget};
 
 use crate::error::{Error, Result};
 use crate::node::NodeRunner;
-use crate::spec::{ConsumedServiceSpec, FormatSpec, ServiceSpec};
+use crate::spec::{ConsumedServiceSpec, ServiceSpec};
+use crate::stop;
+use crate::target;
 use crate::wire::attachment::{self, QueryHeader, QueryKind, ReplyStatus};
 use crate::wire::codec::{Decode, Encode, from_bytes, to_bytes};
-use crate::wire::keys::{Channel, entry_key, entry_selector, parse_entry_key};
-
-/// Longest a discovery probe waits for servers to say they are there.
-const PROBE_TIMEOUT: Duration = Duration::from_millis(500);
+use crate::wire::keys::{Channel, entry_key, parse_entry_key};
 
 /// Requests waiting for `handle_next_request`.
 pub(crate) struct ServiceInbox {
@@ -106,6 +104,10 @@ pub struct Caller {
 /// Serves the next request of an exposed service with `handler`. A request
 /// that does not decode is answered with an error and `Ok(())` is returned,
 /// so a serving loop keeps going.
+///
+/// Once the node stops it returns [`Error::ShuttingDown`]: at once if it was
+/// waiting, after a short pause if called on an already stopped node, so a
+/// loop that ignores the error parks instead of spinning.
 pub async fn handle_next<Req, Resp, F>(
     runner: &NodeRunner,
     spec: &'static ServiceSpec,
@@ -117,6 +119,9 @@ where
     F: FnOnce(Caller, Req) -> Result<Resp>,
 {
     let inbox = runner.service_inbox(spec)?;
+    if runner.cancellation_token().is_cancelled() {
+        return Err(stop::refused().await);
+    }
     let pending = tokio::select! {
         p = inbox.rx.recv_async() => p.map_err(|_| Error::ShuttingDown)?,
         () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
@@ -167,6 +172,11 @@ pub struct Reply<T> {
 /// producer for pinned slots (and from_any slots bound to one producer),
 /// else to the first server the slot's filter accepts. The request is
 /// encoded before the returned future first runs.
+///
+/// A call waiting for its reply when the node stops returns
+/// [`Error::ShuttingDown`] at once; a call made on an already stopped node
+/// returns it after a short pause, so a loop that ignores the error does
+/// not spin.
 pub fn call<'a, Req, Resp>(
     runner: &'a NodeRunner,
     spec: &'static ConsumedServiceSpec,
@@ -179,82 +189,32 @@ where
 {
     let payload = to_bytes(request);
     async move {
-        let deadline = Instant::now() + timeout;
-        let slot = runner.slot(spec.link_id)?;
-        let target = match (&slot.binding, &slot.filter) {
-            (SlotBinding::Pinned { producer }, _) => producer.clone(),
-            (_, RouteFilter::OnlyFrom(set)) if set.len() == 1 => {
-                set.iter().next().cloned().expect("one producer")
-            }
-            (_, filter) => discover(runner, spec, filter, deadline).await?,
-        };
-        request_to(runner, spec, &target, deadline, payload).await
-    }
-}
-
-fn owner_selector(
-    runner: &NodeRunner,
-    spec: &ConsumedServiceSpec,
-    instance: Option<&str>,
-) -> String {
-    let owner = spec.owner.resolve(runner.node_name(), runner.node_tag());
-    entry_selector(
-        runner.namespace(),
-        Channel::Service,
-        owner.as_ref(),
-        spec.name,
-        None,
-        instance,
-    )
-}
-
-fn header(runner: &NodeRunner, kind: QueryKind, format: FormatSpec) -> Vec<u8> {
-    QueryHeader {
-        kind,
-        fingerprint: format.fingerprint,
-        core: runner.core_node().to_string(),
-        instance: runner.instance_id().to_string(),
-    }
-    .encode()
-}
-
-/// Asks every server of the slot's kind to say it is there; the first the
-/// slot's filter accepts wins.
-async fn discover(
-    runner: &NodeRunner,
-    spec: &ConsumedServiceSpec,
-    filter: &RouteFilter,
-    deadline: Instant,
-) -> Result<String> {
-    let budget = deadline
-        .saturating_duration_since(Instant::now())
-        .min(PROBE_TIMEOUT);
-    let replies = runner
-        .session()
-        .get(owner_selector(runner, spec, None))
-        .attachment(header(runner, QueryKind::Probe, spec.request))
-        .target(QueryTarget::All)
-        .consolidation(ConsolidationMode::None)
-        .timeout(budget)
-        .await?;
-    while let Ok(reply) = replies.recv_async().await {
-        let Ok(sample) = reply.result() else { continue };
-        let Some(sender) = parse_entry_key(sample.key_expr().as_str()) else {
-            continue;
-        };
-        if filter.accepts(&sender.instance) {
-            return Ok(sender.instance);
+        if runner.cancellation_token().is_cancelled() {
+            return Err(stop::refused().await);
         }
+        let deadline = Instant::now() + timeout;
+        let entry = entry(spec);
+        let target = target::choose(runner, &entry, deadline).await?;
+        request_to(runner, spec, &entry, &target, deadline, payload).await
     }
-    Err(Error::ServiceUnreachable {
-        service: spec.name.to_string(),
-        instance: None,
-    })
+}
+
+fn entry(spec: &ConsumedServiceSpec) -> target::Entry<'static> {
+    target::Entry {
+        link_id: spec.link_id,
+        owner: spec.owner,
+        channel: Channel::Service,
+        name: spec.name,
+        suffix: None,
+        fingerprint: spec.request.fingerprint,
+        describe: spec.name.to_string(),
+    }
 }
 
 async fn request_to<Resp: Decode>(
     runner: &NodeRunner,
     spec: &ConsumedServiceSpec,
+    entry: &target::Entry<'_>,
     instance: &str,
     deadline: Instant,
     payload: Vec<u8>,
@@ -262,9 +222,13 @@ async fn request_to<Resp: Decode>(
     let budget = deadline.saturating_duration_since(Instant::now());
     let replies = runner
         .session()
-        .get(owner_selector(runner, spec, Some(instance)))
+        .get(entry.selector(runner, Some(instance)))
         .payload(payload)
-        .attachment(header(runner, QueryKind::Request, spec.request))
+        .attachment(target::header(
+            runner,
+            QueryKind::Request,
+            spec.request.fingerprint,
+        ))
         .target(QueryTarget::All)
         .consolidation(ConsolidationMode::None)
         .timeout(budget.max(Duration::from_millis(1)))

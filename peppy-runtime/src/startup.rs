@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 
 use clap::Parser;
 use peppy_schema::{
-    NodeDoc, ParamKind, ParameterSchema, Primitive, SlotBinding, SlotKind, SlotPlan,
-    compute_filters,
+    BindRequest, NodeDoc, ParamKind, ParameterSchema, Primitive, SlotBinding, SlotPlan, assign,
+    requests_for,
 };
 use serde::{Deserialize, Serialize};
 use serde_json::Value as Json;
@@ -204,8 +204,8 @@ pub(crate) fn load(
         }
     }
     let slots = match binds_given {
-        Some(binds) => slots_from_flags(doc, &binds)?,
-        None => slots_from_config(doc, &config.bindings)?,
+        Some(binds) => slots_from_flags(doc, &config.instance_id, &binds)?,
+        None => slots_from_config(doc, &config.instance_id, &config.bindings)?,
     };
     let parameters = doc
         .execution
@@ -267,11 +267,8 @@ fn standalone_config(
                 "invalid --bind `{b}`: expected KEY@INSTANCE, e.g. --bind left_cam@rs_left"
             )));
         };
-        if binds.iter().any(|(k, _): &(String, String)| k == key) {
-            return Err(Error::Startup(format!(
-                "--bind key `{key}` is given twice; each key binds once"
-            )));
-        }
+        // A key may repeat: a from_any slot takes several producers, and
+        // the binding engine refuses a pinned slot bound twice.
         binds.push((key.to_string(), instance.to_string()));
     }
     let mut parameters = standalone.parameters.clone().unwrap_or(Json::Null);
@@ -394,118 +391,53 @@ fn typed_value(schema: &ParameterSchema, path: &str, raw: &str) -> Json {
     }
 }
 
-fn slot_name(kind: SlotKind) -> &'static str {
-    match kind {
-        SlotKind::Node => "node",
-        SlotKind::Interface => "interface",
-    }
-}
-
-/// Slots from `--bind` flags: a key naming a slot binds it; any other key
-/// joins the first `from_any` slot in link_id order (the producer's kind is
-/// not known here; the launcher checks it).
-fn slots_from_flags(doc: &NodeDoc, binds: &[(String, String)]) -> Result<Vec<SlotPlan>> {
-    let mut bindings: BTreeMap<String, SlotBinding> = BTreeMap::new();
-    let mut from_any: Vec<&str> = doc
-        .dependencies
+/// Slots from `--bind` flags, through the binding engine. The producers'
+/// nodes are not known on a command line, so a free-form key joins the
+/// first `from_any` slot only when every `from_any` slot wants the same
+/// producers; otherwise the flag must name the slot.
+fn slots_from_flags(
+    doc: &NodeDoc,
+    instance: &str,
+    binds: &[(String, String)],
+) -> Result<Vec<SlotPlan>> {
+    let requests: Vec<BindRequest<'_>> = binds
         .iter()
-        .filter(|d| d.from_any)
-        .map(|d| d.link_id.as_str())
+        .map(|(key, producer)| BindRequest {
+            key,
+            instance: producer,
+            producer: None,
+        })
         .collect();
-    from_any.sort();
-    for (key, instance) in binds {
-        let link = match doc.dependency(key) {
-            Some(d) => d.link_id.as_str(),
-            None => match from_any.first() {
-                Some(l) => l,
-                None => {
-                    let declared: Vec<&str> = doc
-                        .dependencies
-                        .iter()
-                        .map(|d| d.link_id.as_str())
-                        .collect();
-                    return Err(Error::Startup(format!(
-                        "--bind {key}@{instance}: `{key}` is not a slot of `{}` and it has no from_any slot; slots: {}",
-                        doc.identity(),
-                        if declared.is_empty() {
-                            "(none)".to_string()
-                        } else {
-                            declared.join(", ")
-                        }
-                    )));
-                }
-            },
-        };
-        let dep = doc.dependency(link).expect("declared slot");
-        if dep.from_any {
-            match bindings
-                .entry(link.to_string())
-                .or_insert(SlotBinding::FromAnyBound {
-                    producers: Vec::new(),
-                }) {
-                SlotBinding::FromAnyBound { producers } => producers.push(instance.clone()),
-                _ => unreachable!("from_any slots only hold lists"),
-            }
-        } else {
-            bindings.insert(
-                link.to_string(),
-                SlotBinding::Pinned {
-                    producer: instance.clone(),
-                },
-            );
-        }
-    }
-    slots_from_config(doc, &bindings).map_err(|e| match e {
-        Error::Startup(m) => Error::Startup(m.replace(" (missing in the runtime config)", "")),
-        other => other,
-    })
+    engine(doc, instance, &requests)
 }
 
-/// Slots from the launcher's bindings; every pinned slot must be bound.
+/// Slots from the launcher's bindings, re-checked by the same engine (the
+/// launcher decided them; a disagreement means the binary and the launcher
+/// read different documents).
 fn slots_from_config(
     doc: &NodeDoc,
+    instance: &str,
     bindings: &BTreeMap<String, SlotBinding>,
 ) -> Result<Vec<SlotPlan>> {
     if let Some(unknown) = bindings.keys().find(|k| doc.dependency(k).is_none()) {
         return Err(Error::Startup(format!(
-            "binding for `{unknown}`, which is not a slot of `{}`",
+            "the runtime config binds `{unknown}`, which is not a slot of `{}`; was this binary built from another peppy.json5 than the launcher read?",
             doc.identity()
         )));
     }
-    let mut slots = Vec::new();
-    for dep in &doc.dependencies {
-        let binding = match (bindings.get(&dep.link_id), dep.from_any) {
-            (Some(b @ SlotBinding::Pinned { .. }), false) => b.clone(),
-            (Some(b @ (SlotBinding::FromAnyBound { .. } | SlotBinding::FromAnyUnbound)), true) => {
-                b.clone()
-            }
-            (None, true) => SlotBinding::FromAnyUnbound,
-            (None, false) => {
-                return Err(Error::Startup(format!(
-                    "slot `{}` ({} `{}`) is pinned but has no binding (missing in the runtime config); pass --bind {}@<producer instance id>",
-                    dep.link_id,
-                    slot_name(dep.kind),
-                    dep.target,
-                    dep.link_id
-                )));
-            }
-            (Some(other), _) => {
-                return Err(Error::Startup(format!(
-                    "slot `{}` cannot take binding {other:?}",
-                    dep.link_id
-                )));
-            }
-        };
-        slots.push(SlotPlan {
-            link_id: dep.link_id.clone(),
-            kind: dep.kind,
-            target: dep.target.clone(),
-            binding,
-            filter: peppy_schema::RouteFilter::Any,
-        });
+    let requests = requests_for(bindings.iter().map(|(k, b)| (k.as_str(), b)));
+    engine(doc, instance, &requests)
+}
+
+fn engine(doc: &NodeDoc, instance: &str, requests: &[BindRequest<'_>]) -> Result<Vec<SlotPlan>> {
+    let outcome = assign(instance, &doc.identity(), &doc.dependencies, requests);
+    if outcome.errors.is_empty() {
+        Ok(outcome.slots)
+    } else {
+        Err(Error::Bindings(
+            outcome.errors.into_iter().map(|(_, e)| e).collect(),
+        ))
     }
-    compute_filters(&mut slots);
-    Ok(slots)
 }
 
 #[cfg(test)]
@@ -565,6 +497,51 @@ mod tests {
         assert_eq!(
             s.parameters,
             serde_json::json!({ "fps": 30, "name": "123", "video": { "scale": 2.5 } })
+        );
+    }
+
+    #[test]
+    fn a_free_form_key_is_refused_when_the_slot_would_be_a_guess() {
+        let doc = NodeDoc::parse(
+            "peppy.json5",
+            r#"{ peppy_schema: "node_v1",
+                manifest: { name: "mixer", tag: "v1", depends_on: {
+                    interfaces: [ { name: "depth_camera", tag: "v1", link_id: "cams", from_any: true } ],
+                    nodes: [ { name: "realsense_d405", tag: "v1", link_id: "realsenses", from_any: true } ] } },
+                execution: { language: "rust", run_cmd: ["x"] } }"#,
+        )
+        .unwrap()
+        .0;
+        // The producer's node is not known on a command line, and the two
+        // from_any slots want different producers: no silent pick.
+        let err = load(
+            &doc,
+            args(&["--bind", "front@rs_a"]),
+            None,
+            &StandaloneConfig::new(),
+        )
+        .unwrap_err();
+        let Error::Bindings(errors) = &err else {
+            panic!("{err}")
+        };
+        assert_eq!(errors[0].code(), peppy_schema::Code::DeadBindingKey);
+        let text = err.to_string();
+        assert!(
+            text.contains("--bind cams@rs_a or --bind realsenses@rs_a"),
+            "{text}"
+        );
+        // Naming the slot works.
+        let s = load(
+            &doc,
+            args(&["--bind", "realsenses@rs_a"]),
+            None,
+            &StandaloneConfig::new(),
+        )
+        .unwrap();
+        let slot = s.slots.iter().find(|x| x.link_id == "realsenses").unwrap();
+        assert_eq!(
+            slot.filter,
+            RouteFilter::OnlyFrom(["rs_a".to_string()].into())
         );
     }
 

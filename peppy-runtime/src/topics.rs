@@ -9,9 +9,11 @@ use tracing::{debug, warn};
 use zenoh::sample::Sample;
 
 use crate::error::{Error, Result};
+use crate::members::Members;
 use crate::node::NodeRunner;
 use crate::qos::{QueuePolicy, queue};
 use crate::spec::{ConsumedTopicSpec, TopicSpec};
+use crate::stop;
 use crate::wire::attachment;
 use crate::wire::codec::{Decode, Encode, from_bytes, to_bytes};
 use crate::wire::keys::{Channel, entry_selector, parse_entry_key};
@@ -34,6 +36,8 @@ pub(crate) struct Inbox {
 pub(crate) struct Intake {
     pub(crate) spec: &'static ConsumedTopicSpec,
     pub(crate) filter: RouteFilter,
+    /// For a node slot on an interface's key: the instances of its node.
+    pub(crate) members: Option<Arc<Members>>,
     pub(crate) tx: flume::Sender<Delivery>,
     pub(crate) rx: flume::Receiver<Delivery>,
     pub(crate) policy: QueuePolicy,
@@ -45,6 +49,7 @@ impl Intake {
     pub(crate) fn new(
         spec: &'static ConsumedTopicSpec,
         filter: RouteFilter,
+        members: Option<Arc<Members>>,
         mismatch: Arc<dyn Fn(&'static ConsumedTopicSpec, String, u64) + Send + Sync>,
     ) -> (Intake, Inbox) {
         let policy = queue(spec.qos);
@@ -56,6 +61,7 @@ impl Intake {
             Intake {
                 spec,
                 filter,
+                members,
                 tx,
                 rx: rx.clone(),
                 policy,
@@ -73,7 +79,12 @@ impl Intake {
             debug!(key, "dropping a sample with a malformed key");
             return;
         };
-        if !self.filter.accepts(&sender.instance) {
+        if !self.filter.accepts(&sender.instance)
+            || self
+                .members
+                .as_ref()
+                .is_some_and(|m| !m.contains(&sender.core, &sender.instance))
+        {
             return;
         }
         let fingerprint = sample
@@ -155,6 +166,10 @@ pub(crate) fn subscription_selector(
 
 /// Publishes one message on an emitted topic. The message is encoded before
 /// the returned future first runs, so it need not outlive the call.
+///
+/// Works while the node is stopping (a last message on the way out); once
+/// the node's session is closed it returns [`Error::ShuttingDown`] after a
+/// short pause, so a loop that ignores the error does not spin.
 pub fn emit<'a, M: Encode + ?Sized>(
     runner: &'a NodeRunner,
     spec: &'static TopicSpec,
@@ -162,6 +177,9 @@ pub fn emit<'a, M: Encode + ?Sized>(
 ) -> impl Future<Output = Result<()>> + Send + use<'a, M> {
     let payload = to_bytes(message);
     async move {
+        if runner.session().is_closed() {
+            return Err(stop::refused().await);
+        }
         let publisher = runner.publisher(spec)?;
         publisher
             .put(payload)
@@ -174,12 +192,19 @@ pub fn emit<'a, M: Encode + ?Sized>(
 /// Waits for the next message of a consumed topic: `(producer instance id, message)`.
 ///
 /// `from_core_node` keeps only messages from instances started by that launch.
+///
+/// Once the node stops it returns [`Error::ShuttingDown`]: at once if it was
+/// waiting, after a short pause if called on an already stopped node, so a
+/// loop that ignores the error parks instead of spinning.
 pub async fn next_message<M: Decode>(
     runner: &NodeRunner,
     spec: &'static ConsumedTopicSpec,
     from_core_node: Option<&str>,
 ) -> Result<(String, M)> {
     let inbox = runner.inbox(spec)?;
+    if runner.cancellation_token().is_cancelled() {
+        return Err(stop::refused().await);
+    }
     loop {
         let delivery = tokio::select! {
             d = inbox.rx.recv_async() => d.map_err(|_| Error::ShuttingDown)?,

@@ -111,6 +111,8 @@ codes! {
     InvalidSource,
     /// A launcher source kind that is not supported yet.
     UnsupportedSource,
+    /// A node whose execution peppy-launch cannot start (a container).
+    UnsupportedExecution,
     /// Two deployments of the same `name:tag`.
     DuplicateDeployment,
     /// A deployment without instances.

@@ -3,7 +3,9 @@
 //! Syntax is parsed by `jsonc-parser` (all of JSON5: comments, unquoted keys,
 //! single quotes, hex, `Infinity`, trailing commas); this module turns its
 //! AST into an owned tree and enforces the size and depth limits, so deep
-//! nesting is a located error rather than a stack overflow.
+//! nesting is a located error rather than a stack overflow. It also rejects
+//! what that parser accepts beyond JSON5: unquoted keys that are not
+//! identifiers (`foo-bar`, `123`) and raw line breaks inside strings.
 
 use std::sync::Arc;
 
@@ -197,9 +199,16 @@ pub fn parse(file: &Arc<SourceFile>) -> Result<(Node, Diagnostics), Diagnostics>
         tokens: false,
     };
     let parsed = jsonc_parser::parse_to_ast(text, &collect, &options).map_err(|e| {
+        use jsonc_parser::errors::ParseErrorKind;
         let range = e.range();
+        // The parser stops inside such a key with a generic message.
+        if !matches!(e.kind(), ParseErrorKind::NestingDepthExceeded)
+            && let Some(key) = bad_key_at(text, range.start)
+        {
+            return Diagnostics::from(unquoted_key_error(file, key));
+        }
         let (code, message) = match e.kind() {
-            jsonc_parser::errors::ParseErrorKind::NestingDepthExceeded => (
+            ParseErrorKind::NestingDepthExceeded => (
                 Code::NestingTooDeep,
                 format!("objects and arrays nest deeper than {MAX_DEPTH} levels"),
             ),
@@ -235,6 +244,89 @@ fn span_of(range: jsonc_parser::common::Range) -> Span {
     Span::new(range.start, range.end)
 }
 
+/// Whether `key` may be written unquoted: a JSON5 identifier (ECMAScript
+/// IdentifierName), with Unicode letters and digits as `char` classes them.
+fn is_identifier(key: &str) -> bool {
+    let mut chars = key.chars();
+    chars
+        .next()
+        .is_some_and(|c| c == '$' || c == '_' || c.is_alphabetic())
+        && chars.all(|c| c == '$' || c == '_' || c.is_alphanumeric())
+}
+
+/// The span of the word around `offset` when it is followed by `:` and is
+/// not an identifier: an unquoted key the parser could not read.
+fn bad_key_at(text: &str, offset: usize) -> Option<Span> {
+    let in_word = |c: char| !c.is_whitespace() && !"{}[],:\"'".contains(c);
+    let offset = offset.min(text.len());
+    if !text.is_char_boundary(offset) {
+        return None;
+    }
+    let start = text[..offset]
+        .char_indices()
+        .rev()
+        .take_while(|&(_, c)| in_word(c))
+        .last()
+        .map_or(offset, |(i, _)| i);
+    let end = text[offset..]
+        .find(|c: char| !in_word(c))
+        .map_or(text.len(), |i| offset + i);
+    let followed_by_colon = text[end..].trim_start_matches([' ', '\t']).starts_with(':');
+    (start < end && followed_by_colon && !is_identifier(&text[start..end]))
+        .then(|| Span::new(start, end))
+}
+
+fn unquoted_key_error(file: &Arc<SourceFile>, key: Span) -> Diagnostic {
+    let name = &file.text()[key.start..key.end];
+    Diagnostic::error(
+        Code::Syntax,
+        format!("invalid JSON5: `{name}` is not a valid unquoted key"),
+    )
+    .at(file, key)
+    .with_help(format!(
+        "unquoted keys hold only letters, digits (not first), `_` and `$`; quote the key: `\"{name}\"`"
+    ))
+}
+
+/// The offset of the first line break in a string literal's raw text that
+/// is not a line continuation (a backslash right before it).
+fn raw_line_break(raw: &str) -> Option<usize> {
+    let bytes = raw.as_bytes();
+    let mut i = 0;
+    while i < bytes.len() {
+        match bytes[i] {
+            // Skips the escaped character; `\` CR LF is one continuation.
+            b'\\' => {
+                i += if bytes[i + 1..].starts_with(b"\r\n") {
+                    3
+                } else {
+                    2
+                }
+            }
+            b'\n' | b'\r' => return Some(i),
+            _ => i += 1,
+        }
+    }
+    None
+}
+
+/// Reports a string literal at `span` that holds a raw line break.
+fn check_string(file: &Arc<SourceFile>, span: Span, diags: &mut Diagnostics) {
+    let raw = &file.text()[span.start..span.end];
+    if let Some(at) = raw_line_break(raw) {
+        diags.push(
+            Diagnostic::error(
+                Code::Syntax,
+                "invalid JSON5: a line break inside a string",
+            )
+            .at(file, Span::new(span.start, span.start + at))
+            .with_help(
+                "JSON5 strings end on the line they start: write `\\n` for a line break, or end the line with `\\` to continue the string on the next",
+            ),
+        );
+    }
+}
+
 /// Returns `None` only when the depth limit is hit (reported in `diags`).
 fn convert(
     value: &ast::Value<'_>,
@@ -247,7 +339,10 @@ fn convert(
     let value = match value {
         ast::Value::NullKeyword(_) => Value::Null,
         ast::Value::BooleanLit(b) => Value::Bool(b.value),
-        ast::Value::StringLit(s) => Value::String(s.value.to_string()),
+        ast::Value::StringLit(s) => {
+            check_string(file, span, diags);
+            Value::String(s.value.to_string())
+        }
         ast::Value::NumberLit(n) => match Number::parse(n.value) {
             Some(num) => Value::Number(num),
             None => {
@@ -281,8 +376,16 @@ fn convert(
             let mut members: Vec<Member> = Vec::with_capacity(o.properties.len());
             for prop in &o.properties {
                 let (key, key_span) = match &prop.name {
-                    ast::ObjectPropName::String(s) => (s.value.to_string(), span_of(s.range)),
-                    ast::ObjectPropName::Word(w) => (w.value.to_string(), span_of(w.range)),
+                    ast::ObjectPropName::String(s) => {
+                        check_string(file, span_of(s.range), diags);
+                        (s.value.to_string(), span_of(s.range))
+                    }
+                    ast::ObjectPropName::Word(w) => {
+                        if !is_identifier(w.value) {
+                            diags.push(unquoted_key_error(file, span_of(w.range)));
+                        }
+                        (w.value.to_string(), span_of(w.range))
+                    }
                 };
                 let value = convert(&prop.value, file, depth + 1, diags)?;
                 if let Some(first) = members.iter().find(|m| m.key == key) {

@@ -33,6 +33,7 @@
 //! assert!(lines[1].starts_with("peppy.json5:4:52: error: unknown key `bogus` in `execution`"), "{}", lines[1]);
 //! ```
 
+mod binding;
 mod diag;
 mod document;
 mod entries;
@@ -50,6 +51,10 @@ mod resolve;
 mod source;
 mod stack;
 
+pub use binding::{
+    Assignment, BindError, BindRequest, Producer, RouteFilter, SlotBinding, SlotPlan, assign,
+    compute_filters, conformances, requests_for,
+};
 pub use diag::{Code, Diagnostic, Diagnostics, Severity, did_you_mean};
 pub use document::{
     Document, DocumentKind, Parsed, REPOSITORIES_FILE, RepositoriesDoc, SCHEMAS, detect_kind,
@@ -66,16 +71,14 @@ pub use launcher::{
     stack_rules,
 };
 pub use node::{
-    ConsumedRef, ConsumedTopic, Container, Dependency, Execution, Identity, InterfaceRef, NodeDoc,
-    SlotKind, TopicSource,
+    ConsumedRef, ConsumedTopic, Container, Dependency, Execution, Identity, InterfaceRef, Launch,
+    NodeDoc, SlotKind, TopicSource,
 };
 pub use params::{
     ParamError, ParamErrorKind, ParamField, ParamItem, ParamKind, ParameterSchema, check_leaf,
     describe,
 };
-pub use plan::{
-    BindingPlan, InstancePlan, RouteFilter, SlotBinding, SlotPlan, compute_filters, plan_bindings,
-};
+pub use plan::{BindingPlan, InstancePlan, plan_bindings};
 pub use read::Loc;
 pub use repos::{
     Broken, Entry, REPOSITORIES_ENV, RepoIndex, RepositoryList, SKIPPED_DIRS, json5_files,

@@ -182,8 +182,41 @@ pub struct Execution {
     pub parameters: ParameterSchema,
 }
 
+/// How a launcher starts a node.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Launch<'a> {
+    /// `run_cmd`, run in the node's directory.
+    Command(&'a [String]),
+    /// A Rust node without `run_cmd`: the executable `cargo build` reports
+    /// for the package in the node's directory.
+    CargoBinary,
+    /// `execution.container` (not started by peppy-launch yet).
+    Container(&'a Container),
+}
+
+impl Execution {
+    /// How a launcher starts the node.
+    pub fn launch(&self) -> Launch<'_> {
+        match (&self.run_cmd, &self.container) {
+            (Some(argv), _) => Launch::Command(argv),
+            (None, Some(c)) => Launch::Container(c),
+            (None, None) => Launch::CargoBinary,
+        }
+    }
+
+    /// The build to run before starting: `build_cmd`, or `cargo build` for
+    /// a cargo-located Rust node that gives none.
+    pub fn build_command(&self) -> Option<Vec<String>> {
+        match (&self.build_cmd, self.launch()) {
+            (Some(cmd), _) => Some(cmd.clone()),
+            (None, Launch::CargoBinary) => Some(vec!["cargo".into(), "build".into()]),
+            (None, _) => None,
+        }
+    }
+}
+
 /// `execution.container` (accepted and carried).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct Container {
     /// Definition file.
     pub def_file: String,
@@ -911,6 +944,11 @@ fn parse_command(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Vec<Stri
     Some(argv)
 }
 
+/// `cargo build ...` (what a cargo-located node's build must be).
+fn is_cargo_build(argv: &[String]) -> bool {
+    argv.first().is_some_and(|p| p == "cargo") && argv.get(1).is_some_and(|c| c == "build")
+}
+
 fn parse_execution(r: &mut Reader<'_>, node: &Node) -> Option<Execution> {
     let obj = r.object(
         node,
@@ -959,13 +997,29 @@ fn parse_execution(r: &mut Reader<'_>, node: &Node) -> Option<Execution> {
             );
             ok = false;
         }
+        // A Rust node built with cargo: the launcher learns its executable
+        // from cargo's build messages.
+        (None, None) if language.as_deref() == Some("rust") => {
+            if let Some(Some(cmd)) = &build_cmd
+                && !is_cargo_build(cmd)
+            {
+                r.error_help(
+                    Code::ExecutionConflict,
+                    obj.get("build_cmd").expect("present").span,
+                    "execution.build_cmd",
+                    "`execution` has no `run_cmd`, and `build_cmd` is not a `cargo build`",
+                    "the executable of a Rust node without `run_cmd` is learned from `cargo build`: use `build_cmd: [\"cargo\", \"build\", ...]`, or give a `run_cmd`",
+                );
+                ok = false;
+            }
+        }
         (None, None) => {
             r.error_help(
                 Code::ExecutionConflict,
                 node.span,
                 "execution",
                 "`execution` has neither `run_cmd` nor `container`",
-                "add `run_cmd: [\"./target/release/my_node\"]` (or a `container`)",
+                "add `run_cmd: [\"./my_node\"]` (or a `container`); only `language: \"rust\"` nodes built with cargo may omit it",
             );
             ok = false;
         }

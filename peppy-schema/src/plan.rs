@@ -1,72 +1,14 @@
 //! The binding plan of a launcher: for every consumer instance and slot,
 //! which producers fill it, and the routing filter the consumer applies.
+//! The rules themselves are the binding engine's ([`crate::binding`]); this
+//! module feeds it the launcher's bindings and locates its errors.
 
-use std::collections::BTreeSet;
+use serde::Serialize;
 
-use serde::{Deserialize, Serialize};
-
-use crate::diag::{Code, Diagnostic, Diagnostics, list};
+use crate::binding::{BindError, BindRequest, Producer, SlotPlan, assign, conformances};
+use crate::diag::{Code, Diagnostic, Diagnostics};
 use crate::launcher::{Binding, Instance, LauncherDoc, RestartPolicy};
-use crate::node::{Dependency, Identity, NodeDoc, SlotKind};
-
-/// What fills one slot.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", tag = "kind")]
-pub enum SlotBinding {
-    /// A pinned slot bound to one producer.
-    Pinned {
-        /// The producer instance.
-        producer: String,
-    },
-    /// A `from_any` slot with explicit producers: only these flow in.
-    FromAnyBound {
-        /// Producer instances, in binding order.
-        producers: Vec<String>,
-    },
-    /// A `from_any` slot without bindings: any unclaimed producer of its kind.
-    FromAnyUnbound,
-}
-
-/// Which producers' messages a consumer keeps for one slot (SPEC 5).
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", tag = "kind", content = "producers")]
-pub enum RouteFilter {
-    /// Only this producer.
-    Pin(String),
-    /// Only these producers.
-    OnlyFrom(BTreeSet<String>),
-    /// Any producer of the slot's kind except these.
-    AnyExcept(BTreeSet<String>),
-    /// Any producer of the slot's kind.
-    Any,
-}
-
-impl RouteFilter {
-    /// Whether a message from `producer` (already of the slot's kind) passes.
-    pub fn accepts(&self, producer: &str) -> bool {
-        match self {
-            RouteFilter::Pin(p) => p == producer,
-            RouteFilter::OnlyFrom(set) => set.contains(producer),
-            RouteFilter::AnyExcept(set) => !set.contains(producer),
-            RouteFilter::Any => true,
-        }
-    }
-}
-
-/// One slot of one consumer instance.
-#[derive(Debug, Clone, Serialize)]
-pub struct SlotPlan {
-    /// The slot's link_id.
-    pub link_id: String,
-    /// Node or interface slot.
-    pub kind: SlotKind,
-    /// The node or interface it wants.
-    pub target: Identity,
-    /// What fills it.
-    pub binding: SlotBinding,
-    /// The consumer-side filter.
-    pub filter: RouteFilter,
-}
+use crate::node::{Dependency, Identity, NodeDoc};
 
 /// One instance, ready to run.
 #[derive(Debug, Clone, Serialize)]
@@ -134,17 +76,10 @@ pub fn plan_bindings(
         }
     }
 
-    let producer = |id: &str| -> Option<&NodeDoc> {
-        launcher
-            .instances()
-            .find(|(_, inst)| inst.instance_id == id)
-            .and_then(|(d, _)| nodes[d])
-    };
-
     let mut instances = Vec::new();
     for (d, inst) in launcher.instances() {
         let Some(node) = nodes[d] else { continue };
-        let slots = plan_instance(inst, node, &producer, launcher, nodes, &mut diags);
+        let slots = plan_instance(inst, node, launcher, nodes, &mut diags);
         let parameters = fill_parameters(inst, node, &mut diags);
         instances.push(InstancePlan {
             instance_id: inst.instance_id.clone(),
@@ -159,290 +94,95 @@ pub fn plan_bindings(
     diags.into_result(BindingPlan { instances })
 }
 
-fn fills(dep: &Dependency, producer: &NodeDoc) -> bool {
-    match dep.kind {
-        SlotKind::Node => producer.identity() == dep.target,
-        SlotKind::Interface => producer.conforms_to(&dep.target),
-    }
-}
-
-fn describe_slot(dep: &Dependency) -> String {
-    format!("{} `{}`", dep.kind.as_str(), dep.target)
-}
-
-/// Instances in the launcher that could fill `dep`, for help texts.
+/// The launcher's instances that could fill `dep`, for help texts.
 fn candidates(dep: &Dependency, launcher: &LauncherDoc, nodes: &[Option<&NodeDoc>]) -> Vec<String> {
     launcher
         .instances()
-        .filter(|(d, _)| nodes[*d].is_some_and(|n| fills(dep, n)))
+        .filter(|(d, _)| {
+            nodes[*d].is_some_and(|n| {
+                let conforms = conformances(n);
+                let id = n.identity();
+                Producer {
+                    node: &id,
+                    conforms_to: &conforms,
+                }
+                .fits(dep.kind, &dep.target)
+            })
+        })
         .map(|(_, i)| i.instance_id.clone())
         .collect()
 }
 
-fn mismatch(b: &Binding, inst: &Instance, dep: &Dependency, target: &NodeDoc) -> Diagnostic {
-    match dep.kind {
-        SlotKind::Node => b
-            .target_loc
-            .error(
-                Code::BindingTargetMismatch,
-                format!(
-                    "binding `{}` on instance `{}`: `{}` deploys node `{}`, but slot `{}` expects node `{}`",
-                    b.key,
-                    inst.instance_id,
-                    b.target,
-                    target.identity(),
-                    dep.link_id,
-                    dep.target
-                ),
-            )
-            .with_help(format!("bind an instance of `{}`", dep.target)),
-        SlotKind::Interface => b
-            .target_loc
-            .error(
-                Code::BindingInterfaceNotConformed,
-                format!(
-                    "binding `{}` on instance `{}`: `{}` deploys `{}`, which does not conform to interface `{}` required by slot `{}`",
-                    b.key,
-                    inst.instance_id,
-                    b.target,
-                    target.identity(),
-                    dep.target,
-                    dep.link_id
-                ),
-            )
-            .with_help(format!(
-                "bind an instance of a node that declares it, or add `conforms_to: [{{ name: \"{}\", tag: \"{}\" }}]` to `{}` (a matching name or matching topics do not count)",
-                dep.target.name,
-                dep.target.tag,
-                target.identity()
-            )),
-    }
-}
-
-fn plan_instance<'a>(
+/// One instance's slots through the binding engine, its errors located in
+/// the launcher.
+fn plan_instance(
     inst: &Instance,
     node: &NodeDoc,
-    producer: &dyn Fn(&str) -> Option<&'a NodeDoc>,
     launcher: &LauncherDoc,
     nodes: &[Option<&NodeDoc>],
     diags: &mut Diagnostics,
 ) -> Vec<SlotPlan> {
-    let mut pinned: Vec<(String, Option<String>)> = node
-        .dependencies
+    let producer_of = |id: &str| -> Option<(Identity, Vec<Identity>)> {
+        launcher
+            .instances()
+            .find(|(_, i)| i.instance_id == id)
+            .and_then(|(d, _)| nodes[d])
+            .map(|n| (n.identity(), conformances(n)))
+    };
+    // Unknown targets were reported with the launcher: leave their bindings
+    // out, and do not also report the slot they name as unbound.
+    let known: Vec<(&Binding, (Identity, Vec<Identity>))> = inst
+        .bindings
         .iter()
-        .filter(|d| !d.from_any)
-        .map(|d| (d.link_id.clone(), None))
+        .filter_map(|b| producer_of(&b.target).map(|p| (b, p)))
         .collect();
-    let mut from_any: Vec<(&Dependency, Vec<String>)> = node
-        .dependencies
+    let unknown_keys: Vec<&str> = inst
+        .bindings
         .iter()
-        .filter(|d| d.from_any)
-        .map(|d| (d, Vec::new()))
+        .filter(|b| producer_of(&b.target).is_none())
+        .map(|b| b.key.as_str())
         .collect();
-    from_any.sort_by(|a, b| a.0.link_id.cmp(&b.0.link_id));
-    let mut keyed_but_failed: Vec<&str> = Vec::new();
-
-    for b in &inst.bindings {
-        // Unknown targets were reported with the launcher.
-        let Some(target) = producer(&b.target) else {
-            keyed_but_failed.push(&b.key);
-            continue;
-        };
-        if let Some(dep) = node.dependency(&b.key) {
-            // The key names a slot: it binds that slot.
-            if !fills(dep, target) {
-                diags.push(mismatch(b, inst, dep, target));
-                keyed_but_failed.push(&b.key);
-                continue;
-            }
-            if dep.from_any {
-                if let Some((_, list)) = from_any.iter_mut().find(|(d, _)| d.link_id == dep.link_id)
-                {
-                    list.push(b.target.clone());
-                }
-            } else if let Some((_, slot)) = pinned.iter_mut().find(|(l, _)| *l == dep.link_id) {
-                *slot = Some(b.target.clone());
-            }
-            continue;
-        }
-        // A free-form key: the first from_any slot (by link_id) that takes the target.
-        match from_any.iter_mut().find(|(d, _)| fills(d, target)) {
-            Some((_, list)) => list.push(b.target.clone()),
-            None => {
-                let declared: Vec<&str> = node
-                    .dependencies
-                    .iter()
-                    .map(|d| d.link_id.as_str())
-                    .collect();
-                let from_any_slots: Vec<String> = node
-                    .dependencies
-                    .iter()
-                    .filter(|d| d.from_any)
-                    .map(|d| format!("`{}` ({})", d.link_id, describe_slot(d)))
-                    .collect();
-                let help = if declared.is_empty() {
-                    format!(
-                        "node `{}` declares no slots (`manifest.depends_on` is empty); remove the binding",
-                        node.identity()
-                    )
-                } else if from_any_slots.is_empty() {
-                    format!(
-                        "declared link_ids: {}; a free-form key needs a from_any slot, and `{}` has none",
-                        list(declared.iter().copied()),
-                        node.identity()
-                    )
-                } else {
-                    format!(
-                        "declared link_ids: {}; from_any slots: {}; `{}` deploys `{}`",
-                        list(declared.iter().copied()),
-                        from_any_slots.join(", "),
-                        b.target,
-                        target.identity()
-                    )
-                };
-                diags.push(
-                    b.key_loc
-                        .error(
-                            Code::DeadBindingKey,
-                            format!(
-                                "binding `{}` on instance `{}` matches no slot of `{}`, and no from_any slot accepts `{}`",
-                                b.key,
-                                inst.instance_id,
-                                node.identity(),
-                                b.target
-                            ),
-                        )
-                        .with_help(help),
-                );
-            }
-        }
-    }
-
-    let mut slots = Vec::new();
-    for dep in &node.dependencies {
-        let binding = if dep.from_any {
-            let list = &from_any
-                .iter()
-                .find(|(d, _)| d.link_id == dep.link_id)
-                .expect("from_any slot")
-                .1;
-            if list.is_empty() {
-                SlotBinding::FromAnyUnbound
-            } else {
-                SlotBinding::FromAnyBound {
-                    producers: list.clone(),
-                }
-            }
-        } else {
-            match &pinned
-                .iter()
-                .find(|(l, _)| *l == dep.link_id)
-                .expect("pinned slot")
-                .1
-            {
-                Some(p) => SlotBinding::Pinned {
-                    producer: p.clone(),
-                },
-                None => {
-                    if !keyed_but_failed.contains(&dep.link_id.as_str()) {
-                        let fit = candidates(dep, launcher, nodes);
-                        let help = if fit.is_empty() {
-                            format!(
-                                "add `bindings: {{ {}: \"<instance_id>\" }}`; no instance in this launcher fills {} yet",
-                                dep.link_id,
-                                describe_slot(dep)
-                            )
-                        } else {
-                            format!(
-                                "add `bindings: {{ {}: \"{}\" }}`; instances that fit: {}",
-                                dep.link_id,
-                                fit[0],
-                                list(fit.iter().map(String::as_str))
-                            )
-                        };
-                        diags.push(
-                            inst.id_loc
-                                .error(
-                                    Code::PinnedSlotUnbound,
-                                    format!(
-                                        "instance `{}`: pinned slot `{}` ({}) is unbound",
-                                        inst.instance_id,
-                                        dep.link_id,
-                                        describe_slot(dep)
-                                    ),
-                                )
-                                .with_help(help),
-                        );
-                    }
-                    continue;
-                }
-            }
-        };
-        slots.push(SlotPlan {
-            link_id: dep.link_id.clone(),
-            kind: dep.kind,
-            target: dep.target.clone(),
-            binding,
-            filter: RouteFilter::Any,
-        });
-    }
-    compute_filters(&mut slots);
-    slots
-}
-
-/// Per slot, SPEC 5: pinned -> that producer; from_any bound -> the listed
-/// producers minus those pinned by a sibling; from_any unbound -> any except
-/// producers claimed by siblings. Siblings are slots of the same kind and
-/// `name:tag`.
-pub fn compute_filters(slots: &mut [SlotPlan]) {
-    let snapshot: Vec<(SlotKind, Identity, String, SlotBinding)> = slots
+    let requests: Vec<BindRequest<'_>> = known
         .iter()
-        .map(|s| {
-            (
-                s.kind,
-                s.target.clone(),
-                s.link_id.clone(),
-                s.binding.clone(),
-            )
+        .map(|(b, (id, conforms))| BindRequest {
+            key: &b.key,
+            instance: &b.target,
+            producer: Some(Producer {
+                node: id,
+                conforms_to: conforms,
+            }),
         })
         .collect();
-    for slot in slots.iter_mut() {
-        let siblings = snapshot
-            .iter()
-            .filter(|(k, t, l, _)| *k == slot.kind && *t == slot.target && *l != slot.link_id);
-        slot.filter = match &slot.binding {
-            SlotBinding::Pinned { producer } => RouteFilter::Pin(producer.clone()),
-            SlotBinding::FromAnyBound { producers } => {
-                let pinned_elsewhere: BTreeSet<&str> = siblings
-                    .filter_map(|(_, _, _, b)| match b {
-                        SlotBinding::Pinned { producer } => Some(producer.as_str()),
-                        _ => None,
-                    })
-                    .collect();
-                RouteFilter::OnlyFrom(
-                    producers
-                        .iter()
-                        .filter(|p| !pinned_elsewhere.contains(p.as_str()))
-                        .cloned()
-                        .collect(),
-                )
+    let outcome = assign(
+        &inst.instance_id,
+        &node.identity(),
+        &node.dependencies,
+        &requests,
+    );
+    for (index, error) in outcome.errors {
+        let diagnostic = match (index, &error) {
+            (Some(i), BindError::TargetMismatch { .. } | BindError::NotConformed { .. }) => {
+                known[i].0.target_loc.error(error.code(), error.to_string())
             }
-            SlotBinding::FromAnyUnbound => {
-                let claimed: BTreeSet<String> = siblings
-                    .flat_map(|(_, _, _, b)| match b {
-                        SlotBinding::Pinned { producer } => vec![producer.clone()],
-                        SlotBinding::FromAnyBound { producers } => producers.clone(),
-                        SlotBinding::FromAnyUnbound => Vec::new(),
-                    })
-                    .collect();
-                if claimed.is_empty() {
-                    RouteFilter::Any
-                } else {
-                    RouteFilter::AnyExcept(claimed)
+            (Some(i), _) => known[i].0.key_loc.error(error.code(), error.to_string()),
+            (None, BindError::PinnedUnbound { link_id, .. }) => {
+                if unknown_keys.contains(&link_id.as_str()) {
+                    continue;
                 }
+                inst.id_loc.error(error.code(), error.to_string())
             }
+            (None, _) => inst.id_loc.error(error.code(), error.to_string()),
         };
+        let fit = match &error {
+            BindError::PinnedUnbound { link_id, .. } => node
+                .dependency(link_id)
+                .map(|d| candidates(d, launcher, nodes))
+                .unwrap_or_default(),
+            _ => Vec::new(),
+        };
+        diags.push(diagnostic.with_help(error.launcher_help(&fit)));
     }
+    outcome.slots
 }
 
 fn fill_parameters(inst: &Instance, node: &NodeDoc, diags: &mut Diagnostics) -> serde_json::Value {

@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use crate::diag::{Code, Diagnostics};
 use crate::launcher::{LauncherDoc, Source};
-use crate::node::NodeDoc;
+use crate::node::{Launch, NodeDoc};
 use crate::plan::{BindingPlan, plan_bindings};
 use crate::repos::{REPOSITORIES_ENV, RepoIndex, RepositoryList, absolute};
 use crate::resolve::{ResolvedNode, resolve_node};
@@ -193,6 +193,28 @@ pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, 
             }
         };
         loaded.push(node);
+    }
+    // Refused here rather than after building and opening the router: a
+    // launch that cannot start every node starts none.
+    for (d, (doc, _)) in launcher
+        .deployments
+        .iter()
+        .zip(&loaded)
+        .filter_map(|(d, l)| l.as_ref().map(|l| (d, l)))
+    {
+        if matches!(doc.execution.launch(), Launch::Container(_)) {
+            diags.push(
+                d.source_loc
+                    .error(
+                        Code::UnsupportedExecution,
+                        format!(
+                            "`{}` runs in a container (`execution.container`), which peppy-launch does not start yet",
+                            doc.identity()
+                        ),
+                    )
+                    .with_help("give the node an `execution.run_cmd` to run it as a process"),
+            );
+        }
     }
     // What the launcher deploys is what its consumers depend on.
     for (doc, path) in loaded.iter().flatten() {

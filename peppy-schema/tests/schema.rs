@@ -1,7 +1,7 @@
 //! Integration tests of peppy-schema, one binary with one module per area:
-//! node rules, the legacy form, message formats, parameters, launcher rules,
-//! repositories, resolution, the binding plan, the shipped examples and a
-//! reviewed snapshot of rendered errors.
+//! JSON5 syntax, node rules, the legacy form, message formats, parameters,
+//! launcher rules, repositories, resolution, the binding plan, the shipped
+//! examples and a reviewed snapshot of rendered errors.
 
 #[path = "schema/support.rs"]
 mod support;
@@ -12,6 +12,8 @@ mod binding_plan;
 mod examples;
 #[path = "schema/formats.rs"]
 mod formats;
+#[path = "schema/json5_syntax.rs"]
+mod json5_syntax;
 #[path = "schema/launcher_rules.rs"]
 mod launcher_rules;
 #[path = "schema/legacy.rs"]

@@ -10,11 +10,13 @@ use crate::nodes::{shapes, shapes_client};
 use crate::support::{WAIT, eventually, hub, namespace, start};
 
 /// Serves the three actions of the `shapes` fixture until the node stops.
-fn serve(server: Arc<NodeRunner>) {
+/// `move_to` and `home` are exposed here and their handles moved into the
+/// serving tasks; `scan` is exposed inside its task. Returns the serving
+/// tasks, which end when the node stops.
+async fn serve(server: Arc<NodeRunner>) -> Vec<tokio::task::JoinHandle<()>> {
     use shapes::exposed_actions::{home, move_to, scan};
-    let runner = server.clone();
-    tokio::spawn(async move {
-        let mut handle = move_to::ActionHandle::expose(&runner).await.unwrap();
+    let mut handle = move_to::ActionHandle::expose(&server).await.unwrap();
+    let moving = tokio::spawn(async move {
         while let Ok(Some(goal)) = handle
             .handle_goal_next_request(|request| {
                 if request.data.speed <= 0.0 {
@@ -39,7 +41,7 @@ fn serve(server: Arc<NodeRunner>) {
         }
     });
     let runner = server.clone();
-    tokio::spawn(async move {
+    let scanning = tokio::spawn(async move {
         let mut handle = scan::ActionHandle::expose(&runner).await.unwrap();
         while let Ok(Some(goal)) = handle
             .handle_goal_next_request(|_| Ok(scan::GoalResponse::accept()))
@@ -58,8 +60,9 @@ fn serve(server: Arc<NodeRunner>) {
             });
         }
     });
-    tokio::spawn(async move {
-        let mut handle = home::ActionHandle::expose(&server).await.unwrap();
+    let mut handle = home::ActionHandle::expose(&server).await.unwrap();
+    drop(server);
+    let homing = tokio::spawn(async move {
         while let Ok(Some(goal)) = handle
             .handle_goal_next_request(|r| {
                 assert_eq!(r.instance_id, "client");
@@ -71,6 +74,7 @@ fn serve(server: Arc<NodeRunner>) {
             drop(goal);
         }
     });
+    vec![moving, scanning, homing]
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -81,7 +85,7 @@ async fn goals_feedback_results_cancel_and_abandon() {
         start::<shapes_client::Parameters>(&hub, &ns, "client", &["--bind", "shapes@shapes"]).await;
     let (_, server) =
         start::<shapes::Parameters>(&hub, &ns, "shapes", &crate::params::SHAPES_ARGS).await;
-    serve(server.clone());
+    let serving = serve(server.clone()).await;
 
     use shapes_client::consumed_actions::{shapes_home, shapes_move_to, shapes_scan};
     let t = Duration::from_secs(2);
@@ -170,4 +174,10 @@ async fn goals_feedback_results_cancel_and_abandon() {
 
     client.shutdown().await;
     server.shutdown().await;
+    for task in serving {
+        tokio::time::timeout(WAIT, task)
+            .await
+            .expect("serving tasks end when the node stops")
+            .unwrap();
+    }
 }

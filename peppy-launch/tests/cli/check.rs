@@ -264,3 +264,35 @@ fn graph_draws_any_edges_for_unbound_from_any_slots() {
         graph.stdout
     );
 }
+
+#[test]
+fn a_container_node_is_refused_by_check_and_up_starts_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir_all(dir.path().join("boxed")).unwrap();
+    std::fs::write(
+        dir.path().join("boxed/peppy.json5"),
+        r#"{ peppy_schema: "node_v1", manifest: { name: "boxed", tag: "v1" },
+             execution: { language: "python", container: { def_file: "boxed.def" } } }"#,
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("stack.json5"),
+        r#"{ peppy_schema: "launcher_v1", deployments: [
+                { source: { local: "boxed" }, instances: [{ instance_id: "b" }] },
+            ] }"#,
+    )
+    .unwrap();
+    for command in ["check", "up"] {
+        let run = peppy_launch(dir.path(), &[command, "stack.json5"]);
+        assert_eq!(run.code, 2, "{command}: {}", run.stderr);
+        let lines = jump_lines(&run.stderr);
+        assert!(
+            lines.iter().any(|l| l.starts_with("stack.json5:2:")
+                && l.contains("error: `boxed:v1` runs in a container")
+                && l.ends_with("(UnsupportedExecution)")),
+            "{command}: {}",
+            run.stderr
+        );
+    }
+    assert!(!dir.path().join(".peppy").exists(), "up started nothing");
+}

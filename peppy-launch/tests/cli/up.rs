@@ -452,3 +452,118 @@ fn a_killed_launcher_leaves_no_orphans() {
         std::thread::sleep(Duration::from_millis(20));
     }
 }
+
+#[test]
+fn a_crashed_instance_leaves_no_grandchild_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    // The node starts a grandchild in its own process group, then crashes.
+    shell_node(
+        dir.path(),
+        "leaky",
+        "sleep 1000 & echo $! > grandchild; sleep 0.2; exit 3",
+    );
+    shell_node(dir.path(), "steady", "exec sleep 1000");
+    launcher(
+        dir.path(),
+        &[("leaky", "leaky", "no"), ("steady", "steady", "no")],
+    );
+    let child = launch(dir.path(), &[]);
+    let pid = wait_for_file(
+        &dir.path().join("leaky/grandchild"),
+        Duration::from_secs(20),
+    );
+    // The launch is still up (`steady` runs): the crash alone must clear the group.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while alive(&pid) {
+        assert!(
+            Instant::now() < deadline,
+            "the crashed instance's grandchild {} is still running",
+            pid.trim()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    interrupt(&child);
+    let (code, stderr, _) = finish(child, Duration::from_secs(20));
+    assert_eq!(code, 1, "a failed instance makes the launch fail: {stderr}");
+    assert!(
+        stderr.contains("`leaky` failed: exited with status 3"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn bad_grace_values_are_usage_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    shell_node(dir.path(), "n", "exec sleep 1000");
+    launcher(dir.path(), &[("n", "n", "no")]);
+    for bad in [
+        "--grace=-1",
+        "--grace=NaN",
+        "--grace=inf",
+        "--grace=1e300",
+        "--grace=soon",
+    ] {
+        let (code, stderr, _) = finish(launch(dir.path(), &[bad]), Duration::from_secs(20));
+        assert_eq!(code, 2, "{bad}: {stderr}");
+        assert!(stderr.contains("--grace"), "{bad}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{bad}: {stderr}");
+    }
+    // Nothing was started.
+    assert!(!dir.path().join(".peppy").exists());
+}
+
+/// A Rust node without `run_cmd` whose program writes `mark` to `ran`.
+fn tiny_cargo_node(dir: &Path, mark: &str) {
+    let node = dir.join("tiny");
+    std::fs::create_dir_all(node.join("src")).unwrap();
+    std::fs::write(
+        node.join("Cargo.toml"),
+        "[package]\nname = \"tiny\"\nversion = \"0.1.0\"\nedition = \"2021\"\n\n[workspace]\n",
+    )
+    .unwrap();
+    std::fs::write(
+        node.join("src/main.rs"),
+        format!("fn main() {{ std::fs::write(\"ran\", \"{mark}\").unwrap(); }}\n"),
+    )
+    .unwrap();
+    std::fs::write(
+        node.join("peppy.json5"),
+        r#"{ peppy_schema: "node_v1", manifest: { name: "tiny", tag: "v1" },
+             execution: { language: "rust" } }"#,
+    )
+    .unwrap();
+}
+
+#[test]
+fn a_cargo_node_runs_what_cargo_built_wherever_the_target_dir_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let elsewhere = tempfile::tempdir().unwrap();
+    launcher(dir.path(), &[("tiny", "tiny", "no")]);
+    let up = |extra: &[&str]| {
+        let child = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+            .arg("stack.json5")
+            .args(extra)
+            .current_dir(dir.path())
+            .env("NO_COLOR", "1")
+            .env("CARGO_TARGET_DIR", elsewhere.path())
+            .env_remove("PEPPY_REPOSITORIES")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let (code, stderr, _) = finish(child, Duration::from_secs(120));
+        assert_eq!(code, 0, "{stderr}");
+        std::fs::read_to_string(dir.path().join("tiny/ran")).unwrap()
+    };
+    tiny_cargo_node(dir.path(), "one");
+    assert_eq!(up(&[]), "one");
+    assert!(elsewhere.path().join("debug/tiny").is_file());
+    assert!(!dir.path().join("tiny/target").exists());
+    // Edited and launched again: the fresh build runs, not a stale binary.
+    tiny_cargo_node(dir.path(), "two");
+    assert_eq!(up(&[]), "two");
+    // Without a build, the binary is found where cargo put it.
+    tiny_cargo_node(dir.path(), "three");
+    assert_eq!(up(&["--no-build"]), "two");
+}

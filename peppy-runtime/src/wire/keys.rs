@@ -105,6 +105,32 @@ pub fn entry_selector(
     )
 }
 
+/// The liveliness token an instance holds while it is up:
+/// `peppy/<ns>/live/<core>/<instance>/<node>/<tag>`.
+pub fn liveliness_key(ns: &str, core: &str, instance: &str, node: &str, tag: &str) -> String {
+    format!("peppy/{ns}/live/{core}/{instance}/{node}/{tag}")
+}
+
+/// The tokens of every instance of node `node:tag` in `ns`.
+pub fn liveliness_selector(ns: &str, node: &str, tag: &str) -> String {
+    format!("peppy/{ns}/live/*/*/{node}/{tag}")
+}
+
+/// `(core, instance)` of a liveliness token's key.
+pub fn parse_liveliness_key(key: &str) -> Option<(String, String)> {
+    let mut parts = key.split('/');
+    if parts.next()? != "peppy" {
+        return None;
+    }
+    let _ns = parts.next()?;
+    if parts.next()? != "live" {
+        return None;
+    }
+    let core = parts.next()?;
+    let instance = parts.next()?;
+    (is_segment(core) && is_segment(instance)).then(|| (core.to_string(), instance.to_string()))
+}
+
 /// The sender identity at the end of an entry key.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Sender {
@@ -189,6 +215,22 @@ mod tests {
             entry_key("lab", Channel::Service, &arm, "home", "c", "arm"),
             "peppy/lab/service/node/robot_arm/v1/home/c/arm"
         );
+    }
+
+    #[test]
+    fn liveliness_keys() {
+        let key = liveliness_key("lab", "launch-1", "rs_left", "realsense_d405", "v1");
+        assert_eq!(key, "peppy/lab/live/launch-1/rs_left/realsense_d405/v1");
+        assert_eq!(
+            parse_liveliness_key(&key),
+            Some(("launch-1".into(), "rs_left".into()))
+        );
+        assert_eq!(
+            liveliness_selector("lab", "realsense_d405", "v1"),
+            "peppy/lab/live/*/*/realsense_d405/v1"
+        );
+        assert_eq!(parse_liveliness_key("peppy/lab/live/c"), None);
+        assert_eq!(parse_liveliness_key("peppy/lab/topic/c/i/n/t"), None);
     }
 
     #[test]

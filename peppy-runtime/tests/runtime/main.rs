@@ -3,6 +3,7 @@
 //! hand-written message types, and every wait bounded.
 
 mod actions;
+mod bindings;
 mod process;
 mod routing;
 mod services;

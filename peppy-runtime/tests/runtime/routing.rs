@@ -350,3 +350,54 @@ async fn a_node_is_visible_while_up_and_gone_after_shutdown() {
     .await
     .expect("the liveliness token is withdrawn at shutdown");
 }
+
+static RS_ONLY: ConsumedTopicSpec = ConsumedTopicSpec {
+    link_id: Some("realsenses"),
+    owner: DEPTH_CAMERA,
+    name: "video_stream",
+    qos: QosProfile::SensorData,
+    format: FRAME,
+};
+
+// A node slot on realsense_d405:v1 consuming the topic realsense inherits
+// from depth_camera:v1: it travels on the interface's key, which the ZED
+// shares.
+test_node!(
+    RealsenseWatcher,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "watcher", tag: "v1", depends_on: { nodes: [
+           { name: "realsense_d405", tag: "v1", link_id: "realsenses", from_any: true } ] } },
+         interfaces: { topics: { consumes: [ { link_id: "realsenses", name: "video_stream" } ] } },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [], consumes: [RS_ONLY], serves: [], actions: []
+);
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_node_slot_on_an_inherited_topic_takes_only_its_node() {
+    let hub = hub().await;
+    let ns = namespace("node-slot");
+    // The ZED is up first, so a consumer that only looked at keys would
+    // see its frames before any realsense frame.
+    let (_, zed) = start::<Zed>(&hub, &ns, "zed_overhead", &[]).await;
+    keep_emitting(zed.clone(), &CAM_VIDEO, Duration::from_millis(10), frame);
+    let (_, watcher) = start::<RealsenseWatcher>(&hub, &ns, "watcher", &[]).await;
+    let (_, rs) = start::<Camera>(&hub, &ns, "rs_a", &[]).await;
+    keep_emitting(rs.clone(), &CAM_VIDEO, Duration::from_millis(20), frame);
+    read_until(&watcher, &RS_ONLY, &["rs_a"], 20).await;
+
+    // Bound to several producers (one of them a ZED by mistake, as a
+    // command line can say): still only realsense frames.
+    let (_, bound) = start::<RealsenseWatcher>(
+        &hub,
+        &ns,
+        "bound",
+        &[
+            "--bind",
+            "realsenses@rs_a",
+            "--bind",
+            "realsenses@zed_overhead",
+        ],
+    )
+    .await;
+    read_until(&bound, &RS_ONLY, &["rs_a"], 20).await;
+    stop(&[&watcher, &bound, &rs, &zed]).await;
+}

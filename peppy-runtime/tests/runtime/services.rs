@@ -228,3 +228,57 @@ async fn unreachable_timeout_and_handler_errors_are_distinct() {
     recon.shutdown().await;
     cam.shutdown().await;
 }
+
+test_node!(
+    Zed,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "zed_2i", tag: "v1" },
+         interfaces: { conforms_to: [{ name: "depth_camera", tag: "v1" }] },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [], consumes: [], serves: [INFO], actions: []
+);
+
+static RS_INFO: ConsumedServiceSpec = ConsumedServiceSpec {
+    link_id: "realsenses",
+    owner: DEPTH_CAMERA,
+    name: "video_stream_info",
+    request: INFO_REQ,
+    response: INFO_RESP,
+};
+
+// A node slot on realsense_d405:v1 calling the service realsense inherits
+// from depth_camera:v1, on the interface's key the ZED shares.
+test_node!(
+    RealsenseCaller,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "caller", tag: "v1", depends_on: { nodes: [
+           { name: "realsense_d405", tag: "v1", link_id: "realsenses", from_any: true } ] } },
+         interfaces: { services: { consumes: [ { link_id: "realsenses", name: "video_stream_info" } ] } },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [], consumes: [], serves: [], actions: []
+);
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_node_slot_on_an_inherited_service_calls_only_its_node() {
+    let hub = hub().await;
+    let ns = namespace("svc-node-slot");
+    let (_, caller) = start::<RealsenseCaller>(&hub, &ns, "caller", &[]).await;
+    let (_, zed) = start::<Zed>(&hub, &ns, "zed_overhead", &[]).await;
+    serve_info(zed.clone(), 2208);
+    // Only the ZED serves: the slot has nobody to call.
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let err = call::<(), [u32; 2]>(&caller, &RS_INFO, Duration::from_secs(1), &())
+        .await
+        .unwrap_err();
+    assert!(matches!(err, Error::ServiceUnreachable { .. }), "{err}");
+    let (_, rs) = start::<Camera>(&hub, &ns, "rs_a", &[]).await;
+    serve_info(rs.clone(), 640);
+    for _ in 0..5 {
+        let r = call_until_up(async || {
+            call::<(), [u32; 2]>(&caller, &RS_INFO, Duration::from_secs(2), &()).await
+        })
+        .await;
+        assert_eq!((r.instance_id.as_str(), r.data), ("rs_a", [640, 480]));
+    }
+    for r in [&caller, &zed, &rs] {
+        r.shutdown().await;
+    }
+}

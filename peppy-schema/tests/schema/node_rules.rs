@@ -339,7 +339,7 @@ fn execution_needs_exactly_one_of_run_cmd_and_container() {
     let neither = r#"{
   peppy_schema: "node_v1",
   manifest: { name: "cam", tag: "v1" },
-  execution: { language: "rust", build_cmd: ["cargo", "build"] },
+  execution: { language: "python", build_cmd: ["pip", "install", "."] },
 }"#;
     let errors = node_err(neither);
     assert_eq!(codes(&errors), [Code::ExecutionConflict]);
@@ -349,9 +349,43 @@ fn execution_needs_exactly_one_of_run_cmd_and_container() {
         Code::ExecutionConflict,
         "execution",
         neither,
-        r#"{ language: "rust", build"#,
+        r#"{ language: "python", build"#,
     );
     assert!(d.message.contains("neither"), "{d}");
+    assert!(help(d).contains("only `language: \"rust\"` nodes"), "{d}");
+
+    // A Rust node built with cargo may leave its executable to cargo.
+    for build in [
+        "",
+        r#"build_cmd: ["cargo", "build", "--release", "-p", "cam"],"#,
+    ] {
+        let cargo = format!(
+            r#"{{ peppy_schema: "node_v1", manifest: {{ name: "cam", tag: "v1" }},
+                 execution: {{ language: "rust", {build} }} }}"#
+        );
+        let (node, _) = node_ok(&cargo);
+        assert_eq!(node.execution.launch(), peppy_schema::Launch::CargoBinary);
+        assert_eq!(
+            node.execution.build_command().unwrap()[..2],
+            ["cargo", "build"]
+        );
+    }
+    // ... but only when the build is a cargo build.
+    let not_cargo = r#"{
+  peppy_schema: "node_v1",
+  manifest: { name: "cam", tag: "v1" },
+  execution: { language: "rust", build_cmd: ["make"] },
+}"#;
+    let errors = node_err(not_cargo);
+    let d = one(&errors, Code::ExecutionConflict);
+    assert_at(
+        d,
+        Code::ExecutionConflict,
+        "execution.build_cmd",
+        not_cargo,
+        r#"["make"]"#,
+    );
+    assert!(d.message.contains("not a `cargo build`"), "{d}");
 
     let container = r#"{
   peppy_schema: "node_v1",
@@ -763,7 +797,7 @@ fn every_error_of_a_document_is_reported_in_position_order() {
       consumes: [{ name: "calibrate" }],
     },
   },
-  execution: { language: "rust" },
+  execution: { language: "python" },
 }"#;
     let errors = node_err(text);
     let sorted = errors.sorted();

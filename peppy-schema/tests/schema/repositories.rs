@@ -364,7 +364,7 @@ fn a_launcher_deploying_a_broken_node_says_it_is_invalid() {
     let tree = Tree::new();
     let broken = tree.write(
         "repo/broken/peppy.json5",
-        r#"{ peppy_schema: "node_v1", manifest: { name: "broken", tag: "v1" }, execution: { language: "rust" } }"#,
+        r#"{ peppy_schema: "node_v1", manifest: { name: "broken", tag: "v1" }, execution: { language: "python" } }"#,
     );
     let text = r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "broken:v1" }, instances: [{ instance_id: "b" }] }] }"#;
     let path = tree.write("stack.json5", text);

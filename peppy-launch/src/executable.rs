@@ -1,0 +1,398 @@
+//! Building a node and finding the program to start.
+//!
+//! A node with `run_cmd` runs that argv. A Rust node without one is built
+//! with cargo, and its executable is the one cargo reports in its JSON
+//! build messages, so `CARGO_TARGET_DIR`, `--release`, `--profile` and
+//! `--target` all land where cargo put the binary, never at a guessed path.
+//! Without a build (`--no-build`), `cargo metadata` names the target
+//! directory and the build command's flags name the profile.
+
+use std::path::{Path, PathBuf};
+use std::process::Stdio;
+
+use peppy_schema::{Execution, Launch};
+use serde::Deserialize;
+
+/// A build of one node failed, or its program cannot be found.
+#[derive(Debug, thiserror::Error)]
+pub enum ExecutableError {
+    /// The build command could not be started.
+    #[error("cannot run the build of {node} (`{command}` in {dir}): {source}")]
+    Spawn {
+        /// The node (`name:tag`).
+        node: String,
+        /// The build command.
+        command: String,
+        /// Where it ran.
+        dir: String,
+        /// Why it could not start.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The build command failed; its output follows.
+    #[error("the build of {node} failed (`{command}` in {dir}):\n{output}")]
+    Failed {
+        /// The node (`name:tag`).
+        node: String,
+        /// The build command.
+        command: String,
+        /// Where it ran.
+        dir: String,
+        /// What it printed (cargo's JSON lines left out).
+        output: String,
+    },
+    /// Cargo built no executable for the node's package, or several.
+    #[error("cannot tell which executable runs {node}: {why}")]
+    NoExecutable {
+        /// The node (`name:tag`).
+        node: String,
+        /// What was found instead.
+        why: String,
+    },
+    /// The node runs in a container (refused by `check` already).
+    #[error("`{0}` runs in a container, which peppy-launch does not start yet")]
+    Container(String),
+}
+
+/// `cargo build` argv with JSON messages on stdout (diagnostics still
+/// rendered for people on stderr).
+fn with_json_messages(cmd: &[String]) -> Vec<String> {
+    let mut argv = cmd.to_vec();
+    if !argv.iter().any(|a| a.starts_with("--message-format")) {
+        argv.push("--message-format=json-render-diagnostics".into());
+    }
+    argv
+}
+
+/// Runs `cmd` in `dir`; returns its stdout.
+async fn run_build(node: &str, dir: &Path, cmd: &[String]) -> Result<String, ExecutableError> {
+    let command = cmd.join(" ");
+    let output = tokio::process::Command::new(&cmd[0])
+        .args(&cmd[1..])
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .output()
+        .await
+        .map_err(|source| ExecutableError::Spawn {
+            node: node.to_string(),
+            command: command.clone(),
+            dir: dir.display().to_string(),
+            source,
+        })?;
+    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+    if !output.status.success() {
+        // Cargo's JSON lines are for us; people read the rendered stderr.
+        let mut text: String = stdout
+            .lines()
+            .filter(|l| !l.starts_with('{'))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        text.push_str(&String::from_utf8_lossy(&output.stderr));
+        return Err(ExecutableError::Failed {
+            node: node.to_string(),
+            command,
+            dir: dir.display().to_string(),
+            output: text,
+        });
+    }
+    Ok(stdout)
+}
+
+/// The build one node needs before it starts, as `(argv, is_cargo_located)`.
+pub(crate) fn build_of(execution: &Execution) -> Option<Vec<String>> {
+    let cmd = execution.build_command()?;
+    Some(match execution.launch() {
+        Launch::CargoBinary => with_json_messages(&cmd),
+        _ => cmd,
+    })
+}
+
+/// Builds the node in `dir` (unless `build` is false) and returns the argv
+/// that starts it.
+pub(crate) async fn prepare(
+    node: &str,
+    node_name: &str,
+    dir: &Path,
+    execution: &Execution,
+    build: bool,
+) -> Result<Vec<String>, ExecutableError> {
+    let stdout = match (build, build_of(execution)) {
+        (true, Some(cmd)) => Some(run_build(node, dir, &cmd).await?),
+        _ => None,
+    };
+    match execution.launch() {
+        Launch::Command(argv) => Ok(argv.to_vec()),
+        Launch::Container(_) => Err(ExecutableError::Container(node.to_string())),
+        Launch::CargoBinary => {
+            let exe = match stdout {
+                Some(messages) => from_build_messages(&messages, dir, node_name),
+                None => {
+                    let cmd = execution.build_command().unwrap_or_default();
+                    from_metadata(dir, &cmd, node_name).await
+                }
+            }
+            .map_err(|why| ExecutableError::NoExecutable {
+                node: node.to_string(),
+                why,
+            })?;
+            Ok(vec![exe.display().to_string()])
+        }
+    }
+}
+
+#[derive(Deserialize)]
+struct Message {
+    reason: String,
+    #[serde(default)]
+    manifest_path: Option<PathBuf>,
+    #[serde(default)]
+    target: Option<Target>,
+    #[serde(default)]
+    executable: Option<PathBuf>,
+}
+
+#[derive(Deserialize)]
+struct Target {
+    name: String,
+    kind: Vec<String>,
+}
+
+/// The package manifest of a node directory, canonical for comparison.
+fn manifest_of(dir: &Path) -> PathBuf {
+    let m = dir.join("Cargo.toml");
+    std::fs::canonicalize(&m).unwrap_or(m)
+}
+
+/// Picks the node's binary among `(target name, path)` candidates: the only
+/// one, or the one named like the node.
+fn pick(
+    candidates: Vec<(String, PathBuf)>,
+    node_name: &str,
+    what: &str,
+) -> Result<PathBuf, String> {
+    match candidates.len() {
+        0 => Err(format!(
+            "{what} names no binary of the package in this directory; give the node a `run_cmd`"
+        )),
+        1 => Ok(candidates.into_iter().next().expect("one").1),
+        _ => {
+            let names: Vec<String> = candidates.iter().map(|(n, _)| format!("`{n}`")).collect();
+            candidates
+                .into_iter()
+                .find(|(n, _)| n == node_name)
+                .map(|(_, p)| p)
+                .ok_or_else(|| {
+                    format!(
+                        "the package has several binaries ({}) and none is named `{node_name}`; give the node a `run_cmd`",
+                        names.join(", ")
+                    )
+                })
+        }
+    }
+}
+
+/// The executable cargo's `compiler-artifact` messages report for the
+/// package whose manifest is in `dir`.
+fn from_build_messages(stdout: &str, dir: &Path, node_name: &str) -> Result<PathBuf, String> {
+    let manifest = manifest_of(dir);
+    let mut candidates = Vec::new();
+    for line in stdout.lines().filter(|l| l.starts_with('{')) {
+        let Ok(m) = serde_json::from_str::<Message>(line) else {
+            continue;
+        };
+        let (Some(path), Some(target), Some(exe)) = (m.manifest_path, m.target, m.executable)
+        else {
+            continue;
+        };
+        let same = std::fs::canonicalize(&path).unwrap_or(path) == manifest;
+        if m.reason == "compiler-artifact" && same && target.kind.iter().any(|k| k == "bin") {
+            candidates.push((target.name, exe));
+        }
+    }
+    pick(candidates, node_name, "`cargo build`")
+}
+
+#[derive(Deserialize)]
+struct Metadata {
+    target_directory: PathBuf,
+    packages: Vec<Package>,
+}
+
+#[derive(Deserialize)]
+struct Package {
+    manifest_path: PathBuf,
+    targets: Vec<Target>,
+}
+
+/// Where `cargo build` (with the flags of `build_cmd`) puts its binaries,
+/// below the target directory: `[<triple>/]<profile dir>`.
+fn profile_dir(build_cmd: &[String]) -> PathBuf {
+    let mut profile = "debug".to_string();
+    let mut triple = None;
+    let mut args = build_cmd.iter().skip(2);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--release" | "-r" => profile = "release".into(),
+            "--profile" => {
+                if let Some(p) = args.next() {
+                    profile = p.clone();
+                }
+            }
+            "--target" => triple = args.next().cloned(),
+            _ => {
+                if let Some(p) = a.strip_prefix("--profile=") {
+                    profile = p.to_string();
+                } else if let Some(t) = a.strip_prefix("--target=") {
+                    triple = Some(t.to_string());
+                }
+            }
+        }
+    }
+    // Cargo's own names for its built-in profiles' directories.
+    if profile == "dev" || profile == "test" {
+        profile = "debug".into();
+    } else if profile == "bench" {
+        profile = "release".into();
+    }
+    match triple {
+        Some(t) => Path::new(&t).join(profile),
+        None => PathBuf::from(profile),
+    }
+}
+
+/// The executable of the package in `dir`, without building it.
+async fn from_metadata(
+    dir: &Path,
+    build_cmd: &[String],
+    node_name: &str,
+) -> Result<PathBuf, String> {
+    let output = tokio::process::Command::new("cargo")
+        .args(["metadata", "--no-deps", "--format-version", "1"])
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .output()
+        .await
+        .map_err(|e| format!("cannot run `cargo metadata`: {e}"))?;
+    if !output.status.success() {
+        return Err(format!(
+            "`cargo metadata` failed: {}",
+            String::from_utf8_lossy(&output.stderr).trim()
+        ));
+    }
+    let meta: Metadata = serde_json::from_slice(&output.stdout)
+        .map_err(|e| format!("cannot read `cargo metadata`: {e}"))?;
+    let manifest = manifest_of(dir);
+    let package = meta
+        .packages
+        .into_iter()
+        .find(|p| {
+            std::fs::canonicalize(&p.manifest_path).unwrap_or(p.manifest_path.clone()) == manifest
+        })
+        .ok_or_else(|| format!("no cargo package has its manifest in {}", dir.display()))?;
+    let bin_dir = meta.target_directory.join(profile_dir(build_cmd));
+    let candidates = package
+        .targets
+        .into_iter()
+        .filter(|t| t.kind.iter().any(|k| k == "bin"))
+        .map(|t| {
+            let path = bin_dir.join(&t.name);
+            (t.name, path)
+        })
+        .collect();
+    let exe = pick(candidates, node_name, "`cargo metadata`")?;
+    if exe.is_file() {
+        Ok(exe)
+    } else {
+        Err(format!(
+            "{} is not built yet; run without --no-build",
+            exe.display()
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn argv(s: &str) -> Vec<String> {
+        s.split_whitespace().map(String::from).collect()
+    }
+
+    #[test]
+    fn the_profile_directory_follows_the_build_flags() {
+        assert_eq!(profile_dir(&argv("cargo build")), Path::new("debug"));
+        assert_eq!(
+            profile_dir(&argv("cargo build -p x --release")),
+            Path::new("release")
+        );
+        assert_eq!(
+            profile_dir(&argv("cargo build --profile fast")),
+            Path::new("fast")
+        );
+        assert_eq!(
+            profile_dir(&argv("cargo build --profile=dev")),
+            Path::new("debug")
+        );
+        assert_eq!(
+            profile_dir(&argv("cargo build -r --target=aarch64-unknown-linux-gnu")),
+            Path::new("aarch64-unknown-linux-gnu/release")
+        );
+    }
+
+    #[test]
+    fn json_messages_are_requested_once() {
+        assert_eq!(
+            with_json_messages(&argv("cargo build -p x")),
+            argv("cargo build -p x --message-format=json-render-diagnostics")
+        );
+        assert_eq!(
+            with_json_messages(&argv("cargo build --message-format=json")),
+            argv("cargo build --message-format=json")
+        );
+    }
+
+    #[test]
+    fn the_executable_comes_from_the_artifact_of_the_node_package() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("Cargo.toml"), "").unwrap();
+        let manifest = dir.path().join("Cargo.toml");
+        let artifact = |pkg: &Path, name: &str, kind: &str, exe: &str| {
+            serde_json::json!({
+                "reason": "compiler-artifact",
+                "manifest_path": pkg,
+                "target": { "name": name, "kind": [kind] },
+                "executable": if kind == "bin" { serde_json::json!(exe) } else { serde_json::Value::Null },
+            })
+            .to_string()
+        };
+        let stdout = [
+            artifact(
+                Path::new("/elsewhere/Cargo.toml"),
+                "dep",
+                "bin",
+                "/t/debug/dep",
+            ),
+            artifact(&manifest, "cam", "lib", ""),
+            r#"{"reason":"build-finished","success":true}"#.to_string(),
+            "not json".to_string(),
+            artifact(&manifest, "cam", "bin", "/custom/target/debug/cam"),
+        ]
+        .join("\n");
+        assert_eq!(
+            from_build_messages(&stdout, dir.path(), "cam").unwrap(),
+            Path::new("/custom/target/debug/cam")
+        );
+        let two = format!(
+            "{stdout}\n{}",
+            artifact(&manifest, "tool", "bin", "/custom/target/debug/tool")
+        );
+        assert_eq!(
+            from_build_messages(&two, dir.path(), "cam").unwrap(),
+            Path::new("/custom/target/debug/cam")
+        );
+        let err = from_build_messages(&two, dir.path(), "other").unwrap_err();
+        assert!(err.contains("`cam`, `tool`"), "{err}");
+        let err = from_build_messages("", dir.path(), "cam").unwrap_err();
+        assert!(err.contains("run_cmd"), "{err}");
+    }
+}

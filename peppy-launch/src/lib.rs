@@ -1,0 +1,44 @@
+//! `peppy-launch` as a library: validate peppy documents, check a launcher
+//! end to end, and run, supervise and stop its node stack. The binary is a
+//! thin wrapper around [`run`]; every command returns one typed error,
+//! [`LaunchError`], whose [`LaunchError::exit_code`] is the only place exit
+//! codes are decided.
+
+mod check;
+mod cli;
+mod error;
+mod executable;
+mod graph;
+mod output;
+mod report;
+mod run_node;
+mod supervise;
+mod up;
+mod validate;
+
+pub use cli::Cli;
+pub use error::{LaunchError, Result, exit};
+pub use executable::ExecutableError;
+
+/// Runs one parsed command line.
+pub fn run(cli: Cli) -> Result {
+    match cli.command {
+        cli::Command::Validate(args) => validate::run(&args),
+        cli::Command::Check(args) => check::run(&args),
+        cli::Command::Up(args) => up::run(&args),
+        cli::Command::Graph(args) => graph::run(&args),
+        cli::Command::Run(args) => run_node::run(&args),
+    }
+}
+
+/// `peppy-launch LAUNCHER ...` means `peppy-launch up LAUNCHER ...`.
+pub fn with_default_command(mut args: Vec<std::ffi::OsString>) -> Vec<std::ffi::OsString> {
+    const COMMANDS: &[&str] = &["validate", "check", "up", "run", "graph", "help"];
+    if let Some(first) = args.get(1).and_then(|a| a.to_str())
+        && !first.starts_with('-')
+        && !COMMANDS.contains(&first)
+    {
+        args.insert(1, "up".into());
+    }
+    args
+}

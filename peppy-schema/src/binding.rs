@@ -1,0 +1,659 @@
+//! The binding engine: which slot each binding fills, and the routing
+//! filter every slot applies (SPEC 5 and 6.1).
+//!
+//! This is the one implementation of those rules. The launcher's plan
+//! (`check`, `up`, `graph`) feeds it bindings whose producers it knows from
+//! the launcher file; a node started on its own (`run --bind`, a plain
+//! `cargo run`) feeds it `--bind` flags whose producers it may not know, and
+//! a node started by the launcher re-checks the bindings it was handed. The
+//! rules and the wording of every error are the same in all three; only the
+//! help text differs, because the fix is spelled differently in a launcher
+//! file and on a command line.
+
+use std::collections::BTreeSet;
+use std::fmt;
+
+use serde::{Deserialize, Serialize};
+
+use crate::diag::{Code, list};
+use crate::node::{Dependency, Identity, NodeDoc, SlotKind};
+
+/// What fills one slot.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum SlotBinding {
+    /// A pinned slot bound to one producer.
+    Pinned {
+        /// The producer instance.
+        producer: String,
+    },
+    /// A `from_any` slot with explicit producers: only these flow in.
+    FromAnyBound {
+        /// Producer instances, in binding order.
+        producers: Vec<String>,
+    },
+    /// A `from_any` slot without bindings: any unclaimed producer of its kind.
+    FromAnyUnbound,
+}
+
+/// Which producers' messages a consumer keeps for one slot (SPEC 5).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind", content = "producers")]
+pub enum RouteFilter {
+    /// Only this producer.
+    Pin(String),
+    /// Only these producers.
+    OnlyFrom(BTreeSet<String>),
+    /// Any producer of the slot's kind except these.
+    AnyExcept(BTreeSet<String>),
+    /// Any producer of the slot's kind.
+    Any,
+}
+
+impl RouteFilter {
+    /// Whether a message from `producer` (already of the slot's kind) passes.
+    pub fn accepts(&self, producer: &str) -> bool {
+        match self {
+            RouteFilter::Pin(p) => p == producer,
+            RouteFilter::OnlyFrom(set) => set.contains(producer),
+            RouteFilter::AnyExcept(set) => !set.contains(producer),
+            RouteFilter::Any => true,
+        }
+    }
+}
+
+/// One slot of one consumer instance, filled.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct SlotPlan {
+    /// The slot's link_id.
+    pub link_id: String,
+    /// Node or interface slot.
+    pub kind: SlotKind,
+    /// The node or interface it wants.
+    pub target: Identity,
+    /// What fills it.
+    pub binding: SlotBinding,
+    /// The consumer-side filter.
+    pub filter: RouteFilter,
+}
+
+/// What the engine knows of a producer instance: the node it runs and the
+/// interfaces that node conforms to.
+#[derive(Debug, Clone, Copy)]
+pub struct Producer<'a> {
+    /// The node the instance runs.
+    pub node: &'a Identity,
+    /// The interfaces that node declares in `conforms_to`.
+    pub conforms_to: &'a [Identity],
+}
+
+impl Producer<'_> {
+    /// Whether an instance of this node can fill a slot of `kind` wanting
+    /// `target`: a node slot takes exactly that node, an interface slot any
+    /// node that declares conformance (a matching name does not count).
+    pub fn fits(&self, kind: SlotKind, target: &Identity) -> bool {
+        match kind {
+            SlotKind::Node => self.node == target,
+            SlotKind::Interface => self.conforms_to.contains(target),
+        }
+    }
+}
+
+/// The identities of a node's `conforms_to` entries, for [`Producer`].
+pub fn conformances(node: &NodeDoc) -> Vec<Identity> {
+    node.conforms_to.iter().map(|c| c.target.clone()).collect()
+}
+
+/// One binding handed to the engine: a key (a slot's link_id or a
+/// free-form label) and the producer instance it names.
+#[derive(Debug, Clone, Copy)]
+pub struct BindRequest<'a> {
+    /// The binding key.
+    pub key: &'a str,
+    /// The producer instance id.
+    pub instance: &'a str,
+    /// The producer's node, when it is known (it always is in a launcher;
+    /// on a command line it is not).
+    pub producer: Option<Producer<'a>>,
+}
+
+/// Why a binding, or the lack of one, was refused. `Display` is the message
+/// shared by every front end; [`BindError::code`] its stable name.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum BindError {
+    /// A key names a node slot, and the producer runs another node.
+    TargetMismatch {
+        /// The consumer instance.
+        consumer: String,
+        /// The binding key (the slot's link_id).
+        key: String,
+        /// The producer instance.
+        instance: String,
+        /// The node the producer runs.
+        producer_node: Identity,
+        /// The node the slot wants.
+        wanted: Identity,
+    },
+    /// A key names an interface slot, and the producer's node does not
+    /// conform to the interface.
+    NotConformed {
+        /// The consumer instance.
+        consumer: String,
+        /// The binding key (the slot's link_id).
+        key: String,
+        /// The producer instance.
+        instance: String,
+        /// The node the producer runs.
+        producer_node: Identity,
+        /// The interface the slot wants.
+        wanted: Identity,
+    },
+    /// A key names no slot, and no `from_any` slot takes the producer.
+    DeadKey {
+        /// The consumer instance.
+        consumer: String,
+        /// The consumer's node.
+        node: Identity,
+        /// The binding key.
+        key: String,
+        /// The producer instance.
+        instance: String,
+        /// The producer's node, when known.
+        producer_node: Option<Identity>,
+        /// Every slot: `(link_id, kind, target, from_any)`.
+        slots: Vec<(String, SlotKind, Identity, bool)>,
+    },
+    /// A free-form key whose producer's node is unknown, and the consumer
+    /// has `from_any` slots of different kinds: which one it fills cannot
+    /// be decided without guessing.
+    AmbiguousKey {
+        /// The consumer instance.
+        consumer: String,
+        /// The binding key.
+        key: String,
+        /// The producer instance.
+        instance: String,
+        /// The candidate `from_any` slots: `(link_id, kind, target)`.
+        candidates: Vec<(String, SlotKind, Identity)>,
+    },
+    /// A pinned slot has no binding.
+    PinnedUnbound {
+        /// The consumer instance.
+        consumer: String,
+        /// The slot's link_id.
+        link_id: String,
+        /// Node or interface slot.
+        kind: SlotKind,
+        /// What it wants.
+        target: Identity,
+    },
+    /// A pinned slot is bound twice.
+    PinnedTwice {
+        /// The consumer instance.
+        consumer: String,
+        /// The slot's link_id.
+        link_id: String,
+        /// The producer bound first.
+        first: String,
+        /// The producer bound again.
+        second: String,
+    },
+}
+
+fn describe(kind: SlotKind, target: &Identity) -> String {
+    format!("{} `{target}`", kind.as_str())
+}
+
+impl BindError {
+    /// The error's stable name.
+    pub fn code(&self) -> Code {
+        match self {
+            BindError::TargetMismatch { .. } => Code::BindingTargetMismatch,
+            BindError::NotConformed { .. } => Code::BindingInterfaceNotConformed,
+            BindError::DeadKey { .. } | BindError::AmbiguousKey { .. } => Code::DeadBindingKey,
+            BindError::PinnedUnbound { .. } => Code::PinnedSlotUnbound,
+            BindError::PinnedTwice { .. } => Code::DuplicateBindingKey,
+        }
+    }
+
+    /// The binding key the error is about, if it is about one.
+    pub fn key(&self) -> Option<&str> {
+        match self {
+            BindError::TargetMismatch { key, .. }
+            | BindError::NotConformed { key, .. }
+            | BindError::DeadKey { key, .. }
+            | BindError::AmbiguousKey { key, .. } => Some(key),
+            BindError::PinnedTwice { link_id, .. } => Some(link_id),
+            BindError::PinnedUnbound { .. } => None,
+        }
+    }
+
+    /// What would fix it, in the words of a launcher file. `fit` lists the
+    /// launcher's instances that could fill an unbound pinned slot.
+    pub fn launcher_help(&self, fit: &[String]) -> String {
+        match self {
+            BindError::PinnedUnbound {
+                link_id,
+                kind,
+                target,
+                ..
+            } => match fit.first() {
+                None => format!(
+                    "add `bindings: {{ {link_id}: \"<instance_id>\" }}`; no instance in this launcher fills {} yet",
+                    describe(*kind, target)
+                ),
+                Some(first) => format!(
+                    "add `bindings: {{ {link_id}: \"{first}\" }}`; instances that fit: {}",
+                    list(fit.iter().map(String::as_str))
+                ),
+            },
+            BindError::AmbiguousKey { candidates, .. } => format!(
+                "use one of the slots' link_ids as the key: {}",
+                list(candidates.iter().map(|(l, _, _)| l.as_str()))
+            ),
+            BindError::PinnedTwice { link_id, .. } => {
+                format!("a pinned slot takes one producer; keep one binding for `{link_id}`")
+            }
+            other => other.common_help(),
+        }
+    }
+
+    /// What would fix it, in the words of a command line (`--bind`).
+    pub fn command_line_help(&self) -> String {
+        match self {
+            BindError::PinnedUnbound { link_id, .. } => {
+                format!("pass --bind {link_id}@<producer instance id>")
+            }
+            BindError::AmbiguousKey {
+                instance,
+                candidates,
+                ..
+            } => format!(
+                "name the slot: {}",
+                candidates
+                    .iter()
+                    .map(|(l, _, _)| format!("--bind {l}@{instance}"))
+                    .collect::<Vec<_>>()
+                    .join(" or ")
+            ),
+            BindError::PinnedTwice { link_id, .. } => {
+                format!("a pinned slot takes one producer; pass --bind {link_id}@... once")
+            }
+            other => other.common_help(),
+        }
+    }
+
+    fn common_help(&self) -> String {
+        match self {
+            BindError::TargetMismatch { wanted, .. } => format!("bind an instance of `{wanted}`"),
+            BindError::NotConformed {
+                producer_node,
+                wanted,
+                ..
+            } => format!(
+                "bind an instance of a node that declares it, or add `conforms_to: [{{ name: \"{}\", tag: \"{}\" }}]` to `{producer_node}` (a matching name or matching topics do not count)",
+                wanted.name, wanted.tag
+            ),
+            BindError::DeadKey {
+                node,
+                instance,
+                producer_node,
+                slots,
+                ..
+            } => {
+                let declared: Vec<&str> = slots.iter().map(|(l, _, _, _)| l.as_str()).collect();
+                let from_any: Vec<String> = slots
+                    .iter()
+                    .filter(|(_, _, _, any)| *any)
+                    .map(|(l, k, t, _)| format!("`{l}` ({})", describe(*k, t)))
+                    .collect();
+                if declared.is_empty() {
+                    format!(
+                        "node `{node}` declares no slots (`manifest.depends_on` is empty); remove the binding"
+                    )
+                } else if from_any.is_empty() {
+                    format!(
+                        "declared link_ids: {}; a free-form key needs a from_any slot, and `{node}` has none",
+                        list(declared.iter().copied())
+                    )
+                } else {
+                    let deploys = producer_node
+                        .as_ref()
+                        .map(|p| format!("; `{instance}` deploys `{p}`"))
+                        .unwrap_or_default();
+                    format!(
+                        "declared link_ids: {}; from_any slots: {}{deploys}",
+                        list(declared.iter().copied()),
+                        from_any.join(", ")
+                    )
+                }
+            }
+            // Covered by the front-end specific helps.
+            BindError::AmbiguousKey { .. }
+            | BindError::PinnedUnbound { .. }
+            | BindError::PinnedTwice { .. } => String::new(),
+        }
+    }
+}
+
+impl fmt::Display for BindError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BindError::TargetMismatch {
+                consumer,
+                key,
+                instance,
+                producer_node,
+                wanted,
+            } => write!(
+                f,
+                "binding `{key}` on instance `{consumer}`: `{instance}` deploys node `{producer_node}`, but slot `{key}` expects node `{wanted}`"
+            ),
+            BindError::NotConformed {
+                consumer,
+                key,
+                instance,
+                producer_node,
+                wanted,
+            } => write!(
+                f,
+                "binding `{key}` on instance `{consumer}`: `{instance}` deploys `{producer_node}`, which does not conform to interface `{wanted}` required by slot `{key}`"
+            ),
+            BindError::DeadKey {
+                consumer,
+                node,
+                key,
+                instance,
+                ..
+            } => write!(
+                f,
+                "binding `{key}` on instance `{consumer}` matches no slot of `{node}`, and no from_any slot accepts `{instance}`"
+            ),
+            BindError::AmbiguousKey {
+                consumer,
+                key,
+                instance,
+                candidates,
+            } => write!(
+                f,
+                "binding `{key}` on instance `{consumer}` matches no slot, and `{instance}` could fill any of the from_any slots {}; its node is not known here",
+                candidates
+                    .iter()
+                    .map(|(l, k, t)| format!("`{l}` ({})", describe(*k, t)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            BindError::PinnedUnbound {
+                consumer,
+                link_id,
+                kind,
+                target,
+            } => write!(
+                f,
+                "instance `{consumer}`: pinned slot `{link_id}` ({}) is unbound",
+                describe(*kind, target)
+            ),
+            BindError::PinnedTwice {
+                consumer,
+                link_id,
+                first,
+                second,
+            } => write!(
+                f,
+                "instance `{consumer}`: pinned slot `{link_id}` is bound to `{first}` and again to `{second}`"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for BindError {}
+
+/// The outcome of [`assign`]: the slots that could be filled, and every
+/// error, each with the index of the [`BindRequest`] it is about (`None`
+/// for a pinned slot nobody bound).
+#[derive(Debug, Clone, Default)]
+pub struct Assignment {
+    /// Filled slots in `depends_on` order (an unbound pinned slot is left out).
+    pub slots: Vec<SlotPlan>,
+    /// What was refused.
+    pub errors: Vec<(Option<usize>, BindError)>,
+}
+
+/// Fills the slots of `consumer` (an instance of `node`, whose slots are
+/// `dependencies`) from `binds`, in order (SPEC 6.1 rules 2-4):
+///
+/// - a key equal to a slot's link_id binds that slot, and the producer must
+///   fit it when its node is known;
+/// - any other key is free-form and joins the first `from_any` slot, in
+///   link_id order, that the producer fits; when the producer's node is not
+///   known, that is the first `from_any` slot if all of them want the same
+///   thing, and an [`BindError::AmbiguousKey`] otherwise;
+/// - every pinned slot must end up bound.
+///
+/// Then each slot gets its routing filter ([`compute_filters`]).
+pub fn assign(
+    consumer: &str,
+    node: &Identity,
+    dependencies: &[Dependency],
+    binds: &[BindRequest<'_>],
+) -> Assignment {
+    let mut pinned: Vec<Option<&str>> = vec![None; dependencies.len()];
+    let mut producers: Vec<Vec<String>> = vec![Vec::new(); dependencies.len()];
+    let mut from_any: Vec<usize> = (0..dependencies.len())
+        .filter(|&i| dependencies[i].from_any)
+        .collect();
+    from_any.sort_by(|&a, &b| dependencies[a].link_id.cmp(&dependencies[b].link_id));
+    // A pinned slot whose own binding was refused is not also reported unbound.
+    let mut refused_slots: Vec<usize> = Vec::new();
+    let mut errors = Vec::new();
+
+    for (index, b) in binds.iter().enumerate() {
+        let mut refuse = |e: BindError| errors.push((Some(index), e));
+        if let Some(slot) = dependencies.iter().position(|d| d.link_id == b.key) {
+            let dep = &dependencies[slot];
+            if let Some(p) = b.producer
+                && !p.fits(dep.kind, &dep.target)
+            {
+                refuse(mismatch(consumer, b, p, dep));
+                refused_slots.push(slot);
+                continue;
+            }
+            if dep.from_any {
+                producers[slot].push(b.instance.to_string());
+            } else if let Some(first) = pinned[slot] {
+                refuse(BindError::PinnedTwice {
+                    consumer: consumer.to_string(),
+                    link_id: dep.link_id.clone(),
+                    first: first.to_string(),
+                    second: b.instance.to_string(),
+                });
+            } else {
+                pinned[slot] = Some(b.instance);
+            }
+            continue;
+        }
+        let chosen = match b.producer {
+            Some(p) => from_any
+                .iter()
+                .copied()
+                .find(|&i| p.fits(dependencies[i].kind, &dependencies[i].target)),
+            None => {
+                let mut wants = from_any
+                    .iter()
+                    .map(|&i| (dependencies[i].kind, &dependencies[i].target));
+                let first = wants.next();
+                if first.is_some() && wants.any(|w| Some(w) != first) {
+                    refuse(BindError::AmbiguousKey {
+                        consumer: consumer.to_string(),
+                        key: b.key.to_string(),
+                        instance: b.instance.to_string(),
+                        candidates: from_any
+                            .iter()
+                            .map(|&i| {
+                                let d = &dependencies[i];
+                                (d.link_id.clone(), d.kind, d.target.clone())
+                            })
+                            .collect(),
+                    });
+                    continue;
+                }
+                from_any.first().copied()
+            }
+        };
+        match chosen {
+            Some(slot) => producers[slot].push(b.instance.to_string()),
+            None => refuse(BindError::DeadKey {
+                consumer: consumer.to_string(),
+                node: node.clone(),
+                key: b.key.to_string(),
+                instance: b.instance.to_string(),
+                producer_node: b.producer.map(|p| p.node.clone()),
+                slots: dependencies
+                    .iter()
+                    .map(|d| (d.link_id.clone(), d.kind, d.target.clone(), d.from_any))
+                    .collect(),
+            }),
+        }
+    }
+
+    let mut slots = Vec::new();
+    for (i, dep) in dependencies.iter().enumerate() {
+        let binding = if dep.from_any {
+            if producers[i].is_empty() {
+                SlotBinding::FromAnyUnbound
+            } else {
+                SlotBinding::FromAnyBound {
+                    producers: std::mem::take(&mut producers[i]),
+                }
+            }
+        } else if let Some(p) = pinned[i] {
+            SlotBinding::Pinned {
+                producer: p.to_string(),
+            }
+        } else {
+            if !refused_slots.contains(&i) {
+                errors.push((
+                    None,
+                    BindError::PinnedUnbound {
+                        consumer: consumer.to_string(),
+                        link_id: dep.link_id.clone(),
+                        kind: dep.kind,
+                        target: dep.target.clone(),
+                    },
+                ));
+            }
+            continue;
+        };
+        slots.push(SlotPlan {
+            link_id: dep.link_id.clone(),
+            kind: dep.kind,
+            target: dep.target.clone(),
+            binding,
+            filter: RouteFilter::Any,
+        });
+    }
+    compute_filters(&mut slots);
+    Assignment { slots, errors }
+}
+
+/// The requests that reproduce slot bindings already decided (a launcher's
+/// runtime config): every producer is bound by its slot's link_id.
+pub fn requests_for<'a>(
+    bindings: impl IntoIterator<Item = (&'a str, &'a SlotBinding)>,
+) -> Vec<BindRequest<'a>> {
+    let mut out = Vec::new();
+    for (link_id, binding) in bindings {
+        let instances: Vec<&'a str> = match binding {
+            SlotBinding::Pinned { producer } => vec![producer.as_str()],
+            SlotBinding::FromAnyBound { producers } => {
+                producers.iter().map(String::as_str).collect()
+            }
+            SlotBinding::FromAnyUnbound => Vec::new(),
+        };
+        out.extend(instances.into_iter().map(|instance| BindRequest {
+            key: link_id,
+            instance,
+            producer: None,
+        }));
+    }
+    out
+}
+
+fn mismatch(consumer: &str, b: &BindRequest<'_>, p: Producer<'_>, dep: &Dependency) -> BindError {
+    let (consumer, key, instance) = (
+        consumer.to_string(),
+        b.key.to_string(),
+        b.instance.to_string(),
+    );
+    match dep.kind {
+        SlotKind::Node => BindError::TargetMismatch {
+            consumer,
+            key,
+            instance,
+            producer_node: p.node.clone(),
+            wanted: dep.target.clone(),
+        },
+        SlotKind::Interface => BindError::NotConformed {
+            consumer,
+            key,
+            instance,
+            producer_node: p.node.clone(),
+            wanted: dep.target.clone(),
+        },
+    }
+}
+
+/// Per slot, SPEC 5: pinned -> that producer; from_any bound -> the listed
+/// producers minus those pinned by a sibling; from_any unbound -> any except
+/// producers claimed by siblings. Siblings are slots of the same kind and
+/// `name:tag`.
+pub fn compute_filters(slots: &mut [SlotPlan]) {
+    let snapshot: Vec<(SlotKind, Identity, String, SlotBinding)> = slots
+        .iter()
+        .map(|s| {
+            (
+                s.kind,
+                s.target.clone(),
+                s.link_id.clone(),
+                s.binding.clone(),
+            )
+        })
+        .collect();
+    for slot in slots.iter_mut() {
+        let siblings = snapshot
+            .iter()
+            .filter(|(k, t, l, _)| *k == slot.kind && *t == slot.target && *l != slot.link_id);
+        slot.filter = match &slot.binding {
+            SlotBinding::Pinned { producer } => RouteFilter::Pin(producer.clone()),
+            SlotBinding::FromAnyBound { producers } => {
+                let pinned_elsewhere: BTreeSet<&str> = siblings
+                    .filter_map(|(_, _, _, b)| match b {
+                        SlotBinding::Pinned { producer } => Some(producer.as_str()),
+                        _ => None,
+                    })
+                    .collect();
+                RouteFilter::OnlyFrom(
+                    producers
+                        .iter()
+                        .filter(|p| !pinned_elsewhere.contains(p.as_str()))
+                        .cloned()
+                        .collect(),
+                )
+            }
+            SlotBinding::FromAnyUnbound => {
+                let claimed: BTreeSet<String> = siblings
+                    .flat_map(|(_, _, _, b)| match b {
+                        SlotBinding::Pinned { producer } => vec![producer.clone()],
+                        SlotBinding::FromAnyBound { producers } => producers.clone(),
+                        SlotBinding::FromAnyUnbound => Vec::new(),
+                    })
+                    .collect();
+                if claimed.is_empty() {
+                    RouteFilter::Any
+                } else {
+                    RouteFilter::AnyExcept(claimed)
+                }
+            }
+        };
+    }
+}
