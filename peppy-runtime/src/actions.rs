@@ -17,17 +17,18 @@ use tokio::time::Instant;
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, warn};
 use zenoh::Wait;
-use zenoh::query::{ConsolidationMode, Query, QueryTarget};
+use zenoh::query::Query;
 
 use crate::error::{Error, Result};
 use crate::node::NodeRunner;
+use crate::request::Request;
 use crate::services::Caller;
 use crate::spec::{ActionSpec, ConsumedActionSpec};
 use crate::stop;
 use crate::target;
 use crate::wire::attachment::{self, QueryHeader, QueryKind, ReplyStatus};
 use crate::wire::codec::{Decode, Decoder, Encode, from_bytes, to_bytes};
-use crate::wire::keys::{Channel, entry_key, entry_selector, parse_entry_key};
+use crate::wire::keys::{ActionPart, Channel, action_part_key, entry_key, feedback_key};
 
 /// How long a terminal goal's result stays available.
 pub const DEFAULT_RESULT_RETENTION: Duration = Duration::from_secs(30);
@@ -102,12 +103,12 @@ impl Registry {
         })
     }
 
-    fn key(&self, suffix: &str) -> String {
-        format!("{}/{suffix}", self.base_key)
+    fn key(&self, part: ActionPart) -> String {
+        action_part_key(&self.base_key, part)
     }
 
     fn feedback_key(&self, goal_id: &str) -> String {
-        format!("{}/feedback/{goal_id}", self.base_key)
+        feedback_key(&self.base_key, goal_id)
     }
 
     /// Moves a goal to a terminal state (first call wins), answers parked
@@ -132,7 +133,7 @@ impl Registry {
                 _ => return false,
             }
         };
-        let key = self.key("result");
+        let key = self.key(ActionPart::Result);
         for q in waiters {
             reply_result(&q, &key, how, &body, self.spec.result.fingerprint);
         }
@@ -182,7 +183,7 @@ impl Registry {
             None => CancelState::Unknown,
         };
         let _ = query
-            .reply(self.key("cancel"), vec![state as u8])
+            .reply(self.key(ActionPart::Cancel), vec![state as u8])
             .attachment(attachment::reply(ReplyStatus::Ok, 0))
             .wait();
     }
@@ -192,7 +193,7 @@ impl Registry {
         let Some(goal_id) = goal_id_of(&query) else {
             return;
         };
-        let key = self.key("result");
+        let key = self.key(ActionPart::Result);
         let mut goals = lock(&self.goals);
         match goals.get_mut(&goal_id) {
             Some(GoalState::Active { waiters, .. }) => {
@@ -356,7 +357,10 @@ impl<G> IncomingGoal<G> {
         );
         self.pending
             .query
-            .reply(self.registry.key("goal"), goal_response(true, None))
+            .reply(
+                self.registry.key(ActionPart::Goal),
+                goal_response(true, None),
+            )
             .attachment(attachment::reply(ReplyStatus::Ok, 0))
             .wait()?;
         Ok(GoalContext {
@@ -372,7 +376,7 @@ impl<G> IncomingGoal<G> {
         self.pending
             .query
             .reply(
-                self.registry.key("goal"),
+                self.registry.key(ActionPart::Goal),
                 goal_response(false, Some(reason.into())),
             )
             .attachment(attachment::reply(ReplyStatus::Ok, 0))
@@ -445,7 +449,7 @@ impl GoalServer {
                     let _ = pending
                         .query
                         .reply(
-                            self.registry.key("goal"),
+                            self.registry.key(ActionPart::Goal),
                             goal_response(false, Some(format!("goal does not decode: {e}"))),
                         )
                         .attachment(attachment::reply(ReplyStatus::Ok, 0))
@@ -629,7 +633,7 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
             owner: spec.owner,
             channel: Channel::Action,
             name: spec.name,
-            suffix: Some("goal"),
+            part: Some(ActionPart::Goal),
             fingerprint: spec.goal.fingerprint,
             describe: format!("{} (action goal)", spec.name),
         };
@@ -639,17 +643,7 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
         let feedback_fp = spec.feedback.fingerprint;
         let subscriber = runner
             .session()
-            .declare_subscriber(format!(
-                "{}/feedback/{goal_id}",
-                entry_selector(
-                    runner.namespace(),
-                    Channel::Action,
-                    owner.as_ref(),
-                    spec.name,
-                    None,
-                    Some(&target)
-                )
-            ))
+            .declare_subscriber(feedback_key(&entry.base(runner, Some(&target)), &goal_id))
             .callback(move |sample| {
                 let att = sample
                     .attachment()
@@ -666,91 +660,49 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
             .await?;
         let mut payload = to_bytes(goal_id.as_str());
         payload.extend_from_slice(&body);
-        let budget = deadline
-            .saturating_duration_since(Instant::now())
-            .max(Duration::from_millis(1));
-        let replies = runner
-            .session()
-            .get(entry.selector(runner, Some(&target)))
-            .payload(payload)
-            .attachment(target::header(
-                runner,
-                QueryKind::Request,
-                spec.goal.fingerprint,
-            ))
-            .target(QueryTarget::All)
-            .consolidation(ConsolidationMode::None)
-            .timeout(budget)
-            .await?;
-        let mut acked = false;
-        let service = entry.describe.clone();
-        while let Ok(reply) = replies.recv_async().await {
-            let Ok(sample) = reply.result() else { continue };
-            let Some(sender) = parse_entry_key(sample.key_expr().as_str()) else {
-                continue;
-            };
-            let Some((status, _)) = sample
-                .attachment()
-                .and_then(|a| attachment::parse_reply(&a.to_bytes()))
-            else {
-                continue;
-            };
-            let body = sample.payload().to_bytes();
-            match status {
-                ReplyStatus::Ack | ReplyStatus::Present => acked = true,
-                ReplyStatus::Ok => {
-                    let mut d = Decoder::new(&body);
-                    let accepted = bool::decode(&mut d).map_err(|source| Error::Decode {
-                        what: "goal response".into(),
-                        source,
-                    })?;
-                    let error_message =
-                        Option::<String>::decode(&mut d).map_err(|source| Error::Decode {
-                            what: "goal response".into(),
-                            source,
-                        })?;
-                    let base_key = entry_key(
-                        runner.namespace(),
-                        Channel::Action,
-                        &owner.expect("consumed actions have an owner"),
-                        spec.name,
-                        &sender.core,
-                        &sender.instance,
-                    );
-                    return Ok(GoalClient {
-                        session: runner.session().clone(),
-                        base_key,
-                        action: spec.name,
-                        goal_id,
-                        spec,
-                        feedback: rx,
-                        _subscriber: subscriber,
-                        stop: runner.cancellation_token().clone(),
-                        accepted,
-                        error_message,
-                        instance_id: sender.instance,
-                        core_node: sender.core,
-                    });
-                }
-                ReplyStatus::HandlerError | ReplyStatus::FormatMismatch => {
-                    return Err(Error::ServiceError {
-                        service,
-                        instance: sender.instance,
-                        reason: String::from_utf8_lossy(&body).into_owned(),
-                    });
-                }
-            }
+        let answer = Request {
+            session: runner.session(),
+            stop: runner.cancellation_token(),
+            key: entry.selector(runner, Some(&target)),
+            header: target::header(runner, QueryKind::Request, spec.goal.fingerprint),
+            payload,
+            deadline,
+            describe: &entry.describe,
+            instance: &target,
+            request_format: spec.goal.canonical,
+            // The decision is a status reply without a format of its own.
+            response: None,
         }
-        Err(if acked {
-            Error::ServiceTimeout {
-                service,
-                instance: Some(target),
-            }
-        } else {
-            Error::ServiceUnreachable {
-                service,
-                instance: Some(target),
-            }
+        .send()
+        .await?;
+        let malformed = |source| Error::Decode {
+            what: "goal response".into(),
+            source,
+        };
+        let mut d = Decoder::new(&answer.body);
+        let accepted = bool::decode(&mut d).map_err(malformed)?;
+        let error_message = Option::<String>::decode(&mut d).map_err(malformed)?;
+        let base_key = entry_key(
+            runner.namespace(),
+            Channel::Action,
+            &owner.expect("consumed actions have an owner"),
+            spec.name,
+            &answer.core,
+            &answer.instance,
+        );
+        Ok(GoalClient {
+            session: runner.session().clone(),
+            base_key,
+            action: spec.name,
+            goal_id,
+            spec,
+            feedback: rx,
+            _subscriber: subscriber,
+            stop: runner.cancellation_token().clone(),
+            accepted,
+            error_message,
+            instance_id: answer.instance,
+            core_node: answer.core,
         })
     }
 }
@@ -790,87 +742,36 @@ impl GoalClient {
         }
     }
 
-    async fn ask(&self, suffix: &str, timeout: Duration) -> Result<Vec<u8>> {
-        if self.stop.is_cancelled() {
-            return Err(stop::refused().await);
+    async fn ask(&self, part: ActionPart, timeout: Duration) -> Result<Vec<u8>> {
+        let describe = format!("{} (action {})", self.action, part.as_str());
+        let answer = Request {
+            session: &self.session,
+            stop: &self.stop,
+            key: action_part_key(&self.base_key, part),
+            header: QueryHeader {
+                kind: QueryKind::Request,
+                fingerprint: 0,
+                core: String::new(),
+                instance: String::new(),
+            }
+            .encode(),
+            payload: to_bytes(self.goal_id.as_str()),
+            deadline: Instant::now() + timeout,
+            describe: &describe,
+            instance: &self.instance_id,
+            request_format: "a goal id",
+            response: (part == ActionPart::Result).then_some(self.spec.result),
         }
-        let replies = self
-            .session
-            .get(format!("{}/{suffix}", self.base_key))
-            .payload(to_bytes(self.goal_id.as_str()))
-            .attachment(
-                QueryHeader {
-                    kind: QueryKind::Request,
-                    fingerprint: 0,
-                    core: String::new(),
-                    instance: String::new(),
-                }
-                .encode(),
-            )
-            .target(QueryTarget::All)
-            .consolidation(ConsolidationMode::None)
-            .timeout(timeout.max(Duration::from_millis(1)))
-            .await?;
-        let service = format!("{} (action {suffix})", self.action);
-        let mut acked = false;
-        loop {
-            let reply = tokio::select! {
-                r = replies.recv_async() => match r {
-                    Ok(r) => r,
-                    Err(_) => break,
-                },
-                () = self.stop.cancelled() => return Err(Error::ShuttingDown),
-            };
-            let Ok(sample) = reply.result() else { continue };
-            let Some((status, fingerprint)) = sample
-                .attachment()
-                .and_then(|a| attachment::parse_reply(&a.to_bytes()))
-            else {
-                continue;
-            };
-            let body = sample.payload().to_bytes().into_owned();
-            match status {
-                ReplyStatus::Ack | ReplyStatus::Present => acked = true,
-                ReplyStatus::Ok
-                    if suffix == "result" && fingerprint != self.spec.result.fingerprint =>
-                {
-                    return Err(Error::ServiceError {
-                        service,
-                        instance: self.instance_id.clone(),
-                        reason: format!(
-                            "the server's result format differs from this node's ({})",
-                            self.spec.result.canonical
-                        ),
-                    });
-                }
-                ReplyStatus::Ok => return Ok(body),
-                ReplyStatus::HandlerError | ReplyStatus::FormatMismatch => {
-                    return Err(Error::ServiceError {
-                        service,
-                        instance: self.instance_id.clone(),
-                        reason: String::from_utf8_lossy(&body).into_owned(),
-                    });
-                }
-            }
-        }
-        Err(if acked {
-            Error::ServiceTimeout {
-                service,
-                instance: Some(self.instance_id.clone()),
-            }
-        } else {
-            Error::ServiceUnreachable {
-                service,
-                instance: Some(self.instance_id.clone()),
-            }
-        })
+        .send()
+        .await?;
+        Ok(answer.body)
     }
 
     /// Waits (up to `timeout`) until the goal is terminal and returns how it
     /// ended. Once this node stops it returns [`Error::ShuttingDown`], as
     /// [`next_feedback`](Self::next_feedback) does.
     pub async fn result<R: Decode>(&self, timeout: Duration) -> Result<Outcome<R>> {
-        let body = self.ask("result", timeout).await?;
+        let body = self.ask(ActionPart::Result, timeout).await?;
         let decode = |bytes: &[u8]| {
             from_bytes::<R>(bytes).map_err(|source| Error::Decode {
                 what: format!("result of `{}`", self.action),
@@ -893,7 +794,7 @@ impl GoalClient {
     /// Asks the server to cancel the goal. Once this node stops it returns
     /// [`Error::ShuttingDown`], as [`next_feedback`](Self::next_feedback) does.
     pub async fn cancel(&self, timeout: Duration) -> Result<CancelState> {
-        let body = self.ask("cancel", timeout).await?;
+        let body = self.ask(ActionPart::Cancel, timeout).await?;
         Ok(match body.first() {
             Some(0) => CancelState::Signalled,
             Some(1) => CancelState::AlreadyTerminal,

@@ -32,6 +32,7 @@ mod error;
 mod members;
 mod node;
 mod qos;
+mod request;
 mod services;
 pub mod spec;
 mod startup;

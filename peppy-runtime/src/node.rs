@@ -24,7 +24,9 @@ use crate::spec::{
 };
 use crate::startup::{self, RUNTIME_CONFIG_ENV, StandaloneConfig, Startup};
 use crate::topics::{self, Inbox, Intake};
-use crate::wire::keys::{Channel, entry_key, liveliness_key};
+use crate::wire::keys::{
+    ActionPart, Channel, action_part_key, entry_key, format_key, liveliness_key,
+};
 
 /// How long [`NodeBuilder::run`] waits, once the node has shut down, for
 /// its tasks that do not yield and its blocking tasks before it returns.
@@ -342,7 +344,7 @@ impl NodeRunner {
             let base = actions::server_base_key(&runner, spec);
             let registry = Registry::new(spec, base.clone(), runner.session.clone(), retention);
             let (tx, rx) = flume::bounded(64);
-            let goal_key = format!("{base}/goal");
+            let goal_key = action_part_key(&base, ActionPart::Goal);
             let goal = runner
                 .session
                 .declare_queryable(goal_key.clone())
@@ -352,14 +354,14 @@ impl NodeRunner {
             let r = registry.clone();
             let cancel = runner
                 .session
-                .declare_queryable(format!("{base}/cancel"))
+                .declare_queryable(action_part_key(&base, ActionPart::Cancel))
                 .complete(true)
                 .callback(move |q| r.on_cancel(q))
                 .await?;
             let r = registry.clone();
             let result = runner
                 .session
-                .declare_queryable(format!("{base}/result"))
+                .declare_queryable(action_part_key(&base, ActionPart::Result))
                 .complete(true)
                 .callback(move |q| r.on_result(q))
                 .await?;
@@ -529,12 +531,6 @@ impl NodeRunner {
             warn!("closing the zenoh session: {e}");
         }
     }
-}
-
-/// Logs a fingerprint mismatch once per producer.
-/// `peppy/<ns>/format/<fingerprint>/<instance>`: answers a format's canonical text.
-fn format_key(ns: &str, fingerprint: u64, instance: &str) -> String {
-    format!("peppy/{ns}/format/{fingerprint:016x}/{instance}")
 }
 
 /// Logs a fingerprint mismatch once per producer, naming both formats: the

@@ -7,16 +7,17 @@ use std::time::Duration;
 use tokio::time::Instant;
 use tracing::{debug, warn};
 use zenoh::Wait;
-use zenoh::query::{ConsolidationMode, Query, QueryTarget};
+use zenoh::query::Query;
 
 use crate::error::{Error, Result};
 use crate::node::NodeRunner;
+use crate::request::Request;
 use crate::spec::{ConsumedServiceSpec, ServiceSpec};
 use crate::stop;
 use crate::target;
 use crate::wire::attachment::{self, QueryHeader, QueryKind, ReplyStatus};
 use crate::wire::codec::{Decode, Encode, from_bytes, to_bytes};
-use crate::wire::keys::{Channel, entry_key, parse_entry_key};
+use crate::wire::keys::{Channel, entry_key};
 
 /// Requests waiting for `handle_next_request`.
 pub(crate) struct ServiceInbox {
@@ -205,7 +206,7 @@ fn entry(spec: &ConsumedServiceSpec) -> target::Entry<'static> {
         owner: spec.owner,
         channel: Channel::Service,
         name: spec.name,
-        suffix: None,
+        part: None,
         fingerprint: spec.request.fingerprint,
         describe: spec.name.to_string(),
     }
@@ -219,96 +220,29 @@ async fn request_to<Resp: Decode>(
     deadline: Instant,
     payload: Vec<u8>,
 ) -> Result<Reply<Resp>> {
-    let budget = deadline.saturating_duration_since(Instant::now());
-    let replies = runner
-        .session()
-        .get(entry.selector(runner, Some(instance)))
-        .payload(payload)
-        .attachment(target::header(
-            runner,
-            QueryKind::Request,
-            spec.request.fingerprint,
-        ))
-        .target(QueryTarget::All)
-        .consolidation(ConsolidationMode::None)
-        .timeout(budget.max(Duration::from_millis(1)))
-        .await?;
-    let mut acked = false;
-    let unreachable = || Error::ServiceUnreachable {
-        service: spec.name.to_string(),
-        instance: Some(instance.to_string()),
-    };
-    loop {
-        let reply = tokio::select! {
-            r = replies.recv_async() => match r {
-                Ok(r) => r,
-                Err(_) => break,
-            },
-            () = tokio::time::sleep_until(deadline) => break,
-            () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
-        };
-        let Ok(sample) = reply.result() else { continue };
-        let Some(sender) = parse_entry_key(sample.key_expr().as_str()) else {
-            continue;
-        };
-        let Some((status, fingerprint)) = sample
-            .attachment()
-            .and_then(|a| attachment::parse_reply(&a.to_bytes()))
-        else {
-            continue;
-        };
-        let body = sample.payload().to_bytes();
-        match status {
-            ReplyStatus::Ack | ReplyStatus::Present => acked = true,
-            ReplyStatus::Ok if fingerprint != spec.response.fingerprint => {
-                return Err(Error::ServiceError {
-                    service: spec.name.to_string(),
-                    instance: sender.instance,
-                    reason: format!(
-                        "the server's response format differs from this node's ({}); rebuild one side",
-                        spec.response.canonical
-                    ),
-                });
-            }
-            ReplyStatus::Ok => {
-                let data = from_bytes::<Resp>(&body).map_err(|source| Error::Decode {
-                    what: format!("response of `{}`", spec.name),
-                    source,
-                })?;
-                return Ok(Reply {
-                    instance_id: sender.instance,
-                    core_node: sender.core,
-                    data,
-                });
-            }
-            ReplyStatus::HandlerError => {
-                return Err(Error::ServiceError {
-                    service: spec.name.to_string(),
-                    instance: sender.instance,
-                    reason: String::from_utf8_lossy(&body).into_owned(),
-                });
-            }
-            ReplyStatus::FormatMismatch => {
-                return Err(Error::ServiceError {
-                    service: spec.name.to_string(),
-                    instance: sender.instance,
-                    reason: format!(
-                        "the server expects request format {}, this node sends {}; rebuild one side",
-                        String::from_utf8_lossy(&body),
-                        spec.request.canonical
-                    ),
-                });
-            }
-        }
+    let answer = Request {
+        session: runner.session(),
+        stop: runner.cancellation_token(),
+        key: entry.selector(runner, Some(instance)),
+        header: target::header(runner, QueryKind::Request, spec.request.fingerprint),
+        payload,
+        deadline,
+        describe: &entry.describe,
+        instance,
+        request_format: spec.request.canonical,
+        response: Some(spec.response),
     }
-    if acked {
-        Err(Error::ServiceTimeout {
-            service: spec.name.to_string(),
-            instance: Some(instance.to_string()),
-        })
-    } else {
-        Err(unreachable())
-    }
+    .send()
+    .await?;
+    let data = from_bytes::<Resp>(&answer.body).map_err(|source| Error::Decode {
+        what: format!("response of `{}`", spec.name),
+        source,
+    })?;
+    Ok(Reply {
+        instance_id: answer.instance,
+        core_node: answer.core,
+        data,
+    })
 }
 
 /// The key a server replies on and serves.

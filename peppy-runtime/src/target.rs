@@ -17,7 +17,7 @@ use crate::members::live_instances;
 use crate::node::NodeRunner;
 use crate::spec::OwnerSpec;
 use crate::wire::attachment::{QueryHeader, QueryKind};
-use crate::wire::keys::{Channel, entry_selector, parse_entry_key};
+use crate::wire::keys::{ActionPart, Channel, action_part_key, entry_selector, parse_entry_key};
 
 /// How long discovery waits for servers to say they are there.
 pub(crate) const PROBE_TIMEOUT: Duration = Duration::from_millis(500);
@@ -32,8 +32,8 @@ pub(crate) struct Entry<'a> {
     pub(crate) channel: Channel,
     /// The entry's name.
     pub(crate) name: &'a str,
-    /// The sub-service probed (`goal` for actions), if any.
-    pub(crate) suffix: Option<&'a str>,
+    /// The part of an action requests go to (its goals), if an action.
+    pub(crate) part: Option<ActionPart>,
     /// The request format's fingerprint, sent with the probe.
     pub(crate) fingerprint: u64,
     /// How the entry reads in an `Unreachable` error.
@@ -41,19 +41,25 @@ pub(crate) struct Entry<'a> {
 }
 
 impl Entry<'_> {
-    /// The key expression of this entry's servers (`instance`: one of them).
-    pub(crate) fn selector(&self, runner: &NodeRunner, instance: Option<&str>) -> String {
+    /// The key expression of this entry's servers (`instance`: one of
+    /// them), without an action's part.
+    pub(crate) fn base(&self, runner: &NodeRunner, instance: Option<&str>) -> String {
         let owner = self.owner.resolve(runner.node_name(), runner.node_tag());
-        let base = entry_selector(
+        entry_selector(
             runner.namespace(),
             self.channel,
             owner.as_ref(),
             self.name,
             None,
             instance,
-        );
-        match self.suffix {
-            Some(s) => format!("{base}/{s}"),
+        )
+    }
+
+    /// The key expression requests go to (`instance`: one server).
+    pub(crate) fn selector(&self, runner: &NodeRunner, instance: Option<&str>) -> String {
+        let base = self.base(runner, instance);
+        match self.part {
+            Some(part) => action_part_key(&base, part),
             None => base,
         }
     }

@@ -105,6 +105,44 @@ pub fn entry_selector(
     )
 }
 
+/// The parts of an action below its entry key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ActionPart {
+    /// Goals: sent, acked, accepted or rejected.
+    Goal,
+    /// Cancel requests.
+    Cancel,
+    /// Result requests (parked until the goal is terminal).
+    Result,
+}
+
+impl ActionPart {
+    /// `goal`, `cancel` or `result`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ActionPart::Goal => "goal",
+            ActionPart::Cancel => "cancel",
+            ActionPart::Result => "result",
+        }
+    }
+}
+
+/// `<action key or selector>/<goal|cancel|result>`.
+pub fn action_part_key(action: &str, part: ActionPart) -> String {
+    format!("{action}/{}", part.as_str())
+}
+
+/// `<action key or selector>/feedback/<goal_id>`: one goal's feedback.
+pub fn feedback_key(action: &str, goal_id: &str) -> String {
+    format!("{action}/feedback/{goal_id}")
+}
+
+/// `peppy/<ns>/format/<fingerprint as 16 hex>/<instance>`: where an instance
+/// answers the canonical text of a format it emits.
+pub fn format_key(ns: &str, fingerprint: u64, instance: &str) -> String {
+    format!("peppy/{ns}/format/{fingerprint:016x}/{instance}")
+}
+
 /// The liveliness token an instance holds while it is up:
 /// `peppy/<ns>/live/<core>/<instance>/<node>/<tag>`.
 pub fn liveliness_key(ns: &str, core: &str, instance: &str, node: &str, tag: &str) -> String {
@@ -214,6 +252,28 @@ mod tests {
         assert_eq!(
             entry_key("lab", Channel::Service, &arm, "home", "c", "arm"),
             "peppy/lab/service/node/robot_arm/v1/home/c/arm"
+        );
+    }
+
+    #[test]
+    fn action_and_format_keys() {
+        let base = "peppy/lab/action/node/robot_arm/v1/move_arm/c/arm";
+        assert_eq!(
+            action_part_key(base, ActionPart::Goal),
+            format!("{base}/goal")
+        );
+        assert_eq!(
+            action_part_key(base, ActionPart::Cancel),
+            format!("{base}/cancel")
+        );
+        assert_eq!(
+            action_part_key(base, ActionPart::Result),
+            format!("{base}/result")
+        );
+        assert_eq!(feedback_key(base, "g1"), format!("{base}/feedback/g1"));
+        assert_eq!(
+            format_key("lab", 0x1111, "rs_left"),
+            "peppy/lab/format/0000000000001111/rs_left"
         );
     }
 

@@ -213,3 +213,58 @@ async fn results_expire_after_retention() {
     arm.shutdown().await;
     planner.shutdown().await;
 }
+
+/// The planner's side of `move_arm`, built from another goal format.
+static MOVE_CALL_STALE: ConsumedActionSpec = ConsumedActionSpec {
+    link_id: "arm",
+    owner: OwnerSpec::Node {
+        name: "robot_arm",
+        tag: "v1",
+    },
+    name: "move_arm",
+    goal: FormatSpec {
+        fingerprint: 0xbad,
+        canonical: "{steps:u16}",
+    },
+    feedback: FEEDBACK,
+    result: RESULT,
+};
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_goal_in_another_format_names_both_formats() {
+    let hub = hub().await;
+    let ns = namespace("actions-format");
+    let (_, arm) = start::<Arm>(&hub, &ns, "arm", &[]).await;
+    let (_, planner) = start::<Planner>(&hub, &ns, "planner", &["--bind", "arm@arm"]).await;
+    serve(arm.clone());
+    let err = tokio::time::timeout(WAIT, async {
+        loop {
+            match send_goal(&planner, &MOVE_CALL_STALE, Duration::from_secs(2), &5u16).await {
+                Err(Error::ServiceUnreachable { .. }) => {
+                    tokio::time::sleep(Duration::from_millis(50)).await
+                }
+                other => return other,
+            }
+        }
+    })
+    .await
+    .expect("the action server became reachable")
+    .unwrap_err();
+    match err {
+        Error::ServiceError {
+            service,
+            instance,
+            reason,
+        } => {
+            assert_eq!(service, "move_arm (action goal)");
+            assert_eq!(instance, "arm");
+            assert_eq!(
+                reason,
+                "the server expects request format {steps:u32}, this node sends {steps:u16}; rebuild one side"
+            );
+        }
+        other => panic!("{other}"),
+    }
+    planner.shutdown().await;
+    arm.shutdown().await;
+}

@@ -1,0 +1,145 @@
+//! The one request/reply client. A request goes to one server; the client
+//! follows the server's status replies (WIRE.md: ack, ok, handler error,
+//! format mismatch) until the deadline, the node's stop, or an answer, and
+//! tells an unreachable server from one that accepted and went quiet.
+//! Service calls, action goals and a goal's result and cancel queries all
+//! go through here, so they fail the same way with the same words.
+
+use std::time::Duration;
+
+use tokio::time::Instant;
+use tokio_util::sync::CancellationToken;
+use zenoh::query::{ConsolidationMode, QueryTarget};
+
+use crate::error::{Error, Result};
+use crate::spec::FormatSpec;
+use crate::stop;
+use crate::wire::attachment::{self, ReplyStatus};
+use crate::wire::keys::parse_entry_key;
+
+/// One request to one server.
+pub(crate) struct Request<'a> {
+    /// The session to send on.
+    pub(crate) session: &'a zenoh::Session,
+    /// The node's stop: a waiting request returns `ShuttingDown` at once.
+    pub(crate) stop: &'a CancellationToken,
+    /// The server's key (one instance).
+    pub(crate) key: String,
+    /// The query header (`QueryHeader::encode`).
+    pub(crate) header: Vec<u8>,
+    /// The request body.
+    pub(crate) payload: Vec<u8>,
+    /// When to give up.
+    pub(crate) deadline: Instant,
+    /// How the entry reads in errors (`move_arm (action goal)`).
+    pub(crate) describe: &'a str,
+    /// The server instance, for errors.
+    pub(crate) instance: &'a str,
+    /// This node's request format, named when the server expects another.
+    pub(crate) request_format: &'a str,
+    /// The response format an `Ok` must carry (`None`: status replies
+    /// without a format, as a goal's decision).
+    pub(crate) response: Option<FormatSpec>,
+}
+
+/// A server's `Ok` reply.
+#[derive(Debug)]
+pub(crate) struct Answer {
+    /// The server's core node.
+    pub(crate) core: String,
+    /// The server's instance id.
+    pub(crate) instance: String,
+    /// The response body, not yet decoded.
+    pub(crate) body: Vec<u8>,
+}
+
+impl Request<'_> {
+    fn failed(&self, instance: String, reason: String) -> Error {
+        Error::ServiceError {
+            service: self.describe.to_string(),
+            instance,
+            reason,
+        }
+    }
+
+    /// Sends the request and waits for the answer.
+    pub(crate) async fn send(self) -> Result<Answer> {
+        if self.stop.is_cancelled() {
+            return Err(stop::refused().await);
+        }
+        let budget = self
+            .deadline
+            .saturating_duration_since(Instant::now())
+            .max(Duration::from_millis(1));
+        let replies = self
+            .session
+            .get(self.key.as_str())
+            .payload(self.payload.clone())
+            .attachment(self.header.clone())
+            .target(QueryTarget::All)
+            .consolidation(ConsolidationMode::None)
+            .timeout(budget)
+            .await?;
+        let mut acked = false;
+        loop {
+            let reply = tokio::select! {
+                r = replies.recv_async() => match r {
+                    Ok(r) => r,
+                    Err(_) => break,
+                },
+                () = tokio::time::sleep_until(self.deadline) => break,
+                () = self.stop.cancelled() => return Err(Error::ShuttingDown),
+            };
+            let Ok(sample) = reply.result() else { continue };
+            let Some(sender) = parse_entry_key(sample.key_expr().as_str()) else {
+                continue;
+            };
+            let Some((status, fingerprint)) = sample
+                .attachment()
+                .and_then(|a| attachment::parse_reply(&a.to_bytes()))
+            else {
+                continue;
+            };
+            let body = sample.payload().to_bytes().into_owned();
+            match status {
+                ReplyStatus::Ack | ReplyStatus::Present => acked = true,
+                ReplyStatus::Ok => match self.response {
+                    Some(expected) if fingerprint != expected.fingerprint => {
+                        return Err(self.failed(
+                            sender.instance,
+                            format!(
+                                "the server's response format differs from this node's ({}); rebuild one side",
+                                expected.canonical
+                            ),
+                        ));
+                    }
+                    _ => {
+                        return Ok(Answer {
+                            core: sender.core,
+                            instance: sender.instance,
+                            body,
+                        });
+                    }
+                },
+                ReplyStatus::HandlerError => {
+                    let reason = String::from_utf8_lossy(&body).into_owned();
+                    return Err(self.failed(sender.instance, reason));
+                }
+                ReplyStatus::FormatMismatch => {
+                    let reason = format!(
+                        "the server expects request format {}, this node sends {}; rebuild one side",
+                        String::from_utf8_lossy(&body),
+                        self.request_format
+                    );
+                    return Err(self.failed(sender.instance, reason));
+                }
+            }
+        }
+        let (service, instance) = (self.describe.to_string(), Some(self.instance.to_string()));
+        Err(if acked {
+            Error::ServiceTimeout { service, instance }
+        } else {
+            Error::ServiceUnreachable { service, instance }
+        })
+    }
+}
