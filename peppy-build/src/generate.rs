@@ -141,6 +141,7 @@ impl Gen<'_> {
         };
         let descriptor = params::Descriptor {
             document_path: self.node.node.file.path().display().to_string(),
+            model: peppy_schema::NodeModel::of(&self.node.node).to_json(),
             emitted_topics: spec_refs("emitted_topics", &emitted),
             consumed_topics: spec_refs("consumed_topics", &consumed_topics),
             exposed_services: spec_refs("exposed_services", &exposed),

@@ -12,6 +12,8 @@ use crate::types::primitive_type;
 /// The `SPEC` statics the descriptor lists, as paths from `parameters`.
 pub(crate) struct Descriptor {
     pub(crate) document_path: String,
+    /// The node's run-time model as JSON (`NodeModel::to_json`).
+    pub(crate) model: String,
     pub(crate) emitted_topics: Vec<TokenStream>,
     pub(crate) consumed_topics: Vec<TokenStream>,
     pub(crate) exposed_services: Vec<TokenStream>,
@@ -40,6 +42,7 @@ pub(crate) fn parameters(
     generator.group("Parameters", "", fields, &doc);
 
     let path = &descriptor.document_path;
+    let model = &descriptor.model;
     let emitted = &descriptor.emitted_topics;
     let consumed = &descriptor.consumed_topics;
     let services = &descriptor.exposed_services;
@@ -48,7 +51,7 @@ pub(crate) fn parameters(
         impl ::peppy::codegen::NodeParameters for Parameters {
             fn descriptor() -> &'static ::peppy::codegen::NodeDescriptor {
                 static DESCRIPTOR: ::peppy::codegen::NodeDescriptor = ::peppy::codegen::NodeDescriptor {
-                    document: ::core::include_str!(#path),
+                    model: #model,
                     document_path: #path,
                     emitted_topics: &[#(#emitted),*],
                     consumed_topics: &[#(#consumed),*],

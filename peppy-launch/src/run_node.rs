@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use peppy_schema::{
-    DocumentKind, Identity, Launch, NodeDoc, RepoIndex, RepoOptions, RepositoryList, check_node,
-    node_file,
+    DocumentKind, Identity, Launch, NodeDoc, NodeModel, RepoIndex, RepoOptions, RepositoryList,
+    check_node, node_file,
 };
 
 use crate::cli::RunArgs;
@@ -50,7 +50,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
         flags.extend(["--namespace".into(), ns.clone()]);
     }
     flags.extend(args.overrides.iter().cloned());
-    let mut config = peppy_runtime::startup_from_flags(doc, flags)?;
+    let mut config = peppy_runtime::startup_from_flags(&NodeModel::of(doc), flags)?;
     config.core_node = format!("run-{:x}", std::process::id());
     if let Launch::Container(_) = doc.execution.launch() {
         return Err(LaunchError::Usage(format!(

@@ -64,10 +64,7 @@ struct Pinger {}
 impl NodeParameters for Pinger {
     fn descriptor() -> &'static NodeDescriptor {
         static D: NodeDescriptor = NodeDescriptor {
-            document: r#"{ peppy_schema: "node_v1", manifest: { name: "pinger", tag: "v1", depends_on: { nodes: [{ name: "ponger", tag: "v1", link_id: "ponger" }] } },
-                interfaces: { topics: { emits: [{ name: "ping", qos_profile: "reliable", message_format: { seq: "u64", pad: { $type: "array", $items: "u8" } } }],
-                                        consumes: [{ link_id: "ponger", name: "pong" }] } },
-                execution: { language: "rust", run_cmd: ["x"] } }"#,
+            model: r#"{"identity":{"name":"pinger","tag":"v1"},"dependencies":[{"kind":"node","target":{"name":"ponger","tag":"v1"},"link_id":"ponger","from_any":false,"sha256":null}],"parameters":{"fields":[]}}"#,
             document_path: "pinger.json5",
             emitted_topics: &[&PING_OUT],
             consumed_topics: &[&PONG_IN],
@@ -83,10 +80,7 @@ struct Ponger {}
 impl NodeParameters for Ponger {
     fn descriptor() -> &'static NodeDescriptor {
         static D: NodeDescriptor = NodeDescriptor {
-            document: r#"{ peppy_schema: "node_v1", manifest: { name: "ponger", tag: "v1", depends_on: { nodes: [{ name: "pinger", tag: "v1", link_id: "pinger" }] } },
-                interfaces: { topics: { emits: [{ name: "pong", qos_profile: "reliable", message_format: { seq: "u64", pad: { $type: "array", $items: "u8" } } }],
-                                        consumes: [{ link_id: "pinger", name: "ping" }] } },
-                execution: { language: "rust", run_cmd: ["x"] } }"#,
+            model: r#"{"identity":{"name":"ponger","tag":"v1"},"dependencies":[{"kind":"node","target":{"name":"pinger","tag":"v1"},"link_id":"pinger","from_any":false,"sha256":null}],"parameters":{"fields":[]}}"#,
             document_path: "ponger.json5",
             emitted_topics: &[&PONG_OUT],
             consumed_topics: &[&PING_IN],

@@ -7,7 +7,7 @@ use std::marker::PhantomData;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
-use peppy_schema::{NodeDoc, SlotKind, SlotPlan};
+use peppy_schema::{NodeModel, SlotKind, SlotPlan};
 use tokio_util::sync::CancellationToken;
 use tracing::{info, warn};
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -136,12 +136,12 @@ impl<P: NodeParameters> NodeBuilder<P> {
     /// Call [`NodeRunner::shutdown`] when done.
     pub async fn start(self) -> Result<(P, Arc<NodeRunner>)> {
         let descriptor = P::descriptor();
-        let (doc, _) =
-            NodeDoc::parse(descriptor.document_path, descriptor.document).map_err(|d| {
-                Error::Startup(format!(
-                    "the node document compiled into this binary is invalid (rebuild it):\n{d}"
-                ))
-            })?;
+        let doc = NodeModel::from_json(descriptor.model).map_err(|e| {
+            Error::Startup(format!(
+                "the model of `{}` compiled into this binary is unreadable (rebuild it): {e}",
+                descriptor.document_path
+            ))
+        })?;
         let args = self.args.unwrap_or_else(|| std::env::args().collect());
         let config_file = self
             .runtime_config
@@ -233,7 +233,7 @@ impl std::fmt::Debug for NodeRunner {
 
 impl NodeRunner {
     async fn open(
-        doc: &NodeDoc,
+        doc: &NodeModel,
         descriptor: &'static NodeDescriptor,
         startup: Startup,
         retention: std::time::Duration,
@@ -242,8 +242,8 @@ impl NodeRunner {
         let session = zenoh::open(config).await?;
         let mut runner = NodeRunner {
             session,
-            node_name: doc.name.clone(),
-            node_tag: doc.tag.clone(),
+            node_name: doc.identity.name.clone(),
+            node_tag: doc.identity.tag.clone(),
             instance_id: startup.config.instance_id.clone(),
             core_node: startup.config.core_node.clone(),
             namespace: startup.config.namespace.clone(),

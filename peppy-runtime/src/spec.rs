@@ -1,6 +1,6 @@
 //! What generated code tells the runtime about a node: static descriptions
 //! of its entries. Generated code builds these as `static`s; the runtime
-//! never needs the schema at run time beyond them and the node's document.
+//! never needs the schema at run time beyond them and the node's compiled model.
 
 use peppy_schema::QosProfile;
 
@@ -151,8 +151,10 @@ pub struct ConsumedActionSpec {
 /// Everything the runtime must set up before the node's code runs.
 #[derive(Debug)]
 pub struct NodeDescriptor {
-    /// The node's `peppy.json5` text (slots and parameter schema come from it).
-    pub document: &'static str,
+    /// The node's run-time model ([`peppy_schema::NodeModel::to_json`]):
+    /// identity, slots and parameter schema, compiled in by the build so
+    /// the node never parses its document.
+    pub model: &'static str,
     /// Where the document was read from, for messages.
     pub document_path: &'static str,
     /// Topics it emits (publishers are declared up front).

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use clap::Parser;
 use peppy_schema::{
-    BindRequest, NodeDoc, ParamKind, ParameterSchema, Primitive, SlotBinding, SlotPlan, assign,
+    BindRequest, NodeModel, ParamKind, ParameterSchema, Primitive, SlotBinding, SlotPlan, assign,
     requests_for,
 };
 use serde::{Deserialize, Serialize};
@@ -182,7 +182,7 @@ pub(crate) struct Startup {
 /// Reads the start-up inputs: the runtime-config file when the launcher set
 /// `PEPPY_RUNTIME_CONFIG`, else `args` (the command line) and `standalone`.
 pub(crate) fn load(
-    doc: &NodeDoc,
+    doc: &NodeModel,
     args: Vec<String>,
     env_file: Option<PathBuf>,
     standalone: &StandaloneConfig,
@@ -208,7 +208,6 @@ pub(crate) fn load(
         None => slots_from_config(doc, &config.instance_id, &config.bindings)?,
     };
     let parameters = doc
-        .execution
         .parameters
         .resolve(&config.parameters)
         .map_err(Error::Parameters)?;
@@ -223,7 +222,7 @@ pub(crate) fn load(
 /// `key=value`, ...) means for the node `doc`: the start-up config it
 /// describes, with bindings checked and parameters filled. `peppy-launch run`
 /// hands this to the node it starts.
-pub fn startup_from_flags(doc: &NodeDoc, args: Vec<String>) -> Result<StartupConfig> {
+pub fn startup_from_flags(doc: &NodeModel, args: Vec<String>) -> Result<StartupConfig> {
     let s = load(doc, args, None, &StandaloneConfig::default())?;
     let mut config = s.config;
     config.bindings = s
@@ -253,7 +252,7 @@ fn read_config_file(path: &Path) -> Result<StartupConfig> {
 type Binds = Vec<(String, String)>;
 
 fn standalone_config(
-    doc: &NodeDoc,
+    doc: &NodeModel,
     flags: Flags,
     standalone: &StandaloneConfig,
 ) -> Result<(StartupConfig, Option<Binds>)> {
@@ -290,7 +289,7 @@ fn standalone_config(
                 "unexpected argument `{o}`: parameter overrides are `key=value` (dot-paths for groups)"
             )));
         };
-        let value = typed_value(&doc.execution.parameters, path, raw);
+        let value = typed_value(&doc.parameters, path, raw);
         let mut patch = value;
         for key in path.rsplit('.') {
             let mut m = serde_json::Map::new();
@@ -316,7 +315,7 @@ fn standalone_config(
         instance_id: flags
             .instance_id
             .or_else(|| standalone.instance_id.clone())
-            .unwrap_or_else(|| readable_id(&doc.name)),
+            .unwrap_or_else(|| readable_id(&doc.identity.name)),
         core_node: STANDALONE_CORE.to_string(),
         namespace: flags
             .namespace
@@ -396,7 +395,7 @@ fn typed_value(schema: &ParameterSchema, path: &str, raw: &str) -> Json {
 /// first `from_any` slot only when every `from_any` slot wants the same
 /// producers; otherwise the flag must name the slot.
 fn slots_from_flags(
-    doc: &NodeDoc,
+    doc: &NodeModel,
     instance: &str,
     binds: &[(String, String)],
 ) -> Result<Vec<SlotPlan>> {
@@ -415,22 +414,22 @@ fn slots_from_flags(
 /// launcher decided them; a disagreement means the binary and the launcher
 /// read different documents).
 fn slots_from_config(
-    doc: &NodeDoc,
+    doc: &NodeModel,
     instance: &str,
     bindings: &BTreeMap<String, SlotBinding>,
 ) -> Result<Vec<SlotPlan>> {
     if let Some(unknown) = bindings.keys().find(|k| doc.dependency(k).is_none()) {
         return Err(Error::Startup(format!(
             "the runtime config binds `{unknown}`, which is not a slot of `{}`; was this binary built from another peppy.json5 than the launcher read?",
-            doc.identity()
+            doc.identity
         )));
     }
     let requests = requests_for(bindings.iter().map(|(k, b)| (k.as_str(), b)));
     engine(doc, instance, &requests)
 }
 
-fn engine(doc: &NodeDoc, instance: &str, requests: &[BindRequest<'_>]) -> Result<Vec<SlotPlan>> {
-    let outcome = assign(instance, &doc.identity(), &doc.dependencies, requests);
+fn engine(doc: &NodeModel, instance: &str, requests: &[BindRequest<'_>]) -> Result<Vec<SlotPlan>> {
+    let outcome = assign(instance, &doc.identity, &doc.dependencies, requests);
     if outcome.errors.is_empty() {
         Ok(outcome.slots)
     } else {
@@ -443,11 +442,16 @@ fn engine(doc: &NodeDoc, instance: &str, requests: &[BindRequest<'_>]) -> Result
 #[cfg(test)]
 mod tests {
     use super::*;
-    use peppy_schema::RouteFilter;
+    use peppy_schema::{NodeDoc, RouteFilter};
 
-    fn doc() -> NodeDoc {
-        NodeDoc::parse(
-            "peppy.json5",
+    /// A node's model as its binary sees it: through the JSON the build embeds.
+    fn model(text: &str) -> NodeModel {
+        let (doc, _) = NodeDoc::parse("peppy.json5", text).unwrap();
+        NodeModel::from_json(&NodeModel::of(&doc).to_json()).unwrap()
+    }
+
+    fn doc() -> NodeModel {
+        model(
             r#"{ peppy_schema: "node_v1",
                 manifest: { name: "recon", tag: "v1", depends_on: { interfaces: [
                     { name: "depth_camera", tag: "v1", link_id: "left_cam" },
@@ -456,8 +460,6 @@ mod tests {
                 execution: { language: "rust", run_cmd: ["x"], parameters: {
                     fps: { $type: "u16", $default: 30 }, name: "string", video: { scale: { $type: "f64", $default: 1 } } } } }"#,
         )
-        .unwrap()
-        .0
     }
 
     fn args(a: &[&str]) -> Vec<String> {
@@ -502,16 +504,13 @@ mod tests {
 
     #[test]
     fn a_free_form_key_is_refused_when_the_slot_would_be_a_guess() {
-        let doc = NodeDoc::parse(
-            "peppy.json5",
+        let doc = model(
             r#"{ peppy_schema: "node_v1",
                 manifest: { name: "mixer", tag: "v1", depends_on: {
                     interfaces: [ { name: "depth_camera", tag: "v1", link_id: "cams", from_any: true } ],
                     nodes: [ { name: "realsense_d405", tag: "v1", link_id: "realsenses", from_any: true } ] } },
                 execution: { language: "rust", run_cmd: ["x"] } }"#,
-        )
-        .unwrap()
-        .0;
+        );
         // The producer's node is not known on a command line, and the two
         // from_any slots want different producers: no silent pick.
         let err = load(

@@ -16,7 +16,7 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 
 use crate::diag::{Code, list};
-use crate::node::{Dependency, Identity, NodeDoc, SlotKind};
+use crate::model::{Dependency, Identity, SlotKind};
 
 /// What fills one slot.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -100,7 +100,8 @@ impl Producer<'_> {
 }
 
 /// The identities of a node's `conforms_to` entries, for [`Producer`].
-pub fn conformances(node: &NodeDoc) -> Vec<Identity> {
+#[cfg(feature = "documents")]
+pub fn conformances(node: &crate::node::NodeDoc) -> Vec<Identity> {
     node.conforms_to.iter().map(|c| c.target.clone()).collect()
 }
 

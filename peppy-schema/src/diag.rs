@@ -306,6 +306,7 @@ impl fmt::Display for Diagnostic {
 
 impl std::error::Error for Diagnostic {}
 
+#[cfg(feature = "documents")]
 impl miette::SourceCode for SourceFile {
     fn read_span<'a>(
         &'a self,
@@ -327,6 +328,7 @@ impl miette::SourceCode for SourceFile {
     }
 }
 
+#[cfg(feature = "documents")]
 impl miette::Diagnostic for Diagnostic {
     fn code<'a>(&'a self) -> Option<Box<dyn fmt::Display + 'a>> {
         Some(Box::new(self.code))
@@ -415,6 +417,7 @@ impl Diagnostics {
         self.items.iter()
     }
 
+    #[cfg(feature = "documents")]
     pub(crate) fn iter_mut(&mut self) -> impl Iterator<Item = &mut Diagnostic> {
         self.items.iter_mut()
     }

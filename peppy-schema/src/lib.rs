@@ -33,61 +33,97 @@
 //! assert!(lines[1].starts_with("peppy.json5:4:52: error: unknown key `bogus` in `execution`"), "{}", lines[1]);
 //! ```
 
+// The run-time model: what a node binary needs, with no document parser.
 mod binding;
 mod diag;
-mod document;
-mod entries;
-mod format;
-mod interface;
-pub mod json;
-mod launcher;
+mod loc;
+mod model;
 pub mod names;
-mod node;
 mod params;
-mod plan;
-mod read;
-mod repos;
-mod resolve;
+mod primitive;
+mod qos;
 mod source;
+
+// The documents: parsing, resolution, launchers and repositories (the
+// `documents` feature, on by default; node binaries go without it).
+#[cfg(feature = "documents")]
+mod document;
+#[cfg(feature = "documents")]
+mod entries;
+#[cfg(feature = "documents")]
+mod format;
+#[cfg(feature = "documents")]
+mod interface;
+#[cfg(feature = "documents")]
+pub mod json;
+#[cfg(feature = "documents")]
+mod launcher;
+#[cfg(feature = "documents")]
+mod node;
+#[cfg(feature = "documents")]
+mod plan;
+#[cfg(feature = "documents")]
+mod read;
+#[cfg(feature = "documents")]
+mod repos;
+#[cfg(feature = "documents")]
+mod resolve;
+#[cfg(feature = "documents")]
 mod stack;
 
 pub use binding::{
     Assignment, BindError, BindRequest, Producer, RouteFilter, SlotBinding, SlotPlan, assign,
-    compute_filters, conformances, requests_for,
+    compute_filters, requests_for,
 };
 pub use diag::{Code, Diagnostic, Diagnostics, Severity, did_you_mean};
-pub use document::{
-    Document, DocumentKind, Parsed, REPOSITORIES_FILE, RepositoriesDoc, SCHEMAS, detect_kind,
-    load_as, load_document, parse_as, parse_document,
-};
-pub use entries::{
-    ActionDecl, EntryKind, FeedbackDecl, QOS_NAMES, QosProfile, RESERVED_SERVICE_NAMES,
-    ServiceDecl, TopicDecl,
-};
-pub use format::{Field, FieldType, MAX_FIXED_LENGTH, MessageFormat, Primitive, TYPE_NAMES};
-pub use interface::InterfaceDoc;
-pub use launcher::{
-    Binding, Deployment, FORBIDDEN_ENV_VARS, Instance, LauncherDoc, RestartPolicy, Source,
-    stack_rules,
-};
-pub use node::{
-    ConsumedRef, ConsumedTopic, Container, Dependency, Execution, Identity, InterfaceRef, Launch,
-    NodeDoc, SlotKind, TopicSource,
-};
+pub use loc::Loc;
+pub use model::{Dependency, Identity, NodeModel, SlotKind};
 pub use params::{
     ParamError, ParamErrorKind, ParamField, ParamItem, ParamKind, ParameterSchema, check_leaf,
     describe,
 };
+pub use primitive::{MAX_FIXED_LENGTH, Primitive, TYPE_NAMES};
+pub use qos::{QOS_NAMES, QosProfile};
+pub use source::{LineCol, MAX_DOCUMENT_BYTES, SourceFile, Span};
+
+#[cfg(feature = "documents")]
+pub use binding::conformances;
+#[cfg(feature = "documents")]
+pub use document::{
+    Document, DocumentKind, Parsed, REPOSITORIES_FILE, RepositoriesDoc, SCHEMAS, detect_kind,
+    load_as, load_document, parse_as, parse_document,
+};
+#[cfg(feature = "documents")]
+pub use entries::{
+    ActionDecl, EntryKind, FeedbackDecl, RESERVED_SERVICE_NAMES, ServiceDecl, TopicDecl,
+};
+#[cfg(feature = "documents")]
+pub use format::{Field, FieldType, MessageFormat};
+#[cfg(feature = "documents")]
+pub use interface::InterfaceDoc;
+#[cfg(feature = "documents")]
+pub use launcher::{
+    Binding, Deployment, FORBIDDEN_ENV_VARS, Instance, LauncherDoc, RestartPolicy, Source,
+    stack_rules,
+};
+#[cfg(feature = "documents")]
+pub use node::{
+    ConsumedRef, ConsumedTopic, Container, Execution, InterfaceRef, Launch, NodeDoc, TopicSource,
+};
+#[cfg(feature = "documents")]
 pub use plan::{BindingPlan, InstancePlan, plan_bindings};
-pub use read::Loc;
+#[cfg(feature = "documents")]
 pub use repos::{
     Broken, Entry, REPOSITORIES_ENV, RepoIndex, RepositoryList, SKIPPED_DIRS, json5_files,
 };
+#[cfg(feature = "documents")]
 pub use resolve::{
     Origin, Provided, ResolvedCall, ResolvedNode, ResolvedTopic, SlotRef, UsedInterface,
     resolve_node,
 };
-pub use source::{LineCol, MAX_DOCUMENT_BYTES, SourceFile, Span, sha256_hex};
+#[cfg(feature = "documents")]
+pub use source::sha256_hex;
+#[cfg(feature = "documents")]
 pub use stack::{
     DeployedNode, NodeCheck, RepoOptions, StackCheck, check_launcher, check_node, node_file,
 };

@@ -1,7 +1,6 @@
 //! Node documents (`peppy_schema: "node_v1"`, and the legacy
 //! `schema_version: 1` form mapped onto the same model).
 
-use std::fmt;
 use std::sync::Arc;
 
 use serde::Serialize;
@@ -13,6 +12,7 @@ use crate::entries::{
 };
 use crate::format::{MessageFormat, parse_format};
 use crate::json::{Node, Value};
+pub(crate) use crate::model::{Dependency, Identity, SlotKind};
 use crate::names::{check_link_id, check_name, check_tag, module_name};
 use crate::params::{ParameterSchema, parse_parameters};
 use crate::read::{Loc, Obj, Reader, index};
@@ -51,75 +51,6 @@ pub struct NodeDoc {
     pub exposed_actions: Vec<ActionDecl>,
     /// `interfaces.actions.consumes`.
     pub consumed_actions: Vec<ConsumedRef>,
-}
-
-/// A `name:tag` identity of a node or interface.
-#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
-pub struct Identity {
-    /// Name.
-    pub name: String,
-    /// Tag.
-    pub tag: String,
-}
-
-impl Identity {
-    /// `name:tag`.
-    pub fn new(name: impl Into<String>, tag: impl Into<String>) -> Self {
-        Identity {
-            name: name.into(),
-            tag: tag.into(),
-        }
-    }
-
-    /// Parses `name:tag`.
-    pub fn parse(s: &str) -> Option<Identity> {
-        let (name, tag) = s.split_once(':')?;
-        (!name.is_empty() && !tag.is_empty() && !tag.contains(':'))
-            .then(|| Identity::new(name, tag))
-    }
-}
-
-impl fmt::Display for Identity {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}:{}", self.name, self.tag)
-    }
-}
-
-/// Whether a slot is filled by one node or by any conforming node.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum SlotKind {
-    /// `depends_on.nodes`: instances of exactly that node.
-    Node,
-    /// `depends_on.interfaces`: instances of nodes that conform to it.
-    Interface,
-}
-
-impl SlotKind {
-    /// `node` / `interface`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            SlotKind::Node => "node",
-            SlotKind::Interface => "interface",
-        }
-    }
-}
-
-/// One `depends_on` entry: a slot named by its `link_id`.
-#[derive(Debug, Clone)]
-pub struct Dependency {
-    /// Node or interface slot.
-    pub kind: SlotKind,
-    /// The producer node or the interface.
-    pub target: Identity,
-    /// The slot's name.
-    pub link_id: String,
-    /// Accepts any number of producers (else exactly one, pinned).
-    pub from_any: bool,
-    /// Interface revision pin (interface slots only).
-    pub sha256: Option<String>,
-    /// Where the entry is.
-    pub loc: Loc,
 }
 
 /// One `conforms_to` entry.

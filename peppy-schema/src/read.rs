@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use crate::diag::{Code, Diagnostic, Diagnostics, did_you_mean, list};
+use crate::diag::{Code, Diagnostics, did_you_mean, list};
 use crate::json::{Member, Node, Number, Value};
 use crate::source::{SourceFile, Span};
 
@@ -35,33 +35,7 @@ pub(crate) fn index(parent: &str, i: usize) -> String {
     format!("{parent}[{i}]")
 }
 
-/// A located place in a document, kept by the model for errors found later
-/// (resolution, binding).
-#[derive(Debug, Clone)]
-pub struct Loc {
-    /// The document.
-    pub file: Arc<SourceFile>,
-    /// The value's span.
-    pub span: Span,
-    /// The key path of the value.
-    pub key_path: String,
-}
-
-impl Loc {
-    /// An error at this place.
-    pub fn error(&self, code: Code, message: impl Into<String>) -> Diagnostic {
-        Diagnostic::error(code, message)
-            .at(&self.file, self.span)
-            .with_key_path(self.key_path.clone())
-    }
-
-    /// A warning at this place.
-    pub fn warning(&self, code: Code, message: impl Into<String>) -> Diagnostic {
-        Diagnostic::warning(code, message)
-            .at(&self.file, self.span)
-            .with_key_path(self.key_path.clone())
-    }
-}
+pub(crate) use crate::loc::Loc;
 
 /// An object being read, with its key path.
 pub(crate) struct Obj<'n> {

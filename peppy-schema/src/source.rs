@@ -4,8 +4,10 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+#[cfg(feature = "documents")]
 use sha2::{Digest, Sha256};
 
+#[cfg(feature = "documents")]
 use crate::diag::{Code, Diagnostic};
 
 /// Documents larger than this are refused before parsing.
@@ -75,6 +77,7 @@ impl SourceFile {
     ///
     /// Returns the file and the sha256 of its exact bytes (lowercase hex),
     /// which is an interface document's revision.
+    #[cfg(feature = "documents")]
     pub fn read(path: &Path) -> Result<(Arc<Self>, String), Box<Diagnostic>> {
         let fail = |message: String| {
             Box::new(Diagnostic::error(Code::CannotRead, message).with_file_path(path))
@@ -146,6 +149,7 @@ impl SourceFile {
 }
 
 /// sha256 of `bytes` as 64 lowercase hex characters.
+#[cfg(feature = "documents")]
 pub fn sha256_hex(bytes: &[u8]) -> String {
     format!("{:x}", Sha256::digest(bytes))
 }

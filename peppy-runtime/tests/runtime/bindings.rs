@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use peppy_schema::{NodeDoc, RepoOptions, SlotBinding, check_launcher};
+use peppy_schema::{NodeModel, RepoOptions, SlotBinding, check_launcher};
 
 fn examples() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples")
@@ -36,7 +36,7 @@ fn run_bind_and_up_bind_every_example_launcher_identically() {
         };
         for (d, inst) in stack.launcher.instances() {
             let planned = stack.plan.instance(&inst.instance_id).unwrap();
-            let doc: &NodeDoc = &stack.deployments[d].resolved.node;
+            let doc = NodeModel::of(&stack.deployments[d].resolved.node);
             let params = dir.path().join(format!("{}.json", inst.instance_id));
             std::fs::write(&params, planned.parameters.to_string()).unwrap();
             let mut args = vec![
@@ -49,7 +49,7 @@ fn run_bind_and_up_bind_every_example_launcher_identically() {
             for b in &inst.bindings {
                 args.extend(["--bind".into(), format!("{}@{}", b.key, b.target)]);
             }
-            let from_flags = peppy_runtime::startup_from_flags(doc, args)
+            let from_flags = peppy_runtime::startup_from_flags(&doc, args)
                 .unwrap_or_else(|e| panic!("{}: {}: {e}", launcher.display(), inst.instance_id))
                 .bindings;
             let from_plan: BTreeMap<String, SlotBinding> = planned

@@ -121,6 +121,12 @@ impl Decode for Frame {
     }
 }
 
+/// The run-time model of a test node's document, as the build embeds it.
+pub(crate) fn model_json(document: &str) -> &'static str {
+    let (doc, _) = peppy_schema::NodeDoc::parse("test.json5", document).expect("valid test node");
+    Box::leak(peppy_schema::NodeModel::of(&doc).to_json().into_boxed_str())
+}
+
 /// Defines a parameters type whose node is described by `$doc` and the given specs.
 macro_rules! test_node {
     ($ty:ident, $doc:expr, emits: [$($e:expr),*], consumes: [$($c:expr),*], serves: [$($s:expr),*], actions: [$($a:expr),*]) => {
@@ -128,14 +134,21 @@ macro_rules! test_node {
         pub(crate) struct $ty {}
         impl peppy_runtime::codegen::NodeParameters for $ty {
             fn descriptor() -> &'static peppy_runtime::codegen::NodeDescriptor {
-                static D: peppy_runtime::codegen::NodeDescriptor = peppy_runtime::codegen::NodeDescriptor {
-                    document: $doc,
-                    document_path: concat!(stringify!($ty), ".json5"),
-                    emitted_topics: &[$(&$e),*],
-                    consumed_topics: &[$(&$c),*],
-                    exposed_services: &[$(&$s),*],
-                    exposed_actions: &[$(&$a),*],
-                };
+                use peppy_runtime::codegen as cg;
+                static EMITS: &[&cg::TopicSpec] = &[$(&$e),*];
+                static CONSUMES: &[&cg::ConsumedTopicSpec] = &[$(&$c),*];
+                static SERVES: &[&cg::ServiceSpec] = &[$(&$s),*];
+                static ACTIONS: &[&cg::ActionSpec] = &[$(&$a),*];
+                // What the build does: the document's run-time model, embedded as JSON.
+                static D: std::sync::LazyLock<cg::NodeDescriptor> =
+                    std::sync::LazyLock::new(|| cg::NodeDescriptor {
+                        model: crate::support::model_json($doc),
+                        document_path: concat!(stringify!($ty), ".json5"),
+                        emitted_topics: EMITS,
+                        consumed_topics: CONSUMES,
+                        exposed_services: SERVES,
+                        exposed_actions: ACTIONS,
+                    });
                 &D
             }
         }
