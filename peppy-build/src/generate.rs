@@ -1,7 +1,6 @@
 //! The generator: a resolved node in, the items of its `peppygen` module
 //! out. Pure: no file system, no environment.
 
-use peppy_schema::names::module_name;
 use peppy_schema::{
     Diagnostics, EntryKind, InterfaceRef, Loc, MessageFormat, Origin, Provided, QosProfile,
     ResolvedCall, ResolvedNode, ResolvedTopic, ServiceDecl, TopicDecl,
@@ -9,7 +8,7 @@ use peppy_schema::{
 use proc_macro2::{Ident, TokenStream};
 use quote::quote;
 
-use crate::naming::{NameKind, Names, ident, module, short_location, type_prefix};
+use crate::naming::{NameKind, Names, consumed_module, ident, module, short_location, type_prefix};
 use crate::params;
 use crate::types::{Structs, args, format_spec, many_args_allow, snake_allow};
 
@@ -243,11 +242,7 @@ impl Gen<'_> {
         let mut names = Names::default();
         let node = self.node;
         for a in &node.consumed_actions {
-            let m = module(&format!(
-                "{}_{}",
-                module_name(&a.slot.link_id),
-                module_name(&a.decl.name)
-            ));
+            let m = consumed_module(Some(&a.slot.link_id), &a.decl.name);
             let what = format!(
                 "consumed action `{}` of slot `{}`",
                 a.decl.name, a.slot.link_id
@@ -419,11 +414,7 @@ impl Gen<'_> {
         let mut names = Names::default();
         let node = self.node;
         for t in &node.consumed_topics {
-            let m = match &t.slot {
-                Some(slot) => format!("{}_{}", module_name(&slot.link_id), module_name(&t.name)),
-                None => module(&t.name),
-            };
-            let m = module(&m);
+            let m = consumed_module(t.slot.as_ref().map(|s| s.link_id.as_str()), &t.name);
             let what = match &t.slot {
                 Some(slot) => format!("consumed topic `{}` of slot `{}`", t.name, slot.link_id),
                 None => format!("external consumed topic `{}`", t.name),
@@ -450,11 +441,7 @@ impl Gen<'_> {
         let mut names = Names::default();
         let node = self.node;
         for s in &node.consumed_services {
-            let m = module(&format!(
-                "{}_{}",
-                module_name(&s.slot.link_id),
-                module_name(&s.decl.name)
-            ));
+            let m = consumed_module(Some(&s.slot.link_id), &s.decl.name);
             let what = format!(
                 "consumed service `{}` of slot `{}`",
                 s.decl.name, s.slot.link_id

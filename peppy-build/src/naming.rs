@@ -4,13 +4,10 @@
 
 use std::collections::HashMap;
 
-use peppy_schema::names::{is_rust_keyword, module_name, upper_camel};
+use peppy_schema::names::{NOT_RAW, is_rust_keyword};
+pub(crate) use peppy_schema::names::{consumed_module, module, nested_type, type_prefix};
 use peppy_schema::{Code, Diagnostic, Diagnostics, Loc};
 use proc_macro2::{Ident, Span};
-
-/// Keywords that cannot be raw identifiers; a module named like one gets a
-/// trailing `_`.
-const NOT_RAW: &[&str] = &["self", "super", "crate", "Self", "_"];
 
 /// An identifier from text the schema already validated. Anything that
 /// still is not an identifier becomes `__invalid` (and cannot compile)
@@ -38,36 +35,6 @@ pub(crate) fn ident(s: &str) -> Ident {
 /// The identifier of a message or parameter field (`type` -> `r#type`).
 pub(crate) fn field_ident(name: &str) -> Ident {
     ident(name)
-}
-
-/// The module name of a topic, service, action, link id, interface or tag:
-/// lowercase, other characters as `_`, `self`/`super`/`crate` with a
-/// trailing `_` (other keywords become raw identifiers).
-pub(crate) fn module(name: &str) -> String {
-    let mut m = module_name(name);
-    if m.is_empty() {
-        m.push('_');
-    }
-    if NOT_RAW.contains(&m.as_str()) {
-        m.push('_');
-    }
-    m
-}
-
-/// The prefix of generated type names derived from an entry name
-/// (`video_stream_info` -> `VideoStreamInfo`).
-pub(crate) fn type_prefix(name: &str) -> String {
-    let camel = upper_camel(name);
-    if camel.is_empty() || camel.starts_with(|c: char| c.is_ascii_digit()) {
-        format!("_{camel}")
-    } else {
-        camel
-    }
-}
-
-/// The nested type name of field `field` under `prefix`.
-pub(crate) fn nested_type(prefix: &str, field: &str) -> String {
-    format!("{prefix}{}", upper_camel(field))
 }
 
 /// Whether rustc's `non_snake_case` lint accepts `s` (a copy of its rule).

@@ -14,6 +14,9 @@ use crate::read::{Loc, Reader, join};
 
 pub(crate) use crate::primitive::{MAX_FIXED_LENGTH, Primitive, TYPE_NAMES};
 
+/// What else a message field's type may be, for `UnknownType` help.
+const MESSAGE_TYPES: &str = "or an object, or an array";
+
 /// A message format: the root object's fields, in declaration order.
 #[derive(Debug, Clone)]
 pub struct MessageFormat {
@@ -216,7 +219,19 @@ fn parse_field(
     })
 }
 
-fn unknown_type(r: &mut Reader<'_>, node: &Node, path: &str, found: &str) {
+/// The grammar shared by message formats and parameters: a primitive type
+/// name. An unknown one is a located `UnknownType` error with a
+/// did-you-mean; `others` names what else may stand there.
+pub(crate) fn primitive_name(
+    r: &mut Reader<'_>,
+    node: &Node,
+    path: &str,
+    found: &str,
+    others: &str,
+) -> Option<Primitive> {
+    if let Some(p) = Primitive::parse(found) {
+        return Some(p);
+    }
     let help = match found {
         "array" => "an array is written `{ $type: \"array\", $items: \"u8\" }`".to_string(),
         "object" => "an object is written `{ field: \"u32\", ... }`".to_string(),
@@ -225,10 +240,7 @@ fn unknown_type(r: &mut Reader<'_>, node: &Node, path: &str, found: &str) {
                 "did you mean `{s}`? types: {}",
                 list(TYPE_NAMES.iter().copied())
             ),
-            None => format!(
-                "types: {}, or an object, or an array",
-                list(TYPE_NAMES.iter().copied())
-            ),
+            None => format!("types: {}, {others}", list(TYPE_NAMES.iter().copied())),
         },
     };
     r.error_help(
@@ -238,6 +250,25 @@ fn unknown_type(r: &mut Reader<'_>, node: &Node, path: &str, found: &str) {
         format!("unknown type `{found}`"),
         help,
     );
+    None
+}
+
+/// The grammar shared by message formats and parameters: `$length`, from
+/// 1 to [`MAX_FIXED_LENGTH`]. `Err` when it was refused (and reported).
+pub(crate) fn fixed_length(r: &mut Reader<'_>, node: &Node, path: &str) -> Result<u32, ()> {
+    match r.uint(node, path, MAX_FIXED_LENGTH) {
+        Some(0) => {
+            r.error(
+                Code::LengthMisuse,
+                node.span,
+                path,
+                "`$length` must be at least 1",
+            );
+            Err(())
+        }
+        Some(n) => Ok(n as u32),
+        None => Err(()),
+    }
 }
 
 fn parse_type(
@@ -248,13 +279,8 @@ fn parse_type(
 ) -> Option<(FieldType, bool)> {
     let members = match &node.value {
         Value::String(s) => {
-            return match Primitive::parse(s) {
-                Some(p) => Some((FieldType::Primitive(p), false)),
-                None => {
-                    unknown_type(r, node, path, s);
-                    None
-                }
-            };
+            let p = primitive_name(r, node, path, s, MESSAGE_TYPES)?;
+            return Some((FieldType::Primitive(p), false));
         }
         Value::Object(members) => members,
         other => {
@@ -298,18 +324,13 @@ fn parse_type(
     let shape = match type_name {
         None | Some("object") => Shape::Object,
         Some("array") => Shape::Array,
-        Some(s) => match Primitive::parse(s) {
-            Some(p) => Shape::Primitive(p),
-            None => {
-                unknown_type(
-                    r,
-                    type_node.expect("type node present"),
-                    &join(path, "$type"),
-                    s,
-                );
-                return None;
-            }
-        },
+        Some(s) => Shape::Primitive(primitive_name(
+            r,
+            type_node.expect("type node present"),
+            &join(path, "$type"),
+            s,
+            MESSAGE_TYPES,
+        )?),
     };
     let allowed: &[&str] = match shape {
         Shape::Object => &["$type", "$optional"],
@@ -480,18 +501,8 @@ fn parse_type(
                 None => None,
                 Some(l) => {
                     let lpath = join(path, "$length");
-                    match r.uint(l, &lpath, MAX_FIXED_LENGTH) {
-                        Some(0) => {
-                            r.error(
-                                Code::LengthMisuse,
-                                l.span,
-                                &lpath,
-                                "`$length` must be at least 1",
-                            );
-                            ok = false;
-                            None
-                        }
-                        Some(n) => {
+                    match fixed_length(r, l, &lpath) {
+                        Ok(n) => {
                             let scalar = matches!(items, FieldType::Primitive(p) if p.is_scalar());
                             if !scalar {
                                 r.error_help(
@@ -503,9 +514,9 @@ fn parse_type(
                                 );
                                 ok = false;
                             }
-                            Some(n as u32)
+                            Some(n)
                         }
-                        None => {
+                        Err(()) => {
                             ok = false;
                             None
                         }

@@ -1,4 +1,6 @@
-//! What names, tags, identifiers and key segments may look like.
+//! What names, tags, identifiers and key segments may look like, and the
+//! Rust names generated from them (the one naming rule the schema's clash
+//! checks and the generator share).
 
 /// Rust keywords (all editions, including reserved ones): a field named like
 /// one is generated as a raw identifier (`type` -> `r#type`).
@@ -10,8 +12,9 @@ const RUST_KEYWORDS: &[&str] = &[
     "override", "priv", "typeof", "unsized", "virtual", "yield", "try", "gen",
 ];
 
-/// Keywords that cannot be raw identifiers either.
-const NOT_RAW: &[&str] = &["self", "Self", "super", "crate", "_"];
+/// Keywords that cannot be raw identifiers either: a module or identifier
+/// named like one gets a trailing `_`.
+pub const NOT_RAW: &[&str] = &["self", "Self", "super", "crate", "_"];
 
 fn is_name_char(c: char) -> bool {
     c.is_ascii_alphanumeric() || c == '_' || c == '-'
@@ -124,6 +127,45 @@ pub fn module_name(s: &str) -> String {
         out.insert(0, '_');
     }
     out
+}
+
+/// The Rust module of a topic, service, action, link id, interface or tag:
+/// [`module_name`], never empty, and `self`/`super`/`crate` with a trailing
+/// `_` (other keywords become raw identifiers).
+pub fn module(name: &str) -> String {
+    let mut m = module_name(name);
+    if m.is_empty() {
+        m.push('_');
+    }
+    if NOT_RAW.contains(&m.as_str()) {
+        m.push('_');
+    }
+    m
+}
+
+/// The module of an entry consumed through slot `link_id`:
+/// `<link_id>_<name>`; an external topic (no slot) is its name's module.
+pub fn consumed_module(link_id: Option<&str>, name: &str) -> String {
+    match link_id {
+        Some(link) => module(&format!("{}_{}", module_name(link), module_name(name))),
+        None => module(name),
+    }
+}
+
+/// The prefix of generated type names derived from an entry name
+/// (`video_stream_info` -> `VideoStreamInfo`, `2d` -> `_2d`).
+pub fn type_prefix(name: &str) -> String {
+    let camel = upper_camel(name);
+    if camel.is_empty() || camel.starts_with(|c: char| c.is_ascii_digit()) {
+        format!("_{camel}")
+    } else {
+        camel
+    }
+}
+
+/// The nested type name of field `field` under `prefix`.
+pub fn nested_type(prefix: &str, field: &str) -> String {
+    format!("{prefix}{}", upper_camel(field))
 }
 
 /// `UpperCamelCase` of an identifier-like name (`frame_id` -> `FrameId`).

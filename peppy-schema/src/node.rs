@@ -13,7 +13,7 @@ use crate::entries::{
 use crate::format::{MessageFormat, parse_format};
 use crate::json::{Node, Value};
 pub(crate) use crate::model::{Dependency, Identity, SlotKind};
-use crate::names::{check_link_id, check_name, check_tag, module_name};
+use crate::names::{check_link_id, check_name, check_tag, consumed_module, module_name};
 use crate::params::{ParameterSchema, parse_parameters};
 use crate::read::{Loc, Obj, Reader, index};
 use crate::source::SourceFile;
@@ -448,23 +448,26 @@ fn check_consumed_modules(
 ) {
     let topic_modules = topics.iter().map(|t| {
         let module = match &t.source {
-            TopicSource::Linked { link_id } => {
-                format!("{}_{}", module_name(link_id), module_name(&t.name))
-            }
-            TopicSource::External(_) => module_name(&t.name),
+            TopicSource::Linked { link_id } => consumed_module(Some(link_id), &t.name),
+            TopicSource::External(_) => consumed_module(None, &t.name),
         };
         (module, &t.loc)
     });
     check_modules(r, "consumed_topics", topic_modules);
-    check_modules(r, "consumed_services", services.iter().map(consumed_module));
-    check_modules(r, "consumed_actions", actions.iter().map(consumed_module));
+    check_modules(
+        r,
+        "consumed_services",
+        services.iter().map(consumed_ref_module),
+    );
+    check_modules(
+        r,
+        "consumed_actions",
+        actions.iter().map(consumed_ref_module),
+    );
 }
 
-fn consumed_module(c: &ConsumedRef) -> (String, &Loc) {
-    (
-        format!("{}_{}", module_name(&c.link_id), module_name(&c.name)),
-        &c.loc,
-    )
+fn consumed_ref_module(c: &ConsumedRef) -> (String, &Loc) {
+    (consumed_module(Some(&c.link_id), &c.name), &c.loc)
 }
 
 fn check_modules<'a>(

@@ -2,10 +2,11 @@
 //! `$items`, `$length`, groups; every `$default` checked by the same
 //! functions that check values later.
 
-use crate::diag::{Code, did_you_mean, list};
+use crate::diag::Code;
+use crate::format::{fixed_length, primitive_name};
 use crate::json::{Node, Value};
 use crate::names::check_field_name;
-use crate::primitive::{MAX_FIXED_LENGTH, Primitive, TYPE_NAMES};
+use crate::primitive::Primitive;
 use crate::read::{Reader, join};
 
 use super::{
@@ -78,28 +79,11 @@ fn parse_fields(
     ok.then_some(fields)
 }
 
+/// What else a parameter's type may be, for `UnknownType` help.
+const PARAMETER_TYPES: &str = "a group (an object) or an array";
+
 fn parse_primitive_name(r: &mut Reader<'_>, node: &Node, path: &str, s: &str) -> Option<Primitive> {
-    let p = Primitive::parse(s);
-    if p.is_none() {
-        let help = match did_you_mean(s, TYPE_NAMES.iter().copied()) {
-            Some(c) => format!(
-                "did you mean `{c}`? types: {}",
-                list(TYPE_NAMES.iter().copied())
-            ),
-            None => format!(
-                "types: {}, a group (an object) or an array",
-                list(TYPE_NAMES.iter().copied())
-            ),
-        };
-        r.error_help(
-            Code::UnknownType,
-            node.span,
-            path,
-            format!("unknown type `{s}`"),
-            help,
-        );
-    }
-    p
+    primitive_name(r, node, path, s, PARAMETER_TYPES)
 }
 
 fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Option<ParamKind> {
@@ -231,22 +215,13 @@ fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Op
             };
             let length = match node.get("$length") {
                 None => None,
-                Some(l) => {
-                    let lpath = join(path, "$length");
-                    match r.uint(l, &lpath, MAX_FIXED_LENGTH) {
-                        Some(0) | None => {
-                            r.error(
-                                Code::LengthMisuse,
-                                l.span,
-                                &lpath,
-                                "`$length` must be a positive integer",
-                            );
-                            ok = false;
-                            None
-                        }
-                        Some(n) => Some(n as u32),
+                Some(l) => match fixed_length(r, l, &join(path, "$length")) {
+                    Ok(n) => Some(n),
+                    Err(()) => {
+                        ok = false;
+                        None
                     }
-                }
+                },
             };
             let default = match node.get("$default") {
                 None => None,
