@@ -1,15 +1,8 @@
-//! Actions: a goal service (accept or reject with a reason), a per-goal
-//! feedback stream, a cancel service and a result service that parks the
-//! caller until the goal is terminal. Several goals run concurrently on one
-//! server; results are kept for a retention period, then reported
-//! `Expired`; a worker that drops its goal without finishing it reports
-//! `Abandoned`.
-//!
-//! Keys (see [`crate::wire::keys`]): the action's entry key followed by
-//! `/goal`, `/cancel`, `/result`, and `/feedback/<goal_id>`.
+//! The exposed side of an action: the goal registry (accept or reject,
+//! feedback, parked results, cancel, abandon, retention), the goal
+//! queryable's intake, and what the node's code holds while serving.
 
 use std::collections::{HashMap, VecDeque};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -21,23 +14,17 @@ use zenoh::query::Query;
 
 use crate::error::{Error, Result};
 use crate::node::NodeRunner;
-use crate::request::Request;
 use crate::services::Caller;
-use crate::spec::{ActionSpec, ConsumedActionSpec};
+use crate::spec::ActionSpec;
 use crate::stop;
-use crate::target;
 use crate::wire::attachment::{self, QueryHeader, QueryKind, ReplyStatus};
 use crate::wire::codec::{Decode, Decoder, Encode, from_bytes, to_bytes};
 use crate::wire::keys::{ActionPart, Channel, action_part_key, entry_key, feedback_key};
 
-/// How long a terminal goal's result stays available.
-pub const DEFAULT_RESULT_RETENTION: Duration = Duration::from_secs(30);
+use super::{CancelState, END_OF_FEEDBACK};
 
 /// How many expired goal ids are remembered (to answer `Expired`, not unknown).
 const EXPIRED_MEMORY: usize = 4096;
-
-/// Attachment of the last message of a goal's feedback stream.
-const END_OF_FEEDBACK: [u8; 2] = [attachment::VERSION, 0xEE];
 
 /// How a goal ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -544,262 +531,6 @@ impl Drop for GoalContext {
         {
             warn!(action = self.registry.spec.name, goal = %self.goal_id, "goal dropped without a result: reported as abandoned");
         }
-    }
-}
-
-/// How a goal ended, as its caller sees it.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Outcome<R> {
-    /// Finished with a result.
-    Completed(R),
-    /// Cancelled, with a (partial) result.
-    Cancelled(R),
-    /// The server dropped the goal without a result.
-    Abandoned,
-    /// The result was not fetched within the retention period.
-    Expired,
-}
-
-/// The answer to a cancel request.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CancelState {
-    /// The goal was running; its worker was signalled.
-    Signalled = 0,
-    /// The goal had already ended.
-    AlreadyTerminal = 1,
-    /// The server does not know the goal.
-    Unknown = 2,
-}
-
-/// A goal sent to an action server, seen from the caller.
-pub struct GoalClient {
-    session: zenoh::Session,
-    base_key: String,
-    action: &'static str,
-    goal_id: String,
-    spec: &'static ConsumedActionSpec,
-    feedback: flume::Receiver<Option<Vec<u8>>>,
-    _subscriber: zenoh::pubsub::Subscriber<()>,
-    stop: CancellationToken,
-    /// Whether the server accepted the goal.
-    pub accepted: bool,
-    /// The server's reason when it rejected the goal.
-    pub error_message: Option<String>,
-    /// The server's instance id.
-    pub instance_id: String,
-    /// The server's core node.
-    pub core_node: String,
-}
-
-impl std::fmt::Debug for GoalClient {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("GoalClient")
-            .field("goal_id", &self.goal_id)
-            .field("accepted", &self.accepted)
-            .field("server", &self.instance_id)
-            .finish_non_exhaustive()
-    }
-}
-
-static GOAL_COUNTER: AtomicU64 = AtomicU64::new(0);
-
-fn new_goal_id() -> String {
-    use std::hash::{BuildHasher, Hasher};
-    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-    h.write_u64(GOAL_COUNTER.fetch_add(1, Ordering::Relaxed));
-    h.write_u32(std::process::id());
-    format!("{:016x}", h.finish())
-}
-
-/// Sends a goal through the action's slot and waits for the server's
-/// decision (accepted or rejected). The feedback stream is subscribed
-/// before the goal is sent, so no feedback is missed. On an already stopped
-/// node it returns [`Error::ShuttingDown`] after a short pause.
-pub fn send_goal<'a, G: Encode + ?Sized>(
-    runner: &'a NodeRunner,
-    spec: &'static ConsumedActionSpec,
-    timeout: Duration,
-    goal: &G,
-) -> impl Future<Output = Result<GoalClient>> + Send + use<'a, G> {
-    let body = to_bytes(goal);
-    async move {
-        if runner.cancellation_token().is_cancelled() {
-            return Err(stop::refused().await);
-        }
-        let deadline = Instant::now() + timeout;
-        let owner = spec.owner.resolve(runner.node_name(), runner.node_tag());
-        let entry = target::Entry {
-            link_id: spec.link_id,
-            owner: spec.owner,
-            channel: Channel::Action,
-            name: spec.name,
-            part: Some(ActionPart::Goal),
-            fingerprint: spec.goal.fingerprint,
-            describe: format!("{} (action goal)", spec.name),
-        };
-        let target = target::choose(runner, &entry, deadline).await?;
-        let goal_id = new_goal_id();
-        let (tx, rx) = flume::unbounded();
-        let feedback_fp = spec.feedback.fingerprint;
-        let subscriber = runner
-            .session()
-            .declare_subscriber(feedback_key(&entry.base(runner, Some(&target)), &goal_id))
-            .callback(move |sample| {
-                let att = sample
-                    .attachment()
-                    .map(|a| a.to_bytes().into_owned())
-                    .unwrap_or_default();
-                if att == END_OF_FEEDBACK {
-                    let _ = tx.send(None);
-                } else if attachment::parse_topic(&att) == Some(feedback_fp) {
-                    let _ = tx.send(Some(sample.payload().to_bytes().into_owned()));
-                } else {
-                    debug!("dropping feedback with another format");
-                }
-            })
-            .await?;
-        let mut payload = to_bytes(goal_id.as_str());
-        payload.extend_from_slice(&body);
-        let answer = Request {
-            session: runner.session(),
-            stop: runner.cancellation_token(),
-            key: entry.selector(runner, Some(&target)),
-            header: target::header(runner, QueryKind::Request, spec.goal.fingerprint),
-            payload,
-            deadline,
-            describe: &entry.describe,
-            instance: &target,
-            request_format: spec.goal.canonical,
-            // The decision is a status reply without a format of its own.
-            response: None,
-        }
-        .send()
-        .await?;
-        let malformed = |source| Error::Decode {
-            what: "goal response".into(),
-            source,
-        };
-        let mut d = Decoder::new(&answer.body);
-        let accepted = bool::decode(&mut d).map_err(malformed)?;
-        let error_message = Option::<String>::decode(&mut d).map_err(malformed)?;
-        let base_key = entry_key(
-            runner.namespace(),
-            Channel::Action,
-            &owner.expect("consumed actions have an owner"),
-            spec.name,
-            &answer.core,
-            &answer.instance,
-        );
-        Ok(GoalClient {
-            session: runner.session().clone(),
-            base_key,
-            action: spec.name,
-            goal_id,
-            spec,
-            feedback: rx,
-            _subscriber: subscriber,
-            stop: runner.cancellation_token().clone(),
-            accepted,
-            error_message,
-            instance_id: answer.instance,
-            core_node: answer.core,
-        })
-    }
-}
-
-impl GoalClient {
-    /// The goal's id.
-    pub fn goal_id(&self) -> &str {
-        &self.goal_id
-    }
-
-    /// The next feedback message; [`Error::FeedbackEnded`] once the goal is
-    /// terminal and every feedback message was read. Once this node stops
-    /// it returns [`Error::ShuttingDown`]: at once if it was waiting, after
-    /// a short pause if called on an already stopped node.
-    pub async fn next_feedback<F: Decode>(&mut self) -> Result<F> {
-        if self.stop.is_cancelled() {
-            return Err(stop::refused().await);
-        }
-        loop {
-            let next = tokio::select! {
-                next = self.feedback.recv_async() => next,
-                () = self.stop.cancelled() => return Err(Error::ShuttingDown),
-            };
-            match next {
-                Ok(Some(bytes)) => match from_bytes::<F>(&bytes) {
-                    Ok(f) => return Ok(f),
-                    Err(e) => {
-                        warn!(action = self.action, error = %e, "dropping feedback that does not decode")
-                    }
-                },
-                Ok(None) | Err(_) => {
-                    return Err(Error::FeedbackEnded {
-                        action: self.action.to_string(),
-                    });
-                }
-            }
-        }
-    }
-
-    async fn ask(&self, part: ActionPart, timeout: Duration) -> Result<Vec<u8>> {
-        let describe = format!("{} (action {})", self.action, part.as_str());
-        let answer = Request {
-            session: &self.session,
-            stop: &self.stop,
-            key: action_part_key(&self.base_key, part),
-            header: QueryHeader {
-                kind: QueryKind::Request,
-                fingerprint: 0,
-                core: String::new(),
-                instance: String::new(),
-            }
-            .encode(),
-            payload: to_bytes(self.goal_id.as_str()),
-            deadline: Instant::now() + timeout,
-            describe: &describe,
-            instance: &self.instance_id,
-            request_format: "a goal id",
-            response: (part == ActionPart::Result).then_some(self.spec.result),
-        }
-        .send()
-        .await?;
-        Ok(answer.body)
-    }
-
-    /// Waits (up to `timeout`) until the goal is terminal and returns how it
-    /// ended. Once this node stops it returns [`Error::ShuttingDown`], as
-    /// [`next_feedback`](Self::next_feedback) does.
-    pub async fn result<R: Decode>(&self, timeout: Duration) -> Result<Outcome<R>> {
-        let body = self.ask(ActionPart::Result, timeout).await?;
-        let decode = |bytes: &[u8]| {
-            from_bytes::<R>(bytes).map_err(|source| Error::Decode {
-                what: format!("result of `{}`", self.action),
-                source,
-            })
-        };
-        match body.split_first() {
-            Some((0, rest)) => Ok(Outcome::Completed(decode(rest)?)),
-            Some((1, rest)) => Ok(Outcome::Cancelled(decode(rest)?)),
-            Some((2, _)) => Ok(Outcome::Abandoned),
-            Some((3, _)) => Ok(Outcome::Expired),
-            _ => Err(Error::ServiceError {
-                service: self.action.to_string(),
-                instance: self.instance_id.clone(),
-                reason: "malformed result".into(),
-            }),
-        }
-    }
-
-    /// Asks the server to cancel the goal. Once this node stops it returns
-    /// [`Error::ShuttingDown`], as [`next_feedback`](Self::next_feedback) does.
-    pub async fn cancel(&self, timeout: Duration) -> Result<CancelState> {
-        let body = self.ask(ActionPart::Cancel, timeout).await?;
-        Ok(match body.first() {
-            Some(0) => CancelState::Signalled,
-            Some(1) => CancelState::AlreadyTerminal,
-            _ => CancelState::Unknown,
-        })
     }
 }
 

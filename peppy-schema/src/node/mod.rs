@@ -1,0 +1,444 @@
+//! Node documents (`peppy_schema: "node_v1"`, and the legacy
+//! `schema_version: 1` form mapped onto the same model). This module holds
+//! the document's model and its top-level reading; `slots` reads
+//! `depends_on` and `conforms_to`, `consumes` the consumed entries and
+//! `execution` the `execution` (or legacy `process`) section.
+
+mod consumes;
+mod execution;
+mod slots;
+
+pub use execution::{Container, Execution, Launch};
+pub(crate) use slots::read_sha256;
+
+use std::sync::Arc;
+
+use serde::Serialize;
+
+use crate::diag::{Code, Diagnostics};
+use crate::entries::{
+    ActionDecl, EntryKind, ServiceDecl, TopicDecl, action_name, parse_action, parse_entry_name,
+    parse_list, parse_service, parse_topic, service_name, topic_name,
+};
+use crate::format::{MessageFormat, parse_format};
+use crate::json::{Node, Value};
+pub(crate) use crate::model::{Dependency, Identity, SlotKind};
+use crate::names::{check_link_id, check_name, check_tag, consumed_module, module_name};
+use crate::params::{ParameterSchema, parse_parameters};
+use crate::read::{Loc, Obj, Reader, index};
+use crate::source::SourceFile;
+
+use consumes::{parse_consumed_refs, parse_consumed_topics};
+use execution::{parse_execution, parse_legacy_process};
+use slots::{parse_conforms_to, parse_depends_on, read_identity_part};
+
+/// A parsed, validated node document.
+#[derive(Debug, Clone)]
+pub struct NodeDoc {
+    /// The document's text.
+    pub file: Arc<SourceFile>,
+    /// Written in the legacy `schema_version: 1` form.
+    pub legacy: bool,
+    /// `manifest.name`.
+    pub name: String,
+    /// `manifest.tag`.
+    pub tag: String,
+    /// Where `manifest.name` is.
+    pub name_loc: Loc,
+    /// `manifest.labels`.
+    pub labels: Vec<String>,
+    /// `manifest.depends_on.nodes` then `.interfaces`: the slots.
+    pub dependencies: Vec<Dependency>,
+    /// `execution`.
+    pub execution: Execution,
+    /// `interfaces.conforms_to`.
+    pub conforms_to: Vec<InterfaceRef>,
+    /// `interfaces.topics.emits`.
+    pub emits: Vec<TopicDecl>,
+    /// `interfaces.topics.consumes`.
+    pub consumed_topics: Vec<ConsumedTopic>,
+    /// `interfaces.services.exposes`.
+    pub exposed_services: Vec<ServiceDecl>,
+    /// `interfaces.services.consumes`.
+    pub consumed_services: Vec<ConsumedRef>,
+    /// `interfaces.actions.exposes`.
+    pub exposed_actions: Vec<ActionDecl>,
+    /// `interfaces.actions.consumes`.
+    pub consumed_actions: Vec<ConsumedRef>,
+}
+
+/// One `conforms_to` entry.
+#[derive(Debug, Clone)]
+pub struct InterfaceRef {
+    /// The interface.
+    pub target: Identity,
+    /// Revision pin.
+    pub sha256: Option<String>,
+    /// Where the entry is.
+    pub loc: Loc,
+}
+
+/// A consumed topic: through a slot, or external with its own format.
+#[derive(Debug, Clone)]
+pub struct ConsumedTopic {
+    /// Topic name.
+    pub name: String,
+    /// Linked or external.
+    pub source: TopicSource,
+    /// Where the entry is.
+    pub loc: Loc,
+}
+
+/// Where a consumed topic comes from.
+#[derive(Debug, Clone)]
+pub enum TopicSource {
+    /// From the producers of a `depends_on` slot.
+    Linked {
+        /// The slot.
+        link_id: String,
+    },
+    /// From any emitter of that topic name, with this format.
+    External(MessageFormat),
+}
+
+/// A consumed service or action: always through a slot.
+#[derive(Debug, Clone)]
+pub struct ConsumedRef {
+    /// The slot.
+    pub link_id: String,
+    /// Service or action name on the producer.
+    pub name: String,
+    /// Where the entry is.
+    pub loc: Loc,
+}
+
+impl NodeDoc {
+    /// `name:tag`.
+    pub fn identity(&self) -> Identity {
+        Identity::new(&self.name, &self.tag)
+    }
+
+    /// The slot named `link_id`.
+    pub fn dependency(&self, link_id: &str) -> Option<&Dependency> {
+        self.dependencies.iter().find(|d| d.link_id == link_id)
+    }
+
+    /// Whether the node claims conformance to `interface`.
+    pub fn conforms_to(&self, interface: &Identity) -> bool {
+        self.conforms_to.iter().any(|c| &c.target == interface)
+    }
+}
+
+const LEGACY_HELP: &str = "legacy `schema_version: 1` spelling";
+
+/// Parses a node document from its root value.
+pub(crate) fn parse_node(
+    file: &Arc<SourceFile>,
+    root: &Node,
+    diags: &mut Diagnostics,
+) -> Option<NodeDoc> {
+    let mut r = Reader::new(file, diags);
+    let legacy = root.get("schema_version").is_some() && root.get("peppy_schema").is_none();
+    let top_keys: &[&str] = if legacy {
+        &["schema_version", "manifest", "process", "interfaces"]
+    } else {
+        &["peppy_schema", "manifest", "interfaces", "execution"]
+    };
+    let root_obj = r.object(root, "", top_keys)?;
+    let mut ok = true;
+    if legacy && let Some(v) = root_obj.member("schema_version") {
+        r.warn_help(
+            Code::LegacySpelling,
+            v.key_span,
+            "schema_version",
+            format!("{LEGACY_HELP}: `schema_version: 1`"),
+            "write `peppy_schema: \"node_v1\"`",
+        );
+    }
+
+    // manifest
+    let mut name = None;
+    let mut tag = None;
+    let mut labels = Vec::new();
+    let mut dependencies = Vec::new();
+    let mut legacy_language = None;
+    if let Some(m) = r.required(&root_obj, "manifest") {
+        let keys: &[&str] = if legacy {
+            &["name", "tag", "labels", "depends_on", "language"]
+        } else {
+            &["name", "tag", "labels", "depends_on"]
+        };
+        if let Some(mobj) = r.object(m, "manifest", keys) {
+            name = read_identity_part(&mut r, &mobj, "name", check_name, Code::InvalidName);
+            tag = read_identity_part(
+                &mut r,
+                &mobj,
+                "tag",
+                |s| check_tag(s, legacy),
+                Code::InvalidTag,
+            );
+            if let Some(l) = mobj.get("labels") {
+                labels = r.string_list(l, "manifest.labels").unwrap_or_default();
+            }
+            if let Some(d) = mobj.get("depends_on") {
+                match parse_depends_on(&mut r, d, legacy) {
+                    Some(deps) => dependencies = deps,
+                    None => ok = false,
+                }
+            }
+            if legacy && let Some(lang) = mobj.member("language") {
+                r.warn_help(
+                    Code::LegacySpelling,
+                    lang.key_span,
+                    "manifest.language",
+                    format!("{LEGACY_HELP}: `manifest.language`"),
+                    "write `execution.language`",
+                );
+                legacy_language = r.string(&lang.value, "manifest.language");
+            }
+        }
+    }
+    if name.is_none() || tag.is_none() {
+        ok = false;
+    }
+
+    // execution
+    let execution = if legacy {
+        parse_legacy_process(&mut r, &root_obj, legacy_language)
+    } else {
+        r.required(&root_obj, "execution")
+            .and_then(|e| parse_execution(&mut r, e))
+    };
+    if execution.is_none() {
+        ok = false;
+    }
+
+    // interfaces
+    let mut conforms_to = Vec::new();
+    let mut emits = Vec::new();
+    let mut consumed_topics = Vec::new();
+    let mut exposed_services = Vec::new();
+    let mut consumed_services = Vec::new();
+    let mut exposed_actions = Vec::new();
+    let mut consumed_actions = Vec::new();
+    if let Some(i) = root_obj.get("interfaces") {
+        if let Some(iobj) = r.object(
+            i,
+            "interfaces",
+            &["topics", "services", "actions", "conforms_to"],
+        ) {
+            conforms_to = parse_conforms_to(&mut r, iobj.get("conforms_to"), &mut ok);
+            if let Some(t) = iobj.get("topics") {
+                if let Some(tobj) = r.object(t, "interfaces.topics", &["emits", "consumes"]) {
+                    emits = parse_list(
+                        &mut r,
+                        tobj.get("emits"),
+                        "interfaces.topics.emits",
+                        EntryKind::Topic,
+                        &mut ok,
+                        parse_topic,
+                        topic_name,
+                    );
+                    consumed_topics =
+                        parse_consumed_topics(&mut r, tobj.get("consumes"), legacy, &mut ok);
+                } else {
+                    ok = false;
+                }
+            }
+            if let Some(s) = iobj.get("services") {
+                if let Some(sobj) = r.object(s, "interfaces.services", &["exposes", "consumes"]) {
+                    exposed_services = parse_list(
+                        &mut r,
+                        sobj.get("exposes"),
+                        "interfaces.services.exposes",
+                        EntryKind::Service,
+                        &mut ok,
+                        parse_service,
+                        service_name,
+                    );
+                    consumed_services = parse_consumed_refs(
+                        &mut r,
+                        sobj.get("consumes"),
+                        "interfaces.services.consumes",
+                        EntryKind::Service,
+                        legacy,
+                        &mut ok,
+                    );
+                } else {
+                    ok = false;
+                }
+            }
+            if let Some(a) = iobj.get("actions") {
+                if let Some(aobj) = r.object(a, "interfaces.actions", &["exposes", "consumes"]) {
+                    exposed_actions = parse_list(
+                        &mut r,
+                        aobj.get("exposes"),
+                        "interfaces.actions.exposes",
+                        EntryKind::Action,
+                        &mut ok,
+                        parse_action,
+                        action_name,
+                    );
+                    consumed_actions = parse_consumed_refs(
+                        &mut r,
+                        aobj.get("consumes"),
+                        "interfaces.actions.consumes",
+                        EntryKind::Action,
+                        legacy,
+                        &mut ok,
+                    );
+                } else {
+                    ok = false;
+                }
+            }
+        } else {
+            ok = false;
+        }
+    }
+
+    // link ids used by consumed entries must be declared
+    let consumed_links = consumed_topics
+        .iter()
+        .filter_map(|t| match &t.source {
+            TopicSource::Linked { link_id } => Some((link_id.as_str(), &t.loc, EntryKind::Topic)),
+            TopicSource::External(_) => None,
+        })
+        .chain(
+            consumed_services
+                .iter()
+                .map(|s| (s.link_id.as_str(), &s.loc, EntryKind::Service)),
+        )
+        .chain(
+            consumed_actions
+                .iter()
+                .map(|a| (a.link_id.as_str(), &a.loc, EntryKind::Action)),
+        );
+    // Judged against every link_id written in `depends_on`, so that an error
+    // in one of its entries does not also make every consumer of it "undeclared".
+    let written = written_link_ids(root, legacy);
+    for (link_id, loc, kind) in consumed_links {
+        if !written.iter().any(|w| w == link_id) {
+            let declared: Vec<&str> = written.iter().map(String::as_str).collect();
+            r.diags.push(
+                loc.error(
+                    Code::UndeclaredLinkId,
+                    format!("consumed {kind} uses link_id `{link_id}`, which `manifest.depends_on` does not declare"),
+                )
+                .with_help(format!(
+                    "declare it under `manifest.depends_on.nodes` or `.interfaces`; declared link_ids: {}",
+                    crate::diag::list(declared)
+                )),
+            );
+            ok = false;
+        }
+    }
+
+    // two consumed entries generating the same module
+    check_consumed_modules(
+        &mut r,
+        &consumed_topics,
+        &consumed_services,
+        &consumed_actions,
+    );
+
+    if !ok || r.diags.has_errors() {
+        return None;
+    }
+    let (name, name_loc) = name?;
+    let (tag, _) = tag?;
+    Some(NodeDoc {
+        file: file.clone(),
+        legacy,
+        name,
+        tag,
+        name_loc,
+        labels,
+        dependencies,
+        execution: execution?,
+        conforms_to,
+        emits,
+        consumed_topics,
+        exposed_services,
+        consumed_services,
+        exposed_actions,
+        consumed_actions,
+    })
+}
+
+/// Every `link_id` written in `manifest.depends_on` (and legacy `local_id`),
+/// whether or not its entry is otherwise valid: in order, once each.
+fn written_link_ids(root: &Node, legacy: bool) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    let Some(deps) = root.get("manifest").and_then(|m| m.get("depends_on")) else {
+        return out;
+    };
+    for list in ["nodes", "interfaces"] {
+        let Some(Value::Array(items)) = deps.get(list).map(|n| &n.value) else {
+            continue;
+        };
+        for item in items {
+            let id = item
+                .get("link_id")
+                .or_else(|| if legacy { item.get("local_id") } else { None })
+                .and_then(Node::as_str);
+            if let Some(id) = id
+                && !out.iter().any(|o| o == id)
+            {
+                out.push(id.to_string());
+            }
+        }
+    }
+    out
+}
+
+fn check_consumed_modules(
+    r: &mut Reader<'_>,
+    topics: &[ConsumedTopic],
+    services: &[ConsumedRef],
+    actions: &[ConsumedRef],
+) {
+    let topic_modules = topics.iter().map(|t| {
+        let module = match &t.source {
+            TopicSource::Linked { link_id } => consumed_module(Some(link_id), &t.name),
+            TopicSource::External(_) => consumed_module(None, &t.name),
+        };
+        (module, &t.loc)
+    });
+    check_modules(r, "consumed_topics", topic_modules);
+    check_modules(
+        r,
+        "consumed_services",
+        services.iter().map(consumed_ref_module),
+    );
+    check_modules(
+        r,
+        "consumed_actions",
+        actions.iter().map(consumed_ref_module),
+    );
+}
+
+fn consumed_ref_module(c: &ConsumedRef) -> (String, &Loc) {
+    (consumed_module(Some(&c.link_id), &c.name), &c.loc)
+}
+
+fn check_modules<'a>(
+    r: &mut Reader<'_>,
+    category: &str,
+    modules: impl Iterator<Item = (String, &'a Loc)>,
+) {
+    let mut seen: Vec<(String, &Loc)> = Vec::new();
+    for (module, loc) in modules {
+        if let Some((_, first)) = seen.iter().find(|(m, _)| *m == module) {
+            let lc = first.file.line_col(first.span.start);
+            r.diags.push(
+                loc.error(
+                    Code::DuplicateEntryName,
+                    format!("this entry would generate `{category}::{module}`, like the entry at line {}, column {}", lc.line, lc.column),
+                )
+                .with_help("consume each topic, service or action once per link_id"),
+            );
+        } else {
+            seen.push((module, loc));
+        }
+    }
+}
