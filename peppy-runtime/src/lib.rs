@@ -29,6 +29,7 @@
 
 mod actions;
 mod error;
+mod intake;
 mod members;
 mod node;
 mod qos;

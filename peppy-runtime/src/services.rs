@@ -5,11 +5,11 @@
 use std::time::Duration;
 
 use tokio::time::Instant;
-use tracing::{debug, warn};
-use zenoh::Wait;
+use tracing::warn;
 use zenoh::query::Query;
 
 use crate::error::{Error, Result};
+use crate::intake;
 use crate::node::NodeRunner;
 use crate::request::Request;
 use crate::spec::{ConsumedServiceSpec, ServiceSpec};
@@ -37,59 +37,19 @@ pub(crate) fn intake(
     tx: flume::Sender<Pending>,
 ) -> impl Fn(Query) + Send + Sync + 'static {
     move |query: Query| {
-        let Some(header) = query
-            .attachment()
-            .and_then(|a| QueryHeader::decode(&a.to_bytes()))
-        else {
-            debug!(
-                service = spec.name,
-                "dropping a query without a valid peppy attachment"
-            );
+        let fingerprint = spec.response.fingerprint;
+        let Some(header) = intake::admit(&query, &key, spec.name, spec.request, fingerprint) else {
             return;
         };
-        let reply = |status: ReplyStatus, payload: Vec<u8>| {
-            if let Err(e) = query
-                .reply(key.as_str(), payload)
-                .attachment(attachment::reply(status, spec.response.fingerprint))
-                .wait()
-            {
-                debug!(service = spec.name, error = %e, "reply failed");
-            }
-        };
-        match header.kind {
-            QueryKind::Probe => reply(ReplyStatus::Present, Vec::new()),
-            QueryKind::Request if header.fingerprint != spec.request.fingerprint => {
-                warn!(service = spec.name, caller = %header.instance, "refusing a request whose format differs from this server's");
-                reply(
-                    ReplyStatus::FormatMismatch,
-                    spec.request.canonical.as_bytes().to_vec(),
-                );
-            }
-            QueryKind::Request => {
-                reply(ReplyStatus::Ack, Vec::new());
-                // Never block Zenoh's delivery thread: a full inbox answers busy.
-                match tx.try_send(Pending { query, header }) {
-                    Ok(()) => {}
-                    Err(flume::TrySendError::Full(p)) => {
-                        warn!(service = spec.name, caller = %p.header.instance, "request queue full; answering busy");
-                        let _ = p
-                            .query
-                            .reply(
-                                key.as_str(),
-                                b"server busy: too many queued requests".to_vec(),
-                            )
-                            .attachment(attachment::reply(
-                                ReplyStatus::HandlerError,
-                                spec.response.fingerprint,
-                            ))
-                            .wait();
-                    }
-                    Err(flume::TrySendError::Disconnected(_)) => {
-                        debug!(service = spec.name, "service inbox closed")
-                    }
-                }
-            }
-        }
+        intake::enqueue(
+            &tx,
+            Pending { query, header },
+            |p| &p.query,
+            &key,
+            fingerprint,
+            spec.name,
+            "requests",
+        );
     }
 }
 

@@ -13,11 +13,12 @@ use zenoh::Wait;
 use zenoh::query::Query;
 
 use crate::error::{Error, Result};
+use crate::intake;
 use crate::node::NodeRunner;
 use crate::services::Caller;
 use crate::spec::ActionSpec;
 use crate::stop;
-use crate::wire::attachment::{self, QueryHeader, QueryKind, ReplyStatus};
+use crate::wire::attachment::{self, QueryHeader, ReplyStatus};
 use crate::wire::codec::{Decode, Decoder, Encode, from_bytes, to_bytes};
 use crate::wire::keys::{ActionPart, Channel, action_part_key, entry_key, feedback_key};
 
@@ -242,31 +243,10 @@ pub(crate) fn goal_intake(
     tx: flume::Sender<PendingGoal>,
 ) -> impl Fn(Query) + Send + Sync + 'static {
     move |query: Query| {
-        let Some(header) = query
-            .attachment()
-            .and_then(|a| QueryHeader::decode(&a.to_bytes()))
-        else {
-            debug!(
-                action = spec.name,
-                "dropping a goal without a valid peppy attachment"
-            );
+        // A goal's status replies carry no format of their own.
+        let Some(header) = intake::admit(&query, &key, spec.name, spec.goal, 0) else {
             return;
         };
-        let reply = |status: ReplyStatus, payload: Vec<u8>| {
-            let _ = query
-                .reply(key.as_str(), payload)
-                .attachment(attachment::reply(status, 0))
-                .wait();
-        };
-        if header.kind == QueryKind::Probe {
-            return reply(ReplyStatus::Present, Vec::new());
-        }
-        if header.fingerprint != spec.goal.fingerprint {
-            return reply(
-                ReplyStatus::FormatMismatch,
-                spec.goal.canonical.as_bytes().to_vec(),
-            );
-        }
         let payload = query
             .payload()
             .map(|p| p.to_bytes().into_owned())
@@ -275,27 +255,24 @@ pub(crate) fn goal_intake(
         let goal_id = match String::decode(&mut d) {
             Ok(id) if is_goal_id(&id) => id,
             _ => {
-                return reply(
+                return intake::reply(
+                    &query,
+                    &key,
                     ReplyStatus::HandlerError,
+                    0,
                     b"malformed goal envelope".to_vec(),
+                    spec.name,
                 );
             }
         };
         let body = payload[payload.len() - d.remaining()..].to_vec();
-        reply(ReplyStatus::Ack, Vec::new());
-        // Never block Zenoh's delivery thread: a full queue answers busy.
-        if let Err(flume::TrySendError::Full(p)) = tx.try_send(PendingGoal {
+        let goal = PendingGoal {
             query,
             header,
             goal_id,
             body,
-        }) {
-            let _ = p
-                .query
-                .reply(key.as_str(), b"server busy: too many queued goals".to_vec())
-                .attachment(attachment::reply(ReplyStatus::HandlerError, 0))
-                .wait();
-        }
+        };
+        intake::enqueue(&tx, goal, |g| &g.query, &key, 0, spec.name, "goals");
     }
 }
 

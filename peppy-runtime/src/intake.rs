@@ -1,0 +1,103 @@
+//! The server side of a request, one way for every queryable (services and
+//! action goals): read the caller's header, answer a probe and a request in
+//! another format, ack, and queue without ever blocking Zenoh's delivery
+//! thread (a full queue answers busy).
+
+use tracing::{debug, warn};
+use zenoh::Wait;
+use zenoh::query::Query;
+
+use crate::spec::FormatSpec;
+use crate::wire::attachment::{self, QueryHeader, QueryKind, ReplyStatus};
+
+/// Replies to `query` on `key` with a status. A reply that cannot be sent
+/// (the caller gave up) is logged, never an error.
+pub(crate) fn reply(
+    query: &Query,
+    key: &str,
+    status: ReplyStatus,
+    fingerprint: u64,
+    payload: Vec<u8>,
+    entry: &str,
+) {
+    if let Err(e) = query
+        .reply(key, payload)
+        .attachment(attachment::reply(status, fingerprint))
+        .wait()
+    {
+        debug!(entry, error = %e, "reply failed");
+    }
+}
+
+/// Admits a query to `entry` served on `key`: a query without a valid
+/// header is dropped, a probe is answered `Present`, a request in another
+/// format than `request` is answered `FormatMismatch` with this server's
+/// format. Returns the header of a request to handle, already acked.
+/// Status replies carry `fingerprint`.
+pub(crate) fn admit(
+    query: &Query,
+    key: &str,
+    entry: &str,
+    request: FormatSpec,
+    fingerprint: u64,
+) -> Option<QueryHeader> {
+    let Some(header) = query
+        .attachment()
+        .and_then(|a| QueryHeader::decode(&a.to_bytes()))
+    else {
+        debug!(entry, "dropping a query without a valid peppy attachment");
+        return None;
+    };
+    let answer = |status, payload| reply(query, key, status, fingerprint, payload, entry);
+    match header.kind {
+        QueryKind::Probe => {
+            answer(ReplyStatus::Present, Vec::new());
+            None
+        }
+        QueryKind::Request if header.fingerprint != request.fingerprint => {
+            warn!(entry, caller = %header.instance, "refusing a request whose format differs from this server's");
+            answer(
+                ReplyStatus::FormatMismatch,
+                request.canonical.as_bytes().to_vec(),
+            );
+            None
+        }
+        QueryKind::Request => Some(header),
+    }
+}
+
+/// Acks a request and queues it for the node's handler. A full queue
+/// answers busy (`queued` names what is queued, e.g. `requests`).
+pub(crate) fn enqueue<T>(
+    tx: &flume::Sender<T>,
+    item: T,
+    query_of: fn(&T) -> &Query,
+    key: &str,
+    fingerprint: u64,
+    entry: &str,
+    queued: &str,
+) {
+    reply(
+        query_of(&item),
+        key,
+        ReplyStatus::Ack,
+        fingerprint,
+        Vec::new(),
+        entry,
+    );
+    match tx.try_send(item) {
+        Ok(()) => {}
+        Err(flume::TrySendError::Full(item)) => {
+            warn!(entry, "{queued} queue full; answering busy");
+            reply(
+                query_of(&item),
+                key,
+                ReplyStatus::HandlerError,
+                fingerprint,
+                format!("server busy: too many queued {queued}").into_bytes(),
+                entry,
+            );
+        }
+        Err(flume::TrySendError::Disconnected(_)) => debug!(entry, "inbox closed"),
+    }
+}
