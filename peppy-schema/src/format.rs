@@ -271,6 +271,17 @@ pub(crate) fn fixed_length(r: &mut Reader<'_>, node: &Node, path: &str) -> Resul
     }
 }
 
+/// What a type object describes, by its `$type`.
+#[derive(Clone, Copy)]
+enum Shape {
+    Object,
+    Array,
+    Primitive(Primitive),
+}
+
+/// A field's type: a type name, or an object (a nested object, an array
+/// or a primitive with `$optional`). Returns the type and whether it is
+/// optional.
 fn parse_type(
     r: &mut Reader<'_>,
     node: &Node,
@@ -296,47 +307,67 @@ fn parse_type(
             return None;
         }
     };
-    let mut ok = true;
-    let type_node = node.get("$type");
-    let type_name = match type_node {
-        None => None,
-        Some(t) => match t.as_str() {
-            Some(s) => Some(s),
-            None => {
-                r.error(
-                    Code::WrongType,
-                    t.span,
-                    &join(path, "$type"),
-                    format!(
-                        "expected a type name for `{path}.$type`, found {}",
-                        t.value.kind()
-                    ),
-                );
-                return None;
-            }
-        },
+    let shape = shape_of(r, node, path)?;
+    let mut ok = check_type_keys(r, members, shape, path);
+    let optional = match node.get("$optional") {
+        None => false,
+        Some(o) => {
+            let (value, valid) = parse_optional(r, o, &join(path, "$optional"), place, shape);
+            ok &= valid;
+            value
+        }
     };
-    enum Shape {
-        Object,
-        Array,
-        Primitive(Primitive),
-    }
-    let shape = match type_name {
-        None | Some("object") => Shape::Object,
-        Some("array") => Shape::Array,
-        Some(s) => Shape::Primitive(primitive_name(
+    let ty = match shape {
+        Shape::Primitive(p) => FieldType::Primitive(p),
+        Shape::Object => parse_object(r, node, members, path, &mut ok),
+        Shape::Array => parse_array(r, node, path, &mut ok)?,
+    };
+    ok.then_some((ty, optional))
+}
+
+/// The shape a type object's `$type` names (none: an object).
+fn shape_of(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Shape> {
+    let Some(type_node) = node.get("$type") else {
+        return Some(Shape::Object);
+    };
+    let Some(type_name) = type_node.as_str() else {
+        r.error(
+            Code::WrongType,
+            type_node.span,
+            &join(path, "$type"),
+            format!(
+                "expected a type name for `{path}.$type`, found {}",
+                type_node.value.kind()
+            ),
+        );
+        return None;
+    };
+    Some(match type_name {
+        "object" => Shape::Object,
+        "array" => Shape::Array,
+        s => Shape::Primitive(primitive_name(
             r,
-            type_node.expect("type node present"),
+            type_node,
             &join(path, "$type"),
             s,
             MESSAGE_TYPES,
         )?),
-    };
+    })
+}
+
+/// Reports keys a type object of this shape may not have; `false` if any.
+fn check_type_keys(
+    r: &mut Reader<'_>,
+    members: &[crate::json::Member],
+    shape: Shape,
+    path: &str,
+) -> bool {
     let allowed: &[&str] = match shape {
         Shape::Object => &["$type", "$optional"],
         Shape::Array => &["$type", "$items", "$length", "$optional"],
         Shape::Primitive(_) => &["$type", "$optional"],
     };
+    let mut ok = true;
     for m in members {
         let is_dollar = m.key.starts_with('$');
         let accepted =
@@ -346,7 +377,7 @@ fn parse_type(
         }
         ok = false;
         let m_path = join(path, &m.key);
-        match (&shape, m.key.as_str()) {
+        match (shape, m.key.as_str()) {
             (_, "$length") => r.error_help(
                 Code::LengthMisuse,
                 m.key_span,
@@ -382,154 +413,166 @@ fn parse_type(
             ),
         }
     }
-    let optional = match node.get("$optional") {
-        None => false,
-        Some(o) => {
-            let opath = join(path, "$optional");
-            let value = r.bool(o, &opath);
-            let value = value.unwrap_or_else(|| {
-                ok = false;
-                false
-            });
-            if value {
-                if place.item {
-                    r.error_help(
-                        Code::OptionalMisuse,
-                        o.span,
-                        &opath,
-                        "`$optional` is not allowed on array items",
-                        "make the whole array optional instead (on a root-level field)",
-                    );
-                    ok = false;
-                } else if !place.root {
-                    r.error_help(
-                        Code::OptionalMisuse,
-                        o.span,
-                        &opath,
-                        "`$optional` is only allowed on root-level fields",
-                        "move the optional part to the root of the message format, or make its parent optional",
-                    );
-                    ok = false;
-                } else if let Shape::Primitive(p) = shape
-                    && p.is_scalar()
-                {
-                    r.error_help(
-                        Code::OptionalMisuse,
-                        o.span,
-                        &opath,
-                        format!(
-                            "`$optional` is not allowed on `{}`: scalars have no presence bit",
-                            p.name()
-                        ),
-                        "`$optional` works on `string`, `bytes`, `time`, arrays and objects",
-                    );
-                    ok = false;
-                }
-            }
-            value
-        }
+    ok
+}
+
+/// `$optional`: its value, and whether it is allowed here (only on
+/// root-level fields that are not scalars).
+fn parse_optional(
+    r: &mut Reader<'_>,
+    o: &Node,
+    opath: &str,
+    place: Place,
+    shape: Shape,
+) -> (bool, bool) {
+    let Some(value) = r.bool(o, opath) else {
+        return (false, false);
     };
-    let ty = match shape {
-        Shape::Primitive(p) => FieldType::Primitive(p),
-        Shape::Object => {
-            let mut fields = Vec::new();
-            for m in members.iter().filter(|m| !m.key.starts_with('$')) {
-                match parse_field(
-                    r,
-                    &m.key,
-                    m.key_span,
-                    &m.value,
-                    &join(path, &m.key),
-                    Place {
-                        root: false,
-                        item: false,
-                    },
-                ) {
-                    Some(f) => fields.push(f),
-                    None => ok = false,
-                }
-            }
-            if fields.is_empty() && ok {
-                r.error_help(
-                    Code::EmptyMessageFormat,
-                    node.span,
-                    path,
-                    "object has no fields",
-                    "declare at least one field, or remove the object",
-                );
-                ok = false;
-            }
-            FieldType::Object(fields)
+    let mut ok = true;
+    if value {
+        if place.item {
+            r.error_help(
+                Code::OptionalMisuse,
+                o.span,
+                opath,
+                "`$optional` is not allowed on array items",
+                "make the whole array optional instead (on a root-level field)",
+            );
+            ok = false;
+        } else if !place.root {
+            r.error_help(
+                Code::OptionalMisuse,
+                o.span,
+                opath,
+                "`$optional` is only allowed on root-level fields",
+                "move the optional part to the root of the message format, or make its parent optional",
+            );
+            ok = false;
+        } else if let Shape::Primitive(p) = shape
+            && p.is_scalar()
+        {
+            r.error_help(
+                Code::OptionalMisuse,
+                o.span,
+                opath,
+                format!(
+                    "`$optional` is not allowed on `{}`: scalars have no presence bit",
+                    p.name()
+                ),
+                "`$optional` works on `string`, `bytes`, `time`, arrays and objects",
+            );
+            ok = false;
         }
-        Shape::Array => {
-            let items_path = join(path, "$items");
-            let Some(items_node) = node.get("$items") else {
-                r.error_help(
-                    Code::MissingKey,
-                    node.span,
-                    path,
-                    format!("missing required key `$items` in array `{path}`"),
-                    "write `{ $type: \"array\", $items: \"u8\" }`",
-                );
-                return None;
-            };
-            let is_nested_array = match &items_node.value {
-                Value::Object(_) => items_node.get("$type").and_then(Node::as_str) == Some("array"),
-                Value::String(s) => s == "array",
-                _ => false,
-            };
-            if is_nested_array {
-                r.error_help(
-                    Code::NestedArray,
-                    items_node.span,
-                    &items_path,
-                    "arrays of arrays are not supported",
-                    "wrap the inner array in an object: `$items: { values: { $type: \"array\", $items: \"f64\" } }`",
-                );
-                return None;
-            }
-            let (items, _) = parse_type(
-                r,
-                items_node,
-                &items_path,
-                Place {
-                    root: false,
-                    item: true,
-                },
-            )?;
-            let length = match node.get("$length") {
-                None => None,
-                Some(l) => {
-                    let lpath = join(path, "$length");
-                    match fixed_length(r, l, &lpath) {
-                        Ok(n) => {
-                            let scalar = matches!(items, FieldType::Primitive(p) if p.is_scalar());
-                            if !scalar {
-                                r.error_help(
-                                    Code::LengthMisuse,
-                                    l.span,
-                                    &lpath,
-                                    "`$length` is only allowed when the items are numbers or `bool`",
-                                    "drop `$length` to get a variable-length array",
-                                );
-                                ok = false;
-                            }
-                            Some(n)
-                        }
-                        Err(()) => {
-                            ok = false;
-                            None
-                        }
+    }
+    (value, ok)
+}
+
+/// The fields of a nested object (at least one).
+fn parse_object(
+    r: &mut Reader<'_>,
+    node: &Node,
+    members: &[crate::json::Member],
+    path: &str,
+    ok: &mut bool,
+) -> FieldType {
+    let mut fields = Vec::new();
+    for m in members.iter().filter(|m| !m.key.starts_with('$')) {
+        match parse_field(
+            r,
+            &m.key,
+            m.key_span,
+            &m.value,
+            &join(path, &m.key),
+            Place {
+                root: false,
+                item: false,
+            },
+        ) {
+            Some(f) => fields.push(f),
+            None => *ok = false,
+        }
+    }
+    if fields.is_empty() && *ok {
+        r.error_help(
+            Code::EmptyMessageFormat,
+            node.span,
+            path,
+            "object has no fields",
+            "declare at least one field, or remove the object",
+        );
+        *ok = false;
+    }
+    FieldType::Object(fields)
+}
+
+/// An array: `$items` (no arrays of arrays) and `$length` (numbers and
+/// `bool` only). `None` when the array itself cannot be read.
+fn parse_array(r: &mut Reader<'_>, node: &Node, path: &str, ok: &mut bool) -> Option<FieldType> {
+    let items_path = join(path, "$items");
+    let Some(items_node) = node.get("$items") else {
+        r.error_help(
+            Code::MissingKey,
+            node.span,
+            path,
+            format!("missing required key `$items` in array `{path}`"),
+            "write `{ $type: \"array\", $items: \"u8\" }`",
+        );
+        return None;
+    };
+    let is_nested_array = match &items_node.value {
+        Value::Object(_) => items_node.get("$type").and_then(Node::as_str) == Some("array"),
+        Value::String(s) => s == "array",
+        _ => false,
+    };
+    if is_nested_array {
+        r.error_help(
+            Code::NestedArray,
+            items_node.span,
+            &items_path,
+            "arrays of arrays are not supported",
+            "wrap the inner array in an object: `$items: { values: { $type: \"array\", $items: \"f64\" } }`",
+        );
+        return None;
+    }
+    let (items, _) = parse_type(
+        r,
+        items_node,
+        &items_path,
+        Place {
+            root: false,
+            item: true,
+        },
+    )?;
+    let length = match node.get("$length") {
+        None => None,
+        Some(l) => {
+            let lpath = join(path, "$length");
+            match fixed_length(r, l, &lpath) {
+                Ok(n) => {
+                    let scalar = matches!(items, FieldType::Primitive(p) if p.is_scalar());
+                    if !scalar {
+                        r.error_help(
+                            Code::LengthMisuse,
+                            l.span,
+                            &lpath,
+                            "`$length` is only allowed when the items are numbers or `bool`",
+                            "drop `$length` to get a variable-length array",
+                        );
+                        *ok = false;
                     }
+                    Some(n)
                 }
-            };
-            FieldType::Array {
-                items: Box::new(items),
-                length,
+                Err(()) => {
+                    *ok = false;
+                    None
+                }
             }
         }
     };
-    ok.then_some((ty, optional))
+    Some(FieldType::Array {
+        items: Box::new(items),
+        length,
+    })
 }
 
 /// A `message_format` that may be absent. `{}` is rejected by the parser, so
