@@ -130,211 +130,239 @@ fn parse_param(r: &mut Reader<'_>, node: &Node, path: &str, in_item: bool) -> Op
         }
     }
     let kind = match type_name.as_deref() {
-        None | Some("object") => {
-            for key in ["$default", "$items", "$length"] {
-                if let Some(m) = members.iter().find(|m| m.key == key) {
-                    let code = if key == "$default" {
-                        Code::InvalidDefault
-                    } else {
-                        Code::UnknownKey
-                    };
-                    r.error_help(
-                        code,
-                        m.key_span,
-                        &join(path, key),
-                        format!("`{key}` is not allowed on a parameter group"),
-                        "set defaults on the group's parameters; a group is filled in when all of them have defaults",
-                    );
-                    ok = false;
-                }
-            }
-            let children: Vec<crate::json::Member> = members
-                .iter()
-                .filter(|m| !m.key.starts_with('$'))
-                .cloned()
-                .collect();
-            if children.is_empty() {
-                r.error(
-                    Code::InvalidValue,
-                    node.span,
-                    path,
-                    format!("parameter group `{path}` has no parameters"),
-                );
-                return None;
-            }
-            ParamKind::Group(parse_fields(r, &children, path, in_item)?)
-        }
-        Some("array") => {
-            if let Some(m) = members.iter().find(|m| !m.key.starts_with('$')) {
-                r.unknown_key(m, path, &["$type", "$items", "$length", "$default"]);
-                ok = false;
-            }
-            let Some(items_node) = node.get("$items") else {
-                r.error_help(
-                    Code::MissingKey,
-                    node.span,
-                    path,
-                    format!("missing required key `$items` in array parameter `{path}`"),
-                    "write `{ $type: \"array\", $items: \"f64\" }`",
-                );
-                return None;
-            };
-            let ipath = join(path, "$items");
-            let items = match &items_node.value {
-                Value::String(s) => {
-                    ParamItem::Primitive(parse_primitive_name(r, items_node, &ipath, s)?)
-                }
-                Value::Object(_) => match parse_param(r, items_node, &ipath, true)? {
-                    ParamKind::Leaf { ty, default: None } => ParamItem::Primitive(ty),
-                    ParamKind::Group(fields) => ParamItem::Object(fields),
-                    ParamKind::Array { .. } => {
-                        r.error(
-                            Code::NestedArray,
-                            items_node.span,
-                            &ipath,
-                            "arrays of arrays are not supported",
-                        );
-                        return None;
-                    }
-                    ParamKind::Leaf {
-                        default: Some(_), ..
-                    } => return None,
-                },
-                other => {
-                    r.error(
-                        Code::WrongType,
-                        items_node.span,
-                        &ipath,
-                        format!(
-                            "expected a type name or an object for `{ipath}`, found {}",
-                            other.kind()
-                        ),
-                    );
-                    return None;
-                }
-            };
-            let length = match node.get("$length") {
-                None => None,
-                Some(l) => match fixed_length(r, l, &join(path, "$length")) {
-                    Ok(n) => Some(n),
-                    Err(()) => {
-                        ok = false;
-                        None
-                    }
-                },
-            };
-            let default = match node.get("$default") {
-                None => None,
-                Some(d) => {
-                    let dpath = join(path, "$default");
-                    match &items {
-                        ParamItem::Object(_) => {
-                            r.error(
-                                Code::InvalidDefault,
-                                d.span,
-                                &dpath,
-                                "`$default` is not supported on arrays of objects",
-                            );
-                            ok = false;
-                            None
-                        }
-                        ParamItem::Primitive(p) => {
-                            let mut errors = Vec::new();
-                            let v = resolve_field(
-                                &ParamKind::Array {
-                                    items: ParamItem::Primitive(*p),
-                                    length,
-                                    default: None,
-                                },
-                                Some(&d.to_json()),
-                                "$default",
-                                &mut errors,
-                            );
-                            for e in &errors {
-                                let at = item_node(d, &e.path).unwrap_or(d);
-                                r.error(
-                                    Code::InvalidDefault,
-                                    at.span,
-                                    &dpath,
-                                    format!("invalid `$default`: {}", e_message(e)),
-                                );
-                            }
-                            if !errors.is_empty() {
-                                ok = false;
-                            }
-                            v
-                        }
-                    }
-                }
-            };
-            ParamKind::Array {
-                items,
-                length,
-                default,
-            }
-        }
-        Some(s) => {
-            let type_node = node.get("$type").expect("present");
-            let ty = parse_primitive_name(r, type_node, &join(path, "$type"), s)?;
-            for m in members.iter().filter(|m| !m.key.starts_with('$')) {
-                r.unknown_key(m, path, &["$type", "$default"]);
-                ok = false;
-            }
-            for key in ["$items", "$length"] {
-                if let Some(m) = members.iter().find(|m| m.key == key) {
-                    r.error(
-                        Code::UnknownKey,
-                        m.key_span,
-                        &join(path, key),
-                        format!("`{key}` is only allowed on array parameters"),
-                    );
-                    ok = false;
-                }
-            }
-            let default = match node.get("$default") {
-                None => None,
-                Some(d) => {
-                    let dpath = join(path, "$default");
-                    if in_item {
-                        r.error(
-                            Code::InvalidDefault,
-                            d.span,
-                            &dpath,
-                            "`$default` is not allowed inside array items",
-                        );
-                        ok = false;
-                        None
-                    } else if matches!(ty, Primitive::Bytes | Primitive::Time) {
-                        r.error_help(
-                            Code::InvalidDefault,
-                            d.span,
-                            &dpath,
-                            format!("`$default` is not supported for `{}` parameters", ty.name()),
-                            "pass the value at launch instead",
-                        );
-                        ok = false;
-                        None
-                    } else {
-                        match check_leaf(ty, &d.to_json()) {
-                            Ok(v) => Some(v),
-                            Err(why) => {
-                                r.error(
-                                    Code::InvalidDefault,
-                                    d.span,
-                                    &dpath,
-                                    format!("invalid `$default`: `{path}` {why}"),
-                                );
-                                ok = false;
-                                None
-                            }
-                        }
-                    }
-                }
-            };
-            ParamKind::Leaf { ty, default }
-        }
+        None | Some("object") => parse_group(r, node, members, path, in_item, &mut ok)?,
+        Some("array") => parse_array(r, node, members, path, &mut ok)?,
+        Some(s) => parse_leaf(r, node, members, path, s, in_item, &mut ok)?,
     };
     ok.then_some(kind)
+}
+
+/// A group of parameters (an object without `$type`, or `$type: "object"`).
+fn parse_group(
+    r: &mut Reader<'_>,
+    node: &Node,
+    members: &[crate::json::Member],
+    path: &str,
+    in_item: bool,
+    ok: &mut bool,
+) -> Option<ParamKind> {
+    for key in ["$default", "$items", "$length"] {
+        if let Some(m) = members.iter().find(|m| m.key == key) {
+            let code = if key == "$default" {
+                Code::InvalidDefault
+            } else {
+                Code::UnknownKey
+            };
+            r.error_help(
+                code,
+                m.key_span,
+                &join(path, key),
+                format!("`{key}` is not allowed on a parameter group"),
+                "set defaults on the group's parameters; a group is filled in when all of them have defaults",
+            );
+            *ok = false;
+        }
+    }
+    let children: Vec<crate::json::Member> = members
+        .iter()
+        .filter(|m| !m.key.starts_with('$'))
+        .cloned()
+        .collect();
+    if children.is_empty() {
+        r.error(
+            Code::InvalidValue,
+            node.span,
+            path,
+            format!("parameter group `{path}` has no parameters"),
+        );
+        return None;
+    }
+    Some(ParamKind::Group(parse_fields(r, &children, path, in_item)?))
+}
+
+/// An array parameter: `$items`, `$length`, `$default` (primitive items).
+fn parse_array(
+    r: &mut Reader<'_>,
+    node: &Node,
+    members: &[crate::json::Member],
+    path: &str,
+    ok: &mut bool,
+) -> Option<ParamKind> {
+    if let Some(m) = members.iter().find(|m| !m.key.starts_with('$')) {
+        r.unknown_key(m, path, &["$type", "$items", "$length", "$default"]);
+        *ok = false;
+    }
+    let Some(items_node) = node.get("$items") else {
+        r.error_help(
+            Code::MissingKey,
+            node.span,
+            path,
+            format!("missing required key `$items` in array parameter `{path}`"),
+            "write `{ $type: \"array\", $items: \"f64\" }`",
+        );
+        return None;
+    };
+    let ipath = join(path, "$items");
+    let items = match &items_node.value {
+        Value::String(s) => ParamItem::Primitive(parse_primitive_name(r, items_node, &ipath, s)?),
+        Value::Object(_) => match parse_param(r, items_node, &ipath, true)? {
+            ParamKind::Leaf { ty, default: None } => ParamItem::Primitive(ty),
+            ParamKind::Group(fields) => ParamItem::Object(fields),
+            ParamKind::Array { .. } => {
+                r.error(
+                    Code::NestedArray,
+                    items_node.span,
+                    &ipath,
+                    "arrays of arrays are not supported",
+                );
+                return None;
+            }
+            ParamKind::Leaf {
+                default: Some(_), ..
+            } => return None,
+        },
+        other => {
+            r.error(
+                Code::WrongType,
+                items_node.span,
+                &ipath,
+                format!(
+                    "expected a type name or an object for `{ipath}`, found {}",
+                    other.kind()
+                ),
+            );
+            return None;
+        }
+    };
+    let length = match node.get("$length") {
+        None => None,
+        Some(l) => match fixed_length(r, l, &join(path, "$length")) {
+            Ok(n) => Some(n),
+            Err(()) => {
+                *ok = false;
+                None
+            }
+        },
+    };
+    let default = match node.get("$default") {
+        None => None,
+        Some(d) => {
+            let dpath = join(path, "$default");
+            match &items {
+                ParamItem::Object(_) => {
+                    r.error(
+                        Code::InvalidDefault,
+                        d.span,
+                        &dpath,
+                        "`$default` is not supported on arrays of objects",
+                    );
+                    *ok = false;
+                    None
+                }
+                ParamItem::Primitive(p) => {
+                    let mut errors = Vec::new();
+                    let v = resolve_field(
+                        &ParamKind::Array {
+                            items: ParamItem::Primitive(*p),
+                            length,
+                            default: None,
+                        },
+                        Some(&d.to_json()),
+                        "$default",
+                        &mut errors,
+                    );
+                    for e in &errors {
+                        let at = item_node(d, &e.path).unwrap_or(d);
+                        r.error(
+                            Code::InvalidDefault,
+                            at.span,
+                            &dpath,
+                            format!("invalid `$default`: {}", e_message(e)),
+                        );
+                    }
+                    if !errors.is_empty() {
+                        *ok = false;
+                    }
+                    v
+                }
+            }
+        }
+    };
+    Some(ParamKind::Array {
+        items,
+        length,
+        default,
+    })
+}
+
+/// A primitive parameter with its `$default`, checked like a value.
+fn parse_leaf(
+    r: &mut Reader<'_>,
+    node: &Node,
+    members: &[crate::json::Member],
+    path: &str,
+    type_name: &str,
+    in_item: bool,
+    ok: &mut bool,
+) -> Option<ParamKind> {
+    let type_node = node.get("$type").expect("present");
+    let ty = parse_primitive_name(r, type_node, &join(path, "$type"), type_name)?;
+    for m in members.iter().filter(|m| !m.key.starts_with('$')) {
+        r.unknown_key(m, path, &["$type", "$default"]);
+        *ok = false;
+    }
+    for key in ["$items", "$length"] {
+        if let Some(m) = members.iter().find(|m| m.key == key) {
+            r.error(
+                Code::UnknownKey,
+                m.key_span,
+                &join(path, key),
+                format!("`{key}` is only allowed on array parameters"),
+            );
+            *ok = false;
+        }
+    }
+    let default = match node.get("$default") {
+        None => None,
+        Some(d) => {
+            let dpath = join(path, "$default");
+            if in_item {
+                r.error(
+                    Code::InvalidDefault,
+                    d.span,
+                    &dpath,
+                    "`$default` is not allowed inside array items",
+                );
+                *ok = false;
+                None
+            } else if matches!(ty, Primitive::Bytes | Primitive::Time) {
+                r.error_help(
+                    Code::InvalidDefault,
+                    d.span,
+                    &dpath,
+                    format!("`$default` is not supported for `{}` parameters", ty.name()),
+                    "pass the value at launch instead",
+                );
+                *ok = false;
+                None
+            } else {
+                match check_leaf(ty, &d.to_json()) {
+                    Ok(v) => Some(v),
+                    Err(why) => {
+                        r.error(
+                            Code::InvalidDefault,
+                            d.span,
+                            &dpath,
+                            format!("invalid `$default`: `{path}` {why}"),
+                        );
+                        *ok = false;
+                        None
+                    }
+                }
+            }
+        }
+    };
+    Some(ParamKind::Leaf { ty, default })
 }
 
 fn e_message(e: &ParamError) -> String {
