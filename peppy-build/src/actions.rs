@@ -302,27 +302,7 @@ impl Gen<'_> {
         }
         let types = structs.out;
 
-        let constructor = match &decl.goal {
-            Some(goal) => {
-                let a = args(&pre.goal, &goal.fields, &[]);
-                let (params, inits) = (&a.params, &a.inits);
-                let allows = {
-                    let mut t = snake_allow(&goal.fields);
-                    t.extend(many_args_allow(goal.fields.len()));
-                    t
-                };
-                quote! {
-                    impl GoalRequest {
-                        #[doc = " A goal from its fields, in declaration order."]
-                        #allows
-                        pub fn new(#(#params),*) -> Self {
-                            Self { #(#inits),* }
-                        }
-                    }
-                }
-            }
-            None => quote!(),
-        };
+        let constructor = goal_constructor(&pre.goal, decl.goal.as_ref());
         let (goal_param, goal_ref) = match &decl.goal {
             Some(_) => (quote!(request: GoalRequest,), quote!(&request)),
             None => (quote!(), quote!(&())),
@@ -336,52 +316,7 @@ impl Gen<'_> {
             },
             None => quote!(),
         };
-        let (outcome, result_type, completed, cancelled) = match &decl.result {
-            Some(_) => (
-                quote! {
-                    #[doc = " How a goal ended."]
-                    #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
-                    pub enum ResultOutcome {
-                        #[doc = " Finished with a result."]
-                        Completed(ResultResponseData),
-                        #[doc = " Cancelled, with a (partial) result."]
-                        Cancelled(ResultResponseData),
-                        #[doc = " The server dropped the goal without a result."]
-                        Abandoned,
-                        #[doc = " The result was not fetched within the server's retention period (30 s)."]
-                        Expired,
-                    }
-                },
-                quote!(ResultResponseData),
-                quote!(ResultOutcome::Completed(data)),
-                quote!(ResultOutcome::Cancelled(data)),
-            ),
-            None => (
-                quote! {
-                    #[doc = " How a goal ended (the action has no result data)."]
-                    #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::marker::Copy, ::core::cmp::PartialEq, ::core::cmp::Eq)]
-                    pub enum ResultOutcome {
-                        #[doc = " Finished."]
-                        Completed,
-                        #[doc = " Cancelled."]
-                        Cancelled,
-                        #[doc = " The server dropped the goal without a result."]
-                        Abandoned,
-                        #[doc = " The result was not fetched within the server's retention period (30 s)."]
-                        Expired,
-                    }
-                },
-                quote!(()),
-                quote!({
-                    let () = data;
-                    ResultOutcome::Completed
-                }),
-                quote!({
-                    let () = data;
-                    ResultOutcome::Cancelled
-                }),
-            ),
-        };
+        let (outcome, result_type, completed, cancelled) = result_outcome(decl.result.is_some());
         let link_id = &c.slot.link_id;
         let owner = owner(&c.origin, false);
         let goal_format = format_spec(decl.goal.as_ref());
@@ -493,5 +428,83 @@ impl Gen<'_> {
                 }
             }
         }
+    }
+}
+
+/// `GoalRequest::new`, the constructor of a consumed action's goal from
+/// its fields (nothing without goal data).
+fn goal_constructor(prefix: &str, goal: Option<&MessageFormat>) -> TokenStream {
+    match goal {
+        Some(goal) => {
+            let a = args(prefix, &goal.fields, &[]);
+            let (params, inits) = (&a.params, &a.inits);
+            let allows = {
+                let mut t = snake_allow(&goal.fields);
+                t.extend(many_args_allow(goal.fields.len()));
+                t
+            };
+            quote! {
+                impl GoalRequest {
+                    #[doc = " A goal from its fields, in declaration order."]
+                    #allows
+                    pub fn new(#(#params),*) -> Self {
+                        Self { #(#inits),* }
+                    }
+                }
+            }
+        }
+        None => quote!(),
+    }
+}
+
+/// A consumed action's `ResultOutcome` enum and the pieces that build it:
+/// `(enum, result data type, completed, cancelled)`, with or without result
+/// data.
+fn result_outcome(has_result: bool) -> (TokenStream, TokenStream, TokenStream, TokenStream) {
+    match has_result {
+        true => (
+            quote! {
+                #[doc = " How a goal ended."]
+                #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
+                pub enum ResultOutcome {
+                    #[doc = " Finished with a result."]
+                    Completed(ResultResponseData),
+                    #[doc = " Cancelled, with a (partial) result."]
+                    Cancelled(ResultResponseData),
+                    #[doc = " The server dropped the goal without a result."]
+                    Abandoned,
+                    #[doc = " The result was not fetched within the server's retention period (30 s)."]
+                    Expired,
+                }
+            },
+            quote!(ResultResponseData),
+            quote!(ResultOutcome::Completed(data)),
+            quote!(ResultOutcome::Cancelled(data)),
+        ),
+        false => (
+            quote! {
+                #[doc = " How a goal ended (the action has no result data)."]
+                #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::marker::Copy, ::core::cmp::PartialEq, ::core::cmp::Eq)]
+                pub enum ResultOutcome {
+                    #[doc = " Finished."]
+                    Completed,
+                    #[doc = " Cancelled."]
+                    Cancelled,
+                    #[doc = " The server dropped the goal without a result."]
+                    Abandoned,
+                    #[doc = " The result was not fetched within the server's retention period (30 s)."]
+                    Expired,
+                }
+            },
+            quote!(()),
+            quote!({
+                let () = data;
+                ResultOutcome::Completed
+            }),
+            quote!({
+                let () = data;
+                ResultOutcome::Cancelled
+            }),
+        ),
     }
 }
