@@ -155,35 +155,86 @@ pub(crate) fn parse_node(
             "write `peppy_schema: \"node_v1\"`",
         );
     }
+    let manifest = parse_manifest(&mut r, &root_obj, legacy, &mut ok);
+    if manifest.name.is_none() || manifest.tag.is_none() {
+        ok = false;
+    }
+    let execution = if legacy {
+        parse_legacy_process(&mut r, &root_obj, manifest.legacy_language)
+    } else {
+        r.required(&root_obj, "execution")
+            .and_then(|e| parse_execution(&mut r, e))
+    };
+    if execution.is_none() {
+        ok = false;
+    }
+    let i = parse_interfaces(&mut r, &root_obj, legacy, &mut ok);
+    ok &= check_consumed_links(&mut r, root, legacy, &i);
+    // two consumed entries generating the same module
+    check_consumed_modules(
+        &mut r,
+        &i.consumed_topics,
+        &i.consumed_services,
+        &i.consumed_actions,
+    );
 
-    // manifest
+    if !ok || r.diags.has_errors() {
+        return None;
+    }
+    let (name, name_loc) = manifest.name?;
+    let (tag, _) = manifest.tag?;
+    Some(NodeDoc {
+        file: file.clone(),
+        legacy,
+        name,
+        tag,
+        name_loc,
+        labels: manifest.labels,
+        dependencies: manifest.dependencies,
+        execution: execution?,
+        conforms_to: i.conforms_to,
+        emits: i.emits,
+        consumed_topics: i.consumed_topics,
+        exposed_services: i.exposed_services,
+        consumed_services: i.consumed_services,
+        exposed_actions: i.exposed_actions,
+        consumed_actions: i.consumed_actions,
+    })
+}
+
+/// What `manifest` holds.
+struct Manifest {
+    name: Option<(String, Loc)>,
+    tag: Option<(String, Loc)>,
+    labels: Vec<String>,
+    dependencies: Vec<Dependency>,
+    /// The legacy form's `manifest.language`.
+    legacy_language: Option<String>,
+}
+
+/// `manifest`: identity, labels, `depends_on` (and the legacy `language`).
+fn parse_manifest(r: &mut Reader<'_>, root_obj: &Obj<'_>, legacy: bool, ok: &mut bool) -> Manifest {
     let mut name = None;
     let mut tag = None;
     let mut labels = Vec::new();
     let mut dependencies = Vec::new();
     let mut legacy_language = None;
-    if let Some(m) = r.required(&root_obj, "manifest") {
+    if let Some(m) = r.required(root_obj, "manifest") {
         let keys: &[&str] = if legacy {
             &["name", "tag", "labels", "depends_on", "language"]
         } else {
             &["name", "tag", "labels", "depends_on"]
         };
         if let Some(mobj) = r.object(m, "manifest", keys) {
-            name = read_identity_part(&mut r, &mobj, "name", check_name, Code::InvalidName);
-            tag = read_identity_part(
-                &mut r,
-                &mobj,
-                "tag",
-                |s| check_tag(s, legacy),
-                Code::InvalidTag,
-            );
+            name = read_identity_part(r, &mobj, "name", check_name, Code::InvalidName);
+            tag = read_identity_part(r, &mobj, "tag", |s| check_tag(s, legacy), Code::InvalidTag);
             if let Some(l) = mobj.get("labels") {
                 labels = r.string_list(l, "manifest.labels").unwrap_or_default();
             }
             if let Some(d) = mobj.get("depends_on") {
-                match parse_depends_on(&mut r, d, legacy) {
+                match parse_depends_on(r, d, legacy) {
                     Some(deps) => dependencies = deps,
-                    None => ok = false,
+                    None => *ok = false,
                 }
             }
             if legacy && let Some(lang) = mobj.member("language") {
@@ -198,22 +249,34 @@ pub(crate) fn parse_node(
             }
         }
     }
-    if name.is_none() || tag.is_none() {
-        ok = false;
+    Manifest {
+        name,
+        tag,
+        labels,
+        dependencies,
+        legacy_language,
     }
+}
 
-    // execution
-    let execution = if legacy {
-        parse_legacy_process(&mut r, &root_obj, legacy_language)
-    } else {
-        r.required(&root_obj, "execution")
-            .and_then(|e| parse_execution(&mut r, e))
-    };
-    if execution.is_none() {
-        ok = false;
-    }
+/// What `interfaces` holds.
+#[derive(Default)]
+struct Interfaces {
+    conforms_to: Vec<InterfaceRef>,
+    emits: Vec<TopicDecl>,
+    consumed_topics: Vec<ConsumedTopic>,
+    exposed_services: Vec<ServiceDecl>,
+    consumed_services: Vec<ConsumedRef>,
+    exposed_actions: Vec<ActionDecl>,
+    consumed_actions: Vec<ConsumedRef>,
+}
 
-    // interfaces
+/// `interfaces`: conformance, topics, services and actions.
+fn parse_interfaces(
+    r: &mut Reader<'_>,
+    root_obj: &Obj<'_>,
+    legacy: bool,
+    ok: &mut bool,
+) -> Interfaces {
     let mut conforms_to = Vec::new();
     let mut emits = Vec::new();
     let mut consumed_topics = Vec::new();
@@ -227,89 +290,102 @@ pub(crate) fn parse_node(
             "interfaces",
             &["topics", "services", "actions", "conforms_to"],
         ) {
-            conforms_to = parse_conforms_to(&mut r, iobj.get("conforms_to"), &mut ok);
+            conforms_to = parse_conforms_to(r, iobj.get("conforms_to"), ok);
             if let Some(t) = iobj.get("topics") {
                 if let Some(tobj) = r.object(t, "interfaces.topics", &["emits", "consumes"]) {
                     emits = parse_list(
-                        &mut r,
+                        r,
                         tobj.get("emits"),
                         "interfaces.topics.emits",
                         EntryKind::Topic,
-                        &mut ok,
+                        ok,
                         parse_topic,
                         topic_name,
                     );
-                    consumed_topics =
-                        parse_consumed_topics(&mut r, tobj.get("consumes"), legacy, &mut ok);
+                    consumed_topics = parse_consumed_topics(r, tobj.get("consumes"), legacy, ok);
                 } else {
-                    ok = false;
+                    *ok = false;
                 }
             }
             if let Some(s) = iobj.get("services") {
                 if let Some(sobj) = r.object(s, "interfaces.services", &["exposes", "consumes"]) {
                     exposed_services = parse_list(
-                        &mut r,
+                        r,
                         sobj.get("exposes"),
                         "interfaces.services.exposes",
                         EntryKind::Service,
-                        &mut ok,
+                        ok,
                         parse_service,
                         service_name,
                     );
                     consumed_services = parse_consumed_refs(
-                        &mut r,
+                        r,
                         sobj.get("consumes"),
                         "interfaces.services.consumes",
                         EntryKind::Service,
                         legacy,
-                        &mut ok,
+                        ok,
                     );
                 } else {
-                    ok = false;
+                    *ok = false;
                 }
             }
             if let Some(a) = iobj.get("actions") {
                 if let Some(aobj) = r.object(a, "interfaces.actions", &["exposes", "consumes"]) {
                     exposed_actions = parse_list(
-                        &mut r,
+                        r,
                         aobj.get("exposes"),
                         "interfaces.actions.exposes",
                         EntryKind::Action,
-                        &mut ok,
+                        ok,
                         parse_action,
                         action_name,
                     );
                     consumed_actions = parse_consumed_refs(
-                        &mut r,
+                        r,
                         aobj.get("consumes"),
                         "interfaces.actions.consumes",
                         EntryKind::Action,
                         legacy,
-                        &mut ok,
+                        ok,
                     );
                 } else {
-                    ok = false;
+                    *ok = false;
                 }
             }
         } else {
-            ok = false;
+            *ok = false;
         }
     }
 
-    // link ids used by consumed entries must be declared
-    let consumed_links = consumed_topics
+    Interfaces {
+        conforms_to,
+        emits,
+        consumed_topics,
+        exposed_services,
+        consumed_services,
+        exposed_actions,
+        consumed_actions,
+    }
+}
+
+/// Every link_id a consumed entry uses must be declared; `false` if one is not.
+fn check_consumed_links(r: &mut Reader<'_>, root: &Node, legacy: bool, i: &Interfaces) -> bool {
+    let mut ok = true;
+    let consumed_links = i
+        .consumed_topics
         .iter()
         .filter_map(|t| match &t.source {
             TopicSource::Linked { link_id } => Some((link_id.as_str(), &t.loc, EntryKind::Topic)),
             TopicSource::External(_) => None,
         })
         .chain(
-            consumed_services
+            i.consumed_services
                 .iter()
                 .map(|s| (s.link_id.as_str(), &s.loc, EntryKind::Service)),
         )
         .chain(
-            consumed_actions
+            i.consumed_actions
                 .iter()
                 .map(|a| (a.link_id.as_str(), &a.loc, EntryKind::Action)),
         );
@@ -333,36 +409,7 @@ pub(crate) fn parse_node(
         }
     }
 
-    // two consumed entries generating the same module
-    check_consumed_modules(
-        &mut r,
-        &consumed_topics,
-        &consumed_services,
-        &consumed_actions,
-    );
-
-    if !ok || r.diags.has_errors() {
-        return None;
-    }
-    let (name, name_loc) = name?;
-    let (tag, _) = tag?;
-    Some(NodeDoc {
-        file: file.clone(),
-        legacy,
-        name,
-        tag,
-        name_loc,
-        labels,
-        dependencies,
-        execution: execution?,
-        conforms_to,
-        emits,
-        consumed_topics,
-        exposed_services,
-        consumed_services,
-        exposed_actions,
-        consumed_actions,
-    })
+    ok
 }
 
 /// Every `link_id` written in `manifest.depends_on` (and legacy `local_id`),
