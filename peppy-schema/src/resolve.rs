@@ -12,7 +12,7 @@ use crate::document::DocumentKind;
 use crate::entries::{ActionDecl, EntryKind, QosProfile, ServiceDecl, TopicDecl};
 use crate::format::MessageFormat;
 use crate::interface::InterfaceDoc;
-use crate::node::{Dependency, Identity, NodeDoc, SlotKind, TopicSource};
+use crate::node::{ConsumedRef, Dependency, Identity, NodeDoc, SlotKind, TopicSource};
 use crate::read::Loc;
 use crate::repos::{Entry, RepoIndex};
 
@@ -139,33 +139,9 @@ pub fn resolve_node(
     let mut diags = Diagnostics::new();
     let mut files = vec![node_path];
 
-    // What this node provides.
+    // What this node provides: its own entries, then its interfaces'.
+    let mut provides = node_offer(&node);
     let mut conformed = Vec::new();
-    let own = Origin::Node(node.identity());
-    let mut emitted_topics: Vec<Provided<TopicDecl>> = node
-        .emits
-        .iter()
-        .map(|t| Provided {
-            decl: t.clone(),
-            origin: own.clone(),
-        })
-        .collect();
-    let mut exposed_services: Vec<Provided<ServiceDecl>> = node
-        .exposed_services
-        .iter()
-        .map(|s| Provided {
-            decl: s.clone(),
-            origin: own.clone(),
-        })
-        .collect();
-    let mut exposed_actions: Vec<Provided<ActionDecl>> = node
-        .exposed_actions
-        .iter()
-        .map(|a| Provided {
-            decl: a.clone(),
-            origin: own.clone(),
-        })
-        .collect();
     for c in &node.conforms_to {
         let Some(entry) = find_interface(
             index,
@@ -178,19 +154,7 @@ pub fn resolve_node(
             continue;
         };
         files.push(entry.path.clone());
-        let origin = Origin::Interface(c.target.clone());
-        emitted_topics.extend(entry.doc.topics.iter().map(|t| Provided {
-            decl: t.clone(),
-            origin: origin.clone(),
-        }));
-        exposed_services.extend(entry.doc.services.iter().map(|s| Provided {
-            decl: s.clone(),
-            origin: origin.clone(),
-        }));
-        exposed_actions.extend(entry.doc.actions.iter().map(|a| Provided {
-            decl: a.clone(),
-            origin: origin.clone(),
-        }));
+        provides.extend(interface_offer(&entry.doc, &c.target));
         conformed.push(UsedInterface {
             doc: entry.doc.clone(),
             path: entry.path.clone(),
@@ -213,36 +177,7 @@ pub fn resolve_node(
                     continue;
                 };
                 files.push(entry.path.clone());
-                let origin = Origin::Interface(dep.target.clone());
-                Offer {
-                    topics: entry
-                        .doc
-                        .topics
-                        .iter()
-                        .map(|t| Provided {
-                            decl: t.clone(),
-                            origin: origin.clone(),
-                        })
-                        .collect(),
-                    services: entry
-                        .doc
-                        .services
-                        .iter()
-                        .map(|t| Provided {
-                            decl: t.clone(),
-                            origin: origin.clone(),
-                        })
-                        .collect(),
-                    actions: entry
-                        .doc
-                        .actions
-                        .iter()
-                        .map(|t| Provided {
-                            decl: t.clone(),
-                            origin: origin.clone(),
-                        })
-                        .collect(),
-                }
+                interface_offer(&entry.doc, &dep.target)
             }
             SlotKind::Node => {
                 let Some(entry) = find_node(index, &dep.target, &dep.loc, &mut diags) else {
@@ -258,16 +193,120 @@ pub fn resolve_node(
         offers.push((dep, offer));
     }
 
-    let slot_of = |dep: &Dependency| SlotRef {
+    let consumed_topics = resolve_topics(&node, &offers, &mut diags);
+    let consumed_services = resolve_calls(
+        &node.consumed_services,
+        &offers,
+        |o| &o.services,
+        EntryKind::Service,
+        &mut diags,
+    );
+    let consumed_actions = resolve_calls(
+        &node.consumed_actions,
+        &offers,
+        |o| &o.actions,
+        EntryKind::Action,
+        &mut diags,
+    );
+
+    files.sort();
+    files.dedup();
+    let resolved = ResolvedNode {
+        node,
+        conformed,
+        emitted_topics: provides.topics,
+        exposed_services: provides.services,
+        exposed_actions: provides.actions,
+        consumed_topics,
+        consumed_services,
+        consumed_actions,
+        files,
+    };
+    diags.into_result(resolved)
+}
+
+/// A declaration's name, for matching consumers to producers.
+trait Named {
+    fn name(&self) -> &str;
+}
+
+impl Named for TopicDecl {
+    fn name(&self) -> &str {
+        &self.name
+    }
+}
+
+impl Named for ServiceDecl {
+    fn name(&self) -> &str {
+        &self.name
+    }
+}
+
+impl Named for ActionDecl {
+    fn name(&self) -> &str {
+        &self.name
+    }
+}
+
+/// `items`, each with the wire identity `origin`.
+fn provided<T: Clone>(items: &[T], origin: &Origin) -> Vec<Provided<T>> {
+    items
+        .iter()
+        .map(|d| Provided {
+            decl: d.clone(),
+            origin: origin.clone(),
+        })
+        .collect()
+}
+
+/// A node's own entries.
+fn node_offer(node: &NodeDoc) -> Offer {
+    let own = Origin::Node(node.identity());
+    Offer {
+        topics: provided(&node.emits, &own),
+        services: provided(&node.exposed_services, &own),
+        actions: provided(&node.exposed_actions, &own),
+    }
+}
+
+/// The entries of interface `identity`.
+fn interface_offer(doc: &InterfaceDoc, identity: &Identity) -> Offer {
+    let origin = Origin::Interface(identity.clone());
+    Offer {
+        topics: provided(&doc.topics, &origin),
+        services: provided(&doc.services, &origin),
+        actions: provided(&doc.actions, &origin),
+    }
+}
+
+impl Offer {
+    fn extend(&mut self, other: Offer) {
+        self.topics.extend(other.topics);
+        self.services.extend(other.services);
+        self.actions.extend(other.actions);
+    }
+}
+
+fn slot_of(dep: &Dependency) -> SlotRef {
+    SlotRef {
         link_id: dep.link_id.clone(),
         kind: dep.kind,
         target: dep.target.clone(),
         from_any: dep.from_any,
-    };
-    let mut consumed_topics = Vec::new();
+    }
+}
+
+/// Consumed topics: external ones with their own format, linked ones with
+/// the format and QoS their slot's producer declares.
+fn resolve_topics(
+    node: &NodeDoc,
+    offers: &[(&Dependency, Offer)],
+    diags: &mut Diagnostics,
+) -> Vec<ResolvedTopic> {
+    let mut out = Vec::new();
     for t in &node.consumed_topics {
         match &t.source {
-            TopicSource::External(format) => consumed_topics.push(ResolvedTopic {
+            TopicSource::External(format) => out.push(ResolvedTopic {
                 name: t.name.clone(),
                 slot: None,
                 origin: None,
@@ -280,7 +319,7 @@ pub fn resolve_node(
                     continue;
                 };
                 match offer.topics.iter().find(|p| p.decl.name == t.name) {
-                    Some(p) => consumed_topics.push(ResolvedTopic {
+                    Some(p) => out.push(ResolvedTopic {
                         name: t.name.clone(),
                         slot: Some(slot_of(dep)),
                         origin: Some(p.origin.clone()),
@@ -299,63 +338,34 @@ pub fn resolve_node(
             }
         }
     }
-    let mut consumed_services = Vec::new();
-    for s in &node.consumed_services {
-        let Some((dep, offer)) = offers.iter().find(|(d, _)| d.link_id == s.link_id) else {
-            continue;
-        };
-        match offer.services.iter().find(|p| p.decl.name == s.name) {
-            Some(p) => consumed_services.push(ResolvedCall {
-                slot: slot_of(dep),
-                decl: p.decl.clone(),
-                origin: p.origin.clone(),
-                loc: s.loc.clone(),
-            }),
-            None => diags.push(missing_on_producer(
-                &s.loc,
-                EntryKind::Service,
-                &s.name,
-                dep,
-                offer,
-            )),
-        }
-    }
-    let mut consumed_actions = Vec::new();
-    for a in &node.consumed_actions {
-        let Some((dep, offer)) = offers.iter().find(|(d, _)| d.link_id == a.link_id) else {
-            continue;
-        };
-        match offer.actions.iter().find(|p| p.decl.name == a.name) {
-            Some(p) => consumed_actions.push(ResolvedCall {
-                slot: slot_of(dep),
-                decl: p.decl.clone(),
-                origin: p.origin.clone(),
-                loc: a.loc.clone(),
-            }),
-            None => diags.push(missing_on_producer(
-                &a.loc,
-                EntryKind::Action,
-                &a.name,
-                dep,
-                offer,
-            )),
-        }
-    }
+    out
+}
 
-    files.sort();
-    files.dedup();
-    let resolved = ResolvedNode {
-        node,
-        conformed,
-        emitted_topics,
-        exposed_services,
-        exposed_actions,
-        consumed_topics,
-        consumed_services,
-        consumed_actions,
-        files,
-    };
-    diags.into_result(resolved)
+/// Consumed services or actions, each matched to its slot producer's
+/// declaration (`pick` chooses which of the offer's lists).
+fn resolve_calls<T: Clone + Named>(
+    refs: &[ConsumedRef],
+    offers: &[(&Dependency, Offer)],
+    pick: fn(&Offer) -> &Vec<Provided<T>>,
+    kind: EntryKind,
+    diags: &mut Diagnostics,
+) -> Vec<ResolvedCall<T>> {
+    let mut out = Vec::new();
+    for c in refs {
+        let Some((dep, offer)) = offers.iter().find(|(d, _)| d.link_id == c.link_id) else {
+            continue;
+        };
+        match pick(offer).iter().find(|p| p.decl.name() == c.name) {
+            Some(p) => out.push(ResolvedCall {
+                slot: slot_of(dep),
+                decl: p.decl.clone(),
+                origin: p.origin.clone(),
+                loc: c.loc.clone(),
+            }),
+            None => diags.push(missing_on_producer(&c.loc, kind, &c.name, dep, offer)),
+        }
+    }
+    out
 }
 
 /// A producer node's offer: own entries win a name clash with conformed ones.
@@ -366,33 +376,7 @@ fn producer_offer(
     files: &mut Vec<PathBuf>,
     diags: &mut Diagnostics,
 ) -> Option<Offer> {
-    let own = Origin::Node(producer.identity());
-    let mut offer = Offer {
-        topics: producer
-            .emits
-            .iter()
-            .map(|t| Provided {
-                decl: t.clone(),
-                origin: own.clone(),
-            })
-            .collect(),
-        services: producer
-            .exposed_services
-            .iter()
-            .map(|s| Provided {
-                decl: s.clone(),
-                origin: own.clone(),
-            })
-            .collect(),
-        actions: producer
-            .exposed_actions
-            .iter()
-            .map(|a| Provided {
-                decl: a.clone(),
-                origin: own.clone(),
-            })
-            .collect(),
-    };
+    let mut offer = node_offer(producer);
     for c in &producer.conforms_to {
         // The producer's own pins are checked when the producer is built; here
         // we only need the contract it inherits.
