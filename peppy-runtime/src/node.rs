@@ -256,131 +256,13 @@ impl NodeRunner {
             entities: Mutex::new(Entities::default()),
         };
         let mut entities = Entities::default();
-        for spec in descriptor.emitted_topics {
-            let owner = spec
-                .owner
-                .resolve(&runner.node_name, &runner.node_tag)
-                .expect("emitted topics have an owner");
-            let key = entry_key(
-                &runner.namespace,
-                Channel::Topic,
-                &owner,
-                spec.name,
-                &runner.core_node,
-                &runner.instance_id,
-            );
-            let publisher = runner
-                .session
-                .declare_publisher(key)
-                .congestion_control(qos::congestion(spec.qos))
-                .priority(qos::priority(spec.qos))
-                .express(qos::express(spec.qos))
-                .await?;
-            runner.publishers.insert(address(*spec), publisher);
-        }
-        // Other nodes ask this node for the text of a format whose
-        // fingerprint they do not know, to name both sides of a mismatch.
-        let mut served = std::collections::HashSet::new();
-        for spec in descriptor.emitted_topics {
-            if !served.insert(spec.format.fingerprint) {
-                continue;
-            }
-            let key = format_key(
-                &runner.namespace,
-                spec.format.fingerprint,
-                &runner.instance_id,
-            );
-            let canonical = spec.format.canonical;
-            let reply_key = key.clone();
-            let q = runner
-                .session
-                .declare_queryable(key)
-                .callback(move |q| {
-                    let _ = zenoh::Wait::wait(
-                        q.reply(reply_key.as_str(), canonical.as_bytes().to_vec()),
-                    );
-                })
-                .await?;
-            entities.queryables.push(q);
-        }
-        let mismatch = mismatch_reporter(runner.session.clone(), runner.namespace.clone());
-        let mut trackers = HashMap::new();
-        for spec in descriptor.consumed_topics {
-            let filter = match spec.link_id {
-                Some(link) => runner.slot(link)?.filter.clone(),
-                None => peppy_schema::RouteFilter::Any,
-            };
-            let members = match (spec.link_id, spec.owner) {
-                (Some(link), OwnerSpec::Interface { .. }) => {
-                    runner.node_slot_members(link, &mut trackers).await?
-                }
-                _ => None,
-            };
-            let selector = topics::subscription_selector(&runner, spec, &filter);
-            let (intake, inbox) = Intake::new(spec, filter, members, mismatch.clone());
-            let subscriber = runner
-                .session
-                .declare_subscriber(selector)
-                .callback(move |s| intake.accept(s))
-                .await?;
-            entities.subscribers.push(subscriber);
-            runner.inboxes.insert(address(*spec), inbox);
-        }
-        for spec in descriptor.exposed_services {
-            let key = services::server_key(&runner, spec);
-            let (tx, rx) = flume::bounded(64);
-            let queryable = runner
-                .session
-                .declare_queryable(key.clone())
-                .complete(true)
-                .callback(services::intake(spec, key.clone(), tx))
-                .await?;
-            entities.queryables.push(queryable);
-            runner
-                .service_inboxes
-                .insert(address(*spec), (ServiceInbox { rx }, key));
-        }
-        for spec in descriptor.exposed_actions {
-            let base = actions::server_base_key(&runner, spec);
-            let registry = Registry::new(spec, base.clone(), runner.session.clone(), retention);
-            let (tx, rx) = flume::bounded(64);
-            let goal_key = action_part_key(&base, ActionPart::Goal);
-            let goal = runner
-                .session
-                .declare_queryable(goal_key.clone())
-                .complete(true)
-                .callback(actions::goal_intake(spec, goal_key, tx))
-                .await?;
-            let r = registry.clone();
-            let cancel = runner
-                .session
-                .declare_queryable(action_part_key(&base, ActionPart::Cancel))
-                .complete(true)
-                .callback(move |q| r.on_cancel(q))
-                .await?;
-            let r = registry.clone();
-            let result = runner
-                .session
-                .declare_queryable(action_part_key(&base, ActionPart::Result))
-                .complete(true)
-                .callback(move |q| r.on_result(q))
-                .await?;
-            entities.queryables.extend([goal, cancel, result]);
-            let (r, token) = (registry.clone(), runner.token.clone());
-            tokio::spawn(async move {
-                let mut tick = tokio::time::interval((retention / 4).clamp(
-                    std::time::Duration::from_millis(10),
-                    std::time::Duration::from_secs(1),
-                ));
-                loop {
-                    tokio::select! {
-                        _ = tick.tick() => r.sweep(),
-                        () = token.cancelled() => break,
-                    }
-                }
-            });
-            runner.action_servers.insert(address(*spec), (rx, registry));
-        }
+        runner.declare_publishers(descriptor).await?;
+        runner.serve_formats(descriptor, &mut entities).await?;
+        runner.subscribe(descriptor, &mut entities).await?;
+        runner.serve_services(descriptor, &mut entities).await?;
+        runner
+            .serve_actions(descriptor, retention, &mut entities)
+            .await?;
         // Presence: withdrawn when the node shuts down or dies.
         let live = liveliness_key(
             &runner.namespace,
@@ -398,6 +280,170 @@ impl NodeRunner {
             "node up"
         );
         Ok(Arc::new(runner))
+    }
+
+    /// One publisher per emitted topic, declared up front.
+    async fn declare_publishers(&mut self, descriptor: &'static NodeDescriptor) -> Result<()> {
+        for spec in descriptor.emitted_topics {
+            let owner = spec
+                .owner
+                .resolve(&self.node_name, &self.node_tag)
+                .expect("emitted topics have an owner");
+            let key = entry_key(
+                &self.namespace,
+                Channel::Topic,
+                &owner,
+                spec.name,
+                &self.core_node,
+                &self.instance_id,
+            );
+            let publisher = self
+                .session
+                .declare_publisher(key)
+                .congestion_control(qos::congestion(spec.qos))
+                .priority(qos::priority(spec.qos))
+                .express(qos::express(spec.qos))
+                .await?;
+            self.publishers.insert(address(*spec), publisher);
+        }
+        Ok(())
+    }
+
+    /// The format queryables of emitted topics.
+    async fn serve_formats(
+        &self,
+        descriptor: &'static NodeDescriptor,
+        entities: &mut Entities,
+    ) -> Result<()> {
+        // Other nodes ask this node for the text of a format whose
+        // fingerprint they do not know, to name both sides of a mismatch.
+        let mut served = std::collections::HashSet::new();
+        for spec in descriptor.emitted_topics {
+            if !served.insert(spec.format.fingerprint) {
+                continue;
+            }
+            let key = format_key(&self.namespace, spec.format.fingerprint, &self.instance_id);
+            let canonical = spec.format.canonical;
+            let reply_key = key.clone();
+            let q = self
+                .session
+                .declare_queryable(key)
+                .callback(move |q| {
+                    let _ = zenoh::Wait::wait(
+                        q.reply(reply_key.as_str(), canonical.as_bytes().to_vec()),
+                    );
+                })
+                .await?;
+            entities.queryables.push(q);
+        }
+        Ok(())
+    }
+
+    /// One subscription and inbox per consumed topic, for the node's life.
+    async fn subscribe(
+        &mut self,
+        descriptor: &'static NodeDescriptor,
+        entities: &mut Entities,
+    ) -> Result<()> {
+        let mismatch = mismatch_reporter(self.session.clone(), self.namespace.clone());
+        let mut trackers = HashMap::new();
+        for spec in descriptor.consumed_topics {
+            let filter = match spec.link_id {
+                Some(link) => self.slot(link)?.filter.clone(),
+                None => peppy_schema::RouteFilter::Any,
+            };
+            let members = match (spec.link_id, spec.owner) {
+                (Some(link), OwnerSpec::Interface { .. }) => {
+                    self.node_slot_members(link, &mut trackers).await?
+                }
+                _ => None,
+            };
+            let selector = topics::subscription_selector(self, spec, &filter);
+            let (intake, inbox) = Intake::new(spec, filter, members, mismatch.clone());
+            let subscriber = self
+                .session
+                .declare_subscriber(selector)
+                .callback(move |s| intake.accept(s))
+                .await?;
+            entities.subscribers.push(subscriber);
+            self.inboxes.insert(address(*spec), inbox);
+        }
+        Ok(())
+    }
+
+    /// One queryable and inbox per exposed service.
+    async fn serve_services(
+        &mut self,
+        descriptor: &'static NodeDescriptor,
+        entities: &mut Entities,
+    ) -> Result<()> {
+        for spec in descriptor.exposed_services {
+            let key = services::server_key(self, spec);
+            let (tx, rx) = flume::bounded(64);
+            let queryable = self
+                .session
+                .declare_queryable(key.clone())
+                .complete(true)
+                .callback(services::intake(spec, key.clone(), tx))
+                .await?;
+            entities.queryables.push(queryable);
+            self
+                .service_inboxes
+                .insert(address(*spec), (ServiceInbox { rx }, key));
+        }
+        Ok(())
+    }
+
+    /// Each exposed action's goal, cancel and result queryables, its goal
+    /// registry and the sweep that expires kept results.
+    async fn serve_actions(
+        &mut self,
+        descriptor: &'static NodeDescriptor,
+        retention: std::time::Duration,
+        entities: &mut Entities,
+    ) -> Result<()> {
+        for spec in descriptor.exposed_actions {
+            let base = actions::server_base_key(self, spec);
+            let registry = Registry::new(spec, base.clone(), self.session.clone(), retention);
+            let (tx, rx) = flume::bounded(64);
+            let goal_key = action_part_key(&base, ActionPart::Goal);
+            let goal = self
+                .session
+                .declare_queryable(goal_key.clone())
+                .complete(true)
+                .callback(actions::goal_intake(spec, goal_key, tx))
+                .await?;
+            let r = registry.clone();
+            let cancel = self
+                .session
+                .declare_queryable(action_part_key(&base, ActionPart::Cancel))
+                .complete(true)
+                .callback(move |q| r.on_cancel(q))
+                .await?;
+            let r = registry.clone();
+            let result = self
+                .session
+                .declare_queryable(action_part_key(&base, ActionPart::Result))
+                .complete(true)
+                .callback(move |q| r.on_result(q))
+                .await?;
+            entities.queryables.extend([goal, cancel, result]);
+            let (r, token) = (registry.clone(), self.token.clone());
+            tokio::spawn(async move {
+                let mut tick = tokio::time::interval((retention / 4).clamp(
+                    std::time::Duration::from_millis(10),
+                    std::time::Duration::from_secs(1),
+                ));
+                loop {
+                    tokio::select! {
+                        _ = tick.tick() => r.sweep(),
+                        () = token.cancelled() => break,
+                    }
+                }
+            });
+            self.action_servers.insert(address(*spec), (rx, registry));
+        }
+        Ok(())
     }
 
     /// This instance's id.
