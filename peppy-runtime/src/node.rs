@@ -387,8 +387,7 @@ impl NodeRunner {
                 .callback(services::intake(spec, key.clone(), tx))
                 .await?;
             entities.queryables.push(queryable);
-            self
-                .service_inboxes
+            self.service_inboxes
                 .insert(address(*spec), (ServiceInbox { rx }, key));
         }
         Ok(())

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use crate::diag::{Code, Diagnostics};
-use crate::launcher::{LauncherDoc, Source};
+use crate::launcher::{Deployment, LauncherDoc, Source};
 use crate::node::{Launch, NodeDoc};
 use crate::plan::{BindingPlan, plan_bindings};
 use crate::repos::{REPOSITORIES_ENV, RepoIndex, RepositoryList, absolute};
@@ -116,84 +116,11 @@ pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, 
     let mut index = RepoIndex::scan(&repositories.paths);
 
     // Load every deployment's node.
-    let mut loaded: Vec<Option<(Arc<NodeDoc>, PathBuf)>> = Vec::new();
-    for d in &launcher.deployments {
-        let node = match &d.source {
-            Source::Local { path } => {
-                let file = node_file(&base.join(path));
-                if !file.is_file() {
-                    diags.push(
-                        d.source_loc
-                            .error(Code::InvalidSource, format!("`{}` has no node: `{}` does not exist", path.display(), file.display()))
-                            .with_help("`local` is a node's directory (or its peppy.json5), relative to the launcher file"),
-                    );
-                    None
-                } else {
-                    match NodeDoc::load(&file) {
-                        Ok((doc, w)) => {
-                            diags.extend(w);
-                            Some((Arc::new(doc), absolute(&file)))
-                        }
-                        Err(e) => {
-                            diags.extend(e);
-                            None
-                        }
-                    }
-                }
-            }
-            Source::Repository { identity } => match index.node(identity) {
-                Some(e) => Some((e.doc.clone(), e.path.clone())),
-                None => {
-                    let diag = match index.broken(crate::document::DocumentKind::Node, identity) {
-                        // Found, but invalid: say so, like a broken dependency.
-                        Some(b) => {
-                            let first = b
-                                .diagnostics
-                                .sorted()
-                                .first()
-                                .map(|first| first.jump_line(None))
-                                .unwrap_or_default();
-                            d.source_loc
-                                .error(
-                                    Code::DependencyInvalid,
-                                    format!(
-                                        "node `{identity}` is defined in `{}`, but that document is invalid",
-                                        b.path.display()
-                                    ),
-                                )
-                                .with_help(format!(
-                                    "first problem: {first} (run `peppy-launch validate {}`)",
-                                    b.path.display()
-                                ))
-                        }
-                        None => d
-                            .source_loc
-                            .error(
-                                Code::DependencyNotFound,
-                                format!("no repository provides node `{identity}`"),
-                            )
-                            .with_help(index.searched()),
-                    };
-                    diags.push(diag);
-                    None
-                }
-            },
-            Source::Git { .. } | Source::Archive { .. } => {
-                let kind = if matches!(d.source, Source::Git { .. }) {
-                    "git (`repo`/`path`/`ref`)"
-                } else {
-                    "archive (`url`/`sha256`)"
-                };
-                diags.push(
-                    d.source_loc
-                        .error(Code::UnsupportedSource, format!("{kind} sources are not supported yet"))
-                        .with_help("check the node out locally and use `{ local: \"path\" }`, or add its repository and use `{ name: \"n:t\" }`"),
-                );
-                None
-            }
-        };
-        loaded.push(node);
-    }
+    let loaded: Vec<Option<(Arc<NodeDoc>, PathBuf)>> = launcher
+        .deployments
+        .iter()
+        .map(|d| load_deployment(d, &base, &index, &mut diags))
+        .collect();
     // Refused here rather than after building and opening the router: a
     // launch that cannot start every node starts none.
     for (d, (doc, _)) in launcher
@@ -276,4 +203,88 @@ pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, 
         repositories: repositories.paths,
         warnings: diags,
     })
+}
+
+/// The node a deployment's source names, read from its directory (`local`)
+/// or found in the repositories (`name:tag`); `None` once reported.
+fn load_deployment(
+    d: &Deployment,
+    base: &Path,
+    index: &RepoIndex,
+    diags: &mut Diagnostics,
+) -> Option<(Arc<NodeDoc>, PathBuf)> {
+    match &d.source {
+        Source::Local { path } => {
+            let file = node_file(&base.join(path));
+            if !file.is_file() {
+                diags.push(
+                    d.source_loc
+                        .error(Code::InvalidSource, format!("`{}` has no node: `{}` does not exist", path.display(), file.display()))
+                        .with_help("`local` is a node's directory (or its peppy.json5), relative to the launcher file"),
+                );
+                None
+            } else {
+                match NodeDoc::load(&file) {
+                    Ok((doc, w)) => {
+                        diags.extend(w);
+                        Some((Arc::new(doc), absolute(&file)))
+                    }
+                    Err(e) => {
+                        diags.extend(e);
+                        None
+                    }
+                }
+            }
+        }
+        Source::Repository { identity } => match index.node(identity) {
+            Some(e) => Some((e.doc.clone(), e.path.clone())),
+            None => {
+                let diag = match index.broken(crate::document::DocumentKind::Node, identity) {
+                    // Found, but invalid: say so, like a broken dependency.
+                    Some(b) => {
+                        let first = b
+                            .diagnostics
+                            .sorted()
+                            .first()
+                            .map(|first| first.jump_line(None))
+                            .unwrap_or_default();
+                        d.source_loc
+                            .error(
+                                Code::DependencyInvalid,
+                                format!(
+                                    "node `{identity}` is defined in `{}`, but that document is invalid",
+                                    b.path.display()
+                                ),
+                            )
+                            .with_help(format!(
+                                "first problem: {first} (run `peppy-launch validate {}`)",
+                                b.path.display()
+                            ))
+                    }
+                    None => d
+                        .source_loc
+                        .error(
+                            Code::DependencyNotFound,
+                            format!("no repository provides node `{identity}`"),
+                        )
+                        .with_help(index.searched()),
+                };
+                diags.push(diag);
+                None
+            }
+        },
+        Source::Git { .. } | Source::Archive { .. } => {
+            let kind = if matches!(d.source, Source::Git { .. }) {
+                "git (`repo`/`path`/`ref`)"
+            } else {
+                "archive (`url`/`sha256`)"
+            };
+            diags.push(
+                d.source_loc
+                    .error(Code::UnsupportedSource, format!("{kind} sources are not supported yet"))
+                    .with_help("check the node out locally and use `{ local: \"path\" }`, or add its repository and use `{ name: \"n:t\" }`"),
+            );
+            None
+        }
+    }
 }
