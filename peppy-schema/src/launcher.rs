@@ -10,7 +10,7 @@ use crate::diag::{Code, Diagnostics, list};
 use crate::json::{Node, Value};
 use crate::names::{check_link_id, check_name, check_tag};
 use crate::node::{Identity, read_sha256};
-use crate::read::{Loc, Reader, index};
+use crate::read::{Loc, Obj, Reader, index};
 use crate::source::SourceFile;
 
 /// Loader variables a launcher may not set: they change what code a
@@ -467,6 +467,48 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
             }
         }
     });
+    let bindings = parse_bindings(r, &obj, id.as_ref().map(|(i, _)| i.as_str()), &mut ok);
+    let (arguments, arguments_loc) = match obj.get("arguments") {
+        Some(a) => {
+            let apath = obj.path_of("arguments");
+            if !matches!(a.value, Value::Object(_)) {
+                r.error(
+                    Code::WrongType,
+                    a.span,
+                    &apath,
+                    format!(
+                        "expected an object of parameter values for `{apath}`, found {}",
+                        a.value.kind()
+                    ),
+                );
+                ok = false;
+            }
+            (Some(a.clone()), Some(r.loc(a.span, &apath)))
+        }
+        None => (None, None),
+    };
+    let env_vars = parse_env_vars(r, &obj, &mut ok);
+    let restart = parse_restart(r, &obj, &mut ok);
+    let (instance_id, id_loc) = id?;
+    ok.then_some(Instance {
+        instance_id,
+        id_loc,
+        bindings,
+        arguments,
+        arguments_loc,
+        env_vars,
+        restart,
+    })
+}
+
+/// `bindings`: keys (slot link_ids or free-form labels) and producer
+/// instances; a repeated key is `DuplicateBindingKey` (rule 6).
+fn parse_bindings(
+    r: &mut Reader<'_>,
+    obj: &Obj<'_>,
+    id: Option<&str>,
+    ok: &mut bool,
+) -> Vec<Binding> {
     let mut bindings = Vec::new();
     if let Some(b) = obj.get("bindings") {
         let bpath = obj.path_of("bindings");
@@ -482,7 +524,7 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
                             "binding key `_` is reserved",
                             "use a slot's link_id to pin it, or any other label to feed a from_any slot",
                         );
-                        ok = false;
+                        *ok = false;
                         continue;
                     }
                     if let Err(why) = check_link_id(&m.key) {
@@ -492,11 +534,11 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
                             &kpath,
                             format!("invalid binding key `{}`: {why}", m.key),
                         );
-                        ok = false;
+                        *ok = false;
                         continue;
                     }
                     let Some(target) = r.string(&m.value, &kpath) else {
-                        ok = false;
+                        *ok = false;
                         continue;
                     };
                     bindings.push(Binding {
@@ -517,12 +559,12 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
                         other.kind()
                     ),
                 );
-                ok = false;
+                *ok = false;
             }
         }
     }
     // The JSON layer reports a repeated key; inside `bindings` that is rule 6.
-    if let (Some(b), Some((id, _))) = (obj.get("bindings"), &id) {
+    if let (Some(b), Some(id)) = (obj.get("bindings"), id) {
         for d in r.diags.iter_mut() {
             let inside = d
                 .span()
@@ -533,29 +575,15 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
                     "instance `{id}` has binding key {} twice",
                     d.message.trim_start_matches("duplicate key ")
                 );
-                ok = false;
+                *ok = false;
             }
         }
     }
-    let (arguments, arguments_loc) = match obj.get("arguments") {
-        Some(a) => {
-            let apath = obj.path_of("arguments");
-            if !matches!(a.value, Value::Object(_)) {
-                r.error(
-                    Code::WrongType,
-                    a.span,
-                    &apath,
-                    format!(
-                        "expected an object of parameter values for `{apath}`, found {}",
-                        a.value.kind()
-                    ),
-                );
-                ok = false;
-            }
-            (Some(a.clone()), Some(r.loc(a.span, &apath)))
-        }
-        None => (None, None),
-    };
+    bindings
+}
+
+/// `env_vars`, refusing loader and shell start-up variables.
+fn parse_env_vars(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> Vec<(String, String)> {
     let mut env_vars = Vec::new();
     if let Some(e) = obj.get("env_vars") {
         let epath = obj.path_of("env_vars");
@@ -571,7 +599,7 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
                             &kpath,
                             format!("invalid environment variable name {:?}", m.key),
                         );
-                        ok = false;
+                        *ok = false;
                     } else if FORBIDDEN_ENV_VARS.contains(&upper.as_str()) {
                         r.error_help(
                             Code::ForbiddenEnvVar,
@@ -580,11 +608,11 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
                             format!("`{}` may not be set by a launcher", m.key),
                             "loader and shell start-up variables change which code runs; set them outside peppy if you must",
                         );
-                        ok = false;
+                        *ok = false;
                     }
                     match r.string(&m.value, &kpath) {
                         Some(v) => env_vars.push((m.key.clone(), v)),
-                        None => ok = false,
+                        None => *ok = false,
                     }
                 }
             }
@@ -598,11 +626,16 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
                         other.kind()
                     ),
                 );
-                ok = false;
+                *ok = false;
             }
         }
     }
-    let restart = match obj.get("restart") {
+    env_vars
+}
+
+/// `restart`: `no` (default), `on-failure` or `always`.
+fn parse_restart(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> RestartPolicy {
+    match obj.get("restart") {
         None => RestartPolicy::No,
         Some(n) => {
             let rpath = obj.path_of("restart");
@@ -618,24 +651,14 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
                         format!("unknown restart policy `{other}`"),
                         "accepted: `no`, `on-failure`, `always`",
                     );
-                    ok = false;
+                    *ok = false;
                     RestartPolicy::No
                 }
                 None => {
-                    ok = false;
+                    *ok = false;
                     RestartPolicy::No
                 }
             }
         }
-    };
-    let (instance_id, id_loc) = id?;
-    ok.then_some(Instance {
-        instance_id,
-        id_loc,
-        bindings,
-        arguments,
-        arguments_loc,
-        env_vars,
-        restart,
-    })
+    }
 }
