@@ -353,55 +353,7 @@ fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Source> {
                 path: PathBuf::from(p.trim()),
             })
         }
-        "name" => {
-            let name_node = obj.get("name")?;
-            let name = r.string(name_node, &obj.path_of("name"))?;
-            let identity = match (name.split_once(':'), obj.get("tag")) {
-                (Some(_), Some(t)) => {
-                    r.error_help(
-                        Code::InvalidSource,
-                        t.span,
-                        &obj.path_of("tag"),
-                        format!("`source.name` `{name}` already has a tag"),
-                        "write either `{ name: \"n:t\" }` or `{ name: \"n\", tag: \"t\" }`",
-                    );
-                    return None;
-                }
-                (Some((n, t)), None) => Identity::new(n, t),
-                (None, Some(t)) => Identity::new(name.clone(), r.string(t, &obj.path_of("tag"))?),
-                (None, None) => {
-                    r.error_help(
-                        Code::InvalidSource,
-                        name_node.span,
-                        &obj.path_of("name"),
-                        format!("`source.name` `{name}` has no tag"),
-                        format!("write `{{ name: \"{name}:v1\" }}` or add `tag`"),
-                    );
-                    return None;
-                }
-            };
-            let mut ok = true;
-            if let Err(why) = check_name(&identity.name) {
-                r.error(
-                    Code::InvalidName,
-                    name_node.span,
-                    &obj.path_of("name"),
-                    format!("invalid node name `{}`: {why}", identity.name),
-                );
-                ok = false;
-            }
-            // Dotted tags exist in legacy documents; the repository lookup decides.
-            if let Err(why) = check_tag(&identity.tag, true) {
-                r.error(
-                    Code::InvalidTag,
-                    name_node.span,
-                    &obj.path_of("name"),
-                    format!("invalid tag `{}`: {why}", identity.tag),
-                );
-                ok = false;
-            }
-            ok.then_some(Source::Repository { identity })
-        }
+        "name" => repository_source(r, &obj),
         "git" => {
             let repo = r
                 .required(&obj, "repo")
@@ -436,6 +388,58 @@ fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Source> {
             Some(Source::Archive { url, sha256: sha })
         }
     }
+}
+
+/// `{ name: "n:t" }` or `{ name: "n", tag: "t" }`: a node found in the
+/// repositories.
+fn repository_source(r: &mut Reader<'_>, obj: &Obj<'_>) -> Option<Source> {
+    let name_node = obj.get("name")?;
+    let name = r.string(name_node, &obj.path_of("name"))?;
+    let identity = match (name.split_once(':'), obj.get("tag")) {
+        (Some(_), Some(t)) => {
+            r.error_help(
+                Code::InvalidSource,
+                t.span,
+                &obj.path_of("tag"),
+                format!("`source.name` `{name}` already has a tag"),
+                "write either `{ name: \"n:t\" }` or `{ name: \"n\", tag: \"t\" }`",
+            );
+            return None;
+        }
+        (Some((n, t)), None) => Identity::new(n, t),
+        (None, Some(t)) => Identity::new(name.clone(), r.string(t, &obj.path_of("tag"))?),
+        (None, None) => {
+            r.error_help(
+                Code::InvalidSource,
+                name_node.span,
+                &obj.path_of("name"),
+                format!("`source.name` `{name}` has no tag"),
+                format!("write `{{ name: \"{name}:v1\" }}` or add `tag`"),
+            );
+            return None;
+        }
+    };
+    let mut ok = true;
+    if let Err(why) = check_name(&identity.name) {
+        r.error(
+            Code::InvalidName,
+            name_node.span,
+            &obj.path_of("name"),
+            format!("invalid node name `{}`: {why}", identity.name),
+        );
+        ok = false;
+    }
+    // Dotted tags exist in legacy documents; the repository lookup decides.
+    if let Err(why) = check_tag(&identity.tag, true) {
+        r.error(
+            Code::InvalidTag,
+            name_node.span,
+            &obj.path_of("name"),
+            format!("invalid tag `{}`: {why}", identity.tag),
+        );
+        ok = false;
+    }
+    ok.then_some(Source::Repository { identity })
 }
 
 fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instance> {
