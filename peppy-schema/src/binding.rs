@@ -473,32 +473,11 @@ pub fn assign(
             }
             continue;
         }
-        let chosen = match b.producer {
-            Some(p) => from_any
-                .iter()
-                .copied()
-                .find(|&i| p.fits(dependencies[i].kind, &dependencies[i].target)),
-            None => {
-                let mut wants = from_any
-                    .iter()
-                    .map(|&i| (dependencies[i].kind, &dependencies[i].target));
-                let first = wants.next();
-                if first.is_some() && wants.any(|w| Some(w) != first) {
-                    refuse(BindError::AmbiguousKey {
-                        consumer: consumer.to_string(),
-                        key: b.key.to_string(),
-                        instance: b.instance.to_string(),
-                        candidates: from_any
-                            .iter()
-                            .map(|&i| {
-                                let d = &dependencies[i];
-                                (d.link_id.clone(), d.kind, d.target.clone())
-                            })
-                            .collect(),
-                    });
-                    continue;
-                }
-                from_any.first().copied()
+        let chosen = match free_form_slot(consumer, dependencies, &from_any, b) {
+            Ok(chosen) => chosen,
+            Err(e) => {
+                refuse(*e);
+                continue;
             }
         };
         match chosen {
@@ -555,6 +534,43 @@ pub fn assign(
     }
     compute_filters(&mut slots);
     Assignment { slots, errors }
+}
+
+/// The `from_any` slot (index into `dependencies`, `from_any` in link_id
+/// order) a free-form key joins: the first its producer fits; with the
+/// producer's node unknown, the first when every `from_any` slot wants the
+/// same producers, else [`BindError::AmbiguousKey`]. `Ok(None)`: none takes it.
+fn free_form_slot(
+    consumer: &str,
+    dependencies: &[Dependency],
+    from_any: &[usize],
+    b: &BindRequest<'_>,
+) -> Result<Option<usize>, Box<BindError>> {
+    if let Some(p) = b.producer {
+        return Ok(from_any
+            .iter()
+            .copied()
+            .find(|&i| p.fits(dependencies[i].kind, &dependencies[i].target)));
+    }
+    let mut wants = from_any
+        .iter()
+        .map(|&i| (dependencies[i].kind, &dependencies[i].target));
+    let first = wants.next();
+    if first.is_some() && wants.any(|w| Some(w) != first) {
+        return Err(Box::new(BindError::AmbiguousKey {
+            consumer: consumer.to_string(),
+            key: b.key.to_string(),
+            instance: b.instance.to_string(),
+            candidates: from_any
+                .iter()
+                .map(|&i| {
+                    let d = &dependencies[i];
+                    (d.link_id.clone(), d.kind, d.target.clone())
+                })
+                .collect(),
+        }));
+    }
+    Ok(from_any.first().copied())
 }
 
 /// The requests that reproduce slot bindings already decided (a launcher's
