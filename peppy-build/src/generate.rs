@@ -276,42 +276,9 @@ impl Gen<'_> {
     fn provided(&mut self, offered: Vec<Offered>, kind: EntryKind) -> Category {
         let mut category = Category::default();
         let mut names = Names::default();
-        let mut own_modules: Vec<String> = Vec::new();
-        for o in offered
-            .iter()
-            .filter(|o| matches!(o.origin, Origin::Node(_)))
-        {
-            let m = module(&o.name);
-            let what = format!("{kind} `{}`", o.name);
-            if !names.claim(NameKind::Module, &m, &what, &o.loc, &mut self.diags) {
-                continue;
-            }
-            let id = ident(&m);
-            let body = &o.body;
-            let doc = crate::docs::Doc::new(entry_doc(kind, &o.name, &o.origin, &o.loc));
-            category.items.extend(quote! {
-                #doc
-                pub mod #id {
-                    #body
-                }
-            });
-            category.specs.push(vec![id]);
-            own_modules.push(m);
-        }
-
-        // Conformed entries, grouped by interface name, then tag.
-        let mut groups: Vec<(String, Vec<&InterfaceRef>)> = Vec::new();
-        for c in &self.node.node.conforms_to {
-            let origin = Origin::Interface(c.target.clone());
-            if !offered.iter().any(|o| o.origin == origin) {
-                continue;
-            }
-            let m = module(&c.target.name);
-            match groups.iter_mut().find(|(g, _)| *g == m) {
-                Some((_, list)) => list.push(c),
-                None => groups.push((m, vec![c])),
-            }
-        }
+        let own_modules = self.own_entries(&offered, kind, &mut names, &mut category);
+        let node = self.node;
+        let groups = conformed_groups(&node.node.conforms_to, &offered);
         let iface_modules: Vec<String> = groups.iter().map(|(m, _)| m.clone()).collect();
         let conformed_modules: Vec<String> = offered
             .iter()
@@ -395,18 +362,42 @@ impl Gen<'_> {
                 }
             });
         }
-        for f in flat {
-            let doc = crate::docs::Doc::new(format!(
-                "The {kind} `{}` of interface `{}` under its own name (no other {kind} of this node generates module `{}`).",
-                f.name, f.interface, f.module
-            ));
-            let path = &f.path;
+        category.items.extend(flat_reexports(kind, flat));
+        category
+    }
+
+    /// The node's own entries of one category, one module each; returns
+    /// their module names.
+    fn own_entries(
+        &mut self,
+        offered: &[Offered],
+        kind: EntryKind,
+        names: &mut Names,
+        category: &mut Category,
+    ) -> Vec<String> {
+        let mut own_modules = Vec::new();
+        for o in offered
+            .iter()
+            .filter(|o| matches!(o.origin, Origin::Node(_)))
+        {
+            let m = module(&o.name);
+            let what = format!("{kind} `{}`", o.name);
+            if !names.claim(NameKind::Module, &m, &what, &o.loc, &mut self.diags) {
+                continue;
+            }
+            let id = ident(&m);
+            let body = &o.body;
+            let doc = crate::docs::Doc::new(entry_doc(kind, &o.name, &o.origin, &o.loc));
             category.items.extend(quote! {
                 #doc
-                pub use self::#(#path)::*;
+                pub mod #id {
+                    #body
+                }
             });
+            category.specs.push(vec![id]);
+            own_modules.push(m);
         }
-        category
+        own_modules
     }
 
     fn consumed_topics(&mut self) -> Category {
@@ -882,4 +873,43 @@ pub(crate) fn qos(q: QosProfile) -> TokenStream {
         QosProfile::Reliable => quote!(::peppy::codegen::QosProfile::Reliable),
         QosProfile::Critical => quote!(::peppy::codegen::QosProfile::Critical),
     }
+}
+
+/// `pub use` of each conformed entry under its own name, where that name
+/// is unambiguous.
+fn flat_reexports(kind: EntryKind, flat: Vec<Flat>) -> TokenStream {
+    let mut out = TokenStream::new();
+    for f in flat {
+        let doc = crate::docs::Doc::new(format!(
+            "The {kind} `{}` of interface `{}` under its own name (no other {kind} of this node generates module `{}`).",
+            f.name, f.interface, f.module
+        ));
+        let path = &f.path;
+        out.extend(quote! {
+            #doc
+            pub use self::#(#path)::*;
+        });
+    }
+    out
+}
+
+/// The conformed interfaces that offer entries of this category, grouped
+/// by interface module name (then by tag, in order).
+fn conformed_groups<'n>(
+    conforms_to: &'n [InterfaceRef],
+    offered: &[Offered],
+) -> Vec<(String, Vec<&'n InterfaceRef>)> {
+    let mut groups: Vec<(String, Vec<&InterfaceRef>)> = Vec::new();
+    for c in conforms_to {
+        let origin = Origin::Interface(c.target.clone());
+        if !offered.iter().any(|o| o.origin == origin) {
+            continue;
+        }
+        let m = module(&c.target.name);
+        match groups.iter_mut().find(|(g, _)| *g == m) {
+            Some((_, list)) => list.push(c),
+            None => groups.push((m, vec![c])),
+        }
+    }
+    groups
 }
