@@ -55,6 +55,9 @@ impl Gen<'_> {
     /// `ActionHandle` (`expose`, `handle_goal_next_request`) and
     /// `GoalContext` (`request`, `goal_id`, `cancel_signal`, `is_cancelled`,
     /// `publish_feedback`, `complete`, `complete_cancelled`).
+    ///
+    /// Long on purpose: most of it is one `quote!` template, kept whole so
+    /// the generated module reads top to bottom as users see it.
     pub(crate) fn exposed_action(&mut self, p: &Provided<ActionDecl>) -> TokenStream {
         let decl = &p.decl;
         let name = &decl.name;
@@ -261,6 +264,9 @@ impl Gen<'_> {
     /// `ActionHandle` (`fire_goal`, `data`, `on_next_feedback_message`,
     /// `get_result`, `cancel_goal`), `ResultResponse` / `ResultOutcome`,
     /// `CancelResponse` / `CancelState`.
+    ///
+    /// Long on purpose: most of it is one `quote!` template, kept whole so
+    /// the generated module reads top to bottom as users see it.
     pub(crate) fn consumed_action(&mut self, c: &ResolvedCall<ActionDecl>) -> TokenStream {
         let decl = &c.decl;
         let name = &decl.name;

@@ -558,6 +558,9 @@ impl Gen<'_> {
 
     /// `exposed_services::<service>`: `Request`, `Response`, `SPEC`,
     /// `handle_next_request`.
+    ///
+    /// Long on purpose: most of it is one `quote!` template, kept whole so
+    /// the generated module reads top to bottom as users see it.
     fn exposed_service(&mut self, p: &Provided<ServiceDecl>) -> TokenStream {
         let decl = &p.decl;
         let prefix = type_prefix(&decl.name);
