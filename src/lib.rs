@@ -57,6 +57,7 @@
 //! and write `peppy::include_generated!();` instead of the attribute: the
 //! module is the same.
 
+#[cfg(feature = "macros")]
 pub use peppy_macros::node;
 pub use peppy_runtime as runtime;
 pub use peppy_runtime::{
