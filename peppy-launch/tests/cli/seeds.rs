@@ -87,7 +87,9 @@ impl Launch {
         out
     }
 
-    /// Ctrl-C; returns the exit code.
+    /// Ctrl-C; returns the exit code. No instance may need SIGKILL: the
+    /// ZED's service loop ignores every error (`loop { let _ = ... }`) and
+    /// must still stop on SIGINT.
     fn stop(mut self) -> i32 {
         assert!(
             Command::new("kill")
@@ -97,14 +99,26 @@ impl Launch {
                 .success()
         );
         let deadline = Instant::now() + Duration::from_secs(30);
-        loop {
+        let code = loop {
             if let Some(s) = self.child.try_wait().unwrap() {
-                return s.code().unwrap_or(-1);
+                break s.code().unwrap_or(-1);
             }
             assert!(Instant::now() < deadline, "the launch did not stop");
-            while self.lines.try_recv().is_ok() {}
+            while let Ok(line) = self.lines.try_recv() {
+                self.seen.push(line);
+            }
             std::thread::sleep(Duration::from_millis(20));
+        };
+        // The output pumps end with the child; collect what is left.
+        while let Ok(line) = self.lines.recv_timeout(Duration::from_secs(2)) {
+            self.seen.push(line);
         }
+        assert!(
+            !self.seen.iter().any(|l| l.contains("force-killed")),
+            "an instance had to be killed:\n{}",
+            self.seen.join("\n")
+        );
+        code
     }
 }
 

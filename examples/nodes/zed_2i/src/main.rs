@@ -33,19 +33,23 @@ fn main() -> Result<()> {
         );
 
         let server = runner.clone();
+        // Written the way many nodes are: the error ignored, no way out of
+        // the loop. The node still stops promptly on Ctrl-C: a call on a
+        // stopped node pauses before it returns, and the runtime drops its
+        // tasks at shutdown.
         tokio::spawn(async move {
-            while video_stream_info::handle_next_request(&server, |request| {
-                eprintln!("stream info asked by `{}`", request.instance_id);
-                Ok(video_stream_info::Response::new(
-                    width,
-                    height,
-                    fps,
-                    "mono8".to_string(),
-                ))
-            })
-            .await
-            .is_ok()
-            {}
+            loop {
+                let _ = video_stream_info::handle_next_request(&server, |request| {
+                    eprintln!("stream info asked by `{}`", request.instance_id);
+                    Ok(video_stream_info::Response::new(
+                        width,
+                        height,
+                        fps,
+                        "mono8".to_string(),
+                    ))
+                })
+                .await;
+            }
         });
 
         tokio::spawn(async move {
