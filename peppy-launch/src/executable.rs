@@ -98,7 +98,8 @@ async fn run_build(node: &str, dir: &Path, cmd: &[String]) -> Result<String, Exe
     Ok(stdout)
 }
 
-/// The build one node needs before it starts, as `(argv, is_cargo_located)`.
+/// The build one node needs before it starts (a cargo-located node's asks
+/// cargo for JSON messages), if any.
 pub(crate) fn build_of(execution: &Execution) -> Option<Vec<String>> {
     let cmd = execution.build_command()?;
     Some(match execution.launch() {

@@ -7,7 +7,7 @@
 //! so the consumer follows those tokens for the slot's node and keeps only
 //! samples and servers whose sender is one of them.
 
-use std::collections::HashSet;
+use std::collections::HashMap;
 use std::sync::{Arc, RwLock};
 use std::time::Duration;
 
@@ -21,9 +21,39 @@ use crate::wire::keys::{liveliness_selector, parse_liveliness_key};
 /// How long start-up waits for the instances already running.
 const INITIAL_QUERY: Duration = Duration::from_secs(2);
 
-/// The live instances of one node, as `(core node, instance id)`.
+/// Instances as `instance id -> core nodes`, so a sample's sender is looked
+/// up by `&str` without allocating on the receive path.
+#[derive(Debug, Default)]
+pub(crate) struct Live(HashMap<String, Vec<String>>);
+
+impl Live {
+    fn insert(&mut self, (core, instance): (String, String)) {
+        let cores = self.0.entry(instance).or_default();
+        if !cores.contains(&core) {
+            cores.push(core);
+        }
+    }
+
+    fn remove(&mut self, (core, instance): &(String, String)) {
+        if let Some(cores) = self.0.get_mut(instance) {
+            cores.retain(|c| c != core);
+            if cores.is_empty() {
+                self.0.remove(instance);
+            }
+        }
+    }
+
+    /// Whether `(core, instance)` is up.
+    pub(crate) fn contains(&self, core: &str, instance: &str) -> bool {
+        self.0
+            .get(instance)
+            .is_some_and(|cores| cores.iter().any(|c| c == core))
+    }
+}
+
+/// The live instances of one node, followed for the node's life.
 pub(crate) struct Members {
-    live: Arc<RwLock<HashSet<(String, String)>>>,
+    live: Arc<RwLock<Live>>,
     _subscriber: Subscriber<()>,
 }
 
@@ -44,7 +74,7 @@ impl Members {
         tag: &str,
     ) -> Result<Members> {
         let key = liveliness_selector(ns, name, tag);
-        let live: Arc<RwLock<HashSet<(String, String)>>> = Arc::default();
+        let live: Arc<RwLock<Live>> = Arc::default();
         let set = live.clone();
         let subscriber = session
             .liveliness()
@@ -57,13 +87,17 @@ impl Members {
                     match sample.kind() {
                         SampleKind::Put => set.insert(who),
                         SampleKind::Delete => set.remove(&who),
-                    };
+                    }
                 }
             })
             .await?;
         let running = live_instances(session, ns, name, tag, INITIAL_QUERY).await?;
         if let Ok(mut set) = live.write() {
-            set.extend(running);
+            for who in running.0.into_iter().flat_map(|(instance, cores)| {
+                cores.into_iter().map(move |core| (core, instance.clone()))
+            }) {
+                set.insert(who);
+            }
         }
         Ok(Members {
             live,
@@ -73,10 +107,7 @@ impl Members {
 
     /// Whether `(core, instance)` runs the tracked node.
     pub(crate) fn contains(&self, core: &str, instance: &str) -> bool {
-        let known = self
-            .live
-            .read()
-            .is_ok_and(|s| s.contains(&(core.to_string(), instance.to_string())));
+        let known = self.live.read().is_ok_and(|s| s.contains(core, instance));
         if !known {
             debug!(core, instance, "not an instance of this slot's node");
         }
@@ -92,13 +123,13 @@ pub(crate) async fn live_instances(
     name: &str,
     tag: &str,
     timeout: Duration,
-) -> Result<HashSet<(String, String)>> {
+) -> Result<Live> {
     let replies = session
         .liveliness()
         .get(liveliness_selector(ns, name, tag))
         .timeout(timeout.max(Duration::from_millis(1)))
         .await?;
-    let mut out = HashSet::new();
+    let mut out = Live::default();
     while let Ok(reply) = replies.recv_async().await {
         if let Ok(sample) = reply.result()
             && let Some(who) = parse_liveliness_key(sample.key_expr().as_str())

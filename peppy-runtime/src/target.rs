@@ -139,7 +139,7 @@ pub(crate) async fn choose(
         };
         let runs_slot_node = members
             .as_ref()
-            .is_none_or(|m| m.contains(&(sender.core.clone(), sender.instance.clone())));
+            .is_none_or(|m| m.contains(&sender.core, &sender.instance));
         if runs_slot_node && slot.filter.accepts(&sender.instance) {
             return Ok(sender.instance);
         }

@@ -217,18 +217,6 @@ impl BindError {
         }
     }
 
-    /// The binding key the error is about, if it is about one.
-    pub fn key(&self) -> Option<&str> {
-        match self {
-            BindError::TargetMismatch { key, .. }
-            | BindError::NotConformed { key, .. }
-            | BindError::DeadKey { key, .. }
-            | BindError::AmbiguousKey { key, .. } => Some(key),
-            BindError::PinnedTwice { link_id, .. } => Some(link_id),
-            BindError::PinnedUnbound { .. } => None,
-        }
-    }
-
     /// What would fix it, in the words of a launcher file. `fit` lists the
     /// launcher's instances that could fill an unbound pinned slot.
     pub fn launcher_help(&self, fit: &[String]) -> String {
