@@ -6,9 +6,11 @@
 
 mod check;
 mod cli;
+mod drawing;
 mod error;
 mod executable;
 mod graph;
+mod inspect;
 mod output;
 mod report;
 mod run_node;
