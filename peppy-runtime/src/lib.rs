@@ -28,6 +28,7 @@
 //! [`wire`] and docs/WIRE.md.
 
 mod actions;
+pub mod describe;
 mod error;
 mod intake;
 mod members;
@@ -39,6 +40,7 @@ pub mod spec;
 mod startup;
 mod stop;
 mod target;
+pub mod tool;
 mod topics;
 pub mod wire;
 

@@ -7,13 +7,17 @@ use std::marker::PhantomData;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
-use peppy_schema::{NodeModel, SlotKind, SlotPlan};
+use peppy_schema::{Identity, NodeModel, SlotKind, SlotPlan};
 use tokio_util::sync::CancellationToken;
 use tracing::{info, warn};
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::query::Queryable;
 
 use crate::actions::{self, DEFAULT_RESULT_RETENTION, PendingGoal, Registry};
+use crate::describe::{
+    self, ConsumedTopic, EmittedTopic, InstanceInfo, OwnerInfo, ServedAction, ServedService,
+    SlotInfo,
+};
 use crate::error::{Error, Result};
 use crate::members::Members;
 use crate::qos;
@@ -25,7 +29,7 @@ use crate::spec::{
 use crate::startup::{self, RUNTIME_CONFIG_ENV, StandaloneConfig, Startup};
 use crate::topics::{self, Inbox, Intake};
 use crate::wire::keys::{
-    ActionPart, Channel, action_part_key, entry_key, format_key, liveliness_key,
+    ActionPart, Channel, action_part_key, describe_key, entry_key, format_key, liveliness_key,
 };
 
 /// How long [`NodeBuilder::run`] waits, once the node has shut down, for
@@ -256,13 +260,16 @@ impl NodeRunner {
             entities: Mutex::new(Entities::default()),
         };
         let mut entities = Entities::default();
+        let started_at_ms = describe::now_ms();
         runner.declare_publishers(descriptor).await?;
         runner.serve_formats(descriptor, &mut entities).await?;
-        runner.subscribe(descriptor, &mut entities).await?;
+        let consumes = runner.subscribe(descriptor, &mut entities).await?;
         runner.serve_services(descriptor, &mut entities).await?;
         runner
             .serve_actions(descriptor, retention, &mut entities)
             .await?;
+        let info = runner.describe(descriptor, consumes, started_at_ms);
+        runner.serve_description(info, &mut entities).await?;
         // Presence: withdrawn when the node shuts down or dies.
         let live = liveliness_key(
             &runner.namespace,
@@ -340,11 +347,14 @@ impl NodeRunner {
     }
 
     /// One subscription and inbox per consumed topic, for the node's life.
+    /// Returns how each is routed, for the instance's description.
     async fn subscribe(
         &mut self,
         descriptor: &'static NodeDescriptor,
         entities: &mut Entities,
-    ) -> Result<()> {
+    ) -> Result<Vec<ConsumedTopic>> {
+        let own = Identity::new(&self.node_name, &self.node_tag);
+        let mut routes = Vec::new();
         let mismatch = mismatch_reporter(self.session.clone(), self.namespace.clone());
         let mut trackers = HashMap::new();
         for spec in descriptor.consumed_topics {
@@ -359,6 +369,20 @@ impl NodeRunner {
                 _ => None,
             };
             let selector = topics::subscription_selector(self, spec, &filter);
+            routes.push(ConsumedTopic {
+                slot: spec.link_id.map(str::to_string),
+                owner: describe::owner_info(&spec.owner, &own),
+                name: spec.name.to_string(),
+                qos: spec.qos,
+                format: (&spec.format).into(),
+                selector: selector.clone(),
+                filter: filter.clone(),
+                members_of: members
+                    .is_some()
+                    .then(|| spec.link_id.and_then(|l| self.slot(l).ok()))
+                    .flatten()
+                    .map(|s| s.target.clone()),
+            });
             let (intake, inbox) = Intake::new(spec, filter, members, mismatch.clone());
             let subscriber = self
                 .session
@@ -368,6 +392,99 @@ impl NodeRunner {
             entities.subscribers.push(subscriber);
             self.inboxes.insert(address(*spec), inbox);
         }
+        Ok(routes)
+    }
+
+    /// What this instance is, serves and receives, as inspection tools see it.
+    fn describe(
+        &self,
+        descriptor: &'static NodeDescriptor,
+        consumes: Vec<ConsumedTopic>,
+        started_at_ms: u64,
+    ) -> InstanceInfo {
+        let own = |o: &OwnerSpec| {
+            describe::owner_info(o, &Identity::new(&self.node_name, &self.node_tag))
+                .expect("served entries have an owner")
+        };
+        let key = |channel, o: &OwnerInfo, name| {
+            entry_key(
+                &self.namespace,
+                channel,
+                &o.as_owner(),
+                name,
+                &self.core_node,
+                &self.instance_id,
+            )
+        };
+        let emits = descriptor.emitted_topics.iter().map(|t| {
+            let owner = own(&t.owner);
+            EmittedTopic {
+                key: key(Channel::Topic, &owner, t.name),
+                owner,
+                name: t.name.to_string(),
+                qos: t.qos,
+                format: (&t.format).into(),
+            }
+        });
+        let services = descriptor.exposed_services.iter().map(|s| {
+            let owner = own(&s.owner);
+            ServedService {
+                key: key(Channel::Service, &owner, s.name),
+                owner,
+                name: s.name.to_string(),
+                request: (&s.request).into(),
+                response: (&s.response).into(),
+            }
+        });
+        let actions = descriptor.exposed_actions.iter().map(|a| {
+            let owner = own(&a.owner);
+            ServedAction {
+                key: key(Channel::Action, &owner, a.name),
+                owner,
+                name: a.name.to_string(),
+                goal: (&a.goal).into(),
+                feedback: (&a.feedback).into(),
+                result: (&a.result).into(),
+            }
+        });
+        InstanceInfo {
+            version: describe::DESCRIBE_VERSION,
+            instance_id: self.instance_id.clone(),
+            core_node: self.core_node.clone(),
+            namespace: self.namespace.clone(),
+            node: Identity::new(&self.node_name, &self.node_tag),
+            pid: std::process::id(),
+            started_at_ms,
+            slots: self
+                .slots
+                .iter()
+                .map(|s| SlotInfo {
+                    link_id: s.link_id.clone(),
+                    kind: s.kind,
+                    target: s.target.clone(),
+                    binding: s.binding.clone(),
+                    filter: s.filter.clone(),
+                })
+                .collect(),
+            emits: emits.collect(),
+            consumes,
+            services: services.collect(),
+            actions: actions.collect(),
+        }
+    }
+
+    /// Answers `describe` queries for the node's whole life.
+    async fn serve_description(&self, info: InstanceInfo, entities: &mut Entities) -> Result<()> {
+        let key = describe_key(&self.namespace, &self.core_node, &self.instance_id);
+        let (reply_key, body) = (key.clone(), info.to_json());
+        let q = self
+            .session
+            .declare_queryable(key)
+            .callback(move |q| {
+                let _ = zenoh::Wait::wait(q.reply(reply_key.as_str(), body.as_bytes().to_vec()));
+            })
+            .await?;
+        entities.queryables.push(q);
         Ok(())
     }
 

@@ -12,7 +12,6 @@ use tokio_util::sync::CancellationToken;
 use zenoh::query::{ConsolidationMode, QueryTarget};
 
 use crate::error::{Error, Result};
-use crate::spec::FormatSpec;
 use crate::stop;
 use crate::wire::attachment::{self, ReplyStatus};
 use crate::wire::keys::parse_entry_key;
@@ -37,9 +36,10 @@ pub(crate) struct Request<'a> {
     pub(crate) instance: &'a str,
     /// This node's request format, named when the server expects another.
     pub(crate) request_format: &'a str,
-    /// The response format an `Ok` must carry (`None`: status replies
-    /// without a format, as a goal's decision).
-    pub(crate) response: Option<FormatSpec>,
+    /// The response format an `Ok` must carry, as fingerprint and
+    /// canonical text (`None`: status replies without a format, as a goal's
+    /// decision).
+    pub(crate) response: Option<(u64, &'a str)>,
 }
 
 /// A server's `Ok` reply.
@@ -104,12 +104,11 @@ impl Request<'_> {
             match status {
                 ReplyStatus::Ack | ReplyStatus::Present => acked = true,
                 ReplyStatus::Ok => match self.response {
-                    Some(expected) if fingerprint != expected.fingerprint => {
+                    Some((expected, canonical)) if fingerprint != expected => {
                         return Err(self.failed(
                             sender.instance,
                             format!(
-                                "the server's response format differs from this node's ({}); rebuild one side",
-                                expected.canonical
+                                "the server's response format differs from this node's ({canonical}); rebuild one side",
                             ),
                         ));
                     }

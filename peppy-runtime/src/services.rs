@@ -190,7 +190,7 @@ async fn request_to<Resp: Decode>(
         describe: &entry.describe,
         instance,
         request_format: spec.request.canonical,
-        response: Some(spec.response),
+        response: Some((spec.response.fingerprint, spec.response.canonical)),
     }
     .send()
     .await?;

@@ -24,9 +24,10 @@ use super::{CancelState, END_OF_FEEDBACK, Outcome};
 pub struct GoalClient {
     session: zenoh::Session,
     base_key: String,
-    action: &'static str,
+    action: String,
     goal_id: String,
-    spec: &'static ConsumedActionSpec,
+    /// The result format's fingerprint and canonical text.
+    result_format: (u64, String),
     feedback: flume::Receiver<Option<Vec<u8>>>,
     _subscriber: zenoh::pubsub::Subscriber<()>,
     stop: CancellationToken,
@@ -87,73 +88,124 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
             describe: format!("{} (action goal)", spec.name),
         };
         let target = target::choose(runner, &entry, deadline).await?;
-        let goal_id = new_goal_id();
-        let (tx, rx) = flume::unbounded();
-        let feedback_fp = spec.feedback.fingerprint;
-        let subscriber = runner
-            .session()
-            .declare_subscriber(feedback_key(&entry.base(runner, Some(&target)), &goal_id))
-            .callback(move |sample| {
-                let att = sample
-                    .attachment()
-                    .map(|a| a.to_bytes().into_owned())
-                    .unwrap_or_default();
-                if att == END_OF_FEEDBACK {
-                    let _ = tx.send(None);
-                } else if attachment::parse_topic(&att) == Some(feedback_fp) {
-                    let _ = tx.send(Some(sample.payload().to_bytes().into_owned()));
-                } else {
-                    debug!("dropping feedback with another format");
-                }
-            })
-            .await?;
-        let mut payload = to_bytes(goal_id.as_str());
-        payload.extend_from_slice(&body);
-        let answer = Request {
+        let base = entry.base(runner, Some(&target));
+        let opened = open_goal(GoalOpening {
             session: runner.session(),
             stop: runner.cancellation_token(),
-            key: entry.selector(runner, Some(&target)),
-            header: target::header(runner, QueryKind::Request, spec.goal.fingerprint),
-            payload,
-            deadline,
+            action: spec.name,
             describe: &entry.describe,
-            instance: &target,
-            request_format: spec.goal.canonical,
-            // The decision is a status reply without a format of its own.
-            response: None,
-        }
-        .send()
+            selector: entry.selector(runner, Some(&target)),
+            feedback_base: base,
+            header: target::header(runner, QueryKind::Request, spec.goal.fingerprint),
+            server: &target,
+            goal: (spec.goal.fingerprint, spec.goal.canonical),
+            feedback_fingerprint: spec.feedback.fingerprint,
+            result: (spec.result.fingerprint, spec.result.canonical),
+            body,
+            deadline,
+        })
         .await?;
-        let malformed = |source| Error::Decode {
-            what: "goal response".into(),
-            source,
-        };
-        let mut d = Decoder::new(&answer.body);
-        let accepted = bool::decode(&mut d).map_err(malformed)?;
-        let error_message = Option::<String>::decode(&mut d).map_err(malformed)?;
         let base_key = entry_key(
             runner.namespace(),
             Channel::Action,
             &owner.expect("consumed actions have an owner"),
             spec.name,
-            &answer.core,
-            &answer.instance,
+            &opened.core_node,
+            &opened.instance_id,
         );
-        Ok(GoalClient {
-            session: runner.session().clone(),
-            base_key,
-            action: spec.name,
-            goal_id,
-            spec,
-            feedback: rx,
-            _subscriber: subscriber,
-            stop: runner.cancellation_token().clone(),
-            accepted,
-            error_message,
-            instance_id: answer.instance,
-            core_node: answer.core,
-        })
+        Ok(GoalClient { base_key, ..opened })
     }
+}
+
+/// Everything needed to send one goal to one server.
+pub(crate) struct GoalOpening<'a> {
+    pub(crate) session: &'a zenoh::Session,
+    pub(crate) stop: &'a CancellationToken,
+    /// The action's name, for errors.
+    pub(crate) action: &'a str,
+    /// How the goal reads in errors.
+    pub(crate) describe: &'a str,
+    /// The goal queryable's key (or selector) of the server.
+    pub(crate) selector: String,
+    /// The action's base key (or selector) the feedback key hangs below.
+    pub(crate) feedback_base: String,
+    /// The query header.
+    pub(crate) header: Vec<u8>,
+    /// The server instance, for errors.
+    pub(crate) server: &'a str,
+    /// Goal format: fingerprint and canonical text.
+    pub(crate) goal: (u64, &'a str),
+    /// The feedback format's fingerprint.
+    pub(crate) feedback_fingerprint: u64,
+    /// Result format: fingerprint and canonical text.
+    pub(crate) result: (u64, &'a str),
+    /// The encoded goal.
+    pub(crate) body: Vec<u8>,
+    pub(crate) deadline: Instant,
+}
+
+/// Subscribes to the goal's feedback, sends it, and reads the decision.
+/// The returned client's `base_key` is the selector given; callers that
+/// sent to a selector set the server's exact key.
+pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
+    let goal_id = new_goal_id();
+    let (tx, rx) = flume::unbounded();
+    let feedback_fp = o.feedback_fingerprint;
+    let subscriber = o
+        .session
+        .declare_subscriber(feedback_key(&o.feedback_base, &goal_id))
+        .callback(move |sample| {
+            let att = sample
+                .attachment()
+                .map(|a| a.to_bytes().into_owned())
+                .unwrap_or_default();
+            if att == END_OF_FEEDBACK {
+                let _ = tx.send(None);
+            } else if attachment::parse_topic(&att) == Some(feedback_fp) {
+                let _ = tx.send(Some(sample.payload().to_bytes().into_owned()));
+            } else {
+                debug!("dropping feedback with another format");
+            }
+        })
+        .await?;
+    let mut payload = to_bytes(goal_id.as_str());
+    payload.extend_from_slice(&o.body);
+    let answer = Request {
+        session: o.session,
+        stop: o.stop,
+        key: o.selector,
+        header: o.header,
+        payload,
+        deadline: o.deadline,
+        describe: o.describe,
+        instance: o.server,
+        request_format: o.goal.1,
+        // The decision is a status reply without a format of its own.
+        response: None,
+    }
+    .send()
+    .await?;
+    let malformed = |source| Error::Decode {
+        what: "goal response".into(),
+        source,
+    };
+    let mut d = Decoder::new(&answer.body);
+    let accepted = bool::decode(&mut d).map_err(malformed)?;
+    let error_message = Option::<String>::decode(&mut d).map_err(malformed)?;
+    Ok(GoalClient {
+        session: o.session.clone(),
+        base_key: o.feedback_base,
+        action: o.action.to_string(),
+        goal_id,
+        result_format: (o.result.0, o.result.1.to_string()),
+        feedback: rx,
+        _subscriber: subscriber,
+        stop: o.stop.clone(),
+        accepted,
+        error_message,
+        instance_id: answer.instance,
+        core_node: answer.core,
+    })
 }
 
 impl GoalClient {
@@ -179,12 +231,12 @@ impl GoalClient {
                 Ok(Some(bytes)) => match from_bytes::<F>(&bytes) {
                     Ok(f) => return Ok(f),
                     Err(e) => {
-                        warn!(action = self.action, error = %e, "dropping feedback that does not decode")
+                        warn!(action = %self.action, error = %e, "dropping feedback that does not decode")
                     }
                 },
                 Ok(None) | Err(_) => {
                     return Err(Error::FeedbackEnded {
-                        action: self.action.to_string(),
+                        action: self.action.clone(),
                     });
                 }
             }
@@ -209,7 +261,8 @@ impl GoalClient {
             describe: &describe,
             instance: &self.instance_id,
             request_format: "a goal id",
-            response: (part == ActionPart::Result).then_some(self.spec.result),
+            response: (part == ActionPart::Result)
+                .then_some((self.result_format.0, self.result_format.1.as_str())),
         }
         .send()
         .await?;
@@ -233,7 +286,7 @@ impl GoalClient {
             Some((2, _)) => Ok(Outcome::Abandoned),
             Some((3, _)) => Ok(Outcome::Expired),
             _ => Err(Error::ServiceError {
-                service: self.action.to_string(),
+                service: self.action.clone(),
                 instance: self.instance_id.clone(),
                 reason: "malformed result".into(),
             }),

@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use crate::wire::attachment;
 
-mod client;
+pub(crate) mod client;
 mod server;
 
 pub use client::{GoalClient, send_goal};

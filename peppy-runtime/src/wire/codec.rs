@@ -132,6 +132,26 @@ pub trait Decode: Sized {
     }
 }
 
+/// An already encoded message body: written as is and read as every
+/// remaining byte. Lets tools that encode and decode from a format's text
+/// (no generated types) use the typed request paths.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Raw(pub Vec<u8>);
+
+impl Encode for Raw {
+    fn encode(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.0);
+    }
+}
+
+impl Decode for Raw {
+    const MIN_SIZE: usize = 0;
+
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        Ok(Raw(d.take(d.remaining())?.to_vec()))
+    }
+}
+
 /// Encodes a whole message.
 pub fn to_bytes<T: Encode + ?Sized>(value: &T) -> Vec<u8> {
     let mut out = Vec::new();

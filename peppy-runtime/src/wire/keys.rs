@@ -149,6 +149,22 @@ pub fn liveliness_key(ns: &str, core: &str, instance: &str, node: &str, tag: &st
     format!("peppy/{ns}/live/{core}/{instance}/{node}/{tag}")
 }
 
+/// `peppy/<ns>/describe/<core>/<instance>`: where an instance answers its
+/// [`InstanceInfo`](crate::describe::InstanceInfo).
+pub fn describe_key(ns: &str, core: &str, instance: &str) -> String {
+    format!("peppy/{ns}/describe/{core}/{instance}")
+}
+
+/// Every instance's description key in `ns`.
+pub fn describe_selector(ns: &str) -> String {
+    format!("peppy/{ns}/describe/*/*")
+}
+
+/// The tokens of every instance in `ns`.
+pub fn all_liveliness_selector(ns: &str) -> String {
+    format!("peppy/{ns}/live/*/*/*/*")
+}
+
 /// The tokens of every instance of node `node:tag` in `ns`.
 pub fn liveliness_selector(ns: &str, node: &str, tag: &str) -> String {
     format!("peppy/{ns}/live/*/*/{node}/{tag}")
@@ -290,6 +306,9 @@ mod tests {
             "peppy/lab/live/*/*/realsense_d405/v1"
         );
         assert_eq!(parse_liveliness_key("peppy/lab/live/c"), None);
+        assert_eq!(all_liveliness_selector("lab"), "peppy/lab/live/*/*/*/*");
+        assert_eq!(describe_key("lab", "c", "arm"), "peppy/lab/describe/c/arm");
+        assert_eq!(describe_selector("lab"), "peppy/lab/describe/*/*");
         assert_eq!(parse_liveliness_key("peppy/lab/topic/c/i/n/t"), None);
     }
 

@@ -1,0 +1,215 @@
+//! What a running instance says about itself. Every node answers a query
+//! on `peppy/<ns>/describe/<core>/<instance>` with one JSON document, an
+//! [`InstanceInfo`]: its identity, process, slots with their bindings and
+//! routing, and every entry it emits, consumes, serves, with the canonical
+//! text of each message format. Inspection tools (`peppy-launch node`,
+//! `topic`, `service`, `action`, `graph --live`) read it, so they decode
+//! and route exactly as the node does without any generated code.
+
+use peppy_schema::{Identity, QosProfile, RouteFilter, SlotBinding, SlotKind};
+use serde::{Deserialize, Serialize};
+
+use crate::spec::{FormatSpec, OwnerSpec};
+use crate::wire::keys::Owner;
+
+/// Version of the [`InstanceInfo`] document; bumped on incompatible change.
+pub const DESCRIBE_VERSION: u32 = 1;
+
+/// One instance, as it describes itself.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InstanceInfo {
+    /// [`DESCRIBE_VERSION`].
+    pub version: u32,
+    /// The instance id.
+    pub instance_id: String,
+    /// The core node that started it.
+    pub core_node: String,
+    /// The namespace it runs in.
+    pub namespace: String,
+    /// Its node's `name:tag`.
+    pub node: Identity,
+    /// Its process id, on its core node's host.
+    pub pid: u32,
+    /// When it came up, in milliseconds since the Unix epoch.
+    pub started_at_ms: u64,
+    /// Its slots (`depends_on`), in order, with their bindings.
+    pub slots: Vec<SlotInfo>,
+    /// Topics it publishes.
+    pub emits: Vec<EmittedTopic>,
+    /// Topics it receives (slots' topics and external topics).
+    pub consumes: Vec<ConsumedTopic>,
+    /// Services it serves.
+    pub services: Vec<ServedService>,
+    /// Actions it serves.
+    pub actions: Vec<ServedAction>,
+}
+
+/// A slot and what fills it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SlotInfo {
+    /// The slot's `link_id`.
+    pub link_id: String,
+    /// Node or interface slot.
+    pub kind: SlotKind,
+    /// The node or interface the slot takes.
+    pub target: Identity,
+    /// The binding from the launcher or the command line.
+    pub binding: SlotBinding,
+    /// Which producers' samples the slot keeps.
+    pub filter: RouteFilter,
+}
+
+/// Whose contract an entry belongs to.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct OwnerInfo {
+    /// `node` or `interface`.
+    pub kind: SlotKind,
+    /// Its name.
+    pub name: String,
+    /// Its tag.
+    pub tag: String,
+}
+
+impl OwnerInfo {
+    pub(crate) fn of(owner: &Owner<'_>) -> OwnerInfo {
+        let (kind, name, tag) = match owner {
+            Owner::Node { name, tag } => (SlotKind::Node, name, tag),
+            Owner::Interface { name, tag } => (SlotKind::Interface, name, tag),
+        };
+        OwnerInfo {
+            kind,
+            name: name.to_string(),
+            tag: tag.to_string(),
+        }
+    }
+
+    /// The owner as a key segment triple, e.g. `interface/depth_camera/v1`.
+    pub fn as_owner(&self) -> Owner<'_> {
+        match self.kind {
+            SlotKind::Node => Owner::Node {
+                name: &self.name,
+                tag: &self.tag,
+            },
+            SlotKind::Interface => Owner::Interface {
+                name: &self.name,
+                tag: &self.tag,
+            },
+        }
+    }
+}
+
+/// A message format: its canonical text and fingerprint.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FormatInfo {
+    /// Canonical text (docs/WIRE.md section 6); `(no payload)` for none.
+    pub canonical: String,
+    /// Its fingerprint.
+    pub fingerprint: u64,
+}
+
+impl From<&FormatSpec> for FormatInfo {
+    fn from(f: &FormatSpec) -> Self {
+        FormatInfo {
+            canonical: f.canonical.to_string(),
+            fingerprint: f.fingerprint,
+        }
+    }
+}
+
+/// A topic the instance publishes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EmittedTopic {
+    /// Its owner.
+    pub owner: OwnerInfo,
+    /// Topic name.
+    pub name: String,
+    /// QoS profile.
+    pub qos: QosProfile,
+    /// Payload format.
+    pub format: FormatInfo,
+    /// The key it publishes on.
+    pub key: String,
+}
+
+/// A topic the instance receives.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ConsumedTopic {
+    /// The slot it belongs to; `None` for an external topic.
+    pub slot: Option<String>,
+    /// The producers' owner; `None` for an external topic (any owner).
+    pub owner: Option<OwnerInfo>,
+    /// Topic name.
+    pub name: String,
+    /// The producers' QoS profile.
+    pub qos: QosProfile,
+    /// Payload format.
+    pub format: FormatInfo,
+    /// The key expression it subscribes to.
+    pub selector: String,
+    /// The per-sample producer filter.
+    pub filter: RouteFilter,
+    /// For a node slot on an interface's key: only live instances of this
+    /// node are kept.
+    pub members_of: Option<Identity>,
+}
+
+/// A service the instance serves.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ServedService {
+    /// Its owner.
+    pub owner: OwnerInfo,
+    /// Service name.
+    pub name: String,
+    /// Request format.
+    pub request: FormatInfo,
+    /// Response format.
+    pub response: FormatInfo,
+    /// The key its queryable answers on.
+    pub key: String,
+}
+
+/// An action the instance serves.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ServedAction {
+    /// Its owner.
+    pub owner: OwnerInfo,
+    /// Action name.
+    pub name: String,
+    /// Goal format.
+    pub goal: FormatInfo,
+    /// Feedback format (`(no payload)` when it has none).
+    pub feedback: FormatInfo,
+    /// Result format.
+    pub result: FormatInfo,
+    /// The action's base key (its goal, cancel and result keys hang below).
+    pub key: String,
+}
+
+impl InstanceInfo {
+    /// The document as sent on the wire.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).expect("an instance description serializes")
+    }
+
+    /// Reads a description received from an instance.
+    pub fn from_json(bytes: &[u8]) -> Result<InstanceInfo, serde_json::Error> {
+        serde_json::from_slice(bytes)
+    }
+
+    /// When it has been up since, as a duration up to `now_ms`.
+    pub fn uptime(&self, now_ms: u64) -> std::time::Duration {
+        std::time::Duration::from_millis(now_ms.saturating_sub(self.started_at_ms))
+    }
+}
+
+/// The owner of a consumed entry, if it has one.
+pub(crate) fn owner_info(spec: &OwnerSpec, own: &Identity) -> Option<OwnerInfo> {
+    spec.resolve(&own.name, &own.tag).as_ref().map(OwnerInfo::of)
+}
+
+/// Milliseconds since the Unix epoch.
+pub(crate) fn now_ms() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_millis() as u64)
+}
