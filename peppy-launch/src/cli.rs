@@ -43,6 +43,254 @@ pub(crate) enum Command {
     /// Print the stack as Graphviz DOT: instances, bindings, dashed `(any)`
     /// edges for unbound from_any slots, dotted edges for external topics.
     Graph(GraphArgs),
+    /// Running instances: `node list`, `node info INSTANCE`.
+    #[command(subcommand)]
+    Node(NodeCommand),
+    /// Topics of a running stack: list, echo, hz, bw, pub.
+    #[command(subcommand)]
+    Topic(TopicCommand),
+    /// Services of a running stack: list, call.
+    #[command(subcommand)]
+    Service(ServiceCommand),
+    /// Actions of a running stack: list, send-goal.
+    #[command(subcommand)]
+    Action(ActionCommand),
+    /// The launches running on this machine, with their instances.
+    Ps(PsArgs),
+    /// An instance's output, from its launch's run directory.
+    Logs(LogsArgs),
+}
+
+/// Which running stack to look at. Without any of these: the only launch
+/// running on this machine, else the local hub of `peppy-launch run`.
+#[derive(Debug, Clone, Args)]
+pub(crate) struct StackArgs {
+    /// The stack started from this launcher file.
+    #[arg(short = 'l', long, value_name = "LAUNCHER")]
+    pub(crate) launcher: Option<PathBuf>,
+    /// The stack's namespace.
+    #[arg(long, value_name = "NS")]
+    pub(crate) namespace: Option<String>,
+    /// Reach the stack through these Zenoh endpoints (e.g. another
+    /// machine's launch: `tcp/192.0.2.10:7447`; repeatable).
+    #[arg(long, value_name = "ENDPOINT")]
+    pub(crate) connect: Vec<String>,
+    /// How long to wait for instances to answer.
+    #[arg(long, value_name = "SECONDS", default_value = "2", value_parser = parse_wait)]
+    pub(crate) wait: Duration,
+}
+
+/// How long a streaming command runs.
+#[derive(Debug, Clone, Args)]
+pub(crate) struct StreamArgs {
+    /// Stop after N messages (or reports).
+    #[arg(long, value_name = "N")]
+    pub(crate) count: Option<u64>,
+    /// Stop after this many seconds; with `--count`, fewer than N by then
+    /// is a failure (exit 1).
+    #[arg(long, value_name = "SECONDS", value_parser = parse_wait)]
+    pub(crate) timeout: Option<Duration>,
+}
+
+#[derive(Debug, Subcommand)]
+pub(crate) enum NodeCommand {
+    /// Running instances: node, core node, pid, uptime, entries.
+    List(ListArgs),
+    /// One instance in full: slots and bindings, topics, services, actions.
+    Info(NodeInfoArgs),
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct ListArgs {
+    #[command(flatten)]
+    pub(crate) stack: StackArgs,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = Format::Human)]
+    pub(crate) format: Format,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct NodeInfoArgs {
+    /// The instance id.
+    #[arg(value_name = "INSTANCE")]
+    pub(crate) instance: String,
+    #[command(flatten)]
+    pub(crate) stack: StackArgs,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = Format::Human)]
+    pub(crate) format: Format,
+}
+
+#[derive(Debug, Subcommand)]
+pub(crate) enum TopicCommand {
+    /// Every topic: owner, format, QoS, producers and consumers.
+    List(ListArgs),
+    /// Print the messages of a topic, decoded.
+    Echo(EchoArgs),
+    /// Message rate per producer.
+    Hz(RateArgs),
+    /// Bandwidth per producer.
+    Bw(RateArgs),
+    /// Publish a message given as JSON5, checked against the topic's format.
+    Pub(PubArgs),
+}
+
+/// Which topic's samples to take.
+#[derive(Debug, Clone, Args)]
+pub(crate) struct TopicSelect {
+    /// The topic: `NAME`, or `OWNER/NAME` (`depth_camera:v1/video_stream`)
+    /// when several owners have a topic of that name.
+    #[arg(value_name = "TOPIC")]
+    pub(crate) topic: String,
+    /// Only this producer instance.
+    #[arg(long, value_name = "INSTANCE")]
+    pub(crate) from: Option<String>,
+    /// Only what this consumer's slot receives: `INSTANCE.SLOT`
+    /// (`recon.left_cam`), or `INSTANCE` for its external topic.
+    #[arg(long, value_name = "INSTANCE.SLOT")]
+    pub(crate) slot: Option<String>,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct EchoArgs {
+    #[command(flatten)]
+    pub(crate) select: TopicSelect,
+    /// Stop after the first message.
+    #[arg(long)]
+    pub(crate) once: bool,
+    #[command(flatten)]
+    pub(crate) stream: StreamArgs,
+    #[command(flatten)]
+    pub(crate) stack: StackArgs,
+    /// `human`: YAML-like text; `json`: one JSON object per line.
+    #[arg(long, value_enum, default_value_t = Format::Human)]
+    pub(crate) format: Format,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct RateArgs {
+    #[command(flatten)]
+    pub(crate) select: TopicSelect,
+    /// Seconds between reports.
+    #[arg(long, value_name = "SECONDS", default_value = "1", value_parser = parse_wait)]
+    pub(crate) interval: Duration,
+    /// Compute over the last N messages of each producer.
+    #[arg(long, value_name = "N", default_value_t = 1000)]
+    pub(crate) window: usize,
+    #[command(flatten)]
+    pub(crate) stream: StreamArgs,
+    #[command(flatten)]
+    pub(crate) stack: StackArgs,
+    /// `human`: a table (refreshed in place on a terminal); `json`: one
+    /// report per line.
+    #[arg(long, value_enum, default_value_t = Format::Human)]
+    pub(crate) format: Format,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct PubArgs {
+    /// The topic: `NAME` or `OWNER/NAME`.
+    #[arg(value_name = "TOPIC")]
+    pub(crate) topic: String,
+    /// The message, as JSON5 (`'{ positions: [0.1, 0.2] }'`); may be
+    /// omitted for a topic without payload.
+    #[arg(value_name = "JSON5")]
+    pub(crate) value: Option<String>,
+    /// Publish as this producer instance (consumers bound to it receive
+    /// it); default: the topic's only producer.
+    #[arg(long = "as", value_name = "INSTANCE")]
+    pub(crate) as_instance: Option<String>,
+    /// Publish repeatedly at this rate (default: once).
+    #[arg(long, value_name = "HZ")]
+    pub(crate) rate: Option<f64>,
+    #[command(flatten)]
+    pub(crate) stream: StreamArgs,
+    #[command(flatten)]
+    pub(crate) stack: StackArgs,
+}
+
+#[derive(Debug, Subcommand)]
+pub(crate) enum ServiceCommand {
+    /// Every service: server, request and response formats.
+    List(ListArgs),
+    /// Call a service once and print the response.
+    Call(CallArgs),
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct CallArgs {
+    /// The serving instance.
+    #[arg(value_name = "INSTANCE")]
+    pub(crate) instance: String,
+    /// The service.
+    #[arg(value_name = "SERVICE")]
+    pub(crate) service: String,
+    /// The request, as JSON5; omit it when the service takes no request.
+    #[arg(value_name = "JSON5")]
+    pub(crate) value: Option<String>,
+    /// Seconds to wait for the response.
+    #[arg(long, value_name = "SECONDS", default_value = "10", value_parser = parse_wait)]
+    pub(crate) timeout: Duration,
+    #[command(flatten)]
+    pub(crate) stack: StackArgs,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = Format::Human)]
+    pub(crate) format: Format,
+}
+
+#[derive(Debug, Subcommand)]
+pub(crate) enum ActionCommand {
+    /// Every action: server, goal, feedback and result formats.
+    List(ListArgs),
+    /// Send a goal, print feedback as it comes and the result at the end
+    /// (Ctrl-C cancels the goal).
+    SendGoal(GoalArgs),
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct GoalArgs {
+    /// The serving instance.
+    #[arg(value_name = "INSTANCE")]
+    pub(crate) instance: String,
+    /// The action.
+    #[arg(value_name = "ACTION")]
+    pub(crate) action: String,
+    /// The goal, as JSON5; omit it when the goal has no fields.
+    #[arg(value_name = "JSON5")]
+    pub(crate) value: Option<String>,
+    /// Seconds to wait for the result.
+    #[arg(long, value_name = "SECONDS", default_value = "60", value_parser = parse_wait)]
+    pub(crate) timeout: Duration,
+    #[command(flatten)]
+    pub(crate) stack: StackArgs,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = Format::Human)]
+    pub(crate) format: Format,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct PsArgs {
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = Format::Human)]
+    pub(crate) format: Format,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct LogsArgs {
+    /// The instance id.
+    #[arg(value_name = "INSTANCE")]
+    pub(crate) instance: String,
+    /// Read the newest run of this launcher (running or not).
+    #[arg(short = 'l', long, value_name = "LAUNCHER")]
+    pub(crate) launcher: Option<PathBuf>,
+    /// Keep printing what the instance writes.
+    #[arg(short, long)]
+    pub(crate) follow: bool,
+    /// Start with the last N lines (default: the whole log).
+    #[arg(long, value_name = "N")]
+    pub(crate) tail: Option<usize>,
+    #[command(flatten)]
+    pub(crate) stream: StreamArgs,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -112,6 +360,11 @@ pub(crate) struct GraphArgs {
     /// An extra repository directory (repeatable).
     #[arg(long = "repo", value_name = "DIR")]
     pub(crate) repos: Vec<PathBuf>,
+    /// Write the picture to FILE instead of DOT on stdout; the extension
+    /// picks the format: `.svg`, `.html`/`.htm` (needs no Graphviz), or
+    /// `.dot`/`.gv`.
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub(crate) output: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -151,6 +404,20 @@ pub(crate) struct RunArgs {
 /// The longest grace period accepted: an hour is already longer than any
 /// node should need to stop.
 const MAX_GRACE_SECONDS: f64 = 3600.0;
+
+/// A wait: a finite, positive number of seconds up to a day.
+fn parse_wait(s: &str) -> Result<Duration, String> {
+    let seconds: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
+    if !seconds.is_finite() || seconds <= 0.0 || seconds > 86400.0 {
+        return Err(format!(
+            "`{s}` is out of range: give seconds above 0, at most 86400"
+        ));
+    }
+    Ok(Duration::from_secs_f64(seconds))
+}
 
 /// `--grace`: a finite number of seconds from 0 to an hour.
 fn parse_grace(s: &str) -> Result<Duration, String> {

@@ -41,6 +41,11 @@ pub enum LaunchError {
     /// names it and its log.
     #[error("an instance failed")]
     InstanceFailed,
+    /// A running stack did not give what an inspection command asked for:
+    /// a call failed, a goal was rejected, fewer messages than `--count`
+    /// arrived in time.
+    #[error("{0}")]
+    Inspect(String),
 }
 
 impl LaunchError {
@@ -50,9 +55,10 @@ impl LaunchError {
             LaunchError::Invalid { .. } | LaunchError::Usage(_) | LaunchError::Startup(_) => {
                 exit::INVALID
             }
-            LaunchError::Build(_) | LaunchError::Setup(_) | LaunchError::InstanceFailed => {
-                exit::FAILED
-            }
+            LaunchError::Build(_)
+            | LaunchError::Setup(_)
+            | LaunchError::InstanceFailed
+            | LaunchError::Inspect(_) => exit::FAILED,
         }
     }
 

@@ -14,6 +14,7 @@ mod inspect;
 mod output;
 mod report;
 mod run_node;
+mod runs;
 mod supervise;
 mod up;
 mod validate;
@@ -30,12 +31,21 @@ pub fn run(cli: Cli) -> Result {
         cli::Command::Up(args) => up::run(&args),
         cli::Command::Graph(args) => graph::run(&args),
         cli::Command::Run(args) => run_node::run(&args),
+        cli::Command::Node(cmd) => inspect::node(cmd),
+        cli::Command::Topic(cmd) => inspect::topic(cmd),
+        cli::Command::Service(cmd) => inspect::service(cmd),
+        cli::Command::Action(cmd) => inspect::action(cmd),
+        cli::Command::Ps(args) => runs::ps(&args),
+        cli::Command::Logs(args) => runs::logs(&args),
     }
 }
 
 /// `peppy-launch LAUNCHER ...` means `peppy-launch up LAUNCHER ...`.
 pub fn with_default_command(mut args: Vec<std::ffi::OsString>) -> Vec<std::ffi::OsString> {
-    const COMMANDS: &[&str] = &["validate", "check", "up", "run", "graph", "help"];
+    const COMMANDS: &[&str] = &[
+        "validate", "check", "up", "run", "graph", "node", "topic", "service", "action", "ps",
+        "logs", "help",
+    ];
     if let Some(first) = args.get(1).and_then(|a| a.to_str())
         && !first.starts_with('-')
         && !COMMANDS.contains(&first)

@@ -14,10 +14,11 @@ use crate::error::{LaunchError, Result};
 use crate::executable;
 use crate::output::Output;
 use crate::report;
+use crate::runs::{self, LaunchRecord};
 use crate::up::{Planned, open_router, run_instances};
 
 /// The well-known local port: the first `run` listens here, later ones join.
-const LOCAL_HUB: &str = "tcp/127.0.0.1:7447";
+use crate::inspect::LOCAL_HUB;
 
 pub(crate) fn run(args: &RunArgs) -> Result {
     let options = RepoOptions {
@@ -97,6 +98,17 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             config.namespace,
             run_dir.display()
         ));
+        let record = LaunchRecord {
+            pid: std::process::id(),
+            launcher: std::fs::canonicalize(&file).unwrap_or_else(|_| file.clone()),
+            namespace: config.namespace.clone(),
+            core_node: config.core_node.clone(),
+            connect: config.zenoh.connect.clone(),
+            run_dir: run_dir.clone(),
+            started_at_ms: runs::now_ms(),
+            instances: vec![(config.instance_id.clone(), doc.identity().to_string())],
+        };
+        let _registration = runs::register(&record).map_err(|e| out.note(&e)).ok();
         let planned = Planned {
             node: doc.identity().to_string(),
             dir,

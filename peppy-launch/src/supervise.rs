@@ -119,6 +119,10 @@ pub(crate) fn spawn(
             format!("cannot start `{}`: {e}", program.display()),
         )
     })?;
+    // `peppy-launch ps` reads the current process of each instance here.
+    if let Some(pid) = child.id() {
+        let _ = std::fs::write(spec.log.with_extension("pid"), format!("{pid}\n"));
+    }
     let log = Arc::new(Mutex::new(open_log(&spec.log)?));
     let mut pumps = Vec::new();
     if let Some(o) = child.stdout.take() {

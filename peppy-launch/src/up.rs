@@ -14,6 +14,7 @@ use crate::error::LaunchError;
 use crate::executable::{self, ExecutableError};
 use crate::output::Output;
 use crate::report;
+use crate::runs::{self, LaunchRecord};
 use crate::supervise::{self, Ended, InstanceSpec, StopSignals};
 
 pub(crate) fn run(args: &UpArgs) -> Outcome {
@@ -234,6 +235,22 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
             })
         })
         .collect();
+    let launcher = std::fs::canonicalize(&args.launcher).unwrap_or_else(|_| args.launcher.clone());
+    let record = LaunchRecord {
+        pid: std::process::id(),
+        launcher,
+        namespace: namespace.clone(),
+        core_node: core_node.clone(),
+        connect: node_connect.clone(),
+        run_dir: run_dir.clone(),
+        started_at_ms: runs::now_ms(),
+        instances: planned
+            .iter()
+            .flatten()
+            .map(|p| (p.config.instance_id.clone(), p.node.clone()))
+            .collect(),
+    };
+    let _registration = runs::register(&record).map_err(|e| out.note(&e)).ok();
     let code = run_instances(planned, &run_dir, args.grace, out).await;
     let _ = router.close().await;
     code

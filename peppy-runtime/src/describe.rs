@@ -204,7 +204,9 @@ impl InstanceInfo {
 
 /// The owner of a consumed entry, if it has one.
 pub(crate) fn owner_info(spec: &OwnerSpec, own: &Identity) -> Option<OwnerInfo> {
-    spec.resolve(&own.name, &own.tag).as_ref().map(OwnerInfo::of)
+    spec.resolve(&own.name, &own.tag)
+        .as_ref()
+        .map(OwnerInfo::of)
 }
 
 /// Milliseconds since the Unix epoch.

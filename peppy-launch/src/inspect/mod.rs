@@ -1,6 +1,348 @@
 //! Looking into a running stack: `node`, `topic`, `service`, `action`,
 //! `graph --live`. The observer joins the stack's Zenoh network as a plain
-//! session: it holds no liveliness token and serves nothing, so it never
-//! fills a slot and never counts as a producer.
+//! peer: it holds no liveliness token and serves nothing, so it never fills
+//! a slot and never counts as a producer. What it knows of the stack comes
+//! from the instances themselves: each answers its description
+//! ([`InstanceInfo`]) with every entry's format text, so messages decode
+//! without generated code.
 
+pub(crate) mod calls;
 pub(crate) mod dynamic;
+
+pub(crate) mod nodes;
+pub(crate) mod rates;
+pub(crate) mod stream;
+pub(crate) mod topics;
+
+use std::collections::BTreeMap;
+use std::future::Future;
+use std::time::Duration;
+
+use peppy_runtime::describe::InstanceInfo;
+use peppy_runtime::tool::ToolCaller;
+use peppy_runtime::wire::keys::describe_selector;
+use zenoh::query::{ConsolidationMode, QueryTarget};
+
+use crate::cli::{ActionCommand, NodeCommand, ServiceCommand, StackArgs, TopicCommand};
+use crate::error::{LaunchError, Result};
+use crate::runs::{self, LaunchRecord};
+
+/// How long descriptions keep arriving after joining before a round that
+/// adds nobody ends the discovery.
+const SETTLE: Duration = Duration::from_millis(400);
+/// Pause between discovery rounds.
+const ROUND_PAUSE: Duration = Duration::from_millis(100);
+
+/// Where `peppy-launch run` nodes meet when no endpoint is given.
+pub(crate) const LOCAL_HUB: &str = "tcp/127.0.0.1:7447";
+
+/// `node ...`.
+pub(crate) fn node(cmd: NodeCommand) -> Result {
+    match cmd {
+        NodeCommand::List(args) => block_on(nodes::list(args)),
+        NodeCommand::Info(args) => block_on(nodes::info(args)),
+    }
+}
+
+/// `topic ...`.
+pub(crate) fn topic(cmd: TopicCommand) -> Result {
+    match cmd {
+        TopicCommand::List(args) => block_on(topics::list(args)),
+        TopicCommand::Echo(args) => block_on(topics::echo(args)),
+        TopicCommand::Hz(args) => block_on(rates::run(args, rates::Measure::Rate)),
+        TopicCommand::Bw(args) => block_on(rates::run(args, rates::Measure::Bandwidth)),
+        TopicCommand::Pub(args) => block_on(topics::publish(args)),
+    }
+}
+
+/// `service ...`.
+pub(crate) fn service(cmd: ServiceCommand) -> Result {
+    match cmd {
+        ServiceCommand::List(args) => block_on(calls::list_services(args)),
+        ServiceCommand::Call(args) => block_on(calls::call(args)),
+    }
+}
+
+/// `action ...`.
+pub(crate) fn action(cmd: ActionCommand) -> Result {
+    match cmd {
+        ActionCommand::List(args) => block_on(calls::list_actions(args)),
+        ActionCommand::SendGoal(args) => block_on(calls::send_goal(args)),
+    }
+}
+
+pub(crate) fn block_on<F: Future<Output = Result>>(f: F) -> Result {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .map_err(|e| LaunchError::Setup(format!("cannot start the tokio runtime: {e}")))?
+        .block_on(f)
+}
+
+/// Where a stack is: its namespace and how to reach it.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Reach {
+    pub(crate) namespace: String,
+    pub(crate) connect: Vec<String>,
+    /// How the stack was found, for messages.
+    pub(crate) what: String,
+}
+
+/// Decides which stack the command looks at (see [`StackArgs`]).
+pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach> {
+    let canonical = args
+        .launcher
+        .as_ref()
+        .map(|l| std::fs::canonicalize(l).unwrap_or_else(|_| l.clone()));
+    if !args.connect.is_empty() {
+        let namespace = match (&args.namespace, &args.launcher) {
+            (Some(ns), _) => ns.clone(),
+            (None, Some(l)) => crate::up::default_namespace(l),
+            (None, None) => peppy_runtime::DEFAULT_NAMESPACE.to_string(),
+        };
+        return Ok(Reach {
+            what: format!("namespace {namespace} via {}", args.connect.join(", ")),
+            namespace,
+            connect: args.connect.clone(),
+        });
+    }
+    let matching: Vec<&LaunchRecord> = running
+        .iter()
+        .filter(|r| canonical.as_ref().is_none_or(|l| &r.launcher == l))
+        .filter(|r| args.namespace.as_ref().is_none_or(|ns| &r.namespace == ns))
+        .collect();
+    match (matching.as_slice(), &args.launcher, &args.namespace) {
+        ([one], _, _) | ([.., one], Some(_), _) => Ok(Reach {
+            namespace: one.namespace.clone(),
+            connect: one.connect.clone(),
+            what: format!(
+                "{} (namespace {}, pid {})",
+                one.launcher.display(),
+                one.namespace,
+                one.pid
+            ),
+        }),
+        ([], Some(l), _) => Err(LaunchError::Usage(format!(
+            "no launch of {} is running on this machine; start it with `peppy-launch up {}`, or reach it elsewhere with --connect ENDPOINT",
+            l.display(),
+            l.display()
+        ))),
+        ([], None, ns) => {
+            let namespace = ns
+                .clone()
+                .unwrap_or_else(|| peppy_runtime::DEFAULT_NAMESPACE.to_string());
+            Ok(Reach {
+                what: format!("namespace {namespace} on the local hub {LOCAL_HUB}"),
+                namespace,
+                connect: vec![LOCAL_HUB.to_string()],
+            })
+        }
+        (several, _, _) => Err(LaunchError::Usage(format!(
+            "{} launches are running; pick one with --launcher (or --namespace):\n{}",
+            several.len(),
+            several
+                .iter()
+                .map(|r| format!("  {}  (namespace {})", r.launcher.display(), r.namespace))
+                .collect::<Vec<_>>()
+                .join("\n")
+        ))),
+    }
+}
+
+/// A connection to a running stack.
+pub(crate) struct Observer {
+    pub(crate) session: zenoh::Session,
+    pub(crate) reach: Reach,
+    wait: Duration,
+}
+
+impl Observer {
+    /// Joins the stack found from `args` as a peer that only connects.
+    pub(crate) async fn open(args: &StackArgs) -> Result<Observer> {
+        let reach = reach(args, &runs::running())?;
+        let config = peppy_runtime::Endpoints {
+            mode: None,
+            listen: Vec::new(),
+            connect: reach.connect.clone(),
+            multicast_scouting: false,
+        }
+        .zenoh_config()
+        .map_err(|e| LaunchError::Usage(e.to_string()))?;
+        let session = zenoh::open(config)
+            .await
+            .map_err(|e| LaunchError::Setup(format!("cannot reach {}: {e}", reach.what)))?;
+        Ok(Observer {
+            session,
+            reach,
+            wait: args.wait,
+        })
+    }
+
+    /// Every running instance's description, by instance id. Replies that
+    /// do not parse are dropped with a note (an instance of another peppy
+    /// version, or not a peppy node at all).
+    ///
+    /// A session that just joined learns the stack's queryables over a few
+    /// milliseconds, so one query may see only some instances: it asks in
+    /// rounds until a round adds nobody after [`SETTLE`], or `--wait` ends.
+    pub(crate) async fn describe_all(&self) -> Result<BTreeMap<String, InstanceInfo>> {
+        let start = tokio::time::Instant::now();
+        let deadline = start + self.wait;
+        let mut out = BTreeMap::new();
+        loop {
+            let before = out.len();
+            self.describe_round(&mut out, deadline).await?;
+            let now = tokio::time::Instant::now();
+            let settled = !out.is_empty() && out.len() == before && now >= start + SETTLE;
+            if settled || now >= deadline {
+                return Ok(out);
+            }
+            tokio::time::sleep(ROUND_PAUSE.min(deadline - now)).await;
+        }
+    }
+
+    async fn describe_round(
+        &self,
+        out: &mut BTreeMap<String, InstanceInfo>,
+        deadline: tokio::time::Instant,
+    ) -> Result<()> {
+        let budget = deadline
+            .saturating_duration_since(tokio::time::Instant::now())
+            .max(Duration::from_millis(10));
+        let replies = self
+            .session
+            .get(describe_selector(&self.reach.namespace))
+            .target(QueryTarget::All)
+            .consolidation(ConsolidationMode::None)
+            .timeout(budget)
+            .await
+            .map_err(|e| LaunchError::Setup(format!("cannot query {}: {e}", self.reach.what)))?;
+        while let Ok(reply) = replies.recv_async().await {
+            let Ok(sample) = reply.result() else { continue };
+            match InstanceInfo::from_json(&sample.payload().to_bytes()) {
+                Ok(info) => {
+                    out.insert(info.instance_id.clone(), info);
+                }
+                Err(e) => eprintln!(
+                    "note: ignoring the unreadable description on {}: {e}",
+                    sample.key_expr()
+                ),
+            }
+        }
+        Ok(())
+    }
+
+    /// The descriptions, or an error saying nothing answered.
+    pub(crate) async fn describe_some(&self) -> Result<BTreeMap<String, InstanceInfo>> {
+        let all = self.describe_all().await?;
+        if all.is_empty() {
+            return Err(LaunchError::Inspect(format!(
+                "no instance answered in {} within {:?}",
+                self.reach.what, self.wait
+            )));
+        }
+        Ok(all)
+    }
+
+    /// One instance's description, or an error listing the running ones.
+    pub(crate) async fn describe_one(&self, instance: &str) -> Result<InstanceInfo> {
+        let mut all = self.describe_some().await?;
+        all.remove(instance).ok_or_else(|| {
+            LaunchError::Usage(format!(
+                "no running instance `{instance}` in {}; running: {}",
+                self.reach.what,
+                all.keys().cloned().collect::<Vec<_>>().join(", ")
+            ))
+        })
+    }
+
+    /// A caller for service calls and goals, named after this process.
+    pub(crate) fn caller(&self) -> ToolCaller {
+        ToolCaller::new(
+            self.session.clone(),
+            "cli",
+            &format!("peppy-launch-{}", std::process::id()),
+        )
+    }
+}
+
+/// `name:tag` of an owner, for people.
+pub(crate) fn owner_label(owner: &peppy_runtime::describe::OwnerInfo) -> String {
+    format!("{}:{}", owner.name, owner.tag)
+}
+
+/// Prints `value` as one line of JSON.
+pub(crate) fn print_json(value: &serde_json::Value) {
+    println!("{value}");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(launcher: &str, ns: &str) -> LaunchRecord {
+        LaunchRecord {
+            pid: 1,
+            launcher: launcher.into(),
+            namespace: ns.into(),
+            core_node: "c".into(),
+            connect: vec![format!("tcp/127.0.0.1:1{}", ns.len())],
+            run_dir: "/tmp".into(),
+            started_at_ms: 0,
+            instances: Vec::new(),
+        }
+    }
+
+    fn args(launcher: Option<&str>, ns: Option<&str>, connect: &[&str]) -> StackArgs {
+        StackArgs {
+            launcher: launcher.map(Into::into),
+            namespace: ns.map(Into::into),
+            connect: connect.iter().map(|s| s.to_string()).collect(),
+            wait: Duration::from_secs(1),
+        }
+    }
+
+    #[test]
+    fn the_only_running_launch_is_the_default() {
+        let r = reach(&args(None, None, &[]), &[record("/a.json5", "a")]).unwrap();
+        assert_eq!(r.namespace, "a");
+        assert_eq!(r.connect, vec!["tcp/127.0.0.1:11"]);
+    }
+
+    #[test]
+    fn several_running_launches_need_a_choice() {
+        let running = [record("/a.json5", "a"), record("/b.json5", "bb")];
+        let e = reach(&args(None, None, &[]), &running)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("2 launches are running") && e.contains("/b.json5"),
+            "{e}"
+        );
+        let r = reach(&args(None, Some("bb"), &[]), &running).unwrap();
+        assert_eq!(r.connect, vec!["tcp/127.0.0.1:12"]);
+        let r = reach(&args(Some("/a.json5"), None, &[]), &running).unwrap();
+        assert_eq!(r.namespace, "a");
+    }
+
+    #[test]
+    fn nothing_running_means_the_local_hub_or_an_error_for_a_launcher() {
+        let r = reach(&args(None, None, &[]), &[]).unwrap();
+        assert_eq!(
+            (r.namespace.as_str(), r.connect[0].as_str()),
+            ("default", LOCAL_HUB)
+        );
+        let e = reach(&args(Some("/nowhere.json5"), None, &[]), &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("peppy-launch up /nowhere.json5"), "{e}");
+    }
+
+    #[test]
+    fn connect_reaches_elsewhere() {
+        let r = reach(&args(None, Some("lab"), &["tcp/192.0.2.1:7447"]), &[]).unwrap();
+        assert_eq!(r.namespace, "lab");
+        assert_eq!(r.connect, vec!["tcp/192.0.2.1:7447"]);
+    }
+}

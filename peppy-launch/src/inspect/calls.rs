@@ -1,0 +1,216 @@
+//! `service list/call` and `action list/send-goal`.
+
+use peppy_runtime::Outcome;
+use peppy_runtime::describe::InstanceInfo;
+use peppy_runtime::tool::Raw;
+use peppy_schema::MessageFormat;
+use serde_json::json;
+
+use super::dynamic;
+use super::nodes::table;
+use super::topics::encode_arg;
+use super::{Observer, owner_label, print_json};
+use crate::cli::{CallArgs, Format, GoalArgs, ListArgs};
+use crate::error::{LaunchError, Result};
+
+fn served<'a, T>(
+    info: &'a InstanceInfo,
+    items: &'a [T],
+    name: &str,
+    what: &str,
+    name_of: impl Fn(&T) -> &str,
+) -> Result<&'a T> {
+    items.iter().find(|x| name_of(x) == name).ok_or_else(|| {
+        let have: Vec<&str> = items.iter().map(&name_of).collect();
+        LaunchError::Usage(format!(
+            "`{}` serves no {what} `{name}`; its {what}s: {}",
+            info.instance_id,
+            if have.is_empty() {
+                "none".to_string()
+            } else {
+                have.join(", ")
+            }
+        ))
+    })
+}
+
+/// Decodes a body with a described format, for printing.
+fn decoded(canonical: &str, body: &[u8], what: &str) -> Result<dynamic::Dyn> {
+    let format = MessageFormat::from_canonical(canonical).map_err(|e| {
+        LaunchError::Inspect(format!("the instance described an unreadable format: {e}"))
+    })?;
+    dynamic::decode(&format, body)
+        .map_err(|e| LaunchError::Inspect(format!("the {what} does not decode: {e}")))
+}
+
+fn show(format: Format, label: &str, value: &dynamic::Dyn) {
+    match format {
+        Format::Json => print_json(&json!({ label: dynamic::to_json(value) })),
+        Format::Human => {
+            println!("{label}:");
+            for line in dynamic::to_text(value).lines() {
+                println!("  {line}");
+            }
+        }
+    }
+}
+
+pub(crate) async fn list_services(args: ListArgs) -> Result {
+    let observer = Observer::open(&args.stack).await?;
+    let all = observer.describe_all().await?;
+    let rows: Vec<(&InstanceInfo, &peppy_runtime::describe::ServedService)> = all
+        .values()
+        .flat_map(|i| i.services.iter().map(move |s| (i, s)))
+        .collect();
+    if args.format == Format::Json {
+        let list: Vec<_> = rows
+            .iter()
+            .map(|(i, s)| {
+                json!({ "instance": i.instance_id, "service": s.name, "owner": owner_label(&s.owner),
+                        "request": s.request.canonical, "response": s.response.canonical })
+            })
+            .collect();
+        print_json(&serde_json::Value::Array(list));
+        return Ok(());
+    }
+    let cells: Vec<Vec<String>> = rows
+        .iter()
+        .map(|(i, s)| {
+            vec![
+                i.instance_id.clone(),
+                s.name.clone(),
+                owner_label(&s.owner),
+                s.request.canonical.clone(),
+                s.response.canonical.clone(),
+            ]
+        })
+        .collect();
+    print!(
+        "{}",
+        table(
+            &["INSTANCE", "SERVICE", "OWNER", "REQUEST", "RESPONSE"],
+            &cells
+        )
+    );
+    Ok(())
+}
+
+pub(crate) async fn call(args: CallArgs) -> Result {
+    let observer = Observer::open(&args.stack).await?;
+    let info = observer.describe_one(&args.instance).await?;
+    let service = served(&info, &info.services, &args.service, "service", |s| &s.name)?;
+    let request = encode_arg(&service.request.canonical, "request", args.value.as_deref())?;
+    let body = observer
+        .caller()
+        .call(service, &info.instance_id, request, args.timeout)
+        .await
+        .map_err(|e| LaunchError::Inspect(e.to_string()))?;
+    let response = decoded(&service.response.canonical, &body, "response")?;
+    show(args.format, "response", &response);
+    Ok(())
+}
+
+pub(crate) async fn list_actions(args: ListArgs) -> Result {
+    let observer = Observer::open(&args.stack).await?;
+    let all = observer.describe_all().await?;
+    let rows: Vec<(&InstanceInfo, &peppy_runtime::describe::ServedAction)> = all
+        .values()
+        .flat_map(|i| i.actions.iter().map(move |a| (i, a)))
+        .collect();
+    if args.format == Format::Json {
+        let list: Vec<_> = rows
+            .iter()
+            .map(|(i, a)| {
+                json!({ "instance": i.instance_id, "action": a.name, "owner": owner_label(&a.owner),
+                        "goal": a.goal.canonical, "feedback": a.feedback.canonical, "result": a.result.canonical })
+            })
+            .collect();
+        print_json(&serde_json::Value::Array(list));
+        return Ok(());
+    }
+    let cells: Vec<Vec<String>> = rows
+        .iter()
+        .map(|(i, a)| {
+            vec![
+                i.instance_id.clone(),
+                a.name.clone(),
+                owner_label(&a.owner),
+                a.goal.canonical.clone(),
+                a.feedback.canonical.clone(),
+                a.result.canonical.clone(),
+            ]
+        })
+        .collect();
+    print!(
+        "{}",
+        table(
+            &["INSTANCE", "ACTION", "OWNER", "GOAL", "FEEDBACK", "RESULT"],
+            &cells
+        )
+    );
+    Ok(())
+}
+
+pub(crate) async fn send_goal(args: GoalArgs) -> Result {
+    let observer = Observer::open(&args.stack).await?;
+    let info = observer.describe_one(&args.instance).await?;
+    let action = served(&info, &info.actions, &args.action, "action", |a| &a.name)?;
+    let goal = encode_arg(&action.goal.canonical, "goal", args.value.as_deref())?;
+    let caller = observer.caller();
+    let deadline = tokio::time::Instant::now() + args.timeout;
+    let mut client = caller
+        .send_goal(action, &info.instance_id, goal, args.timeout)
+        .await
+        .map_err(|e| LaunchError::Inspect(e.to_string()))?;
+    if !client.accepted {
+        return Err(LaunchError::Inspect(format!(
+            "`{}` rejected the goal: {}",
+            info.instance_id,
+            client.error_message.as_deref().unwrap_or("no reason given")
+        )));
+    }
+    if args.format == Format::Human {
+        println!("goal {} accepted by {}", client.goal_id(), info.instance_id);
+    }
+    let has_feedback = action.feedback.fingerprint != 0;
+    loop {
+        tokio::select! {
+            f = client.next_feedback::<Raw>(), if has_feedback => match f {
+                Ok(Raw(body)) => match decoded(&action.feedback.canonical, &body, "feedback") {
+                    Ok(v) => show(args.format, "feedback", &v),
+                    Err(e) => eprintln!("note: {e}"),
+                },
+                Err(_) => break,
+            },
+            _ = tokio::signal::ctrl_c() => {
+                let state = client.cancel(std::time::Duration::from_secs(5)).await;
+                eprintln!("cancel requested: {state:?}");
+                break;
+            }
+            () = tokio::time::sleep_until(deadline), if has_feedback => break,
+            () = std::future::ready(()), if !has_feedback => break,
+        }
+    }
+    let left = deadline.saturating_duration_since(tokio::time::Instant::now());
+    let outcome = client
+        .result::<Raw>(left.max(std::time::Duration::from_millis(100)))
+        .await
+        .map_err(|e| LaunchError::Inspect(e.to_string()))?;
+    let (label, body) = match outcome {
+        Outcome::Completed(Raw(b)) => ("result", b),
+        Outcome::Cancelled(Raw(b)) => ("cancelled with result", b),
+        Outcome::Abandoned => {
+            return Err(LaunchError::Inspect(
+                "the server dropped the goal without a result".into(),
+            ));
+        }
+        Outcome::Expired => {
+            return Err(LaunchError::Inspect(
+                "the result expired before it was asked for".into(),
+            ));
+        }
+    };
+    let value = decoded(&action.result.canonical, &body, "result")?;
+    show(args.format, label, &value);
+    Ok(())
+}

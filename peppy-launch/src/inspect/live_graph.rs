@@ -1,0 +1,1 @@
+//! `graph --live`: the running stack as it is.

@@ -1,0 +1,389 @@
+//! Taking a topic's samples off the wire without disturbing anyone: the
+//! choice of samples (`TOPIC`, `--from`, `--slot`), a subscription that
+//! never blocks the publishers, the formats to decode with, and the
+//! `--count` / `--timeout` limits every streaming command shares.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::time::Duration;
+
+use peppy_runtime::describe::{InstanceInfo, OwnerInfo};
+use peppy_runtime::wire::attachment;
+use peppy_runtime::wire::keys::{Channel, Sender, entry_selector, format_key, parse_entry_key};
+use peppy_schema::{Identity, MessageFormat, RouteFilter};
+use tokio::time::Instant;
+
+use super::Observer;
+use crate::cli::{StreamArgs, TopicSelect};
+use crate::error::{LaunchError, Result};
+
+/// How many received samples wait for a slow reader (a terminal) before
+/// newer ones are dropped: the observer never holds a publisher back.
+const BACKLOG: usize = 256;
+
+/// `TOPIC` or `OWNER/TOPIC`, split.
+pub(crate) fn parse_topic(arg: &str) -> Result<(Option<Identity>, String)> {
+    match arg.rsplit_once('/') {
+        None => Ok((None, arg.to_string())),
+        Some((owner, name)) => match Identity::parse(owner) {
+            Some(id) if !name.is_empty() => Ok((Some(id), name.to_string())),
+            _ => Err(LaunchError::Usage(format!(
+                "`{arg}` is not a topic: give `NAME` or `OWNER/NAME` with OWNER as `name:tag`"
+            ))),
+        },
+    }
+}
+
+fn owner_is(owner: &OwnerInfo, wanted: Option<&Identity>) -> bool {
+    wanted.is_none_or(|w| owner.name == w.name && owner.tag == w.tag)
+}
+
+/// Every topic name any running instance emits or consumes, for messages.
+pub(crate) fn topic_names(all: &BTreeMap<String, InstanceInfo>) -> String {
+    let names: BTreeSet<&str> = all
+        .values()
+        .flat_map(|i| {
+            i.emits
+                .iter()
+                .map(|t| t.name.as_str())
+                .chain(i.consumes.iter().map(|t| t.name.as_str()))
+        })
+        .collect();
+    if names.is_empty() {
+        "none".into()
+    } else {
+        names.into_iter().collect::<Vec<_>>().join(", ")
+    }
+}
+
+/// Which samples a streaming command takes, and how to read them.
+#[derive(Debug)]
+pub(crate) struct Selection {
+    /// The topic name.
+    pub(crate) topic: String,
+    /// The key expression to subscribe to.
+    pub(crate) selector: String,
+    /// A consumer slot's per-sample filter (`--slot`).
+    pub(crate) filter: Option<RouteFilter>,
+    /// For a node slot on an interface's key: the node whose instances count.
+    pub(crate) members_of: Option<Identity>,
+    /// `instance -> node` of every running instance.
+    pub(crate) nodes: HashMap<String, Identity>,
+    /// Formats by fingerprint, from the descriptions.
+    pub(crate) formats: HashMap<u64, String>,
+}
+
+impl Selection {
+    /// Chooses the samples from the descriptions of the running instances.
+    pub(crate) fn new(
+        args: &TopicSelect,
+        ns: &str,
+        all: &BTreeMap<String, InstanceInfo>,
+    ) -> Result<Selection> {
+        let (owner, name) = parse_topic(&args.topic)?;
+        let emitters: Vec<(&InstanceInfo, &peppy_runtime::describe::EmittedTopic)> = all
+            .values()
+            .flat_map(|i| i.emits.iter().map(move |t| (i, t)))
+            .filter(|(_, t)| t.name == name && owner_is(&t.owner, owner.as_ref()))
+            .collect();
+        let consumed: Vec<(&InstanceInfo, &peppy_runtime::describe::ConsumedTopic)> = all
+            .values()
+            .flat_map(|i| i.consumes.iter().map(move |t| (i, t)))
+            .filter(|(_, t)| t.name == name)
+            .collect();
+        if emitters.is_empty() && consumed.is_empty() {
+            return Err(LaunchError::Usage(format!(
+                "no running instance emits or consumes topic `{}`; topics: {}",
+                args.topic,
+                topic_names(all)
+            )));
+        }
+        if let Some(from) = &args.from
+            && !emitters.iter().any(|(i, _)| &i.instance_id == from)
+        {
+            return Err(LaunchError::Usage(format!(
+                "`{from}` does not emit `{}`; its producers: {}",
+                args.topic,
+                list_or_none(emitters.iter().map(|(i, _)| i.instance_id.as_str()))
+            )));
+        }
+        let mut formats = HashMap::new();
+        for (_, t) in &emitters {
+            formats.insert(t.format.fingerprint, t.format.canonical.clone());
+        }
+        for (_, t) in &consumed {
+            formats.insert(t.format.fingerprint, t.format.canonical.clone());
+        }
+        let nodes = all
+            .values()
+            .map(|i| (i.instance_id.clone(), i.node.clone()))
+            .collect();
+        let mut selection = Selection {
+            topic: name.clone(),
+            selector: String::new(),
+            filter: None,
+            members_of: None,
+            nodes,
+            formats,
+        };
+        match &args.slot {
+            Some(slot) => selection.through_slot(slot, &name, &consumed, args.from.as_deref())?,
+            None => {
+                let owner = owner.as_ref().and_then(|o| {
+                    emitters
+                        .iter()
+                        .find(|(_, t)| owner_is(&t.owner, Some(o)))
+                        .map(|(_, t)| t.owner.clone())
+                });
+                selection.selector = entry_selector(
+                    ns,
+                    Channel::Topic,
+                    owner.as_ref().map(OwnerInfo::as_owner).as_ref(),
+                    &name,
+                    None,
+                    args.from.as_deref(),
+                );
+            }
+        }
+        Ok(selection)
+    }
+
+    /// `--slot INSTANCE.SLOT`: exactly what that slot receives.
+    fn through_slot(
+        &mut self,
+        slot: &str,
+        name: &str,
+        consumed: &[(&InstanceInfo, &peppy_runtime::describe::ConsumedTopic)],
+        from: Option<&str>,
+    ) -> Result<()> {
+        let (instance, link) = match slot.split_once('.') {
+            Some((i, l)) => (i, Some(l)),
+            None => (slot, None),
+        };
+        let found = consumed
+            .iter()
+            .find(|(i, t)| i.instance_id == instance && t.slot.as_deref() == link);
+        let Some((_, t)) = found else {
+            let here: Vec<String> = consumed
+                .iter()
+                .map(|(i, t)| match &t.slot {
+                    Some(l) => format!("{}.{l}", i.instance_id),
+                    None => i.instance_id.clone(),
+                })
+                .collect();
+            return Err(LaunchError::Usage(format!(
+                "`{slot}` does not receive `{name}`; slots that do: {}",
+                list_or_none(here.iter().map(String::as_str))
+            )));
+        };
+        self.selector = match from {
+            // Narrow the consumer's own selector to one producer.
+            Some(f) => match t.selector.rsplit_once('/') {
+                Some((head, "*")) => format!("{head}/{f}"),
+                _ => t.selector.clone(),
+            },
+            None => t.selector.clone(),
+        };
+        self.filter = Some(t.filter.clone());
+        self.members_of = t.members_of.clone();
+        Ok(())
+    }
+
+    /// Whether a sample from `sender` is one the command takes.
+    pub(crate) fn keeps(&self, sender: &Sender) -> bool {
+        if let Some(filter) = &self.filter
+            && !filter.accepts(&sender.instance)
+        {
+            return false;
+        }
+        match &self.members_of {
+            Some(node) => self.nodes.get(&sender.instance) == Some(node),
+            None => true,
+        }
+    }
+
+    /// The parsed format of `fingerprint`, asking the producer for its text
+    /// when no description named it (cached, asked once).
+    pub(crate) async fn format(
+        &mut self,
+        observer: &Observer,
+        cache: &mut HashMap<u64, Option<MessageFormat>>,
+        fingerprint: u64,
+        producer: &str,
+    ) -> Option<MessageFormat> {
+        if let Some(known) = cache.get(&fingerprint) {
+            return known.clone();
+        }
+        let text = match self.formats.get(&fingerprint) {
+            Some(t) => Some(t.clone()),
+            None => ask_format(observer, fingerprint, producer).await,
+        };
+        let parsed = text.and_then(|t| MessageFormat::from_canonical(&t).ok());
+        cache.insert(fingerprint, parsed.clone());
+        parsed
+    }
+}
+
+fn list_or_none<'a>(items: impl Iterator<Item = &'a str>) -> String {
+    let v: Vec<&str> = items.collect();
+    if v.is_empty() {
+        "none".into()
+    } else {
+        v.join(", ")
+    }
+}
+
+/// Asks a producer for the text of a format (its format queryable).
+async fn ask_format(observer: &Observer, fingerprint: u64, producer: &str) -> Option<String> {
+    let replies = observer
+        .session
+        .get(format_key(&observer.reach.namespace, fingerprint, producer))
+        .timeout(Duration::from_secs(1))
+        .await
+        .ok()?;
+    let reply = replies.recv_async().await.ok()?;
+    let sample = reply.result().ok()?;
+    String::from_utf8(sample.payload().to_bytes().into_owned()).ok()
+}
+
+/// One sample as received.
+#[derive(Debug)]
+pub(crate) struct Received {
+    /// Who sent it (from its key).
+    pub(crate) sender: Sender,
+    /// The format fingerprint in its attachment (`None`: no valid attachment).
+    pub(crate) fingerprint: Option<u64>,
+    /// The payload.
+    pub(crate) payload: Vec<u8>,
+    /// When it arrived.
+    pub(crate) at: Instant,
+}
+
+/// A subscription feeding a bounded queue: a full queue drops the newest
+/// sample and counts it, so a slow terminal never back-pressures the stack.
+pub(crate) struct Tap {
+    _subscriber: zenoh::pubsub::Subscriber<()>,
+    rx: flume::Receiver<Received>,
+    dropped: std::sync::Arc<std::sync::atomic::AtomicU64>,
+}
+
+impl Tap {
+    pub(crate) async fn open(observer: &Observer, selector: &str) -> Result<Tap> {
+        let (tx, rx) = flume::bounded(BACKLOG);
+        let dropped = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+        let counter = dropped.clone();
+        let subscriber = observer
+            .session
+            .declare_subscriber(selector.to_string())
+            .callback(move |sample| {
+                let Some(sender) = parse_entry_key(sample.key_expr().as_str()) else {
+                    return;
+                };
+                let received = Received {
+                    sender,
+                    fingerprint: sample
+                        .attachment()
+                        .and_then(|a| attachment::parse_topic(&a.to_bytes())),
+                    payload: sample.payload().to_bytes().into_owned(),
+                    at: Instant::now(),
+                };
+                if tx.try_send(received).is_err() {
+                    counter.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                }
+            })
+            .await
+            .map_err(|e| LaunchError::Setup(format!("cannot subscribe to {selector}: {e}")))?;
+        Ok(Tap {
+            _subscriber: subscriber,
+            rx,
+            dropped,
+        })
+    }
+
+    /// The next sample, or `None` once the limits or Ctrl-C end the stream.
+    pub(crate) async fn next(&self, limits: &Limits) -> Option<Received> {
+        tokio::select! {
+            r = self.rx.recv_async() => r.ok(),
+            () = limits.expired() => None,
+            _ = tokio::signal::ctrl_c() => None,
+        }
+    }
+
+    /// Samples dropped because the reader fell behind.
+    pub(crate) fn dropped(&self) -> u64 {
+        self.dropped.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+/// `--count` and `--timeout`.
+#[derive(Debug, Clone)]
+pub(crate) struct Limits {
+    pub(crate) count: Option<u64>,
+    deadline: Option<Instant>,
+    timeout: Option<Duration>,
+}
+
+impl Limits {
+    pub(crate) fn new(args: &StreamArgs) -> Limits {
+        Limits {
+            count: args.count,
+            deadline: args.timeout.map(|t| Instant::now() + t),
+            timeout: args.timeout,
+        }
+    }
+
+    /// Whether `done` items satisfy `--count`.
+    pub(crate) fn reached(&self, done: u64) -> bool {
+        self.count.is_some_and(|n| done >= n)
+    }
+
+    /// Resolves at the deadline (never without `--timeout`).
+    pub(crate) async fn expired(&self) {
+        match self.deadline {
+            Some(d) => tokio::time::sleep_until(d).await,
+            None => std::future::pending().await,
+        }
+    }
+
+    /// The outcome once the stream ended with `done` items of `what`:
+    /// short of `--count` at the deadline is a failure.
+    pub(crate) fn outcome(&self, done: u64, what: &str) -> Result {
+        match (self.count, self.timeout) {
+            (Some(n), Some(t))
+                if done < n && self.deadline.is_some_and(|d| Instant::now() >= d) =>
+            {
+                Err(LaunchError::Inspect(format!(
+                    "{done} of {n} {what} within {} s",
+                    t.as_secs_f64()
+                )))
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// The owner of a sender's entry, as `name:tag`.
+pub(crate) fn sender_owner(sender: &Sender) -> String {
+    format!("{}:{}", sender.name, sender.tag)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn topics_may_name_their_owner() {
+        assert_eq!(
+            parse_topic("video_stream").unwrap(),
+            (None, "video_stream".into())
+        );
+        assert_eq!(
+            parse_topic("depth_camera:v1/video_stream").unwrap(),
+            (
+                Some(Identity::new("depth_camera", "v1")),
+                "video_stream".into()
+            )
+        );
+        assert!(parse_topic("depth_camera/video_stream").is_err());
+        assert!(parse_topic("a:v1/").is_err());
+    }
+}
