@@ -86,6 +86,241 @@ impl MessageFormat {
     }
 }
 
+/// Why a format's canonical text could not be read back.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("invalid message format text at byte {offset}: {message}")]
+pub struct CanonicalError {
+    /// Byte offset of the problem in the text.
+    pub offset: usize,
+    /// What was wrong there.
+    pub message: String,
+}
+
+/// How the runtime prints the format of a message without payload.
+const NO_PAYLOAD: &str = "(no payload)";
+
+impl MessageFormat {
+    /// Reads a canonical text (docs/WIRE.md section 6) back into a format:
+    /// the inverse of [`canonical`](Self::canonical). `(no payload)` and
+    /// `{}` are the empty format.
+    ///
+    /// Only the canonical spelling is accepted (no whitespace, no type
+    /// aliases): the text is what the fingerprint was computed from, so a
+    /// second spelling of one format would make two fingerprints. The
+    /// document rules that only matter to generated code (reserved names,
+    /// `$optional` on scalars) are not enforced; `?` on a nested field,
+    /// an empty nested object and a `$length` outside 1 to
+    /// [`MAX_FIXED_LENGTH`] are refused.
+    pub fn from_canonical(text: &str) -> Result<MessageFormat, CanonicalError> {
+        if text == NO_PAYLOAD {
+            return Ok(MessageFormat { fields: Vec::new() });
+        }
+        let mut c = Canonical {
+            text,
+            pos: 0,
+            depth: 0,
+            loc: Loc::default(),
+        };
+        let fields = c.object(true)?;
+        if c.pos < text.len() {
+            return Err(c.error(format!("unexpected {} after the format", c.found())));
+        }
+        Ok(MessageFormat { fields })
+    }
+}
+
+/// A cursor over a canonical text.
+struct Canonical<'a> {
+    text: &'a str,
+    pos: usize,
+    /// Object and array nesting, bounded: the text may come off the wire.
+    depth: usize,
+    /// One shared unlocated place for every field.
+    loc: Loc,
+}
+
+impl<'a> Canonical<'a> {
+    fn error_at(&self, offset: usize, message: impl Into<String>) -> CanonicalError {
+        CanonicalError {
+            offset,
+            message: message.into(),
+        }
+    }
+
+    fn error(&self, message: impl Into<String>) -> CanonicalError {
+        self.error_at(self.pos, message)
+    }
+
+    fn peek(&self) -> Option<u8> {
+        self.text.as_bytes().get(self.pos).copied()
+    }
+
+    /// The next character, for messages.
+    fn found(&self) -> String {
+        match self.text[self.pos..].chars().next() {
+            Some(c) => format!("`{c}`"),
+            None => "the end of the text".to_string(),
+        }
+    }
+
+    fn expect(&mut self, byte: u8, what: &str) -> Result<(), CanonicalError> {
+        if self.peek() == Some(byte) {
+            self.pos += 1;
+            return Ok(());
+        }
+        Err(self.error(format!(
+            "expected `{}` {what}, found {}",
+            byte as char,
+            self.found()
+        )))
+    }
+
+    /// A run of ASCII letters, digits and `_`, and where it starts.
+    fn word(&mut self) -> (usize, &'a str) {
+        let start = self.pos;
+        let len = self.text.as_bytes()[start..]
+            .iter()
+            .take_while(|b| b.is_ascii_alphanumeric() || **b == b'_')
+            .count();
+        self.pos += len;
+        (start, &self.text[start..self.pos])
+    }
+
+    /// Enters one level of nesting, refusing texts nested deeper than any
+    /// document can be.
+    fn enter(&mut self) -> Result<(), CanonicalError> {
+        self.depth += 1;
+        if self.depth > crate::json::MAX_DEPTH {
+            return Err(self.error(format!(
+                "objects and arrays nest deeper than {} levels",
+                crate::json::MAX_DEPTH
+            )));
+        }
+        Ok(())
+    }
+
+    /// `{` field (`,` field)* `}`; only the root may be `{}`.
+    fn object(&mut self, root: bool) -> Result<Vec<Field>, CanonicalError> {
+        let open = self.pos;
+        self.expect(b'{', "to open an object")?;
+        self.enter()?;
+        let mut fields: Vec<Field> = Vec::new();
+        if self.peek() == Some(b'}') {
+            if !root {
+                return Err(self.error_at(open, "a nested object has no fields"));
+            }
+            self.pos += 1;
+            self.depth -= 1;
+            return Ok(fields);
+        }
+        loop {
+            let at = self.pos;
+            let field = self.field(root)?;
+            if fields.iter().any(|f| f.name == field.name) {
+                return Err(self.error_at(at, format!("duplicate field `{}`", field.name)));
+            }
+            fields.push(field);
+            match self.peek() {
+                Some(b',') => self.pos += 1,
+                Some(b'}') => break,
+                _ => {
+                    return Err(self.error(format!(
+                        "expected `,` or `}}` after a field, found {}",
+                        self.found()
+                    )));
+                }
+            }
+        }
+        self.pos += 1;
+        self.depth -= 1;
+        Ok(fields)
+    }
+
+    /// `name:type`, then `?` on an optional root field.
+    fn field(&mut self, root: bool) -> Result<Field, CanonicalError> {
+        let (at, name) = self.word();
+        if name.is_empty() || name.as_bytes()[0].is_ascii_digit() {
+            return Err(self.error_at(at, format!("expected a field name, found {}", self.found())));
+        }
+        self.expect(b':', "after the field name")?;
+        let ty = self.ty()?;
+        let optional = self.peek() == Some(b'?');
+        if optional {
+            if !root {
+                return Err(self.error("`?` (optional) is only allowed on root fields"));
+            }
+            self.pos += 1;
+        }
+        Ok(Field {
+            name: name.to_string(),
+            ty,
+            optional,
+            loc: self.loc.clone(),
+        })
+    }
+
+    fn ty(&mut self) -> Result<FieldType, CanonicalError> {
+        match self.peek() {
+            Some(b'{') => Ok(FieldType::Object(self.object(false)?)),
+            Some(b'[') => self.array(),
+            _ => self.primitive().map(FieldType::Primitive),
+        }
+    }
+
+    fn primitive(&mut self) -> Result<Primitive, CanonicalError> {
+        let (at, word) = self.word();
+        match Primitive::parse(word) {
+            Some(p) if p.name() == word => Ok(p),
+            Some(p) => Err(self.error_at(
+                at,
+                format!("`{word}` is an alias: canonical text writes `{}`", p.name()),
+            )),
+            None if word.is_empty() => {
+                Err(self.error(format!("expected a type, found {}", self.found())))
+            }
+            None => Err(self.error_at(at, format!("unknown type `{word}`"))),
+        }
+    }
+
+    /// `[type]` or `[type;N]`.
+    fn array(&mut self) -> Result<FieldType, CanonicalError> {
+        self.pos += 1;
+        self.enter()?;
+        let items = self.ty()?;
+        let length = if self.peek() == Some(b';') {
+            self.pos += 1;
+            Some(self.length()?)
+        } else {
+            None
+        };
+        self.expect(b']', "to close the array")?;
+        self.depth -= 1;
+        Ok(FieldType::Array {
+            items: Box::new(items),
+            length,
+        })
+    }
+
+    /// A fixed length as `canonical` writes it: decimal, no leading zero.
+    fn length(&mut self) -> Result<u32, CanonicalError> {
+        let (at, digits) = self.word();
+        let n = digits
+            .parse::<u64>()
+            .ok()
+            .filter(|n| (1..=MAX_FIXED_LENGTH).contains(n) && !digits.starts_with('0'));
+        match n {
+            Some(n) => Ok(n as u32),
+            None if digits.is_empty() => {
+                Err(self.error(format!("expected a length, found {}", self.found())))
+            }
+            None => Err(self.error_at(
+                at,
+                format!("invalid array length `{digits}`: expected 1 to {MAX_FIXED_LENGTH}"),
+            )),
+        }
+    }
+}
+
 fn write_fields(out: &mut String, fields: &[Field]) {
     out.push('{');
     for (i, f) in fields.iter().enumerate() {
@@ -706,6 +941,79 @@ mod tests {
             parse_text("{ a: 'nope', instance_id: 'u8', c: { $type: 'u8', $optional: true } }");
         assert!(f.is_none());
         assert_eq!(diags.error_count(), 3);
+    }
+
+    #[test]
+    fn canonical_text_reads_back() {
+        let documents = [
+            r#"{
+                header: { $type: "object", stamp: "time", frame_id: "u32" },
+                encoding: "str",
+                frame: { $type: "array", $items: "u8" },
+                pose: { $type: "array", $items: "double", $length: 7 },
+                points: { $type: "array", $items: { x: "float", y: "f32" } },
+                note: { $type: "string", $optional: true },
+                type: "bool",
+            }"#,
+            "{ a: 'u8', b: 'f64' }",
+            "{ a: { $type: 'array', $items: 'u8', $optional: true }, b: 'bytes', c: 'i64' }",
+            "{ h: { s: { t: 'time', i: 'i8' }, u: 'u16' }, m: { $type: 'array', $items: 'bool', $length: 65536 } }",
+        ];
+        for text in documents {
+            let f = parse_text(text).0.unwrap();
+            let back = MessageFormat::from_canonical(&f.canonical()).unwrap();
+            assert_eq!(back.canonical(), f.canonical());
+            assert_eq!(back.fingerprint(), f.fingerprint());
+            assert_eq!(back, f);
+        }
+    }
+
+    #[test]
+    fn no_payload_reads_as_the_empty_format() {
+        for text in ["(no payload)", "{}"] {
+            assert!(
+                MessageFormat::from_canonical(text)
+                    .unwrap()
+                    .fields
+                    .is_empty()
+            );
+        }
+        // Root scalars may be optional on the wire (the golden bytes have one).
+        let f = MessageFormat::from_canonical("{a:u8?,b:[[u8]]}").unwrap();
+        assert!(f.fields[0].optional);
+    }
+
+    #[test]
+    fn malformed_canonical_text_is_located() {
+        let cases = [
+            ("{a:u322}", 3, "unknown type `u322`"),
+            ("{a:float}", 3, "alias"),
+            ("{a:u8", 5, "expected `,` or `}`"),
+            ("a:u8}", 0, "expected `{`"),
+            ("{a:u8}x", 6, "unexpected `x`"),
+            ("{a:u8},", 6, "unexpected `,`"),
+            ("{a:[u8;0]}", 7, "invalid array length `0`"),
+            ("{a:[u8;65537]}", 7, "invalid array length"),
+            ("{a:[u8;07]}", 7, "invalid array length"),
+            ("{a:[u8;]}", 7, "expected a length"),
+            ("{a:[u8}", 6, "expected `]`"),
+            ("{a:{}}", 3, "nested object has no fields"),
+            ("{a:{b:u8?}}", 8, "only allowed on root fields"),
+            ("{a:u8,a:u16}", 6, "duplicate field `a`"),
+            ("{a: u8}", 3, "expected a type"),
+            ("{1a:u8}", 1, "expected a field name"),
+            ("{a:u8,}", 6, "expected a field name"),
+            ("", 0, "expected `{`"),
+            ("{é:u8}", 1, "expected a field name, found `é`"),
+        ];
+        for (text, offset, message) in cases {
+            let err = MessageFormat::from_canonical(text).unwrap_err();
+            assert_eq!(err.offset, offset, "{text}: {err}");
+            assert!(err.message.contains(message), "{text}: {err}");
+        }
+        let deep = format!("{}u8{}", "{a:".repeat(100), "}".repeat(100));
+        let err = MessageFormat::from_canonical(&deep).unwrap_err();
+        assert!(err.message.contains("nest deeper"), "{err}");
     }
 
     #[test]

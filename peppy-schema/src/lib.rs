@@ -98,7 +98,7 @@ pub use entries::{
     ActionDecl, EntryKind, FeedbackDecl, RESERVED_SERVICE_NAMES, ServiceDecl, TopicDecl,
 };
 #[cfg(feature = "documents")]
-pub use format::{Field, FieldType, MessageFormat};
+pub use format::{CanonicalError, Field, FieldType, MessageFormat};
 #[cfg(feature = "documents")]
 pub use interface::InterfaceDoc;
 #[cfg(feature = "documents")]
