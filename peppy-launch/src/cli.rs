@@ -354,9 +354,19 @@ pub(crate) struct UpArgs {
 
 #[derive(Debug, Args)]
 pub(crate) struct GraphArgs {
-    /// The launcher file.
-    #[arg(value_name = "LAUNCHER")]
-    pub(crate) launcher: PathBuf,
+    /// The launcher file (with `--live`: the stack started from it; give
+    /// none to look at the only running launch).
+    #[arg(value_name = "LAUNCHER", required_unless_present = "live")]
+    pub(crate) file: Option<PathBuf>,
+    /// Draw the running stack instead: the instances that answer and the
+    /// message flows measured while sampling.
+    #[arg(long)]
+    pub(crate) live: bool,
+    /// With `--live`: seconds to measure message rates for.
+    #[arg(long, value_name = "SECONDS", default_value = "2", value_parser = parse_wait)]
+    pub(crate) sample: Duration,
+    #[command(flatten)]
+    pub(crate) stack: StackArgs,
     /// An extra repository directory (repeatable).
     #[arg(long = "repo", value_name = "DIR")]
     pub(crate) repos: Vec<PathBuf>,

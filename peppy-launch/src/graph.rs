@@ -1,41 +1,111 @@
-//! `peppy-launch graph LAUNCHER`: the stack as Graphviz DOT on stdout.
+//! `peppy-launch graph LAUNCHER`: the stack as a picture, Graphviz DOT on
+//! stdout or DOT, SVG or HTML in a file.
 
-use std::fmt::Write as _;
+use std::path::Path;
 
 use peppy_schema::{
     NodeDoc, Producer, RepoOptions, SlotBinding, SlotKind, StackCheck, check_launcher, conformances,
 };
 
 use crate::cli::GraphArgs;
+use crate::drawing::{self, DrawEdge, DrawNode, Drawing, EdgeStyle, NodeState};
 use crate::error::{LaunchError, Result};
 use crate::report;
 
 pub(crate) fn run(args: &GraphArgs) -> Result {
+    // Refuse a bad file name before the (slower) check.
+    let format = args.output.as_deref().map(Format::of).transpose()?;
+    if args.live {
+        let mut stack = args.stack.clone();
+        stack.launcher = args.file.clone().or(stack.launcher);
+        let picture = crate::inspect::block_on_value(crate::inspect::live_graph::picture(
+            &stack,
+            args.sample,
+        ))?;
+        return show(args.output.as_deref(), format, &picture);
+    }
+    let Some(launcher) = &args.file else {
+        return Err(LaunchError::Usage("give a launcher file, or --live".into()));
+    };
     let options = RepoOptions {
         explicit: args.repos.clone(),
         env: None,
     };
-    match check_launcher(&args.launcher, &options) {
-        Ok(stack) => {
-            print!("{}", dot(&stack));
-            Ok(())
+    let stack = check_launcher(launcher, &options).map_err(|diags| {
+        report::print_human(&diags);
+        LaunchError::Invalid {
+            errors: diags.error_count(),
         }
-        Err(diags) => {
-            report::print_human(&diags);
-            Err(LaunchError::Invalid {
-                errors: diags.error_count(),
-            })
+    })?;
+    show(args.output.as_deref(), format, &drawing(&stack))
+}
+
+/// DOT on stdout, or the picture written to `--output`.
+fn show(output: Option<&Path>, format: Option<Format>, picture: &Drawing) -> Result {
+    match (output, format) {
+        (Some(path), Some(format)) => write(path, format, picture),
+        _ => {
+            print!("{}", drawing::dot(picture));
+            Ok(())
         }
     }
 }
 
-fn quote(s: &str) -> String {
-    format!(
-        "\"{}\"",
-        s.replace('\\', "\\\\")
-            .replace('"', "\\\"")
-            .replace('\n', "\\n")
-    )
+/// What `--output` writes, from the file's extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Format {
+    /// Graphviz DOT.
+    Dot,
+    /// A self-contained SVG, laid out by [`drawing::svg`].
+    Svg,
+    /// A standalone page with the SVG and tables, by [`drawing::html`].
+    Html,
+}
+
+impl Format {
+    /// `.svg`, `.html`/`.htm`, `.dot`/`.gv`; a file without an extension
+    /// gets DOT, and any other extension is refused rather than filled with
+    /// something its name does not promise.
+    pub(crate) fn of(path: &Path) -> Result<Format> {
+        let Some(ext) = path.extension() else {
+            return Ok(Format::Dot);
+        };
+        match ext.to_string_lossy().to_ascii_lowercase().as_str() {
+            "svg" => Ok(Format::Svg),
+            "html" | "htm" => Ok(Format::Html),
+            "dot" | "gv" => Ok(Format::Dot),
+            other => Err(LaunchError::Usage(format!(
+                "cannot draw `{}`: unknown extension `.{other}` (use .svg, .html, .htm, .dot or .gv)",
+                path.display()
+            ))),
+        }
+    }
+
+    /// The picture in this format.
+    pub(crate) fn render(self, picture: &Drawing) -> String {
+        match self {
+            Format::Dot => drawing::dot(picture),
+            Format::Svg => drawing::svg(picture),
+            Format::Html => drawing::html(picture),
+        }
+    }
+}
+
+/// Writes the picture and says so on stderr, keeping stdout empty.
+fn write(path: &Path, format: Format, picture: &Drawing) -> Result {
+    std::fs::write(path, format.render(picture))
+        .map_err(|e| LaunchError::Setup(format!("cannot write {}: {e}", path.display())))?;
+    let instances = picture
+        .nodes
+        .iter()
+        .filter(|n| n.state != NodeState::Placeholder)
+        .count();
+    eprintln!(
+        "wrote {} ({instances} instances, {} edges)",
+        path.display(),
+        picture.edges.len()
+    );
+    Ok(())
 }
 
 /// Whether `producer` can fill a slot: the binding engine's rule.
@@ -48,114 +118,127 @@ fn fills(kind: SlotKind, target: &peppy_schema::Identity, producer: &NodeDoc) ->
     .fits(kind, target)
 }
 
-/// Instances are boxes; pinned and bound edges are solid and labelled with
-/// the slot; unbound `from_any` slots get dashed `(any)` edges from every
-/// instance they would take (or from an `(any)` placeholder when none is in
-/// the stack); external consumed topics get dotted edges from every emitter.
-pub(crate) fn dot(stack: &StackCheck) -> String {
-    let name = stack
+/// The checked stack as a drawing. Instances are boxes; pinned and bound
+/// edges are solid and labelled with the slot; unbound `from_any` slots get
+/// dashed `(any)` edges from every instance they would take (or from an
+/// `(any)` placeholder when none is in the stack); external consumed topics
+/// get dotted edges from every emitter.
+pub(crate) fn drawing(stack: &StackCheck) -> Drawing {
+    let title = stack
         .launcher
         .file
         .path()
         .file_stem()
         .and_then(|s| s.to_str())
         .unwrap_or("stack");
-    let node_of = |id: &str| {
-        stack
+    let mut picture = Drawing {
+        title: title.to_string(),
+        nodes: stack
             .plan
-            .instance(id)
-            .map(|i| &stack.deployments[i.deployment].resolved)
+            .instances
+            .iter()
+            .map(|inst| DrawNode {
+                id: inst.instance_id.clone(),
+                label: inst.instance_id.clone(),
+                detail: inst.node.to_string(),
+                cluster: None,
+                state: NodeState::Planned,
+            })
+            .collect(),
+        edges: Vec::new(),
     };
-    let mut out = String::new();
-    let _ = writeln!(out, "digraph {} {{", quote(name));
-    let _ = writeln!(
-        out,
-        "  rankdir=LR;\n  node [shape=box, fontname=\"monospace\"];"
-    );
     for inst in &stack.plan.instances {
-        let _ = writeln!(
-            out,
-            "  {} [label={}];",
-            quote(&inst.instance_id),
-            quote(&format!("{}\n{}", inst.instance_id, inst.node))
-        );
+        slot_edges(stack, inst, &mut picture);
+        external_edges(stack, inst, &mut picture);
     }
-    for inst in &stack.plan.instances {
-        let consumer = quote(&inst.instance_id);
-        for slot in &inst.slots {
-            match &slot.binding {
-                SlotBinding::Pinned { producer } => {
-                    let _ = writeln!(
-                        out,
-                        "  {} -> {consumer} [label={}];",
-                        quote(producer),
-                        quote(&slot.link_id)
-                    );
-                }
-                SlotBinding::FromAnyBound { .. } => {
-                    if let peppy_schema::RouteFilter::OnlyFrom(set) = &slot.filter {
-                        for p in set {
-                            let _ = writeln!(
-                                out,
-                                "  {} -> {consumer} [label={}];",
-                                quote(p),
-                                quote(&slot.link_id)
-                            );
-                        }
-                    }
-                }
-                SlotBinding::FromAnyUnbound => {
-                    let takers: Vec<&str> = stack
-                        .plan
-                        .instances
-                        .iter()
-                        .filter(|p| p.instance_id != inst.instance_id)
-                        .filter(|p| {
-                            node_of(&p.instance_id)
-                                .is_some_and(|r| fills(slot.kind, &slot.target, &r.node))
-                        })
-                        .filter(|p| slot.filter.accepts(&p.instance_id))
-                        .map(|p| p.instance_id.as_str())
-                        .collect();
-                    let label = quote(&format!("{} (any)", slot.link_id));
-                    if takers.is_empty() {
-                        let any = quote(&format!("{}.{}.any", inst.instance_id, slot.link_id));
-                        let _ = writeln!(
-                            out,
-                            "  {any} [label={}, shape=ellipse, style=dashed];",
-                            quote(&format!("(any) {}", slot.target))
-                        );
-                        let _ =
-                            writeln!(out, "  {any} -> {consumer} [label={label}, style=dashed];");
-                    }
-                    for p in takers {
-                        let _ = writeln!(
-                            out,
-                            "  {} -> {consumer} [label={label}, style=dashed];",
-                            quote(p)
-                        );
-                    }
-                }
-            }
-        }
-        let Some(resolved) = node_of(&inst.instance_id) else {
-            continue;
+    picture
+}
+
+/// The resolved node of an instance.
+fn node_of<'a>(stack: &'a StackCheck, id: &str) -> Option<&'a peppy_schema::ResolvedNode> {
+    stack
+        .plan
+        .instance(id)
+        .map(|i| &stack.deployments[i.deployment].resolved)
+}
+
+fn slot_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &mut Drawing) {
+    let consumer = &inst.instance_id;
+    for slot in &inst.slots {
+        let mut solid = |producer: &str| {
+            picture
+                .edges
+                .push(edge(producer, consumer, &slot.link_id, EdgeStyle::Solid));
         };
-        for topic in resolved.consumed_topics.iter().filter(|t| t.slot.is_none()) {
-            for p in &stack.plan.instances {
-                let emits = node_of(&p.instance_id)
-                    .is_some_and(|r| r.emitted_topics.iter().any(|e| e.decl.name == topic.name));
-                if emits && p.instance_id != inst.instance_id {
-                    let _ = writeln!(
-                        out,
-                        "  {} -> {consumer} [label={}, style=dotted];",
-                        quote(&p.instance_id),
-                        quote(&format!("{} (external)", topic.name))
-                    );
+        match &slot.binding {
+            SlotBinding::Pinned { producer } => solid(producer),
+            SlotBinding::FromAnyBound { .. } => {
+                if let peppy_schema::RouteFilter::OnlyFrom(set) = &slot.filter {
+                    set.iter().for_each(|p| solid(p));
+                }
+            }
+            SlotBinding::FromAnyUnbound => {
+                let takers: Vec<&str> = stack
+                    .plan
+                    .instances
+                    .iter()
+                    .filter(|p| p.instance_id != inst.instance_id)
+                    .filter(|p| {
+                        node_of(stack, &p.instance_id)
+                            .is_some_and(|r| fills(slot.kind, &slot.target, &r.node))
+                    })
+                    .filter(|p| slot.filter.accepts(&p.instance_id))
+                    .map(|p| p.instance_id.as_str())
+                    .collect();
+                let label = format!("{} (any)", slot.link_id);
+                if takers.is_empty() {
+                    let any = format!("{}.{}.any", inst.instance_id, slot.link_id);
+                    picture.nodes.push(DrawNode {
+                        id: any.clone(),
+                        label: format!("(any) {}", slot.target),
+                        detail: String::new(),
+                        cluster: None,
+                        state: NodeState::Placeholder,
+                    });
+                    picture
+                        .edges
+                        .push(edge(&any, consumer, &label, EdgeStyle::Dashed));
+                }
+                for p in takers {
+                    picture
+                        .edges
+                        .push(edge(p, consumer, &label, EdgeStyle::Dashed));
                 }
             }
         }
     }
-    out.push_str("}\n");
-    out
+}
+
+fn external_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &mut Drawing) {
+    let Some(resolved) = node_of(stack, &inst.instance_id) else {
+        return;
+    };
+    for topic in resolved.consumed_topics.iter().filter(|t| t.slot.is_none()) {
+        for p in &stack.plan.instances {
+            let emits = node_of(stack, &p.instance_id)
+                .is_some_and(|r| r.emitted_topics.iter().any(|e| e.decl.name == topic.name));
+            if emits && p.instance_id != inst.instance_id {
+                picture.edges.push(edge(
+                    &p.instance_id,
+                    &inst.instance_id,
+                    &format!("{} (external)", topic.name),
+                    EdgeStyle::Dotted,
+                ));
+            }
+        }
+    }
+}
+
+fn edge(from: &str, to: &str, label: &str, style: EdgeStyle) -> DrawEdge {
+    DrawEdge {
+        from: from.to_string(),
+        to: to.to_string(),
+        label: label.to_string(),
+        style,
+    }
 }

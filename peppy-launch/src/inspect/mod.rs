@@ -8,7 +8,7 @@
 
 pub(crate) mod calls;
 pub(crate) mod dynamic;
-
+pub(crate) mod live_graph;
 pub(crate) mod nodes;
 pub(crate) mod rates;
 pub(crate) mod stream;
@@ -72,6 +72,11 @@ pub(crate) fn action(cmd: ActionCommand) -> Result {
 }
 
 pub(crate) fn block_on<F: Future<Output = Result>>(f: F) -> Result {
+    block_on_value(f)
+}
+
+/// Runs an inspection on a small runtime of its own.
+pub(crate) fn block_on_value<T, F: Future<Output = Result<T>>>(f: F) -> Result<T> {
     tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -87,6 +92,9 @@ pub(crate) struct Reach {
     pub(crate) connect: Vec<String>,
     /// How the stack was found, for messages.
     pub(crate) what: String,
+    /// The instances its launch started (`instance`, `node`), when it was
+    /// found through a launch record.
+    pub(crate) expected: Vec<(String, String)>,
 }
 
 /// Decides which stack the command looks at (see [`StackArgs`]).
@@ -105,6 +113,7 @@ pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach>
             what: format!("namespace {namespace} via {}", args.connect.join(", ")),
             namespace,
             connect: args.connect.clone(),
+            expected: Vec::new(),
         });
     }
     let matching: Vec<&LaunchRecord> = running
@@ -116,6 +125,7 @@ pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach>
         ([one], _, _) | ([.., one], Some(_), _) => Ok(Reach {
             namespace: one.namespace.clone(),
             connect: one.connect.clone(),
+            expected: one.instances.clone(),
             what: format!(
                 "{} (namespace {}, pid {})",
                 one.launcher.display(),
@@ -136,6 +146,7 @@ pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach>
                 what: format!("namespace {namespace} on the local hub {LOCAL_HUB}"),
                 namespace,
                 connect: vec![LOCAL_HUB.to_string()],
+                expected: Vec::new(),
             })
         }
         (several, _, _) => Err(LaunchError::Usage(format!(

@@ -266,6 +266,44 @@ fn graph_draws_any_edges_for_unbound_from_any_slots() {
 }
 
 #[test]
+fn graph_output_writes_a_standalone_html_page_naming_every_instance() {
+    let dir = tempfile::tempdir().unwrap();
+    let page = dir.path().join("arm.html");
+    let launcher = root().join("examples/launchers/robot_arm_loop.json5");
+    let graph = peppy_launch(
+        dir.path(),
+        &[
+            "graph",
+            launcher.to_str().unwrap(),
+            "--output",
+            page.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(graph.code, 0, "{}", graph.stderr);
+    assert_eq!(graph.stdout, "");
+    assert!(
+        graph
+            .stderr
+            .trim_end()
+            .ends_with("arm.html (2 instances, 2 edges)"),
+        "{}",
+        graph.stderr
+    );
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert!(html.starts_with("<!DOCTYPE html>"));
+    assert!(html.contains("<svg "), "an inline picture");
+    for instance in ["arm", "controller"] {
+        assert!(html.contains(&format!("<td>{instance}</td>")), "{html}");
+    }
+    let refused = peppy_launch(
+        dir.path(),
+        &["graph", launcher.to_str().unwrap(), "--output", "arm.png"],
+    );
+    assert_eq!(refused.code, 2, "{}", refused.stderr);
+    assert!(refused.stderr.contains(".svg, .html"), "{}", refused.stderr);
+}
+
+#[test]
 fn a_container_node_is_refused_by_check_and_up_starts_nothing() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::create_dir_all(dir.path().join("boxed")).unwrap();

@@ -2,6 +2,7 @@
 //! exit codes and output as users see them.
 
 mod check;
+mod inspect;
 mod seeds;
 mod support;
 mod up;

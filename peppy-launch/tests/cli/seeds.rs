@@ -12,19 +12,26 @@ use std::time::{Duration, Instant};
 use crate::support::{peppy_launch, root};
 
 /// Builds of every example node can take a while on a cold machine.
-const BUILD_AND_START: Duration = Duration::from_secs(600);
+pub(crate) const BUILD_AND_START: Duration = Duration::from_secs(600);
 
-struct Launch {
+/// A running `peppy-launch up` and its multiplexed output.
+pub(crate) struct Launch {
     child: Child,
     lines: Receiver<String>,
     seen: Vec<String>,
 }
 
 impl Launch {
-    fn up(launcher: &str, extra: &[&str]) -> Launch {
+    pub(crate) fn up(launcher: &str, extra: &[&str]) -> Launch {
+        Launch::up_with(launcher, extra, &[])
+    }
+
+    /// `up` with extra environment variables.
+    pub(crate) fn up_with(launcher: &str, extra: &[&str], env: &[(&str, &Path)]) -> Launch {
         let mut child = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
             .args(["up", launcher])
             .args(extra)
+            .envs(env.iter().copied())
             .current_dir(root())
             .env("NO_COLOR", "1")
             .env_remove("PEPPY_REPOSITORIES")
@@ -51,7 +58,12 @@ impl Launch {
 
     /// The first line so far, or waits for one, matching `pred`; fails with
     /// everything seen so far.
-    fn expect(&mut self, what: &str, within: Duration, pred: impl Fn(&str) -> bool) -> String {
+    pub(crate) fn expect(
+        &mut self,
+        what: &str,
+        within: Duration,
+        pred: impl Fn(&str) -> bool,
+    ) -> String {
         if let Some(line) = self.seen.iter().find(|l| pred(l)) {
             return line.clone();
         }
@@ -74,7 +86,7 @@ impl Launch {
     }
 
     /// Reads for `time` more, returning the lines.
-    fn read_for(&mut self, time: Duration) -> Vec<String> {
+    pub(crate) fn read_for(&mut self, time: Duration) -> Vec<String> {
         let deadline = Instant::now() + time;
         let mut out = Vec::new();
         while let Ok(line) = self
@@ -90,7 +102,7 @@ impl Launch {
     /// Ctrl-C; returns the exit code. No instance may need SIGKILL: the
     /// ZED's service loop ignores every error (`loop { let _ = ... }`) and
     /// must still stop on SIGINT.
-    fn stop(mut self) -> i32 {
+    pub(crate) fn stop(mut self) -> i32 {
         assert!(
             Command::new("kill")
                 .args(["-INT", &self.child.id().to_string()])

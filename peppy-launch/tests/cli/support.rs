@@ -18,6 +18,11 @@ pub(crate) struct Run {
 /// Runs `peppy-launch args...` in `dir` with no colour and no inherited
 /// repository list.
 pub(crate) fn peppy_launch(dir: &Path, args: &[&str]) -> Run {
+    peppy_launch_with(dir, args, &[])
+}
+
+/// [`peppy_launch`] with extra environment variables.
+pub(crate) fn peppy_launch_with(dir: &Path, args: &[&str], env: &[(&str, &Path)]) -> Run {
     let Output {
         status,
         stdout,
@@ -27,6 +32,7 @@ pub(crate) fn peppy_launch(dir: &Path, args: &[&str]) -> Run {
         .current_dir(dir)
         .env("NO_COLOR", "1")
         .env_remove("PEPPY_REPOSITORIES")
+        .envs(env.iter().copied())
         .output()
         .expect("run peppy-launch");
     Run {
