@@ -73,6 +73,10 @@ pub(crate) async fn list_services(args: ListArgs) -> Result {
         print_json(&serde_json::Value::Array(list));
         return Ok(());
     }
+    if rows.is_empty() {
+        println!("no instance serves a service in {}", observer.reach.what);
+        return Ok(());
+    }
     let cells: Vec<Vec<String>> = rows
         .iter()
         .map(|(i, s)| {
@@ -126,6 +130,10 @@ pub(crate) async fn list_actions(args: ListArgs) -> Result {
             })
             .collect();
         print_json(&serde_json::Value::Array(list));
+        return Ok(());
+    }
+    if rows.is_empty() {
+        println!("no instance serves an action in {}", observer.reach.what);
         return Ok(());
     }
     let cells: Vec<Vec<String>> = rows

@@ -737,6 +737,10 @@ pub(crate) fn encode_text(
 /// Inline arrays of scalars longer than this go one item per line.
 const INLINE_WIDTH: usize = 72;
 
+/// Items of a long array [`to_text`] shows one per line before it says how
+/// many more there are.
+const TEXT_ITEMS: usize = 16;
+
 /// Bytes shown in full in [`to_text`]; longer ones are summarised.
 const TEXT_BYTES: usize = 8;
 
@@ -784,7 +788,14 @@ fn write_block(out: &mut String, value: &Dyn, indent: usize) {
 }
 
 fn write_items(out: &mut String, items: &[Dyn], indent: usize) {
-    for item in items {
+    // A point cloud or a long trajectory would bury everything else: show
+    // its first items and how many more there are.
+    let (shown, hidden) = if items.len() > TEXT_ITEMS {
+        (&items[..TEXT_ITEMS], items.len() - TEXT_ITEMS)
+    } else {
+        (items, 0)
+    };
+    for item in shown {
         if let Some(text) = inline(item) {
             let _ = writeln!(out, "{:indent$}- {text}", "");
             continue;
@@ -800,6 +811,14 @@ fn write_items(out: &mut String, items: &[Dyn], indent: usize) {
             block.replace_range(indent..indent + 2, "- ");
             out.push_str(&block);
         }
+    }
+    if hidden > 0 {
+        let _ = writeln!(
+            out,
+            "{:indent$}- … {hidden} more items ({} in all)",
+            "",
+            items.len()
+        );
     }
 }
 
@@ -1379,7 +1398,8 @@ mod tests {
             "b": [1, 2, 3], "empty": [],
         });
         let text = to_text(&round_trip(&f, &value));
-        let long: String = (0..40).map(|i| format!("  - {i}\n")).collect();
+        let long: String = (0..16).map(|i| format!("  - {i}\n")).collect::<String>()
+            + "  - … 24 more items (40 in all)\n";
         let expected = format!(
             "points:\n  - x: 1.0\n    y: 0.1\n  - x: -2.5\n    y: 3.0\nids: [1, 2, 3]\nlong:\n{long}\
              words: []\nnote: ~\n\
@@ -1421,5 +1441,15 @@ mod tests {
             to_json(&value).to_string(),
             r#"{"big":18446744073709551615,"low":-9223372036854775808,"nan":"NaN","gone":null,"few":{"len":1,"head":"ab"}}"#
         );
+    }
+
+    #[test]
+    fn long_arrays_show_their_first_items_and_a_count() {
+        let points = Dyn::Array((0..1000).map(|i| Dyn::Float(f64::from(i) + 0.5)).collect());
+        let text = to_text(&Dyn::Object(vec![("xs".into(), points)]));
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 1 + TEXT_ITEMS + 1, "{text}");
+        assert_eq!(lines[1], "  - 0.5");
+        assert_eq!(lines.last().unwrap(), &"  - … 984 more items (1000 in all)");
     }
 }

@@ -129,10 +129,11 @@ pub(crate) fn info_text(i: &InstanceInfo, now: u64) -> String {
     let _ = writeln!(s, "  uptime     {}", human_duration(i.uptime(now)));
     if !i.slots.is_empty() {
         let _ = writeln!(s, "slots");
+        let width = i.slots.iter().map(|x| x.link_id.len()).max().unwrap_or(0);
         for slot in &i.slots {
             let _ = writeln!(
                 s,
-                "  {}  {} {}: {}",
+                "  {:width$}  {} {}: {}",
                 slot.link_id,
                 slot.kind.as_str(),
                 slot.target,
