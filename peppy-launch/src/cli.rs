@@ -421,9 +421,9 @@ fn parse_wait(s: &str) -> Result<Duration, String> {
         .trim()
         .parse()
         .map_err(|_| format!("`{s}` is not a number of seconds"))?;
-    if !seconds.is_finite() || seconds <= 0.0 || seconds > 86400.0 {
+    if !seconds.is_finite() || !(0.001..=86400.0).contains(&seconds) {
         return Err(format!(
-            "`{s}` is out of range: give seconds above 0, at most 86400"
+            "`{s}` is out of range: give seconds from 0.001 to 86400"
         ));
     }
     Ok(Duration::from_secs_f64(seconds))
@@ -453,6 +453,15 @@ mod tests {
         assert_eq!(parse_grace("0"), Ok(Duration::ZERO));
         for bad in ["-1", "NaN", "inf", "-inf", "1e300", "soon", ""] {
             assert!(parse_grace(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn waits_take_a_millisecond_to_a_day() {
+        assert_eq!(parse_wait("0.5"), Ok(Duration::from_millis(500)));
+        assert_eq!(parse_wait("0.001"), Ok(Duration::from_millis(1)));
+        for bad in ["0", "1e-10", "-1", "NaN", "inf", "86401", "soon"] {
+            assert!(parse_wait(bad).is_err(), "{bad}");
         }
     }
 }

@@ -1,6 +1,6 @@
 //! The launches running on this machine. `up` and `run` write a record of
-//! each launch into its run directory (`launch.json`, beside the instances'
-//! runtime configs, logs and pid files) and a copy into a per-user registry,
+//! each launch into its run directory ([`RECORD_FILE`], beside the
+//! instances' runtime configs, logs and pid files) and a copy into a per-user registry,
 //! removed when the launch ends. `ps`, `logs` and the inspection commands
 //! find a stack through them: by its launcher, its namespace, or as the
 //! only one running.
@@ -50,11 +50,6 @@ pub(crate) struct LaunchRecord {
 }
 
 impl LaunchRecord {
-    /// Whether the launch's process still runs.
-    pub(crate) fn is_alive(&self) -> bool {
-        pid_alive(self.pid)
-    }
-
     /// The log of `instance`.
     pub(crate) fn log_of(&self, instance: &str) -> PathBuf {
         self.run_dir.join(format!("{instance}.log"))
@@ -80,10 +75,14 @@ fn last_errno() -> i32 {
     std::io::Error::last_os_error().raw_os_error().unwrap_or(0)
 }
 
-/// A launch's record, registered while it runs.
+/// A launch's record, registered while it runs: the registry entry stays
+/// locked (`flock`) for the launch's life, so an entry whose lock is free
+/// belongs to a launch that ended, however it ended, even if its pid has
+/// been reused since.
 #[derive(Debug)]
 pub(crate) struct Registration {
     entry: PathBuf,
+    _lock: std::fs::File,
 }
 
 impl Drop for Registration {
@@ -92,24 +91,50 @@ impl Drop for Registration {
     }
 }
 
+/// The record's name in its run directory (instance ids hold no `.`, so no
+/// instance's `<id>.json` runtime config can take it).
+pub(crate) const RECORD_FILE: &str = "launch.record.json";
+
+/// Takes the lock of a registry entry without waiting: `false` when a
+/// running launch holds it.
+fn try_lock(file: &std::fs::File) -> bool {
+    use std::os::fd::AsRawFd as _;
+    // SAFETY: flock on a file descriptor we own; no memory is involved.
+    unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) == 0 }
+}
+
+/// Writes `text` to `path` through a temporary file and a rename, so a
+/// reader never sees half a record; returns the written file, still open.
+fn write_whole(path: &Path, text: &[u8], lock: bool) -> std::io::Result<std::fs::File> {
+    use std::io::Write as _;
+    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    let mut file = std::fs::File::create(&tmp)?;
+    file.write_all(text)?;
+    if lock && !try_lock(&file) {
+        return Err(std::io::Error::other("the registry entry is locked"));
+    }
+    std::fs::rename(&tmp, path)?;
+    Ok(file)
+}
+
 /// Writes `record` into its run directory and the registry. A launch that
 /// cannot register still runs; only finding it later is harder, so the
 /// failure is returned for a note, not an error.
 pub(crate) fn register(record: &LaunchRecord) -> Result<Registration, String> {
     let text = serde_json::to_vec_pretty(record).expect("a launch record serializes");
-    let in_run = record.run_dir.join("launch.json");
-    std::fs::write(&in_run, &text)
+    let in_run = record.run_dir.join(RECORD_FILE);
+    write_whole(&in_run, &text, false)
         .map_err(|e| format!("cannot write {}: {e}", in_run.display()))?;
     let dir = registry();
     let entry = dir.join(format!("{}.json", record.pid));
-    std::fs::create_dir_all(&dir)
-        .and_then(|()| std::fs::write(&entry, &text))
+    let lock = std::fs::create_dir_all(&dir)
+        .and_then(|()| write_whole(&entry, &text, true))
         .map_err(|e| format!("cannot register the launch in {}: {e}", dir.display()))?;
-    Ok(Registration { entry })
+    Ok(Registration { entry, _lock: lock })
 }
 
-/// The launches running now, oldest first. Records of launches that died
-/// without cleaning up are removed.
+/// The launches running now, oldest first. Entries of launches that ended
+/// without cleaning up (killed, power cut) are removed.
 pub(crate) fn running() -> Vec<LaunchRecord> {
     let Ok(entries) = std::fs::read_dir(registry()) else {
         return Vec::new();
@@ -120,12 +145,15 @@ pub(crate) fn running() -> Vec<LaunchRecord> {
         if path.extension().is_none_or(|e| e != "json") {
             continue;
         }
-        match read_record(&path) {
-            Some(r) if r.is_alive() => out.push(r),
-            Some(_) => {
-                let _ = std::fs::remove_file(&path);
-            }
-            None => {}
+        let Ok(file) = std::fs::File::open(&path) else {
+            continue;
+        };
+        if try_lock(&file) {
+            let _ = std::fs::remove_file(&path);
+            continue;
+        }
+        if let Some(r) = read_record(&path) {
+            out.push(r);
         }
     }
     out.sort_by_key(|r| (r.started_at_ms, r.pid));
@@ -143,7 +171,7 @@ pub(crate) fn latest_run_of(launcher: &Path) -> Option<LaunchRecord> {
     let abs = std::fs::canonicalize(launcher).ok()?;
     let runs = std::fs::read_dir(base.join(".peppy").join("runs")).ok()?;
     runs.flatten()
-        .filter_map(|d| read_record(&d.path().join("launch.json")))
+        .filter_map(|d| read_record(&d.path().join(RECORD_FILE)))
         .filter(|r| r.launcher == abs)
         .max_by_key(|r| (r.started_at_ms, r.pid))
 }
@@ -268,11 +296,8 @@ fn launch_with(args: &crate::cli::LogsArgs) -> crate::error::Result<LaunchRecord
 
 /// `peppy-launch logs INSTANCE [-f]`.
 pub(crate) fn logs(args: &crate::cli::LogsArgs) -> crate::error::Result {
-    use std::io::{Read as _, Seek as _, Write as _};
-
     use crate::error::LaunchError;
     let record = launch_with(args)?;
-    let path = record.log_of(&args.instance);
     if !record.instances.iter().any(|(id, _)| id == &args.instance) {
         let ids: Vec<&str> = record.instances.iter().map(|(id, _)| id.as_str()).collect();
         return Err(LaunchError::Usage(format!(
@@ -282,68 +307,95 @@ pub(crate) fn logs(args: &crate::cli::LogsArgs) -> crate::error::Result {
             ids.join(", ")
         )));
     }
-    let mut file = std::fs::File::open(&path)
-        .map_err(|e| LaunchError::Inspect(format!("cannot read {}: {e}", path.display())))?;
-    let mut text = String::new();
-    file.read_to_string(&mut text)
-        .map_err(|e| LaunchError::Inspect(format!("cannot read {}: {e}", path.display())))?;
-    let lines: Vec<&str> = text.lines().collect();
+    let path = record.log_of(&args.instance);
+    let unreadable =
+        |e: std::io::Error| LaunchError::Inspect(format!("cannot read {}: {e}", path.display()));
+    let mut log = LogReader::default();
+    let lines = log.read_new(&path).map_err(unreadable)?;
     let start = args.tail.map_or(0, |n| lines.len().saturating_sub(n));
-    let mut printed = 0u64;
-    let mut out = std::io::stdout().lock();
-    for line in &lines[start..] {
-        if args.stream.count.is_some_and(|n| printed >= n) {
-            return Ok(());
-        }
-        let _ = writeln!(out, "{line}");
-        printed += 1;
-    }
-    let _ = out.flush();
-    drop(out);
+    let mut out = LinePrinter {
+        printed: 0,
+        limit: args.stream.count,
+    };
+    out.print(&lines[start..]);
     if !args.follow {
         return Ok(());
     }
     let deadline = args.stream.timeout.map(|t| std::time::Instant::now() + t);
-    let mut pos = file.stream_position().unwrap_or(0);
-    let mut partial = String::new();
-    while args.stream.count.is_none_or(|n| printed < n) {
-        if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
-            break;
-        }
-        let len = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
-        if len < pos {
-            // The log was truncated or replaced (a restart): read it anew.
-            pos = 0;
-        }
-        if len > pos {
-            let mut f = std::fs::File::open(&path).map_err(|e| {
-                LaunchError::Inspect(format!("cannot read {}: {e}", path.display()))
-            })?;
-            f.seek(std::io::SeekFrom::Start(pos))
-                .and_then(|_| f.read_to_string(&mut partial))
-                .map_err(|e| {
-                    LaunchError::Inspect(format!("cannot read {}: {e}", path.display()))
-                })?;
-            pos = len;
-            while let Some(end) = partial.find('\n') {
-                let line: String = partial.drain(..=end).collect();
-                print!("{line}");
-                printed += 1;
-                if args.stream.count.is_some_and(|n| printed >= n) {
-                    break;
-                }
-            }
-            let _ = std::io::stdout().flush();
-        } else {
+    while !out.done() && deadline.is_none_or(|d| std::time::Instant::now() < d) {
+        let lines = log.read_new(&path).map_err(unreadable)?;
+        if lines.is_empty() {
             std::thread::sleep(std::time::Duration::from_millis(100));
         }
+        out.print(&lines);
     }
     match (args.stream.count, args.stream.timeout) {
-        (Some(n), Some(t)) if printed < n => Err(LaunchError::Inspect(format!(
-            "{printed} of {n} lines within {} s",
+        (Some(n), Some(t)) if out.printed < n => Err(LaunchError::Inspect(format!(
+            "{} of {n} lines within {} s",
+            out.printed,
             t.as_secs_f64()
         ))),
         _ => Ok(()),
+    }
+}
+
+/// Prints lines up to `--count`.
+struct LinePrinter {
+    printed: u64,
+    limit: Option<u64>,
+}
+
+impl LinePrinter {
+    fn done(&self) -> bool {
+        self.limit.is_some_and(|n| self.printed >= n)
+    }
+
+    fn print(&mut self, lines: &[String]) {
+        use std::io::Write as _;
+        let mut out = std::io::stdout().lock();
+        for line in lines {
+            if self.done() {
+                break;
+            }
+            let _ = writeln!(out, "{line}");
+            self.printed += 1;
+        }
+        let _ = out.flush();
+    }
+}
+
+/// Reads a growing log by whole lines: bytes after the last newline wait
+/// for the rest of their line, so a line (or a UTF-8 character) written
+/// half-way is never split; invalid UTF-8 is shown, not fatal.
+#[derive(Debug, Default)]
+pub(crate) struct LogReader {
+    pos: u64,
+    partial: Vec<u8>,
+}
+
+impl LogReader {
+    /// The complete lines written since the last call.
+    pub(crate) fn read_new(&mut self, path: &Path) -> std::io::Result<Vec<String>> {
+        use std::io::{Read as _, Seek as _};
+        let mut file = std::fs::File::open(path)?;
+        if file.metadata()?.len() < self.pos {
+            // Truncated or replaced: read it anew.
+            self.pos = 0;
+            self.partial.clear();
+        }
+        file.seek(std::io::SeekFrom::Start(self.pos))?;
+        let mut bytes = Vec::new();
+        let n = file.read_to_end(&mut bytes)?;
+        self.pos += n as u64;
+        self.partial.extend_from_slice(&bytes);
+        let Some(end) = self.partial.iter().rposition(|&b| b == b'\n') else {
+            return Ok(Vec::new());
+        };
+        let complete: Vec<u8> = self.partial.drain(..=end).collect();
+        Ok(complete[..complete.len() - 1]
+            .split(|&b| b == b'\n')
+            .map(|l| String::from_utf8_lossy(l).into_owned())
+            .collect())
     }
 }
 
@@ -361,6 +413,58 @@ mod tests {
             human_duration(Duration::from_secs(3 * 86400 + 4 * 3600)),
             "3 d 4 h"
         );
+    }
+
+    #[test]
+    fn a_growing_log_is_read_by_whole_lines() {
+        use std::io::Write as _;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("x.log");
+        let mut f = std::fs::File::create(&path).unwrap();
+        let mut log = LogReader::default();
+        f.write_all(b"one\ntw").unwrap();
+        assert_eq!(log.read_new(&path).unwrap(), ["one"]);
+        f.write_all(b"o \xc3").unwrap();
+        assert!(log.read_new(&path).unwrap().is_empty());
+        f.write_all(b"\xa9\n\xff\n").unwrap();
+        assert_eq!(log.read_new(&path).unwrap(), ["two \u{e9}", "\u{fffd}"]);
+        std::fs::write(&path, b"new\n").unwrap();
+        assert_eq!(log.read_new(&path).unwrap(), ["new"]);
+    }
+
+    #[test]
+    fn an_entry_is_running_while_its_registration_lives() {
+        let state = tempfile::tempdir().unwrap();
+        let run_dir = tempfile::tempdir().unwrap();
+        // SAFETY (edition 2024 marks set_var unsafe): this is the only test
+        // in this binary that reads or writes PEPPY_STATE_DIR.
+        unsafe { std::env::set_var("PEPPY_STATE_DIR", state.path()) };
+        let record = LaunchRecord {
+            pid: 4_000_000,
+            launcher: "/x/stack.json5".into(),
+            namespace: "ns".into(),
+            core_node: "c".into(),
+            connect: vec!["tcp/127.0.0.1:1".into()],
+            run_dir: run_dir.path().into(),
+            started_at_ms: 1,
+            instances: vec![("a".into(), "n:v1".into())],
+        };
+        let registration = register(&record).unwrap();
+        assert_eq!(running(), vec![record.clone()]);
+        assert!(run_dir.path().join(RECORD_FILE).exists());
+        // A launch killed without cleaning up leaves an entry nobody locks.
+        let stale = state.path().join("launches/4000001.json");
+        std::fs::copy(state.path().join("launches/4000000.json"), &stale).unwrap();
+        assert_eq!(
+            running(),
+            vec![record.clone()],
+            "an unlocked entry is stale"
+        );
+        assert!(!stale.exists(), "and removed");
+        drop(registration);
+        assert!(running().is_empty());
+        assert!(!state.path().join("launches/4000000.json").exists());
+        unsafe { std::env::remove_var("PEPPY_STATE_DIR") };
     }
 
     #[test]

@@ -196,6 +196,54 @@ impl InstanceInfo {
         serde_json::from_slice(bytes)
     }
 
+    /// Whether the description can be trusted as a map of the wire: the
+    /// version this build reads, identity segments that are valid key
+    /// segments, and every key exactly the one its owner, name, core and
+    /// instance make (a key with a wildcard would reach every server).
+    pub fn check(&self) -> Result<(), String> {
+        use crate::wire::keys::{Channel, entry_key, is_segment};
+        if self.version != DESCRIBE_VERSION {
+            return Err(format!(
+                "description version {} (this build reads {DESCRIBE_VERSION})",
+                self.version
+            ));
+        }
+        for segment in [&self.namespace, &self.core_node, &self.instance_id] {
+            if !is_segment(segment) {
+                return Err(format!("`{segment}` is not a key segment"));
+            }
+        }
+        let expect = |channel, owner: &OwnerInfo, name: &str, key: &str| {
+            let ok = is_segment(name)
+                && is_segment(&owner.name)
+                && is_segment(&owner.tag)
+                && key
+                    == entry_key(
+                        &self.namespace,
+                        channel,
+                        &owner.as_owner(),
+                        name,
+                        &self.core_node,
+                        &self.instance_id,
+                    );
+            if ok {
+                Ok(())
+            } else {
+                Err(format!("`{key}` is not the key of `{name}`"))
+            }
+        };
+        for t in &self.emits {
+            expect(Channel::Topic, &t.owner, &t.name, &t.key)?;
+        }
+        for s in &self.services {
+            expect(Channel::Service, &s.owner, &s.name, &s.key)?;
+        }
+        for a in &self.actions {
+            expect(Channel::Action, &a.owner, &a.name, &a.key)?;
+        }
+        Ok(())
+    }
+
     /// When it has been up since, as a duration up to `now_ms`.
     pub fn uptime(&self, now_ms: u64) -> std::time::Duration {
         std::time::Duration::from_millis(now_ms.saturating_sub(self.started_at_ms))
@@ -214,4 +262,71 @@ pub(crate) fn now_ms() -> u64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_millis() as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn info() -> InstanceInfo {
+        let owner = OwnerInfo {
+            kind: SlotKind::Node,
+            name: "arm".into(),
+            tag: "v1".into(),
+        };
+        let format = FormatInfo {
+            canonical: "{x:f64}".into(),
+            fingerprint: 7,
+        };
+        InstanceInfo {
+            version: DESCRIBE_VERSION,
+            instance_id: "arm_1".into(),
+            core_node: "c".into(),
+            namespace: "lab".into(),
+            node: Identity::new("arm", "v1"),
+            pid: 1,
+            started_at_ms: 5,
+            slots: Vec::new(),
+            emits: vec![EmittedTopic {
+                owner: owner.clone(),
+                name: "state".into(),
+                qos: QosProfile::SensorData,
+                format: format.clone(),
+                key: "peppy/lab/topic/node/arm/v1/state/c/arm_1".into(),
+            }],
+            consumes: Vec::new(),
+            services: vec![ServedService {
+                owner,
+                name: "home".into(),
+                request: format.clone(),
+                response: format,
+                key: "peppy/lab/service/node/arm/v1/home/c/arm_1".into(),
+            }],
+            actions: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn descriptions_round_trip_and_are_checked() {
+        let i = info();
+        assert_eq!(i.check(), Ok(()));
+        let back = InstanceInfo::from_json(i.to_json().as_bytes()).unwrap();
+        assert_eq!(back, i);
+        assert_eq!(i.uptime(1005), std::time::Duration::from_secs(1));
+
+        let mut wild = info();
+        wild.services[0].key = "peppy/lab/service/node/arm/v1/home/*/*".into();
+        assert!(
+            wild.check()
+                .unwrap_err()
+                .contains("is not the key of `home`")
+        );
+        let mut newer = info();
+        newer.version = DESCRIBE_VERSION + 1;
+        assert!(newer.check().is_err());
+        let mut odd = info();
+        odd.instance_id = "a/b".into();
+        assert!(odd.check().is_err());
+        assert!(InstanceInfo::from_json(b"{\"version\": 1}").is_err());
+    }
 }

@@ -180,30 +180,45 @@ pub(crate) async fn send_goal(args: GoalArgs) -> Result {
     if args.format == Format::Human {
         println!("goal {} accepted by {}", client.goal_id(), info.instance_id);
     }
-    let has_feedback = action.feedback.fingerprint != 0;
-    loop {
-        tokio::select! {
-            f = client.next_feedback::<Raw>(), if has_feedback => match f {
-                Ok(Raw(body)) => match decoded(&action.feedback.canonical, &body, "feedback") {
-                    Ok(v) => show(args.format, "feedback", &v),
-                    Err(e) => eprintln!("note: {e}"),
+    let stop = super::interrupted();
+    let mut cancelled = false;
+    if action.feedback.fingerprint != 0 {
+        loop {
+            tokio::select! {
+                f = client.next_feedback::<Raw>() => match f {
+                    Ok(Raw(body)) => match decoded(&action.feedback.canonical, &body, "feedback") {
+                        Ok(v) => show(args.format, "feedback", &v),
+                        Err(e) => eprintln!("note: {e}"),
+                    },
+                    Err(_) => break,
                 },
-                Err(_) => break,
-            },
-            _ = tokio::signal::ctrl_c() => {
-                let state = client.cancel(std::time::Duration::from_secs(5)).await;
-                eprintln!("cancel requested: {state:?}");
-                break;
+                () = stop.cancelled() => {
+                    cancel(&client, "interrupted").await;
+                    cancelled = true;
+                    break;
+                }
+                () = tokio::time::sleep_until(deadline) => break,
             }
-            () = tokio::time::sleep_until(deadline), if has_feedback => break,
-            () = std::future::ready(()), if !has_feedback => break,
         }
     }
-    let left = deadline.saturating_duration_since(tokio::time::Instant::now());
-    let outcome = client
-        .result::<Raw>(left.max(std::time::Duration::from_millis(100)))
-        .await
-        .map_err(|e| LaunchError::Inspect(e.to_string()))?;
+    let left = deadline
+        .saturating_duration_since(tokio::time::Instant::now())
+        .max(CANCEL_TIMEOUT);
+    let outcome = tokio::select! {
+        r = client.result::<Raw>(left) => r,
+        () = stop.cancelled(), if !cancelled => {
+            cancel(&client, "interrupted").await;
+            client.result::<Raw>(CANCEL_TIMEOUT).await
+        }
+    };
+    let outcome = match outcome {
+        Ok(o) => o,
+        Err(e) => {
+            // Do not leave the arm moving for a caller that gave up.
+            cancel(&client, "no result in time").await;
+            return Err(LaunchError::Inspect(e.to_string()));
+        }
+    };
     let (label, body) = match outcome {
         Outcome::Completed(Raw(b)) => ("result", b),
         Outcome::Cancelled(Raw(b)) => ("cancelled with result", b),
@@ -220,5 +235,23 @@ pub(crate) async fn send_goal(args: GoalArgs) -> Result {
     };
     let value = decoded(&action.result.canonical, &body, "result")?;
     show(args.format, label, &value);
-    Ok(())
+    if label == "result" {
+        Ok(())
+    } else {
+        Err(LaunchError::Inspect(format!(
+            "goal {} was cancelled",
+            client.goal_id()
+        )))
+    }
+}
+
+/// How long a cancel (and the result after it) may take.
+const CANCEL_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// Asks the server to cancel the goal and says how that went.
+async fn cancel(client: &peppy_runtime::tool::GoalClient, why: &str) {
+    match client.cancel(CANCEL_TIMEOUT).await {
+        Ok(state) => eprintln!("{why}: cancel requested ({state:?})"),
+        Err(e) => eprintln!("{why}: the cancel request failed: {e}"),
+    }
 }

@@ -41,10 +41,11 @@ pub(crate) async fn sample(observer: &Observer, window: Duration) -> Result<Coun
     Ok(counts)
 }
 
-/// Whether a consumer's routing of `consumed` admits `emitted` from
+/// Whether a consumer's routing of `consumed` takes `emitted` from
 /// `producer`: same topic and owner (any owner for an external topic), the
-/// slot's filter, and for a node slot on an interface's key, the node.
-pub(crate) fn admits(
+/// slot's filter, and for a node slot on an interface's key, the node. (The
+/// consumer then still drops samples of another format.)
+pub(crate) fn routes(
     consumed: &ConsumedTopic,
     producer: &InstanceInfo,
     emitted: &EmittedTopic,
@@ -121,10 +122,13 @@ fn topic_edges(
             for emitted in producer
                 .emits
                 .iter()
-                .filter(|e| admits(consumed, producer, e))
+                .filter(|e| routes(consumed, producer, e))
             {
-                let (rate, flowing) =
-                    rate_label(counts, &producer.instance_id, &emitted.name, window);
+                let (rate, flowing) = if emitted.format.fingerprint == consumed.format.fingerprint {
+                    rate_label(counts, &producer.instance_id, &emitted.name, window)
+                } else {
+                    ("dropped: formats differ".into(), false)
+                };
                 let label = match &consumed.slot {
                     Some(slot) => format!("{slot} · {} {rate}", emitted.name),
                     None => format!("{} {rate}", emitted.name),
@@ -200,4 +204,127 @@ pub(crate) async fn picture(args: &crate::cli::StackArgs, window: Duration) -> R
         &counts,
         window,
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use peppy_runtime::describe::{FormatInfo, OwnerInfo, SlotInfo};
+    use peppy_schema::{Identity, QosProfile, RouteFilter, SlotKind};
+
+    use super::*;
+
+    fn camera_owner() -> OwnerInfo {
+        OwnerInfo {
+            kind: SlotKind::Interface,
+            name: "depth_camera".into(),
+            tag: "v1".into(),
+        }
+    }
+
+    fn format(fingerprint: u64) -> FormatInfo {
+        FormatInfo {
+            canonical: format!("{{x:u{fingerprint}}}"),
+            fingerprint,
+        }
+    }
+
+    fn instance(id: &str, node: &str) -> InstanceInfo {
+        InstanceInfo {
+            version: 1,
+            instance_id: id.into(),
+            core_node: "c".into(),
+            namespace: "lab".into(),
+            node: Identity::new(node, "v1"),
+            pid: 1,
+            started_at_ms: 0,
+            slots: Vec::new(),
+            emits: Vec::new(),
+            consumes: Vec::new(),
+            services: Vec::new(),
+            actions: Vec::new(),
+        }
+    }
+
+    fn camera(id: &str, fingerprint: u64) -> InstanceInfo {
+        let mut i = instance(id, "cam");
+        i.emits.push(EmittedTopic {
+            owner: camera_owner(),
+            name: "video".into(),
+            qos: QosProfile::SensorData,
+            format: format(fingerprint),
+            key: String::new(),
+        });
+        i
+    }
+
+    fn slot_topic(slot: &str, filter: RouteFilter) -> ConsumedTopic {
+        ConsumedTopic {
+            slot: Some(slot.into()),
+            owner: Some(camera_owner()),
+            name: "video".into(),
+            qos: QosProfile::SensorData,
+            format: format(8),
+            selector: String::new(),
+            filter,
+            members_of: None,
+        }
+    }
+
+    #[test]
+    fn edges_follow_the_consumers_routing_with_measured_rates() {
+        let mut recon = instance("recon", "recon");
+        recon.consumes = vec![
+            slot_topic("left", RouteFilter::Pin("cam_l".into())),
+            slot_topic(
+                "extras",
+                RouteFilter::AnyExcept(["cam_l".to_string()].into()),
+            ),
+        ];
+        recon.slots.push(SlotInfo {
+            link_id: "arm".into(),
+            kind: SlotKind::Node,
+            target: Identity::new("arm", "v1"),
+            binding: peppy_schema::SlotBinding::Pinned {
+                producer: "arm_1".into(),
+            },
+            filter: RouteFilter::Pin("arm_1".into()),
+        });
+        let all: BTreeMap<String, InstanceInfo> = [
+            recon,
+            camera("cam_l", 8),
+            camera("cam_x", 8),
+            camera("cam_old", 16),
+        ]
+        .into_iter()
+        .map(|i| (i.instance_id.clone(), i))
+        .collect();
+        let counts: Counts = [(("cam_l".to_string(), "video".to_string()), 30)].into();
+        let expected = [("ghost".to_string(), "cam:v1".to_string())];
+        let picture = drawing("t", &all, &expected, &counts, Duration::from_secs(2));
+        let edges: Vec<(&str, &str, &str, EdgeStyle)> = picture
+            .edges
+            .iter()
+            .map(|e| (e.from.as_str(), e.to.as_str(), e.label.as_str(), e.style))
+            .collect();
+        assert_eq!(
+            edges,
+            [
+                ("cam_l", "recon", "left · video 15.0 Hz", EdgeStyle::Solid),
+                (
+                    "cam_old",
+                    "recon",
+                    "extras · video dropped: formats differ",
+                    EdgeStyle::Dashed
+                ),
+                ("cam_x", "recon", "extras · video idle", EdgeStyle::Dashed),
+                ("arm_1", "recon", "arm", EdgeStyle::Dashed),
+            ]
+        );
+        let ghost = picture.nodes.iter().find(|n| n.id == "ghost").unwrap();
+        assert_eq!(ghost.state, NodeState::Down);
+        assert!(
+            picture.nodes.iter().all(|n| n.cluster.is_none()),
+            "one core node, no frames"
+        );
+    }
 }

@@ -16,11 +16,13 @@ pub(crate) mod topics;
 
 use std::collections::BTreeMap;
 use std::future::Future;
+use std::sync::OnceLock;
 use std::time::Duration;
 
 use peppy_runtime::describe::InstanceInfo;
 use peppy_runtime::tool::ToolCaller;
 use peppy_runtime::wire::keys::describe_selector;
+use tokio_util::sync::CancellationToken;
 use zenoh::query::{ConsolidationMode, QueryTarget};
 
 use crate::cli::{ActionCommand, NodeCommand, ServiceCommand, StackArgs, TopicCommand};
@@ -121,25 +123,28 @@ pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach>
         .filter(|r| canonical.as_ref().is_none_or(|l| &r.launcher == l))
         .filter(|r| args.namespace.as_ref().is_none_or(|ns| &r.namespace == ns))
         .collect();
-    match (matching.as_slice(), &args.launcher, &args.namespace) {
-        ([one], _, _) | ([.., one], Some(_), _) => Ok(Reach {
-            namespace: one.namespace.clone(),
-            connect: one.connect.clone(),
-            expected: one.instances.clone(),
-            what: format!(
-                "{} (namespace {}, pid {})",
-                one.launcher.display(),
-                one.namespace,
-                one.pid
-            ),
-        }),
-        ([], Some(l), _) => Err(LaunchError::Usage(format!(
+    // Launches sharing a namespace and endpoints are one stack: several
+    // `peppy-launch run`s on the local hub, or relaunches of one file.
+    let mut stacks: Vec<Vec<&LaunchRecord>> = Vec::new();
+    for r in matching {
+        match stacks
+            .iter_mut()
+            .find(|s| s[0].namespace == r.namespace && s[0].connect == r.connect)
+        {
+            Some(stack) => stack.push(r),
+            None => stacks.push(vec![r]),
+        }
+    }
+    match (stacks.as_slice(), &args.launcher) {
+        ([one], _) | ([.., one], Some(_)) => Ok(reach_of(one)),
+        ([], Some(l)) => Err(LaunchError::Usage(format!(
             "no launch of {} is running on this machine; start it with `peppy-launch up {}`, or reach it elsewhere with --connect ENDPOINT",
             l.display(),
             l.display()
         ))),
-        ([], None, ns) => {
-            let namespace = ns
+        ([], None) => {
+            let namespace = args
+                .namespace
                 .clone()
                 .unwrap_or_else(|| peppy_runtime::DEFAULT_NAMESPACE.to_string());
             Ok(Reach {
@@ -149,16 +154,65 @@ pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach>
                 expected: Vec::new(),
             })
         }
-        (several, _, _) => Err(LaunchError::Usage(format!(
-            "{} launches are running; pick one with --launcher (or --namespace):\n{}",
+        (several, None) => Err(LaunchError::Usage(format!(
+            "{} stacks are running; pick one with --launcher (or --namespace):\n{}",
             several.len(),
             several
                 .iter()
-                .map(|r| format!("  {}  (namespace {})", r.launcher.display(), r.namespace))
+                .map(|s| format!(
+                    "  {}  (namespace {})",
+                    s[0].launcher.display(),
+                    s[0].namespace
+                ))
                 .collect::<Vec<_>>()
                 .join("\n")
         ))),
     }
+}
+
+/// One stack made of one or more launches.
+fn reach_of(launches: &[&LaunchRecord]) -> Reach {
+    let first = launches[0];
+    let what = match launches {
+        [one] => format!(
+            "{} (namespace {}, pid {})",
+            one.launcher.display(),
+            one.namespace,
+            one.pid
+        ),
+        several => format!("namespace {} ({} launches)", first.namespace, several.len()),
+    };
+    Reach {
+        namespace: first.namespace.clone(),
+        connect: first.connect.clone(),
+        expected: launches
+            .iter()
+            .flat_map(|r| r.instances.iter().cloned())
+            .collect(),
+        what,
+    }
+}
+
+/// Fires on the first Ctrl-C (the second one exits at once), so a command
+/// notices an interrupt at any point, not only while it waits for the next
+/// message. Installed when the command joins the stack.
+pub(crate) fn interrupted() -> CancellationToken {
+    static TOKEN: OnceLock<CancellationToken> = OnceLock::new();
+    TOKEN
+        .get_or_init(|| {
+            let token = CancellationToken::new();
+            let fire = token.clone();
+            tokio::spawn(async move {
+                if tokio::signal::ctrl_c().await.is_ok() {
+                    fire.cancel();
+                }
+                if tokio::signal::ctrl_c().await.is_ok() {
+                    std::process::exit(130);
+                }
+            });
+            token
+        })
+        .clone()
 }
 
 /// A connection to a running stack.
@@ -166,11 +220,13 @@ pub(crate) struct Observer {
     pub(crate) session: zenoh::Session,
     pub(crate) reach: Reach,
     wait: Duration,
+    noted: std::sync::Mutex<std::collections::HashSet<String>>,
 }
 
 impl Observer {
     /// Joins the stack found from `args` as a peer that only connects.
     pub(crate) async fn open(args: &StackArgs) -> Result<Observer> {
+        interrupted();
         let reach = reach(args, &runs::running())?;
         let config = peppy_runtime::Endpoints {
             mode: None,
@@ -187,6 +243,7 @@ impl Observer {
             session,
             reach,
             wait: args.wait,
+            noted: Default::default(),
         })
     }
 
@@ -231,17 +288,37 @@ impl Observer {
             .map_err(|e| LaunchError::Setup(format!("cannot query {}: {e}", self.reach.what)))?;
         while let Ok(reply) = replies.recv_async().await {
             let Ok(sample) = reply.result() else { continue };
-            match InstanceInfo::from_json(&sample.payload().to_bytes()) {
+            let parsed = InstanceInfo::from_json(&sample.payload().to_bytes())
+                .map_err(|e| e.to_string())
+                .and_then(|info| info.check().map(|()| info));
+            match parsed {
                 Ok(info) => {
                     out.insert(info.instance_id.clone(), info);
                 }
-                Err(e) => eprintln!(
-                    "note: ignoring the unreadable description on {}: {e}",
+                // Once per instance, not once per discovery round.
+                Err(e) if self.first_note(sample.key_expr().as_str()) => eprintln!(
+                    "note: ignoring the description on {}: {e}",
                     sample.key_expr()
                 ),
+                Err(_) => {}
             }
         }
         Ok(())
+    }
+
+    /// One instance's description, asked directly (`None` if it does not
+    /// answer within `--wait`).
+    pub(crate) async fn describe_instance(
+        &self,
+        core: &str,
+        instance: &str,
+    ) -> Option<InstanceInfo> {
+        let key = peppy_runtime::wire::keys::describe_key(&self.reach.namespace, core, instance);
+        let replies = self.session.get(key).timeout(self.wait).await.ok()?;
+        let reply = replies.recv_async().await.ok()?;
+        let info = InstanceInfo::from_json(&reply.result().ok()?.payload().to_bytes()).ok()?;
+        info.check().ok()?;
+        Some(info)
     }
 
     /// The descriptions, or an error saying nothing answered.
@@ -266,6 +343,14 @@ impl Observer {
                 all.keys().cloned().collect::<Vec<_>>().join(", ")
             ))
         })
+    }
+
+    /// Whether `what` is noted for the first time (notes are said once).
+    fn first_note(&self, what: &str) -> bool {
+        self.noted
+            .lock()
+            .map(|mut n| n.insert(what.to_string()))
+            .unwrap_or(false)
     }
 
     /// A caller for service calls and goals, named after this process.
@@ -328,7 +413,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("2 launches are running") && e.contains("/b.json5"),
+            e.contains("2 stacks are running") && e.contains("/b.json5"),
             "{e}"
         );
         let r = reach(&args(None, Some("bb"), &[]), &running).unwrap();
@@ -348,6 +433,17 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("peppy-launch up /nowhere.json5"), "{e}");
+    }
+
+    #[test]
+    fn launches_on_one_network_and_namespace_are_one_stack() {
+        let mut a = record("/cam.json5", "default");
+        a.instances = vec![("cam".into(), "camera:v1".into())];
+        let mut b = record("/recon.json5", "default");
+        b.instances = vec![("recon".into(), "recon:v1".into())];
+        let r = reach(&args(None, None, &[]), &[a, b]).unwrap();
+        assert_eq!(r.expected.len(), 2);
+        assert!(r.what.contains("2 launches"), "{}", r.what);
     }
 
     #[test]

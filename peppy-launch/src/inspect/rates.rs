@@ -191,7 +191,7 @@ fn report_json(topic: &str, windows: &BTreeMap<String, Window>) -> serde_json::V
 pub(crate) async fn run(args: RateArgs, measure: Measure) -> Result {
     let observer = Observer::open(&args.stack).await?;
     let all = observer.describe_some().await?;
-    let selection = Selection::new(&args.select, &observer.reach.namespace, &all)?;
+    let mut selection = Selection::new(&args.select, &observer.reach.namespace, &all)?;
     let tap = Tap::open(&observer, &selection.selector).await?;
     let limits = Limits::new(&args.stream);
     let live = args.format == Format::Human && std::io::stdout().is_terminal();
@@ -201,11 +201,15 @@ pub(crate) async fn run(args: RateArgs, measure: Measure) -> Result {
     while !limits.reached(reports) {
         tokio::select! {
             r = tap.next(&limits) => match r {
-                Some(r) if selection.keeps(&r.sender) => windows
-                    .entry(r.sender.instance.clone())
-                    .or_default()
-                    .push(r.at, r.payload.len(), args.window),
-                Some(_) => {}
+                Some(r) => {
+                    selection.learn(&observer, &r.sender).await;
+                    if selection.keeps(&r.sender, r.fingerprint) {
+                        windows
+                            .entry(r.sender.instance.clone())
+                            .or_default()
+                            .push(r.at, r.payload.len(), args.window);
+                    }
+                }
                 None => break,
             },
             _ = tick.tick() => {

@@ -6,10 +6,10 @@
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::time::Duration;
 
-use peppy_runtime::describe::{InstanceInfo, OwnerInfo};
+use peppy_runtime::describe::{ConsumedTopic, EmittedTopic, InstanceInfo, OwnerInfo};
 use peppy_runtime::wire::attachment;
 use peppy_runtime::wire::keys::{Channel, Sender, entry_selector, format_key, parse_entry_key};
-use peppy_schema::{Identity, MessageFormat, RouteFilter};
+use peppy_schema::{Identity, MessageFormat, RouteFilter, SlotKind};
 use tokio::time::Instant;
 
 use super::Observer;
@@ -20,21 +20,67 @@ use crate::error::{LaunchError, Result};
 /// newer ones are dropped: the observer never holds a publisher back.
 const BACKLOG: usize = 256;
 
-/// `TOPIC` or `OWNER/TOPIC`, split.
-pub(crate) fn parse_topic(arg: &str) -> Result<(Option<Identity>, String)> {
-    match arg.rsplit_once('/') {
-        None => Ok((None, arg.to_string())),
-        Some((owner, name)) => match Identity::parse(owner) {
-            Some(id) if !name.is_empty() => Ok((Some(id), name.to_string())),
-            _ => Err(LaunchError::Usage(format!(
-                "`{arg}` is not a topic: give `NAME` or `OWNER/NAME` with OWNER as `name:tag`"
-            ))),
-        },
-    }
+/// A `TOPIC` argument: `NAME`, `OWNER/NAME`, or `KIND/OWNER/NAME` with
+/// KIND `node` or `interface`, for the rare stack where a node and an
+/// interface share a `name:tag` (a node named like an interface it does not
+/// conform to).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct TopicArg {
+    /// The topic name.
+    pub(crate) name: String,
+    /// The owner, if given.
+    pub(crate) owner: Option<Identity>,
+    /// The owner's kind, if given.
+    pub(crate) kind: Option<SlotKind>,
 }
 
-fn owner_is(owner: &OwnerInfo, wanted: Option<&Identity>) -> bool {
-    wanted.is_none_or(|w| owner.name == w.name && owner.tag == w.tag)
+impl TopicArg {
+    pub(crate) fn parse(arg: &str) -> Result<TopicArg> {
+        let bad = || {
+            LaunchError::Usage(format!(
+                "`{arg}` is not a topic: give `NAME`, `OWNER/NAME` with OWNER as `name:tag`, or `node/OWNER/NAME` / `interface/OWNER/NAME`"
+            ))
+        };
+        let parts: Vec<&str> = arg.split('/').collect();
+        let (kind, owner, name) = match parts.as_slice() {
+            [name] => (None, None, *name),
+            [owner, name] => (None, Some(*owner), *name),
+            ["node", owner, name] => (Some(SlotKind::Node), Some(*owner), *name),
+            ["interface", owner, name] => (Some(SlotKind::Interface), Some(*owner), *name),
+            _ => return Err(bad()),
+        };
+        if !peppy_runtime::wire::keys::is_segment(name) {
+            return Err(bad());
+        }
+        let owner = match owner {
+            Some(o) => Some(Identity::parse(o).ok_or_else(bad)?),
+            None => None,
+        };
+        Ok(TopicArg {
+            name: name.to_string(),
+            owner,
+            kind,
+        })
+    }
+
+    /// Whether an entry of `owner` named `name` is this topic.
+    pub(crate) fn is(&self, owner: &OwnerInfo, name: &str) -> bool {
+        name == self.name
+            && self
+                .owner
+                .as_ref()
+                .is_none_or(|w| owner.name == w.name && owner.tag == w.tag)
+            && self.kind.is_none_or(|k| owner.kind == k)
+    }
+
+    /// Whether a consumer's entry receives this topic: its owner is this
+    /// topic's (any owner for an external topic).
+    pub(crate) fn received_by(&self, consumed: &ConsumedTopic) -> bool {
+        match &consumed.owner {
+            Some(o) => self.is(o, &consumed.name),
+            None => consumed.name == self.name,
+        }
+    }
 }
 
 /// Every topic name any running instance emits or consumes, for messages.
@@ -70,6 +116,10 @@ pub(crate) struct Selection {
     pub(crate) nodes: HashMap<String, Identity>,
     /// Formats by fingerprint, from the descriptions.
     pub(crate) formats: HashMap<u64, String>,
+    /// Through `--slot`: the slot's format; other formats are dropped.
+    pub(crate) slot_format: Option<u64>,
+    /// Instances whose description was asked for after start.
+    asked: std::collections::HashSet<String>,
 }
 
 impl Selection {
@@ -79,22 +129,39 @@ impl Selection {
         ns: &str,
         all: &BTreeMap<String, InstanceInfo>,
     ) -> Result<Selection> {
-        let (owner, name) = parse_topic(&args.topic)?;
-        let emitters: Vec<(&InstanceInfo, &peppy_runtime::describe::EmittedTopic)> = all
+        let topic = TopicArg::parse(&args.topic)?;
+        let name = topic.name.clone();
+        let emitters: Vec<(&InstanceInfo, &EmittedTopic)> = all
             .values()
             .flat_map(|i| i.emits.iter().map(move |t| (i, t)))
-            .filter(|(_, t)| t.name == name && owner_is(&t.owner, owner.as_ref()))
+            .filter(|(_, t)| topic.is(&t.owner, &t.name))
             .collect();
-        let consumed: Vec<(&InstanceInfo, &peppy_runtime::describe::ConsumedTopic)> = all
+        let consumed: Vec<(&InstanceInfo, &ConsumedTopic)> = all
             .values()
             .flat_map(|i| i.consumes.iter().map(move |t| (i, t)))
-            .filter(|(_, t)| t.name == name)
+            .filter(|(_, t)| topic.received_by(t))
             .collect();
         if emitters.is_empty() && consumed.is_empty() {
             return Err(LaunchError::Usage(format!(
                 "no running instance emits or consumes topic `{}`; topics: {}",
                 args.topic,
                 topic_names(all)
+            )));
+        }
+        let owners: BTreeSet<(&str, &str, &str)> = emitters
+            .iter()
+            .map(|(_, t)| {
+                (
+                    t.owner.kind.as_str(),
+                    t.owner.name.as_str(),
+                    t.owner.tag.as_str(),
+                )
+            })
+            .collect();
+        if topic.owner.is_some() && owners.len() > 1 {
+            return Err(LaunchError::Usage(format!(
+                "`{}` is emitted by a node and by an interface of that name; say which: `node/{}` or `interface/{}`",
+                args.topic, args.topic, args.topic
             )));
         }
         if let Some(from) = &args.from
@@ -124,16 +191,26 @@ impl Selection {
             members_of: None,
             nodes,
             formats,
+            slot_format: None,
+            asked: Default::default(),
         };
         match &args.slot {
             Some(slot) => selection.through_slot(slot, &name, &consumed, args.from.as_deref())?,
             None => {
-                let owner = owner.as_ref().and_then(|o| {
-                    emitters
-                        .iter()
-                        .find(|(_, t)| owner_is(&t.owner, Some(o)))
-                        .map(|(_, t)| t.owner.clone())
-                });
+                // A named owner narrows the key; with none, every owner's
+                // topic of that name (node-owned, interface-owned) is shown.
+                let owner = match (&topic.owner, emitters.first()) {
+                    (Some(_), Some((_, t))) => Some(t.owner.clone()),
+                    (Some(o), None) => {
+                        let kind = topic.kind.unwrap_or(SlotKind::Interface);
+                        Some(OwnerInfo {
+                            kind,
+                            name: o.name.clone(),
+                            tag: o.tag.clone(),
+                        })
+                    }
+                    (None, _) => None,
+                };
                 selection.selector = entry_selector(
                     ns,
                     Channel::Topic,
@@ -152,7 +229,7 @@ impl Selection {
         &mut self,
         slot: &str,
         name: &str,
-        consumed: &[(&InstanceInfo, &peppy_runtime::describe::ConsumedTopic)],
+        consumed: &[(&InstanceInfo, &ConsumedTopic)],
         from: Option<&str>,
     ) -> Result<()> {
         let (instance, link) = match slot.split_once('.') {
@@ -175,6 +252,14 @@ impl Selection {
                 list_or_none(here.iter().map(String::as_str))
             )));
         };
+        if let Some(f) = from
+            && !t.filter.accepts(f)
+        {
+            return Err(LaunchError::Usage(format!(
+                "`{slot}` never receives from `{f}`: its binding keeps {}",
+                filter_text(&t.filter)
+            )));
+        }
         self.selector = match from {
             // Narrow the consumer's own selector to one producer.
             Some(f) => match t.selector.rsplit_once('/') {
@@ -185,19 +270,42 @@ impl Selection {
         };
         self.filter = Some(t.filter.clone());
         self.members_of = t.members_of.clone();
+        self.slot_format = Some(t.format.fingerprint);
         Ok(())
     }
 
-    /// Whether a sample from `sender` is one the command takes.
-    pub(crate) fn keeps(&self, sender: &Sender) -> bool {
+    /// Whether a sample from `sender` with `fingerprint` is one the command
+    /// takes: through `--slot`, only what the slot's routing keeps (its
+    /// producer filter, its node's instances, its own format).
+    pub(crate) fn keeps(&self, sender: &Sender, fingerprint: Option<u64>) -> bool {
         if let Some(filter) = &self.filter
             && !filter.accepts(&sender.instance)
         {
             return false;
         }
+        if self.slot_format.is_some() && fingerprint != self.slot_format {
+            return false;
+        }
         match &self.members_of {
             Some(node) => self.nodes.get(&sender.instance) == Some(node),
             None => true,
+        }
+    }
+
+    /// Learns the node of a producer that started after the command did,
+    /// when the slot keeps only one node's instances (asked once each).
+    pub(crate) async fn learn(&mut self, observer: &Observer, sender: &Sender) {
+        if self.members_of.is_none()
+            || self.nodes.contains_key(&sender.instance)
+            || !self.asked.insert(sender.instance.clone())
+        {
+            return;
+        }
+        if let Some(info) = observer
+            .describe_instance(&sender.core, &sender.instance)
+            .await
+        {
+            self.nodes.insert(info.instance_id, info.node);
         }
     }
 
@@ -217,9 +325,33 @@ impl Selection {
             Some(t) => Some(t.clone()),
             None => ask_format(observer, fingerprint, producer).await,
         };
-        let parsed = text.and_then(|t| MessageFormat::from_canonical(&t).ok());
+        // A text that does not hash to the fingerprint it was asked for is
+        // not that format: decoding with it would print wrong values.
+        let parsed = text
+            .and_then(|t| MessageFormat::from_canonical(&t).ok())
+            .filter(|f| fingerprint_of(f) == fingerprint);
         cache.insert(fingerprint, parsed.clone());
         parsed
+    }
+}
+
+/// A format's fingerprint as the runtime sends it: `0` for no payload.
+pub(crate) fn fingerprint_of(format: &MessageFormat) -> u64 {
+    if format.fields.is_empty() {
+        0
+    } else {
+        format.fingerprint()
+    }
+}
+
+/// A slot filter, for people.
+fn filter_text(filter: &RouteFilter) -> String {
+    let join = |set: &BTreeSet<String>| set.iter().cloned().collect::<Vec<_>>().join(", ");
+    match filter {
+        RouteFilter::Pin(p) => format!("only `{p}`"),
+        RouteFilter::OnlyFrom(set) => format!("only {}", join(set)),
+        RouteFilter::AnyExcept(set) => format!("any producer except {}", join(set)),
+        RouteFilter::Any => "any producer".into(),
     }
 }
 
@@ -301,10 +433,11 @@ impl Tap {
 
     /// The next sample, or `None` once the limits or Ctrl-C end the stream.
     pub(crate) async fn next(&self, limits: &Limits) -> Option<Received> {
+        let stop = super::interrupted();
         tokio::select! {
             r = self.rx.recv_async() => r.ok(),
             () = limits.expired() => None,
-            _ = tokio::signal::ctrl_c() => None,
+            () = stop.cancelled() => None,
         }
     }
 
@@ -372,18 +505,38 @@ mod tests {
 
     #[test]
     fn topics_may_name_their_owner() {
+        let t = TopicArg::parse("video_stream").unwrap();
         assert_eq!(
-            parse_topic("video_stream").unwrap(),
-            (None, "video_stream".into())
+            (t.owner, t.kind, t.name.as_str()),
+            (None, None, "video_stream")
         );
-        assert_eq!(
-            parse_topic("depth_camera:v1/video_stream").unwrap(),
-            (
-                Some(Identity::new("depth_camera", "v1")),
-                "video_stream".into()
-            )
+        let t = TopicArg::parse("depth_camera:v1/video_stream").unwrap();
+        assert_eq!(t.owner, Some(Identity::new("depth_camera", "v1")));
+        let t = TopicArg::parse("node/depth_camera:v1/video_stream").unwrap();
+        assert_eq!(t.kind, Some(SlotKind::Node));
+        let interface = OwnerInfo {
+            kind: SlotKind::Interface,
+            name: "depth_camera".into(),
+            tag: "v1".into(),
+        };
+        assert!(
+            !t.is(&interface, "video_stream"),
+            "the kind tells them apart"
         );
-        assert!(parse_topic("depth_camera/video_stream").is_err());
-        assert!(parse_topic("a:v1/").is_err());
+        assert!(
+            TopicArg::parse("depth_camera:v1/video_stream")
+                .unwrap()
+                .is(&interface, "video_stream")
+        );
+        for bad in [
+            "depth_camera/video_stream",
+            "a:v1/",
+            "x/a:v1/t",
+            "a/b/c/d",
+            "",
+            "video*",
+        ] {
+            assert!(TopicArg::parse(bad).is_err(), "{bad}");
+        }
     }
 }

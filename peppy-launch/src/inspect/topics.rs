@@ -3,7 +3,7 @@
 use std::collections::{BTreeMap, HashMap};
 use std::time::Duration;
 
-use peppy_runtime::describe::{InstanceInfo, OwnerInfo};
+use peppy_runtime::describe::InstanceInfo;
 use peppy_runtime::wire::attachment;
 use peppy_runtime::wire::keys::{Channel, Owner, entry_key};
 use peppy_schema::{MessageFormat, QosProfile};
@@ -11,7 +11,7 @@ use serde_json::json;
 
 use super::dynamic;
 use super::nodes::table;
-use super::stream::{Limits, Selection, Tap, parse_topic, sender_owner, topic_names};
+use super::stream::{Limits, Selection, Tap, TopicArg, sender_owner, topic_names};
 use super::{Observer, owner_label, print_json};
 use crate::cli::{EchoArgs, Format, ListArgs, PubArgs};
 use crate::error::{LaunchError, Result};
@@ -149,7 +149,8 @@ pub(crate) async fn echo(args: EchoArgs) -> Result {
         let Some(r) = tap.next(&limits).await else {
             break;
         };
-        if !selection.keeps(&r.sender) {
+        selection.learn(&observer, &r.sender).await;
+        if !selection.keeps(&r.sender, r.fingerprint) {
             continue;
         }
         let Some(fp) = r.fingerprint else {
@@ -235,16 +236,12 @@ struct PubTarget {
 }
 
 fn pub_target(args: &PubArgs, ns: &str, all: &BTreeMap<String, InstanceInfo>) -> Result<PubTarget> {
-    let (owner, name) = parse_topic(&args.topic)?;
-    let wanted = |o: &OwnerInfo| {
-        owner
-            .as_ref()
-            .is_none_or(|w| o.name == w.name && o.tag == w.tag)
-    };
+    let topic = TopicArg::parse(&args.topic)?;
+    let name = topic.name.clone();
     let emitters: Vec<(&InstanceInfo, &peppy_runtime::describe::EmittedTopic)> = all
         .values()
         .flat_map(|i| i.emits.iter().map(move |t| (i, t)))
-        .filter(|(_, t)| t.name == name && wanted(&t.owner))
+        .filter(|(_, t)| topic.is(&t.owner, &t.name))
         .collect();
     let producers = || {
         emitters
@@ -361,11 +358,12 @@ pub(crate) async fn publish(args: PubArgs) -> Result {
     let period = args.rate.map(|r| Duration::from_secs_f64(1.0 / r));
     let mut tick = tokio::time::interval(period.unwrap_or(Duration::from_millis(1)));
     let mut sent = 0u64;
+    let stop = super::interrupted();
     while count.is_none_or(|n| sent < n) {
         tokio::select! {
             _ = tick.tick() => {}
             () = limits.expired() => break,
-            _ = tokio::signal::ctrl_c() => break,
+            () = stop.cancelled() => break,
         }
         publisher
             .put(payload.clone())
@@ -377,7 +375,7 @@ pub(crate) async fn publish(args: PubArgs) -> Result {
     eprintln!("published {sent} message(s) on {}", target.key);
     // Let the last message leave before the session closes.
     tokio::time::sleep(Duration::from_millis(100)).await;
-    Ok(())
+    limits.outcome(sent, "messages")
 }
 
 /// Waits (bounded) until some subscriber matches, so a single message is
