@@ -303,6 +303,63 @@ fn graph_output_writes_a_standalone_html_page_naming_every_instance() {
     assert!(refused.stderr.contains(".svg, .html"), "{}", refused.stderr);
 }
 
+/// The HTML graph in a real (headless) browser: the picture is drawn, with
+/// dark strokes and text on a light page, where the page puts it.
+#[test]
+fn the_html_graph_renders_in_a_headless_browser() {
+    let Some(browser) = crate::support::headless_browser() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let page = dir.path().join("stack.html");
+    let launcher = root().join("examples/launchers/multi_camera.json5");
+    let graph = peppy_launch(
+        dir.path(),
+        &[
+            "graph",
+            launcher.to_str().unwrap(),
+            "-o",
+            page.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(graph.code, 0, "{}", graph.stderr);
+    let shot = dir.path().join("shot.png");
+    let run = std::process::Command::new(browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--hide-scrollbars",
+            "--window-size=800,600",
+            &format!("--screenshot={}", shot.display()),
+            &format!("file://{}", page.display()),
+        ])
+        .env("HOME", dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        shot.exists(),
+        "no screenshot: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let image = crate::support::decode_png(&std::fs::read(&shot).unwrap());
+    assert_eq!((image.width, image.height), (800, 600));
+    let dark = |p: &[u8; 3]| p.iter().all(|&c| c < 128);
+    let ink = image.pixels.iter().filter(|p| dark(p)).count();
+    let share = ink as f64 / image.pixels.len() as f64;
+    assert!(
+        (0.005..0.25).contains(&share),
+        "{:.3} of the page is ink",
+        share
+    );
+    // The picture comes first on the page: ink in its top half's left and
+    // right parts (the cameras and the reconstruction).
+    let ink_in = |x0: usize, x1: usize| {
+        (60..300).any(|y| (x0..x1).any(|x| dark(&image.pixels[y * image.width + x])))
+    };
+    assert!(ink_in(20, 200) && ink_in(280, 460), "the graph is drawn");
+}
+
 #[test]
 fn a_container_node_is_refused_by_check_and_up_starts_nothing() {
     let dir = tempfile::tempdir().unwrap();

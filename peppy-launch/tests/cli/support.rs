@@ -50,3 +50,133 @@ pub(crate) fn jump_lines(stderr: &str) -> Vec<&str> {
         .filter(|l| !l.trim_start().starts_with(['×', '⚠', '│', '·', '╭']))
         .collect()
 }
+
+/// A headless browser for screenshot tests: `chromium` on the PATH, else
+/// installed from the Debian packages when this process may (root with
+/// apt-get, as in CI). Elsewhere the test says loudly that it cannot run;
+/// in CI (`CI=true`) that is a failure, never a silent pass.
+pub(crate) fn headless_browser() -> Option<PathBuf> {
+    static BROWSER: std::sync::OnceLock<Option<PathBuf>> = std::sync::OnceLock::new();
+    BROWSER.get_or_init(find_or_install_browser).clone()
+}
+
+fn on_path(name: &str) -> Option<PathBuf> {
+    std::env::var_os("PATH")?
+        .to_str()?
+        .split(':')
+        .map(|d| Path::new(d).join(name))
+        .find(|p| p.is_file())
+}
+
+fn find_or_install_browser() -> Option<PathBuf> {
+    if let Some(found) = on_path("chromium") {
+        return Some(found);
+    }
+    // SAFETY: getuid has no preconditions.
+    let root = unsafe { libc::getuid() } == 0;
+    if root && on_path("apt-get").is_some() {
+        let install = || {
+            Command::new("apt-get")
+                .args(["install", "-y", "-q", "--no-install-recommends", "chromium"])
+                .env("DEBIAN_FRONTEND", "noninteractive")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        };
+        let installed = install()
+            || (Command::new("apt-get")
+                .args(["update", "-q"])
+                .output()
+                .is_ok_and(|o| o.status.success())
+                && install());
+        if installed && let Some(found) = on_path("chromium") {
+            return Some(found);
+        }
+    }
+    let why =
+        "no headless browser: `chromium` is not installed and could not be installed with apt-get";
+    assert!(std::env::var("CI").as_deref() != Ok("true"), "{why}");
+    eprintln!("\n!!! SKIPPED: {why}; install chromium to run the screenshot test\n");
+    None
+}
+
+/// An RGB image.
+pub(crate) struct Image {
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    /// Row-major RGB pixels.
+    pub(crate) pixels: Vec<[u8; 3]>,
+}
+
+/// Decodes the 8-bit RGB or RGBA, non-interlaced PNG a browser writes.
+pub(crate) fn decode_png(bytes: &[u8]) -> Image {
+    use std::io::Read as _;
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "a PNG file");
+    let (mut pos, mut idat, mut header) = (8, Vec::new(), None);
+    while pos + 8 <= bytes.len() {
+        let len = u32::from_be_bytes(bytes[pos..pos + 4].try_into().unwrap()) as usize;
+        let kind = &bytes[pos + 4..pos + 8];
+        let data = &bytes[pos + 8..pos + 8 + len];
+        match kind {
+            b"IHDR" => header = Some(data.to_vec()),
+            b"IDAT" => idat.extend_from_slice(data),
+            _ => {}
+        }
+        pos += 12 + len;
+    }
+    let h = header.expect("an IHDR chunk");
+    let width = u32::from_be_bytes(h[0..4].try_into().unwrap()) as usize;
+    let height = u32::from_be_bytes(h[4..8].try_into().unwrap()) as usize;
+    let channels = match (h[8], h[9], h[12]) {
+        (8, 2, 0) => 3,
+        (8, 6, 0) => 4,
+        other => panic!("unsupported PNG (depth, colour type, interlace) {other:?}"),
+    };
+    let mut raw = Vec::new();
+    flate2::read::ZlibDecoder::new(&idat[..])
+        .read_to_end(&mut raw)
+        .unwrap();
+    let stride = width * channels;
+    let mut prev = vec![0u8; stride];
+    let mut pixels = Vec::with_capacity(width * height);
+    for row in raw.chunks(stride + 1).take(height) {
+        let (filter, line) = (row[0], &row[1..]);
+        let mut cur = vec![0u8; stride];
+        for i in 0..stride {
+            let a = if i >= channels { cur[i - channels] } else { 0 };
+            let b = prev[i];
+            let c = if i >= channels { prev[i - channels] } else { 0 };
+            cur[i] = line[i].wrapping_add(match filter {
+                0 => 0,
+                1 => a,
+                2 => b,
+                3 => ((u16::from(a) + u16::from(b)) / 2) as u8,
+                4 => paeth(a, b, c),
+                f => panic!("PNG filter {f}"),
+            });
+        }
+        pixels.extend(cur.chunks(channels).map(|p| [p[0], p[1], p[2]]));
+        prev = cur;
+    }
+    assert_eq!(pixels.len(), width * height, "every row decoded");
+    Image {
+        width,
+        height,
+        pixels,
+    }
+}
+
+fn paeth(a: u8, b: u8, c: u8) -> u8 {
+    let p = i16::from(a) + i16::from(b) - i16::from(c);
+    let (pa, pb, pc) = (
+        (p - i16::from(a)).abs(),
+        (p - i16::from(b)).abs(),
+        (p - i16::from(c)).abs(),
+    );
+    if pa <= pb && pa <= pc {
+        a
+    } else if pb <= pc {
+        b
+    } else {
+        c
+    }
+}
