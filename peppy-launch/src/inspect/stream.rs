@@ -384,8 +384,10 @@ pub(crate) struct Received {
     pub(crate) sender: Sender,
     /// The format fingerprint in its attachment (`None`: no valid attachment).
     pub(crate) fingerprint: Option<u64>,
-    /// The payload.
+    /// The payload (empty when the tap keeps only sizes).
     pub(crate) payload: Vec<u8>,
+    /// The payload's size in bytes.
+    pub(crate) size: usize,
     /// When it arrived.
     pub(crate) at: Instant,
 }
@@ -399,7 +401,13 @@ pub(crate) struct Tap {
 }
 
 impl Tap {
-    pub(crate) async fn open(observer: &Observer, selector: &str) -> Result<Tap> {
+    /// Subscribes to `selector`; `keep_payload: false` keeps only sizes
+    /// (rates need no copy of a camera frame).
+    pub(crate) async fn open(
+        observer: &Observer,
+        selector: &str,
+        keep_payload: bool,
+    ) -> Result<Tap> {
         let (tx, rx) = flume::bounded(BACKLOG);
         let dropped = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
         let counter = dropped.clone();
@@ -415,7 +423,12 @@ impl Tap {
                     fingerprint: sample
                         .attachment()
                         .and_then(|a| attachment::parse_topic(&a.to_bytes())),
-                    payload: sample.payload().to_bytes().into_owned(),
+                    payload: if keep_payload {
+                        sample.payload().to_bytes().into_owned()
+                    } else {
+                        Vec::new()
+                    },
+                    size: sample.payload().len(),
                     at: Instant::now(),
                 };
                 if tx.try_send(received).is_err() {
