@@ -55,46 +55,56 @@ fn show(format: Format, label: &str, value: &dynamic::Dyn) {
     }
 }
 
-pub(crate) async fn list_services(args: ListArgs) -> Result {
-    let observer = Observer::open(&args.stack).await?;
-    let all = observer.describe_all().await?;
-    let rows: Vec<(&InstanceInfo, &peppy_runtime::describe::ServedService)> = all
-        .values()
-        .flat_map(|i| i.services.iter().map(move |s| (i, s)))
-        .collect();
-    if args.format == Format::Json {
-        let list: Vec<_> = rows
-            .iter()
-            .map(|(i, s)| {
-                json!({ "instance": i.instance_id, "service": s.name, "owner": owner_label(&s.owner),
-                        "request": s.request.canonical, "response": s.response.canonical })
+/// Prints served entries as a table, or as JSON objects keyed by `keys`.
+fn print_entries(
+    format: Format,
+    none: &str,
+    header: &[&str],
+    keys: &[&str],
+    rows: Vec<Vec<String>>,
+) {
+    if format == Format::Json {
+        let list: Vec<serde_json::Value> = rows
+            .into_iter()
+            .map(|row| {
+                keys.iter()
+                    .zip(row)
+                    .map(|(k, v)| (k.to_string(), serde_json::Value::String(v)))
+                    .collect::<serde_json::Map<_, _>>()
+                    .into()
             })
             .collect();
         print_json(&serde_json::Value::Array(list));
-        return Ok(());
+    } else if rows.is_empty() {
+        println!("{none}");
+    } else {
+        print!("{}", table(header, &rows));
     }
-    if rows.is_empty() {
-        println!("no instance serves a service in {}", observer.reach.what);
-        return Ok(());
-    }
-    let cells: Vec<Vec<String>> = rows
-        .iter()
-        .map(|(i, s)| {
-            vec![
-                i.instance_id.clone(),
-                s.name.clone(),
-                owner_label(&s.owner),
-                s.request.canonical.clone(),
-                s.response.canonical.clone(),
-            ]
+}
+
+pub(crate) async fn list_services(args: ListArgs) -> Result {
+    let observer = Observer::open(&args.stack).await?;
+    let all = observer.describe_all().await?;
+    let rows = all
+        .values()
+        .flat_map(|i| {
+            i.services.iter().map(|s| {
+                vec![
+                    i.instance_id.clone(),
+                    s.name.clone(),
+                    owner_label(&s.owner),
+                    s.request.canonical.clone(),
+                    s.response.canonical.clone(),
+                ]
+            })
         })
         .collect();
-    print!(
-        "{}",
-        table(
-            &["INSTANCE", "SERVICE", "OWNER", "REQUEST", "RESPONSE"],
-            &cells
-        )
+    print_entries(
+        args.format,
+        &format!("no instance serves a service in {}", observer.reach.what),
+        &["INSTANCE", "SERVICE", "OWNER", "REQUEST", "RESPONSE"],
+        &["instance", "service", "owner", "request", "response"],
+        rows,
     );
     Ok(())
 }
@@ -117,44 +127,27 @@ pub(crate) async fn call(args: CallArgs) -> Result {
 pub(crate) async fn list_actions(args: ListArgs) -> Result {
     let observer = Observer::open(&args.stack).await?;
     let all = observer.describe_all().await?;
-    let rows: Vec<(&InstanceInfo, &peppy_runtime::describe::ServedAction)> = all
+    let rows = all
         .values()
-        .flat_map(|i| i.actions.iter().map(move |a| (i, a)))
-        .collect();
-    if args.format == Format::Json {
-        let list: Vec<_> = rows
-            .iter()
-            .map(|(i, a)| {
-                json!({ "instance": i.instance_id, "action": a.name, "owner": owner_label(&a.owner),
-                        "goal": a.goal.canonical, "feedback": a.feedback.canonical, "result": a.result.canonical })
+        .flat_map(|i| {
+            i.actions.iter().map(|a| {
+                vec![
+                    i.instance_id.clone(),
+                    a.name.clone(),
+                    owner_label(&a.owner),
+                    a.goal.canonical.clone(),
+                    a.feedback.canonical.clone(),
+                    a.result.canonical.clone(),
+                ]
             })
-            .collect();
-        print_json(&serde_json::Value::Array(list));
-        return Ok(());
-    }
-    if rows.is_empty() {
-        println!("no instance serves an action in {}", observer.reach.what);
-        return Ok(());
-    }
-    let cells: Vec<Vec<String>> = rows
-        .iter()
-        .map(|(i, a)| {
-            vec![
-                i.instance_id.clone(),
-                a.name.clone(),
-                owner_label(&a.owner),
-                a.goal.canonical.clone(),
-                a.feedback.canonical.clone(),
-                a.result.canonical.clone(),
-            ]
         })
         .collect();
-    print!(
-        "{}",
-        table(
-            &["INSTANCE", "ACTION", "OWNER", "GOAL", "FEEDBACK", "RESULT"],
-            &cells
-        )
+    print_entries(
+        args.format,
+        &format!("no instance serves an action in {}", observer.reach.what),
+        &["INSTANCE", "ACTION", "OWNER", "GOAL", "FEEDBACK", "RESULT"],
+        &["instance", "action", "owner", "goal", "feedback", "result"],
+        rows,
     );
     Ok(())
 }

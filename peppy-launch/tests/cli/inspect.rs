@@ -332,6 +332,24 @@ fn driving_the_arm_from_the_command_line() {
         "the arm moved from {before} to {after}"
     );
 
+    let actions = json_lines(st, &["action", "list", "--format", "json"]);
+    assert_eq!(actions[0][0]["instance"], "arm", "{actions:?}");
+    assert_eq!(actions[0][0]["action"], "move_arm", "{actions:?}");
+    assert_eq!(actions[0][0]["feedback"], "{remaining:f64}", "{actions:?}");
+    let services = inspect(st, &["service", "list"]);
+    assert!(
+        services.stdout.starts_with("no instance serves a service"),
+        "{}",
+        services.stdout
+    );
+    let info = inspect(st, &["node", "info", "arm"]);
+    assert!(
+        info.stdout
+            .contains("joint_commands  (external, any owner)"),
+        "{}",
+        info.stdout
+    );
+
     let goal = json_lines(
         st,
         &[
