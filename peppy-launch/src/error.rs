@@ -11,6 +11,8 @@ pub mod exit {
     pub const FAILED: u8 = 1;
     /// A document, binding or command line is invalid.
     pub const INVALID: u8 = 2;
+    /// Stopped by Ctrl-C before it was done (128 + SIGINT, as shells do).
+    pub const INTERRUPTED: u8 = 130;
 }
 
 /// Why a command did not succeed.
@@ -46,6 +48,9 @@ pub enum LaunchError {
     /// arrived in time.
     #[error("{0}")]
     Inspect(String),
+    /// Ctrl-C stopped a command that had nothing to finish cleanly.
+    #[error("interrupted")]
+    Interrupted,
 }
 
 impl LaunchError {
@@ -59,6 +64,7 @@ impl LaunchError {
             | LaunchError::Setup(_)
             | LaunchError::InstanceFailed
             | LaunchError::Inspect(_) => exit::FAILED,
+            LaunchError::Interrupted => exit::INTERRUPTED,
         }
     }
 
@@ -92,5 +98,6 @@ mod tests {
         assert_eq!(LaunchError::InstanceFailed.exit_code(), 1);
         assert!(LaunchError::InstanceFailed.already_reported());
         assert!(!LaunchError::Setup("x".into()).already_reported());
+        assert_eq!(LaunchError::Interrupted.exit_code(), 130);
     }
 }

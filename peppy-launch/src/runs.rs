@@ -103,6 +103,15 @@ fn try_lock(file: &std::fs::File) -> bool {
     unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) == 0 }
 }
 
+/// Whether the open `file` is the one at `path` (same device and inode).
+fn same_file(file: &std::fs::File, path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt as _;
+    match (file.metadata(), std::fs::metadata(path)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
 /// Writes `text` to `path` through a temporary file and a rename, so a
 /// reader never sees half a record; returns the written file, still open.
 fn write_whole(path: &Path, text: &[u8], lock: bool) -> std::io::Result<std::fs::File> {
@@ -126,7 +135,7 @@ pub(crate) fn register(record: &LaunchRecord) -> Result<Registration, String> {
     write_whole(&in_run, &text, false)
         .map_err(|e| format!("cannot write {}: {e}", in_run.display()))?;
     let dir = registry();
-    let entry = dir.join(format!("{}.json", record.pid));
+    let entry = dir.join(format!("{}-{}.json", record.pid, record.started_at_ms));
     let lock = std::fs::create_dir_all(&dir)
         .and_then(|()| write_whole(&entry, &text, true))
         .map_err(|e| format!("cannot register the launch in {}: {e}", dir.display()))?;
@@ -149,7 +158,11 @@ pub(crate) fn running() -> Vec<LaunchRecord> {
             continue;
         };
         if try_lock(&file) {
-            let _ = std::fs::remove_file(&path);
+            // Nobody holds it: the launch ended. Unlink only the file we
+            // locked, never one a new launch renamed over the path since.
+            if same_file(&file, &path) {
+                let _ = std::fs::remove_file(&path);
+            }
             continue;
         }
         if let Some(r) = read_record(&path) {
@@ -319,6 +332,7 @@ pub(crate) fn logs(args: &crate::cli::LogsArgs) -> crate::error::Result {
     };
     out.print(&lines[start..]);
     if !args.follow {
+        out.print(&log.rest().into_iter().collect::<Vec<_>>());
         return Ok(());
     }
     let deadline = args.stream.timeout.map(|t| std::time::Instant::now() + t);
@@ -329,6 +343,7 @@ pub(crate) fn logs(args: &crate::cli::LogsArgs) -> crate::error::Result {
         }
         out.print(&lines);
     }
+    out.print(&log.rest().into_iter().collect::<Vec<_>>());
     match (args.stream.count, args.stream.timeout) {
         (Some(n), Some(t)) if out.printed < n => Err(LaunchError::Inspect(format!(
             "{} of {n} lines within {} s",
@@ -374,6 +389,12 @@ pub(crate) struct LogReader {
 }
 
 impl LogReader {
+    /// A last line that has no newline yet (a log that ended mid-line).
+    pub(crate) fn rest(&mut self) -> Option<String> {
+        (!self.partial.is_empty())
+            .then(|| String::from_utf8_lossy(&std::mem::take(&mut self.partial)).into_owned())
+    }
+
     /// The complete lines written since the last call.
     pub(crate) fn read_new(&mut self, path: &Path) -> std::io::Result<Vec<String>> {
         use std::io::{Read as _, Seek as _};
@@ -428,8 +449,10 @@ mod tests {
         assert!(log.read_new(&path).unwrap().is_empty());
         f.write_all(b"\xa9\n\xff\n").unwrap();
         assert_eq!(log.read_new(&path).unwrap(), ["two \u{e9}", "\u{fffd}"]);
-        std::fs::write(&path, b"new\n").unwrap();
+        std::fs::write(&path, b"new\nlast").unwrap();
         assert_eq!(log.read_new(&path).unwrap(), ["new"]);
+        assert_eq!(log.rest().as_deref(), Some("last"));
+        assert_eq!(log.rest(), None);
     }
 
     #[test]
@@ -453,8 +476,9 @@ mod tests {
         assert_eq!(running(), vec![record.clone()]);
         assert!(run_dir.path().join(RECORD_FILE).exists());
         // A launch killed without cleaning up leaves an entry nobody locks.
-        let stale = state.path().join("launches/4000001.json");
-        std::fs::copy(state.path().join("launches/4000000.json"), &stale).unwrap();
+        let live = state.path().join("launches/4000000-1.json");
+        let stale = state.path().join("launches/4000001-1.json");
+        std::fs::copy(&live, &stale).unwrap();
         assert_eq!(
             running(),
             vec![record.clone()],
@@ -463,7 +487,7 @@ mod tests {
         assert!(!stale.exists(), "and removed");
         drop(registration);
         assert!(running().is_empty());
-        assert!(!state.path().join("launches/4000000.json").exists());
+        assert!(!live.exists());
         unsafe { std::env::remove_var("PEPPY_STATE_DIR") };
     }
 

@@ -196,12 +196,14 @@ impl InstanceInfo {
         serde_json::from_slice(bytes)
     }
 
-    /// Whether the description can be trusted as a map of the wire: the
-    /// version this build reads, identity segments that are valid key
-    /// segments, and every key exactly the one its owner, name, core and
-    /// instance make (a key with a wildcard would reach every server).
-    pub fn check(&self) -> Result<(), String> {
-        use crate::wire::keys::{Channel, entry_key, is_segment};
+    /// Whether the description, received in namespace `ns` on
+    /// `reply_key`, can be trusted as a map of the wire: the version this
+    /// build reads, the namespace asked, the describe key of the instance
+    /// it names, every key exactly the one its owner, name, core and
+    /// instance make (a key with a wildcard would reach every server), and
+    /// every subscription inside the namespace's topics.
+    pub fn check(&self, ns: &str, reply_key: &str) -> Result<(), String> {
+        use crate::wire::keys::{Channel, describe_key, entry_key, is_segment};
         if self.version != DESCRIBE_VERSION {
             return Err(format!(
                 "description version {} (this build reads {DESCRIBE_VERSION})",
@@ -212,6 +214,21 @@ impl InstanceInfo {
             if !is_segment(segment) {
                 return Err(format!("`{segment}` is not a key segment"));
             }
+        }
+        if self.namespace != ns || reply_key != describe_key(ns, &self.core_node, &self.instance_id)
+        {
+            return Err(format!(
+                "a description of `{}` in namespace `{}` answered on `{reply_key}`",
+                self.instance_id, self.namespace
+            ));
+        }
+        let topics = format!("peppy/{ns}/topic/");
+        if let Some(c) = self
+            .consumes
+            .iter()
+            .find(|c| !c.selector.starts_with(&topics) || c.selector.contains("**"))
+        {
+            return Err(format!("`{}` is not a topic subscription", c.selector));
         }
         let expect = |channel, owner: &OwnerInfo, name: &str, key: &str| {
             let ok = is_segment(name)
@@ -309,7 +326,10 @@ mod tests {
     #[test]
     fn descriptions_round_trip_and_are_checked() {
         let i = info();
-        assert_eq!(i.check(), Ok(()));
+        let key = "peppy/lab/describe/c/arm_1";
+        assert_eq!(i.check("lab", key), Ok(()));
+        assert!(i.check("other", key).is_err(), "another namespace");
+        assert!(i.check("lab", "peppy/lab/describe/c/someone_else").is_err());
         let back = InstanceInfo::from_json(i.to_json().as_bytes()).unwrap();
         assert_eq!(back, i);
         assert_eq!(i.uptime(1005), std::time::Duration::from_secs(1));
@@ -317,16 +337,31 @@ mod tests {
         let mut wild = info();
         wild.services[0].key = "peppy/lab/service/node/arm/v1/home/*/*".into();
         assert!(
-            wild.check()
+            wild.check("lab", key)
                 .unwrap_err()
                 .contains("is not the key of `home`")
         );
         let mut newer = info();
         newer.version = DESCRIBE_VERSION + 1;
-        assert!(newer.check().is_err());
+        assert!(newer.check("lab", key).is_err());
         let mut odd = info();
         odd.instance_id = "a/b".into();
-        assert!(odd.check().is_err());
+        assert!(odd.check("lab", key).is_err());
+        let mut greedy = info();
+        greedy.consumes.push(ConsumedTopic {
+            slot: None,
+            owner: None,
+            name: "x".into(),
+            qos: QosProfile::Standard,
+            format: FormatInfo {
+                canonical: "{}".into(),
+                fingerprint: 0,
+            },
+            selector: "peppy/lab/**".into(),
+            filter: RouteFilter::Any,
+            members_of: None,
+        });
+        assert!(greedy.check("lab", key).is_err());
         assert!(InstanceInfo::from_json(b"{\"version\": 1}").is_err());
     }
 }

@@ -158,6 +158,10 @@ pub(crate) async fn send_goal(args: GoalArgs) -> Result {
     let action = served(&info, &info.actions, &args.action, "action", |a| &a.name)?;
     let goal = encode_arg(&action.goal.canonical, "goal", args.value.as_deref())?;
     let caller = observer.caller();
+    let stop = super::interrupted();
+    if stop.is_cancelled() {
+        return Err(LaunchError::Interrupted);
+    }
     let deadline = tokio::time::Instant::now() + args.timeout;
     let mut client = caller
         .send_goal(action, &info.instance_id, goal, args.timeout)
@@ -173,7 +177,6 @@ pub(crate) async fn send_goal(args: GoalArgs) -> Result {
     if args.format == Format::Human {
         println!("goal {} accepted by {}", client.goal_id(), info.instance_id);
     }
-    let stop = super::interrupted();
     let mut cancelled = false;
     if action.feedback.fingerprint != 0 {
         loop {
@@ -194,21 +197,30 @@ pub(crate) async fn send_goal(args: GoalArgs) -> Result {
             }
         }
     }
-    let left = deadline
-        .saturating_duration_since(tokio::time::Instant::now())
-        .max(CANCEL_TIMEOUT);
-    let outcome = tokio::select! {
-        r = client.result::<Raw>(left) => r,
-        () = stop.cancelled(), if !cancelled => {
-            cancel(&client, "interrupted").await;
-            client.result::<Raw>(CANCEL_TIMEOUT).await
+    let left = deadline.saturating_duration_since(tokio::time::Instant::now());
+    if !cancelled && left.is_zero() {
+        // Do not leave the arm moving for a caller that gave up.
+        cancel(&client, "no result within --timeout").await;
+        cancelled = true;
+    }
+    let outcome = if cancelled {
+        client.result::<Raw>(CANCEL_TIMEOUT).await
+    } else {
+        tokio::select! {
+            r = client.result::<Raw>(left) => r,
+            () = stop.cancelled() => {
+                cancel(&client, "interrupted").await;
+                cancelled = true;
+                client.result::<Raw>(CANCEL_TIMEOUT).await
+            }
         }
     };
     let outcome = match outcome {
         Ok(o) => o,
         Err(e) => {
-            // Do not leave the arm moving for a caller that gave up.
-            cancel(&client, "no result in time").await;
+            if !cancelled {
+                cancel(&client, "no result within --timeout").await;
+            }
             return Err(LaunchError::Inspect(e.to_string()));
         }
     };

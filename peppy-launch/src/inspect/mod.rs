@@ -50,10 +50,10 @@ pub(crate) fn node(cmd: NodeCommand) -> Result {
 pub(crate) fn topic(cmd: TopicCommand) -> Result {
     match cmd {
         TopicCommand::List(args) => block_on(topics::list(args)),
-        TopicCommand::Echo(args) => block_on(topics::echo(args)),
-        TopicCommand::Hz(args) => block_on(rates::run(args, rates::Measure::Rate)),
-        TopicCommand::Bw(args) => block_on(rates::run(args, rates::Measure::Bandwidth)),
-        TopicCommand::Pub(args) => block_on(topics::publish(args)),
+        TopicCommand::Echo(args) => block_on_stream(topics::echo(args)),
+        TopicCommand::Hz(args) => block_on_stream(rates::run(args, rates::Measure::Rate)),
+        TopicCommand::Bw(args) => block_on_stream(rates::run(args, rates::Measure::Bandwidth)),
+        TopicCommand::Pub(args) => block_on_stream(topics::publish(args)),
     }
 }
 
@@ -69,22 +69,69 @@ pub(crate) fn service(cmd: ServiceCommand) -> Result {
 pub(crate) fn action(cmd: ActionCommand) -> Result {
     match cmd {
         ActionCommand::List(args) => block_on(calls::list_actions(args)),
-        ActionCommand::SendGoal(args) => block_on(calls::send_goal(args)),
+        ActionCommand::SendGoal(args) => block_on_stream(calls::send_goal(args)),
     }
 }
 
+/// Runs a command that has nothing to finish on Ctrl-C: it ends at once
+/// (exit 130).
 pub(crate) fn block_on<F: Future<Output = Result>>(f: F) -> Result {
     block_on_value(f)
 }
 
-/// Runs an inspection on a small runtime of its own.
+/// Runs a command that ends itself cleanly on Ctrl-C (a stream stops and
+/// reports, a goal is cancelled); it watches [`interrupted`].
+pub(crate) fn block_on_stream<F: Future<Output = Result>>(f: F) -> Result {
+    runtime()?.block_on(async {
+        listen_for_interrupts();
+        f.await
+    })
+}
+
+/// Runs a command on a small runtime of its own; Ctrl-C ends it at once.
 pub(crate) fn block_on_value<T, F: Future<Output = Result<T>>>(f: F) -> Result<T> {
+    runtime()?.block_on(async {
+        listen_for_interrupts();
+        let stop = interrupted();
+        tokio::select! {
+            r = f => r,
+            () = stop.cancelled() => Err(LaunchError::Interrupted),
+        }
+    })
+}
+
+fn runtime() -> Result<tokio::runtime::Runtime> {
     tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
         .build()
-        .map_err(|e| LaunchError::Setup(format!("cannot start the tokio runtime: {e}")))?
-        .block_on(f)
+        .map_err(|e| LaunchError::Setup(format!("cannot start the tokio runtime: {e}")))
+}
+
+/// Fires on the first Ctrl-C, so a command notices an interrupt at any
+/// point, not only while it waits for the next message.
+pub(crate) fn interrupted() -> CancellationToken {
+    static TOKEN: OnceLock<CancellationToken> = OnceLock::new();
+    TOKEN.get_or_init(CancellationToken::new).clone()
+}
+
+/// Turns SIGINT into [`interrupted`] for the running runtime; a second
+/// Ctrl-C exits at once.
+fn listen_for_interrupts() {
+    let token = interrupted();
+    tokio::spawn(async move {
+        let Ok(mut sigint) =
+            tokio::signal::unix::signal(tokio::signal::unix::SignalKind::interrupt())
+        else {
+            return;
+        };
+        if sigint.recv().await.is_some() {
+            token.cancel();
+        }
+        if sigint.recv().await.is_some() {
+            std::process::exit(i32::from(crate::error::exit::INTERRUPTED));
+        }
+    });
 }
 
 /// Where a stack is: its namespace and how to reach it.
@@ -193,28 +240,6 @@ fn reach_of(launches: &[&LaunchRecord]) -> Reach {
     }
 }
 
-/// Fires on the first Ctrl-C (the second one exits at once), so a command
-/// notices an interrupt at any point, not only while it waits for the next
-/// message. Installed when the command joins the stack.
-pub(crate) fn interrupted() -> CancellationToken {
-    static TOKEN: OnceLock<CancellationToken> = OnceLock::new();
-    TOKEN
-        .get_or_init(|| {
-            let token = CancellationToken::new();
-            let fire = token.clone();
-            tokio::spawn(async move {
-                if tokio::signal::ctrl_c().await.is_ok() {
-                    fire.cancel();
-                }
-                if tokio::signal::ctrl_c().await.is_ok() {
-                    std::process::exit(130);
-                }
-            });
-            token
-        })
-        .clone()
-}
-
 /// A connection to a running stack.
 pub(crate) struct Observer {
     pub(crate) session: zenoh::Session,
@@ -226,7 +251,6 @@ pub(crate) struct Observer {
 impl Observer {
     /// Joins the stack found from `args` as a peer that only connects.
     pub(crate) async fn open(args: &StackArgs) -> Result<Observer> {
-        interrupted();
         let reach = reach(args, &runs::running())?;
         let config = peppy_runtime::Endpoints {
             mode: None,
@@ -253,7 +277,9 @@ impl Observer {
     ///
     /// A session that just joined learns the stack's queryables over a few
     /// milliseconds, so one query may see only some instances: it asks in
-    /// rounds until a round adds nobody after [`SETTLE`], or `--wait` ends.
+    /// rounds until every instance its launch started has answered (or, for
+    /// a stack found without a launch record, a round adds nobody after
+    /// [`SETTLE`]), or `--wait` ends.
     pub(crate) async fn describe_all(&self) -> Result<BTreeMap<String, InstanceInfo>> {
         let start = tokio::time::Instant::now();
         let deadline = start + self.wait;
@@ -262,7 +288,19 @@ impl Observer {
             let before = out.len();
             self.describe_round(&mut out, deadline).await?;
             let now = tokio::time::Instant::now();
-            let settled = !out.is_empty() && out.len() == before && now >= start + SETTLE;
+            // A launch's own instances are known: wait for all of them;
+            // otherwise until a round adds nobody.
+            let all_expected = !self.reach.expected.is_empty()
+                && self
+                    .reach
+                    .expected
+                    .iter()
+                    .all(|(id, _)| out.contains_key(id));
+            let settled = all_expected
+                || (self.reach.expected.is_empty()
+                    && !out.is_empty()
+                    && out.len() == before
+                    && now >= start + SETTLE);
             if settled || now >= deadline {
                 return Ok(out);
             }
@@ -288,9 +326,10 @@ impl Observer {
             .map_err(|e| LaunchError::Setup(format!("cannot query {}: {e}", self.reach.what)))?;
         while let Ok(reply) = replies.recv_async().await {
             let Ok(sample) = reply.result() else { continue };
+            let key = sample.key_expr().as_str();
             let parsed = InstanceInfo::from_json(&sample.payload().to_bytes())
                 .map_err(|e| e.to_string())
-                .and_then(|info| info.check().map(|()| info));
+                .and_then(|info| info.check(&self.reach.namespace, key).map(|()| info));
             match parsed {
                 Ok(info) => {
                     out.insert(info.instance_id.clone(), info);
@@ -314,10 +353,12 @@ impl Observer {
         instance: &str,
     ) -> Option<InstanceInfo> {
         let key = peppy_runtime::wire::keys::describe_key(&self.reach.namespace, core, instance);
-        let replies = self.session.get(key).timeout(self.wait).await.ok()?;
+        let replies = self.session.get(&key).timeout(self.wait).await.ok()?;
         let reply = replies.recv_async().await.ok()?;
-        let info = InstanceInfo::from_json(&reply.result().ok()?.payload().to_bytes()).ok()?;
-        info.check().ok()?;
+        let sample = reply.result().ok()?;
+        let info = InstanceInfo::from_json(&sample.payload().to_bytes()).ok()?;
+        info.check(&self.reach.namespace, sample.key_expr().as_str())
+            .ok()?;
         Some(info)
     }
 

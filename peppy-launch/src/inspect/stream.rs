@@ -202,7 +202,22 @@ impl Selection {
                 let owner = match (&topic.owner, emitters.first()) {
                     (Some(_), Some((_, t))) => Some(t.owner.clone()),
                     (Some(o), None) => {
-                        let kind = topic.kind.unwrap_or(SlotKind::Interface);
+                        // Nobody emits it now: a consumer's slot names the
+                        // owner's kind, or the argument must.
+                        let kind = topic.kind.or_else(|| {
+                            consumed.iter().find_map(|(_, c)| {
+                                c.owner
+                                    .as_ref()
+                                    .filter(|co| co.name == o.name && co.tag == o.tag)
+                                    .map(|co| co.kind)
+                            })
+                        });
+                        let Some(kind) = kind else {
+                            return Err(LaunchError::Usage(format!(
+                                "no running instance emits `{}`; say whose topic it is: `node/{}` or `interface/{}`",
+                                args.topic, args.topic, args.topic
+                            )));
+                        };
                         Some(OwnerInfo {
                             kind,
                             name: o.name.clone(),

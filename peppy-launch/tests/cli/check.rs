@@ -324,19 +324,30 @@ fn the_html_graph_renders_in_a_headless_browser() {
     );
     assert_eq!(graph.code, 0, "{}", graph.stderr);
     let shot = dir.path().join("shot.png");
-    let run = std::process::Command::new(browser)
+    let chromium = std::process::Command::new(browser)
         .args([
             "--headless",
             "--no-sandbox",
             "--disable-gpu",
+            "--disable-dev-shm-usage",
+            "--no-first-run",
             "--hide-scrollbars",
             "--window-size=800,600",
+            &format!("--user-data-dir={}", dir.path().join("profile").display()),
             &format!("--screenshot={}", shot.display()),
             &format!("file://{}", page.display()),
         ])
         .env("HOME", dir.path())
-        .output()
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
         .unwrap();
+    let run = crate::support::wait_bounded(
+        chromium,
+        std::time::Duration::from_secs(90),
+        "chromium --screenshot",
+    );
     assert!(
         shot.exists(),
         "no screenshot: {}",
@@ -355,7 +366,7 @@ fn the_html_graph_renders_in_a_headless_browser() {
     // The picture comes first on the page: ink in its top half's left and
     // right parts (the cameras and the reconstruction).
     let ink_in = |x0: usize, x1: usize| {
-        (60..300).any(|y| (x0..x1).any(|x| dark(&image.pixels[y * image.width + x])))
+        (40..400).any(|y| (x0..x1).any(|x| dark(&image.pixels[y * image.width + x])))
     };
     assert!(ink_in(20, 200) && ink_in(280, 460), "the graph is drawn");
 }

@@ -134,6 +134,29 @@ impl Launch {
     }
 }
 
+/// A test that fails before `stop` must not leave its stack running (and
+/// loading the machine for the other tests): the launch is stopped, then
+/// killed; its instances die with it (parent-death signal).
+impl Drop for Launch {
+    fn drop(&mut self) {
+        if self.child.try_wait().ok().flatten().is_some() {
+            return;
+        }
+        let _ = Command::new("kill")
+            .args(["-INT", &self.child.id().to_string()])
+            .status();
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while Instant::now() < deadline {
+            if self.child.try_wait().ok().flatten().is_some() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
 /// "left_cam: first frame from rs_left (...)" lines of one instance.
 fn first_frames(lines: &[String], instance: &str) -> Vec<(String, String)> {
     let prefix = format!("[{instance}]");

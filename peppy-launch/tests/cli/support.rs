@@ -1,5 +1,6 @@
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
 
 /// The workspace root, where `examples/` lives.
 pub(crate) fn root() -> PathBuf {
@@ -21,24 +22,69 @@ pub(crate) fn peppy_launch(dir: &Path, args: &[&str]) -> Run {
     peppy_launch_with(dir, args, &[])
 }
 
-/// [`peppy_launch`] with extra environment variables.
+/// [`peppy_launch`] with extra environment variables. A command that has
+/// not ended after [`COMMAND_BOUND`] is killed and the test fails.
 pub(crate) fn peppy_launch_with(dir: &Path, args: &[&str], env: &[(&str, &Path)]) -> Run {
-    let Output {
-        status,
-        stdout,
-        stderr,
-    } = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+    let child = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
         .args(args)
         .current_dir(dir)
         .env("NO_COLOR", "1")
         .env_remove("PEPPY_REPOSITORIES")
         .envs(env.iter().copied())
-        .output()
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
         .expect("run peppy-launch");
+    let Output {
+        status,
+        stdout,
+        stderr,
+    } = wait_bounded(child, COMMAND_BOUND, &format!("peppy-launch {args:?}"));
     Run {
         code: status.code().expect("exited normally, not by a signal"),
         stdout: String::from_utf8(stdout).expect("utf-8 stdout"),
         stderr: String::from_utf8(stderr).expect("utf-8 stderr"),
+    }
+}
+
+/// The longest a single command of a test may take.
+pub(crate) const COMMAND_BOUND: Duration = Duration::from_secs(180);
+
+/// Waits for `child` (its output read as it comes), killing it and failing
+/// the test once `bound` has passed.
+pub(crate) fn wait_bounded(mut child: Child, bound: Duration, what: &str) -> Output {
+    use std::io::Read as _;
+    let pipe = |r: Option<Box<dyn std::io::Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut buf = Vec::new();
+            if let Some(mut r) = r {
+                let _ = r.read_to_end(&mut buf);
+            }
+            buf
+        })
+    };
+    let out = pipe(child.stdout.take().map(|p| Box::new(p) as _));
+    let err = pipe(child.stderr.take().map(|p| Box::new(p) as _));
+    let deadline = Instant::now() + bound;
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait for the child") {
+            break status;
+        }
+        if Instant::now() >= deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!(
+                "{what} did not end within {bound:?}; stderr:\n{}",
+                String::from_utf8_lossy(&err.join().unwrap_or_default())
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    Output {
+        status,
+        stdout: out.join().unwrap_or_default(),
+        stderr: err.join().unwrap_or_default(),
     }
 }
 
