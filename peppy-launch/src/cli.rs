@@ -40,8 +40,10 @@ pub(crate) enum Command {
     /// Without `--connect` it joins (or hosts) the local hub on
     /// tcp/127.0.0.1:7447, so several `run`s find each other.
     Run(RunArgs),
-    /// Print the stack as Graphviz DOT: instances, bindings, dashed `(any)`
-    /// edges for unbound from_any slots, dotted edges for external topics.
+    /// Draw the stack: instances, bindings, dashed `(any)` edges for
+    /// unbound from_any slots, dotted edges for external topics; `--live`
+    /// draws the running stack with measured rates. DOT on stdout, or
+    /// `-o FILE` with `.svg` / `.html` (drawn without Graphviz) or `.dot`.
     Graph(GraphArgs),
     /// Running instances: `node list`, `node info INSTANCE`.
     #[command(subcommand)]
@@ -138,8 +140,9 @@ pub(crate) enum TopicCommand {
 /// Which topic's samples to take.
 #[derive(Debug, Clone, Args)]
 pub(crate) struct TopicSelect {
-    /// The topic: `NAME`, or `OWNER/NAME` (`depth_camera:v1/video_stream`)
-    /// when several owners have a topic of that name.
+    /// The topic: `NAME` (every owner's), or `OWNER/NAME`
+    /// (`depth_camera:v1/video_stream`); `node/OWNER/NAME` or
+    /// `interface/OWNER/NAME` when a node and an interface share a name.
     #[arg(value_name = "TOPIC")]
     pub(crate) topic: String,
     /// Only this producer instance.
@@ -295,9 +298,9 @@ pub(crate) struct LogsArgs {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub(crate) enum Format {
-    /// Rendered diagnostics with source snippets.
+    /// For people: tables, text, diagnostics with source snippets.
     Human,
-    /// One JSON object on stdout.
+    /// For programs: JSON on stdout (one value per line when streaming).
     Json,
 }
 
