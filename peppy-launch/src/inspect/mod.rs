@@ -252,17 +252,28 @@ impl Observer {
     /// Joins the stack found from `args` as a peer that only connects.
     pub(crate) async fn open(args: &StackArgs) -> Result<Observer> {
         let reach = reach(args, &runs::running())?;
+        // A client talks to the stack's router only: a peer would also open
+        // direct links to every node, which they would see (and log) come
+        // and go with each command.
         let config = peppy_runtime::Endpoints {
-            mode: None,
+            mode: Some("client".into()),
             listen: Vec::new(),
             connect: reach.connect.clone(),
             multicast_scouting: false,
         }
         .zenoh_config()
         .map_err(|e| LaunchError::Usage(e.to_string()))?;
-        let session = zenoh::open(config)
-            .await
-            .map_err(|e| LaunchError::Setup(format!("cannot reach {}: {e}", reach.what)))?;
+        let session = zenoh::open(config).await.map_err(|e| {
+            LaunchError::Inspect(format!(
+                "cannot reach {}{}: {e}",
+                reach.what,
+                if reach.connect == [LOCAL_HUB] {
+                    " (no launch is registered on this machine and nothing listens there)"
+                } else {
+                    ""
+                }
+            ))
+        })?;
         Ok(Observer {
             session,
             reach,
