@@ -129,6 +129,10 @@ codes! {
     ReservedBindingKey,
     /// A binding names an instance no deployment declares.
     UnknownBindingTarget,
+    /// An instance placed on a core node `core_nodes` does not declare.
+    UnknownCoreNode,
+    /// The same core node twice in `core_nodes`.
+    DuplicateCoreNode,
     /// A node slot bound to an instance of another node.
     BindingTargetMismatch,
     /// An interface slot bound to an instance that does not conform.

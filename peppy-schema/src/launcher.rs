@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
+use crate::core_nodes::CoreNode;
 use crate::diag::{Code, Diagnostics, list};
 use crate::json::{Node, Value};
 use crate::names::{check_link_id, check_name, check_tag};
@@ -39,6 +40,9 @@ pub const FORBIDDEN_ENV_VARS: &[&str] = &[
 pub struct LauncherDoc {
     /// The document's text.
     pub file: Arc<SourceFile>,
+    /// `core_nodes`: the machines the stack runs on, in order (empty: one
+    /// machine, wherever it is launched).
+    pub core_nodes: Vec<CoreNode>,
     /// `deployments`, in order.
     pub deployments: Vec<Deployment>,
 }
@@ -116,6 +120,8 @@ pub struct Instance {
     pub env_vars: Vec<(String, String)>,
     /// `restart`.
     pub restart: RestartPolicy,
+    /// `core_node`: the machine it runs on, and where that is written.
+    pub core_node: Option<(String, Loc)>,
 }
 
 /// One `key: "producer_instance_id"` binding.
@@ -163,7 +169,11 @@ pub(crate) fn parse_launcher(
     cross_check: bool,
 ) -> Option<LauncherDoc> {
     let mut r = Reader::new(file, diags);
-    let obj = r.object(root, "", &["peppy_schema", "deployments"])?;
+    let obj = r.object(root, "", &["peppy_schema", "core_nodes", "deployments"])?;
+    let core_nodes = obj
+        .get("core_nodes")
+        .map(|n| crate::core_nodes::parse_core_nodes(&mut r, n))
+        .unwrap_or_default();
     let list_node = r.required(&obj, "deployments")?;
     let items = r.array(list_node, "deployments")?;
     if items.is_empty() {
@@ -185,6 +195,7 @@ pub(crate) fn parse_launcher(
     }
     let doc = LauncherDoc {
         file: file.clone(),
+        core_nodes,
         deployments,
     };
     if cross_check {
@@ -224,6 +235,16 @@ pub fn stack_rules(doc: &LauncherDoc) -> Diagnostics {
     for inst in &all {
         if !ids.contains(&inst.instance_id.as_str()) {
             ids.push(&inst.instance_id);
+        }
+    }
+    for inst in &all {
+        if let Some(placed) = &inst.core_node {
+            crate::core_nodes::check_placement(
+                &doc.core_nodes,
+                &inst.instance_id,
+                placed,
+                &mut diags,
+            );
         }
     }
     for inst in &all {
@@ -452,6 +473,7 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
             "arguments",
             "env_vars",
             "restart",
+            "core_node",
         ],
     )?;
     let mut ok = true;
@@ -493,6 +515,19 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
     };
     let env_vars = parse_env_vars(r, &obj, &mut ok);
     let restart = parse_restart(r, &obj, &mut ok);
+    let core_node = match obj.get("core_node") {
+        Some(n) => {
+            let p = obj.path_of("core_node");
+            match r.string(n, &p) {
+                Some(name) => Some((name, r.loc(n.span, &p))),
+                None => {
+                    ok = false;
+                    None
+                }
+            }
+        }
+        None => None,
+    };
     let (instance_id, id_loc) = id?;
     ok.then_some(Instance {
         instance_id,
@@ -502,6 +537,7 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
         arguments_loc,
         env_vars,
         restart,
+        core_node,
     })
 }
 

@@ -47,6 +47,8 @@ mod source;
 // The documents: parsing, resolution, launchers and repositories (the
 // `documents` feature, on by default; node binaries go without it).
 #[cfg(feature = "documents")]
+mod core_nodes;
+#[cfg(feature = "documents")]
 mod document;
 #[cfg(feature = "documents")]
 mod entries;
@@ -88,6 +90,8 @@ pub use source::{LineCol, MAX_DOCUMENT_BYTES, SourceFile, Span};
 
 #[cfg(feature = "documents")]
 pub use binding::conformances;
+#[cfg(feature = "documents")]
+pub use core_nodes::CoreNode;
 #[cfg(feature = "documents")]
 pub use document::{
     Document, DocumentKind, Parsed, REPOSITORIES_FILE, RepositoriesDoc, SCHEMAS, detect_kind,

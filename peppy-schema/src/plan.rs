@@ -27,6 +27,9 @@ pub struct InstancePlan {
     pub env_vars: Vec<(String, String)>,
     /// Restart policy.
     pub restart: RestartPolicy,
+    /// The core node it is placed on (`None`: wherever the stack is
+    /// launched, or the first core node when the launcher names them).
+    pub core_node: Option<String>,
 }
 
 /// Every instance of a launcher with its slots filled.
@@ -89,6 +92,7 @@ pub fn plan_bindings(
             parameters,
             env_vars: inst.env_vars.clone(),
             restart: inst.restart,
+            core_node: inst.core_node.as_ref().map(|(name, _)| name.clone()),
         });
     }
     diags.into_result(BindingPlan { instances })

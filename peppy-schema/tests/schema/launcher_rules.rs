@@ -432,3 +432,101 @@ fn stack_rules_join_the_binding_plan_errors() {
     assert!(parse_only.contains(peppy_schema::Code::DuplicateInstanceId));
     assert!(parse_only.contains(peppy_schema::Code::UnknownBindingTarget));
 }
+
+/// Placement: `core_nodes` as a list or with endpoints, and `core_node` on
+/// instances.
+#[test]
+fn core_nodes_name_the_machines_and_instances_are_placed_on_them() {
+    let listed = launcher_ok(
+        r#"{ peppy_schema: "launcher_v1", core_nodes: ["robot", "workstation"],
+            deployments: [{ source: { name: "cam:v1" }, instances: [
+                { instance_id: "cam", core_node: "robot" }, { instance_id: "spare" } ] }] }"#,
+    );
+    let names: Vec<&str> = listed.core_nodes.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["robot", "workstation"]);
+    let placed: Vec<Option<&str>> = listed
+        .instances()
+        .map(|(_, i)| i.core_node.as_ref().map(|(n, _)| n.as_str()))
+        .collect();
+    assert_eq!(placed, [Some("robot"), None]);
+
+    let with_endpoints = launcher_ok(
+        r#"{ peppy_schema: "launcher_v1",
+            core_nodes: { robot: { listen: ["tcp/0.0.0.0:7447"] },
+                          workstation: { connect: ["tcp/192.0.2.10:7447"] } },
+            deployments: [{ source: { name: "cam:v1" }, instances: [{ instance_id: "cam", core_node: "robot" }] }] }"#,
+    );
+    let robot = &with_endpoints.core_nodes[0];
+    assert_eq!(
+        (robot.name.as_str(), robot.listen.as_slice()),
+        ("robot", &["tcp/0.0.0.0:7447".to_string()][..])
+    );
+    assert_eq!(
+        with_endpoints.core_nodes[1].connect,
+        ["tcp/192.0.2.10:7447"]
+    );
+}
+
+#[test]
+fn placement_on_an_undeclared_core_node_is_located() {
+    let text = r#"{
+  peppy_schema: "launcher_v1",
+  core_nodes: ["robot", "workstation"],
+  deployments: [
+    { source: { name: "cam:v1" }, instances: [{ instance_id: "cam", core_node: "robto" }] },
+  ],
+}"#;
+    let errors = launcher_err(text);
+    assert_eq!(codes(&errors), [Code::UnknownCoreNode]);
+    let d = one(&errors, Code::UnknownCoreNode);
+    assert_at(
+        d,
+        Code::UnknownCoreNode,
+        "deployments[0].instances[0].core_node",
+        text,
+        r#""robto""#,
+    );
+    assert_eq!(
+        d.message,
+        "instance `cam` is placed on core node `robto`, which `core_nodes` does not declare"
+    );
+    assert!(help(d).starts_with("did you mean `robot`?"), "{d}");
+
+    // Placing anything needs the machines declared.
+    let undeclared = launcher_err(
+        r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "cam:v1" },
+            instances: [{ instance_id: "cam", core_node: "robot" }] }] }"#,
+    );
+    assert!(help(one(&undeclared, Code::UnknownCoreNode)).contains("core_nodes: [\"robot\""));
+}
+
+#[test]
+fn bad_core_node_declarations_are_reported() {
+    let twice = launcher_err(
+        r#"{ peppy_schema: "launcher_v1", core_nodes: ["robot", "robot"],
+            deployments: [{ source: { name: "cam:v1" }, instances: [{ instance_id: "cam" }] }] }"#,
+    );
+    assert_eq!(codes(&twice), [Code::DuplicateCoreNode]);
+    let bad = launcher_err(
+        r#"{ peppy_schema: "launcher_v1",
+            core_nodes: { "a b": {}, robot: { listen: ["7447"], bogus: [] } },
+            deployments: [{ source: { name: "cam:v1" }, instances: [{ instance_id: "cam" }] }] }"#,
+    );
+    let mut found = codes(&bad);
+    found.sort_by_key(|c| c.to_string());
+    assert_eq!(
+        found,
+        [Code::InvalidName, Code::InvalidValue, Code::UnknownKey],
+        "{bad}"
+    );
+    let empty = launcher_err(
+        r#"{ peppy_schema: "launcher_v1", core_nodes: [],
+            deployments: [{ source: { name: "cam:v1" }, instances: [{ instance_id: "cam" }] }] }"#,
+    );
+    assert_eq!(codes(&empty), [Code::InvalidValue]);
+    let wrong = launcher_err(
+        r#"{ peppy_schema: "launcher_v1", core_nodes: "robot",
+            deployments: [{ source: { name: "cam:v1" }, instances: [{ instance_id: "cam" }] }] }"#,
+    );
+    assert_eq!(codes(&wrong), [Code::WrongType]);
+}
