@@ -96,6 +96,29 @@ pub(crate) fn render_plan(stack: &StackCheck) -> String {
             repos.join(", ")
         }
     );
+    let cores = &stack.launcher.core_nodes;
+    if !cores.is_empty() {
+        let _ = writeln!(out, "core nodes:");
+        for c in cores {
+            let mut ends = Vec::new();
+            if !c.listen.is_empty() {
+                ends.push(format!("listen {}", c.listen.join(", ")));
+            }
+            if !c.connect.is_empty() {
+                ends.push(format!("connect {}", c.connect.join(", ")));
+            }
+            let _ = writeln!(
+                out,
+                "  {}{}",
+                c.name,
+                if ends.is_empty() {
+                    String::new()
+                } else {
+                    format!("  ({})", ends.join("; "))
+                }
+            );
+        }
+    }
     let _ = writeln!(out, "instances:");
     let width = stack
         .plan
@@ -106,9 +129,14 @@ pub(crate) fn render_plan(stack: &StackCheck) -> String {
         .unwrap_or(0);
     for inst in &stack.plan.instances {
         let dir = &stack.deployments[inst.deployment].dir;
+        let placed = stack
+            .launcher
+            .core_node_of(inst.core_node.as_deref())
+            .map(|c| format!("  on {c}"))
+            .unwrap_or_default();
         let _ = writeln!(
             out,
-            "  {:width$}  {}  {}",
+            "  {:width$}  {}  {}{placed}",
             inst.instance_id,
             inst.node,
             relative(dir)

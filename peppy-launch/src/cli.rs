@@ -353,6 +353,15 @@ pub(crate) struct UpArgs {
     /// Seconds between SIGINT and SIGTERM when stopping.
     #[arg(long, value_name = "SECONDS", default_value = "5", value_parser = parse_grace)]
     pub(crate) grace: Duration,
+    /// For a launcher with `core_nodes`: start this machine's share (its
+    /// instances and its router, linked to the others as the launcher or
+    /// `--listen` / `--connect` say).
+    #[arg(long, value_name = "NAME", conflicts_with = "local")]
+    pub(crate) core_node: Option<String>,
+    /// For a launcher with `core_nodes`: start every machine's share here,
+    /// each instance still named by its core node (for development).
+    #[arg(long)]
+    pub(crate) local: bool,
 }
 
 #[derive(Debug, Args)]

@@ -141,7 +141,11 @@ pub(crate) fn drawing(stack: &StackCheck) -> Drawing {
                 id: inst.instance_id.clone(),
                 label: inst.instance_id.clone(),
                 detail: inst.node.to_string(),
-                cluster: None,
+                // One frame per machine when the launcher names them.
+                cluster: stack
+                    .launcher
+                    .core_node_of(inst.core_node.as_deref())
+                    .map(str::to_string),
                 state: NodeState::Planned,
             })
             .collect(),

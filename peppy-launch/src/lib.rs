@@ -12,6 +12,7 @@ mod executable;
 mod graph;
 mod inspect;
 mod output;
+mod placement;
 mod report;
 mod run_node;
 mod runs;

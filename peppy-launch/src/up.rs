@@ -13,6 +13,7 @@ use crate::cli::UpArgs;
 use crate::error::LaunchError;
 use crate::executable::{self, ExecutableError};
 use crate::output::Output;
+use crate::placement;
 use crate::report;
 use crate::runs::{self, LaunchRecord};
 use crate::supervise::{self, Ended, InstanceSpec, StopSignals};
@@ -99,17 +100,25 @@ type Outcome = crate::error::Result;
 /// when a build fails), and returns the argv that starts each node.
 async fn prepare_all(
     stack: &StackCheck,
+    wanted: &[usize],
     out: &Output,
     build: bool,
 ) -> Result<HashMap<Identity, Vec<String>>, ExecutableError> {
-    let total = stack
-        .deployments
-        .iter()
+    // Only the deployments this machine runs instances of.
+    let here = || {
+        stack
+            .deployments
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| wanted.contains(i))
+            .map(|(_, d)| d)
+    };
+    let total = here()
         .filter(|d| build && executable::build_of(&d.resolved.node.execution).is_some())
         .count();
     let mut programs = HashMap::new();
     let mut built = 0;
-    for d in &stack.deployments {
+    for d in here() {
         let node = &d.resolved.node;
         let identity = node.identity();
         if build && let Some(cmd) = executable::build_of(&node.execution) {
@@ -133,11 +142,11 @@ async fn prepare_all(
 }
 
 async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
-    let ids: Vec<&str> = stack
-        .plan
+    let share = placement::share(&stack, args)?;
+    let ids: Vec<&str> = share
         .instances
         .iter()
-        .map(|i| i.instance_id.as_str())
+        .map(|&i| stack.plan.instances[i].instance_id.as_str())
         .collect();
     let out = Arc::new(Output::new(&ids));
     let namespace = args
@@ -149,7 +158,6 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
             "invalid --namespace `{namespace}`: {why}"
         )));
     }
-    let core_node = format!("launch-{:x}", std::process::id());
     let run_dir = stack
         .launcher
         .base_dir()
@@ -179,18 +187,40 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         run_dir.display()
     ));
 
-    let programs = prepare_all(&stack, &out, !args.no_build).await?;
+    let deployments: Vec<usize> = share
+        .instances
+        .iter()
+        .map(|&i| stack.plan.instances[i].deployment)
+        .collect();
+    let programs = prepare_all(&stack, &deployments, &out, !args.no_build).await?;
 
-    let listen = if args.listen.is_empty() {
+    let listen = if share.listen.is_empty() {
         let endpoint = free_local_endpoint()
             .map_err(|e| LaunchError::Setup(format!("cannot find a free local port: {e}")))?;
         vec![endpoint]
     } else {
-        args.listen.clone()
+        share.listen.clone()
     };
-    let router = open_router(&listen, &args.connect)
+    let router = open_router(&listen, &share.connect)
         .await
         .map_err(LaunchError::Setup)?;
+    if !stack.launcher.core_nodes.is_empty() {
+        out.note(&format!(
+            "core node {}: {} (router on {}{})",
+            share.name,
+            if ids.is_empty() {
+                "no instances, the router only".to_string()
+            } else {
+                ids.join(", ")
+            },
+            listen.join(", "),
+            if share.connect.is_empty() {
+                String::new()
+            } else {
+                format!(", linked to {}", share.connect.join(", "))
+            }
+        ));
+    }
     // Nodes reach each other through the launch's router; a listen address
     // on all interfaces is still reached locally on loopback.
     let node_connect: Vec<String> = listen
@@ -198,11 +228,12 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         .map(|e| e.replace("0.0.0.0", "127.0.0.1").replace("[::]", "[::1]"))
         .collect();
 
-    let planned: Vec<Result<Planned, String>> = stack
-        .plan
+    let planned: Vec<Result<Planned, String>> = share
         .instances
         .iter()
-        .map(|inst| {
+        .zip(&share.core_of)
+        .map(|(&i, core_node)| {
+            let inst = &stack.plan.instances[i];
             let deployment = &stack.deployments[inst.deployment];
             let node = &deployment.resolved.node;
             let argv = programs
@@ -240,7 +271,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         pid: std::process::id(),
         launcher,
         namespace: namespace.clone(),
-        core_node: core_node.clone(),
+        core_node: share.name.clone(),
         connect: node_connect.clone(),
         run_dir: run_dir.clone(),
         started_at_ms: runs::now_ms(),
@@ -251,7 +282,15 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
             .collect(),
     };
     let _registration = runs::register(&record).map_err(|e| out.note(&e)).ok();
-    let code = run_instances(planned, &run_dir, args.grace, out).await;
+    let code = if planned.is_empty() {
+        // A machine with only a router still links the others: it stays up.
+        out.note("nothing to start here; the router runs until Ctrl-C");
+        wait_for_interrupt().await;
+        out.note("done");
+        Ok(())
+    } else {
+        run_instances(planned, &run_dir, args.grace, out).await
+    };
     let _ = router.close().await;
     code
 }

@@ -146,6 +146,18 @@ impl LauncherDoc {
             .flat_map(|(i, d)| d.instances.iter().map(move |inst| (i, inst)))
     }
 
+    /// The core node an instance runs on: its `core_node`, else the first
+    /// core node declared (where the stack's home is); `None` when the
+    /// launcher names no machines.
+    pub fn core_node_of<'a>(&'a self, placed: Option<&'a str>) -> Option<&'a str> {
+        placed.or_else(|| self.core_nodes.first().map(|c| c.name.as_str()))
+    }
+
+    /// The declared core node named `name`.
+    pub fn core_node(&self, name: &str) -> Option<&CoreNode> {
+        self.core_nodes.iter().find(|c| c.name == name)
+    }
+
     /// The directory relative sources are resolved against.
     pub fn base_dir(&self) -> PathBuf {
         self.file

@@ -3,6 +3,7 @@
 
 mod check;
 mod inspect;
+mod machines;
 mod seeds;
 mod support;
 mod up;

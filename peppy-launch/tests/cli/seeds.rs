@@ -18,7 +18,7 @@ pub(crate) const BUILD_AND_START: Duration = Duration::from_secs(600);
 pub(crate) struct Launch {
     child: Child,
     lines: Receiver<String>,
-    seen: Vec<String>,
+    pub(crate) seen: Vec<String>,
 }
 
 impl Launch {
@@ -158,7 +158,7 @@ impl Drop for Launch {
 }
 
 /// "left_cam: first frame from rs_left (...)" lines of one instance.
-fn first_frames(lines: &[String], instance: &str) -> Vec<(String, String)> {
+pub(crate) fn first_frames(lines: &[String], instance: &str) -> Vec<(String, String)> {
     let prefix = format!("[{instance}]");
     lines
         .iter()

@@ -1,0 +1,115 @@
+//! One stack over several core nodes: the two-machine example started as
+//! two `up --core-node` launches whose routers link, here on loopback
+//! (the network-namespace version stands in for two hosts).
+
+use std::time::Duration;
+
+use crate::seeds::{BUILD_AND_START, Launch, first_frames};
+use crate::support::{peppy_launch, root};
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// Cameras on `robot`, the reconstruction on `workstation`: the pinned
+/// slots bind across the link, each receiving only its camera, and the
+/// from_any slot the ZED; each side names its core node at start.
+#[test]
+fn the_multi_camera_stack_over_two_core_nodes() {
+    let state = tempfile::tempdir().unwrap();
+    let st = state.path();
+    let launcher = "examples/launchers/two_machines.json5";
+    let robot_at = format!("tcp/127.0.0.1:{}", free_port());
+    let mut robot = Launch::up_with(
+        launcher,
+        &["--core-node", "robot", "--listen", &robot_at],
+        &[("PEPPY_STATE_DIR", st)],
+    );
+    robot.expect("with the robot's share", BUILD_AND_START, |l| {
+        l.contains(&format!(
+            "core node robot: rs_left, rs_right, zed_overhead (router on {robot_at})"
+        ))
+    });
+    let workstation_at = format!("tcp/127.0.0.1:{}", free_port());
+    let mut workstation = Launch::up_with(
+        launcher,
+        &[
+            "--core-node",
+            "workstation",
+            "--listen",
+            &workstation_at,
+            "--connect",
+            &robot_at,
+        ],
+        &[("PEPPY_STATE_DIR", st)],
+    );
+    workstation.expect("with the workstation's share", BUILD_AND_START, |l| {
+        l.contains("core node workstation: recon_1") && l.contains(&format!("linked to {robot_at}"))
+    });
+    workstation.expect("with recon_1's summary", Duration::from_secs(60), |l| {
+        l.starts_with("[recon_1]") && l.contains("reconstructing from")
+    });
+    workstation.read_for(Duration::from_secs(1));
+    let mut firsts = first_frames(&workstation.seen, "recon_1");
+    firsts.sort();
+    assert_eq!(
+        firsts,
+        [
+            ("backup_cams".to_string(), "zed_overhead".to_string()),
+            ("left_cam".to_string(), "rs_left".to_string()),
+            ("right_cam".to_string(), "rs_right".to_string()),
+        ],
+        "each slot hears exactly its producers across the link"
+    );
+    assert!(
+        !robot.seen.iter().any(|l| l.contains("started `recon_1`")),
+        "the robot starts only its share"
+    );
+    assert_eq!(workstation.stop(), 0);
+    assert_eq!(robot.stop(), 0);
+}
+
+/// A launcher with core nodes is never started half-decided, and placement
+/// shows in `check` and `graph`.
+#[test]
+fn core_nodes_must_be_chosen_and_show_in_check_and_graph() {
+    let launcher = "examples/launchers/two_machines.json5";
+    let undecided = peppy_launch(&root(), &["up", launcher, "--no-build"]);
+    assert_eq!(undecided.code, 2, "{}", undecided.stderr);
+    assert!(
+        undecided.stderr.contains("up --core-node NAME") && undecided.stderr.contains("--local"),
+        "{}",
+        undecided.stderr
+    );
+    let unknown = peppy_launch(
+        &root(),
+        &["up", launcher, "--no-build", "--core-node", "lab"],
+    );
+    assert_eq!(unknown.code, 2);
+    assert!(
+        unknown
+            .stderr
+            .contains("the launcher's core nodes are robot, workstation"),
+        "{}",
+        unknown.stderr
+    );
+
+    let check = peppy_launch(&root(), &["check", launcher]);
+    assert_eq!(check.code, 0, "{}", check.stderr);
+    assert!(
+        check.stdout.contains("robot  (listen tcp/0.0.0.0:7447)"),
+        "{}",
+        check.stdout
+    );
+    assert!(check.stdout.contains("on workstation"), "{}", check.stdout);
+    let graph = peppy_launch(&root(), &["graph", launcher]);
+    assert!(
+        graph.stdout.contains("subgraph \"cluster_robot\""),
+        "{}",
+        graph.stdout
+    );
+}
