@@ -13,6 +13,7 @@ mod graph;
 mod inspect;
 mod output;
 mod placement;
+mod presence;
 mod report;
 mod run_node;
 mod runs;

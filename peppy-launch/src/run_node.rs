@@ -82,7 +82,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
         // machine hosts it, later ones connect to it.
         let mut _hub = None;
         config.zenoh.connect = if args.connect.is_empty() {
-            if let Ok(session) = open_router(&[LOCAL_HUB.to_string()], &[]).await {
+            if let Ok(session) = open_router(&[LOCAL_HUB.to_string()], &[], false).await {
                 _hub = Some(session);
             }
             vec![LOCAL_HUB.to_string()]

@@ -14,6 +14,7 @@ use crate::error::LaunchError;
 use crate::executable::{self, ExecutableError};
 use crate::output::Output;
 use crate::placement;
+use crate::presence;
 use crate::report;
 use crate::runs::{self, LaunchRecord};
 use crate::supervise::{self, Ended, InstanceSpec, StopSignals};
@@ -74,9 +75,15 @@ fn free_local_endpoint() -> std::io::Result<String> {
     Ok(format!("tcp/127.0.0.1:{port}"))
 }
 
+/// How soon a router of a stack placed over several machines declares a
+/// silent link lost (Zenoh's default is 10 s): a dropped link between
+/// machines is reported, and its traffic rerouted, within a few seconds.
+const LINKED_LEASE_MS: u64 = 3000;
+
 pub(crate) async fn open_router(
     listen: &[String],
     connect: &[String],
+    linked: bool,
 ) -> Result<zenoh::Session, String> {
     let mut config = zenoh::Config::default();
     let set = |c: &mut zenoh::Config, k: &str, v: serde_json::Value| {
@@ -89,6 +96,13 @@ pub(crate) async fn open_router(
         set(&mut config, "connect/endpoints", connect.into())?;
     }
     set(&mut config, "scouting/multicast/enabled", false.into())?;
+    if linked {
+        set(
+            &mut config,
+            "transport/link/tx/lease",
+            LINKED_LEASE_MS.into(),
+        )?;
+    }
     zenoh::open(config)
         .await
         .map_err(|e| format!("cannot open the launch's zenoh router on {listen:?}: {e}"))
@@ -201,9 +215,21 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     } else {
         share.listen.clone()
     };
-    let router = open_router(&listen, &share.connect)
-        .await
-        .map_err(LaunchError::Setup)?;
+    let router = open_router(
+        &listen,
+        &share.connect,
+        !stack.launcher.core_nodes.is_empty(),
+    )
+    .await
+    .map_err(LaunchError::Setup)?;
+    let _presence = if stack.launcher.core_nodes.is_empty() {
+        None
+    } else {
+        presence::announce(&router, &namespace, &share.name, out.clone())
+            .await
+            .map_err(|e| out.note(&e))
+            .ok()
+    };
     if !stack.launcher.core_nodes.is_empty() {
         out.note(&format!(
             "core node {}: {} (router on {}{})",

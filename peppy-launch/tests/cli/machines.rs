@@ -113,3 +113,103 @@ fn core_nodes_must_be_chosen_and_show_in_check_and_graph() {
         graph.stdout
     );
 }
+
+/// The counts of one `reconstructing from` summary of recon_1, by slot.
+fn left_count(line: &str) -> Option<u64> {
+    line.split_whitespace()
+        .find_map(|w| w.strip_prefix("left_cam<-rs_left:"))
+        .and_then(|n| n.parse().ok())
+}
+
+/// Two hosts joined by a veth link: the robot's share in one namespace,
+/// the workstation's in the other. The pinned slots bind across the link;
+/// pulling the link for 5 s is logged as the loss and the return of the
+/// other core node on both sides, and frames flow again on every slot with
+/// no process restarted.
+#[test]
+fn a_dropped_link_between_two_hosts_heals_by_itself() {
+    let Some(hosts) = crate::netns::TwoHosts::new() else {
+        return;
+    };
+    let state = tempfile::tempdir().unwrap();
+    let st = state.path();
+    let launcher = "examples/launchers/two_machines.json5";
+    let robot_at = format!("tcp/{}:7447", crate::netns::HOST_A);
+    let mut robot = Launch::up_in(
+        &hosts.on(&hosts.a),
+        launcher,
+        &["--core-node", "robot", "--listen", &robot_at],
+        &[("PEPPY_STATE_DIR", st)],
+    );
+    robot.expect("with the robot's cameras", BUILD_AND_START, |l| {
+        l.contains("started `zed_overhead`")
+    });
+    let mut workstation = Launch::up_in(
+        &hosts.on(&hosts.b),
+        launcher,
+        &["--core-node", "workstation", "--connect", &robot_at],
+        &[("PEPPY_STATE_DIR", st)],
+    );
+    workstation.expect("with the robot joining", BUILD_AND_START, |l| {
+        l.contains("core node robot joined")
+    });
+    let before = workstation.expect(
+        "with frames across the link",
+        Duration::from_secs(60),
+        |l| l.starts_with("[recon_1]") && left_count(l).is_some_and(|n| n > 0),
+    );
+    let mut firsts = first_frames(&workstation.seen, "recon_1");
+    firsts.sort();
+    assert_eq!(
+        firsts,
+        [
+            ("backup_cams".to_string(), "zed_overhead".to_string()),
+            ("left_cam".to_string(), "rs_left".to_string()),
+            ("right_cam".to_string(), "rs_right".to_string()),
+        ],
+        "each slot hears exactly its producers across the link"
+    );
+
+    hosts.link(false);
+    workstation.expect("with the loss of the robot", Duration::from_secs(30), |l| {
+        l.contains("lost core node robot")
+    });
+    std::thread::sleep(Duration::from_secs(5));
+    let during = workstation
+        .seen
+        .iter()
+        .rev()
+        .find_map(|l| left_count(l))
+        .unwrap_or(0);
+    hosts.link(true);
+    workstation.expect("with the robot back", Duration::from_secs(30), |l| {
+        l.contains("core node robot is back")
+    });
+    workstation.expect("with frames again", Duration::from_secs(30), |l| {
+        left_count(l).is_some_and(|n| n > during)
+    });
+    robot.expect(
+        "with the workstation lost and back",
+        Duration::from_secs(30),
+        |l| l.contains("core node workstation is back"),
+    );
+    assert!(
+        robot
+            .seen
+            .iter()
+            .any(|l| l.contains("lost core node workstation")),
+        "the robot logged the loss too"
+    );
+    for side in [&robot.seen, &workstation.seen] {
+        assert!(
+            !side
+                .iter()
+                .any(|l| l.contains("restarting") || l.contains("exited with")),
+            "no process restarted:\n{}",
+            side.join("\n")
+        );
+    }
+    assert!(left_count(&before).is_some());
+    assert_eq!(workstation.stop(), 0);
+    assert_eq!(robot.stop(), 0);
+}

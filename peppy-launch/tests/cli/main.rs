@@ -4,6 +4,7 @@
 mod check;
 mod inspect;
 mod machines;
+mod netns;
 mod seeds;
 mod support;
 mod up;

@@ -28,7 +28,27 @@ impl Launch {
 
     /// `up` with extra environment variables.
     pub(crate) fn up_with(launcher: &str, extra: &[&str], env: &[(&str, &Path)]) -> Launch {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+        Launch::up_in(&[], launcher, extra, env)
+    }
+
+    /// `up` run through `wrapper` (e.g. `ip netns exec NS`), which must
+    /// exec into `peppy-launch` so that signals reach it.
+    pub(crate) fn up_in(
+        wrapper: &[&str],
+        launcher: &str,
+        extra: &[&str],
+        env: &[(&str, &Path)],
+    ) -> Launch {
+        let program = env!("CARGO_BIN_EXE_peppy-launch");
+        let mut command = match wrapper.split_first() {
+            Some((first, rest)) => {
+                let mut c = Command::new(first);
+                c.args(rest).arg(program);
+                c
+            }
+            None => Command::new(program),
+        };
+        let mut child = command
             .args(["up", launcher])
             .args(extra)
             .envs(env.iter().copied())

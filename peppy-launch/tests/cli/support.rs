@@ -97,25 +97,39 @@ pub(crate) fn jump_lines(stderr: &str) -> Vec<&str> {
         .collect()
 }
 
-/// A headless browser for screenshot tests: `chromium` on the PATH, else
-/// installed from the Debian packages when this process may (root with
-/// apt-get, as in CI). Elsewhere the test says loudly that it cannot run;
-/// in CI (`CI=true`) that is a failure, never a silent pass.
+/// A headless browser for screenshot tests (see [`debian_tool`]).
 pub(crate) fn headless_browser() -> Option<PathBuf> {
-    static BROWSER: std::sync::OnceLock<Option<PathBuf>> = std::sync::OnceLock::new();
-    BROWSER.get_or_init(find_or_install_browser).clone()
+    debian_tool("chromium", "chromium")
+}
+
+/// A command from the Debian packages: on the PATH, else installed with
+/// apt-get when this process may (root, as in CI). Elsewhere the test says
+/// loudly that it cannot run; in CI (`CI=true`) that is a failure, never a
+/// silent pass.
+pub(crate) fn debian_tool(command: &str, package: &str) -> Option<PathBuf> {
+    static FOUND: std::sync::Mutex<Vec<(String, Option<PathBuf>)>> =
+        std::sync::Mutex::new(Vec::new());
+    // One install at a time (dpkg takes a lock), each package once.
+    let mut found = FOUND.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, path)) = found.iter().find(|(c, _)| c == command) {
+        return path.clone();
+    }
+    let path = find_or_install(command, package);
+    found.push((command.to_string(), path.clone()));
+    path
 }
 
 fn on_path(name: &str) -> Option<PathBuf> {
     std::env::var_os("PATH")?
         .to_str()?
         .split(':')
+        .chain(["/usr/sbin", "/sbin"])
         .map(|d| Path::new(d).join(name))
         .find(|p| p.is_file())
 }
 
-fn find_or_install_browser() -> Option<PathBuf> {
-    if let Some(found) = on_path("chromium") {
+fn find_or_install(command: &str, package: &str) -> Option<PathBuf> {
+    if let Some(found) = on_path(command) {
         return Some(found);
     }
     // SAFETY: getuid has no preconditions.
@@ -123,7 +137,7 @@ fn find_or_install_browser() -> Option<PathBuf> {
     if root && on_path("apt-get").is_some() {
         let install = || {
             Command::new("apt-get")
-                .args(["install", "-y", "-q", "--no-install-recommends", "chromium"])
+                .args(["install", "-y", "-q", "--no-install-recommends", package])
                 .env("DEBIAN_FRONTEND", "noninteractive")
                 .output()
                 .is_ok_and(|o| o.status.success())
@@ -134,14 +148,15 @@ fn find_or_install_browser() -> Option<PathBuf> {
                 .output()
                 .is_ok_and(|o| o.status.success())
                 && install());
-        if installed && let Some(found) = on_path("chromium") {
+        if installed && let Some(found) = on_path(command) {
             return Some(found);
         }
     }
-    let why =
-        "no headless browser: `chromium` is not installed and could not be installed with apt-get";
+    let why = format!(
+        "`{command}` is not installed and could not be installed with apt-get (package {package})"
+    );
     assert!(std::env::var("CI").as_deref() != Ok("true"), "{why}");
-    eprintln!("\n!!! SKIPPED: {why}; install chromium to run the screenshot test\n");
+    eprintln!("\n!!! SKIPPED: {why}\n");
     None
 }
 

@@ -160,6 +160,17 @@ pub fn describe_selector(ns: &str) -> String {
     format!("peppy/{ns}/describe/*/*")
 }
 
+/// `peppy/<ns>/core/<core>`: the token a launch holds for its core node
+/// while it runs, so the other machines of a stack see it come and go.
+pub fn core_key(ns: &str, core: &str) -> String {
+    format!("peppy/{ns}/core/{core}")
+}
+
+/// Every core node's token in `ns`.
+pub fn core_selector(ns: &str) -> String {
+    format!("peppy/{ns}/core/*")
+}
+
 /// The tokens of every instance in `ns`.
 pub fn all_liveliness_selector(ns: &str) -> String {
     format!("peppy/{ns}/live/*/*/*/*")
@@ -309,6 +320,8 @@ mod tests {
         assert_eq!(all_liveliness_selector("lab"), "peppy/lab/live/*/*/*/*");
         assert_eq!(describe_key("lab", "c", "arm"), "peppy/lab/describe/c/arm");
         assert_eq!(describe_selector("lab"), "peppy/lab/describe/*/*");
+        assert_eq!(core_key("lab", "robot"), "peppy/lab/core/robot");
+        assert_eq!(core_selector("lab"), "peppy/lab/core/*");
         assert_eq!(parse_liveliness_key("peppy/lab/topic/c/i/n/t"), None);
     }
 
