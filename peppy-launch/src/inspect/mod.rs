@@ -390,7 +390,7 @@ impl Observer {
         let mut all = self.describe_some().await?;
         all.remove(instance).ok_or_else(|| {
             LaunchError::Usage(format!(
-                "no running instance `{instance}` in {}; running: {}",
+                "no instance `{instance}` answers in {} (not running, or out of reach); answering: {}",
                 self.reach.what,
                 all.keys().cloned().collect::<Vec<_>>().join(", ")
             ))

@@ -144,10 +144,19 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
     robot.expect("with the robot's cameras", BUILD_AND_START, |l| {
         l.contains("started `zed_overhead`")
     });
+    // The workstation's router on its own loopback, for the commands below.
+    let workstation_at = "tcp/127.0.0.1:7447".to_string();
     let mut workstation = Launch::up_in(
         &hosts.on(&hosts.b),
         launcher,
-        &["--core-node", "workstation", "--connect", &robot_at],
+        &[
+            "--core-node",
+            "workstation",
+            "--connect",
+            &robot_at,
+            "--listen",
+            &workstation_at,
+        ],
         &[("PEPPY_STATE_DIR", st)],
     );
     workstation.expect("with the robot joining", BUILD_AND_START, |l| {
@@ -170,10 +179,50 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
         "each slot hears exactly its producers across the link"
     );
 
+    // A service on the other side answers across the link...
+    let call = || {
+        crate::support::peppy_launch_in(
+            &hosts.on(&hosts.b),
+            &root(),
+            &[
+                "service",
+                "call",
+                "rs_left",
+                "video_stream_info",
+                "--format",
+                "json",
+                "--timeout",
+                "5",
+                "-l",
+                launcher,
+                "--connect",
+                &workstation_at,
+            ],
+            &[],
+        )
+    };
+    let answered = call();
+    assert_eq!(answered.code, 0, "{}", answered.stderr);
+    assert!(
+        answered.stdout.contains(r#""width":160"#),
+        "{}",
+        answered.stdout
+    );
+
     hosts.link(false);
     workstation.expect("with the loss of the robot", Duration::from_secs(30), |l| {
         l.contains("lost core node robot")
     });
+    // ...and is unreachable, at once, while the link is down.
+    let started = std::time::Instant::now();
+    let down = call();
+    assert_eq!(down.code, 2, "{}", down.stderr);
+    assert!(
+        down.stderr.contains("no instance `rs_left` answers"),
+        "{}",
+        down.stderr
+    );
+    assert!(started.elapsed() < Duration::from_secs(10), "no hang");
     std::thread::sleep(Duration::from_secs(5));
     let during = workstation
         .seen
@@ -212,4 +261,54 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
     assert!(left_count(&before).is_some());
     assert_eq!(workstation.stop(), 0);
     assert_eq!(robot.stop(), 0);
+}
+
+/// `from_core_node: Some("robot")` keeps frames of the cameras on the
+/// machine named `robot`: core nodes are names from the launcher (here all
+/// run on this machine with `--local`).
+#[test]
+fn from_core_node_filters_by_the_core_node_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let nodes = root().join("examples/nodes");
+    let launcher = dir.path().join("placed.json5");
+    std::fs::write(
+        &launcher,
+        format!(
+            r#"{{ peppy_schema: "launcher_v1", core_nodes: ["robot", "workstation"],
+                deployments: [
+                  {{ source: {{ local: "{nodes}/realsense_d405" }}, instances: [
+                      {{ instance_id: "cam_robot", core_node: "robot" }},
+                      {{ instance_id: "cam_desk", core_node: "workstation" }} ] }},
+                  {{ source: {{ local: "{nodes}/camera_mosaic" }}, instances: [
+                      {{ instance_id: "robot_only", core_node: "workstation",
+                         arguments: {{ only_core_node: "robot" }} }},
+                      {{ instance_id: "every_cam", core_node: "workstation" }} ] }} ] }}"#,
+            nodes = nodes.display()
+        ),
+    )
+    .unwrap();
+    let repo = root().join("examples");
+    let mut launch = Launch::up(
+        launcher.to_str().unwrap(),
+        &["--local", "--repo", repo.to_str().unwrap()],
+    );
+    launch.expect("with every_cam's mosaic of both", BUILD_AND_START, |l| {
+        l.starts_with("[every_cam]") && l.contains("mosaic of 2 tiles")
+    });
+    launch.expect("with robot_only's mosaic", Duration::from_secs(30), |l| {
+        l.starts_with("[robot_only]") && l.contains("mosaic of")
+    });
+    launch.read_for(Duration::from_secs(2));
+    let mosaics: Vec<&String> = launch
+        .seen
+        .iter()
+        .filter(|l| l.starts_with("[robot_only]") && l.contains("mosaic of"))
+        .collect();
+    assert!(
+        mosaics
+            .iter()
+            .all(|l| l.contains("mosaic of 1 tiles: cam_robot:")),
+        "only the robot's camera: {mosaics:?}"
+    );
+    assert_eq!(launch.stop(), 0);
 }

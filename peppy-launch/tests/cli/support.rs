@@ -25,7 +25,26 @@ pub(crate) fn peppy_launch(dir: &Path, args: &[&str]) -> Run {
 /// [`peppy_launch`] with extra environment variables. A command that has
 /// not ended after [`COMMAND_BOUND`] is killed and the test fails.
 pub(crate) fn peppy_launch_with(dir: &Path, args: &[&str], env: &[(&str, &Path)]) -> Run {
-    let child = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+    peppy_launch_in(&[], dir, args, env)
+}
+
+/// [`peppy_launch_with`] run through `wrapper` (e.g. `ip netns exec NS`).
+pub(crate) fn peppy_launch_in(
+    wrapper: &[&str],
+    dir: &Path,
+    args: &[&str],
+    env: &[(&str, &Path)],
+) -> Run {
+    let program = env!("CARGO_BIN_EXE_peppy-launch");
+    let mut command = match wrapper.split_first() {
+        Some((first, rest)) => {
+            let mut c = Command::new(first);
+            c.args(rest).arg(program);
+            c
+        }
+        None => Command::new(program),
+    };
+    let child = command
         .args(args)
         .current_dir(dir)
         .env("NO_COLOR", "1")

@@ -12,12 +12,14 @@ use peppygen::consumed_topics::extras_video_stream;
 use peppygen::{NodeBuilder, Parameters, Result};
 
 fn main() -> Result<()> {
-    NodeBuilder::new().run(|_params: Parameters, runner| async move {
+    NodeBuilder::new().run(|params: Parameters, runner| async move {
         tokio::spawn(async move {
+            // `from_core_node` filters by the machine a camera runs on.
+            let only = Some(params.only_core_node).filter(|c| !c.is_empty());
             let mut tiles: BTreeMap<String, u64> = BTreeMap::new();
             let mut last = Instant::now();
             while let Ok((producer, frame)) =
-                extras_video_stream::on_next_message_received(&runner, None).await
+                extras_video_stream::on_next_message_received(&runner, only.as_deref()).await
             {
                 let count = tiles.entry(producer.clone()).or_insert(0);
                 if *count == 0 {
