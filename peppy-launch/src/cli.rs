@@ -57,6 +57,10 @@ pub(crate) enum Command {
     /// Actions of a running stack: list, send-goal.
     #[command(subcommand)]
     Action(ActionCommand),
+    /// Run a bare Zenoh router for core nodes to meet at, where they cannot
+    /// reach each other directly (give each launch `--connect` to it); a
+    /// stand-in for `zenohd`.
+    Router(RouterArgs),
     /// The launches running on this machine, with their instances.
     Ps(PsArgs),
     /// An instance's output, from its launch's run directory.
@@ -269,6 +273,16 @@ pub(crate) struct GoalArgs {
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Human)]
     pub(crate) format: Format,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct RouterArgs {
+    /// Where it listens (repeatable), e.g. `tcp/0.0.0.0:7447`.
+    #[arg(long, value_name = "ENDPOINT", required = true)]
+    pub(crate) listen: Vec<String>,
+    /// Other routers to link to (repeatable).
+    #[arg(long, value_name = "ENDPOINT")]
+    pub(crate) connect: Vec<String>,
 }
 
 #[derive(Debug, Args)]

@@ -75,6 +75,33 @@ fn free_local_endpoint() -> std::io::Result<String> {
     Ok(format!("tcp/127.0.0.1:{port}"))
 }
 
+/// `peppy-launch router`: a bare router until Ctrl-C or SIGTERM.
+pub(crate) fn router(args: &crate::cli::RouterArgs) -> Outcome {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .map_err(|e| LaunchError::Setup(format!("cannot start the tokio runtime: {e}")))?;
+    runtime.block_on(async {
+        let router = open_router(&args.listen, &args.connect, true)
+            .await
+            .map_err(LaunchError::Setup)?;
+        eprintln!(
+            "peppy-launch: router {} on {}{}",
+            router.zid(),
+            args.listen.join(", "),
+            if args.connect.is_empty() {
+                String::new()
+            } else {
+                format!(", linked to {}", args.connect.join(", "))
+            }
+        );
+        wait_for_interrupt().await;
+        let _ = router.close().await;
+        eprintln!("peppy-launch: router stopped");
+        Ok(())
+    })
+}
+
 /// How soon a router of a stack placed over several machines declares a
 /// silent link lost (Zenoh's default is 10 s): a dropped link between
 /// machines is reported, and its traffic rerouted, within a few seconds.

@@ -2,6 +2,8 @@
 //! two `up --core-node` launches whose routers link, here on loopback
 //! (the network-namespace version stands in for two hosts).
 
+use std::io::{BufRead as _, BufReader};
+use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use crate::seeds::{BUILD_AND_START, Launch, first_frames};
@@ -311,4 +313,118 @@ fn from_core_node_filters_by_the_core_node_name() {
         "only the robot's camera: {mosaics:?}"
     );
     assert_eq!(launch.stop(), 0);
+}
+
+/// A process killed when the test ends, however it ends.
+struct Reaped(std::process::Child);
+
+impl Drop for Reaped {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The robot-arm loop split over two hosts that meet at a router of their
+/// own (`peppy-launch router`, standing in for `zenohd`) rather than
+/// linking directly: the controller homes the arm with its action across
+/// the link, then both topic directions flow.
+#[test]
+fn the_arm_loop_across_two_hosts_through_a_router() {
+    let Some(hosts) = crate::netns::TwoHosts::new() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let nodes = root().join("examples/nodes");
+    let launcher = dir.path().join("arm_two_hosts.json5");
+    std::fs::write(
+        &launcher,
+        format!(
+            r#"{{ peppy_schema: "launcher_v1", core_nodes: ["robot", "workstation"],
+                deployments: [
+                  {{ source: {{ local: "{nodes}/robot_arm" }}, instances: [
+                      {{ instance_id: "arm", core_node: "robot" }} ] }},
+                  {{ source: {{ local: "{nodes}/arm_controller" }}, instances: [
+                      {{ instance_id: "controller", core_node: "workstation",
+                         bindings: {{ robot_arm: "arm" }} }} ] }} ] }}"#,
+            nodes = nodes.display()
+        ),
+    )
+    .unwrap();
+    let router_at = format!("tcp/{}:7448", crate::netns::HOST_A);
+    let mut router = Command::new("ip")
+        .args([
+            "netns",
+            "exec",
+            &hosts.a,
+            env!("CARGO_BIN_EXE_peppy-launch"),
+        ])
+        .args(["router", "--listen", &router_at])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(router.stderr.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(
+        first.contains("router") && first.contains(&router_at),
+        "{first}"
+    );
+    let _router = Reaped(router);
+
+    let state = tempfile::tempdir().unwrap();
+    let env = [("PEPPY_STATE_DIR", state.path())];
+    let repo = root().join("examples");
+    let (launcher, repo) = (launcher.to_str().unwrap(), repo.to_str().unwrap());
+    let mut robot = Launch::up_in(
+        &hosts.on(&hosts.a),
+        launcher,
+        &[
+            "--core-node",
+            "robot",
+            "--connect",
+            &router_at,
+            "--repo",
+            repo,
+        ],
+        &env,
+    );
+    let mut workstation = Launch::up_in(
+        &hosts.on(&hosts.b),
+        launcher,
+        &[
+            "--core-node",
+            "workstation",
+            "--connect",
+            &router_at,
+            "--repo",
+            repo,
+        ],
+        &env,
+    );
+    workstation.expect("with the arm homed by the action", BUILD_AND_START, |l| {
+        l.contains("homed by arm: reached=true")
+    });
+    workstation.expect(
+        "with the controller's 40th cycle",
+        Duration::from_secs(60),
+        |l| l.starts_with("[controller]") && l.contains("cycle 40:"),
+    );
+    robot.expect(
+        "with the arm's 40th command",
+        Duration::from_secs(60),
+        |l| l.starts_with("[arm]") && l.contains("command 40 from controller"),
+    );
+    assert!(
+        robot
+            .seen
+            .iter()
+            .any(|l| l.contains("core node workstation joined")),
+        "the robot sees the workstation through the router"
+    );
+    assert_eq!(workstation.stop(), 0);
+    assert_eq!(robot.stop(), 0);
 }
