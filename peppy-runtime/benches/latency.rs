@@ -9,6 +9,13 @@
 //! the other side answers with a pong; the time until the matching pong
 //! arrives is one sample. Reported: p50, p90 and mean per side, and the
 //! peppy / raw ratio.
+//!
+//! Across a link between two machines, stood in for by two network
+//! namespaces joined by a veth pair (needs root and `ip`):
+//!
+//! ```sh
+//! cargo bench -p peppy-runtime --bench latency -- --veth
+//! ```
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -131,29 +138,25 @@ fn stats(mut samples: Vec<Duration>) -> Stats {
     }
 }
 
-async fn peppy_round_trips(endpoint: &str) -> Vec<Duration> {
-    let args = |id: &str, bind: &str| {
-        vec![
-            "bench".to_string(),
-            "--instance-id".into(),
-            id.into(),
-            "--namespace".into(),
-            "bench".into(),
-            "--connect".into(),
-            endpoint.into(),
-            "--bind".into(),
-            bind.into(),
-        ]
-    };
+fn node_args(endpoint: &str, id: &str, bind: &str) -> Vec<String> {
+    vec![
+        "bench".to_string(),
+        "--instance-id".into(),
+        id.into(),
+        "--namespace".into(),
+        "bench".into(),
+        "--connect".into(),
+        endpoint.into(),
+        "--bind".into(),
+        bind.into(),
+    ]
+}
+
+/// The answering side: a ponger node echoing every ping, until aborted.
+async fn peppy_ponger(endpoint: &str) -> (Arc<NodeRunner>, tokio::task::JoinHandle<()>) {
     let (_, ponger): (_, Arc<NodeRunner>) = NodeBuilder::<Ponger>::new()
         .with_runtime_config(None)
-        .with_args(args("ponger", "pinger@pinger"))
-        .start()
-        .await
-        .unwrap();
-    let (_, pinger): (_, Arc<NodeRunner>) = NodeBuilder::<Pinger>::new()
-        .with_runtime_config(None)
-        .with_args(args("pinger", "ponger@ponger"))
+        .with_args(node_args(endpoint, "ponger", "pinger@pinger"))
         .start()
         .await
         .unwrap();
@@ -165,6 +168,17 @@ async fn peppy_round_trips(endpoint: &str) -> Vec<Duration> {
             }
         }
     });
+    (ponger, echo)
+}
+
+/// The asking side: round trips to a ponger reached through `endpoint`.
+async fn peppy_pings(endpoint: &str) -> Vec<Duration> {
+    let (_, pinger): (_, Arc<NodeRunner>) = NodeBuilder::<Pinger>::new()
+        .with_runtime_config(None)
+        .with_args(node_args(endpoint, "pinger", "ponger@ponger"))
+        .start()
+        .await
+        .unwrap();
     let pad = vec![7u8; 64];
     // Wait until both directions are matched.
     loop {
@@ -211,35 +225,48 @@ async fn peppy_round_trips(endpoint: &str) -> Vec<Duration> {
             samples.push(start.elapsed());
         }
     }
-    echo.abort();
     pinger.shutdown().await;
+    samples
+}
+
+async fn peppy_round_trips(endpoint: &str) -> Vec<Duration> {
+    let (ponger, echo) = peppy_ponger(endpoint).await;
+    let samples = peppy_pings(endpoint).await;
+    echo.abort();
     ponger.shutdown().await;
     samples
 }
 
-async fn raw_round_trips(endpoint: &str) -> Vec<Duration> {
-    let config = || {
-        let mut c = zenoh::Config::default();
-        c.insert_json5("connect/endpoints", &format!("[\"{endpoint}\"]"))
-            .unwrap();
-        c.insert_json5("scouting/multicast/enabled", "false")
-            .unwrap();
-        c
-    };
-    let a = zenoh::open(config()).await.unwrap();
-    let b = zenoh::open(config()).await.unwrap();
+fn raw_config(endpoint: &str) -> zenoh::Config {
+    let mut c = zenoh::Config::default();
+    c.insert_json5("connect/endpoints", &format!("[\"{endpoint}\"]"))
+        .unwrap();
+    c.insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    c
+}
+
+/// The answering side in raw Zenoh: echoes pings while the session lives.
+async fn raw_echo(endpoint: &str) -> (zenoh::Session, zenoh::pubsub::Subscriber<()>) {
+    let b = zenoh::open(raw_config(endpoint)).await.unwrap();
     let pong_pub = b
         .declare_publisher("bench/raw/pong")
         .congestion_control(zenoh::qos::CongestionControl::Block)
         .await
         .unwrap();
-    let _echo = b
+    let echo = b
         .declare_subscriber("bench/raw/ping")
         .callback(move |s| {
             let _ = zenoh::Wait::wait(pong_pub.put(s.payload().clone()));
         })
         .await
         .unwrap();
+    (b, echo)
+}
+
+/// The asking side in raw Zenoh.
+async fn raw_pings(endpoint: &str) -> Vec<Duration> {
+    let a = zenoh::open(raw_config(endpoint)).await.unwrap();
     let ping_pub = a
         .declare_publisher("bench/raw/ping")
         .congestion_control(zenoh::qos::CongestionControl::Block)
@@ -282,33 +309,163 @@ async fn raw_round_trips(endpoint: &str) -> Vec<Duration> {
     samples
 }
 
+async fn raw_round_trips(endpoint: &str) -> Vec<Duration> {
+    let _echo = raw_echo(endpoint).await;
+    raw_pings(endpoint).await
+}
+
+async fn router(endpoint: &str) -> zenoh::Session {
+    let mut c = zenoh::Config::default();
+    c.insert_json5("mode", "\"router\"").unwrap();
+    c.insert_json5("listen/endpoints", &format!("[\"{endpoint}\"]"))
+        .unwrap();
+    c.insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    zenoh::open(c).await.unwrap()
+}
+
+/// Both sides in this process, alternating raw and peppy runs to spread
+/// machine noise over both.
+async fn report(
+    what: &str,
+    raw: impl AsyncFn() -> Vec<Duration>,
+    peppy: impl AsyncFn() -> Vec<Duration>,
+) {
+    let raw1 = stats(raw().await);
+    let peppy1 = stats(peppy().await);
+    let raw2 = stats(raw().await);
+    let peppy2 = stats(peppy().await);
+    println!("round trip, {SAMPLES} samples per run, 64-byte payload, reliable, {what}");
+    println!("{:<12} {:>10} {:>10} {:>10}", "run", "p50", "p90", "mean");
+    for (name, s) in [
+        ("raw zenoh 1", &raw1),
+        ("peppy 1", &peppy1),
+        ("raw zenoh 2", &raw2),
+        ("peppy 2", &peppy2),
+    ] {
+        println!(
+            "{name:<12} {:>10.1?} {:>10.1?} {:>10.1?}",
+            s.p50, s.p90, s.mean
+        );
+    }
+    let ratio = |p: Duration, r: Duration| p.as_secs_f64() / r.as_secs_f64();
+    let p50 = (ratio(peppy1.p50, raw1.p50) + ratio(peppy2.p50, raw2.p50)) / 2.0;
+    let p90 = (ratio(peppy1.p90, raw1.p90) + ratio(peppy2.p90, raw2.p90)) / 2.0;
+    println!("peppy / raw: p50 x{p50:.2}, p90 x{p90:.2}");
+}
+
+/// `--veth`: the pinging side and its router in one network namespace, the
+/// answering side in another, joined by a veth pair (192.0.2.0/24): every
+/// round trip crosses the link twice, for raw Zenoh and peppy alike.
+/// Needs root and `ip`.
+fn veth() {
+    let exe = std::env::current_exe().unwrap();
+    let ip = |args: &[&str]| {
+        let ok = std::process::Command::new("ip")
+            .args(args)
+            .status()
+            .is_ok_and(|s| s.success());
+        assert!(ok, "ip {}", args.join(" "));
+    };
+    let tag = std::process::id() % 100_000;
+    let (a, b) = (
+        format!("peppy-bench-{tag}-a"),
+        format!("peppy-bench-{tag}-b"),
+    );
+    let (va, vb) = (format!("pb{tag}a"), format!("pb{tag}b"));
+    ip(&["netns", "add", &a]);
+    ip(&["netns", "add", &b]);
+    ip(&["link", "add", &va, "type", "veth", "peer", "name", &vb]);
+    ip(&["link", "set", &va, "netns", &a]);
+    ip(&["link", "set", &vb, "netns", &b]);
+    ip(&["-n", &a, "addr", "add", "192.0.2.1/24", "dev", &va]);
+    ip(&["-n", &b, "addr", "add", "192.0.2.2/24", "dev", &vb]);
+    for (ns, dev) in [(&a, &va), (&b, &vb)] {
+        ip(&["-n", ns, "link", "set", dev, "up"]);
+        ip(&["-n", ns, "link", "set", "lo", "up"]);
+    }
+    let endpoint = "tcp/192.0.2.1:7450";
+    let exe = exe.to_str().unwrap();
+    let mut pong = std::process::Command::new("ip")
+        .args([
+            "netns",
+            "exec",
+            &b,
+            exe,
+            "--role",
+            "pong",
+            "--endpoint",
+            endpoint,
+        ])
+        .spawn()
+        .unwrap();
+    let ping = std::process::Command::new("ip")
+        .args([
+            "netns",
+            "exec",
+            &a,
+            exe,
+            "--role",
+            "ping",
+            "--endpoint",
+            endpoint,
+        ])
+        .status();
+    let _ = pong.kill();
+    let _ = pong.wait();
+    ip(&["netns", "del", &a]);
+    ip(&["netns", "del", &b]);
+    assert!(ping.is_ok_and(|s| s.success()), "the pinging side failed");
+}
+
 fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let flag = |name: &str| {
+        args.iter()
+            .position(|a| a == name)
+            .and_then(|i| args.get(i + 1))
+            .cloned()
+    };
+    if args.iter().any(|a| a == "--veth") {
+        return veth();
+    }
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
         .build()
         .unwrap();
     rt.block_on(async {
-        let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-        let endpoint = format!("tcp/127.0.0.1:{port}");
-        let mut c = zenoh::Config::default();
-        c.insert_json5("mode", "\"router\"").unwrap();
-        c.insert_json5("listen/endpoints", &format!("[\"{endpoint}\"]")).unwrap();
-        c.insert_json5("scouting/multicast/enabled", "false").unwrap();
-        let _router = zenoh::open(c).await.unwrap();
-        // Alternate to spread machine noise over both.
-        let raw1 = stats(raw_round_trips(&endpoint).await);
-        let peppy1 = stats(peppy_round_trips(&endpoint).await);
-        let raw2 = stats(raw_round_trips(&endpoint).await);
-        let peppy2 = stats(peppy_round_trips(&endpoint).await);
-        println!("round trip, {SAMPLES} samples per run, 64-byte payload, reliable, via a router on loopback");
-        println!("{:<12} {:>10} {:>10} {:>10}", "run", "p50", "p90", "mean");
-        for (name, s) in [("raw zenoh 1", &raw1), ("peppy 1", &peppy1), ("raw zenoh 2", &raw2), ("peppy 2", &peppy2)] {
-            println!("{name:<12} {:>10.1?} {:>10.1?} {:>10.1?}", s.p50, s.p90, s.mean);
+        match (flag("--role").as_deref(), flag("--endpoint")) {
+            (Some("pong"), Some(endpoint)) => {
+                // Both echoes at once (different keys); killed when done.
+                let _raw = raw_echo(&endpoint).await;
+                let _peppy = peppy_ponger(&endpoint).await;
+                std::future::pending::<()>().await;
+            }
+            (Some("ping"), Some(endpoint)) => {
+                let _router = router(&endpoint).await;
+                report(
+                    "across a veth link between two network namespaces",
+                    async || raw_pings(&endpoint).await,
+                    async || peppy_pings(&endpoint).await,
+                )
+                .await;
+            }
+            _ => {
+                let port = std::net::TcpListener::bind("127.0.0.1:0")
+                    .unwrap()
+                    .local_addr()
+                    .unwrap()
+                    .port();
+                let endpoint = format!("tcp/127.0.0.1:{port}");
+                let _router = router(&endpoint).await;
+                report(
+                    "via a router on loopback",
+                    async || raw_round_trips(&endpoint).await,
+                    async || peppy_round_trips(&endpoint).await,
+                )
+                .await;
+            }
         }
-        let ratio = |p: Duration, r: Duration| p.as_secs_f64() / r.as_secs_f64();
-        let p50 = (ratio(peppy1.p50, raw1.p50) + ratio(peppy2.p50, raw2.p50)) / 2.0;
-        let p90 = (ratio(peppy1.p90, raw1.p90) + ratio(peppy2.p90, raw2.p90)) / 2.0;
-        println!("peppy / raw: p50 x{p50:.2}, p90 x{p90:.2}");
     });
 }
