@@ -100,6 +100,47 @@ fn core_nodes_must_be_chosen_and_show_in_check_and_graph() {
         unknown.stderr
     );
 
+    // A misplaced instance is a located error, and nothing starts on any
+    // machine.
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(root().join(launcher))
+        .unwrap()
+        .replace(r#"core_node: "workstation""#, r#"core_node: "workstaton""#)
+        .replace(
+            "../nodes/",
+            &format!("{}/", root().join("examples/nodes").display()),
+        );
+    let bad = dir.path().join("misplaced.json5");
+    std::fs::write(&bad, text).unwrap();
+    let repo = root().join("examples");
+    for args in [
+        vec!["check", bad.to_str().unwrap()],
+        vec![
+            "up",
+            bad.to_str().unwrap(),
+            "--core-node",
+            "robot",
+            "--no-build",
+        ],
+    ] {
+        let run = peppy_launch(
+            &root(),
+            &[args, vec!["--repo", repo.to_str().unwrap()]].concat(),
+        );
+        assert_eq!(run.code, 2, "{}", run.stderr);
+        assert!(
+            run.stderr.contains("misplaced.json5:")
+                && run.stderr.contains("instance `recon_1` is placed on core node `workstaton`, which `core_nodes` does not declare (UnknownCoreNode)"),
+            "{}",
+            run.stderr
+        );
+        assert!(
+            !run.stderr.contains("started `"),
+            "nothing starts: {}",
+            run.stderr
+        );
+    }
+
     let check = peppy_launch(&root(), &["check", launcher]);
     assert_eq!(check.code, 0, "{}", check.stderr);
     assert!(
@@ -215,7 +256,14 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
     workstation.expect("with the loss of the robot", Duration::from_secs(30), |l| {
         l.contains("lost core node robot")
     });
-    // ...and is unreachable, at once, while the link is down.
+    // The reconstruction's own check of its camera reports it unreachable
+    // (not a hang)...
+    workstation.expect("with left_cam unreachable", Duration::from_secs(20), |l| {
+        l.starts_with("[recon_1]")
+            && l.contains("left_cam stream info:")
+            && l.contains("unreachable")
+    });
+    // ...and the command line cannot reach it either, at once.
     let started = std::time::Instant::now();
     let down = call();
     assert_eq!(down.code, 2, "{}", down.stderr);
@@ -233,12 +281,19 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
         .find_map(|l| left_count(l))
         .unwrap_or(0);
     hosts.link(true);
+    let relinked = workstation.seen.len();
     workstation.expect("with the robot back", Duration::from_secs(30), |l| {
         l.contains("core node robot is back")
     });
     workstation.expect("with frames again", Duration::from_secs(30), |l| {
         left_count(l).is_some_and(|n| n > during)
     });
+    workstation.expect_since(
+        relinked,
+        "with left_cam answering again",
+        Duration::from_secs(20),
+        |l| l.starts_with("[recon_1]") && l.contains("left_cam is rs_left"),
+    );
     robot.expect(
         "with the workstation lost and back",
         Duration::from_secs(30),

@@ -105,6 +105,39 @@ impl Launch {
         }
     }
 
+    /// Like [`expect`](Self::expect), but only lines from `seen[since..]`
+    /// on (mark a moment with `seen.len()`).
+    pub(crate) fn expect_since(
+        &mut self,
+        since: usize,
+        what: &str,
+        within: Duration,
+        pred: impl Fn(&str) -> bool,
+    ) -> String {
+        if let Some(line) = self.seen[since.min(self.seen.len())..]
+            .iter()
+            .find(|l| pred(l))
+        {
+            return line.clone();
+        }
+        let deadline = Instant::now() + within;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.lines.recv_timeout(left) {
+                Ok(line) => {
+                    self.seen.push(line.clone());
+                    if pred(&line) {
+                        return line;
+                    }
+                }
+                Err(_) => panic!(
+                    "no new line {what} within {within:?}; output:\n{}",
+                    self.seen.join("\n")
+                ),
+            }
+        }
+    }
+
     /// Reads for `time` more, returning the lines.
     pub(crate) fn read_for(&mut self, time: Duration) -> Vec<String> {
         let deadline = Instant::now() + time;

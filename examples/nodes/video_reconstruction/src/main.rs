@@ -48,24 +48,36 @@ fn main() -> Result<()> {
         read_slot!(right_cam_video_stream, "right_cam");
         read_slot!(backup_cams_video_stream, "backup_cams");
 
-        // Ask the left camera what it streams (it may start after us).
+        // Ask the left camera what it streams (it may start after us), then
+        // keep checking every 2 s, saying when the answer changes: a camera
+        // out of reach (a machine or a link lost) shows here.
         let asker = runner.clone();
         tokio::spawn(async move {
-            loop {
-                match left_cam_video_stream_info::poll(&asker, Duration::from_secs(2)).await {
+            let mut last: Option<String> = None;
+            while !asker.cancellation_token().is_cancelled() {
+                let now = match left_cam_video_stream_info::poll(&asker, Duration::from_secs(2))
+                    .await
+                {
                     Ok(info) => {
                         let d = info.data;
-                        println!(
+                        format!(
                             "left_cam is {}: {}x{} @ {} fps, {}",
                             info.instance_id, d.width, d.height, d.frames_per_second, d.encoding
-                        );
-                        break;
+                        )
                     }
-                    Err(_) if !asker.cancellation_token().is_cancelled() => {
-                        tokio::time::sleep(Duration::from_millis(500)).await
-                    }
-                    Err(_) => break,
+                    Err(e) => format!("left_cam stream info: {e}"),
+                };
+                // Before the first answer, a camera that is not up yet is
+                // not news.
+                let news = last.as_deref() != Some(now.as_str())
+                    && (last.is_some() || now.starts_with("left_cam is"));
+                if news {
+                    println!("{now}");
                 }
+                if news || last.is_some() {
+                    last = Some(now);
+                }
+                tokio::time::sleep(Duration::from_secs(2)).await;
             }
         });
 
