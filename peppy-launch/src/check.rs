@@ -18,6 +18,8 @@ struct JsonReport<'a> {
     launcher: String,
     repositories: Vec<String>,
     diagnostics: Vec<JsonDiagnostic>,
+    /// The machines, when the launcher places instances on several.
+    core_nodes: Vec<&'a peppy_schema::CoreNode>,
     plan: Option<&'a peppy_schema::BindingPlan>,
 }
 
@@ -44,6 +46,9 @@ pub(crate) fn run(args: &CheckArgs) -> Result {
                 })
                 .unwrap_or_default(),
             diagnostics: report::json_list(&diags),
+            core_nodes: stack
+                .map(|s| s.launcher.core_nodes.iter().collect())
+                .unwrap_or_default(),
             plan: stack.map(|s| &s.plan),
         }),
         Format::Human => {

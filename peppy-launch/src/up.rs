@@ -48,9 +48,20 @@ pub(crate) fn run(args: &UpArgs) -> Outcome {
 }
 
 /// The namespace of a launch: the launcher's file stem plus a short hash of
-/// its absolute path, so two launchers never share one by accident.
+/// its absolute path, so two launchers never share one by accident. A
+/// launcher that places its instances on several machines is one stack
+/// wherever its file is checked out: its hash is of the file's contents,
+/// so every machine's share lands in the same namespace.
 pub(crate) fn default_namespace(launcher: &Path) -> String {
     let abs = std::fs::canonicalize(launcher).unwrap_or_else(|_| launcher.to_path_buf());
+    let text = std::fs::read_to_string(launcher).unwrap_or_default();
+    let placed = peppy_schema::LauncherDoc::parse(launcher.display().to_string(), &text)
+        .is_ok_and(|(doc, _)| !doc.core_nodes.is_empty());
+    let hashed = if placed {
+        text.into_bytes()
+    } else {
+        abs.to_string_lossy().as_bytes().to_vec()
+    };
     let stem: String = launcher
         .file_stem()
         .and_then(|s| s.to_str())
@@ -64,7 +75,7 @@ pub(crate) fn default_namespace(launcher: &Path) -> String {
             }
         })
         .collect();
-    let hash = peppy_schema::sha256_hex(abs.to_string_lossy().as_bytes());
+    let hash = peppy_schema::sha256_hex(&hashed);
     format!("{stem}-{}", &hash[..6])
 }
 
@@ -85,6 +96,7 @@ pub(crate) fn router(args: &crate::cli::RouterArgs) -> Outcome {
         let router = open_router(&args.listen, &args.connect, true)
             .await
             .map_err(LaunchError::Setup)?;
+        let stop = interrupts_from_now();
         eprintln!(
             "peppy-launch: router {} on {}{}",
             router.zid(),
@@ -95,7 +107,7 @@ pub(crate) fn router(args: &crate::cli::RouterArgs) -> Outcome {
                 format!(", linked to {}", args.connect.join(", "))
             }
         );
-        wait_for_interrupt().await;
+        stop.await;
         let _ = router.close().await;
         eprintln!("peppy-launch: router stopped");
         Ok(())
@@ -249,6 +261,18 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     )
     .await
     .map_err(LaunchError::Setup)?;
+    if stack.launcher.core_nodes.len() > 1
+        && !args.local
+        && share.connect.is_empty()
+        && listen
+            .iter()
+            .all(|e| e.contains("127.0.0.1") || e.contains("[::1]"))
+    {
+        out.note(&format!(
+            "note: core node {} listens on loopback only and connects nowhere, so no other machine can link to it; give it endpoints in `core_nodes` or --listen / --connect",
+            share.name
+        ));
+    }
     let _presence = if stack.launcher.core_nodes.is_empty() {
         None
     } else {
@@ -337,8 +361,9 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     let _registration = runs::register(&record).map_err(|e| out.note(&e)).ok();
     let code = if planned.is_empty() {
         // A machine with only a router still links the others: it stays up.
+        let stop = interrupts_from_now();
         out.note("nothing to start here; the router runs until Ctrl-C");
-        wait_for_interrupt().await;
+        stop.await;
         out.note("done");
         Ok(())
     } else {
@@ -469,14 +494,29 @@ pub(crate) async fn run_instances(
 }
 
 async fn wait_for_interrupt() {
-    let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).ok();
-    tokio::select! {
-        _ = tokio::signal::ctrl_c() => {}
-        () = async {
-            match term.as_mut() {
-                Some(t) => { t.recv().await; }
-                None => std::future::pending::<()>().await,
-            }
-        } => {}
+    interrupts_from_now().await
+}
+
+/// Ctrl-C or SIGTERM, listened to from this call on (not from the first
+/// poll), so a signal sent right after a "ready" message is not lost.
+fn interrupts_from_now() -> impl std::future::Future<Output = ()> {
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut int = signal(SignalKind::interrupt()).ok();
+    let mut term = signal(SignalKind::terminate()).ok();
+    async move {
+        tokio::select! {
+            () = next_signal(int.as_mut()) => {}
+            () = next_signal(term.as_mut()) => {}
+        }
+    }
+}
+
+/// The next delivery of a signal, or never when it could not be listened to.
+async fn next_signal(s: Option<&mut tokio::signal::unix::Signal>) {
+    match s {
+        Some(s) => {
+            s.recv().await;
+        }
+        None => std::future::pending::<()>().await,
     }
 }

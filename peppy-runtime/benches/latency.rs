@@ -373,6 +373,21 @@ fn veth() {
         format!("peppy-bench-{tag}-b"),
     );
     let (va, vb) = (format!("pb{tag}a"), format!("pb{tag}b"));
+    // Removes the namespaces (and the link) however the run ends.
+    struct Cleanup(Vec<String>, String);
+    impl Drop for Cleanup {
+        fn drop(&mut self) {
+            for ns in &self.0 {
+                let _ = std::process::Command::new("ip")
+                    .args(["netns", "del", ns])
+                    .status();
+            }
+            let _ = std::process::Command::new("ip")
+                .args(["link", "del", &self.1])
+                .status();
+        }
+    }
+    let _cleanup = Cleanup(vec![a.clone(), b.clone()], va.clone());
     ip(&["netns", "add", &a]);
     ip(&["netns", "add", &b]);
     ip(&["link", "add", &va, "type", "veth", "peer", "name", &vb]);
@@ -413,8 +428,6 @@ fn veth() {
         .status();
     let _ = pong.kill();
     let _ = pong.wait();
-    ip(&["netns", "del", &a]);
-    ip(&["netns", "del", &b]);
     assert!(ping.is_ok_and(|s| s.success()), "the pinging side failed");
 }
 

@@ -11,6 +11,7 @@ use crate::diag::{Code, Diagnostics, did_you_mean, list};
 use crate::json::{Node, Value};
 use crate::names::check_name;
 use crate::read::{Loc, Reader, index, join};
+use crate::source::Span;
 
 /// One machine of a stack.
 #[derive(Debug, Clone, Serialize)]
@@ -37,7 +38,7 @@ pub(crate) fn parse_core_nodes(r: &mut Reader<'_>, node: &Node) -> Vec<CoreNode>
             for (i, item) in items.iter().enumerate() {
                 let p = index(path, i);
                 if let Some(name) = r.string(item, &p)
-                    && let Some(core) = named(r, name, item, &p)
+                    && let Some(core) = named(r, name, item.span, &p)
                 {
                     push_unique(r, &mut out, core);
                 }
@@ -46,12 +47,8 @@ pub(crate) fn parse_core_nodes(r: &mut Reader<'_>, node: &Node) -> Vec<CoreNode>
         Value::Object(members) => {
             for m in members {
                 let p = join(path, &m.key);
-                let Some(core) = named(r, m.key.clone(), node, &p) else {
+                let Some(core) = named(r, m.key.clone(), m.key_span, &p) else {
                     continue;
-                };
-                let core = CoreNode {
-                    loc: r.loc(m.key_span, &p),
-                    ..core
                 };
                 if let Some(core) = endpoints(r, &m.value, &p, core) {
                     push_unique(r, &mut out, core);
@@ -84,10 +81,11 @@ pub(crate) fn parse_core_nodes(r: &mut Reader<'_>, node: &Node) -> Vec<CoreNode>
     out
 }
 
-fn named(r: &mut Reader<'_>, name: String, at: &Node, path: &str) -> Option<CoreNode> {
+/// A core node named `name`, written at `span`.
+fn named(r: &mut Reader<'_>, name: String, span: Span, path: &str) -> Option<CoreNode> {
     match check_name(&name) {
         Ok(()) => Some(CoreNode {
-            loc: r.loc(at.span, path),
+            loc: r.loc(span, path),
             name,
             listen: Vec::new(),
             connect: Vec::new(),
@@ -95,7 +93,7 @@ fn named(r: &mut Reader<'_>, name: String, at: &Node, path: &str) -> Option<Core
         Err(why) => {
             r.error(
                 Code::InvalidName,
-                at.span,
+                span,
                 path,
                 format!("invalid core node name `{name}`: {why}"),
             );

@@ -27,8 +27,8 @@ pub struct InstancePlan {
     pub env_vars: Vec<(String, String)>,
     /// Restart policy.
     pub restart: RestartPolicy,
-    /// The core node it is placed on (`None`: wherever the stack is
-    /// launched, or the first core node when the launcher names them).
+    /// The core node it runs on: its `core_node`, or the first core node
+    /// declared; `None` when the launcher names no machines.
     pub core_node: Option<String>,
 }
 
@@ -92,7 +92,9 @@ pub fn plan_bindings(
             parameters,
             env_vars: inst.env_vars.clone(),
             restart: inst.restart,
-            core_node: inst.core_node.as_ref().map(|(name, _)| name.clone()),
+            core_node: launcher
+                .core_node_of(inst.core_node.as_ref().map(|(name, _)| name.as_str()))
+                .map(str::to_string),
         });
     }
     diags.into_result(BindingPlan { instances })

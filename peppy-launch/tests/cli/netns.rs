@@ -126,5 +126,7 @@ impl Drop for TwoHosts {
     fn drop(&mut self) {
         let _ = ip(&["netns", "del", &self.a]);
         let _ = ip(&["netns", "del", &self.b]);
+        // Left in the root namespace if setting up stopped half-way.
+        let _ = ip(&["link", "del", &self.veth_a]);
     }
 }

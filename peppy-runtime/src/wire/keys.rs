@@ -160,15 +160,25 @@ pub fn describe_selector(ns: &str) -> String {
     format!("peppy/{ns}/describe/*/*")
 }
 
-/// `peppy/<ns>/core/<core>`: the token a launch holds for its core node
-/// while it runs, so the other machines of a stack see it come and go.
-pub fn core_key(ns: &str, core: &str) -> String {
-    format!("peppy/{ns}/core/{core}")
+/// `peppy/<ns>/core/<core>/<launch>`: the token a launch (named by its
+/// router's Zenoh id) holds for its core node while it runs, so the other
+/// machines of a stack see it come and go.
+pub fn core_key(ns: &str, core: &str, launch: &str) -> String {
+    format!("peppy/{ns}/core/{core}/{launch}")
 }
 
 /// Every core node's token in `ns`.
 pub fn core_selector(ns: &str) -> String {
-    format!("peppy/{ns}/core/*")
+    format!("peppy/{ns}/core/*/*")
+}
+
+/// `(core, launch)` of a core node token's key.
+pub fn parse_core_key(key: &str) -> Option<(&str, &str)> {
+    let rest = key.strip_prefix("peppy/")?;
+    let (_ns, rest) = rest.split_once('/')?;
+    let rest = rest.strip_prefix("core/")?;
+    let (core, launch) = rest.split_once('/')?;
+    (is_segment(core) && is_segment(launch)).then_some((core, launch))
 }
 
 /// The tokens of every instance in `ns`.
@@ -320,8 +330,14 @@ mod tests {
         assert_eq!(all_liveliness_selector("lab"), "peppy/lab/live/*/*/*/*");
         assert_eq!(describe_key("lab", "c", "arm"), "peppy/lab/describe/c/arm");
         assert_eq!(describe_selector("lab"), "peppy/lab/describe/*/*");
-        assert_eq!(core_key("lab", "robot"), "peppy/lab/core/robot");
-        assert_eq!(core_selector("lab"), "peppy/lab/core/*");
+        assert_eq!(core_key("lab", "robot", "z1"), "peppy/lab/core/robot/z1");
+        assert_eq!(core_selector("lab"), "peppy/lab/core/*/*");
+        assert_eq!(
+            parse_core_key("peppy/lab/core/robot/z1"),
+            Some(("robot", "z1"))
+        );
+        assert_eq!(parse_core_key("peppy/lab/core/robot"), None);
+        assert_eq!(parse_core_key("peppy/lab/live/robot/z1"), None);
         assert_eq!(parse_liveliness_key("peppy/lab/topic/c/i/n/t"), None);
     }
 
