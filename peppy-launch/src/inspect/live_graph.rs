@@ -13,6 +13,7 @@ use peppy_schema::SlotBinding;
 
 use super::Observer;
 use super::rates::hz;
+use super::stream::slot_keeps;
 use crate::drawing::{DrawEdge, DrawNode, Drawing, EdgeStyle, NodeState};
 use crate::error::{LaunchError, Result};
 
@@ -52,11 +53,7 @@ pub(crate) fn routes(
 ) -> bool {
     consumed.name == emitted.name
         && consumed.owner.as_ref().is_none_or(|o| o == &emitted.owner)
-        && consumed.filter.accepts(&producer.instance_id)
-        && consumed
-            .members_of
-            .as_ref()
-            .is_none_or(|node| node == &producer.node)
+        && slot_keeps(consumed, &producer.instance_id, Some(&producer.node))
 }
 
 fn rate_label(counts: &Counts, producer: &str, topic: &str, window: Duration) -> (String, bool) {

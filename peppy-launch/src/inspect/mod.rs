@@ -41,15 +41,15 @@ pub(crate) const LOCAL_HUB: &str = "tcp/127.0.0.1:7447";
 /// `node ...`.
 pub(crate) fn node(cmd: NodeCommand) -> Result {
     match cmd {
-        NodeCommand::List(args) => block_on(nodes::list(args)),
-        NodeCommand::Info(args) => block_on(nodes::info(args)),
+        NodeCommand::List(args) => block_on_value(nodes::list(args)),
+        NodeCommand::Info(args) => block_on_value(nodes::info(args)),
     }
 }
 
 /// `topic ...`.
 pub(crate) fn topic(cmd: TopicCommand) -> Result {
     match cmd {
-        TopicCommand::List(args) => block_on(topics::list(args)),
+        TopicCommand::List(args) => block_on_value(topics::list(args)),
         TopicCommand::Echo(args) => block_on_stream(topics::echo(args)),
         TopicCommand::Hz(args) => block_on_stream(rates::run(args, rates::Measure::Rate)),
         TopicCommand::Bw(args) => block_on_stream(rates::run(args, rates::Measure::Bandwidth)),
@@ -60,23 +60,17 @@ pub(crate) fn topic(cmd: TopicCommand) -> Result {
 /// `service ...`.
 pub(crate) fn service(cmd: ServiceCommand) -> Result {
     match cmd {
-        ServiceCommand::List(args) => block_on(calls::list_services(args)),
-        ServiceCommand::Call(args) => block_on(calls::call(args)),
+        ServiceCommand::List(args) => block_on_value(calls::list_services(args)),
+        ServiceCommand::Call(args) => block_on_value(calls::call(args)),
     }
 }
 
 /// `action ...`.
 pub(crate) fn action(cmd: ActionCommand) -> Result {
     match cmd {
-        ActionCommand::List(args) => block_on(calls::list_actions(args)),
+        ActionCommand::List(args) => block_on_value(calls::list_actions(args)),
         ActionCommand::SendGoal(args) => block_on_stream(calls::send_goal(args)),
     }
-}
-
-/// Runs a command that has nothing to finish on Ctrl-C: it ends at once
-/// (exit 130).
-pub(crate) fn block_on<F: Future<Output = Result>>(f: F) -> Result {
-    block_on_value(f)
 }
 
 /// Runs a command that ends itself cleanly on Ctrl-C (a stream stops and
@@ -88,7 +82,8 @@ pub(crate) fn block_on_stream<F: Future<Output = Result>>(f: F) -> Result {
     })
 }
 
-/// Runs a command on a small runtime of its own; Ctrl-C ends it at once.
+/// Runs a command that has nothing to finish on Ctrl-C, on a small runtime
+/// of its own: Ctrl-C ends it at once (exit 130).
 pub(crate) fn block_on_value<T, F: Future<Output = Result<T>>>(f: F) -> Result<T> {
     runtime()?.block_on(async {
         listen_for_interrupts();
@@ -337,11 +332,7 @@ impl Observer {
             .map_err(|e| LaunchError::Setup(format!("cannot query {}: {e}", self.reach.what)))?;
         while let Ok(reply) = replies.recv_async().await {
             let Ok(sample) = reply.result() else { continue };
-            let key = sample.key_expr().as_str();
-            let parsed = InstanceInfo::from_json(&sample.payload().to_bytes())
-                .map_err(|e| e.to_string())
-                .and_then(|info| info.check(&self.reach.namespace, key).map(|()| info));
-            match parsed {
+            match self.description(sample) {
                 Ok(info) => {
                     out.insert(info.instance_id.clone(), info);
                 }
@@ -366,11 +357,19 @@ impl Observer {
         let key = peppy_runtime::wire::keys::describe_key(&self.reach.namespace, core, instance);
         let replies = self.session.get(&key).timeout(self.wait).await.ok()?;
         let reply = replies.recv_async().await.ok()?;
-        let sample = reply.result().ok()?;
-        let info = InstanceInfo::from_json(&sample.payload().to_bytes()).ok()?;
-        info.check(&self.reach.namespace, sample.key_expr().as_str())
-            .ok()?;
-        Some(info)
+        self.description(reply.result().ok()?).ok()
+    }
+
+    /// A description read from a reply and checked against where it came
+    /// from (`InstanceInfo::check`).
+    fn description(
+        &self,
+        sample: &zenoh::sample::Sample,
+    ) -> std::result::Result<InstanceInfo, String> {
+        let info =
+            InstanceInfo::from_json(&sample.payload().to_bytes()).map_err(|e| e.to_string())?;
+        info.check(&self.reach.namespace, sample.key_expr().as_str())?;
+        Ok(info)
     }
 
     /// The descriptions, or an error saying nothing answered.

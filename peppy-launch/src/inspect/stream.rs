@@ -73,6 +73,17 @@ impl TopicArg {
             && self.kind.is_none_or(|k| owner.kind == k)
     }
 
+    /// Every running instance emitting this topic, with its entry.
+    pub(crate) fn emitters<'a>(
+        &self,
+        all: &'a BTreeMap<String, InstanceInfo>,
+    ) -> Vec<(&'a InstanceInfo, &'a EmittedTopic)> {
+        all.values()
+            .flat_map(|i| i.emits.iter().map(move |t| (i, t)))
+            .filter(|(_, t)| self.is(&t.owner, &t.name))
+            .collect()
+    }
+
     /// Whether a consumer's entry receives this topic: its owner is this
     /// topic's (any owner for an external topic).
     pub(crate) fn received_by(&self, consumed: &ConsumedTopic) -> bool {
@@ -108,16 +119,12 @@ pub(crate) struct Selection {
     pub(crate) topic: String,
     /// The key expression to subscribe to.
     pub(crate) selector: String,
-    /// A consumer slot's per-sample filter (`--slot`).
-    pub(crate) filter: Option<RouteFilter>,
-    /// For a node slot on an interface's key: the node whose instances count.
-    pub(crate) members_of: Option<Identity>,
+    /// Through `--slot`: the consumer's entry, whose routing decides.
+    pub(crate) slot: Option<ConsumedTopic>,
     /// `instance -> node` of every running instance.
     pub(crate) nodes: HashMap<String, Identity>,
     /// Formats by fingerprint, from the descriptions.
     pub(crate) formats: HashMap<u64, String>,
-    /// Through `--slot`: the slot's format; other formats are dropped.
-    pub(crate) slot_format: Option<u64>,
     /// Instances whose description was asked for after start.
     asked: std::collections::HashSet<String>,
 }
@@ -131,11 +138,7 @@ impl Selection {
     ) -> Result<Selection> {
         let topic = TopicArg::parse(&args.topic)?;
         let name = topic.name.clone();
-        let emitters: Vec<(&InstanceInfo, &EmittedTopic)> = all
-            .values()
-            .flat_map(|i| i.emits.iter().map(move |t| (i, t)))
-            .filter(|(_, t)| topic.is(&t.owner, &t.name))
-            .collect();
+        let emitters = topic.emitters(all);
         let consumed: Vec<(&InstanceInfo, &ConsumedTopic)> = all
             .values()
             .flat_map(|i| i.consumes.iter().map(move |t| (i, t)))
@@ -187,11 +190,9 @@ impl Selection {
         let mut selection = Selection {
             topic: name.clone(),
             selector: String::new(),
-            filter: None,
-            members_of: None,
+            slot: None,
             nodes,
             formats,
-            slot_format: None,
             asked: Default::default(),
         };
         match &args.slot {
@@ -283,9 +284,7 @@ impl Selection {
             },
             None => t.selector.clone(),
         };
-        self.filter = Some(t.filter.clone());
-        self.members_of = t.members_of.clone();
-        self.slot_format = Some(t.format.fingerprint);
+        self.slot = Some((*t).clone());
         Ok(())
     }
 
@@ -293,24 +292,16 @@ impl Selection {
     /// takes: through `--slot`, only what the slot's routing keeps (its
     /// producer filter, its node's instances, its own format).
     pub(crate) fn keeps(&self, sender: &Sender, fingerprint: Option<u64>) -> bool {
-        if let Some(filter) = &self.filter
-            && !filter.accepts(&sender.instance)
-        {
-            return false;
-        }
-        if self.slot_format.is_some() && fingerprint != self.slot_format {
-            return false;
-        }
-        match &self.members_of {
-            Some(node) => self.nodes.get(&sender.instance) == Some(node),
-            None => true,
-        }
+        self.slot.as_ref().is_none_or(|c| {
+            fingerprint == Some(c.format.fingerprint)
+                && slot_keeps(c, &sender.instance, self.nodes.get(&sender.instance))
+        })
     }
 
     /// Learns the node of a producer that started after the command did,
     /// when the slot keeps only one node's instances (asked once each).
     pub(crate) async fn learn(&mut self, observer: &Observer, sender: &Sender) {
-        if self.members_of.is_none()
+        if self.slot.as_ref().is_none_or(|c| c.members_of.is_none())
             || self.nodes.contains_key(&sender.instance)
             || !self.asked.insert(sender.instance.clone())
         {
@@ -344,19 +335,25 @@ impl Selection {
         // not that format: decoding with it would print wrong values.
         let parsed = text
             .and_then(|t| MessageFormat::from_canonical(&t).ok())
-            .filter(|f| fingerprint_of(f) == fingerprint);
+            .filter(|f| {
+                f.fingerprint() == fingerprint || (fingerprint == 0 && f.fields.is_empty())
+            });
         cache.insert(fingerprint, parsed.clone());
         parsed
     }
 }
 
-/// A format's fingerprint as the runtime sends it: `0` for no payload.
-pub(crate) fn fingerprint_of(format: &MessageFormat) -> u64 {
-    if format.fields.is_empty() {
-        0
-    } else {
-        format.fingerprint()
-    }
+/// Whether a consumer's entry keeps a sample from `producer`, an instance
+/// of `node` (`None`: not known): the slot's producer filter and, for a node
+/// slot on an interface's key, the node. The consumer side's per-sample
+/// routing (docs/WIRE.md section 1), shared by `--slot` and `graph --live`.
+pub(crate) fn slot_keeps(
+    consumed: &ConsumedTopic,
+    producer: &str,
+    node: Option<&Identity>,
+) -> bool {
+    consumed.filter.accepts(producer)
+        && consumed.members_of.as_ref().is_none_or(|m| node == Some(m))
 }
 
 /// A slot filter, for people.

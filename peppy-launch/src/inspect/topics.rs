@@ -238,11 +238,7 @@ struct PubTarget {
 fn pub_target(args: &PubArgs, ns: &str, all: &BTreeMap<String, InstanceInfo>) -> Result<PubTarget> {
     let topic = TopicArg::parse(&args.topic)?;
     let name = topic.name.clone();
-    let emitters: Vec<(&InstanceInfo, &peppy_runtime::describe::EmittedTopic)> = all
-        .values()
-        .flat_map(|i| i.emits.iter().map(move |t| (i, t)))
-        .filter(|(_, t)| topic.is(&t.owner, &t.name))
-        .collect();
+    let emitters = topic.emitters(all);
     let producers = || {
         emitters
             .iter()

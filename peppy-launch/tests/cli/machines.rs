@@ -3,18 +3,24 @@
 //! (the network-namespace version stands in for two hosts).
 
 use std::io::{BufRead as _, BufReader};
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::Duration;
 
 use crate::seeds::{BUILD_AND_START, Launch, first_frames};
 use crate::support::{peppy_launch, root};
 
+/// A free port below the kernel's ephemeral range (32768 and up), so no
+/// other test's `bind(0)` can take it while the launch builds its nodes.
 fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
+    use std::sync::atomic::{AtomicU16, Ordering};
+    static NEXT: AtomicU16 = AtomicU16::new(0);
+    let base = 20_000 + (std::process::id() % 400) as u16 * 25;
+    loop {
+        let port = base + NEXT.fetch_add(1, Ordering::Relaxed) % 25;
+        if std::net::TcpListener::bind(("127.0.0.1", port)).is_ok() {
+            return port;
+        }
+    }
 }
 
 /// Cameras on `robot`, the reconstruction on `workstation`: the pinned
@@ -149,6 +155,10 @@ fn core_nodes_must_be_chosen_and_show_in_check_and_graph() {
         check.stdout
     );
     assert!(check.stdout.contains("on workstation"), "{}", check.stdout);
+    let json = peppy_launch(&root(), &["check", launcher, "--format", "json"]);
+    let report: serde_json::Value = serde_json::from_str(&json.stdout).unwrap();
+    assert_eq!(report["core_nodes"][0]["listen"][0], "tcp/0.0.0.0:7447");
+    assert_eq!(report["plan"]["instances"][3]["core_node"], "workstation");
     let graph = peppy_launch(&root(), &["graph", launcher]);
     assert!(
         graph.stdout.contains("subgraph \"cluster_robot\""),
@@ -407,28 +417,30 @@ fn the_arm_loop_across_two_hosts_through_a_router() {
     )
     .unwrap();
     let router_at = format!("tcp/{}:7448", crate::netns::HOST_A);
-    let mut router = Command::new("ip")
-        .args([
-            "netns",
-            "exec",
-            &hosts.a,
-            env!("CARGO_BIN_EXE_peppy-launch"),
-        ])
-        .args(["router", "--listen", &router_at])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut first = String::new();
-    BufReader::new(router.stderr.take().unwrap())
-        .read_line(&mut first)
-        .unwrap();
+    // Reaped on any failure from here on, which also frees namespace `a`.
+    let mut router = Reaped(
+        crate::support::peppy_launch_command(&hosts.on(&hosts.a))
+            .args(["router", "--listen", &router_at])
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    let stderr = router.0.stderr.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut first = String::new();
+        let _ = BufReader::new(stderr).read_line(&mut first);
+        let _ = tx.send(first);
+    });
+    let first = rx
+        .recv_timeout(Duration::from_secs(60))
+        .expect("the router says where it listens");
     assert!(
         first.contains("router") && first.contains(&router_at),
         "{first}"
     );
-    let _router = Reaped(router);
 
     let state = tempfile::tempdir().unwrap();
     let env = [("PEPPY_STATE_DIR", state.path())];

@@ -39,16 +39,7 @@ impl Launch {
         extra: &[&str],
         env: &[(&str, &Path)],
     ) -> Launch {
-        let program = env!("CARGO_BIN_EXE_peppy-launch");
-        let mut command = match wrapper.split_first() {
-            Some((first, rest)) => {
-                let mut c = Command::new(first);
-                c.args(rest).arg(program);
-                c
-            }
-            None => Command::new(program),
-        };
-        let mut child = command
+        let mut child = crate::support::peppy_launch_command(wrapper)
             .args(["up", launcher])
             .args(extra)
             .envs(env.iter().copied())

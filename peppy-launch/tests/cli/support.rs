@@ -35,16 +35,7 @@ pub(crate) fn peppy_launch_in(
     args: &[&str],
     env: &[(&str, &Path)],
 ) -> Run {
-    let program = env!("CARGO_BIN_EXE_peppy-launch");
-    let mut command = match wrapper.split_first() {
-        Some((first, rest)) => {
-            let mut c = Command::new(first);
-            c.args(rest).arg(program);
-            c
-        }
-        None => Command::new(program),
-    };
-    let child = command
+    let child = peppy_launch_command(wrapper)
         .args(args)
         .current_dir(dir)
         .env("NO_COLOR", "1")
@@ -64,6 +55,20 @@ pub(crate) fn peppy_launch_in(
         code: status.code().expect("exited normally, not by a signal"),
         stdout: String::from_utf8(stdout).expect("utf-8 stdout"),
         stderr: String::from_utf8(stderr).expect("utf-8 stderr"),
+    }
+}
+
+/// `peppy-launch`, run through `wrapper` (e.g. `ip netns exec NS`), which
+/// must exec into it so that signals reach it.
+pub(crate) fn peppy_launch_command(wrapper: &[&str]) -> Command {
+    let program = env!("CARGO_BIN_EXE_peppy-launch");
+    match wrapper.split_first() {
+        Some((first, rest)) => {
+            let mut c = Command::new(first);
+            c.args(rest).arg(program);
+            c
+        }
+        None => Command::new(program),
     }
 }
 
