@@ -159,12 +159,17 @@ fn binding_edges(
             SlotBinding::FromAnyBound { producers } => producers.iter().collect(),
             SlotBinding::FromAnyUnbound => Vec::new(),
         };
-        let slot_prefix = format!("{} ·", slot.link_id);
         for p in producers {
-            let drawn = picture.edges.iter().any(|e| {
-                &e.from == p && e.to == consumer.instance_id && e.label.starts_with(&slot_prefix)
+            // Drawn already by `topic_edges` when a topic of the slot flows
+            // from `p`.
+            let carries_topic = all.get(p).is_some_and(|producer| {
+                consumer
+                    .consumes
+                    .iter()
+                    .filter(|c| c.slot.as_deref() == Some(slot.link_id.as_str()))
+                    .any(|c| producer.emits.iter().any(|e| routes(c, producer, e)))
             });
-            if !drawn {
+            if !carries_topic {
                 let style = if all.contains_key(p) {
                     EdgeStyle::Solid
                 } else {
