@@ -21,6 +21,37 @@ struct JsonReport<'a> {
     /// The machines, when the launcher places instances on several.
     core_nodes: Vec<&'a peppy_schema::CoreNode>,
     plan: Option<&'a peppy_schema::BindingPlan>,
+    /// With `--security`: whether `up` would run secured, and the policy.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    security: Option<SecurityReport>,
+}
+
+#[derive(Serialize)]
+struct SecurityReport {
+    /// Whether `up` without flags runs this launcher secured.
+    on: bool,
+    /// Why.
+    reason: String,
+    policy: crate::security::policy::Policy,
+}
+
+/// The policy `up` would enforce, for `--security`.
+fn security_report(stack: &StackCheck, args: &CheckArgs) -> SecurityReport {
+    let namespace = args
+        .namespace
+        .clone()
+        .unwrap_or_else(|| crate::up::default_namespace(&args.launcher));
+    let decision = crate::security::decide(&stack.launcher, &[], &[], false);
+    SecurityReport {
+        on: decision.on,
+        reason: decision.reason,
+        policy: crate::security::policy::derive(stack, &namespace, &|inst| {
+            stack
+                .launcher
+                .core_node_of(inst.core_node.as_deref())
+                .map(str::to_string)
+        }),
+    }
 }
 
 pub(crate) fn run(args: &CheckArgs) -> Result {
@@ -50,13 +81,27 @@ pub(crate) fn run(args: &CheckArgs) -> Result {
                 .map(|s| s.launcher.core_nodes.iter().collect())
                 .unwrap_or_default(),
             plan: stack.map(|s| &s.plan),
+            security: stack
+                .filter(|_| args.security)
+                .map(|s| security_report(s, args)),
         }),
         Format::Human => {
             if !diags.is_empty() {
                 report::print_human(&diags);
             }
             match stack {
-                Some(stack) => print!("{}", render_plan(stack)),
+                Some(stack) => {
+                    print!("{}", render_plan(stack));
+                    if args.security {
+                        let report = security_report(stack, args);
+                        println!(
+                            "\nsecurity: {} under `up` ({}; `security: true|false` in the launcher or `up --insecure` decide otherwise)",
+                            if report.on { "on" } else { "off" },
+                            report.reason
+                        );
+                        print!("{}", report.policy.table());
+                    }
+                }
                 None => summary(&diags),
             }
         }

@@ -340,6 +340,14 @@ pub(crate) struct CheckArgs {
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Human)]
     pub(crate) format: Format,
+    /// Also print the access policy `up` would enforce with security on:
+    /// per instance, what it may emit, serve, receive and call.
+    #[arg(long)]
+    pub(crate) security: bool,
+    /// The namespace the policy's keys are under (default: the one `up`
+    /// derives).
+    #[arg(long, value_name = "NS")]
+    pub(crate) namespace: Option<String>,
 }
 
 #[derive(Debug, Args)]
@@ -376,6 +384,11 @@ pub(crate) struct UpArgs {
     /// each instance still named by its core node (for development).
     #[arg(long)]
     pub(crate) local: bool,
+    /// Run without security even where it would be on (a router reachable
+    /// beyond loopback): any process that reaches the router can then read
+    /// and write every topic of the stack.
+    #[arg(long)]
+    pub(crate) insecure: bool,
 }
 
 #[derive(Debug, Args)]

@@ -3,13 +3,12 @@
 
 use std::path::Path;
 
-use peppy_schema::{
-    NodeDoc, Producer, RepoOptions, SlotBinding, SlotKind, StackCheck, check_launcher, conformances,
-};
+use peppy_schema::{RepoOptions, SlotBinding, StackCheck, check_launcher};
 
 use crate::cli::GraphArgs;
 use crate::drawing::{self, DrawEdge, DrawNode, Drawing, EdgeStyle, NodeState};
 use crate::error::{LaunchError, Result};
+use crate::flows;
 use crate::report;
 
 pub(crate) fn run(args: &GraphArgs) -> Result {
@@ -108,16 +107,6 @@ fn write(path: &Path, format: Format, picture: &Drawing) -> Result {
     Ok(())
 }
 
-/// Whether `producer` can fill a slot: the binding engine's rule.
-fn fills(kind: SlotKind, target: &peppy_schema::Identity, producer: &NodeDoc) -> bool {
-    let conforms = conformances(producer);
-    Producer {
-        node: &producer.identity(),
-        conforms_to: &conforms,
-    }
-    .fits(kind, target)
-}
-
 /// The checked stack as a drawing. Instances are boxes; pinned and bound
 /// edges are solid and labelled with the slot; unbound `from_any` slots get
 /// dashed `(any)` edges from every instance they would take (or from an
@@ -158,14 +147,6 @@ pub(crate) fn drawing(stack: &StackCheck) -> Drawing {
     picture
 }
 
-/// The resolved node of an instance.
-fn node_of<'a>(stack: &'a StackCheck, id: &str) -> Option<&'a peppy_schema::ResolvedNode> {
-    stack
-        .plan
-        .instance(id)
-        .map(|i| &stack.deployments[i.deployment].resolved)
-}
-
 fn slot_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &mut Drawing) {
     let consumer = &inst.instance_id;
     for slot in &inst.slots {
@@ -182,18 +163,7 @@ fn slot_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &m
                 }
             }
             SlotBinding::FromAnyUnbound => {
-                let takers: Vec<&str> = stack
-                    .plan
-                    .instances
-                    .iter()
-                    .filter(|p| p.instance_id != inst.instance_id)
-                    .filter(|p| {
-                        node_of(stack, &p.instance_id)
-                            .is_some_and(|r| fills(slot.kind, &slot.target, &r.node))
-                    })
-                    .filter(|p| slot.filter.accepts(&p.instance_id))
-                    .map(|p| p.instance_id.as_str())
-                    .collect();
+                let takers = flows::slot_producers(stack, inst, slot);
                 let label = format!("{} (any)", slot.link_id);
                 if takers.is_empty() {
                     let any = format!("{}.{}.any", inst.instance_id, slot.link_id);
@@ -208,7 +178,7 @@ fn slot_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &m
                         .edges
                         .push(edge(&any, consumer, &label, EdgeStyle::Dashed));
                 }
-                for p in takers {
+                for p in &takers {
                     picture
                         .edges
                         .push(edge(p, consumer, &label, EdgeStyle::Dashed));
@@ -219,21 +189,22 @@ fn slot_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &m
 }
 
 fn external_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &mut Drawing) {
-    let Some(resolved) = node_of(stack, &inst.instance_id) else {
+    let Some(resolved) = flows::node_of(stack, &inst.instance_id) else {
         return;
     };
     for topic in resolved.consumed_topics.iter().filter(|t| t.slot.is_none()) {
-        for p in &stack.plan.instances {
-            let emits = node_of(stack, &p.instance_id)
-                .is_some_and(|r| r.emitted_topics.iter().any(|e| e.decl.name == topic.name));
-            if emits && p.instance_id != inst.instance_id {
-                picture.edges.push(edge(
-                    &p.instance_id,
-                    &inst.instance_id,
-                    &format!("{} (external)", topic.name),
-                    EdgeStyle::Dotted,
-                ));
-            }
+        let mut emitters: Vec<String> = flows::external_emitters(stack, inst, &topic.name)
+            .into_iter()
+            .map(|(p, _)| p)
+            .collect();
+        emitters.dedup();
+        for p in emitters {
+            picture.edges.push(edge(
+                &p,
+                &inst.instance_id,
+                &format!("{} (external)", topic.name),
+                EdgeStyle::Dotted,
+            ));
         }
     }
 }

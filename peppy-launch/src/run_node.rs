@@ -82,7 +82,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
         // machine hosts it, later ones connect to it.
         let mut _hub = None;
         config.zenoh.connect = if args.connect.is_empty() {
-            if let Ok(session) = open_router(&[LOCAL_HUB.to_string()], &[], false).await {
+            if let Ok(session) = open_router(&[LOCAL_HUB.to_string()], &[], false, None).await {
                 _hub = Some(session);
             }
             vec![LOCAL_HUB.to_string()]
@@ -107,6 +107,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             run_dir: run_dir.clone(),
             started_at_ms: runs::now_ms(),
             instances: vec![(config.instance_id.clone(), doc.identity().to_string())],
+            login: None,
         };
         let _registration = runs::register(&record).map_err(|e| out.note(&e)).ok();
         let planned = Planned {

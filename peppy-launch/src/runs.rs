@@ -47,6 +47,10 @@ pub(crate) struct LaunchRecord {
     pub(crate) started_at_ms: u64,
     /// Instance ids with their node `name:tag`, in start order.
     pub(crate) instances: Vec<(String, String)>,
+    /// With security on: the login of the launching user's tools (which is
+    /// why records are readable by that user only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) login: Option<peppy_runtime::Login>,
 }
 
 impl LaunchRecord {
@@ -116,8 +120,15 @@ fn same_file(file: &std::fs::File, path: &Path) -> bool {
 /// reader never sees half a record; returns the written file, still open.
 fn write_whole(path: &Path, text: &[u8], lock: bool) -> std::io::Result<std::fs::File> {
     use std::io::Write as _;
+    use std::os::unix::fs::OpenOptionsExt as _;
     let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-    let mut file = std::fs::File::create(&tmp)?;
+    let _ = std::fs::remove_file(&tmp);
+    // A secured launch's record holds its tools' password.
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(&tmp)?;
     file.write_all(text)?;
     if lock && !try_lock(&file) {
         return Err(std::io::Error::other("the registry entry is locked"));
@@ -471,6 +482,7 @@ mod tests {
             run_dir: run_dir.path().into(),
             started_at_ms: 1,
             instances: vec![("a".into(), "n:v1".into())],
+            login: None,
         };
         let registration = register(&record).unwrap();
         assert_eq!(running(), vec![record.clone()]);

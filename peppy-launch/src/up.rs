@@ -93,7 +93,7 @@ pub(crate) fn router(args: &crate::cli::RouterArgs) -> Outcome {
         .build()
         .map_err(|e| LaunchError::Setup(format!("cannot start the tokio runtime: {e}")))?;
     runtime.block_on(async {
-        let router = open_router(&args.listen, &args.connect, true)
+        let router = open_router(&args.listen, &args.connect, true, None)
             .await
             .map_err(LaunchError::Setup)?;
         let stop = interrupts_from_now();
@@ -123,6 +123,7 @@ pub(crate) async fn open_router(
     listen: &[String],
     connect: &[String],
     linked: bool,
+    guard: Option<&crate::security::RouterGuard>,
 ) -> Result<zenoh::Session, String> {
     let mut config = zenoh::Config::default();
     let set = |c: &mut zenoh::Config, k: &str, v: serde_json::Value| {
@@ -142,12 +143,73 @@ pub(crate) async fn open_router(
             LINKED_LEASE_MS.into(),
         )?;
     }
+    if let Some(guard) = guard {
+        guard.apply(&mut config)?;
+    }
     zenoh::open(config)
         .await
         .map_err(|e| format!("cannot open the launch's zenoh router on {listen:?}: {e}"))
 }
 
 type Outcome = crate::error::Result;
+
+/// A secured launch's credentials and its router's guard.
+struct Secured {
+    secrets: crate::security::Secrets,
+    guard: crate::security::RouterGuard,
+}
+
+/// Generates this launch's credentials, writes the router's dictionary and
+/// the policy (for reviewers) into the run directory, and starts reporting
+/// what the router refuses.
+fn secure(
+    stack: &StackCheck,
+    share: &placement::Share,
+    namespace: &str,
+    run_dir: &Path,
+    out: Arc<Output>,
+) -> Result<Secured, LaunchError> {
+    use crate::security::{Secrets, denials, policy, write_private};
+    let setup = |what: &str, e: std::io::Error| LaunchError::Setup(format!("{what}: {e}"));
+    let secrets = Secrets::generate(
+        share
+            .instances
+            .iter()
+            .map(|&i| stack.plan.instances[i].instance_id.as_str()),
+    )
+    .map_err(|e| setup("cannot generate credentials", e))?;
+    let policy = policy::derive(stack, namespace, &|inst| {
+        Some(
+            stack
+                .launcher
+                .core_node_of(inst.core_node.as_deref())
+                .map_or_else(|| share.name.clone(), str::to_string),
+        )
+    });
+    let dictionary = run_dir.join("router.users");
+    write_private(&dictionary, secrets.dictionary(&[]).as_bytes())
+        .map_err(|e| setup(&format!("cannot write {}", dictionary.display()), e))?;
+    let access_control = policy.access_control(&[]);
+    let policy_file = run_dir.join("policy.json");
+    std::fs::write(
+        &policy_file,
+        serde_json::to_vec_pretty(&serde_json::json!({
+            "policy": &policy,
+            "access_control": &access_control,
+        }))
+        .unwrap_or_default(),
+    )
+    .map_err(|e| setup(&format!("cannot write {}", policy_file.display()), e))?;
+    denials::listen(Arc::new(move |d: &denials::Denial| out.note(&d.message())));
+    Ok(Secured {
+        secrets,
+        guard: crate::security::RouterGuard {
+            access_control,
+            dictionary,
+            login: None,
+        },
+    })
+}
 
 /// Builds every deployed node once, in its directory (output is shown only
 /// when a build fails), and returns the argv that starts each node.
@@ -254,10 +316,35 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     } else {
         share.listen.clone()
     };
+    let decision = crate::security::decide(&stack.launcher, &listen, &share.connect, args.insecure);
+    let secured = if decision.on {
+        Some(secure(&stack, &share, &namespace, &run_dir, out.clone())?)
+    } else {
+        None
+    };
+    if decision.on {
+        out.note(&format!(
+            "security on ({}): each instance may only publish its own topics and receive and call what its bindings name; `check --security` shows the policy",
+            decision.reason
+        ));
+    } else if args.insecure
+        || matches!(stack.launcher.security, Some((false, _)))
+        || !listen
+            .iter()
+            .chain(&share.connect)
+            .all(|e| crate::security::is_loopback(e))
+    {
+        out.note(&format!(
+            "WARNING: security is OFF ({}): any process that reaches {} can read and write every topic of this stack and answer its services",
+            decision.reason,
+            listen.join(", ")
+        ));
+    }
     let router = open_router(
         &listen,
         &share.connect,
         !stack.launcher.core_nodes.is_empty(),
+        secured.as_ref().map(|s| &s.guard),
     )
     .await
     .map_err(LaunchError::Setup)?;
@@ -328,11 +415,17 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
                         .map(|s| (s.link_id.clone(), s.binding.clone()))
                         .collect::<BTreeMap<_, _>>(),
                     parameters: inst.parameters.clone(),
+                    // Secured, every instance is a client of the router,
+                    // which checks everything it sends and receives; a peer
+                    // would link to other peers directly, past the router.
                     zenoh: Endpoints {
-                        mode: None,
+                        mode: secured.as_ref().map(|_| "client".to_string()),
                         listen: Vec::new(),
                         connect: node_connect.clone(),
                         multicast_scouting: false,
+                        login: secured
+                            .as_ref()
+                            .and_then(|s| s.secrets.instances.get(&inst.instance_id).cloned()),
                     },
                 },
                 node: node.identity().to_string(),
@@ -357,6 +450,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
             .flatten()
             .map(|p| (p.config.instance_id.clone(), p.node.clone()))
             .collect(),
+        login: secured.as_ref().map(|s| s.secrets.operator.clone()),
     };
     let _registration = runs::register(&record).map_err(|e| out.note(&e)).ok();
     let code = if planned.is_empty() {
@@ -417,9 +511,10 @@ pub(crate) async fn run_instances(
         };
         let id = p.config.instance_id.clone();
         let config_path = run_dir.join(format!("{id}.json"));
-        if let Err(e) = std::fs::write(
+        // It may hold the instance's password: readable by this user only.
+        if let Err(e) = crate::security::write_private(
             &config_path,
-            serde_json::to_vec_pretty(&p.config).unwrap_or_default(),
+            &serde_json::to_vec_pretty(&p.config).unwrap_or_default(),
         ) {
             start_failure = Some(format!("cannot write {}: {e}", config_path.display()));
             break;

@@ -53,7 +53,7 @@ pub use node::{NodeBuilder, NodeRunner};
 pub use peppy_schema::QosProfile as QoSProfile;
 pub use services::{Caller, Reply};
 pub use startup::{
-    DEFAULT_NAMESPACE, Endpoints, RUNTIME_CONFIG_ENV, STANDALONE_CORE, StandaloneConfig,
+    DEFAULT_NAMESPACE, Endpoints, Login, RUNTIME_CONFIG_ENV, STANDALONE_CORE, StandaloneConfig,
     StartupConfig, startup_from_flags,
 };
 pub use tokio_util::sync::CancellationToken;

@@ -45,6 +45,10 @@ pub struct LauncherDoc {
     pub core_nodes: Vec<CoreNode>,
     /// `deployments`, in order.
     pub deployments: Vec<Deployment>,
+    /// `security`: `true` or `false` as written, with where; `None` lets
+    /// the launch decide (on as soon as a router is reachable beyond
+    /// loopback).
+    pub security: Option<(bool, Loc)>,
 }
 
 /// One node and its instances.
@@ -181,11 +185,19 @@ pub(crate) fn parse_launcher(
     cross_check: bool,
 ) -> Option<LauncherDoc> {
     let mut r = Reader::new(file, diags);
-    let obj = r.object(root, "", &["peppy_schema", "core_nodes", "deployments"])?;
+    let obj = r.object(
+        root,
+        "",
+        &["peppy_schema", "core_nodes", "security", "deployments"],
+    )?;
     let core_nodes = obj
         .get("core_nodes")
         .map(|n| crate::core_nodes::parse_core_nodes(&mut r, n))
         .unwrap_or_default();
+    let security = obj.get("security").and_then(|n| {
+        r.bool(n, "security")
+            .map(|on| (on, r.loc(n.span, "security")))
+    });
     let list_node = r.required(&obj, "deployments")?;
     let items = r.array(list_node, "deployments")?;
     if items.is_empty() {
@@ -209,6 +221,7 @@ pub(crate) fn parse_launcher(
         file: file.clone(),
         core_nodes,
         deployments,
+        security,
     };
     if cross_check {
         r.diags.extend(stack_rules(&doc));

@@ -139,6 +139,8 @@ pub(crate) struct Reach {
     /// The instances its launch started (`instance`, `node`), when it was
     /// found through a launch record.
     pub(crate) expected: Vec<(String, String)>,
+    /// The tools' login of a secured stack, from its launch record.
+    pub(crate) login: Option<peppy_runtime::Login>,
 }
 
 /// Decides which stack the command looks at (see [`StackArgs`]).
@@ -158,6 +160,7 @@ pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach>
             namespace,
             connect: args.connect.clone(),
             expected: Vec::new(),
+            login: None,
         });
     }
     let matching: Vec<&LaunchRecord> = running
@@ -194,6 +197,7 @@ pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach>
                 namespace,
                 connect: vec![LOCAL_HUB.to_string()],
                 expected: Vec::new(),
+                login: None,
             })
         }
         (several, None) => Err(LaunchError::Usage(format!(
@@ -231,6 +235,7 @@ fn reach_of(launches: &[&LaunchRecord]) -> Reach {
             .iter()
             .flat_map(|r| r.instances.iter().cloned())
             .collect(),
+        login: launches.iter().find_map(|r| r.login.clone()),
         what,
     }
 }
@@ -255,6 +260,7 @@ impl Observer {
             listen: Vec::new(),
             connect: reach.connect.clone(),
             multicast_scouting: false,
+            login: reach.login.clone(),
         }
         .zenoh_config()
         .map_err(|e| LaunchError::Usage(e.to_string()))?;
@@ -264,6 +270,8 @@ impl Observer {
                 reach.what,
                 if reach.connect == [LOCAL_HUB] {
                     " (no launch is registered on this machine and nothing listens there)"
+                } else if reach.login.is_none() {
+                    " (a stack with security on admits only its launch's tools: run this on a machine of the stack, as the user who launched it)"
                 } else {
                     ""
                 }
@@ -438,6 +446,7 @@ mod tests {
             run_dir: "/tmp".into(),
             started_at_ms: 0,
             instances: Vec::new(),
+            login: None,
         }
     }
 

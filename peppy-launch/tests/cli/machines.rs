@@ -11,7 +11,7 @@ use crate::support::{peppy_launch, root};
 
 /// A free port below the kernel's ephemeral range (32768 and up), so no
 /// other test's `bind(0)` can take it while the launch builds its nodes.
-fn free_port() -> u16 {
+pub(crate) fn free_port() -> u16 {
     use std::sync::atomic::{AtomicU16, Ordering};
     static NEXT: AtomicU16 = AtomicU16::new(0);
     let base = 20_000 + (std::process::id() % 400) as u16 * 25;

@@ -5,6 +5,7 @@ mod check;
 mod inspect;
 mod machines;
 mod netns;
+mod security;
 mod seeds;
 mod support;
 mod up;

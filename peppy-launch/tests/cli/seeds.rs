@@ -297,6 +297,13 @@ fn simulated_cameras_swap_in_without_consumer_changes() {
 #[test]
 fn robot_arm_loop_runs_both_ways() {
     let mut launch = Launch::up("examples/launchers/robot_arm_loop.json5", &[]);
+    arm_loop_runs(&mut launch);
+    assert_eq!(launch.stop(), 0);
+}
+
+/// What the arm loop prints when it works: the homing action, then both
+/// topic directions.
+pub(crate) fn arm_loop_runs(launch: &mut Launch) {
     // First the controller homes the arm with its move_arm action: goal,
     // feedback, result.
     launch.expect("with the homing goal", BUILD_AND_START, |l| {
@@ -316,7 +323,6 @@ fn robot_arm_loop_runs_both_ways() {
         Duration::from_secs(30),
         |l| l.starts_with("[arm]") && l.contains("command 40 from controller"),
     );
-    assert_eq!(launch.stop(), 0);
 }
 
 /// SPEC 6.4 with real nodes: a producer that crashes under `on-failure` is

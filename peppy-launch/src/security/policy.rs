@@ -1,0 +1,597 @@
+//! The access policy of a stack, derived from its binding plan: for every
+//! instance, the keys it may publish and serve (its own), and the keys it
+//! may receive and call (what its slots are bound to, and the emitters of
+//! its external topics). The router enforces it as Zenoh access control
+//! ([`Policy::access_control`]); `check --security` prints it.
+
+use std::collections::BTreeSet;
+
+use peppy_runtime::wire::keys::{Channel, Owner, entry_key, entry_selector};
+use peppy_schema::{InstancePlan, Origin, StackCheck};
+use serde::Serialize;
+use serde_json::{Value as Json, json};
+
+use crate::flows;
+
+/// What every instance of a stack may do on the wire.
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct Policy {
+    /// The namespace every key is under.
+    pub(crate) namespace: String,
+    /// One entry per instance, in launcher order.
+    pub(crate) instances: Vec<InstancePolicy>,
+}
+
+/// One instance's grants.
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct InstancePolicy {
+    /// The instance, which is also its Zenoh user name.
+    pub(crate) instance_id: String,
+    /// The core node it runs on (`*` when only the launch names it).
+    pub(crate) core_node: String,
+    /// Topics (and action feedback) it publishes: its own keys.
+    pub(crate) emits: Vec<Grant>,
+    /// Services and actions it answers: its own keys.
+    pub(crate) serves: Vec<Grant>,
+    /// Topics it receives, per slot or external topic, from whom.
+    pub(crate) receives: Vec<Grant>,
+    /// Services and actions it calls, per slot, on whom.
+    pub(crate) calls: Vec<Grant>,
+}
+
+/// One line of a policy: an entry, who is on the other side, and the exact
+/// keys that carries.
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct Grant {
+    /// `topic video_stream`, `service video_stream_info`, `action move_arm`.
+    pub(crate) entry: String,
+    /// The slot it goes through (`None`: the instance's own entry, or an
+    /// external topic).
+    pub(crate) slot: Option<String>,
+    /// The instances on the other side (empty for own entries).
+    pub(crate) peers: Vec<String>,
+    /// The keys (and key expressions) allowed.
+    pub(crate) keys: Vec<String>,
+    /// The wider key expressions the instance may declare a subscriber or
+    /// send a discovery probe on; what comes back is still limited to
+    /// `keys`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub(crate) selectors: Vec<String>,
+}
+
+/// Derives the policy of `stack` in `namespace`. `core_of(instance)` is the
+/// core node an instance runs on, `None` when only the launch will name it.
+pub(crate) fn derive(
+    stack: &StackCheck,
+    namespace: &str,
+    core_of: &dyn Fn(&InstancePlan) -> Option<String>,
+) -> Policy {
+    let core = |inst: &InstancePlan| core_of(inst).unwrap_or_else(|| "*".into());
+    let core_by_id = |id: &str| {
+        stack
+            .plan
+            .instance(id)
+            .map_or_else(|| "*".to_string(), core)
+    };
+    let instances = stack
+        .plan
+        .instances
+        .iter()
+        .map(|inst| {
+            let resolved = &stack.deployments[inst.deployment].resolved;
+            let me = inst.instance_id.as_str();
+            let my_core = core(inst);
+            let mut emits = Vec::new();
+            for t in &resolved.emitted_topics {
+                emits.push(own(
+                    format!("topic {}", t.decl.name),
+                    vec![entry_key(
+                        namespace,
+                        Channel::Topic,
+                        &owner(&t.origin),
+                        &t.decl.name,
+                        &my_core,
+                        me,
+                    )],
+                ));
+            }
+            let mut serves = Vec::new();
+            for s in &resolved.exposed_services {
+                serves.push(own(
+                    format!("service {}", s.decl.name),
+                    vec![entry_key(
+                        namespace,
+                        Channel::Service,
+                        &owner(&s.origin),
+                        &s.decl.name,
+                        &my_core,
+                        me,
+                    )],
+                ));
+            }
+            for a in &resolved.exposed_actions {
+                let base = entry_key(
+                    namespace,
+                    Channel::Action,
+                    &owner(&a.origin),
+                    &a.decl.name,
+                    &my_core,
+                    me,
+                );
+                serves.push(own(
+                    format!("action {}", a.decl.name),
+                    vec![format!("{base}/*")],
+                ));
+                if a.decl.feedback.is_some() {
+                    emits.push(own(
+                        format!("action {} feedback", a.decl.name),
+                        vec![format!("{base}/feedback/*")],
+                    ));
+                }
+            }
+
+            let mut receives = Vec::new();
+            for t in &resolved.consumed_topics {
+                match (&t.slot, &t.origin) {
+                    (Some(slot), Some(origin)) => {
+                        let peers = inst
+                            .slots
+                            .iter()
+                            .find(|s| s.link_id == slot.link_id)
+                            .map(|s| flows::slot_producers(stack, inst, s))
+                            .unwrap_or_default();
+                        let o = owner(origin);
+                        receives.push(Grant {
+                            entry: format!("topic {}", t.name),
+                            slot: Some(slot.link_id.clone()),
+                            keys: peers
+                                .iter()
+                                .map(|p| {
+                                    entry_key(
+                                        namespace,
+                                        Channel::Topic,
+                                        &o,
+                                        &t.name,
+                                        &core_by_id(p),
+                                        p,
+                                    )
+                                })
+                                .collect(),
+                            selectors: vec![entry_selector(
+                                namespace,
+                                Channel::Topic,
+                                Some(&o),
+                                &t.name,
+                                None,
+                                None,
+                            )],
+                            peers,
+                        });
+                    }
+                    _ => {
+                        let emitters = flows::external_emitters(stack, inst, &t.name);
+                        receives.push(Grant {
+                            entry: format!("topic {}", t.name),
+                            slot: None,
+                            keys: emitters
+                                .iter()
+                                .map(|(p, origin)| {
+                                    entry_key(
+                                        namespace,
+                                        Channel::Topic,
+                                        &owner(origin),
+                                        &t.name,
+                                        &core_by_id(p),
+                                        p,
+                                    )
+                                })
+                                .collect(),
+                            selectors: vec![entry_selector(
+                                namespace,
+                                Channel::Topic,
+                                None,
+                                &t.name,
+                                None,
+                                None,
+                            )],
+                            peers: emitters.into_iter().map(|(p, _)| p).collect(),
+                        });
+                    }
+                }
+            }
+
+            let mut calls = Vec::new();
+            let services = resolved
+                .consumed_services
+                .iter()
+                .map(|c| (Channel::Service, &c.slot, &c.origin, &c.decl.name, false));
+            let actions = resolved.consumed_actions.iter().map(|c| {
+                (
+                    Channel::Action,
+                    &c.slot,
+                    &c.origin,
+                    &c.decl.name,
+                    c.decl.feedback.is_some(),
+                )
+            });
+            for (channel, slot, origin, name, feedback) in services.chain(actions) {
+                let peers = inst
+                    .slots
+                    .iter()
+                    .find(|s| s.link_id == slot.link_id)
+                    .map(|s| flows::slot_producers(stack, inst, s))
+                    .unwrap_or_default();
+                let o = owner(origin);
+                let at = |p: &str| entry_key(namespace, channel, &o, name, &core_by_id(p), p);
+                let any = entry_selector(namespace, channel, Some(&o), name, None, None);
+                let (kind, keys, selectors) = match channel {
+                    Channel::Action => {
+                        let mut keys: Vec<String> =
+                            peers.iter().map(|p| format!("{}/*", at(p))).collect();
+                        let mut selectors = vec![format!("{any}/*")];
+                        if feedback {
+                            keys.extend(peers.iter().map(|p| format!("{}/feedback/*", at(p))));
+                            selectors.push(format!("{any}/feedback/*"));
+                        }
+                        ("action", keys, selectors)
+                    }
+                    _ => ("service", peers.iter().map(|p| at(p)).collect(), vec![any]),
+                };
+                calls.push(Grant {
+                    entry: format!("{kind} {name}"),
+                    slot: Some(slot.link_id.clone()),
+                    peers,
+                    keys,
+                    selectors,
+                });
+            }
+            InstancePolicy {
+                instance_id: me.to_string(),
+                core_node: my_core,
+                emits,
+                serves,
+                receives,
+                calls,
+            }
+        })
+        .collect();
+    Policy {
+        namespace: namespace.to_string(),
+        instances,
+    }
+}
+
+fn own(entry: String, keys: Vec<String>) -> Grant {
+    Grant {
+        entry,
+        slot: None,
+        peers: Vec::new(),
+        keys,
+        selectors: Vec::new(),
+    }
+}
+
+fn owner(origin: &Origin) -> Owner<'_> {
+    match origin {
+        Origin::Node(id) => Owner::Node {
+            name: &id.name,
+            tag: &id.tag,
+        },
+        Origin::Interface(id) => Owner::Interface {
+            name: &id.name,
+            tag: &id.tag,
+        },
+    }
+}
+
+/// The Zenoh user name of the operator: the launching user's own tools
+/// (`topic echo`, `service call`, ...), which may do anything in the
+/// stack's namespace.
+pub(crate) const OPERATOR: &str = "peppy-operator";
+
+impl Policy {
+    /// Zenoh's `access_control` configuration enforcing this policy on a
+    /// router: deny by default; each instance (by user name) gets its
+    /// grants; the operator everything in the namespace; the other core
+    /// nodes' routers (`routers`: their user names) everything, since each
+    /// router enforces its own instances.
+    pub(crate) fn access_control(&self, routers: &[String]) -> Json {
+        let ns = &self.namespace;
+        let mut rules = vec![
+            // What every instance needs whatever its bindings: to see who
+            // is alive (node slots on an interface's key, probes), to ask a
+            // producer for the text of a format that differs from its own,
+            // and to learn where subscribers and queryables are (declarations
+            // carry no data).
+            rule(
+                "any.live",
+                "ingress",
+                &["declare_liveliness_subscriber", "liveliness_query"],
+                &[format!("peppy/{ns}/live/**")],
+            ),
+            rule(
+                "any.live.in",
+                "egress",
+                &["liveliness_token", "reply"],
+                &[format!("peppy/{ns}/**")],
+            ),
+            rule(
+                "any.format",
+                "ingress",
+                &["query"],
+                &[format!("peppy/{ns}/format/*/*")],
+            ),
+            rule(
+                "any.format.in",
+                "egress",
+                &["reply"],
+                &[format!("peppy/{ns}/format/*/*")],
+            ),
+            rule(
+                "any.declarations",
+                "egress",
+                &["declare_subscriber", "declare_queryable"],
+                &[format!("peppy/{ns}/**")],
+            ),
+            rule(
+                "everything",
+                "both",
+                &ALL_MESSAGES,
+                &[format!("peppy/{ns}/**")],
+            ),
+            rule("links", "both", &ALL_MESSAGES, &["**".to_string()]),
+        ];
+        let mut subjects = vec![json!({ "id": "operator", "usernames": [OPERATOR] })];
+        let mut policies =
+            vec![json!({ "id": "operator", "rules": ["everything"], "subjects": ["operator"] })];
+        if !routers.is_empty() {
+            subjects.push(json!({ "id": "routers", "usernames": routers }));
+            policies.push(json!({ "id": "routers", "rules": ["links"], "subjects": ["routers"] }));
+        }
+        for inst in &self.instances {
+            let id = &inst.instance_id;
+            let mut mine = vec![
+                "any.live".to_string(),
+                "any.live.in".to_string(),
+                "any.format".to_string(),
+                "any.format.in".to_string(),
+                "any.declarations".to_string(),
+            ];
+            let mut add = |suffix: &str, flow: &str, messages: &[&str], keys: Vec<String>| {
+                if keys.is_empty() {
+                    return;
+                }
+                let rule_id = format!("{id}.{suffix}");
+                rules.push(rule(&rule_id, flow, messages, &keys));
+                mine.push(rule_id);
+            };
+            let core = &inst.core_node;
+            add(
+                "self",
+                "ingress",
+                &["liveliness_token"],
+                vec![format!("peppy/{ns}/live/{core}/{id}/*/*")],
+            );
+            add(
+                "self.answers",
+                "ingress",
+                &["declare_queryable", "reply"],
+                vec![
+                    format!("peppy/{ns}/format/*/{id}"),
+                    format!("peppy/{ns}/describe/{core}/{id}"),
+                ],
+            );
+            add(
+                "self.asked",
+                "egress",
+                &["query"],
+                vec![
+                    format!("peppy/{ns}/format/*/{id}"),
+                    format!("peppy/{ns}/describe/**"),
+                ],
+            );
+            add("emits", "ingress", &["put", "delete"], keys_of(&inst.emits));
+            add(
+                "serves",
+                "ingress",
+                &["declare_queryable", "reply"],
+                keys_of(&inst.serves),
+            );
+            // Probes name no server: a server takes queries on any key
+            // expression that includes its own.
+            add(
+                "serves.asked",
+                "egress",
+                &["query"],
+                inst.serves
+                    .iter()
+                    .flat_map(|g| g.keys.iter().map(|k| widen(k)))
+                    .collect(),
+            );
+            add(
+                "receives.subscribe",
+                "ingress",
+                &["declare_subscriber"],
+                selectors_of(&inst.receives),
+            );
+            add(
+                "receives",
+                "egress",
+                &["put", "delete"],
+                keys_of(&inst.receives),
+            );
+            add(
+                "calls",
+                "ingress",
+                &["query", "declare_subscriber"],
+                inst.calls
+                    .iter()
+                    .flat_map(|g| g.keys.iter().chain(&g.selectors).cloned())
+                    .collect::<BTreeSet<_>>()
+                    .into_iter()
+                    .collect(),
+            );
+            add(
+                "calls.answers",
+                "egress",
+                &["reply", "put"],
+                keys_of(&inst.calls),
+            );
+            subjects.push(json!({ "id": id, "usernames": [id] }));
+            policies.push(json!({ "id": id, "rules": mine, "subjects": [id] }));
+        }
+        json!({
+            "enabled": true,
+            "default_permission": "deny",
+            "rules": rules,
+            "subjects": subjects,
+            "policies": policies,
+        })
+    }
+}
+
+const ALL_MESSAGES: [&str; 9] = [
+    "put",
+    "delete",
+    "declare_subscriber",
+    "query",
+    "declare_queryable",
+    "reply",
+    "liveliness_token",
+    "declare_liveliness_subscriber",
+    "liveliness_query",
+];
+
+fn rule(id: &str, flow: &str, messages: &[&str], keys: &[String]) -> Json {
+    let flows = match flow {
+        "both" => json!(["ingress", "egress"]),
+        one => json!([one]),
+    };
+    json!({
+        "id": id,
+        "key_exprs": keys,
+        "messages": messages,
+        "flows": flows,
+        "permission": "allow",
+    })
+}
+
+fn keys_of(grants: &[Grant]) -> Vec<String> {
+    grants
+        .iter()
+        .flat_map(|g| g.keys.iter().cloned())
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect()
+}
+
+fn selectors_of(grants: &[Grant]) -> Vec<String> {
+    grants
+        .iter()
+        .flat_map(|g| g.selectors.iter().cloned())
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect()
+}
+
+/// `peppy/ns/service/<owner...>/<entry>/<core>/<instance>[/*]` with the
+/// core and instance segments made wild: what a probe asks.
+fn widen(key: &str) -> String {
+    let (base, part) = match key.strip_suffix("/*") {
+        Some(base) => (base, "/*"),
+        None => (key, ""),
+    };
+    let mut segments: Vec<&str> = base.split('/').collect();
+    let n = segments.len();
+    if n >= 2 {
+        segments[n - 2] = "*";
+        segments[n - 1] = "*";
+    }
+    format!("{}{part}", segments.join("/"))
+}
+
+impl Policy {
+    /// The policy as a table for a reviewer: per instance, what it may
+    /// emit, serve, receive and call, from and on whom, and the keys (under
+    /// `peppy/<namespace>/`, which is left out).
+    pub(crate) fn table(&self) -> String {
+        use std::fmt::Write as _;
+        let prefix = format!("peppy/{}/", self.namespace);
+        let short = |k: &str| k.strip_prefix(&prefix).unwrap_or(k).to_string();
+        let mut rows: Vec<[String; 4]> = Vec::new();
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "access policy (keys under {prefix}; anything not listed is refused by the router):"
+        );
+        for inst in &self.instances {
+            rows.clear();
+            let groups = [
+                ("emits", &inst.emits, ""),
+                ("serves", &inst.serves, ""),
+                ("receives", &inst.receives, "from"),
+                ("calls", &inst.calls, "on"),
+            ];
+            for (what, grants, side) in groups {
+                for g in grants {
+                    let entry = match &g.slot {
+                        Some(slot) => format!("{} via {slot}", g.entry),
+                        None if side == "from" => format!("{} (external)", g.entry),
+                        None => g.entry.clone(),
+                    };
+                    let peers = if side.is_empty() {
+                        String::new()
+                    } else if g.peers.is_empty() {
+                        format!("{side} nobody in the stack")
+                    } else {
+                        format!("{side} {}", g.peers.join(", "))
+                    };
+                    let keys: Vec<String> = g.keys.iter().map(|k| short(k)).collect();
+                    rows.push([
+                        what.to_string(),
+                        entry,
+                        peers,
+                        if keys.is_empty() {
+                            "-".into()
+                        } else {
+                            keys.join(" ")
+                        },
+                    ]);
+                }
+            }
+            let _ = writeln!(
+                out,
+                "\n  {} (core node {})",
+                inst.instance_id, inst.core_node
+            );
+            if rows.is_empty() {
+                let _ = writeln!(out, "    (nothing: it only announces itself)");
+                continue;
+            }
+            let width = |i: usize| rows.iter().map(|r| r[i].chars().count()).max().unwrap_or(0);
+            let (w0, w1, w2) = (width(0), width(1), width(2));
+            for r in &rows {
+                let line = format!("    {:w0$}  {:w1$}  {:w2$}  {}", r[0], r[1], r[2], r[3]);
+                let _ = writeln!(out, "{}", line.trim_end());
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::widen;
+
+    #[test]
+    fn a_server_key_widens_to_what_probes_ask() {
+        assert_eq!(
+            widen("peppy/lab/service/node/arm/v1/status/robot/arm_1"),
+            "peppy/lab/service/node/arm/v1/status/*/*"
+        );
+        assert_eq!(
+            widen("peppy/lab/action/node/arm/v1/move_arm/robot/arm_1/*"),
+            "peppy/lab/action/node/arm/v1/move_arm/*/*/*"
+        );
+    }
+}
