@@ -61,6 +61,9 @@ pub(crate) enum Command {
     /// reach each other directly (give each launch `--connect` to it); a
     /// stand-in for `zenohd`.
     Router(RouterArgs),
+    /// Create the keys a secured stack's core nodes link with (once, on one
+    /// machine; then copy the printed directory to every machine).
+    Keys(KeysArgs),
     /// The launches running on this machine, with their instances.
     Ps(PsArgs),
     /// An instance's output, from its launch's run directory.
@@ -283,6 +286,16 @@ pub(crate) struct RouterArgs {
     /// Other routers to link to (repeatable).
     #[arg(long, value_name = "ENDPOINT")]
     pub(crate) connect: Vec<String>,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct KeysArgs {
+    /// The launcher file (with `core_nodes`).
+    #[arg(value_name = "LAUNCHER")]
+    pub(crate) launcher: PathBuf,
+    /// Replace existing keys (every machine then needs the new copy).
+    #[arg(long)]
+    pub(crate) rotate: bool,
 }
 
 #[derive(Debug, Args)]

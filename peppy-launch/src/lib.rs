@@ -40,6 +40,7 @@ pub fn run(cli: Cli) -> Result {
         cli::Command::Service(cmd) => inspect::service(cmd),
         cli::Command::Action(cmd) => inspect::action(cmd),
         cli::Command::Router(args) => up::router(&args),
+        cli::Command::Keys(args) => security::keys::run(&args),
         cli::Command::Ps(args) => runs::ps(&args),
         cli::Command::Logs(args) => runs::logs(&args),
     }
@@ -49,7 +50,7 @@ pub fn run(cli: Cli) -> Result {
 pub fn with_default_command(mut args: Vec<std::ffi::OsString>) -> Vec<std::ffi::OsString> {
     const COMMANDS: &[&str] = &[
         "validate", "check", "up", "run", "graph", "node", "topic", "service", "action", "router",
-        "ps", "logs", "help",
+        "keys", "ps", "logs", "help",
     ];
     if let Some(first) = args.get(1).and_then(|a| a.to_str())
         && !first.starts_with('-')

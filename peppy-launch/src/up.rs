@@ -159,6 +159,33 @@ struct Secured {
     guard: crate::security::RouterGuard,
 }
 
+/// The stack's keys, when this launch's router links to other core nodes
+/// (a share started with `--core-node`; `--local` runs one router).
+fn stack_keys(
+    stack: &StackCheck,
+    share: &placement::Share,
+    args: &UpArgs,
+) -> Result<Option<crate::security::keys::StackKeys>, LaunchError> {
+    use crate::security::keys;
+    if args.core_node.is_none() || stack.launcher.core_nodes.is_empty() {
+        return Ok(None);
+    }
+    let names: Vec<&str> = stack
+        .launcher
+        .core_nodes
+        .iter()
+        .map(|c| c.name.as_str())
+        .collect();
+    keys::StackKeys::load(
+        &keys::dir_for(&stack.launcher),
+        &share.name,
+        &names,
+        &args.launcher,
+    )
+    .map(Some)
+    .map_err(LaunchError::Setup)
+}
+
 /// Generates this launch's credentials, writes the router's dictionary and
 /// the policy (for reviewers) into the run directory, and starts reporting
 /// what the router refuses.
@@ -167,6 +194,7 @@ fn secure(
     share: &placement::Share,
     namespace: &str,
     run_dir: &Path,
+    keys: Option<&crate::security::keys::StackKeys>,
     out: Arc<Output>,
 ) -> Result<Secured, LaunchError> {
     use crate::security::{Secrets, denials, policy, write_private};
@@ -187,9 +215,10 @@ fn secure(
         )
     });
     let dictionary = run_dir.join("router.users");
-    write_private(&dictionary, secrets.dictionary(&[]).as_bytes())
+    let routers = keys.map(|k| k.router_logins()).unwrap_or_default();
+    write_private(&dictionary, secrets.dictionary(&routers).as_bytes())
         .map_err(|e| setup(&format!("cannot write {}", dictionary.display()), e))?;
-    let access_control = policy.access_control(&[]);
+    let access_control = policy.access_control(keys.map_or(&[], |k| k.core_nodes()));
     let policy_file = run_dir.join("policy.json");
     std::fs::write(
         &policy_file,
@@ -206,7 +235,8 @@ fn secure(
         guard: crate::security::RouterGuard {
             access_control,
             dictionary,
-            login: None,
+            login: keys.map(|k| k.router_login(&share.name)),
+            tls: keys.map(|k| k.tls_settings()).unwrap_or_default(),
         },
     })
 }
@@ -317,8 +347,40 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         share.listen.clone()
     };
     let decision = crate::security::decide(&stack.launcher, &listen, &share.connect, args.insecure);
+    let keys = if decision.on {
+        stack_keys(&stack, &share, args)?
+    } else {
+        None
+    };
+    // Secured, the links between core nodes are TLS, and this launch's own
+    // instances and tools reach the router on a loopback port of its own.
+    let (listen, connect, local) = match &keys {
+        Some(_) => {
+            let local = free_local_endpoint()
+                .map_err(|e| LaunchError::Setup(format!("cannot find a free local port: {e}")))?;
+            let mut tls: Vec<String> = listen
+                .iter()
+                .map(|e| crate::security::keys::over_tls(e))
+                .collect();
+            tls.push(local.clone());
+            let connect = share
+                .connect
+                .iter()
+                .map(|e| crate::security::keys::over_tls(e))
+                .collect();
+            (tls, connect, Some(local))
+        }
+        None => (listen, share.connect.clone(), None),
+    };
     let secured = if decision.on {
-        Some(secure(&stack, &share, &namespace, &run_dir, out.clone())?)
+        Some(secure(
+            &stack,
+            &share,
+            &namespace,
+            &run_dir,
+            keys.as_ref(),
+            out.clone(),
+        )?)
     } else {
         None
     };
@@ -331,7 +393,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         || matches!(stack.launcher.security, Some((false, _)))
         || !listen
             .iter()
-            .chain(&share.connect)
+            .chain(&connect)
             .all(|e| crate::security::is_loopback(e))
     {
         out.note(&format!(
@@ -342,7 +404,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     }
     let router = open_router(
         &listen,
-        &share.connect,
+        &connect,
         !stack.launcher.core_nodes.is_empty(),
         secured.as_ref().map(|s| &s.guard),
     )
@@ -350,7 +412,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     .map_err(LaunchError::Setup)?;
     if stack.launcher.core_nodes.len() > 1
         && !args.local
-        && share.connect.is_empty()
+        && connect.is_empty()
         && listen
             .iter()
             .all(|e| e.contains("127.0.0.1") || e.contains("[::1]"))
@@ -378,19 +440,22 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
                 ids.join(", ")
             },
             listen.join(", "),
-            if share.connect.is_empty() {
+            if connect.is_empty() {
                 String::new()
             } else {
-                format!(", linked to {}", share.connect.join(", "))
+                format!(", linked to {}", connect.join(", "))
             }
         ));
     }
     // Nodes reach each other through the launch's router; a listen address
     // on all interfaces is still reached locally on loopback.
-    let node_connect: Vec<String> = listen
-        .iter()
-        .map(|e| e.replace("0.0.0.0", "127.0.0.1").replace("[::]", "[::1]"))
-        .collect();
+    let node_connect: Vec<String> = match local {
+        Some(local) => vec![local],
+        None => listen
+            .iter()
+            .map(|e| e.replace("0.0.0.0", "127.0.0.1").replace("[::]", "[::1]"))
+            .collect(),
+    };
 
     let planned: Vec<Result<Planned, String>> = share
         .instances

@@ -3,6 +3,7 @@
 //! policy its router enforces, and the log of what the router refused.
 
 pub(crate) mod denials;
+pub(crate) mod keys;
 pub(crate) mod policy;
 
 use std::collections::BTreeMap;
@@ -44,10 +45,17 @@ pub(crate) fn decide(
             reason: format!("`security: {on}` at line {line} of the launcher"),
         };
     }
+    // Every machine of a stack must decide alike: the launcher's endpoints
+    // count whichever share this is.
     let beyond = listen
         .iter()
         .chain(connect)
-        .chain(launcher.core_nodes.iter().flat_map(|c| c.listen.iter()))
+        .chain(
+            launcher
+                .core_nodes
+                .iter()
+                .flat_map(|c| c.listen.iter().chain(&c.connect)),
+        )
         .find(|e| !is_loopback(e));
     match beyond {
         Some(e) => Decision {
@@ -154,6 +162,9 @@ pub(crate) struct RouterGuard {
     pub(crate) dictionary: std::path::PathBuf,
     /// The router's own login, for the routers it links to.
     pub(crate) login: Option<Login>,
+    /// Its TLS settings ([`keys::StackKeys::tls_settings`]), when it links
+    /// to other core nodes.
+    pub(crate) tls: Vec<(&'static str, serde_json::Value)>,
 }
 
 impl RouterGuard {
@@ -180,6 +191,9 @@ impl RouterGuard {
                     &serde_json::Value::from(login.password.clone()).to_string(),
                 )
                 .map_err(|_| "invalid zenoh password setting".to_string())?;
+        }
+        for (key, value) in &self.tls {
+            set(config, key, value.clone())?;
         }
         set(config, "access_control", self.access_control.clone())
     }

@@ -292,10 +292,11 @@ pub(crate) const OPERATOR: &str = "peppy-operator";
 impl Policy {
     /// Zenoh's `access_control` configuration enforcing this policy on a
     /// router: deny by default; each instance (by user name) gets its
-    /// grants; the operator everything in the namespace; the other core
-    /// nodes' routers (`routers`: their user names) everything, since each
+    /// grants; the operator everything in the namespace; the core nodes'
+    /// routers (`core_nodes`: the common names of their certificates,
+    /// which only the stack's authority signs) everything, since each
     /// router enforces its own instances.
-    pub(crate) fn access_control(&self, routers: &[String]) -> Json {
+    pub(crate) fn access_control(&self, core_nodes: &[String]) -> Json {
         let ns = &self.namespace;
         let mut rules = vec![
             // What every instance needs whatever its bindings: to see who
@@ -344,8 +345,8 @@ impl Policy {
         let mut subjects = vec![json!({ "id": "operator", "usernames": [OPERATOR] })];
         let mut policies =
             vec![json!({ "id": "operator", "rules": ["everything"], "subjects": ["operator"] })];
-        if !routers.is_empty() {
-            subjects.push(json!({ "id": "routers", "usernames": routers }));
+        if !core_nodes.is_empty() {
+            subjects.push(json!({ "id": "routers", "cert_common_names": core_nodes }));
             policies.push(json!({ "id": "routers", "rules": ["links"], "subjects": ["routers"] }));
         }
         for inst in &self.instances {

@@ -3,11 +3,12 @@
 //! (the network-namespace version stands in for two hosts).
 
 use std::io::{BufRead as _, BufReader};
+use std::path::Path;
 use std::process::Stdio;
 use std::time::Duration;
 
 use crate::seeds::{BUILD_AND_START, Launch, first_frames};
-use crate::support::{peppy_launch, root};
+use crate::support::{peppy_launch, peppy_launch_with, root};
 
 /// A free port below the kernel's ephemeral range (32768 and up), so no
 /// other test's `bind(0)` can take it while the launch builds its nodes.
@@ -23,15 +24,27 @@ pub(crate) fn free_port() -> u16 {
     }
 }
 
+/// Creates the stack's keys in the registry `state`, as `peppy-launch keys`
+/// does on a user's first machine.
+pub(crate) fn stack_keys(state: &Path, launcher: &str) {
+    let run = peppy_launch_with(&root(), &["keys", launcher], &[("PEPPY_STATE_DIR", state)]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+}
+
 /// Cameras on `robot`, the reconstruction on `workstation`: the pinned
 /// slots bind across the link, each receiving only its camera, and the
-/// from_any slot the ZED; each side names its core node at start.
+/// from_any slot the ZED; each side names its core node at start. The
+/// launcher's robot listens beyond loopback, so the stack is secured: the
+/// routers link over mutual TLS with the stack's keys, and a workstation
+/// holding another stack's keys is refused.
 #[test]
 fn the_multi_camera_stack_over_two_core_nodes() {
     let state = tempfile::tempdir().unwrap();
     let st = state.path();
     let launcher = "examples/launchers/two_machines.json5";
+    stack_keys(st, launcher);
     let robot_at = format!("tcp/127.0.0.1:{}", free_port());
+    let robot_tls = robot_at.replace("tcp/", "tls/");
     let mut robot = Launch::up_with(
         launcher,
         &["--core-node", "robot", "--listen", &robot_at],
@@ -39,24 +52,55 @@ fn the_multi_camera_stack_over_two_core_nodes() {
     );
     robot.expect("with the robot's share", BUILD_AND_START, |l| {
         l.contains(&format!(
-            "core node robot: rs_left, rs_right, zed_overhead (router on {robot_at})"
+            "core node robot: rs_left, rs_right, zed_overhead (router on {robot_tls}, tcp/127.0.0.1:"
         ))
     });
+
+    // Another stack's keys: its certificate is not signed by this stack's
+    // authority, and the robot's router refuses the link.
+    let other = tempfile::tempdir().unwrap();
+    stack_keys(other.path(), launcher);
     let workstation_at = format!("tcp/127.0.0.1:{}", free_port());
-    let mut workstation = Launch::up_with(
-        launcher,
-        &[
-            "--core-node",
-            "workstation",
-            "--listen",
-            &workstation_at,
-            "--connect",
-            &robot_at,
-        ],
-        &[("PEPPY_STATE_DIR", st)],
+    let args = [
+        "--core-node",
+        "workstation",
+        "--listen",
+        &workstation_at,
+        "--connect",
+        &robot_at,
+    ];
+    let mut stranger = Launch::up_with(launcher, &args, &[("PEPPY_STATE_DIR", other.path())]);
+    stranger.expect("with the stranger's share", BUILD_AND_START, |l| {
+        l.contains("core node workstation: recon_1")
+            && l.contains(&format!("linked to {robot_tls}"))
+    });
+    stranger.read_for(Duration::from_secs(8));
+    robot.read_for(Duration::from_secs(1));
+    assert!(
+        !stranger
+            .seen
+            .iter()
+            .any(|l| l.contains("core node robot joined") || l.contains("left_cam<-")),
+        "a router with another stack's certificate linked:\n{}",
+        stranger.seen.join("\n")
     );
+    assert!(
+        !robot
+            .seen
+            .iter()
+            .any(|l| l.contains("core node workstation joined")),
+        "{}",
+        robot.seen.join("\n")
+    );
+    assert_eq!(stranger.stop(), 0);
+
+    let mut workstation = Launch::up_with(launcher, &args, &[("PEPPY_STATE_DIR", st)]);
     workstation.expect("with the workstation's share", BUILD_AND_START, |l| {
-        l.contains("core node workstation: recon_1") && l.contains(&format!("linked to {robot_at}"))
+        l.contains("core node workstation: recon_1")
+            && l.contains(&format!("linked to {robot_tls}"))
+    });
+    workstation.expect("with the robot joining", Duration::from_secs(30), |l| {
+        l.contains("core node robot joined")
     });
     workstation.expect("with recon_1's summary", Duration::from_secs(60), |l| {
         l.starts_with("[recon_1]") && l.contains("reconstructing from")
@@ -76,6 +120,14 @@ fn the_multi_camera_stack_over_two_core_nodes() {
     assert!(
         !robot.seen.iter().any(|l| l.contains("started `recon_1`")),
         "the robot starts only its share"
+    );
+    assert!(
+        !robot
+            .seen
+            .iter()
+            .chain(&workstation.seen)
+            .any(|l| l.contains("denied:")),
+        "a bound flow was refused"
     );
     assert_eq!(workstation.stop(), 0);
     assert_eq!(robot.stop(), 0);
@@ -184,9 +236,23 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
     let Some(hosts) = crate::netns::TwoHosts::new() else {
         return;
     };
+    // Each host its own state directory; the stack's keys made on the
+    // robot and copied to the workstation, as a user does.
     let state = tempfile::tempdir().unwrap();
     let st = state.path();
+    let workstation_state = tempfile::tempdir().unwrap();
+    let st_b = workstation_state.path();
     let launcher = "examples/launchers/two_machines.json5";
+    stack_keys(st, launcher);
+    assert!(
+        std::process::Command::new("cp")
+            .args(["-rp"])
+            .arg(st.join("stacks"))
+            .arg(st_b)
+            .status()
+            .unwrap()
+            .success()
+    );
     let robot_at = format!("tcp/{}:7447", crate::netns::HOST_A);
     let mut robot = Launch::up_in(
         &hosts.on(&hosts.a),
@@ -197,21 +263,15 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
     robot.expect("with the robot's cameras", BUILD_AND_START, |l| {
         l.contains("started `zed_overhead`")
     });
-    // The workstation's router on its own loopback, for the commands below.
-    let workstation_at = "tcp/127.0.0.1:7447".to_string();
     let mut workstation = Launch::up_in(
         &hosts.on(&hosts.b),
         launcher,
-        &[
-            "--core-node",
-            "workstation",
-            "--connect",
-            &robot_at,
-            "--listen",
-            &workstation_at,
-        ],
-        &[("PEPPY_STATE_DIR", st)],
+        &["--core-node", "workstation", "--connect", &robot_at],
+        &[("PEPPY_STATE_DIR", st_b)],
     );
+    workstation.expect("with the link over TLS", BUILD_AND_START, |l| {
+        l.contains(&format!("linked to {}", robot_at.replace("tcp/", "tls/")))
+    });
     workstation.expect("with the robot joining", BUILD_AND_START, |l| {
         l.contains("core node robot joined")
     });
@@ -248,10 +308,8 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
                 "5",
                 "-l",
                 launcher,
-                "--connect",
-                &workstation_at,
             ],
-            &[],
+            &[("PEPPY_STATE_DIR", st_b)],
         )
     };
     let answered = call();
@@ -456,6 +514,8 @@ fn the_arm_loop_across_two_hosts_through_a_router() {
             &router_at,
             "--repo",
             repo,
+            // A bare router holds no stack keys to link over TLS with.
+            "--insecure",
         ],
         &env,
     );
@@ -469,6 +529,8 @@ fn the_arm_loop_across_two_hosts_through_a_router() {
             &router_at,
             "--repo",
             repo,
+            // A bare router holds no stack keys to link over TLS with.
+            "--insecure",
         ],
         &env,
     );
