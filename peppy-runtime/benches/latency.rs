@@ -16,6 +16,15 @@
 //! ```sh
 //! cargo bench -p peppy-runtime --bench latency -- --veth
 //! ```
+//!
+//! What security costs (docs/SECURITY.md): peppy round trips through a
+//! router enforcing logins and an access policy of the shape a secured
+//! launch derives, both nodes its clients, next to the unsecured default
+//! (peers) and to clients of an open router:
+//!
+//! ```sh
+//! cargo bench -p peppy-runtime --bench latency -- --secured
+//! ```
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -152,11 +161,32 @@ fn node_args(endpoint: &str, id: &str, bind: &str) -> Vec<String> {
     ]
 }
 
+/// How a bench node joins: by flags (a peer connecting to the router, as
+/// an unsecured launch starts it), or by the runtime-config file a secured
+/// launch writes (`<dir>/<instance>.json`: a client with its login).
+#[derive(Clone)]
+enum Join {
+    Flags(String),
+    Config(std::path::PathBuf),
+}
+
+impl Join {
+    fn builder<P: NodeParameters>(&self, id: &str, bind: &str) -> NodeBuilder<P> {
+        match self {
+            Join::Flags(endpoint) => NodeBuilder::<P>::new()
+                .with_runtime_config(None)
+                .with_args(node_args(endpoint, id, bind)),
+            Join::Config(dir) => NodeBuilder::<P>::new()
+                .with_runtime_config(Some(dir.join(format!("{id}.json"))))
+                .with_args(["bench"]),
+        }
+    }
+}
+
 /// The answering side: a ponger node echoing every ping, until aborted.
-async fn peppy_ponger(endpoint: &str) -> (Arc<NodeRunner>, tokio::task::JoinHandle<()>) {
-    let (_, ponger): (_, Arc<NodeRunner>) = NodeBuilder::<Ponger>::new()
-        .with_runtime_config(None)
-        .with_args(node_args(endpoint, "ponger", "pinger@pinger"))
+async fn peppy_ponger(join: &Join) -> (Arc<NodeRunner>, tokio::task::JoinHandle<()>) {
+    let (_, ponger): (_, Arc<NodeRunner>) = join
+        .builder::<Ponger>("ponger", "pinger@pinger")
         .start()
         .await
         .unwrap();
@@ -172,10 +202,9 @@ async fn peppy_ponger(endpoint: &str) -> (Arc<NodeRunner>, tokio::task::JoinHand
 }
 
 /// The asking side: round trips to a ponger reached through `endpoint`.
-async fn peppy_pings(endpoint: &str) -> Vec<Duration> {
-    let (_, pinger): (_, Arc<NodeRunner>) = NodeBuilder::<Pinger>::new()
-        .with_runtime_config(None)
-        .with_args(node_args(endpoint, "pinger", "ponger@ponger"))
+async fn peppy_pings(join: &Join) -> Vec<Duration> {
+    let (_, pinger): (_, Arc<NodeRunner>) = join
+        .builder::<Pinger>("pinger", "ponger@ponger")
         .start()
         .await
         .unwrap();
@@ -229,9 +258,9 @@ async fn peppy_pings(endpoint: &str) -> Vec<Duration> {
     samples
 }
 
-async fn peppy_round_trips(endpoint: &str) -> Vec<Duration> {
-    let (ponger, echo) = peppy_ponger(endpoint).await;
-    let samples = peppy_pings(endpoint).await;
+async fn peppy_round_trips(join: &Join) -> Vec<Duration> {
+    let (ponger, echo) = peppy_ponger(join).await;
+    let samples = peppy_pings(join).await;
     echo.abort();
     ponger.shutdown().await;
     samples
@@ -442,6 +471,9 @@ fn main() {
     if args.iter().any(|a| a == "--veth") {
         return veth();
     }
+    if args.iter().any(|a| a == "--secured") {
+        return secured();
+    }
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -452,7 +484,7 @@ fn main() {
             (Some("pong"), Some(endpoint)) => {
                 // Both echoes at once (different keys); killed when done.
                 let _raw = raw_echo(&endpoint).await;
-                let _peppy = peppy_ponger(&endpoint).await;
+                let _peppy = peppy_ponger(&Join::Flags(endpoint.clone())).await;
                 std::future::pending::<()>().await;
             }
             (Some("ping"), Some(endpoint)) => {
@@ -460,7 +492,7 @@ fn main() {
                 report(
                     "across a veth link between two network namespaces",
                     async || raw_pings(&endpoint).await,
-                    async || peppy_pings(&endpoint).await,
+                    async || peppy_pings(&Join::Flags(endpoint.clone())).await,
                 )
                 .await;
             }
@@ -475,10 +507,150 @@ fn main() {
                 report(
                     "via a router on loopback",
                     async || raw_round_trips(&endpoint).await,
-                    async || peppy_round_trips(&endpoint).await,
+                    async || peppy_round_trips(&Join::Flags(endpoint.clone())).await,
                 )
                 .await;
             }
         }
+    });
+}
+
+fn free_endpoint() -> String {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    format!("tcp/127.0.0.1:{port}")
+}
+
+/// Writes `<dir>/<instance>.json` for the pinger and the ponger: clients
+/// of `endpoint`, with a login when `passwords` are given.
+fn runtime_configs(dir: &std::path::Path, endpoint: &str, passwords: Option<[&str; 2]>) {
+    for (i, (id, producer)) in [("pinger", "ponger"), ("ponger", "pinger")]
+        .into_iter()
+        .enumerate()
+    {
+        let mut zenoh = serde_json::json!({ "mode": "client", "connect": [endpoint] });
+        if let Some(pw) = passwords {
+            zenoh["login"] = serde_json::json!({ "user": id, "password": pw[i] });
+        }
+        let config = serde_json::json!({
+            "instance_id": id, "core_node": "standalone", "namespace": "bench",
+            "bindings": { producer: { "kind": "pinned", "producer": producer } },
+            "zenoh": zenoh,
+        });
+        std::fs::write(dir.join(format!("{id}.json")), config.to_string()).unwrap();
+    }
+}
+
+/// The access policy a secured launch derives for the pinger and the
+/// ponger, in its shape: each publishes its own topic and receives the
+/// other's; each announces itself, answers its format and description
+/// queries, follows liveliness and learns declarations.
+fn bench_policy() -> serde_json::Value {
+    let topic = |node: &str, name: &str| {
+        format!("peppy/bench/topic/node/{node}/v1/{name}/standalone/{node}")
+    };
+    let mut rules = vec![
+        serde_json::json!({ "id": "any.declarations", "flows": ["egress"], "permission": "allow",
+            "messages": ["declare_subscriber", "declare_queryable", "liveliness_token", "reply"],
+            "key_exprs": ["peppy/bench/**"] }),
+        serde_json::json!({ "id": "any.live", "flows": ["ingress"], "permission": "allow",
+            "messages": ["declare_liveliness_subscriber", "liveliness_query"],
+            "key_exprs": ["peppy/bench/live/**"] }),
+    ];
+    let mut subjects = Vec::new();
+    let mut policies = Vec::new();
+    for (me, out, other, inp) in [
+        ("pinger", "ping", "ponger", "pong"),
+        ("ponger", "pong", "pinger", "ping"),
+    ] {
+        rules.push(serde_json::json!({ "id": format!("{me}.emits"), "flows": ["ingress"], "permission": "allow",
+            "messages": ["put"], "key_exprs": [topic(me, out)] }));
+        rules.push(serde_json::json!({ "id": format!("{me}.self"), "flows": ["ingress"], "permission": "allow",
+            "messages": ["liveliness_token", "declare_queryable", "reply"],
+            "key_exprs": [format!("peppy/bench/live/standalone/{me}/*/*"), format!("peppy/bench/format/*/{me}"), format!("peppy/bench/describe/standalone/{me}")] }));
+        rules.push(serde_json::json!({ "id": format!("{me}.subscribe"), "flows": ["ingress"], "permission": "allow",
+            "messages": ["declare_subscriber"], "key_exprs": [format!("peppy/bench/topic/node/{other}/v1/{inp}/*/*")] }));
+        rules.push(serde_json::json!({ "id": format!("{me}.receives"), "flows": ["egress"], "permission": "allow",
+            "messages": ["put"], "key_exprs": [topic(other, inp)] }));
+        subjects.push(serde_json::json!({ "id": me, "usernames": [me] }));
+        policies.push(serde_json::json!({ "id": me, "subjects": [me],
+            "rules": ["any.declarations", "any.live", format!("{me}.emits"), format!("{me}.self"), format!("{me}.subscribe"), format!("{me}.receives")] }));
+    }
+    serde_json::json!({ "enabled": true, "default_permission": "deny",
+        "rules": rules, "subjects": subjects, "policies": policies })
+}
+
+/// `--secured`: the same round trips through a secured router, the
+/// unsecured default, and an open router's clients, interleaved twice.
+fn secured() {
+    let dir = tempfile::tempdir().unwrap();
+    let open_dir = dir.path().join("open");
+    let secured_dir = dir.path().join("secured");
+    std::fs::create_dir_all(&open_dir).unwrap();
+    std::fs::create_dir_all(&secured_dir).unwrap();
+    let (peers_at, open_at, secured_at) = (free_endpoint(), free_endpoint(), free_endpoint());
+    let passwords = [
+        "b3f1c0de0a1b2c3d4e5f60718293a4b5",
+        "9c8d7e6f5a4b3c2d1e0f9a8b7c6d5e4f",
+    ];
+    runtime_configs(&open_dir, &open_at, None);
+    runtime_configs(&secured_dir, &secured_at, Some(passwords));
+    let dictionary = dir.path().join("users");
+    std::fs::write(
+        &dictionary,
+        format!("pinger:{}\nponger:{}\n", passwords[0], passwords[1]),
+    )
+    .unwrap();
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        let _peers_router = router(&peers_at).await;
+        let _open_router = router(&open_at).await;
+        let mut c = zenoh::Config::default();
+        c.insert_json5("mode", "\"router\"").unwrap();
+        c.insert_json5("listen/endpoints", &format!("[\"{secured_at}\"]")).unwrap();
+        c.insert_json5("scouting/multicast/enabled", "false").unwrap();
+        c.insert_json5("transport/auth/usrpwd/dictionary_file", &format!("{:?}", dictionary.display().to_string())).unwrap();
+        c.insert_json5("access_control", &bench_policy().to_string()).unwrap();
+        let _secured_router = zenoh::open(c).await.unwrap();
+        let runs = [
+            ("peers (unsecured default)", Join::Flags(peers_at.clone())),
+            ("clients of an open router", Join::Config(open_dir.clone())),
+            ("clients of a secured router", Join::Config(secured_dir.clone())),
+        ];
+        let mut results: Vec<Vec<Stats>> = vec![Vec::new(), Vec::new(), Vec::new()];
+        for _ in 0..2 {
+            for (i, (_, join)) in runs.iter().enumerate() {
+                let samples = peppy_round_trips(join).await;
+                assert!(!samples.is_empty());
+                results[i].push(stats(samples));
+            }
+        }
+        println!("peppy round trip, {SAMPLES} samples per run, 64-byte payload, reliable, via a router on loopback");
+        println!("{:<32} {:>10} {:>10} {:>10}", "run", "p50", "p90", "mean");
+        for (i, (name, _)) in runs.iter().enumerate() {
+            for (n, s) in results[i].iter().enumerate() {
+                println!("{:<32} {:>10.1?} {:>10.1?} {:>10.1?}", format!("{name} {}", n + 1), s.p50, s.p90, s.mean);
+            }
+        }
+        let mean_ratio = |a: usize, b: usize, f: fn(&Stats) -> Duration| {
+            results[a].iter().zip(&results[b]).map(|(x, y)| f(x).as_secs_f64() / f(y).as_secs_f64()).sum::<f64>() / 2.0
+        };
+        println!(
+            "secured / unsecured default: p50 x{:.2}, p90 x{:.2}",
+            mean_ratio(2, 0, |s| s.p50),
+            mean_ratio(2, 0, |s| s.p90)
+        );
+        println!(
+            "secured / open router's clients (the policy and logins alone): p50 x{:.2}, p90 x{:.2}",
+            mean_ratio(2, 1, |s| s.p50),
+            mean_ratio(2, 1, |s| s.p90)
+        );
     });
 }
