@@ -123,8 +123,12 @@ async fn read_line_capped<R: AsyncBufReadExt + Unpin>(
 
 /// Opens (appending) an instance's log file.
 pub(crate) fn open_log(path: &Path) -> std::io::Result<std::fs::File> {
+    use std::os::unix::fs::OpenOptionsExt as _;
+    // Readable by the launching user only: a node's log may hold what its
+    // libraries print about its session, login included.
     std::fs::OpenOptions::new()
         .create(true)
         .append(true)
+        .mode(0o600)
         .open(path)
 }

@@ -120,15 +120,9 @@ fn same_file(file: &std::fs::File, path: &Path) -> bool {
 /// reader never sees half a record; returns the written file, still open.
 fn write_whole(path: &Path, text: &[u8], lock: bool) -> std::io::Result<std::fs::File> {
     use std::io::Write as _;
-    use std::os::unix::fs::OpenOptionsExt as _;
     let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-    let _ = std::fs::remove_file(&tmp);
     // A secured launch's record holds its tools' password.
-    let mut file = std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .mode(0o600)
-        .open(&tmp)?;
+    let mut file = crate::security::create_private(&tmp)?;
     file.write_all(text)?;
     if lock && !try_lock(&file) {
         return Err(std::io::Error::other("the registry entry is locked"));
@@ -227,6 +221,10 @@ pub(crate) fn ps(args: &crate::cli::PsArgs) -> crate::error::Result {
             .iter()
             .map(|r| {
                 let mut v = serde_json::to_value(r).expect("a launch record serializes");
+                // The tools' login stays in the record, never on stdout.
+                if let Some(o) = v.as_object_mut() {
+                    o.remove("login");
+                }
                 v["uptime_ms"] = now.saturating_sub(r.started_at_ms).into();
                 v["instances"] = r
                     .instances

@@ -199,6 +199,17 @@ fn secure(
 ) -> Result<Secured, LaunchError> {
     use crate::security::{Secrets, denials, policy, write_private};
     let setup = |what: &str, e: std::io::Error| LaunchError::Setup(format!("{what}: {e}"));
+    if let Some(taken) = share
+        .instances
+        .iter()
+        .map(|&i| stack.plan.instances[i].instance_id.as_str())
+        .find(|id| Secrets::reserved(id))
+    {
+        return Err(LaunchError::Setup(format!(
+            "instance id `{taken}` is a user name a secured launch keeps for itself (`{}`, `peppy-router-*`): rename the instance",
+            policy::OPERATOR
+        )));
+    }
     let secrets = Secrets::generate(
         share
             .instances
@@ -354,11 +365,25 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     };
     // Secured, the links between core nodes are TLS, and this launch's own
     // instances and tools reach the router on a loopback port of its own.
+    if decision.on && keys.is_none() && !share.connect.is_empty() {
+        return Err(LaunchError::Setup(format!(
+            "security is on ({}), and this launch would link to {} with no keys to link with: only the core nodes of one launcher (`up --core-node NAME`) link securely; make both sides core nodes of one launcher, or run both with --insecure",
+            decision.reason,
+            share.connect.join(", ")
+        )));
+    }
     let (listen, connect, local) = match &keys {
         Some(_) => {
-            let local = free_local_endpoint()
-                .map_err(|e| LaunchError::Setup(format!("cannot find a free local port: {e}")))?;
-            let mut tls: Vec<String> = listen
+            // The core node's own endpoints are for other core nodes (TLS);
+            // its instances and tools get a loopback port of their own.
+            let local = match share.listen.is_empty() {
+                true => listen[0].clone(),
+                false => free_local_endpoint().map_err(|e| {
+                    LaunchError::Setup(format!("cannot find a free local port: {e}"))
+                })?,
+            };
+            let mut tls: Vec<String> = share
+                .listen
                 .iter()
                 .map(|e| crate::security::keys::over_tls(e))
                 .collect();
@@ -413,9 +438,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     if stack.launcher.core_nodes.len() > 1
         && !args.local
         && connect.is_empty()
-        && listen
-            .iter()
-            .all(|e| e.contains("127.0.0.1") || e.contains("[::1]"))
+        && listen.iter().all(|e| crate::security::is_loopback(e))
     {
         out.note(&format!(
             "note: core node {} listens on loopback only and connects nowhere, so no other machine can link to it; give it endpoints in `core_nodes` or --listen / --connect",

@@ -79,6 +79,25 @@ pub struct Login {
     pub password: String,
 }
 
+impl Login {
+    /// Makes a Zenoh session authenticate with this login (user-password
+    /// authentication). An error never shows the password.
+    pub fn apply(&self, config: &mut zenoh::Config) -> Result<()> {
+        config
+            .insert_json5(
+                "transport/auth/usrpwd/user",
+                &Json::from(self.user.clone()).to_string(),
+            )
+            .map_err(|e| Error::Startup(format!("invalid zenoh user `{}`: {e}", self.user)))?;
+        config
+            .insert_json5(
+                "transport/auth/usrpwd/password",
+                &Json::from(self.password.clone()).to_string(),
+            )
+            .map_err(|_| Error::Startup("invalid zenoh password setting".into()))
+    }
+}
+
 impl std::fmt::Debug for Login {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Login")
@@ -118,17 +137,7 @@ impl Endpoints {
             Json::from(self.multicast_scouting),
         )?;
         if let Some(login) = &self.login {
-            set(
-                &mut c,
-                "transport/auth/usrpwd/user",
-                Json::from(login.user.clone()),
-            )?;
-            // Set directly: an error message must never echo the password.
-            c.insert_json5(
-                "transport/auth/usrpwd/password",
-                &Json::from(login.password.clone()).to_string(),
-            )
-            .map_err(|_| Error::Startup("invalid zenoh password setting".into()))?;
+            login.apply(&mut c)?;
         }
         Ok(c)
     }

@@ -235,7 +235,7 @@ fn reach_of(launches: &[&LaunchRecord]) -> Reach {
             .iter()
             .flat_map(|r| r.instances.iter().cloned())
             .collect(),
-        login: launches.iter().find_map(|r| r.login.clone()),
+        login: first.login.clone(),
         what,
     }
 }

@@ -42,6 +42,12 @@ pub(crate) struct Denial {
 impl Denial {
     /// The line the launch prints.
     pub(crate) fn message(&self) -> String {
+        if self.action == NO_SUBJECT {
+            return format!(
+                "denied: session {} is no one the access policy knows: everything it sends is refused",
+                self.who
+            );
+        }
         let (verb, flow) = self
             .action
             .split_once(" (")
@@ -100,9 +106,13 @@ fn parse(message: &str, users: &mut HashMap<String, String>) -> Option<Denial> {
     Some(Denial {
         who,
         action: action.to_string(),
+        // Undeclarations print `Some(ke`peppy/...`)`.
         key: key
-            .trim_start_matches("Some(")
-            .trim_end_matches(')')
+            .strip_prefix("Some(")
+            .and_then(|k| k.strip_suffix(')'))
+            .unwrap_or(key)
+            .trim_start_matches("ke`")
+            .trim_end_matches('`')
             .to_string(),
     })
 }
@@ -128,6 +138,9 @@ impl Visit for Message<'_> {
         }
     }
 }
+
+/// The action of a session that matches no subject of the policy.
+const NO_SUBJECT: &str = "(any)";
 
 /// How many decisions Zenoh traces when it fills the cache of one key
 /// expression: one per kind of message.
@@ -161,6 +174,25 @@ impl<S: tracing::Subscriber> Layer<S> for Denials {
     fn on_event(&self, event: &tracing::Event<'_>, _: tracing_subscriber::layer::Context<'_, S>) {
         let mut text = String::new();
         event.record(&mut Message(&mut text));
+        let cached = text.starts_with("Using cached result: ");
+        let denied = text.contains(" is unauthorized to ");
+        // The common case, every routed message: a cached permission.
+        if cached && !denied {
+            return;
+        }
+        if let Some((zid, _)) = text.split_once(" did not match any configured ACL subject") {
+            let nobody = Denial {
+                who: zid.to_string(),
+                action: NO_SUBJECT.to_string(),
+                key: String::new(),
+            };
+            if let Ok(mut seen) = self.seen.lock()
+                && seen.said.insert(nobody.clone())
+            {
+                (self.say)(&nobody);
+            }
+            return;
+        }
         if let Some(key) = text
             .split_once("caching permissions for `")
             .and_then(|(_, rest)| rest.split_once('`'))
@@ -169,8 +201,6 @@ impl<S: tracing::Subscriber> Layer<S> for Denials {
             CACHING.with(|c| *c.borrow_mut() = Some((key.to_string(), CACHED_KINDS)));
             return;
         }
-        let cached = text.starts_with("Using cached result: ");
-        let denied = text.contains(" is unauthorized to ");
         let Ok(mut seen) = self.seen.lock() else {
             return;
         };
@@ -240,7 +270,7 @@ mod tests {
         .unwrap();
         assert_eq!(allowed.who, "x");
         let undecl = parse(
-            "Using cached result: ffee is unauthorized to Declare Subscriber (ingress) on Some(peppy/lab/y)",
+            "Using cached result: ffee is unauthorized to Declare/Undeclare Subscriber (ingress) on Some(ke`peppy/lab/y`)",
             &mut users,
         )
         .unwrap();

@@ -10,7 +10,7 @@
 //! every launch until the launcher's core nodes change (which names a new
 //! directory) or `keys --rotate` replaces them. The authority's private key
 //! is never stored: it signs the core nodes' certificates once and is
-//! dropped, so no stolen file can mint another core node.
+//! dropped, so no core node can be added without new keys for all.
 
 use std::path::{Path, PathBuf};
 
@@ -28,6 +28,14 @@ use super::write_private;
 const CA: &str = "ca.pem";
 /// The secret the routers' passwords derive from.
 const SECRET: &str = "link.secret";
+/// Where each core node's certificate and key are.
+const CORES: &str = "cores";
+
+/// `<dir>/cores/<core>.<ext>`: apart from the authority's files, whatever
+/// a core node is called.
+fn core_file(dir: &Path, core: &str, ext: &str) -> PathBuf {
+    dir.join(CORES).join(format!("{core}.{ext}"))
+}
 
 /// Where a launcher's keys live: named by the launcher's file name and its
 /// core nodes, so renaming or adding a core node asks for new keys.
@@ -115,6 +123,7 @@ pub(crate) fn create(dir: &Path, core_nodes: &[&str]) -> Result<(), String> {
         .push(DnType::CommonName, "peppy stack authority");
     let ca_cert = ca.self_signed(&ca_key).map_err(|e| fail(&e))?;
     let issuer = Issuer::from_params(&ca, &ca_key);
+    std::fs::create_dir_all(dir.join(CORES)).map_err(|e| fail(&e))?;
     for core in core_nodes {
         let key = KeyPair::generate().map_err(|e| fail(&e))?;
         let mut params = CertificateParams::new(Vec::<String>::new()).map_err(|e| fail(&e))?;
@@ -127,12 +136,9 @@ pub(crate) fn create(dir: &Path, core_nodes: &[&str]) -> Result<(), String> {
             ExtendedKeyUsagePurpose::ClientAuth,
         ];
         let cert = params.signed_by(&key, &issuer).map_err(|e| fail(&e))?;
-        std::fs::write(dir.join(format!("{core}.pem")), cert.pem()).map_err(|e| fail(&e))?;
-        write_private(
-            &dir.join(format!("{core}.key")),
-            key.serialize_pem().as_bytes(),
-        )
-        .map_err(|e| fail(&e))?;
+        std::fs::write(core_file(dir, core, "pem"), cert.pem()).map_err(|e| fail(&e))?;
+        write_private(&core_file(dir, core, "key"), key.serialize_pem().as_bytes())
+            .map_err(|e| fail(&e))?;
     }
     write_private(
         &dir.join(SECRET),
@@ -143,8 +149,9 @@ pub(crate) fn create(dir: &Path, core_nodes: &[&str]) -> Result<(), String> {
     std::fs::write(dir.join(CA), ca_cert.pem()).map_err(|e| fail(&e))
 }
 
-/// One core node's view of the stack's keys.
-#[derive(Debug, Clone)]
+/// One core node's view of the stack's keys. No `Debug`: it holds the
+/// link secret.
+#[derive(Clone)]
 pub(crate) struct StackKeys {
     dir: PathBuf,
     me: String,
@@ -164,8 +171,8 @@ impl StackKeys {
         let missing = [
             CA.to_string(),
             SECRET.to_string(),
-            format!("{me}.pem"),
-            format!("{me}.key"),
+            format!("{CORES}/{me}.pem"),
+            format!("{CORES}/{me}.key"),
         ]
         .into_iter()
         .find(|f| !dir.join(f).is_file());
@@ -215,8 +222,8 @@ impl StackKeys {
     /// other side's certificate required.
     pub(crate) fn tls_settings(&self) -> Vec<(&'static str, serde_json::Value)> {
         let path = |f: String| serde_json::Value::from(self.dir.join(f).display().to_string());
-        let cert = path(format!("{}.pem", self.me));
-        let key = path(format!("{}.key", self.me));
+        let cert = path(format!("{CORES}/{}.pem", self.me));
+        let key = path(format!("{CORES}/{}.key", self.me));
         vec![
             (
                 "transport/link/tls/root_ca_certificate",
@@ -252,7 +259,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let keys = dir.path().join("stack");
         create(&keys, &["robot", "workstation"]).unwrap();
-        for f in ["robot.key", "workstation.key", SECRET] {
+        for f in ["cores/robot.key", "cores/workstation.key", SECRET] {
             let mode = std::fs::metadata(keys.join(f))
                 .unwrap()
                 .permissions()
@@ -263,7 +270,7 @@ mod tests {
             !keys.join("ca.key").exists(),
             "the authority's key is never kept"
         );
-        let pem = std::fs::read_to_string(keys.join("robot.pem")).unwrap();
+        let pem = std::fs::read_to_string(keys.join("cores/robot.pem")).unwrap();
         assert!(pem.starts_with("-----BEGIN CERTIFICATE-----"));
         let robot = StackKeys::load(
             &keys,
@@ -288,8 +295,10 @@ mod tests {
             robot.router_login("robot").password,
             robot.router_login("workstation").password
         );
-        let missing = StackKeys::load(&keys, "lab", &["lab"], Path::new("l.json5")).unwrap_err();
-        assert!(missing.contains("lab.pem is missing"), "{missing}");
+        let Err(missing) = StackKeys::load(&keys, "lab", &["lab"], Path::new("l.json5")) else {
+            panic!("keys for a core node that has none");
+        };
+        assert!(missing.contains("cores/lab.pem is missing"), "{missing}");
         assert!(missing.contains("peppy-launch keys l.json5"), "{missing}");
         assert_eq!(over_tls("tcp/0.0.0.0:7447"), "tls/0.0.0.0:7447");
         assert_eq!(over_tls("tls/[::1]:7447"), "tls/[::1]:7447");

@@ -99,6 +99,11 @@ pub(crate) struct Secrets {
 }
 
 impl Secrets {
+    /// The user names a launch keeps for itself: no instance may take one.
+    pub(crate) fn reserved(user: &str) -> bool {
+        user == policy::OPERATOR || user.starts_with("peppy-router-")
+    }
+
     /// New random credentials for `instances`.
     pub(crate) fn generate<'a>(
         instances: impl IntoIterator<Item = &'a str>,
@@ -141,17 +146,23 @@ pub(crate) fn password() -> std::io::Result<String> {
 /// (created that way, so no other user ever sees the contents), replacing
 /// any older file whole.
 pub(crate) fn write_private(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    use std::os::unix::fs::OpenOptionsExt as _;
     let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-    let _ = std::fs::remove_file(&tmp);
-    let mut file = std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .mode(0o600)
-        .open(&tmp)?;
+    let mut file = create_private(&tmp)?;
     file.write_all(bytes)?;
     file.sync_all()?;
     std::fs::rename(&tmp, path)
+}
+
+/// A new file at `path` (replacing a leftover one) that only this user can
+/// read or write, from the moment it exists.
+pub(crate) fn create_private(path: &Path) -> std::io::Result<std::fs::File> {
+    use std::os::unix::fs::OpenOptionsExt as _;
+    let _ = std::fs::remove_file(path);
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(path)
 }
 
 /// What a secured router enforces.
@@ -180,17 +191,7 @@ impl RouterGuard {
             self.dictionary.display().to_string().into(),
         )?;
         if let Some(login) = &self.login {
-            set(
-                config,
-                "transport/auth/usrpwd/user",
-                login.user.clone().into(),
-            )?;
-            config
-                .insert_json5(
-                    "transport/auth/usrpwd/password",
-                    &serde_json::Value::from(login.password.clone()).to_string(),
-                )
-                .map_err(|_| "invalid zenoh password setting".to_string())?;
+            login.apply(config).map_err(|e| e.to_string())?;
         }
         for (key, value) in &self.tls {
             set(config, key, value.clone())?;

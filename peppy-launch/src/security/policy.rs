@@ -6,8 +6,10 @@
 
 use std::collections::BTreeSet;
 
-use peppy_runtime::wire::keys::{Channel, Owner, entry_key, entry_selector};
-use peppy_schema::{InstancePlan, Origin, StackCheck};
+use peppy_runtime::wire::keys::{
+    ActionPart, Channel, Owner, action_part_key, entry_key, entry_selector,
+};
+use peppy_schema::{InstancePlan, Origin, RouteFilter, SlotBinding, StackCheck};
 use serde::Serialize;
 use serde_json::{Value as Json, json};
 
@@ -29,6 +31,9 @@ pub(crate) struct InstancePolicy {
     pub(crate) instance_id: String,
     /// The core node it runs on (`*` when only the launch names it).
     pub(crate) core_node: String,
+    /// The node it runs, `name:tag`: the only one its liveliness token may
+    /// name.
+    pub(crate) node: String,
     /// Topics (and action feedback) it publishes: its own keys.
     pub(crate) emits: Vec<Grant>,
     /// Services and actions it answers: its own keys.
@@ -122,12 +127,12 @@ pub(crate) fn derive(
                     format!("action {}", a.decl.name),
                     vec![format!("{base}/*")],
                 ));
-                if a.decl.feedback.is_some() {
-                    emits.push(own(
-                        format!("action {} feedback", a.decl.name),
-                        vec![format!("{base}/feedback/*")],
-                    ));
-                }
+                // Every goal ends its feedback stream, feedback declared or
+                // not.
+                emits.push(own(
+                    format!("action {} feedback", a.decl.name),
+                    vec![format!("{base}/feedback/*")],
+                ));
             }
 
             let mut receives = Vec::new();
@@ -204,39 +209,53 @@ pub(crate) fn derive(
             let services = resolved
                 .consumed_services
                 .iter()
-                .map(|c| (Channel::Service, &c.slot, &c.origin, &c.decl.name, false));
-            let actions = resolved.consumed_actions.iter().map(|c| {
-                (
-                    Channel::Action,
-                    &c.slot,
-                    &c.origin,
-                    &c.decl.name,
-                    c.decl.feedback.is_some(),
-                )
-            });
-            for (channel, slot, origin, name, feedback) in services.chain(actions) {
-                let peers = inst
-                    .slots
-                    .iter()
-                    .find(|s| s.link_id == slot.link_id)
+                .map(|c| (Channel::Service, &c.slot, &c.origin, &c.decl.name));
+            let actions = resolved
+                .consumed_actions
+                .iter()
+                .map(|c| (Channel::Action, &c.slot, &c.origin, &c.decl.name));
+            for (channel, slot, origin, name) in services.chain(actions) {
+                let plan = inst.slots.iter().find(|s| s.link_id == slot.link_id);
+                let peers = plan
                     .map(|s| flows::slot_producers(stack, inst, s))
                     .unwrap_or_default();
+                // Requests name their server by instance only (any core);
+                // a slot that does not name one server probes them all.
+                let probes = plan.is_some_and(|s| {
+                    !matches!((&s.binding, &s.filter), (SlotBinding::Pinned { .. }, _))
+                        && !matches!(&s.filter, RouteFilter::OnlyFrom(set) if set.len() == 1)
+                });
                 let o = owner(origin);
                 let at = |p: &str| entry_key(namespace, channel, &o, name, &core_by_id(p), p);
+                let to =
+                    |p: &str| entry_selector(namespace, channel, Some(&o), name, None, Some(p));
                 let any = entry_selector(namespace, channel, Some(&o), name, None, None);
-                let (kind, keys, selectors) = match channel {
-                    Channel::Action => {
-                        let mut keys: Vec<String> =
-                            peers.iter().map(|p| format!("{}/*", at(p))).collect();
-                        let mut selectors = vec![format!("{any}/*")];
-                        if feedback {
-                            keys.extend(peers.iter().map(|p| format!("{}/feedback/*", at(p))));
-                            selectors.push(format!("{any}/feedback/*"));
-                        }
-                        ("action", keys, selectors)
-                    }
-                    _ => ("service", peers.iter().map(|p| at(p)).collect(), vec![any]),
+                let (kind, keys, mut selectors) = match channel {
+                    // Every goal ends its feedback stream, so feedback keys
+                    // are granted whether or not the action declares any.
+                    Channel::Action => (
+                        "action",
+                        peers
+                            .iter()
+                            .flat_map(|p| [format!("{}/*", at(p)), format!("{}/feedback/*", at(p))])
+                            .collect::<Vec<_>>(),
+                        peers
+                            .iter()
+                            .flat_map(|p| [format!("{}/*", to(p)), format!("{}/feedback/*", to(p))])
+                            .collect::<Vec<_>>(),
+                    ),
+                    _ => (
+                        "service",
+                        peers.iter().map(|p| at(p)).collect(),
+                        peers.iter().map(|p| to(p)).collect(),
+                    ),
                 };
+                if probes {
+                    selectors.push(match channel {
+                        Channel::Action => action_part_key(&any, ActionPart::Goal),
+                        _ => any,
+                    });
+                }
                 calls.push(Grant {
                     entry: format!("{kind} {name}"),
                     slot: Some(slot.link_id.clone()),
@@ -248,6 +267,7 @@ pub(crate) fn derive(
             InstancePolicy {
                 instance_id: me.to_string(),
                 core_node: my_core,
+                node: inst.node.to_string(),
                 emits,
                 serves,
                 receives,
@@ -313,7 +333,7 @@ impl Policy {
             rule(
                 "any.live.in",
                 "egress",
-                &["liveliness_token", "reply"],
+                &["liveliness_token"],
                 &[format!("peppy/{ns}/**")],
             ),
             rule(
@@ -362,7 +382,7 @@ impl Policy {
                 if keys.is_empty() {
                     return;
                 }
-                let rule_id = format!("{id}.{suffix}");
+                let rule_id = format!("instance:{id}.{suffix}");
                 rules.push(rule(&rule_id, flow, messages, &keys));
                 mine.push(rule_id);
             };
@@ -371,7 +391,10 @@ impl Policy {
                 "self",
                 "ingress",
                 &["liveliness_token"],
-                vec![format!("peppy/{ns}/live/{core}/{id}/*/*")],
+                vec![format!(
+                    "peppy/{ns}/live/{core}/{id}/{}",
+                    inst.node.replace(':', "/")
+                )],
             );
             add(
                 "self.answers",
@@ -425,12 +448,7 @@ impl Policy {
                 "calls",
                 "ingress",
                 &["query", "declare_subscriber"],
-                inst.calls
-                    .iter()
-                    .flat_map(|g| g.keys.iter().chain(&g.selectors).cloned())
-                    .collect::<BTreeSet<_>>()
-                    .into_iter()
-                    .collect(),
+                selectors_of(&inst.calls),
             );
             add(
                 "calls.answers",
@@ -438,8 +456,9 @@ impl Policy {
                 &["reply", "put"],
                 keys_of(&inst.calls),
             );
-            subjects.push(json!({ "id": id, "usernames": [id] }));
-            policies.push(json!({ "id": id, "rules": mine, "subjects": [id] }));
+            let subject = format!("instance:{id}");
+            subjects.push(json!({ "id": subject, "usernames": [id] }));
+            policies.push(json!({ "id": subject, "rules": mine, "subjects": [subject] }));
         }
         json!({
             "enabled": true,
@@ -547,7 +566,14 @@ impl Policy {
                     } else {
                         format!("{side} {}", g.peers.join(", "))
                     };
-                    let keys: Vec<String> = g.keys.iter().map(|k| short(k)).collect();
+                    // What a call may ask (by instance, any core); what
+                    // the others may carry.
+                    let shown = if what == "calls" {
+                        &g.selectors
+                    } else {
+                        &g.keys
+                    };
+                    let keys: Vec<String> = shown.iter().map(|k| short(k)).collect();
                     rows.push([
                         what.to_string(),
                         entry,
@@ -582,7 +608,79 @@ impl Policy {
 
 #[cfg(test)]
 mod tests {
-    use super::widen;
+    use super::*;
+
+    fn arm_loop() -> Policy {
+        let launcher = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../examples/launchers/robot_arm_loop.json5");
+        let stack = peppy_schema::check_launcher(&launcher, &peppy_schema::RepoOptions::default())
+            .unwrap_or_else(|d| panic!("{d:?}"));
+        derive(&stack, "lab", &|_| Some("robot".to_string()))
+    }
+
+    fn of<'a>(p: &'a Policy, id: &str) -> &'a InstancePolicy {
+        p.instances.iter().find(|i| i.instance_id == id).unwrap()
+    }
+
+    /// A pinned slot asks its producer only (by instance, any core, as the
+    /// runtime does), feedback included; the server may end every goal's
+    /// feedback stream; tokens name the instance's own node.
+    #[test]
+    fn the_arm_loop_policy_names_exactly_the_bound_producer() {
+        let p = arm_loop();
+        let controller = of(&p, "controller");
+        let call = controller
+            .calls
+            .iter()
+            .find(|g| g.entry == "action move_arm")
+            .unwrap();
+        assert_eq!(call.peers, ["arm"]);
+        assert_eq!(
+            call.selectors,
+            [
+                "peppy/lab/action/node/robot_arm/v1/move_arm/*/arm/*",
+                "peppy/lab/action/node/robot_arm/v1/move_arm/*/arm/feedback/*",
+            ],
+            "a pinned slot never probes every server"
+        );
+        assert!(call.keys.iter().all(|k| k.contains("/robot/arm/")));
+        let receives = &controller.receives[0];
+        assert_eq!(
+            receives.keys,
+            ["peppy/lab/topic/node/robot_arm/v1/joint_states/robot/arm"]
+        );
+        let arm = of(&p, "arm");
+        assert!(arm.emits.iter().any(
+            |g| g.keys == ["peppy/lab/action/node/robot_arm/v1/move_arm/robot/arm/feedback/*"]
+        ));
+        // The external topic: every instance that emits it.
+        let commands = arm
+            .receives
+            .iter()
+            .find(|g| g.entry == "topic joint_commands")
+            .unwrap();
+        assert_eq!(commands.peers, ["controller"]);
+
+        let acl = p.access_control(&[]);
+        let rules = acl["rules"].as_array().unwrap();
+        let token = rules
+            .iter()
+            .find(|r| r["id"] == "instance:arm.self")
+            .unwrap();
+        assert_eq!(
+            token["key_exprs"],
+            serde_json::json!(["peppy/lab/live/robot/arm/robot_arm/v1"])
+        );
+        // No rule hands every reply of the namespace to everyone.
+        assert!(!rules.iter().any(|r| {
+            r["key_exprs"]
+                .as_array()
+                .unwrap()
+                .contains(&"peppy/lab/**".into())
+                && r["messages"].as_array().unwrap().contains(&"reply".into())
+                && r["id"] != "everything"
+        }));
+    }
 
     #[test]
     fn a_server_key_widens_to_what_probes_ask() {
