@@ -363,8 +363,6 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     } else {
         None
     };
-    // Secured, the links between core nodes are TLS, and this launch's own
-    // instances and tools reach the router on a loopback port of its own.
     if decision.on && keys.is_none() && !share.connect.is_empty() {
         return Err(LaunchError::Setup(format!(
             "security is on ({}), and this launch would link to {} with no keys to link with: only the core nodes of one launcher (`up --core-node NAME`) link securely; make both sides core nodes of one launcher, or run both with --insecure",
@@ -374,13 +372,16 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     }
     let (listen, connect, local) = match &keys {
         Some(_) => {
-            // The core node's own endpoints are for other core nodes (TLS);
-            // its instances and tools get a loopback port of their own.
-            let local = match share.listen.is_empty() {
-                true => listen[0].clone(),
-                false => free_local_endpoint().map_err(|e| {
+            // Secured, the core node's own endpoints are for other core
+            // nodes (TLS); its instances and tools reach the router on a
+            // loopback port of their own (the free one taken above when
+            // the core node has no endpoints of its own).
+            let local = if share.listen.is_empty() {
+                listen[0].clone()
+            } else {
+                free_local_endpoint().map_err(|e| {
                     LaunchError::Setup(format!("cannot find a free local port: {e}"))
-                })?,
+                })?
             };
             let mut tls: Vec<String> = share
                 .listen

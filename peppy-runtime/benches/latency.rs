@@ -497,12 +497,7 @@ fn main() {
                 .await;
             }
             _ => {
-                let port = std::net::TcpListener::bind("127.0.0.1:0")
-                    .unwrap()
-                    .local_addr()
-                    .unwrap()
-                    .port();
-                let endpoint = format!("tcp/127.0.0.1:{port}");
+                let endpoint = free_endpoint();
                 let _router = router(&endpoint).await;
                 report(
                     "via a router on loopback",

@@ -86,43 +86,32 @@ pub(crate) fn derive(
             let resolved = &stack.deployments[inst.deployment].resolved;
             let me = inst.instance_id.as_str();
             let my_core = core(inst);
-            let mut emits = Vec::new();
-            for t in &resolved.emitted_topics {
-                emits.push(own(
-                    format!("topic {}", t.decl.name),
-                    vec![entry_key(
-                        namespace,
-                        Channel::Topic,
-                        &owner(&t.origin),
-                        &t.decl.name,
-                        &my_core,
-                        me,
-                    )],
-                ));
-            }
-            let mut serves = Vec::new();
-            for s in &resolved.exposed_services {
-                serves.push(own(
-                    format!("service {}", s.decl.name),
-                    vec![entry_key(
-                        namespace,
-                        Channel::Service,
-                        &owner(&s.origin),
-                        &s.decl.name,
-                        &my_core,
-                        me,
-                    )],
-                ));
-            }
+            // This instance's own key for one of its entries.
+            let mine = |channel, origin: &Origin, name: &str| {
+                entry_key(namespace, channel, &owner(origin), name, &my_core, me)
+            };
+            let mut emits: Vec<Grant> = resolved
+                .emitted_topics
+                .iter()
+                .map(|t| {
+                    own(
+                        format!("topic {}", t.decl.name),
+                        vec![mine(Channel::Topic, &t.origin, &t.decl.name)],
+                    )
+                })
+                .collect();
+            let mut serves: Vec<Grant> = resolved
+                .exposed_services
+                .iter()
+                .map(|s| {
+                    own(
+                        format!("service {}", s.decl.name),
+                        vec![mine(Channel::Service, &s.origin, &s.decl.name)],
+                    )
+                })
+                .collect();
             for a in &resolved.exposed_actions {
-                let base = entry_key(
-                    namespace,
-                    Channel::Action,
-                    &owner(&a.origin),
-                    &a.decl.name,
-                    &my_core,
-                    me,
-                );
+                let base = mine(Channel::Action, &a.origin, &a.decl.name);
                 serves.push(own(
                     format!("action {}", a.decl.name),
                     vec![format!("{base}/*")],

@@ -353,7 +353,9 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
     workstation.expect("with the robot back", Duration::from_secs(30), |l| {
         l.contains("core node robot is back")
     });
-    workstation.expect("with frames again", Duration::from_secs(30), |l| {
+    // A busy machine may see the fresh TLS link drop once more before it
+    // holds (Zenoh then links again by itself): allow for one more retry.
+    workstation.expect("with frames again", Duration::from_secs(60), |l| {
         left_count(l).is_some_and(|n| n > during)
     });
     workstation.expect_since(
