@@ -42,6 +42,12 @@ pub(crate) struct Denial {
 impl Denial {
     /// The line the launch prints.
     pub(crate) fn message(&self) -> String {
+        if self.action == TOO_MANY {
+            return format!(
+                "denied: more than {MAX_SAID} different refusals (the last by `{}`); no more are reported",
+                self.who
+            );
+        }
         if self.action == NO_SUBJECT {
             return format!(
                 "denied: session {} is no one the access policy knows: everything it sends is refused",
@@ -123,6 +129,18 @@ struct Seen {
     said: HashSet<Denial>,
 }
 
+/// How many distinct refusals are reported: past that, an instance
+/// spraying keys would only grow the log and the launch's memory.
+const MAX_SAID: usize = 1000;
+
+impl Seen {
+    /// Whether `d` is to be said: the first time, and while under
+    /// [`MAX_SAID`] (the one past it says that no more will be).
+    fn first(&mut self, d: &Denial) -> bool {
+        self.said.len() <= MAX_SAID && !self.said.contains(d) && self.said.insert(d.clone())
+    }
+}
+
 /// The layer: reports each first denial to `say`.
 struct Denials {
     seen: Mutex<Seen>,
@@ -141,6 +159,8 @@ impl Visit for Message<'_> {
 
 /// The action of a session that matches no subject of the policy.
 const NO_SUBJECT: &str = "(any)";
+/// The action of the line that ends the reports.
+const TOO_MANY: &str = "(too many)";
 
 /// How many decisions Zenoh traces when it fills the cache of one key
 /// expression: one per kind of message.
@@ -187,9 +207,9 @@ impl<S: tracing::Subscriber> Layer<S> for Denials {
                 key: String::new(),
             };
             if let Ok(mut seen) = self.seen.lock()
-                && seen.said.insert(nobody.clone())
+                && seen.first(&nobody)
             {
-                (self.say)(&nobody);
+                self.report(&nobody, seen.said.len());
             }
             return;
         }
@@ -204,13 +224,28 @@ impl<S: tracing::Subscriber> Layer<S> for Denials {
         let Ok(mut seen) = self.seen.lock() else {
             return;
         };
-        let Seen { users, said } = &mut *seen;
-        let Some(decision) = parse(&text, users) else {
+        let Some(decision) = parse(&text, &mut seen.users) else {
             return;
         };
         let ahead = !cached && in_advance(&decision.key);
-        if denied && !ahead && said.insert(decision.clone()) {
-            (self.say)(&decision);
+        if denied && !ahead && seen.first(&decision) {
+            self.report(&decision, seen.said.len());
+        }
+    }
+}
+
+impl Denials {
+    /// Says the `n`th distinct refusal, or past [`MAX_SAID`] that no more
+    /// will be said.
+    fn report(&self, d: &Denial, n: usize) {
+        if n <= MAX_SAID {
+            (self.say)(d);
+        } else {
+            (self.say)(&Denial {
+                who: d.who.clone(),
+                action: TOO_MANY.to_string(),
+                key: String::new(),
+            });
         }
     }
 }
@@ -240,6 +275,26 @@ pub(crate) fn listen(say: Arc<dyn Fn(&Denial) + Send + Sync>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn reports_stop_after_a_thousand_distinct_refusals() {
+        let mut seen = Seen::default();
+        let d = |i: usize| Denial {
+            who: "x".into(),
+            action: "Put (ingress)".into(),
+            key: format!("k/{i}"),
+        };
+        let said: Vec<bool> = (0..=MAX_SAID + 5).map(|i| seen.first(&d(i))).collect();
+        // Each of the first MAX_SAID, plus the one that says "no more".
+        assert_eq!(said.iter().filter(|s| **s).count(), MAX_SAID + 1);
+        assert!(!seen.first(&d(0)), "a refusal is said once");
+        let last = Denial {
+            who: "x".into(),
+            action: TOO_MANY.into(),
+            key: String::new(),
+        };
+        assert!(last.message().contains("no more are reported"));
+    }
 
     #[test]
     fn zenohs_lines_become_one_denial_each() {
