@@ -344,13 +344,29 @@ async fn raw_round_trips(endpoint: &str) -> Vec<Duration> {
 }
 
 async fn router(endpoint: &str) -> zenoh::Session {
+    router_with(endpoint, &[]).await
+}
+
+/// A router on `endpoint` with more settings (JSON5 values by key).
+async fn router_with(endpoint: &str, settings: &[(&str, String)]) -> zenoh::Session {
     let mut c = zenoh::Config::default();
     c.insert_json5("mode", "\"router\"").unwrap();
     c.insert_json5("listen/endpoints", &format!("[\"{endpoint}\"]"))
         .unwrap();
     c.insert_json5("scouting/multicast/enabled", "false")
         .unwrap();
+    for (key, value) in settings {
+        c.insert_json5(key, value).unwrap();
+    }
     zenoh::open(c).await.unwrap()
+}
+
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap()
 }
 
 /// Both sides in this process, alternating raw and peppy runs to spread
@@ -474,11 +490,7 @@ fn main() {
     if args.iter().any(|a| a == "--secured") {
         return secured();
     }
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
+    let rt = runtime();
     rt.block_on(async {
         match (flag("--role").as_deref(), flag("--endpoint")) {
             (Some("pong"), Some(endpoint)) => {
@@ -599,21 +611,21 @@ fn secured() {
         format!("pinger:{}\nponger:{}\n", passwords[0], passwords[1]),
     )
     .unwrap();
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
+    let rt = runtime();
     rt.block_on(async {
         let _peers_router = router(&peers_at).await;
         let _open_router = router(&open_at).await;
-        let mut c = zenoh::Config::default();
-        c.insert_json5("mode", "\"router\"").unwrap();
-        c.insert_json5("listen/endpoints", &format!("[\"{secured_at}\"]")).unwrap();
-        c.insert_json5("scouting/multicast/enabled", "false").unwrap();
-        c.insert_json5("transport/auth/usrpwd/dictionary_file", &format!("{:?}", dictionary.display().to_string())).unwrap();
-        c.insert_json5("access_control", &bench_policy().to_string()).unwrap();
-        let _secured_router = zenoh::open(c).await.unwrap();
+        let _secured_router = router_with(
+            &secured_at,
+            &[
+                (
+                    "transport/auth/usrpwd/dictionary_file",
+                    format!("{:?}", dictionary.display().to_string()),
+                ),
+                ("access_control", bench_policy().to_string()),
+            ],
+        )
+        .await;
         let runs = [
             ("peers (unsecured default)", Join::Flags(peers_at.clone())),
             ("clients of an open router", Join::Config(open_dir.clone())),

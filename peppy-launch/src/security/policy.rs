@@ -57,9 +57,9 @@ pub(crate) struct Grant {
     pub(crate) peers: Vec<String>,
     /// The keys (and key expressions) allowed.
     pub(crate) keys: Vec<String>,
-    /// The wider key expressions the instance may declare a subscriber or
-    /// send a discovery probe on; what comes back is still limited to
-    /// `keys`.
+    /// The key expressions the instance may subscribe to or send requests
+    /// on (wider than `keys`: any core, or every server for a probe); what
+    /// comes back is still limited to `keys`.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub(crate) selectors: Vec<String>,
 }
