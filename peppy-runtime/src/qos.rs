@@ -8,9 +8,24 @@ use zenoh::qos::{CongestionControl, Priority};
 pub(crate) enum QueuePolicy {
     /// Keep the newest `n`, drop the oldest.
     KeepNewest(usize),
-    /// Hold `n`, then block delivery (back-pressure to the sender).
-    Block(usize),
+    /// Keep every message, up to `max_bytes` queued; warn once the
+    /// backlog reaches `warn_at` messages. Never blocks delivery: Zenoh
+    /// delivers every subscription and query of a session on the same
+    /// threads, so blocking there for one slow reader would stall all the
+    /// node's other topics and services.
+    KeepAll {
+        /// The backlog (in messages) that earns the first warning.
+        warn_at: usize,
+        /// The most payload bytes held unread before arrivals are dropped.
+        max_bytes: usize,
+    },
 }
+
+/// The most one reliable topic's inbox holds unread before the node drops
+/// (and counts, in the log) what arrives next. A bound on memory for a
+/// reader that has stopped for good; no reader that keeps reading gets
+/// near it.
+const KEEP_ALL_BYTES: usize = 1 << 30;
 
 pub(crate) fn congestion(q: QosProfile) -> CongestionControl {
     match q {
@@ -36,6 +51,9 @@ pub(crate) fn queue(q: QosProfile) -> QueuePolicy {
     match q {
         QosProfile::SensorData => QueuePolicy::KeepNewest(5),
         QosProfile::Standard => QueuePolicy::KeepNewest(10),
-        QosProfile::Reliable | QosProfile::Critical => QueuePolicy::Block(256),
+        QosProfile::Reliable | QosProfile::Critical => QueuePolicy::KeepAll {
+            warn_at: 256,
+            max_bytes: KEEP_ALL_BYTES,
+        },
     }
 }

@@ -2,10 +2,12 @@
 //! filter and the format fingerprint before anything is queued.
 
 use std::collections::HashSet;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};
 
 use peppy_schema::RouteFilter;
-use tracing::{debug, warn};
+use tracing::{debug, error, info, warn};
+use zenoh::bytes::ZBytes;
 use zenoh::sample::Sample;
 
 use crate::error::{Error, Result};
@@ -18,18 +20,47 @@ use crate::wire::attachment;
 use crate::wire::codec::{Decode, Encode, from_bytes, to_bytes};
 use crate::wire::keys::{Channel, entry_selector, parse_entry_key};
 
-/// One received message, not yet decoded.
+/// One received message, not yet decoded. The payload is Zenoh's own
+/// buffer: queueing it copies nothing.
 #[derive(Debug)]
 pub(crate) struct Delivery {
     pub(crate) core: String,
     pub(crate) instance: String,
-    pub(crate) payload: Vec<u8>,
+    pub(crate) payload: ZBytes,
 }
 
 /// The queue of one consumed topic; filled by a Zenoh callback.
 #[derive(Debug)]
 pub(crate) struct Inbox {
     pub(crate) rx: flume::Receiver<Delivery>,
+    pub(crate) backlog: Arc<Backlog>,
+}
+
+/// What one inbox holds unread, shared by its intake and its reader, so a
+/// reader falling behind is seen (and bounded) as it happens.
+#[derive(Debug, Default)]
+pub(crate) struct Backlog {
+    /// Payload bytes queued.
+    bytes: AtomicUsize,
+    /// The queue length that earns the next warning (0: none given yet).
+    next_warning: AtomicUsize,
+    /// Messages dropped since the reader last caught up.
+    dropped: AtomicU64,
+}
+
+impl Backlog {
+    /// The reader took a message of `size` bytes; `empty` when it has
+    /// caught up, which ends a warning episode.
+    fn taken(&self, topic: &str, size: usize, empty: bool) {
+        self.bytes.fetch_sub(size, Relaxed);
+        if empty && self.next_warning.swap(0, Relaxed) != 0 {
+            let dropped = self.dropped.swap(0, Relaxed);
+            info!(
+                topic,
+                dropped, "the reader of this topic has caught up with its queue"
+            );
+        }
+    }
 }
 
 /// What the subscription callback needs.
@@ -41,6 +72,7 @@ pub(crate) struct Intake {
     pub(crate) tx: flume::Sender<Delivery>,
     pub(crate) rx: flume::Receiver<Delivery>,
     pub(crate) policy: QueuePolicy,
+    pub(crate) backlog: Arc<Backlog>,
     pub(crate) warned: Mutex<HashSet<String>>,
     pub(crate) mismatch: Arc<dyn Fn(&'static ConsumedTopicSpec, String, u64) + Send + Sync>,
 }
@@ -53,10 +85,11 @@ impl Intake {
         mismatch: Arc<dyn Fn(&'static ConsumedTopicSpec, String, u64) + Send + Sync>,
     ) -> (Intake, Inbox) {
         let policy = queue(spec.qos);
-        let cap = match policy {
-            QueuePolicy::KeepNewest(n) | QueuePolicy::Block(n) => n,
+        let (tx, rx) = match policy {
+            QueuePolicy::KeepNewest(n) => flume::bounded(n),
+            QueuePolicy::KeepAll { .. } => flume::unbounded(),
         };
-        let (tx, rx) = flume::bounded(cap);
+        let backlog = Arc::new(Backlog::default());
         (
             Intake {
                 spec,
@@ -65,10 +98,11 @@ impl Intake {
                 tx,
                 rx: rx.clone(),
                 policy,
+                backlog: backlog.clone(),
                 warned: Mutex::new(HashSet::new()),
                 mismatch,
             },
-            Inbox { rx },
+            Inbox { rx, backlog },
         )
     }
 
@@ -115,29 +149,74 @@ impl Intake {
                 return;
             }
         }
+        let size = sample.payload().len();
         let delivery = Delivery {
             core: sender.core,
             instance: sender.instance,
-            payload: sample.payload().to_bytes().into_owned(),
+            payload: sample.payload().clone(),
         };
         match self.policy {
-            QueuePolicy::Block(_) => {
-                // Back-pressure: blocks this delivery thread until the reader catches up.
-                let _ = self.tx.send(delivery);
+            QueuePolicy::KeepAll { warn_at, max_bytes } => {
+                self.keep(delivery, size, warn_at, max_bytes)
             }
             QueuePolicy::KeepNewest(_) => {
+                self.backlog.bytes.fetch_add(size, Relaxed);
                 let mut delivery = delivery;
                 loop {
                     match self.tx.try_send(delivery) {
                         Ok(()) => break,
                         Err(flume::TrySendError::Full(d)) => {
-                            let _ = self.rx.try_recv();
+                            if let Ok(oldest) = self.rx.try_recv() {
+                                self.backlog.bytes.fetch_sub(oldest.payload.len(), Relaxed);
+                            }
                             delivery = d;
                         }
                         Err(flume::TrySendError::Disconnected(_)) => break,
                     }
                 }
             }
+        }
+    }
+
+    /// Queues a message of a keep-all topic without ever blocking, warning
+    /// as the backlog grows eightfold and dropping (counted, logged) only
+    /// past `max_bytes` unread.
+    fn keep(&self, delivery: Delivery, size: usize, warn_at: usize, max_bytes: usize) {
+        let topic = self.spec.name;
+        let queued = self.backlog.bytes.fetch_add(size, Relaxed) + size;
+        if queued > max_bytes {
+            self.backlog.bytes.fetch_sub(size, Relaxed);
+            let dropped = self.backlog.dropped.fetch_add(1, Relaxed) + 1;
+            if dropped.is_power_of_two() {
+                error!(
+                    topic,
+                    dropped,
+                    unread_mib = queued >> 20,
+                    "the reader of this reliable topic is not reading; dropping what arrives until it does"
+                );
+            }
+            return;
+        }
+        if self.tx.send(delivery).is_err() {
+            self.backlog.bytes.fetch_sub(size, Relaxed);
+            return;
+        }
+        let unread = self.tx.len();
+        let next = self.backlog.next_warning.load(Relaxed);
+        let threshold = if next == 0 { warn_at } else { next };
+        if unread >= threshold
+            && self
+                .backlog
+                .next_warning
+                .compare_exchange(next, threshold.saturating_mul(8), Relaxed, Relaxed)
+                .is_ok()
+        {
+            warn!(
+                topic,
+                unread,
+                unread_kib = queued >> 10,
+                "the reader of this reliable topic is falling behind; every message is kept, the node's other traffic goes on"
+            );
         }
     }
 }
@@ -210,15 +289,78 @@ pub async fn next_message<M: Decode>(
             d = inbox.rx.recv_async() => d.map_err(|_| Error::ShuttingDown)?,
             () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
         };
+        inbox
+            .backlog
+            .taken(spec.name, delivery.payload.len(), inbox.rx.is_empty());
         if from_core_node.is_some_and(|c| c != delivery.core) {
             continue;
         }
-        match from_bytes::<M>(&delivery.payload) {
+        match from_bytes::<M>(&delivery.payload.to_bytes()) {
             Ok(m) => return Ok((delivery.instance, m)),
             Err(e) => {
                 warn!(topic = spec.name, producer = %delivery.instance, error = %e, "dropping a message that does not decode")
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spec::{FormatSpec, OwnerSpec};
+    use peppy_schema::QosProfile;
+
+    static TICKS: ConsumedTopicSpec = ConsumedTopicSpec {
+        link_id: None,
+        owner: OwnerSpec::Any,
+        name: "ticks",
+        qos: QosProfile::Reliable,
+        format: FormatSpec::EMPTY,
+    };
+
+    fn delivery(byte: u8) -> Delivery {
+        Delivery {
+            core: "core".into(),
+            instance: "ticker".into(),
+            payload: ZBytes::from(vec![byte; 100]),
+        }
+    }
+
+    #[test]
+    fn a_keep_all_inbox_keeps_everything_up_to_its_byte_bound_then_counts_drops() {
+        let (intake, inbox) = Intake::new(&TICKS, RouteFilter::Any, None, Arc::new(|_, _, _| {}));
+        assert!(matches!(intake.policy, QueuePolicy::KeepAll { .. }));
+        for n in 0..12 {
+            intake.keep(delivery(n), 100, 4, 1_000);
+        }
+        assert_eq!(
+            inbox.rx.len(),
+            10,
+            "ten 100-byte messages fit in 1000 bytes"
+        );
+        assert_eq!(intake.backlog.dropped.load(Relaxed), 2);
+        assert_eq!(
+            intake.backlog.next_warning.load(Relaxed),
+            32,
+            "warned at 4, then at 32"
+        );
+        let first = inbox.rx.try_recv().unwrap();
+        assert_eq!(first.payload.to_bytes()[0], 0, "the oldest is read first");
+        inbox.backlog.taken("ticks", 100, false);
+        intake.keep(delivery(12), 100, 4, 1_000);
+        assert_eq!(inbox.rx.len(), 10, "room for one more once one is read");
+        while let Ok(d) = inbox.rx.try_recv() {
+            inbox
+                .backlog
+                .taken("ticks", d.payload.len(), inbox.rx.is_empty());
+        }
+        assert_eq!(intake.backlog.bytes.load(Relaxed), 0);
+        assert_eq!(
+            intake.backlog.dropped.load(Relaxed),
+            0,
+            "caught up: a new episode"
+        );
+        assert_eq!(intake.backlog.next_warning.load(Relaxed), 0);
     }
 }
 

@@ -13,7 +13,8 @@ pub enum QosProfile {
     /// The default.
     #[default]
     Standard,
-    /// Blocking, back-pressured delivery.
+    /// Every message delivered: the publisher waits out congestion and the
+    /// consumer keeps every message until read.
     Reliable,
     /// Like `reliable`, at real-time priority.
     Critical,

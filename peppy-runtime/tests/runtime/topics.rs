@@ -1,11 +1,11 @@
 //! Topic delivery: nothing lost between calls, external topics, format
-//! fingerprints.
+//! fingerprints, and a slow reader that holds up nothing else.
 
 use std::time::Duration;
 
 use peppy_runtime::codegen::{
-    ConsumedTopicSpec, Decode, DecodeError, Decoder, Encode, FormatSpec, OwnerSpec, QosProfile,
-    TopicSpec, emit, next_message,
+    ConsumedServiceSpec, ConsumedTopicSpec, Decode, DecodeError, Decoder, Encode, FormatSpec,
+    OwnerSpec, QosProfile, ServiceSpec, TopicSpec, call, emit, handle_next, next_message,
 };
 
 use crate::support::{WAIT, hub, namespace, start, test_node};
@@ -206,7 +206,7 @@ async fn nothing_is_lost_between_calls_on_a_reliable_topic() {
     .await
     .expect("subscription matched");
     // A 2 000-message burst; the reader starts late and reads slowly at
-    // first, so the queue fills and back-pressure holds the sender.
+    // first, so the queue grows past its nominal depth.
     const BURST: u32 = 2_000;
     let sender = tokio::spawn({
         let ticker = ticker.clone();
@@ -270,4 +270,171 @@ async fn from_core_node_filters_by_launch() {
     sender.abort();
     counter.shutdown().await;
     ticker.shutdown().await;
+}
+
+const FLOOD_FRAME: FormatSpec = FormatSpec {
+    fingerprint: 0xf1,
+    canonical: "{seq:u32,data:[u8]}",
+};
+const BEAT: FormatSpec = FormatSpec {
+    fingerprint: 0xb1,
+    canonical: "{n:u32}",
+};
+const PING_REQ: FormatSpec = FormatSpec {
+    fingerprint: 0x91,
+    canonical: "{x:u32}",
+};
+const PING_RESP: FormatSpec = FormatSpec {
+    fingerprint: 0x92,
+    canonical: "{y:u32}",
+};
+static FLOOD_OUT: TopicSpec = TopicSpec {
+    owner: OwnerSpec::Own,
+    name: "frames",
+    qos: QosProfile::Reliable,
+    format: FLOOD_FRAME,
+};
+static BEAT_OUT: TopicSpec = TopicSpec {
+    owner: OwnerSpec::Own,
+    name: "beats",
+    qos: QosProfile::Reliable,
+    format: BEAT,
+};
+const FLOOD_NODE: OwnerSpec = OwnerSpec::Node {
+    name: "flood",
+    tag: "v1",
+};
+static FLOOD_IN: ConsumedTopicSpec = ConsumedTopicSpec {
+    link_id: Some("src"),
+    owner: FLOOD_NODE,
+    name: "frames",
+    qos: QosProfile::Reliable,
+    format: FLOOD_FRAME,
+};
+static BEAT_IN: ConsumedTopicSpec = ConsumedTopicSpec {
+    link_id: Some("src"),
+    owner: FLOOD_NODE,
+    name: "beats",
+    qos: QosProfile::Reliable,
+    format: BEAT,
+};
+static PING: ServiceSpec = ServiceSpec {
+    owner: OwnerSpec::Own,
+    name: "ping",
+    request: PING_REQ,
+    response: PING_RESP,
+};
+static PING_STATION: ConsumedServiceSpec = ConsumedServiceSpec {
+    link_id: "st",
+    owner: OwnerSpec::Node {
+        name: "station",
+        tag: "v1",
+    },
+    name: "ping",
+    request: PING_REQ,
+    response: PING_RESP,
+};
+
+test_node!(
+    Flood,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "flood", tag: "v1", depends_on: { nodes: [{ name: "station", tag: "v1", link_id: "st" }] } },
+         interfaces: { topics: { emits: [
+             { name: "frames", qos_profile: "reliable", message_format: { seq: "u32", data: "bytes" } },
+             { name: "beats", qos_profile: "reliable", message_format: { n: "u32" } } ] },
+           services: { consumes: [{ link_id: "st", name: "ping" }] } },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [FLOOD_OUT, BEAT_OUT], consumes: [], serves: [], actions: []
+);
+
+test_node!(
+    Station,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "station", tag: "v1", depends_on: { nodes: [{ name: "flood", tag: "v1", link_id: "src" }] } },
+         interfaces: { topics: { consumes: [{ link_id: "src", name: "frames" }, { link_id: "src", name: "beats" }] },
+           services: { exposes: [{ name: "ping", request_message_format: { x: "u32" }, response_message_format: { y: "u32" } }] } },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [], consumes: [FLOOD_IN, BEAT_IN], serves: [PING], actions: []
+);
+
+/// One slow reader of one reliable topic must not hold up the rest of its
+/// node: Zenoh delivers every subscription and query of a session on the
+/// same threads, so an inbox that blocked there when full would stall the
+/// node's other topics and services (and, through TCP, the sender).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_reader_that_never_reads_one_topic_stalls_nothing_else() {
+    let hub = hub().await;
+    let ns = namespace("slow-reader");
+    let (_, station) = start::<Station>(&hub, &ns, "station", &["--bind", "src@flood"]).await;
+    let (_, flood) = start::<Flood>(&hub, &ns, "flood", &["--bind", "st@station"]).await;
+    tokio::spawn({
+        let station = station.clone();
+        async move {
+            while handle_next::<u32, u32, _>(&station, &PING, |_, x| Ok(x + 1))
+                .await
+                .is_ok()
+            {}
+        }
+    });
+    // Both subscriptions matched: a beat gets through.
+    tokio::time::timeout(WAIT, async {
+        loop {
+            emit(&flood, &BEAT_OUT, &u32::MAX).await.unwrap();
+            let beat = tokio::time::timeout(
+                Duration::from_millis(100),
+                next_message::<u32>(&station, &BEAT_IN, None),
+            );
+            if beat.await.is_ok() {
+                break;
+            }
+        }
+    })
+    .await
+    .expect("subscription matched");
+    // 40 MiB on `frames`, which the station does not read: far beyond its
+    // inbox's nominal depth (256) and every socket buffer on the way.
+    const FRAMES: u32 = 10_000;
+    let frame = |seq| crate::support::Frame {
+        seq,
+        data: vec![(seq % 251) as u8; 4096],
+    };
+    // The first frame must be queued before the flood can prove anything.
+    emit(&flood, &FLOOD_OUT, &frame(0)).await.unwrap();
+    tokio::time::timeout(WAIT, async {
+        for seq in 1..FRAMES {
+            emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+        }
+    })
+    .await
+    .expect("the sender is never held up by a reader that does not read");
+    // While all of it sits unread, beats and service calls still pass.
+    for n in 0..20u32 {
+        emit(&flood, &BEAT_OUT, &n).await.unwrap();
+        let (_, beat) = tokio::time::timeout(WAIT, async {
+            loop {
+                let got = next_message::<u32>(&station, &BEAT_IN, None).await.unwrap();
+                if got.1 != u32::MAX {
+                    return got;
+                }
+            }
+        })
+        .await
+        .expect("a beat passes while another topic is unread");
+        assert_eq!(beat, n);
+        let reply = tokio::time::timeout(WAIT, call::<u32, u32>(&flood, &PING_STATION, WAIT, &n))
+            .await
+            .expect("a service call is answered while another topic is unread")
+            .unwrap();
+        assert_eq!((reply.instance_id.as_str(), reply.data), ("station", n + 1));
+    }
+    // Once the reader reads, every frame is there, in order, intact.
+    tokio::time::timeout(WAIT, async {
+        for seq in 0..FRAMES {
+            let (_, got): (String, crate::support::Frame) =
+                next_message(&station, &FLOOD_IN, None).await.unwrap();
+            assert_eq!(got, frame(seq), "frame {seq}");
+        }
+    })
+    .await
+    .expect("every frame is kept for the reader");
+    station.shutdown().await;
+    flood.shutdown().await;
 }
