@@ -13,6 +13,8 @@ use std::process::Stdio;
 use peppy_schema::{Execution, Launch};
 use serde::Deserialize;
 
+use crate::build_progress::{BuildProgress, CARGO_PROGRESS_ENV, parse_cargo_progress};
+
 /// A build of one node failed, or its program cannot be found.
 #[derive(Debug, thiserror::Error)]
 pub enum ExecutableError {
@@ -64,30 +66,73 @@ fn with_json_messages(cmd: &[String]) -> Vec<String> {
     argv
 }
 
-/// Runs `cmd` in `dir`; returns its stdout.
-async fn run_build(node: &str, dir: &Path, cmd: &[String]) -> Result<String, ExecutableError> {
+/// Runs `cmd` in `dir`, showing its progress as `label`; returns its
+/// stdout. A cargo build (`cargo`) is asked for its unit counts.
+async fn run_build(
+    node: &str,
+    label: &str,
+    dir: &Path,
+    cmd: &[String],
+    cargo: bool,
+) -> Result<String, ExecutableError> {
+    use tokio::io::AsyncReadExt as _;
     let command = cmd.join(" ");
-    let output = tokio::process::Command::new(&cmd[0])
+    let spawn_failed = |source| ExecutableError::Spawn {
+        node: node.to_string(),
+        command: command.clone(),
+        dir: dir.display().to_string(),
+        source,
+    };
+    let mut build = tokio::process::Command::new(&cmd[0]);
+    build
         .args(&cmd[1..])
         .current_dir(dir)
         .stdin(Stdio::null())
-        .output()
-        .await
-        .map_err(|source| ExecutableError::Spawn {
-            node: node.to_string(),
-            command: command.clone(),
-            dir: dir.display().to_string(),
-            source,
-        })?;
-    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
-    if !output.status.success() {
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .kill_on_drop(true);
+    if cargo {
+        build.envs(CARGO_PROGRESS_ENV);
+    }
+    let mut child = build.spawn().map_err(spawn_failed)?;
+    let progress = BuildProgress::start(label.to_string());
+    let mut out_pipe = child.stdout.take().expect("stdout is piped");
+    let stdout = tokio::spawn(async move {
+        let mut bytes = Vec::new();
+        let _ = out_pipe.read_to_end(&mut bytes).await;
+        bytes
+    });
+    // Cargo's progress lines end in `\r`, everything else in `\n`: each
+    // segment is either a count for the display or text kept for a failure.
+    let mut err_pipe = child.stderr.take().expect("stderr is piped");
+    let (mut kept, mut pending, mut chunk) = (String::new(), Vec::new(), [0u8; 8192]);
+    while let Ok(n @ 1..) = err_pipe.read(&mut chunk).await {
+        pending.extend_from_slice(&chunk[..n]);
+        while let Some(end) = pending.iter().position(|b| matches!(b, b'\r' | b'\n')) {
+            let segment: Vec<u8> = pending.drain(..=end).collect();
+            let line = String::from_utf8_lossy(&segment[..end]);
+            match parse_cargo_progress(&line) {
+                Some((done, total, current)) => progress.units(done, total, current),
+                None if !line.trim().is_empty() => {
+                    kept.push_str(&line);
+                    kept.push('\n');
+                }
+                None => {}
+            }
+        }
+    }
+    kept.push_str(&String::from_utf8_lossy(&pending));
+    let status = child.wait().await.map_err(spawn_failed)?;
+    let stdout = String::from_utf8_lossy(&stdout.await.unwrap_or_default()).into_owned();
+    progress.finish(status.success());
+    if !status.success() {
         // Cargo's JSON lines are for us; people read the rendered stderr.
         let mut text: String = stdout
             .lines()
             .filter(|l| !l.starts_with('{'))
             .map(|l| format!("{l}\n"))
             .collect();
-        text.push_str(&String::from_utf8_lossy(&output.stderr));
+        text.push_str(&kept);
         return Err(ExecutableError::Failed {
             node: node.to_string(),
             command,
@@ -108,17 +153,19 @@ pub(crate) fn build_of(execution: &Execution) -> Option<Vec<String>> {
     })
 }
 
-/// Builds the node in `dir` (unless `build` is false) and returns the argv
-/// that starts it.
+/// Builds the node in `dir` (unless `build` is false), showing progress
+/// as `label`, and returns the argv that starts it.
 pub(crate) async fn prepare(
     node: &str,
+    label: &str,
     node_name: &str,
     dir: &Path,
     execution: &Execution,
     build: bool,
 ) -> Result<Vec<String>, ExecutableError> {
+    let cargo = matches!(execution.launch(), Launch::CargoBinary);
     let stdout = match (build, build_of(execution)) {
-        (true, Some(cmd)) => Some(run_build(node, dir, &cmd).await?),
+        (true, Some(cmd)) => Some(run_build(node, label, dir, &cmd, cargo).await?),
         _ => None,
     };
     match execution.launch() {

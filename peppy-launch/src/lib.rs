@@ -4,6 +4,7 @@
 //! [`LaunchError`], whose [`LaunchError::exit_code`] is the only place exit
 //! codes are decided.
 
+mod build_progress;
 mod check;
 mod cli;
 mod drawing;

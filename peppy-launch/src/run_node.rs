@@ -72,6 +72,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
         }
         let argv = executable::prepare(
             &doc.identity().to_string(),
+            &doc.identity().to_string(),
             &doc.name,
             &dir,
             &doc.execution,

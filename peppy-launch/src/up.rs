@@ -277,15 +277,15 @@ async fn prepare_all(
     for d in here() {
         let node = &d.resolved.node;
         let identity = node.identity();
+        let mut label = identity.to_string();
         if build && let Some(cmd) = executable::build_of(&node.execution) {
             built += 1;
-            out.note(&format!(
-                "building {identity} ({built}/{total}): {}",
-                cmd.join(" ")
-            ));
+            label = format!("{identity} ({built}/{total})");
+            out.note(&format!("building {label}: {}", cmd.join(" ")));
         }
         let argv = executable::prepare(
             &identity.to_string(),
+            &label,
             &node.name,
             &d.dir,
             &node.execution,

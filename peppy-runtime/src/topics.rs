@@ -304,6 +304,17 @@ pub async fn next_message<M: Decode>(
     }
 }
 
+/// The message is encoded when `emit` is called, so a temporary works:
+/// the returned future does not borrow it.
+#[cfg(test)]
+#[expect(dead_code, reason = "compiling it is the test")]
+fn emit_accepts_a_temporary<'a>(
+    runner: &'a NodeRunner,
+    spec: &'static TopicSpec,
+) -> impl Future<Output = Result<()>> + use<'a> {
+    emit(runner, spec, &vec![1u8, 2, 3])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -362,15 +373,4 @@ mod tests {
         );
         assert_eq!(intake.backlog.next_warning.load(Relaxed), 0);
     }
-}
-
-/// The message is encoded when `emit` is called, so a temporary works:
-/// the returned future does not borrow it.
-#[cfg(test)]
-#[expect(dead_code, reason = "compiling it is the test")]
-fn emit_accepts_a_temporary<'a>(
-    runner: &'a NodeRunner,
-    spec: &'static TopicSpec,
-) -> impl Future<Output = Result<()>> + use<'a> {
-    emit(runner, spec, &vec![1u8, 2, 3])
 }

@@ -1,11 +1,13 @@
 //! Generated code over real Zenoh: nodes generated from the peppy-build
 //! fixtures (with `#[peppy::node]`) talk through an in-process router on a
 //! loopback port, one namespace per test (topics, services, actions,
-//! parameters); plus codec round trips of every generated message shape.
+//! parameters); codec round trips of every generated message shape; and
+//! node code against every generated API shape (`api`).
 
 #![deny(warnings)]
 
 mod actions;
+mod api;
 mod nodes;
 mod params;
 mod roundtrip;

@@ -1,4 +1,4 @@
-#[peppy::node("pass/topics.json5")]
+#[peppy::node("usage/typed_api.json5")]
 fn peppygen() {}
 
 fn main() {}

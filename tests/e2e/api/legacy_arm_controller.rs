@@ -3,7 +3,7 @@
 // SPEC 4).
 #![deny(warnings)]
 
-#[peppy::node("pass/legacy_arm_controller.json5")]
+#[peppy::node("tests/e2e/api/legacy_arm_controller.json5")]
 mod peppygen {}
 
 use peppygen::consumed_topics::robot_arm_joint_states;
@@ -16,12 +16,10 @@ fn node_main() -> Result<()> {
         tokio::spawn(async move {
             loop {
                 // Linked topic: module name is <local_node_id>_<topic_name>
-                let (_instance_id, state) = robot_arm_joint_states::on_next_message_received(
-                    &node_runner_clone,
-                    None,
-                )
-                .await
-                .expect("failed to receive joint state");
+                let (_instance_id, state) =
+                    robot_arm_joint_states::on_next_message_received(&node_runner_clone, None)
+                        .await
+                        .expect("failed to receive joint state");
 
                 // Compute next target based on current state
                 let target = compute_next_target(&state.positions);
@@ -44,6 +42,7 @@ fn compute_next_target(current: &[f64; 3]) -> [f64; 3] {
     [current[0] + 0.1, current[1], current[2]]
 }
 
-fn main() {
+#[test]
+fn compiles_and_runs() {
     let _ = node_main;
 }

@@ -3,7 +3,7 @@
 // which this project follows, takes `from_core_node` only.)
 #![deny(warnings)]
 
-#[peppy::node("pass/legacy_robot_arm.json5")]
+#[peppy::node("tests/e2e/api/legacy_robot_arm.json5")]
 mod peppygen {}
 
 use peppygen::consumed_topics::joint_commands;
@@ -15,12 +15,10 @@ fn node_main() -> Result<()> {
         let node_runner_clone = node_runner.clone();
         tokio::spawn(async move {
             loop {
-                let (instance_id, command) = joint_commands::on_next_message_received(
-                    &node_runner_clone,
-                    None,
-                )
-                .await
-                .expect("failed to receive joint command");
+                let (instance_id, command) =
+                    joint_commands::on_next_message_received(&node_runner_clone, None)
+                        .await
+                        .expect("failed to receive joint command");
 
                 println!(
                     "received from {}: target={:?} max_vel={}",
@@ -42,6 +40,7 @@ fn node_main() -> Result<()> {
     })
 }
 
-fn main() {
+#[test]
+fn compiles_and_runs() {
     let _ = node_main;
 }

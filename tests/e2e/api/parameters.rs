@@ -1,6 +1,6 @@
 #![deny(warnings)]
 
-#[peppy::node("pass/parameters.json5")]
+#[peppy::node("tests/e2e/api/parameters.json5")]
 mod peppygen {}
 
 use std::time::{Duration, UNIX_EPOCH};
@@ -8,7 +8,8 @@ use std::time::{Duration, UNIX_EPOCH};
 use peppygen::parameters::{CamerasItem, Video, VideoEncoder};
 use peppygen::{Parameters, StandaloneConfig};
 
-fn main() {
+#[test]
+fn compiles_and_runs() {
     let json = format!(
         r#"{{ "rate_hz": 10.0, "name": "cam", "start": 1.5, "type": "x",
              "video": {{ "fps": 30, "encoder": {{ "codec": "h264", "bitrate": 9 }} }},
@@ -21,10 +22,19 @@ fn main() {
         rate_hz: 10.0,
         name: "cam".into(),
         start: UNIX_EPOCH + Duration::from_millis(1500),
-        video: Video { fps: 30, encoder: VideoEncoder { codec: "h264".into(), bitrate: 9 } },
+        video: Video {
+            fps: 30,
+            encoder: VideoEncoder {
+                codec: "h264".into(),
+                bitrate: 9,
+            },
+        },
         gains: [1.0, 2.0, 3.0],
         weights: [7; 64],
-        cameras: vec![CamerasItem { serial: "SN1".into(), port: 80 }],
+        cameras: vec![CamerasItem {
+            serial: "SN1".into(),
+            port: 80,
+        }],
         r#type: "x".into(),
     };
     assert_eq!(params, expected);

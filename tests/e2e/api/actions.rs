@@ -1,7 +1,7 @@
 // The action API of SPEC 4, written the way the original's node code was.
 #![deny(warnings)]
 
-#[peppy::node("pass/actions.json5")]
+#[peppy::node("tests/e2e/api/actions.json5")]
 mod peppygen {}
 
 use std::time::Duration;
@@ -78,6 +78,7 @@ async fn call(node_runner: &NodeRunner) -> Result<()> {
     Ok(())
 }
 
-fn main() {
+#[test]
+fn compiles_and_runs() {
     let _ = (serve, call);
 }

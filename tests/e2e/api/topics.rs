@@ -1,6 +1,6 @@
 #![deny(warnings)]
 
-#[peppy::node("pass/topics.json5")]
+#[peppy::node("tests/e2e/api/topics.json5")]
 mod peppygen {}
 
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -18,7 +18,10 @@ async fn use_api(runner: &NodeRunner) -> Result<()> {
     let _: ([f64; 3], f64) = (command.target_positions, command.max_velocity);
     frames::emit(
         runner,
-        frames::MessageHeader { stamp: SystemTime::now(), frame_id: 1 },
+        frames::MessageHeader {
+            stamp: SystemTime::now(),
+            frame_id: 1,
+        },
         [0.0; 7],
         vec![frames::MessagePointsItem { x: 1.0, y: 2.0 }],
         None,
@@ -29,10 +32,14 @@ async fn use_api(runner: &NodeRunner) -> Result<()> {
     tick::emit(runner).await
 }
 
-fn main() {
+#[test]
+fn compiles_and_runs() {
     let _ = use_api;
     let message = frames::Message {
-        header: frames::MessageHeader { stamp: UNIX_EPOCH + Duration::new(5, 6), frame_id: 7 },
+        header: frames::MessageHeader {
+            stamp: UNIX_EPOCH + Duration::new(5, 6),
+            frame_id: 7,
+        },
         pose: [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0],
         points: vec![frames::MessagePointsItem { x: 0.5, y: -0.5 }],
         note: Some("calibrated".into()),

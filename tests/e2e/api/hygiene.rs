@@ -30,19 +30,17 @@ mod std {}
 mod peppy {}
 mod serde {}
 
-#[::peppy::node("pass/services.json5")]
+#[::peppy::node("tests/e2e/api/services.json5")]
 mod peppygen {}
 
-#[::peppy::node("pass/topics.json5")]
+#[::peppy::node("tests/e2e/api/topics.json5")]
 mod topics {}
 
-#[::peppy::node("pass/parameters.json5")]
+#[::peppy::node("tests/e2e/api/parameters.json5")]
 mod params {}
 
-#[::peppy::node("pass/actions.json5")]
+#[::peppy::node("tests/e2e/api/actions.json5")]
 mod actions {}
 
-#[::peppy::node("pass/conformance.json5")]
+#[::peppy::node("tests/e2e/api/conformance.json5")]
 mod conformance {}
-
-fn main() {}

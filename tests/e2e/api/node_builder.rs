@@ -2,7 +2,7 @@
 // defaults its parameter type to this node's `Parameters`.
 #![deny(warnings)]
 
-#[peppy::node("pass/node_builder.json5")]
+#[peppy::node("tests/e2e/api/node_builder.json5")]
 mod peppygen {}
 
 use std::sync::Arc;
@@ -32,7 +32,8 @@ fn through_the_facade() -> peppy::Result<()> {
     peppy::NodeBuilder::<Parameters>::new().run(|_, _| async { Ok(()) })
 }
 
-fn main() {
+#[test]
+fn compiles_and_runs() {
     let _ = (inferred, explicit, through_the_facade);
     let _: peppygen::QoSProfile = peppy::QoSProfile::Reliable;
     let _: Option<peppygen::Error> = None;

@@ -1,6 +1,6 @@
 #![deny(warnings)]
 
-#[peppy::node("pass/services.json5")]
+#[peppy::node("tests/e2e/api/services.json5")]
 mod peppygen {}
 
 use std::time::Duration;
@@ -12,7 +12,12 @@ use peppygen::{NodeRunner, Result};
 async fn serve(runner: &NodeRunner) -> Result<()> {
     echo::handle_next_request(runner, |request: echo::Request| {
         let _: (&str, &str) = (&request.instance_id, &request.core_node);
-        Ok(echo::Response::new(request.data.text, echo::ResponseMeta { id: request.data.meta.id }))
+        Ok(echo::Response::new(
+            request.data.text,
+            echo::ResponseMeta {
+                id: request.data.meta.id,
+            },
+        ))
     })
     .await?;
     trigger::handle_next_request(runner, |request| {
@@ -40,13 +45,19 @@ async fn call(runner: &NodeRunner) -> Result<()> {
         info.data.frames_per_second,
         info.data.encoding,
     );
-    let reset = front_reset::poll(runner, Duration::from_secs(1), front_reset::Request::new(true)).await?;
+    let reset = front_reset::poll(
+        runner,
+        Duration::from_secs(1),
+        front_reset::Request::new(true),
+    )
+    .await?;
     let _: (bool, Option<String>) = (reset.data.ok, reset.data.note);
     let literal = front_reset::Request { hard: false };
     front_reset::poll(runner, Duration::from_millis(10), literal).await?;
     Ok(())
 }
 
-fn main() {
+#[test]
+fn compiles_and_runs() {
     let _ = (serve, call);
 }

@@ -3,7 +3,7 @@
 // (the shape of the original's node code).
 #![deny(warnings)]
 
-#[peppy::node("pass/actions.json5")]
+#[peppy::node("tests/e2e/api/actions.json5")]
 mod peppygen {}
 
 use std::sync::Arc;
@@ -52,6 +52,7 @@ fn node_main() -> Result<()> {
     })
 }
 
-fn main() {
+#[test]
+fn compiles_and_runs() {
     let _ = node_main;
 }

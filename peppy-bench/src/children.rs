@@ -1,0 +1,301 @@
+//! The benchmark's child processes: `peppy-bench child ROLE`. Each prints
+//! `{"ready":true}` once set up, then one JSON line per result.
+
+use std::time::{Duration, Instant};
+
+use clap::{Args, Subcommand, ValueEnum};
+use serde::Serialize;
+use serde_json::json;
+use tokio::io::AsyncReadExt as _;
+use zenoh::Wait as _;
+
+use crate::peppy_side::{self, PeppySink};
+use crate::raw_side::{self, RawSink};
+use crate::roles::{self, Qos, Res, Sink, cpu_ms, report};
+
+/// Which system a child runs on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub(crate) enum System {
+    /// Raw Zenoh sessions.
+    Zenoh,
+    /// peppy nodes.
+    Peppy,
+}
+
+/// Where a child's session goes.
+#[derive(Debug, Args)]
+pub(crate) struct Place {
+    #[arg(long, value_enum)]
+    system: System,
+    /// The namespace (peppy) or key prefix (raw) of this run.
+    #[arg(long)]
+    ns: String,
+    /// The source's endpoint.
+    #[arg(long)]
+    endpoint: String,
+}
+
+/// A child process's role (internal: started by the benchmark itself).
+#[derive(Debug, Subcommand)]
+#[command(hide = true)]
+pub(crate) enum Child {
+    /// Serve pings, echo, flood and work until stdin closes.
+    Source(Place),
+    /// Round trips at each size.
+    RoundTrip {
+        #[command(flatten)]
+        place: Place,
+        #[arg(long, value_enum)]
+        qos: Qos,
+        #[arg(long, value_delimiter = ',')]
+        sizes: Vec<usize>,
+        /// Round trips per size up to 64 KiB (a fifth of it above).
+        #[arg(long)]
+        count: usize,
+    },
+    /// Flood throughput at each size.
+    Throughput {
+        #[command(flatten)]
+        place: Place,
+        /// `SIZE:COUNT` pairs.
+        #[arg(long, value_delimiter = ',')]
+        cases: Vec<String>,
+    },
+    /// One consumer of a fan-out.
+    FanOut {
+        #[command(flatten)]
+        place: Place,
+        #[arg(long)]
+        id: usize,
+        /// This consumer starts the producer.
+        #[arg(long)]
+        trigger: bool,
+        #[arg(long)]
+        size: u32,
+        #[arg(long)]
+        hz: f64,
+        #[arg(long)]
+        warmup: u64,
+        #[arg(long)]
+        frames: u64,
+    },
+    /// Service round trips (and, on peppy, action goal to result).
+    Service {
+        #[command(flatten)]
+        place: Place,
+        #[arg(long)]
+        count: usize,
+    },
+    /// Watch a launch: when the first message comes, and when every
+    /// instance has been heard.
+    Watch {
+        #[arg(long)]
+        listen: String,
+        #[arg(long)]
+        ns: String,
+        #[arg(long)]
+        expect: usize,
+    },
+}
+
+/// Runs a child role; errors are printed, and the exit code says so.
+pub(crate) fn run(child: Child) -> std::process::ExitCode {
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("peppy-bench child: {e}");
+            return std::process::ExitCode::FAILURE;
+        }
+    };
+    match runtime.block_on(role(child)) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("peppy-bench child: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// Resolves when stdin closes: the parent's way of stopping a source.
+async fn stdin_closed() {
+    let mut sink = Vec::new();
+    let _ = tokio::io::stdin().read_to_end(&mut sink).await;
+}
+
+async fn role(child: Child) -> Res<()> {
+    match child {
+        Child::Source(p) => {
+            let ready = async {
+                report(&json!({ "ready": true, "cpu_ms": cpu_ms() }));
+                stdin_closed().await;
+            };
+            match p.system {
+                System::Zenoh => raw_side::source(&p.ns, &p.endpoint, ready).await,
+                System::Peppy => peppy_side::source(&p.ns, &p.endpoint, ready).await,
+            }
+        }
+        Child::RoundTrip {
+            place,
+            qos,
+            sizes,
+            count,
+        } => {
+            with_sink(&place, "sink", async |s| {
+                for &size in &sizes {
+                    let n = if size > 64 << 10 { count / 5 } else { count }.max(10);
+                    report(&roles::round_trips(s, qos, size, n).await?);
+                }
+                Ok(())
+            })
+            .await
+        }
+        Child::Throughput { place, cases } => {
+            with_sink(&place, "sink", async |s| {
+                for case in &cases {
+                    let (size, count) = case
+                        .split_once(':')
+                        .and_then(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)))
+                        .ok_or_else(|| format!("bad case `{case}`: SIZE:COUNT"))?;
+                    report(&roles::throughput(s, size, count).await?);
+                }
+                Ok(())
+            })
+            .await
+        }
+        Child::FanOut {
+            place,
+            id,
+            trigger,
+            size,
+            hz,
+            warmup,
+            frames,
+        } => {
+            let instance = format!("sink_{id}");
+            with_sink(&place, &instance, async |s| {
+                // Every consumer's subscription is up before the producer starts.
+                report(&json!({ "ready": true }));
+                let flood = trigger.then_some((size, (warmup + frames) as u32, hz));
+                if trigger {
+                    tokio::time::sleep(Duration::from_secs(1)).await;
+                }
+                report(&roles::fan_out(s, flood, warmup, frames).await?);
+                Ok(())
+            })
+            .await
+        }
+        Child::Service { place, count } => {
+            let spread = with_sink(&place, "sink", async |s| {
+                report(&json!({ "service": roles::service_calls(s, 64, count).await? }));
+                Ok(())
+            });
+            spread.await?;
+            if place.system == System::Peppy {
+                let sink = PeppySink::connect(&place.ns, &place.endpoint, "sink_action").await?;
+                let spread = sink.action_round_trips(count / 2).await;
+                sink.stop().await;
+                report(&json!({ "action": spread? }));
+            }
+            Ok(())
+        }
+        Child::Watch { listen, ns, expect } => watch(&listen, &ns, expect).await,
+    }
+}
+
+/// Connects a sink of the place's system and runs `work` on it.
+async fn with_sink(
+    place: &Place,
+    instance: &str,
+    work: impl AsyncFnOnce(&AnySink) -> Res<()>,
+) -> Res<()> {
+    let sink = match place.system {
+        System::Zenoh => AnySink::Raw(Box::new(
+            RawSink::connect(&place.ns, &place.endpoint).await?,
+        )),
+        System::Peppy => {
+            AnySink::Peppy(PeppySink::connect(&place.ns, &place.endpoint, instance).await?)
+        }
+    };
+    let r = work(&sink).await;
+    if let AnySink::Peppy(p) = sink {
+        p.stop().await;
+    }
+    r
+}
+
+/// Either system's sink, so one measuring loop serves both.
+pub(crate) enum AnySink {
+    Raw(Box<RawSink>),
+    Peppy(PeppySink),
+}
+
+impl Sink for AnySink {
+    async fn ping(&self, qos: Qos, seq: u64, data: Vec<u8>) -> Res<()> {
+        match self {
+            AnySink::Raw(s) => s.ping(qos, seq, data).await,
+            AnySink::Peppy(s) => s.ping(qos, seq, data).await,
+        }
+    }
+
+    async fn pong(&self, qos: Qos) -> Res<u64> {
+        match self {
+            AnySink::Raw(s) => s.pong(qos).await,
+            AnySink::Peppy(s) => s.pong(qos).await,
+        }
+    }
+
+    async fn flood(&self, size: u32, count: u32, hz: f64) -> Res<()> {
+        match self {
+            AnySink::Raw(s) => s.flood(size, count, hz).await,
+            AnySink::Peppy(s) => s.flood(size, count, hz).await,
+        }
+    }
+
+    async fn stream(&self) -> Res<(u64, u64, usize)> {
+        match self {
+            AnySink::Raw(s) => s.stream().await,
+            AnySink::Peppy(s) => s.stream().await,
+        }
+    }
+
+    async fn echo(&self, data: Vec<u8>) -> Res<usize> {
+        match self {
+            AnySink::Raw(s) => s.echo(data).await,
+            AnySink::Peppy(s) => s.echo(data).await,
+        }
+    }
+}
+
+/// Subscribes to every topic of namespace `ns` and reports when the first
+/// message came and when `expect` distinct instances had been heard.
+async fn watch(listen: &str, ns: &str, expect: usize) -> Res<()> {
+    let session = raw_side::open(Some(listen), None).await?;
+    let topics = session
+        .declare_subscriber(format!("peppy/{ns}/topic/**"))
+        .await?;
+    report(&json!({ "ready": true }));
+    let mut heard = std::collections::BTreeSet::new();
+    let mut first = None;
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while heard.len() < expect {
+        let left = deadline.saturating_duration_since(Instant::now());
+        let Ok(Ok(sample)) = tokio::time::timeout(left, topics.recv_async()).await else {
+            break;
+        };
+        first.get_or_insert_with(roles::now_ns);
+        if let Some(instance) = sample.key_expr().as_str().rsplit('/').next() {
+            heard.insert(instance.to_string());
+        }
+    }
+    report(&json!({
+        "first_ns": first,
+        "all_ns": (heard.len() >= expect).then(roles::now_ns),
+        "heard": heard.len(),
+    }));
+    let _ = session.close().wait();
+    Ok(())
+}

@@ -1,0 +1,177 @@
+//! What launching costs: `peppy-launch up --no-build` of N already built
+//! camera instances to their first message and to a message from every
+//! one, and the resident memory of an idle node next to an idle raw Zenoh
+//! process.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+use crate::children::System;
+use crate::procs::{Proc, free_port, rss_mib};
+use crate::roles::{Res, now_ns};
+use crate::stats::{Figure, Row};
+use crate::workspace;
+
+/// Builds what the launches start (the debug build `up` uses, as a
+/// newcomer's), then measures.
+pub(crate) fn launch(_quick: bool) -> Res<Vec<Row>> {
+    let launcher = build_examples()?;
+    let mut rows = Vec::new();
+    for n in [10usize, 50] {
+        let (first, all, rss) = launch_once(&launcher, n)?;
+        let ms = |v: f64| Figure::Value {
+            value: v,
+            unit: "ms".into(),
+        };
+        rows.push(Row::new(
+            "launch (already built, debug nodes)",
+            format!("{n} instances: up to first message"),
+            None,
+            Some(ms(first)),
+        ));
+        rows.push(Row::new(
+            "launch (already built, debug nodes)",
+            format!("{n} instances: up to a message from each"),
+            None,
+            all.map(ms),
+        ));
+        if let Some(rss) = rss {
+            rows.push(Row::new(
+                "launch (already built, debug nodes)",
+                format!("{n} instances: resident memory of a camera node"),
+                None,
+                Some(Figure::Value {
+                    value: rss,
+                    unit: "MiB".into(),
+                }),
+            ));
+        }
+    }
+    let mut idle = [None, None];
+    for (i, system) in [System::Zenoh, System::Peppy].into_iter().enumerate() {
+        let port = free_port()?;
+        let system_flag = if system == System::Peppy {
+            "peppy"
+        } else {
+            "zenoh"
+        };
+        let mut source = Proc::child(
+            &[
+                "source",
+                "--system",
+                system_flag,
+                "--ns",
+                &format!("idle-{port}"),
+                "--endpoint",
+                &format!("tcp/127.0.0.1:{port}"),
+            ]
+            .map(String::from),
+        )?;
+        source.next_with("ready", Duration::from_secs(30))?;
+        std::thread::sleep(Duration::from_secs(2));
+        idle[i] = rss_mib(source.pid()).map(|value| Figure::Value {
+            value,
+            unit: "MiB".into(),
+        });
+        source.stop();
+    }
+    let [zenoh, peppy] = idle;
+    rows.push(
+        Row::new(
+            "launch (already built, debug nodes)",
+            "idle process: resident memory (release)".into(),
+            zenoh,
+            peppy,
+        )
+        .with_note("the benchmark's source: every topic, service and action of this table"),
+    );
+    Ok(rows)
+}
+
+/// `cargo build -p peppy-launch -p realsense_d405`; the launcher's path.
+fn build_examples() -> Res<PathBuf> {
+    eprintln!("peppy-bench: building peppy-launch and realsense_d405 (debug, as `up` would)…");
+    let status = Command::new(env!("CARGO"))
+        .args(["build", "-p", "peppy-launch", "-p", "realsense_d405"])
+        .current_dir(workspace())
+        .status()?;
+    if !status.success() {
+        return Err("the build of peppy-launch and realsense_d405 failed".into());
+    }
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map_or_else(|| workspace().join("target"), PathBuf::from);
+    Ok(target.join("debug").join("peppy-launch"))
+}
+
+/// One launch of `n` cameras: ms to the first message, to one from each,
+/// and the median camera's resident memory (MiB) once all are heard.
+fn launch_once(launcher: &Path, n: usize) -> Res<(f64, Option<f64>, Option<f64>)> {
+    let dir = tempfile::tempdir()?;
+    let node = workspace().join("examples/nodes/realsense_d405");
+    let instances: Vec<String> = (0..n)
+        .map(|i| format!("{{ instance_id: \"cam_{i}\" }}"))
+        .collect();
+    let file = dir.path().join("cameras.json5");
+    std::fs::write(
+        &file,
+        format!(
+            "{{ peppy_schema: \"launcher_v1\", deployments: [{{ source: {{ local: {:?} }}, instances: [{}] }}] }}",
+            node.display().to_string(),
+            instances.join(", ")
+        ),
+    )?;
+    let (router, watch_port) = (free_port()?, free_port()?);
+    let ns = format!("launch-{n}-{router}");
+    let watch_at = format!("tcp/127.0.0.1:{watch_port}");
+    let mut watch = Proc::child(
+        &[
+            "watch",
+            "--listen",
+            &watch_at,
+            "--ns",
+            &ns,
+            "--expect",
+            &n.to_string(),
+        ]
+        .map(String::from),
+    )?;
+    watch.next_with("ready", Duration::from_secs(30))?;
+    let started = now_ns();
+    let up = Proc::spawn(
+        launcher.to_path_buf(),
+        &[
+            "up",
+            &file.display().to_string(),
+            "--no-build",
+            "--namespace",
+            &ns,
+            "--listen",
+            &format!("tcp/127.0.0.1:{router}"),
+            "--connect",
+            &watch_at,
+        ]
+        .map(String::from),
+        "peppy-launch up",
+    )?;
+    let seen = watch.next_with("heard", Duration::from_secs(150));
+    // The instances' pids, from `started `cam_0` (...) as pid N`.
+    let pids: Vec<u32> = up
+        .stderr()
+        .lines()
+        .filter_map(|l| l.rsplit_once(" as pid ")?.1.trim().parse().ok())
+        .collect();
+    let mut rss: Vec<f64> = pids.iter().filter_map(|p| rss_mib(*p)).collect();
+    rss.sort_by(f64::total_cmp);
+    let stderr = up.stderr();
+    up.interrupt(Duration::from_secs(30));
+    let seen = seen.map_err(|e| format!("{e}\npeppy-launch said:\n{stderr}"))?;
+    let since = |key: &str| {
+        seen[key]
+            .as_u64()
+            .map(|t| t.saturating_sub(started) as f64 / 1e6)
+    };
+    let first =
+        since("first_ns").ok_or_else(|| format!("no message from the launch:\n{stderr}"))?;
+    Ok((first, since("all_ns"), rss.get(rss.len() / 2).copied()))
+}

@@ -1,0 +1,164 @@
+//! `peppy-bench`: peppy next to raw Zenoh doing the same work between real
+//! processes on this machine, in one run, reported as ratios (peppy / raw)
+//! with p50, p99 and max; then what a person waits for: launching a stack
+//! and building a node. The table is printed and written as JSON.
+//!
+//! Run it in release: `cargo run --release -p peppy-bench`
+//! (docs/PERFORMANCE.md explains every figure).
+
+#[peppy::node("nodes/source/peppy.json5")]
+mod source_node {}
+
+#[peppy::node("nodes/sink/peppy.json5")]
+mod sink_node {}
+
+mod build_times;
+mod children;
+mod launch;
+mod peppy_side;
+mod procs;
+mod raw_side;
+mod roles;
+mod stats;
+mod transport;
+
+use std::path::{Path, PathBuf};
+
+use clap::{Parser, ValueEnum};
+
+use crate::stats::Row;
+
+/// Measure peppy against raw Zenoh between processes, and what launching
+/// and building cost.
+#[derive(Debug, Parser)]
+#[command(name = "peppy-bench", version)]
+struct Cli {
+    /// Only these groups (default: all).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    only: Vec<Group>,
+    /// Fewer samples: a quick look, not a figure to record.
+    #[arg(long)]
+    quick: bool,
+    /// Where the JSON results go (default: target/peppy-bench.json in the
+    /// workspace).
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Debug, clap::Subcommand)]
+enum Command {
+    /// One of the benchmark's own processes (started by it, not by hand).
+    #[command(hide = true)]
+    Child {
+        #[command(subcommand)]
+        role: children::Child,
+    },
+}
+
+/// A group of figures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Group {
+    /// Topic round trips, 64 B to 4 MiB, `reliable` and `sensor_data`.
+    Roundtrip,
+    /// One producer to one consumer, as fast as it goes.
+    Throughput,
+    /// One producer, eight consumer processes, 1 MiB at 30 Hz.
+    Fanout,
+    /// A pinned service call against a raw query; an action's goal to
+    /// result.
+    Service,
+    /// `up --no-build` to the first message; an idle node's memory.
+    Launch,
+    /// Code generation and cargo builds of an example node.
+    Build,
+}
+
+/// Measures one group (`true`: quickly).
+type Measure = fn(bool) -> roles::Res<Vec<Row>>;
+
+/// The workspace root (the benchmark builds and launches its examples).
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("the workspace root")
+        .to_path_buf()
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    if let Some(Command::Child { role }) = cli.command {
+        return children::run(role);
+    }
+    if cfg!(debug_assertions) {
+        eprintln!(
+            "peppy-bench: this is a debug build; figures are only meaningful from `cargo run --release -p peppy-bench`"
+        );
+    }
+    let wanted = |g| cli.only.is_empty() || cli.only.contains(&g);
+    let mut rows: Vec<Row> = Vec::new();
+    let mut failures = Vec::new();
+    let groups: [(Group, Measure); 6] = [
+        (Group::Roundtrip, transport::round_trips),
+        (Group::Throughput, transport::throughput),
+        (Group::Fanout, transport::fan_out),
+        (Group::Service, transport::services),
+        (Group::Launch, launch::launch),
+        (Group::Build, build_times::build),
+    ];
+    for (group, run) in groups {
+        if !wanted(group) {
+            continue;
+        }
+        eprintln!("peppy-bench: measuring {group:?}…");
+        match run(cli.quick) {
+            Ok(mut r) => {
+                eprint!("{}", stats::render(&r));
+                rows.append(&mut r);
+            }
+            Err(e) => {
+                eprintln!("peppy-bench: {group:?} failed: {e}");
+                failures.push(format!("{group:?}: {e}"));
+            }
+        }
+    }
+    println!("{}", machine_line());
+    print!("{}", stats::render(&rows));
+    let out = cli
+        .out
+        .unwrap_or_else(|| workspace().join("target").join("peppy-bench.json"));
+    let json = serde_json::json!({
+        "machine": machine_line(),
+        "quick": cli.quick,
+        "release": !cfg!(debug_assertions),
+        "rows": rows,
+        "failures": failures,
+    });
+    let written = out
+        .parent()
+        .map_or(Ok(()), std::fs::create_dir_all)
+        .and_then(|()| std::fs::write(&out, serde_json::to_string_pretty(&json).expect("json")));
+    match written {
+        Ok(()) => println!("\nresults: {}", out.display()),
+        Err(e) => eprintln!("peppy-bench: cannot write {}: {e}", out.display()),
+    }
+    if failures.is_empty() {
+        std::process::ExitCode::SUCCESS
+    } else {
+        std::process::ExitCode::FAILURE
+    }
+}
+
+/// The machine, in one line: CPU model, cores, kernel.
+fn machine_line() -> String {
+    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let model = cpuinfo
+        .lines()
+        .find_map(|l| l.strip_prefix("model name"))
+        .map(|m| m.trim_start_matches([' ', '\t', ':']).to_string())
+        .unwrap_or_else(|| "unknown CPU".into());
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    let kernel = std::fs::read_to_string("/proc/sys/kernel/osrelease").unwrap_or_default();
+    format!("machine: {model}, {cores} cores, Linux {}", kernel.trim())
+}

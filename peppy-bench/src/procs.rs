@@ -1,0 +1,188 @@
+//! The parent's side of the child processes: spawn one, read its JSON
+//! lines with a bound on every wait, stop it, read its memory.
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::PathBuf;
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
+use std::time::Duration;
+
+use serde_json::Value;
+
+use crate::roles::Res;
+
+/// A running child process of the benchmark.
+pub(crate) struct Proc {
+    what: String,
+    child: Child,
+    stdin: Option<ChildStdin>,
+    lines: Receiver<String>,
+    stderr: std::sync::Arc<std::sync::Mutex<String>>,
+}
+
+impl Proc {
+    /// `peppy-bench child ARGS...`.
+    pub(crate) fn child(args: &[String]) -> Res<Proc> {
+        let exe = std::env::current_exe()?;
+        let mut all = vec!["child".to_string()];
+        all.extend_from_slice(args);
+        Proc::spawn(exe, &all, &args.join(" "))
+    }
+
+    /// Any program, its stdout read as JSON lines.
+    pub(crate) fn spawn(program: PathBuf, args: &[String], what: &str) -> Res<Proc> {
+        let mut child = Command::new(&program)
+            .args(args)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .env("NO_COLOR", "1")
+            .spawn()
+            .map_err(|e| format!("cannot start {}: {e}", program.display()))?;
+        let (tx, lines) = channel();
+        let stdout = child.stdout.take().expect("piped");
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    return;
+                }
+            }
+        });
+        let stderr = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+        let mut err = child.stderr.take().expect("piped");
+        let keep = stderr.clone();
+        std::thread::spawn(move || {
+            let mut chunk = [0u8; 4096];
+            while let Ok(n @ 1..) = err.read(&mut chunk) {
+                if let Ok(mut s) = keep.lock() {
+                    s.push_str(&String::from_utf8_lossy(&chunk[..n]));
+                }
+            }
+        });
+        Ok(Proc {
+            what: what.to_string(),
+            stdin: child.stdin.take(),
+            child,
+            lines,
+            stderr,
+        })
+    }
+
+    /// The process id.
+    pub(crate) fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// What it has printed on stderr so far.
+    pub(crate) fn stderr(&self) -> String {
+        self.stderr.lock().map(|s| s.clone()).unwrap_or_default()
+    }
+
+    /// The next stdout line that is a JSON object, within `bound`.
+    pub(crate) fn next(&mut self, bound: Duration) -> Res<Value> {
+        let deadline = std::time::Instant::now() + bound;
+        loop {
+            let left = deadline.saturating_duration_since(std::time::Instant::now());
+            match self.lines.recv_timeout(left) {
+                Ok(line) => {
+                    if let Ok(v @ Value::Object(_)) = serde_json::from_str(&line) {
+                        return Ok(v);
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    return Err(format!(
+                        "`{}` said nothing within {bound:?}; its stderr:\n{}",
+                        self.what,
+                        tail(&self.stderr())
+                    )
+                    .into());
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    let status = self.child.wait().ok();
+                    return Err(format!(
+                        "`{}` ended ({status:?}); its stderr:\n{}",
+                        self.what,
+                        tail(&self.stderr())
+                    )
+                    .into());
+                }
+            }
+        }
+    }
+
+    /// The next JSON line that has `key`.
+    pub(crate) fn next_with(&mut self, key: &str, bound: Duration) -> Res<Value> {
+        let deadline = std::time::Instant::now() + bound;
+        loop {
+            let left = deadline.saturating_duration_since(std::time::Instant::now());
+            let v = self.next(left)?;
+            if v.get(key).is_some() {
+                return Ok(v);
+            }
+        }
+    }
+
+    /// Closes its stdin (a source stops then) and waits at most 10 s
+    /// before killing it.
+    pub(crate) fn stop(mut self) {
+        self.stdin.take();
+        self.wait_or_kill(Duration::from_secs(10));
+    }
+
+    /// Waits at most `bound` for it to end, then kills it.
+    pub(crate) fn wait_or_kill(&mut self, bound: Duration) {
+        let deadline = std::time::Instant::now() + bound;
+        while std::time::Instant::now() < deadline {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
+    /// Asks it to stop as Ctrl-C would (SIGINT), then waits at most
+    /// `bound` before killing it.
+    pub(crate) fn interrupt(mut self, bound: Duration) {
+        let _ = Command::new("kill")
+            .args(["-INT", &self.pid().to_string()])
+            .status();
+        self.wait_or_kill(bound);
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// The last lines of a child's stderr, for an error.
+fn tail(text: &str) -> String {
+    let lines: Vec<&str> = text.lines().collect();
+    lines[lines.len().saturating_sub(20)..].join("\n")
+}
+
+/// Resident memory of process `pid`, in MiB.
+pub(crate) fn rss_mib(pid: u32) -> Option<f64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let kib: f64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()?;
+    Some(kib / 1024.0)
+}
+
+/// A free TCP port on loopback.
+pub(crate) fn free_port() -> Res<u16> {
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .port())
+}

@@ -1,0 +1,274 @@
+//! What a measuring process does, the same for both systems: the loops
+//! here drive a [`Sink`], which raw Zenoh and peppy each implement, so the
+//! two are timed by the same code doing the same work.
+
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use serde::Serialize;
+use tokio::time::timeout;
+
+use crate::stats::Spread;
+
+/// Errors of a benchmark process: reported, never recovered from.
+pub(crate) type Res<T> = Result<T, Box<dyn std::error::Error + Send + Sync>>;
+
+/// The two topic profiles measured, as WIRE.md §7 defines them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub(crate) enum Qos {
+    /// `reliable`: congestion blocks, DataHigh, every message queued.
+    Reliable,
+    /// `sensor_data`: congestion drops, DataLow, express, newest kept.
+    Sensor,
+}
+
+impl Qos {
+    /// The profile's name in a document.
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            Qos::Reliable => "reliable",
+            Qos::Sensor => "sensor_data",
+        }
+    }
+}
+
+/// The measuring end of a benchmark, over one system.
+pub(crate) trait Sink {
+    /// Sends ping `seq` carrying `data`.
+    async fn ping(&self, qos: Qos, seq: u64, data: Vec<u8>) -> Res<()>;
+    /// The sequence number of the next pong.
+    async fn pong(&self, qos: Qos) -> Res<u64>;
+    /// Asks the source to stream `count` messages of `size` bytes at `hz`
+    /// (0: as fast as it can).
+    async fn flood(&self, size: u32, count: u32, hz: f64) -> Res<()>;
+    /// The next streamed message: `(seq, sent_ns, data length)`.
+    async fn stream(&self) -> Res<(u64, u64, usize)>;
+    /// One call of the echo service; the length of what came back.
+    async fn echo(&self, data: Vec<u8>) -> Res<usize>;
+}
+
+/// Nanoseconds since the epoch: comparable across processes of one host.
+pub(crate) fn now_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+/// CPU time this process has used (user + system), in milliseconds.
+pub(crate) fn cpu_ms() -> f64 {
+    // Fields 14 and 15 of /proc/self/stat, after the parenthesised name,
+    // in clock ticks of USER_HZ (100 on Linux).
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let after = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
+    let fields: Vec<&str> = after.split_whitespace().collect();
+    let ticks = |i: usize| {
+        fields
+            .get(i)
+            .and_then(|f| f.parse::<f64>().ok())
+            .unwrap_or(0.0)
+    };
+    (ticks(11) + ticks(12)) * 10.0
+}
+
+/// A source's report that a flood has been sent: its CPU time and wall
+/// time meanwhile.
+pub(crate) fn flood_done(cpu_from: f64, started: Instant) {
+    report(&serde_json::json!({ "flood": {
+        "cpu_ms": cpu_ms() - cpu_from,
+        "secs": started.elapsed().as_secs_f64(),
+    }}));
+}
+
+/// Prints one JSON line for the parent process.
+pub(crate) fn report(value: &impl Serialize) {
+    println!("{}", serde_json::to_string(value).expect("serialisable"));
+}
+
+/// Pings until a pong answers: until then the two sides have not matched.
+async fn warm_up<S: Sink>(s: &S, qos: Qos, data: &[u8]) -> Res<()> {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let mut seq = 0;
+    while Instant::now() < deadline {
+        seq += 1;
+        s.ping(qos, seq, data.to_vec()).await?;
+        let answered = timeout(Duration::from_millis(200), async {
+            loop {
+                if s.pong(qos).await? == seq {
+                    return Res::Ok(());
+                }
+            }
+        });
+        if let Ok(r) = answered.await {
+            return r;
+        }
+    }
+    Err("no pong within 20 s: the two processes never matched".into())
+}
+
+/// Round trips of `size` bytes: what one measured, and how many pings got
+/// no answer within 2 s (possible only under `sensor_data`).
+#[derive(Debug, Serialize)]
+pub(crate) struct RoundTrips {
+    pub(crate) qos: Qos,
+    pub(crate) size: usize,
+    pub(crate) spread: Option<Spread>,
+    pub(crate) lost: usize,
+}
+
+/// `count` ping-pongs of `size` bytes, one in flight at a time.
+pub(crate) async fn round_trips<S: Sink>(
+    s: &S,
+    qos: Qos,
+    size: usize,
+    count: usize,
+) -> Res<RoundTrips> {
+    let data = vec![0xa5u8; size];
+    warm_up(s, qos, &data).await?;
+    let (mut samples, mut lost) = (Vec::with_capacity(count), 0);
+    for i in 0..count {
+        let seq = 1_000_000 + i as u64;
+        let payload = data.clone();
+        let start = Instant::now();
+        s.ping(qos, seq, payload).await?;
+        let answer = timeout(Duration::from_secs(2), async {
+            loop {
+                if s.pong(qos).await? == seq {
+                    return Res::Ok(());
+                }
+            }
+        });
+        match answer.await {
+            Ok(r) => {
+                r?;
+                samples.push(start.elapsed().as_secs_f64() * 1e6);
+            }
+            Err(_) => lost += 1,
+        }
+    }
+    Ok(RoundTrips {
+        qos,
+        size,
+        spread: Spread::of(&mut samples),
+        lost,
+    })
+}
+
+/// One producer to one consumer, as fast as the producer can.
+#[derive(Debug, Serialize)]
+pub(crate) struct Throughput {
+    pub(crate) size: usize,
+    pub(crate) sent: u32,
+    pub(crate) received: u32,
+    pub(crate) msgs_per_s: f64,
+    pub(crate) bytes_per_s: f64,
+}
+
+/// Receives a flood of `count` messages of `size` bytes; the rate is
+/// between the first and the last arrival.
+pub(crate) async fn throughput<S: Sink>(s: &S, size: usize, count: u32) -> Res<Throughput> {
+    // A small flood first, so the stream is matched before it counts.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    'matched: loop {
+        if Instant::now() > deadline {
+            return Err("the stream never matched".into());
+        }
+        s.flood(8, 5, 0.0).await?;
+        while let Ok(next) = timeout(Duration::from_millis(300), s.stream()).await {
+            if next?.0 == 4 {
+                break 'matched;
+            }
+        }
+    }
+    s.flood(size as u32, count, 0.0).await?;
+    let (mut first, mut last, mut received) = (None, Instant::now(), 0u32);
+    while let Ok(next) = timeout(Duration::from_secs(10), s.stream()).await {
+        let (seq, _, _) = next?;
+        last = Instant::now();
+        first.get_or_insert(last);
+        received += 1;
+        if seq + 1 == u64::from(count) {
+            break;
+        }
+    }
+    let span = first.map_or(0.0, |f| (last - f).as_secs_f64());
+    let msgs_per_s = if span > 0.0 {
+        f64::from(received.saturating_sub(1)) / span
+    } else {
+        0.0
+    };
+    Ok(Throughput {
+        size,
+        sent: count,
+        received,
+        msgs_per_s,
+        bytes_per_s: msgs_per_s * size as f64,
+    })
+}
+
+/// One consumer's view of a fan-out: latency of every frame from the
+/// producer's clock to this process, and this process's CPU meanwhile.
+#[derive(Debug, Serialize)]
+pub(crate) struct FanOut {
+    pub(crate) spread: Option<Spread>,
+    pub(crate) received: u64,
+    pub(crate) cpu_ms: f64,
+}
+
+/// Reads frames until frame `warmup + frames - 1`; the first `warmup`
+/// frames are not counted. `trigger` starts the producer.
+pub(crate) async fn fan_out<S: Sink>(
+    s: &S,
+    trigger: Option<(u32, u32, f64)>,
+    warmup: u64,
+    frames: u64,
+) -> Res<FanOut> {
+    if let Some((size, count, hz)) = trigger {
+        s.flood(size, count, hz).await?;
+    }
+    let (mut samples, mut cpu_from) = (Vec::new(), None);
+    let bound = Duration::from_secs(10);
+    while let Ok(next) = timeout(bound, s.stream()).await {
+        let (seq, sent_ns, _) = next?;
+        let arrived = now_ns();
+        if seq >= warmup {
+            cpu_from.get_or_insert_with(cpu_ms);
+            samples.push(arrived.saturating_sub(sent_ns) as f64 / 1e3);
+        }
+        if seq + 1 >= warmup + frames {
+            break;
+        }
+    }
+    Ok(FanOut {
+        received: samples.len() as u64,
+        spread: Spread::of(&mut samples),
+        cpu_ms: cpu_from.map_or(0.0, |from| cpu_ms() - from),
+    })
+}
+
+/// `count` calls of the echo service with `size` bytes.
+pub(crate) async fn service_calls<S: Sink>(
+    s: &S,
+    size: usize,
+    count: usize,
+) -> Res<Option<Spread>> {
+    let data = vec![7u8; size];
+    // The first call finds the server (and waits for it to be up).
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while s.echo(data.clone()).await.is_err() {
+        if Instant::now() > deadline {
+            return Err("the echo service never answered".into());
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let mut samples = Vec::with_capacity(count);
+    for _ in 0..count {
+        let payload = data.clone();
+        let start = Instant::now();
+        let n = s.echo(payload).await?;
+        samples.push(start.elapsed().as_secs_f64() * 1e6);
+        if n != size {
+            return Err(format!("the echo returned {n} bytes for {size}").into());
+        }
+    }
+    Ok(Spread::of(&mut samples))
+}

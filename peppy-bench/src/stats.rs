@@ -1,0 +1,196 @@
+//! Figures: percentiles of a sample, the results table and its JSON.
+
+use serde::{Deserialize, Serialize};
+
+/// p50, p99 and max of a latency sample, in microseconds.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+pub(crate) struct Spread {
+    pub(crate) p50: f64,
+    pub(crate) p99: f64,
+    pub(crate) max: f64,
+    /// How many samples.
+    pub(crate) n: usize,
+}
+
+impl Spread {
+    /// The spread of `samples` (µs); `None` for an empty sample.
+    pub(crate) fn of(samples: &mut [f64]) -> Option<Spread> {
+        if samples.is_empty() {
+            return None;
+        }
+        samples.sort_by(f64::total_cmp);
+        let at = |q: f64| samples[((samples.len() - 1) as f64 * q).round() as usize];
+        Some(Spread {
+            p50: at(0.50),
+            p99: at(0.99),
+            max: samples[samples.len() - 1],
+            n: samples.len(),
+        })
+    }
+}
+
+/// One measured figure of one system.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(untagged)]
+pub(crate) enum Figure {
+    /// A latency spread (µs).
+    Latency(Spread),
+    /// A rate: messages per second and bytes per second.
+    Rate { msgs_per_s: f64, bytes_per_s: f64 },
+    /// A single quantity with its unit.
+    Value { value: f64, unit: String },
+}
+
+impl Figure {
+    /// The number a ratio compares: p50, the message rate, or the value.
+    fn headline(&self) -> f64 {
+        match self {
+            Figure::Latency(s) => s.p50,
+            Figure::Rate { msgs_per_s, .. } => *msgs_per_s,
+            Figure::Value { value, .. } => *value,
+        }
+    }
+
+    fn text(&self) -> String {
+        match self {
+            Figure::Latency(s) => {
+                format!("{} / {} / {}", micros(s.p50), micros(s.p99), micros(s.max))
+            }
+            Figure::Rate {
+                msgs_per_s,
+                bytes_per_s,
+            } => format!(
+                "{} msg/s, {:.2} GB/s",
+                count(*msgs_per_s),
+                bytes_per_s / 1e9
+            ),
+            Figure::Value { value, unit } => format!("{value:.1} {unit}"),
+        }
+    }
+}
+
+/// One row: a case measured on raw Zenoh and on peppy (either may be
+/// missing: launch and build figures are peppy's alone).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(crate) struct Row {
+    pub(crate) group: String,
+    pub(crate) case: String,
+    pub(crate) zenoh: Option<Figure>,
+    pub(crate) peppy: Option<Figure>,
+    /// peppy / raw Zenoh on the headline figure (p50, or message rate).
+    pub(crate) ratio: Option<f64>,
+    /// peppy / raw Zenoh at p99, for latencies.
+    pub(crate) ratio_p99: Option<f64>,
+    /// Anything the figures do not say (messages lost, a comparison base).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(crate) note: Option<String>,
+}
+
+impl Row {
+    pub(crate) fn new(
+        group: &str,
+        case: String,
+        zenoh: Option<Figure>,
+        peppy: Option<Figure>,
+    ) -> Row {
+        let ratio = match (&zenoh, &peppy) {
+            (Some(z), Some(p)) if z.headline() > 0.0 => Some(p.headline() / z.headline()),
+            _ => None,
+        };
+        let ratio_p99 = match (&zenoh, &peppy) {
+            (Some(Figure::Latency(z)), Some(Figure::Latency(p))) if z.p99 > 0.0 => {
+                Some(p.p99 / z.p99)
+            }
+            _ => None,
+        };
+        Row {
+            group: group.to_string(),
+            case,
+            zenoh,
+            peppy,
+            ratio,
+            ratio_p99,
+            note: None,
+        }
+    }
+
+    pub(crate) fn with_note(mut self, note: impl Into<String>) -> Row {
+        self.note = Some(note.into());
+        self
+    }
+}
+
+/// The table as people read it: one block per group.
+pub(crate) fn render(rows: &[Row]) -> String {
+    let mut out = String::new();
+    let mut group = "";
+    let cell = |f: &Option<Figure>| f.as_ref().map_or("-".to_string(), Figure::text);
+    let width = rows.iter().map(|r| r.case.len()).max().unwrap_or(0).max(4);
+    for r in rows {
+        if r.group != group {
+            group = &r.group;
+            let latency = matches!(
+                r.zenoh.as_ref().or(r.peppy.as_ref()),
+                Some(Figure::Latency(_))
+            );
+            let what = if latency { "p50 / p99 / max" } else { "figure" };
+            out.push_str(&format!(
+                "\n{group}\n  {:width$}  {:>30}  {:>30}  {:>13}\n",
+                "case",
+                format!("raw zenoh {what}"),
+                format!("peppy {what}"),
+                "peppy / raw"
+            ));
+        }
+        let ratio = match (r.ratio, r.ratio_p99) {
+            (Some(a), Some(b)) => format!("×{a:.2} / ×{b:.2}"),
+            (Some(a), None) => format!("×{a:.2}"),
+            _ => "-".to_string(),
+        };
+        out.push_str(&format!(
+            "  {:width$}  {:>30}  {:>30}  {:>13}",
+            r.case,
+            cell(&r.zenoh),
+            cell(&r.peppy),
+            ratio
+        ));
+        if let Some(note) = &r.note {
+            out.push_str(&format!("  ({note})"));
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// `412 µs`, `3.41 ms`, `1.20 s`.
+fn micros(us: f64) -> String {
+    if us >= 1e6 {
+        format!("{:.2} s", us / 1e6)
+    } else if us >= 1e3 {
+        format!("{:.2} ms", us / 1e3)
+    } else {
+        format!("{us:.0} µs")
+    }
+}
+
+/// `1.23 M`, `45.6 k`, `812`.
+fn count(n: f64) -> String {
+    if n >= 1e6 {
+        format!("{:.2} M", n / 1e6)
+    } else if n >= 1e3 {
+        format!("{:.1} k", n / 1e3)
+    } else {
+        format!("{n:.0}")
+    }
+}
+
+/// `64 B`, `4 KiB`, `1 MiB`.
+pub(crate) fn size(bytes: usize) -> String {
+    if bytes >= 1 << 20 {
+        format!("{} MiB", bytes >> 20)
+    } else if bytes >= 1 << 10 {
+        format!("{} KiB", bytes >> 10)
+    } else {
+        format!("{bytes} B")
+    }
+}

@@ -1,0 +1,277 @@
+//! The groups that run both systems side by side: each case starts a fresh
+//! source process and measuring process(es) for raw Zenoh, then for peppy,
+//! on their own port and namespace.
+
+use std::time::Duration;
+
+use serde_json::Value;
+
+use crate::children::System;
+use crate::procs::{Proc, free_port};
+use crate::roles::{Qos, Res};
+use crate::stats::{Figure, Row, Spread, size};
+
+const SYSTEMS: [System; 2] = [System::Zenoh, System::Peppy];
+const BOUND: Duration = Duration::from_secs(300);
+
+/// A running source process and where to reach it.
+struct Source {
+    proc: Proc,
+    ns: String,
+    endpoint: String,
+    system: System,
+}
+
+impl Source {
+    fn start(system: System, case: &str) -> Res<Source> {
+        let port = free_port()?;
+        let ns = format!("{case}-{}-{port}", std::process::id());
+        let endpoint = format!("tcp/127.0.0.1:{port}");
+        let mut proc = Proc::child(&place_args("source", system, &ns, &endpoint))?;
+        proc.next_with("ready", Duration::from_secs(30))?;
+        Ok(Source {
+            proc,
+            ns,
+            endpoint,
+            system,
+        })
+    }
+
+    /// `peppy-bench child ROLE` flags that reach this source.
+    fn args(&self, role: &str) -> Vec<String> {
+        place_args(role, self.system, &self.ns, &self.endpoint)
+    }
+}
+
+fn place_args(role: &str, system: System, ns: &str, endpoint: &str) -> Vec<String> {
+    let system = match system {
+        System::Zenoh => "zenoh",
+        System::Peppy => "peppy",
+    };
+    [role, "--system", system, "--ns", ns, "--endpoint", endpoint]
+        .map(String::from)
+        .to_vec()
+}
+
+fn spread(v: &Value) -> Option<Spread> {
+    serde_json::from_value(v.clone()).ok()
+}
+
+/// Topic round trips at 64 B to 4 MiB, for both profiles.
+pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
+    let sizes = [64usize, 4 << 10, 64 << 10, 1 << 20, 4 << 20];
+    let count = if quick { 100 } else { 1000 };
+    let mut rows = Vec::new();
+    for qos in [Qos::Reliable, Qos::Sensor] {
+        let mut got: [Vec<Value>; 2] = Default::default();
+        for (i, system) in SYSTEMS.into_iter().enumerate() {
+            let source = Source::start(system, "rt")?;
+            let mut args = source.args("round-trip");
+            let sizes: Vec<String> = sizes.iter().map(ToString::to_string).collect();
+            args.extend([
+                "--qos".into(),
+                qos.name().replace("_data", ""),
+                "--sizes".into(),
+                sizes.join(","),
+                "--count".into(),
+                count.to_string(),
+            ]);
+            let mut sink = Proc::child(&args)?;
+            for _ in 0..sizes.len() {
+                got[i].push(sink.next_with("spread", BOUND)?);
+            }
+            sink.wait_or_kill(Duration::from_secs(10));
+            source.proc.stop();
+        }
+        for (z, p) in got[0].iter().zip(&got[1]) {
+            let bytes = z["size"].as_u64().unwrap_or(0) as usize;
+            let lost = |v: &Value| v["lost"].as_u64().unwrap_or(0);
+            let mut row = Row::new(
+                "topic round trip",
+                format!("{} {}", qos.name(), size(bytes)),
+                spread(&z["spread"]).map(Figure::Latency),
+                spread(&p["spread"]).map(Figure::Latency),
+            );
+            if lost(z) + lost(p) > 0 {
+                row = row.with_note(format!(
+                    "unanswered in 2 s: raw {}, peppy {}",
+                    lost(z),
+                    lost(p)
+                ));
+            }
+            rows.push(row);
+        }
+    }
+    Ok(rows)
+}
+
+/// One producer to one consumer, as fast as it can, `reliable`.
+pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
+    let scale = if quick { 5 } else { 1 };
+    let cases = [
+        (8usize, 100_000 / scale),
+        (64, 100_000 / scale),
+        (64 << 10, 5_000 / scale),
+        (1 << 20, 500 / scale),
+    ];
+    let mut got: [Vec<Value>; 2] = Default::default();
+    for (i, system) in SYSTEMS.into_iter().enumerate() {
+        let source = Source::start(system, "tp")?;
+        let mut args = source.args("throughput");
+        let list: Vec<String> = cases.iter().map(|(s, c)| format!("{s}:{c}")).collect();
+        args.extend(["--cases".into(), list.join(",")]);
+        let mut sink = Proc::child(&args)?;
+        for _ in 0..cases.len() {
+            got[i].push(sink.next_with("msgs_per_s", BOUND)?);
+        }
+        sink.wait_or_kill(Duration::from_secs(10));
+        source.proc.stop();
+    }
+    let rate = |v: &Value| Figure::Rate {
+        msgs_per_s: v["msgs_per_s"].as_f64().unwrap_or(0.0),
+        bytes_per_s: v["bytes_per_s"].as_f64().unwrap_or(0.0),
+    };
+    Ok(got[0]
+        .iter()
+        .zip(&got[1])
+        .map(|(z, p)| {
+            let bytes = z["size"].as_u64().unwrap_or(0) as usize;
+            let mut row = Row::new(
+                "topic throughput (reliable, one to one)",
+                size(bytes),
+                Some(rate(z)),
+                Some(rate(p)),
+            );
+            let short =
+                |v: &Value| v["sent"].as_u64().unwrap_or(0) - v["received"].as_u64().unwrap_or(0);
+            if short(z) + short(p) > 0 {
+                row = row.with_note(format!(
+                    "not received: raw {}, peppy {}",
+                    short(z),
+                    short(p)
+                ));
+            }
+            row
+        })
+        .collect())
+}
+
+/// One producer, eight consumer processes, 1 MiB frames at 30 Hz.
+pub(crate) fn fan_out(quick: bool) -> Res<Vec<Row>> {
+    const CONSUMERS: usize = 8;
+    let (warmup, frames) = (30u64, if quick { 60u64 } else { 150 });
+    let mut rows = Vec::new();
+    let mut latency: [Option<Spread>; 2] = [None, None];
+    let mut cpu: [f64; 2] = [0.0; 2];
+    for (i, system) in SYSTEMS.into_iter().enumerate() {
+        let mut source = Source::start(system, "fan")?;
+        let mut consumers = Vec::new();
+        for id in 0..CONSUMERS {
+            let mut args = source.args("fan-out");
+            args.extend(
+                [
+                    "--id",
+                    &id.to_string(),
+                    "--size",
+                    &(1u32 << 20).to_string(),
+                    "--hz",
+                    "30",
+                    "--warmup",
+                    &warmup.to_string(),
+                    "--frames",
+                    &frames.to_string(),
+                ]
+                .map(String::from),
+            );
+            // The last consumer starts the producer, once all are ready.
+            if id == CONSUMERS - 1 {
+                args.push("--trigger".into());
+            }
+            let mut c = Proc::child(&args)?;
+            c.next_with("ready", Duration::from_secs(30))?;
+            consumers.push(c);
+        }
+        let mut samples = Vec::new();
+        let window = frames as f64 / 30.0;
+        let mut cpu_s = 0.0;
+        for mut c in consumers {
+            let r = c.next_with("received", BOUND)?;
+            if let Some(s) = spread(&r["spread"]) {
+                // Per-consumer p50s: the spread across consumers.
+                samples.push(s.p50);
+                latency[i] = Some(match latency[i] {
+                    Some(m) if m.max >= s.max => Spread { max: m.max, ..m },
+                    _ => s,
+                });
+            }
+            cpu_s += r["cpu_ms"].as_f64().unwrap_or(0.0) / 1e3;
+            c.wait_or_kill(Duration::from_secs(10));
+        }
+        let flood = source.proc.next_with("flood", Duration::from_secs(30))?;
+        let (src_cpu, src_secs) = (
+            flood["flood"]["cpu_ms"].as_f64().unwrap_or(0.0) / 1e3,
+            flood["flood"]["secs"].as_f64().unwrap_or(1.0),
+        );
+        cpu[i] = 100.0 * (cpu_s / window + src_cpu / src_secs);
+        let all = Spread::of(&mut samples);
+        if let (Some(l), Some(a)) = (latency[i].as_mut(), all) {
+            // Report the median consumer's p50, the worst p99 and max.
+            l.p50 = a.p50;
+        }
+        source.proc.stop();
+    }
+    rows.push(Row::new(
+        "fan-out: 1 producer, 8 consumer processes, 1 MiB at 30 Hz",
+        "latency per consumer".into(),
+        latency[0].map(Figure::Latency),
+        latency[1].map(Figure::Latency),
+    ));
+    rows.push(Row::new(
+        "fan-out: 1 producer, 8 consumer processes, 1 MiB at 30 Hz",
+        "CPU, all nine processes".into(),
+        Some(Figure::Value {
+            value: cpu[0],
+            unit: "% of one core".into(),
+        }),
+        Some(Figure::Value {
+            value: cpu[1],
+            unit: "% of one core".into(),
+        }),
+    ));
+    Ok(rows)
+}
+
+/// A pinned service call against a raw query and queryable; an action's
+/// goal to result against the same raw query.
+pub(crate) fn services(quick: bool) -> Res<Vec<Row>> {
+    let count = if quick { 100 } else { 1000 };
+    let mut service: [Option<Spread>; 2] = [None, None];
+    let mut action = None;
+    for (i, system) in SYSTEMS.into_iter().enumerate() {
+        let source = Source::start(system, "svc")?;
+        let mut args = source.args("service");
+        args.extend(["--count".into(), count.to_string()]);
+        let mut sink = Proc::child(&args)?;
+        service[i] = spread(&sink.next_with("service", BOUND)?["service"]);
+        if system == System::Peppy {
+            action = spread(&sink.next_with("action", BOUND)?["action"]);
+        }
+        sink.wait_or_kill(Duration::from_secs(10));
+        source.proc.stop();
+    }
+    Ok(vec![
+        Row::new(
+            "services and actions (64 B)",
+            "pinned service call vs raw get".into(),
+            service[0].map(Figure::Latency),
+            service[1].map(Figure::Latency),
+        ),
+        Row::new(
+            "services and actions (64 B)",
+            "action goal to result vs raw get".into(),
+            service[0].map(Figure::Latency),
+            action.map(Figure::Latency),
+        )
+        .with_note("a goal is two requests: the goal, then its result"),
+    ])
+}

@@ -1,0 +1,16 @@
+//! Node code written against every generated API shape, the way real nodes
+//! (and the original PeppyOS's) write it: each case must compile without a
+//! warning, and its test runs what it can without a stack. (The attribute's
+//! compile errors are checked through rustc in peppy-macros' UI tests.)
+
+mod actions;
+mod conformance;
+mod hygiene;
+mod legacy_arm_controller;
+mod legacy_robot_arm;
+mod node_builder;
+mod parameters;
+mod services;
+mod spawned_action;
+mod topics;
+mod video_reconstruction;
