@@ -10,6 +10,7 @@ use zenoh::Session;
 use zenoh::handlers::FifoChannelHandler;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::{CongestionControl, Priority};
+use zenoh::query::ConsolidationMode;
 use zenoh::sample::Sample;
 
 use crate::roles::{Qos, Res, Sink, cpu_ms, flood_done, now_ns};
@@ -193,6 +194,9 @@ impl RawSink {
             .session
             .get(key(&self.ns, what))
             .payload(payload)
+            // As peppy's requests: replies as they come, not held for the
+            // query's end.
+            .consolidation(ConsolidationMode::None)
             .timeout(std::time::Duration::from_secs(5))
             .await?;
         let reply = replies.recv_async().await?;

@@ -172,7 +172,11 @@ pub(crate) async fn throughput<S: Sink>(s: &S, size: usize, count: u32) -> Res<T
         if Instant::now() > deadline {
             return Err("the stream never matched".into());
         }
-        s.flood(8, 5, 0.0).await?;
+        // Until the two have matched, the request itself may go unanswered.
+        if s.flood(8, 5, 0.0).await.is_err() {
+            tokio::time::sleep(Duration::from_millis(100)).await;
+            continue;
+        }
         while let Ok(next) = timeout(Duration::from_millis(300), s.stream()).await {
             if next?.0 == 4 {
                 break 'matched;

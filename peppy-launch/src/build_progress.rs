@@ -111,7 +111,7 @@ fn spinner_style() -> ProgressStyle {
 
 fn bar_style() -> ProgressStyle {
     ProgressStyle::with_template(
-        "building {prefix} [{bar:30}] {pos}/{len} units · {elapsed} · {wide_msg}",
+        "building {prefix} [{bar:24}] {pos}/{len} units · {elapsed} · {wide_msg}",
     )
     .expect("a valid template")
     .progress_chars("=> ")
