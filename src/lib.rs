@@ -61,7 +61,8 @@
 pub use peppy_macros::node;
 pub use peppy_runtime as runtime;
 pub use peppy_runtime::{
-    CancellationToken, Error, NodeBuilder, NodeRunner, QoSProfile, Result, StandaloneConfig,
+    CancellationToken, Error, NodeBuilder, NodeRunner, Payload, QoSProfile, Result, SharedMemory,
+    StandaloneConfig,
 };
 
 /// Declares `pub mod peppygen` holding the code `peppy_build::sync()` wrote
@@ -81,7 +82,9 @@ macro_rules! include_generated {
 #[doc(hidden)]
 pub mod codegen {
     pub use peppy_runtime::codegen::*;
-    pub use peppy_runtime::{Error, NodeBuilder, NodeRunner, QoSProfile, Result, StandaloneConfig};
+    pub use peppy_runtime::{
+        Error, NodeBuilder, NodeRunner, Payload, QoSProfile, Result, StandaloneConfig,
+    };
 
     /// An action server's decision on a goal; the goal response format of
     /// every action (`{ accepted, error_message }`), fixed by the framework.

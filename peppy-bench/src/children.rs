@@ -1,6 +1,7 @@
 //! The benchmark's child processes: `peppy-bench child ROLE`. Each prints
 //! `{"ready":true}` once set up, then one JSON line per result.
 
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::time::{Duration, Instant};
 
 use clap::{Args, Subcommand, ValueEnum};
@@ -34,6 +35,31 @@ pub(crate) struct Place {
     /// The source's endpoint.
     #[arg(long)]
     endpoint: String,
+    /// Shared memory on: peppy's pool and Zenoh's SHM transport (off:
+    /// everything over TCP on loopback, as between two hosts).
+    #[arg(long)]
+    shm: bool,
+}
+
+/// Whether this child runs with shared memory (set once from its [`Place`]).
+static SHM: AtomicBool = AtomicBool::new(false);
+
+/// Whether this child's sessions use shared memory.
+pub(crate) fn shared_memory() -> bool {
+    SHM.load(Relaxed)
+}
+
+impl Child {
+    fn place(&self) -> Option<&Place> {
+        match self {
+            Child::Source(place)
+            | Child::RoundTrip { place, .. }
+            | Child::Throughput { place, .. }
+            | Child::FanOut { place, .. }
+            | Child::Service { place, .. } => Some(place),
+            Child::Watch { .. } => None,
+        }
+    }
 }
 
 /// A child process's role (internal: started by the benchmark itself).
@@ -127,6 +153,7 @@ async fn stdin_closed() {
 }
 
 async fn role(child: Child) -> Res<()> {
+    SHM.store(child.place().is_some_and(|p| p.shm), Relaxed);
     match child {
         Child::Source(p) => {
             let ready = async {

@@ -5,7 +5,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use peppy::{NodeBuilder, NodeRunner, QoSProfile};
+use peppy::{NodeBuilder, NodeRunner, QoSProfile, SharedMemory};
 
 use crate::roles::{Qos, Res, Sink, cpu_ms, flood_done, now_ns};
 use crate::stats::Spread;
@@ -21,8 +21,14 @@ async fn start<P: peppy::codegen::NodeParameters>(
 ) -> Res<Arc<NodeRunner>> {
     let mut args = vec!["peppy-bench", "--instance-id", instance, "--namespace", ns];
     args.extend_from_slice(endpoint);
+    let shm = if crate::children::shared_memory() {
+        SharedMemory::default()
+    } else {
+        SharedMemory::off()
+    };
     let (_, runner) = NodeBuilder::<P>::new()
         .with_runtime_config(None)
+        .shared_memory(shm)
         .with_args(args)
         .start()
         .await?;

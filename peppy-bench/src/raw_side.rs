@@ -15,11 +15,16 @@ use zenoh::sample::Sample;
 
 use crate::roles::{Qos, Res, Sink, cpu_ms, flood_done, now_ns};
 
-/// A peer session on explicit loopback endpoints, no scouting.
+/// A peer session on explicit loopback endpoints, no scouting; Zenoh's
+/// shared-memory transport on or off as the run asks.
 pub(crate) async fn open(listen: Option<&str>, connect: Option<&str>) -> Res<Session> {
     let mut c = zenoh::Config::default();
     c.insert_json5("mode", "\"peer\"")?;
     c.insert_json5("scouting/multicast/enabled", "false")?;
+    c.insert_json5(
+        "transport/shared_memory/enabled",
+        &crate::children::shared_memory().to_string(),
+    )?;
     if let Some(l) = listen {
         c.insert_json5("listen/endpoints", &format!("[\"{l}\"]"))?;
     }

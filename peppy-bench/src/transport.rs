@@ -1,6 +1,8 @@
 //! The groups that run both systems side by side: each case starts a fresh
 //! source process and measuring process(es) for raw Zenoh, then for peppy,
-//! on their own port and namespace.
+//! on their own port and namespace. A run is a [`Mode`]: the system, and
+//! whether shared memory is on (peppy's pool and Zenoh's SHM transport) or
+//! off (everything over TCP on loopback, as between two hosts).
 
 use std::time::Duration;
 
@@ -11,61 +13,99 @@ use crate::procs::{Proc, free_port};
 use crate::roles::{Qos, Res};
 use crate::stats::{Figure, Row, Spread, size};
 
-const SYSTEMS: [System; 2] = [System::Zenoh, System::Peppy];
 const BOUND: Duration = Duration::from_secs(300);
+
+/// One system with shared memory on or off.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Mode {
+    system: System,
+    shm: bool,
+}
+
+const RAW_TCP: Mode = Mode {
+    system: System::Zenoh,
+    shm: false,
+};
+const PEPPY_TCP: Mode = Mode {
+    system: System::Peppy,
+    shm: false,
+};
+const RAW_SHM: Mode = Mode {
+    system: System::Zenoh,
+    shm: true,
+};
+const PEPPY_SHM: Mode = Mode {
+    system: System::Peppy,
+    shm: true,
+};
+
+/// Like for like, each pair raw first: both over TCP, then both with
+/// shared memory.
+const PAIRS: [(Mode, Mode); 2] = [(RAW_TCP, PEPPY_TCP), (RAW_SHM, PEPPY_SHM)];
+
+fn transport(shm: bool) -> &'static str {
+    if shm { "shared memory" } else { "TCP, SHM off" }
+}
 
 /// A running source process and where to reach it.
 struct Source {
     proc: Proc,
     ns: String,
     endpoint: String,
-    system: System,
+    mode: Mode,
 }
 
 impl Source {
-    fn start(system: System, case: &str) -> Res<Source> {
+    fn start(mode: Mode, case: &str) -> Res<Source> {
         let port = free_port()?;
         let ns = format!("{case}-{}-{port}", std::process::id());
         let endpoint = format!("tcp/127.0.0.1:{port}");
-        let mut proc = Proc::child(&place_args("source", system, &ns, &endpoint))?;
+        let mut proc = Proc::child(&place_args("source", mode, &ns, &endpoint))?;
         proc.next_with("ready", Duration::from_secs(30))?;
         Ok(Source {
             proc,
             ns,
             endpoint,
-            system,
+            mode,
         })
     }
 
     /// `peppy-bench child ROLE` flags that reach this source.
     fn args(&self, role: &str) -> Vec<String> {
-        place_args(role, self.system, &self.ns, &self.endpoint)
+        place_args(role, self.mode, &self.ns, &self.endpoint)
     }
 }
 
-fn place_args(role: &str, system: System, ns: &str, endpoint: &str) -> Vec<String> {
-    let system = match system {
+fn place_args(role: &str, mode: Mode, ns: &str, endpoint: &str) -> Vec<String> {
+    let system = match mode.system {
         System::Zenoh => "zenoh",
         System::Peppy => "peppy",
     };
-    [role, "--system", system, "--ns", ns, "--endpoint", endpoint]
+    let mut args = [role, "--system", system, "--ns", ns, "--endpoint", endpoint]
         .map(String::from)
-        .to_vec()
+        .to_vec();
+    if mode.shm {
+        args.push("--shm".into());
+    }
+    args
 }
 
 fn spread(v: &Value) -> Option<Spread> {
     serde_json::from_value(v.clone()).ok()
 }
 
-/// Topic round trips at 64 B to 4 MiB, for both profiles.
+/// Topic round trips at 64 B to 4 MiB, for both profiles: like for like
+/// over TCP and with shared memory, then peppy with shared memory against
+/// raw Zenoh over TCP (what zero-copy buys between processes on one host).
 pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     let sizes = [64usize, 4 << 10, 64 << 10, 1 << 20, 4 << 20];
     let count = if quick { 100 } else { 1000 };
     let mut rows = Vec::new();
     for qos in [Qos::Reliable, Qos::Sensor] {
-        let mut got: [Vec<Value>; 2] = Default::default();
-        for (i, system) in SYSTEMS.into_iter().enumerate() {
-            let source = Source::start(system, "rt")?;
+        let modes = [RAW_TCP, PEPPY_TCP, RAW_SHM, PEPPY_SHM];
+        let mut got: [Vec<Value>; 4] = Default::default();
+        for (i, mode) in modes.into_iter().enumerate() {
+            let source = Source::start(mode, "rt")?;
             let mut args = source.args("round-trip");
             let sizes: Vec<String> = sizes.iter().map(ToString::to_string).collect();
             args.extend([
@@ -83,25 +123,41 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
             sink.wait_or_kill(Duration::from_secs(10));
             source.proc.stop();
         }
-        for (z, p) in got[0].iter().zip(&got[1]) {
-            let bytes = z["size"].as_u64().unwrap_or(0) as usize;
-            let lost = |v: &Value| v["lost"].as_u64().unwrap_or(0);
-            let mut row = Row::new(
-                "topic round trip",
-                format!("{} {}", qos.name(), size(bytes)),
-                spread(&z["spread"]).map(Figure::Latency),
-                spread(&p["spread"]).map(Figure::Latency),
-            );
-            if lost(z) + lost(p) > 0 {
-                row = row.with_note(format!(
-                    "unanswered in 2 s: raw {}, peppy {}",
-                    lost(z),
-                    lost(p)
-                ));
+        let cases = [
+            ("topic round trip, TCP (SHM off both sides)", 0, 1),
+            ("topic round trip, shared memory both sides", 2, 3),
+            ("topic round trip, peppy with SHM vs raw over TCP", 0, 3),
+        ];
+        for (group, z, p) in cases {
+            for (z, p) in got[z].iter().zip(&got[p]) {
+                let bytes = z["size"].as_u64().unwrap_or(0) as usize;
+                let lost = |v: &Value| v["lost"].as_u64().unwrap_or(0);
+                let mut row = Row::new(
+                    group,
+                    format!("{} {}", qos.name(), size(bytes)),
+                    spread(&z["spread"]).map(Figure::Latency),
+                    spread(&p["spread"]).map(Figure::Latency),
+                );
+                if lost(z) + lost(p) > 0 {
+                    row = row.with_note(format!(
+                        "unanswered in 2 s: raw {}, peppy {}",
+                        lost(z),
+                        lost(p)
+                    ));
+                }
+                rows.push(row);
             }
-            rows.push(row);
         }
     }
+    rows.sort_by_key(|r| {
+        [
+            "topic round trip, TCP",
+            "topic round trip, shared",
+            "topic round trip, peppy",
+        ]
+        .iter()
+        .position(|g| r.group.starts_with(g))
+    });
     Ok(rows)
 }
 
@@ -114,34 +170,32 @@ pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
         (64 << 10, 5_000 / scale),
         (1 << 20, 500 / scale),
     ];
-    let mut got: [Vec<Value>; 2] = Default::default();
-    for (i, system) in SYSTEMS.into_iter().enumerate() {
-        let source = Source::start(system, "tp")?;
-        let mut args = source.args("throughput");
-        let list: Vec<String> = cases.iter().map(|(s, c)| format!("{s}:{c}")).collect();
-        args.extend(["--cases".into(), list.join(",")]);
-        let mut sink = Proc::child(&args)?;
-        for _ in 0..cases.len() {
-            got[i].push(sink.next_with("msgs_per_s", BOUND)?);
-        }
-        sink.wait_or_kill(Duration::from_secs(10));
-        source.proc.stop();
-    }
     let rate = |v: &Value| Figure::Rate {
         msgs_per_s: v["msgs_per_s"].as_f64().unwrap_or(0.0),
         bytes_per_s: v["bytes_per_s"].as_f64().unwrap_or(0.0),
     };
-    Ok(got[0]
-        .iter()
-        .zip(&got[1])
-        .map(|(z, p)| {
+    let mut rows = Vec::new();
+    for (raw, peppy) in PAIRS {
+        let mut got: [Vec<Value>; 2] = Default::default();
+        for (i, mode) in [raw, peppy].into_iter().enumerate() {
+            let source = Source::start(mode, "tp")?;
+            let mut args = source.args("throughput");
+            let list: Vec<String> = cases.iter().map(|(s, c)| format!("{s}:{c}")).collect();
+            args.extend(["--cases".into(), list.join(",")]);
+            let mut sink = Proc::child(&args)?;
+            for _ in 0..cases.len() {
+                got[i].push(sink.next_with("msgs_per_s", BOUND)?);
+            }
+            sink.wait_or_kill(Duration::from_secs(10));
+            source.proc.stop();
+        }
+        let group = format!(
+            "topic throughput (reliable, one to one, {})",
+            transport(raw.shm)
+        );
+        rows.extend(got[0].iter().zip(&got[1]).map(|(z, p)| {
             let bytes = z["size"].as_u64().unwrap_or(0) as usize;
-            let mut row = Row::new(
-                "topic throughput (reliable, one to one)",
-                size(bytes),
-                Some(rate(z)),
-                Some(rate(p)),
-            );
+            let mut row = Row::new(&group, size(bytes), Some(rate(z)), Some(rate(p)));
             let short =
                 |v: &Value| v["sent"].as_u64().unwrap_or(0) - v["received"].as_u64().unwrap_or(0);
             if short(z) + short(p) > 0 {
@@ -152,19 +206,21 @@ pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
                 ));
             }
             row
-        })
-        .collect())
+        }));
+    }
+    Ok(rows)
 }
 
-/// One producer, eight consumer processes, 1 MiB frames at 30 Hz.
+/// One producer, eight consumer processes, 1 MiB frames at 30 Hz, both
+/// with shared memory (each system's default on one host).
 pub(crate) fn fan_out(quick: bool) -> Res<Vec<Row>> {
     const CONSUMERS: usize = 8;
     let (warmup, frames) = (30u64, if quick { 60u64 } else { 150 });
     let mut rows = Vec::new();
     let mut latency: [Option<Spread>; 2] = [None, None];
     let mut cpu: [f64; 2] = [0.0; 2];
-    for (i, system) in SYSTEMS.into_iter().enumerate() {
-        let mut source = Source::start(system, "fan")?;
+    for (i, mode) in [RAW_SHM, PEPPY_SHM].into_iter().enumerate() {
+        let mut source = Source::start(mode, "fan")?;
         let mut consumers = Vec::new();
         for id in 0..CONSUMERS {
             let mut args = source.args("fan-out");
@@ -247,13 +303,13 @@ pub(crate) fn services(quick: bool) -> Res<Vec<Row>> {
     let count = if quick { 100 } else { 1000 };
     let mut service: [Option<Spread>; 2] = [None, None];
     let mut action = None;
-    for (i, system) in SYSTEMS.into_iter().enumerate() {
-        let source = Source::start(system, "svc")?;
+    for (i, mode) in [RAW_SHM, PEPPY_SHM].into_iter().enumerate() {
+        let source = Source::start(mode, "svc")?;
         let mut args = source.args("service");
         args.extend(["--count".into(), count.to_string()]);
         let mut sink = Proc::child(&args)?;
         service[i] = spread(&sink.next_with("service", BOUND)?["service"]);
-        if system == System::Peppy {
+        if mode.system == System::Peppy {
             action = spread(&sink.next_with("action", BOUND)?["action"]);
         }
         sink.wait_or_kill(Duration::from_secs(10));

@@ -460,7 +460,7 @@ impl Gen<'_> {
         category
     }
 
-    /// `emitted_topics::<topic>`: `Message`, `SPEC`, `emit`.
+    /// `emitted_topics::<topic>`: `Message`, `SPEC`, `emit`, `set_shm_threshold`.
     fn emitted_topic(&mut self, p: &Provided<TopicDecl>) -> TokenStream {
         let decl = &p.decl;
         let mut names = Names::with_fixed(&["Message"]);
@@ -506,10 +506,19 @@ impl Gen<'_> {
                 let message = Message { #(#inits),* };
                 ::peppy::codegen::emit(node_runner, &SPEC, &message).await
             }
+
+            #[doc = " Sends messages of this topic of at least `threshold` bytes through shared memory to readers on this host (`None`: never), overriding the node's threshold (default 4 KiB; `PEPPY_SHM` or `NodeBuilder::shared_memory`)."]
+            pub fn set_shm_threshold(
+                node_runner: &::peppy::codegen::NodeRunner,
+                threshold: ::core::option::Option<usize>,
+            ) {
+                node_runner.set_shm_threshold(&SPEC, threshold);
+            }
         }
     }
 
-    /// `consumed_topics::<module>`: `Message`, `SPEC`, `on_next_message_received`.
+    /// `consumed_topics::<module>`: `Message`, `SPEC`, `on_next_message_received`,
+    /// `on_next_payload_received`.
     fn consumed_topic(&mut self, t: &ResolvedTopic) -> TokenStream {
         let mut names = Names::with_fixed(&["Message"]);
         let mut structs = Structs {
@@ -552,6 +561,14 @@ impl Gen<'_> {
                 from_core_node: ::core::option::Option<&str>,
             ) -> ::peppy::codegen::Result<(::std::string::String, Message)> {
                 ::peppy::codegen::next_message(node_runner, &SPEC, from_core_node).await
+            }
+
+            #[doc = " Like `on_next_message_received`, without decoding: the message's bytes where they arrived. A large message from this host is read in place from the producer's shared memory; `Payload::decode::<Message>()` decodes it, and a `Decoder` walking `Payload::bytes()` borrows byte fields without copying them."]
+            pub async fn on_next_payload_received(
+                node_runner: &::peppy::codegen::NodeRunner,
+                from_core_node: ::core::option::Option<&str>,
+            ) -> ::peppy::codegen::Result<(::std::string::String, ::peppy::codegen::Payload)> {
+                ::peppy::codegen::next_payload(node_runner, &SPEC, from_core_node).await
             }
         }
     }

@@ -113,7 +113,7 @@ impl Structs<'_> {
             pub struct #name;
 
             impl ::peppy::codegen::Encode for #name {
-                fn encode(&self, _out: &mut ::std::vec::Vec<u8>) {}
+                fn encode(&self, _out: &mut ::peppy::codegen::Writer<'_>) {}
             }
 
             impl ::peppy::codegen::Decode for #name {
@@ -166,7 +166,7 @@ impl Structs<'_> {
             }
 
             impl ::peppy::codegen::Encode for #name {
-                fn encode(&self, out: &mut ::std::vec::Vec<u8>) {
+                fn encode(&self, out: &mut ::peppy::codegen::Writer<'_>) {
                     #(#encodes)*
                 }
             }

@@ -31,7 +31,7 @@ use std::time::{Duration, Instant};
 
 use peppy_runtime::codegen::{
     ConsumedTopicSpec, Decode, DecodeError, Decoder, Encode, FormatSpec, NodeDescriptor,
-    NodeParameters, OwnerSpec, QosProfile, TopicSpec, emit, next_message,
+    NodeParameters, OwnerSpec, QosProfile, TopicSpec, Writer, emit, next_message,
 };
 use peppy_runtime::{NodeBuilder, NodeRunner};
 
@@ -114,7 +114,7 @@ struct Msg {
 }
 
 impl Encode for Msg {
-    fn encode(&self, out: &mut Vec<u8>) {
+    fn encode(&self, out: &mut Writer<'_>) {
         self.seq.encode(out);
         self.pad.encode(out);
     }

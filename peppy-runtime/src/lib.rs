@@ -36,6 +36,7 @@ mod node;
 mod qos;
 mod request;
 mod services;
+mod shm;
 pub mod spec;
 mod startup;
 mod stop;
@@ -52,11 +53,13 @@ pub use error::{Error, Result};
 pub use node::{NodeBuilder, NodeRunner};
 pub use peppy_schema::QosProfile as QoSProfile;
 pub use services::{Caller, Reply};
+pub use shm::{SHM_ENV, SharedMemory};
 pub use startup::{
     DEFAULT_NAMESPACE, Endpoints, Login, RUNTIME_CONFIG_ENV, STANDALONE_CORE, StandaloneConfig,
     StartupConfig, startup_from_flags,
 };
 pub use tokio_util::sync::CancellationToken;
+pub use topics::Payload;
 
 /// What generated code calls. Not a stable API for hand-written code.
 #[doc(hidden)]
@@ -67,8 +70,8 @@ pub mod codegen {
     };
     pub use crate::services::{Caller, Reply, call, handle_next};
     pub use crate::spec::*;
-    pub use crate::topics::{emit, next_message};
-    pub use crate::wire::codec::{Decode, DecodeError, Decoder, Encode};
+    pub use crate::topics::{emit, next_message, next_payload};
+    pub use crate::wire::codec::{Decode, DecodeError, Decoder, Encode, Writer};
     pub use peppy_schema::QosProfile;
     pub use serde;
 }

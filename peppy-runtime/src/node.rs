@@ -22,6 +22,7 @@ use crate::error::{Error, Result};
 use crate::members::Members;
 use crate::qos;
 use crate::services::{self, ServiceInbox};
+use crate::shm::{SharedMemory, Shm};
 use crate::spec::{
     ActionSpec, ConsumedTopicSpec, NodeDescriptor, NodeParameters, OwnerSpec, ServiceSpec,
     TopicSpec,
@@ -45,6 +46,7 @@ pub struct NodeBuilder<P> {
     args: Option<Vec<String>>,
     runtime_config: Option<Option<PathBuf>>,
     retention: std::time::Duration,
+    shared_memory: SharedMemory,
     _parameters: PhantomData<fn() -> P>,
 }
 
@@ -62,6 +64,7 @@ impl<P: NodeParameters> NodeBuilder<P> {
             args: None,
             runtime_config: None,
             retention: DEFAULT_RESULT_RETENTION,
+            shared_memory: SharedMemory::default(),
             _parameters: PhantomData,
         }
     }
@@ -88,6 +91,14 @@ impl<P: NodeParameters> NodeBuilder<P> {
     /// caller (default 30 s); after that the caller gets `Expired`.
     pub fn action_result_retention(mut self, retention: std::time::Duration) -> Self {
         self.retention = retention;
+        self
+    }
+
+    /// How emitted messages use shared memory (default: from 4 KiB, to
+    /// readers on this host). `PEPPY_SHM` in the environment overrides it,
+    /// so an operator can turn it off without a rebuild.
+    pub fn shared_memory(mut self, settings: SharedMemory) -> Self {
+        self.shared_memory = settings;
         self
     }
 
@@ -156,7 +167,13 @@ impl<P: NodeParameters> NodeBuilder<P> {
                 "parameters do not fit this node's Parameters type: {e}"
             ))
         })?;
-        let runner = NodeRunner::open(&doc, descriptor, startup, self.retention).await?;
+        let shared_memory = crate::shm::usable(
+            SharedMemory::from_env()
+                .map_err(Error::Startup)?
+                .unwrap_or(self.shared_memory),
+        );
+        let runner =
+            NodeRunner::open(&doc, descriptor, startup, self.retention, shared_memory).await?;
         Ok((params, runner))
     }
 }
@@ -213,6 +230,7 @@ pub struct NodeRunner {
     service_inboxes: HashMap<usize, (ServiceInbox, String)>,
     action_servers: HashMap<usize, (flume::Receiver<PendingGoal>, Arc<Registry>)>,
     entities: Mutex<Entities>,
+    shm: Shm,
 }
 
 #[derive(Default)]
@@ -241,8 +259,23 @@ impl NodeRunner {
         descriptor: &'static NodeDescriptor,
         startup: Startup,
         retention: std::time::Duration,
+        shared_memory: SharedMemory,
     ) -> Result<Arc<NodeRunner>> {
-        let config = startup.config.zenoh.zenoh_config()?;
+        let mut config = startup.config.zenoh.zenoh_config()?;
+        // Off: no shared memory at all, as on another host. On: the
+        // threshold decides, so Zenoh's own copying of every payload over
+        // 3 KiB into a second pool is turned off.
+        let (key, value) = if shared_memory.enabled() {
+            (
+                "transport/shared_memory/transport_optimization/enabled",
+                "false",
+            )
+        } else {
+            ("transport/shared_memory/enabled", "false")
+        };
+        config
+            .insert_json5(key, value)
+            .map_err(|e| Error::Startup(format!("invalid shared-memory setting `{key}`: {e}")))?;
         let session = zenoh::open(config).await?;
         let mut runner = NodeRunner {
             session,
@@ -258,6 +291,7 @@ impl NodeRunner {
             service_inboxes: HashMap::new(),
             action_servers: HashMap::new(),
             entities: Mutex::new(Entities::default()),
+            shm: Shm::new(shared_memory),
         };
         let mut entities = Entities::default();
         let started_at_ms = describe::now_ms();
@@ -636,6 +670,33 @@ impl NodeRunner {
             .iter()
             .find(|s| s.link_id == link_id)
             .ok_or_else(|| Error::Undeclared(format!("slot `{link_id}`")))
+    }
+
+    /// How this node's emitted messages use shared memory.
+    pub fn shared_memory(&self) -> SharedMemory {
+        self.shm.settings()
+    }
+
+    /// Sends messages of `topic` of at least `threshold` bytes through
+    /// shared memory (`None`: never), overriding the node's threshold for
+    /// that topic. Generated code offers it as
+    /// `emitted_topics::<topic>::set_shm_threshold`.
+    pub fn set_shm_threshold(&self, topic: &'static TopicSpec, threshold: Option<usize>) {
+        self.shm.set_threshold(topic, threshold);
+    }
+
+    /// How many messages of `topic` have arrived in shared memory: read
+    /// in place from the producer's pages rather than copied off a socket.
+    pub fn received_in_shared_memory(&self, topic: &'static ConsumedTopicSpec) -> Result<u64> {
+        Ok(self
+            .inbox(topic)?
+            .backlog
+            .shared
+            .load(std::sync::atomic::Ordering::Relaxed))
+    }
+
+    pub(crate) fn shm(&self) -> &Shm {
+        &self.shm
     }
 
     pub(crate) fn publisher(&self, spec: &'static TopicSpec) -> Result<&Publisher<'static>> {

@@ -17,7 +17,7 @@ use crate::qos::{QueuePolicy, queue};
 use crate::spec::{ConsumedTopicSpec, TopicSpec};
 use crate::stop;
 use crate::wire::attachment;
-use crate::wire::codec::{Decode, Encode, from_bytes, to_bytes};
+use crate::wire::codec::{Decode, DecodeError, Encode, from_bytes};
 use crate::wire::keys::{Channel, entry_selector, parse_entry_key};
 
 /// One received message, not yet decoded. The payload is Zenoh's own
@@ -46,6 +46,8 @@ pub(crate) struct Backlog {
     next_warning: AtomicUsize,
     /// Messages dropped since the reader last caught up.
     dropped: AtomicU64,
+    /// Messages that arrived in shared memory (mapped, not copied).
+    pub(crate) shared: AtomicU64,
 }
 
 impl Backlog {
@@ -150,6 +152,9 @@ impl Intake {
             }
         }
         let size = sample.payload().len();
+        if sample.payload().as_shm().is_some() && self.backlog.shared.fetch_add(1, Relaxed) == 0 {
+            info!(topic = self.spec.name, producer = %sender.instance, "receiving this topic through shared memory");
+        }
         let delivery = Delivery {
             core: sender.core,
             instance: sender.instance,
@@ -254,7 +259,7 @@ pub fn emit<'a, M: Encode + ?Sized>(
     spec: &'static TopicSpec,
     message: &M,
 ) -> impl Future<Output = Result<()>> + Send + use<'a, M> {
-    let payload = to_bytes(message);
+    let payload = runner.shm().payload(spec, message);
     async move {
         if runner.session().is_closed() {
             return Err(stop::refused().await);
@@ -280,6 +285,33 @@ pub async fn next_message<M: Decode>(
     spec: &'static ConsumedTopicSpec,
     from_core_node: Option<&str>,
 ) -> Result<(String, M)> {
+    loop {
+        let delivery = next_delivery(runner, spec, from_core_node).await?;
+        match from_bytes::<M>(&delivery.payload.to_bytes()) {
+            Ok(m) => return Ok((delivery.instance, m)),
+            Err(e) => {
+                warn!(topic = spec.name, producer = %delivery.instance, error = %e, "dropping a message that does not decode")
+            }
+        }
+    }
+}
+
+/// Like [`next_message`], without decoding: `(producer instance id, the
+/// message's bytes as they arrived)`.
+pub async fn next_payload(
+    runner: &NodeRunner,
+    spec: &'static ConsumedTopicSpec,
+    from_core_node: Option<&str>,
+) -> Result<(String, Payload)> {
+    let delivery = next_delivery(runner, spec, from_core_node).await?;
+    Ok((delivery.instance, Payload(delivery.payload)))
+}
+
+async fn next_delivery(
+    runner: &NodeRunner,
+    spec: &'static ConsumedTopicSpec,
+    from_core_node: Option<&str>,
+) -> Result<Delivery> {
     let inbox = runner.inbox(spec)?;
     if runner.cancellation_token().is_cancelled() {
         return Err(stop::refused().await);
@@ -292,15 +324,47 @@ pub async fn next_message<M: Decode>(
         inbox
             .backlog
             .taken(spec.name, delivery.payload.len(), inbox.rx.is_empty());
-        if from_core_node.is_some_and(|c| c != delivery.core) {
-            continue;
+        if from_core_node.is_none_or(|c| c == delivery.core) {
+            return Ok(delivery);
         }
-        match from_bytes::<M>(&delivery.payload.to_bytes()) {
-            Ok(m) => return Ok((delivery.instance, m)),
-            Err(e) => {
-                warn!(topic = spec.name, producer = %delivery.instance, error = %e, "dropping a message that does not decode")
-            }
-        }
+    }
+}
+
+/// A received message, not decoded: its bytes where they arrived. A large
+/// message from a producer on this host is still in the producer's shared
+/// memory, so [`Payload::bytes`] borrows it in place and a
+/// [`Decoder`](crate::wire::codec::Decoder) walking it hands out byte
+/// fields (`Decoder::take`) as slices of those pages: a camera frame read
+/// without one copy. [`Payload::decode`] gives the owned message.
+#[derive(Debug, Clone)]
+pub struct Payload(ZBytes);
+
+impl Payload {
+    /// The encoded message (docs/WIRE.md §5). Borrowed whenever it is one
+    /// piece, which a shared-memory message always is; a message the
+    /// network split into pieces is joined into one copy.
+    pub fn bytes(&self) -> std::borrow::Cow<'_, [u8]> {
+        self.0.to_bytes()
+    }
+
+    /// Whether the bytes are in shared memory (mapped, never copied).
+    pub fn in_shared_memory(&self) -> bool {
+        self.0.as_shm().is_some()
+    }
+
+    /// The encoded length.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Whether the message has no bytes (a format with no payload).
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// Decodes the whole message.
+    pub fn decode<M: Decode>(&self) -> std::result::Result<M, DecodeError> {
+        from_bytes(&self.bytes())
     }
 }
 

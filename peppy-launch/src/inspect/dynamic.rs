@@ -11,7 +11,7 @@ use std::fmt::{self, Write as _};
 use std::sync::Arc;
 use std::time::SystemTime;
 
-use peppy_runtime::wire::codec::{Decode, DecodeError, Decoder, Encode};
+use peppy_runtime::wire::codec::{Decode, DecodeError, Decoder, Encode, Writer};
 use peppy_schema::json::{Node, Number, Value as J5};
 use peppy_schema::{
     Code, Diagnostic, Diagnostics, Field, FieldType, MessageFormat, Primitive, SourceFile, Span,
@@ -354,12 +354,13 @@ pub(crate) fn encode(format: &MessageFormat, value: &Value) -> Result<Vec<u8>, F
         .finish());
     }
     if !format.fields.is_empty() {
-        encode_fields(&format.fields, value, &mut out).map_err(FieldError::finish)?;
+        encode_fields(&format.fields, value, &mut Writer::new(&mut out))
+            .map_err(FieldError::finish)?;
     }
     Ok(out)
 }
 
-fn encode_fields(fields: &[Field], value: &Value, out: &mut Vec<u8>) -> Result<(), FieldError> {
+fn encode_fields(fields: &[Field], value: &Value, out: &mut Writer<'_>) -> Result<(), FieldError> {
     let Value::Object(map) = value else {
         return Err(FieldError::wrong_type("an object", value));
     };
@@ -370,7 +371,7 @@ fn encode_fields(fields: &[Field], value: &Value, out: &mut Vec<u8>) -> Result<(
     }
     for f in fields {
         match map.get(&f.name) {
-            None | Some(Value::Null) if f.optional => out.push(0),
+            None | Some(Value::Null) if f.optional => out.put_u8(0),
             None => {
                 let message = format!("missing field `{}` ({})", f.name, type_name(&f.ty));
                 return Err(
@@ -380,7 +381,7 @@ fn encode_fields(fields: &[Field], value: &Value, out: &mut Vec<u8>) -> Result<(
             Some(v) => {
                 // The presence byte of `Option`'s encoding.
                 if f.optional {
-                    out.push(1);
+                    out.put_u8(1);
                 }
                 encode_type(&f.ty, v, out).map_err(|e| e.under_key(&f.name))?;
             }
@@ -404,7 +405,7 @@ fn unknown_field(key: &str, fields: &[Field]) -> FieldError {
     )
 }
 
-fn encode_type(ty: &FieldType, v: &Value, out: &mut Vec<u8>) -> Result<(), FieldError> {
+fn encode_type(ty: &FieldType, v: &Value, out: &mut Writer<'_>) -> Result<(), FieldError> {
     match ty {
         FieldType::Primitive(p) => encode_primitive(*p, v, out),
         FieldType::Object(fields) => encode_fields(fields, v, out),
@@ -416,7 +417,7 @@ fn encode_array(
     items: &FieldType,
     length: Option<u32>,
     v: &Value,
-    out: &mut Vec<u8>,
+    out: &mut Writer<'_>,
 ) -> Result<(), FieldError> {
     let is_bytes = *items == FieldType::Primitive(Primitive::U8);
     if let (true, Value::String(s)) = (is_bytes, v) {
@@ -437,7 +438,7 @@ fn encode_array(
 
 /// A variable array's `u32` count; a fixed array's length is checked and
 /// not written.
-fn put_count(n: usize, length: Option<u32>, out: &mut Vec<u8>) -> Result<(), FieldError> {
+fn put_count(n: usize, length: Option<u32>, out: &mut Writer<'_>) -> Result<(), FieldError> {
     match length {
         Some(fixed) if n != fixed as usize => Err(FieldError::invalid(format!(
             "expected exactly {fixed} items, found {n}"
@@ -452,7 +453,7 @@ fn put_count(n: usize, length: Option<u32>, out: &mut Vec<u8>) -> Result<(), Fie
     }
 }
 
-fn encode_primitive(p: Primitive, v: &Value, out: &mut Vec<u8>) -> Result<(), FieldError> {
+fn encode_primitive(p: Primitive, v: &Value, out: &mut Writer<'_>) -> Result<(), FieldError> {
     match p {
         Primitive::Bool => match v {
             Value::Bool(b) => b.encode(out),
@@ -471,7 +472,7 @@ fn encode_primitive(p: Primitive, v: &Value, out: &mut Vec<u8>) -> Result<(), Fi
     Ok(())
 }
 
-fn encode_int(p: Primitive, v: &Value, out: &mut Vec<u8>) -> Result<(), FieldError> {
+fn encode_int(p: Primitive, v: &Value, out: &mut Writer<'_>) -> Result<(), FieldError> {
     let n = integer(p, v)?;
     // `integer` checked the range, so these casts keep the value.
     match p {
@@ -557,7 +558,7 @@ fn bytes(v: &Value) -> Result<Vec<u8>, FieldError> {
 
 /// A `time`: `{secs, nanos}` (nanos may be left out), seconds since the
 /// Unix epoch (fractions are fine), or `"now"`.
-fn encode_time(v: &Value, out: &mut Vec<u8>) -> Result<(), FieldError> {
+fn encode_time(v: &Value, out: &mut Writer<'_>) -> Result<(), FieldError> {
     let (secs, nanos) = match v {
         Value::String(s) if s == "now" => {
             SystemTime::now().encode(out);
@@ -577,13 +578,14 @@ fn encode_time(v: &Value, out: &mut Vec<u8>) -> Result<(), FieldError> {
             ));
         }
     };
-    let start = out.len();
-    secs.encode(out);
-    nanos.encode(out);
+    let mut time = [0u8; 12];
+    let mut w = Writer::fill(&mut time);
+    secs.encode(&mut w);
+    nanos.encode(&mut w);
     // What the runtime's decoder refuses (times this platform cannot
     // hold) is refused here too.
-    SystemTime::decode(&mut Decoder::new(&out[start..]))
-        .map_err(|e| FieldError::invalid(e.reason))?;
+    SystemTime::decode(&mut Decoder::new(&time)).map_err(|e| FieldError::invalid(e.reason))?;
+    out.put(&time);
     Ok(())
 }
 
@@ -609,7 +611,7 @@ fn time_parts(v: &Value) -> Result<(i64, u32), FieldError> {
         field("nanos", Primitive::U32, true),
     ];
     let mut parts = Vec::new();
-    encode_fields(&fields, v, &mut parts)?;
+    encode_fields(&fields, v, &mut Writer::new(&mut parts))?;
     let mut d = Decoder::new(&parts);
     let secs = i64::decode(&mut d).unwrap_or_default();
     let nanos = match presence(&mut d) {

@@ -297,9 +297,7 @@ impl<G> std::fmt::Debug for IncomingGoal<G> {
 
 /// The goal response every action uses: `{ accepted, error_message }`.
 fn goal_response(accepted: bool, error: Option<String>) -> Vec<u8> {
-    let mut out = to_bytes(&accepted);
-    error.encode(&mut out);
-    out
+    to_bytes(&(accepted, error))
 }
 
 impl<G> IncomingGoal<G> {

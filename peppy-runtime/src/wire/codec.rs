@@ -98,13 +98,108 @@ impl<'a> Decoder<'a> {
     }
 }
 
+/// Where an encoder writes: a growing `Vec`, a buffer sized in advance
+/// (a shared-memory chunk, written in place), or nowhere, only counting,
+/// to size that buffer.
+#[derive(Debug)]
+pub struct Writer<'a> {
+    target: Target<'a>,
+}
+
+#[derive(Debug)]
+enum Target<'a> {
+    Grow(&'a mut Vec<u8>),
+    Fill {
+        buf: &'a mut [u8],
+        at: usize,
+        overflow: bool,
+    },
+    Count(usize),
+}
+
+impl<'a> Writer<'a> {
+    /// Appends to `out`.
+    pub fn new(out: &'a mut Vec<u8>) -> Self {
+        Writer {
+            target: Target::Grow(out),
+        }
+    }
+
+    /// Writes into `buf` from its first byte; see [`Writer::filled`].
+    pub fn fill(buf: &'a mut [u8]) -> Self {
+        Writer {
+            target: Target::Fill {
+                buf,
+                at: 0,
+                overflow: false,
+            },
+        }
+    }
+
+    /// Counts the bytes written without storing them.
+    pub fn count() -> Writer<'static> {
+        Writer {
+            target: Target::Count(0),
+        }
+    }
+
+    /// Writes `bytes`.
+    #[inline]
+    pub fn put(&mut self, bytes: &[u8]) {
+        match &mut self.target {
+            Target::Grow(out) => out.extend_from_slice(bytes),
+            Target::Fill { buf, at, overflow } => match buf.get_mut(*at..*at + bytes.len()) {
+                Some(dst) => {
+                    dst.copy_from_slice(bytes);
+                    *at += bytes.len();
+                }
+                None => *overflow = true,
+            },
+            Target::Count(n) => *n += bytes.len(),
+        }
+    }
+
+    /// Writes one byte.
+    #[inline]
+    pub fn put_u8(&mut self, byte: u8) {
+        match &mut self.target {
+            Target::Grow(out) => out.push(byte),
+            _ => self.put(&[byte]),
+        }
+    }
+
+    /// Bytes written (or counted) so far.
+    pub fn len(&self) -> usize {
+        match &self.target {
+            Target::Grow(out) => out.len(),
+            Target::Fill { at, .. } => *at,
+            Target::Count(n) => *n,
+        }
+    }
+
+    /// Whether nothing has been written yet.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// For a [`Writer::fill`]: whether the value filled the buffer exactly.
+    /// An `Encode` impl that writes more (or less) than it counted leaves
+    /// the buffer unusable; the caller then encodes into a `Vec` instead.
+    pub fn filled(&self) -> bool {
+        match &self.target {
+            Target::Fill { buf, at, overflow } => !overflow && *at == buf.len(),
+            _ => false,
+        }
+    }
+}
+
 /// A value that can be written to a payload.
 pub trait Encode {
-    /// Appends the value's bytes.
-    fn encode(&self, out: &mut Vec<u8>);
+    /// Writes the value's bytes.
+    fn encode(&self, out: &mut Writer<'_>);
 
-    /// Appends a slice of values (bytes are copied in one go).
-    fn encode_slice(items: &[Self], out: &mut Vec<u8>)
+    /// Writes a slice of values (bytes are copied in one go).
+    fn encode_slice(items: &[Self], out: &mut Writer<'_>)
     where
         Self: Sized,
     {
@@ -139,8 +234,8 @@ pub trait Decode: Sized {
 pub struct Raw(pub Vec<u8>);
 
 impl Encode for Raw {
-    fn encode(&self, out: &mut Vec<u8>) {
-        out.extend_from_slice(&self.0);
+    fn encode(&self, out: &mut Writer<'_>) {
+        out.put(&self.0);
     }
 }
 
@@ -154,9 +249,16 @@ impl Decode for Raw {
 
 /// Encodes a whole message.
 pub fn to_bytes<T: Encode + ?Sized>(value: &T) -> Vec<u8> {
-    let mut out = Vec::new();
-    value.encode(&mut out);
+    let mut out = Vec::with_capacity(encoded_len(value));
+    value.encode(&mut Writer::new(&mut out));
     out
+}
+
+/// The number of bytes [`to_bytes`] would return, without encoding.
+pub fn encoded_len<T: Encode + ?Sized>(value: &T) -> usize {
+    let mut w = Writer::count();
+    value.encode(&mut w);
+    w.len()
 }
 
 /// Decodes a whole message; trailing bytes are an error.
@@ -170,8 +272,9 @@ pub fn from_bytes<T: Decode>(bytes: &[u8]) -> Result<T, DecodeError> {
 macro_rules! numbers {
     ($($t:ty),*) => {$(
         impl Encode for $t {
-            fn encode(&self, out: &mut Vec<u8>) {
-                out.extend_from_slice(&self.to_le_bytes());
+            #[inline]
+            fn encode(&self, out: &mut Writer<'_>) {
+                out.put(&self.to_le_bytes());
             }
         }
         impl Decode for $t {
@@ -185,11 +288,11 @@ macro_rules! numbers {
 numbers!(u16, u32, u64, i8, i16, i32, i64, f32, f64);
 
 impl Encode for u8 {
-    fn encode(&self, out: &mut Vec<u8>) {
-        out.push(*self);
+    fn encode(&self, out: &mut Writer<'_>) {
+        out.put_u8(*self);
     }
-    fn encode_slice(items: &[Self], out: &mut Vec<u8>) {
-        out.extend_from_slice(items);
+    fn encode_slice(items: &[Self], out: &mut Writer<'_>) {
+        out.put(items);
     }
 }
 
@@ -204,8 +307,8 @@ impl Decode for u8 {
 }
 
 impl Encode for bool {
-    fn encode(&self, out: &mut Vec<u8>) {
-        out.push(u8::from(*self));
+    fn encode(&self, out: &mut Writer<'_>) {
+        out.put_u8(u8::from(*self));
     }
 }
 
@@ -224,15 +327,15 @@ impl Decode for bool {
 }
 
 impl Encode for String {
-    fn encode(&self, out: &mut Vec<u8>) {
+    fn encode(&self, out: &mut Writer<'_>) {
         self.as_str().encode(out);
     }
 }
 
 impl Encode for str {
-    fn encode(&self, out: &mut Vec<u8>) {
+    fn encode(&self, out: &mut Writer<'_>) {
         (self.len() as u32).encode(out);
-        out.extend_from_slice(self.as_bytes());
+        out.put(self.as_bytes());
     }
 }
 
@@ -250,7 +353,7 @@ impl Decode for String {
 }
 
 impl Encode for SystemTime {
-    fn encode(&self, out: &mut Vec<u8>) {
+    fn encode(&self, out: &mut Writer<'_>) {
         let (secs, nanos) = match self.duration_since(UNIX_EPOCH) {
             Ok(d) => (d.as_secs() as i64, d.subsec_nanos()),
             Err(e) => {
@@ -293,7 +396,7 @@ impl Decode for SystemTime {
 }
 
 impl<T: Encode> Encode for Vec<T> {
-    fn encode(&self, out: &mut Vec<u8>) {
+    fn encode(&self, out: &mut Writer<'_>) {
         (self.len() as u32).encode(out);
         T::encode_slice(self, out);
     }
@@ -308,7 +411,7 @@ impl<T: Decode> Decode for Vec<T> {
 }
 
 impl<T: Encode, const N: usize> Encode for [T; N] {
-    fn encode(&self, out: &mut Vec<u8>) {
+    fn encode(&self, out: &mut Writer<'_>) {
         T::encode_slice(self, out);
     }
 }
@@ -328,11 +431,11 @@ impl<T: Decode, const N: usize> Decode for [T; N] {
 }
 
 impl<T: Encode> Encode for Option<T> {
-    fn encode(&self, out: &mut Vec<u8>) {
+    fn encode(&self, out: &mut Writer<'_>) {
         match self {
-            None => out.push(0),
+            None => out.put_u8(0),
             Some(v) => {
-                out.push(1);
+                out.put_u8(1);
                 v.encode(out);
             }
         }
@@ -353,9 +456,17 @@ impl<T: Decode> Decode for Option<T> {
     }
 }
 
+/// Two values, one after the other (a reply made of a status and a detail).
+impl<A: Encode, B: Encode> Encode for (A, B) {
+    fn encode(&self, out: &mut Writer<'_>) {
+        self.0.encode(out);
+        self.1.encode(out);
+    }
+}
+
 /// A message with no payload.
 impl Encode for () {
-    fn encode(&self, _: &mut Vec<u8>) {}
+    fn encode(&self, _: &mut Writer<'_>) {}
 }
 
 impl Decode for () {
@@ -371,7 +482,8 @@ mod tests {
 
     #[test]
     fn golden_bytes_of_every_primitive() {
-        let mut out = Vec::new();
+        let mut bytes = Vec::new();
+        let mut out = Writer::new(&mut bytes);
         true.encode(&mut out);
         7u8.encode(&mut out);
         0x0102u16.encode(&mut out);
@@ -384,7 +496,7 @@ mod tests {
         None::<u8>.encode(&mut out);
         (UNIX_EPOCH + Duration::new(2, 5)).encode(&mut out);
         assert_eq!(
-            out,
+            bytes,
             [
                 1, // bool
                 7, // u8
@@ -444,7 +556,7 @@ mod properties {
     }
 
     impl Encode for Frame {
-        fn encode(&self, out: &mut Vec<u8>) {
+        fn encode(&self, out: &mut Writer<'_>) {
             self.stamp.encode(out);
             self.id.encode(out);
             self.encoding.encode(out);
@@ -523,6 +635,22 @@ mod properties {
         #[test]
         fn every_message_round_trips(f in frame()) {
             prop_assert_eq!(from_bytes::<Frame>(&to_bytes(&f)).unwrap(), f);
+        }
+
+        #[test]
+        fn counting_and_filling_agree_with_a_vec(f in frame()) {
+            let bytes = to_bytes(&f);
+            prop_assert_eq!(encoded_len(&f), bytes.len());
+            let mut buf = vec![0xAA; bytes.len()];
+            let mut w = Writer::fill(&mut buf);
+            f.encode(&mut w);
+            prop_assert!(w.filled());
+            prop_assert_eq!(&buf, &bytes);
+            // One byte short: the writer says so instead of panicking.
+            let mut short = vec![0; bytes.len() - 1];
+            let mut w = Writer::fill(&mut short);
+            f.encode(&mut w);
+            prop_assert!(!w.filled());
         }
 
         #[test]

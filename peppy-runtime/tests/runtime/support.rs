@@ -2,7 +2,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;
 
-use peppy_runtime::codegen::{Decode, DecodeError, Decoder, Encode, NodeParameters};
+use peppy_runtime::codegen::{Decode, DecodeError, Decoder, Encode, NodeParameters, Writer};
 use peppy_runtime::{NodeBuilder, NodeRunner};
 
 /// Every wait in these tests is bounded by this.
@@ -44,13 +44,8 @@ pub(crate) fn namespace(test: &str) -> String {
     )
 }
 
-/// Starts a node of type `P` as `instance` with extra flags.
-pub(crate) async fn start<P: NodeParameters>(
-    hub: &Hub,
-    ns: &str,
-    instance: &str,
-    extra: &[&str],
-) -> (P, Arc<NodeRunner>) {
+/// The flags that start `instance` in `ns` against the hub.
+fn node_args<'a>(hub: &'a Hub, ns: &'a str, instance: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
     let mut args = vec![
         "node",
         "--instance-id",
@@ -61,16 +56,34 @@ pub(crate) async fn start<P: NodeParameters>(
         &hub.endpoint,
     ];
     args.extend_from_slice(extra);
-    tokio::time::timeout(
-        WAIT,
-        NodeBuilder::<P>::new()
-            .with_runtime_config(None)
-            .with_args(args)
-            .start(),
-    )
-    .await
-    .expect("node start timed out")
-    .expect("node starts")
+    args
+}
+
+/// Starts a node of type `P` as `instance` with extra flags.
+pub(crate) async fn start<P: NodeParameters>(
+    hub: &Hub,
+    ns: &str,
+    instance: &str,
+    extra: &[&str],
+) -> (P, Arc<NodeRunner>) {
+    start_configured(hub, ns, instance, extra, |b| b).await
+}
+
+/// Like [`start`], with builder settings (shared memory, say).
+pub(crate) async fn start_configured<P: NodeParameters>(
+    hub: &Hub,
+    ns: &str,
+    instance: &str,
+    extra: &[&str],
+    configure: impl FnOnce(NodeBuilder<P>) -> NodeBuilder<P>,
+) -> (P, Arc<NodeRunner>) {
+    let builder = NodeBuilder::<P>::new()
+        .with_runtime_config(None)
+        .with_args(node_args(hub, ns, instance, extra));
+    tokio::time::timeout(WAIT, configure(builder).start())
+        .await
+        .expect("node start timed out")
+        .expect("node starts")
 }
 
 /// Like [`start`], returning the error.
@@ -80,19 +93,9 @@ pub(crate) async fn try_start<P: NodeParameters>(
     instance: &str,
     extra: &[&str],
 ) -> peppy_runtime::Result<(P, Arc<NodeRunner>)> {
-    let mut args = vec![
-        "node",
-        "--instance-id",
-        instance,
-        "--namespace",
-        ns,
-        "--connect",
-        &hub.endpoint,
-    ];
-    args.extend_from_slice(extra);
     NodeBuilder::<P>::new()
         .with_runtime_config(None)
-        .with_args(args)
+        .with_args(node_args(hub, ns, instance, extra))
         .start()
         .await
 }
@@ -105,7 +108,7 @@ pub(crate) struct Frame {
 }
 
 impl Encode for Frame {
-    fn encode(&self, out: &mut Vec<u8>) {
+    fn encode(&self, out: &mut Writer<'_>) {
         self.seq.encode(out);
         self.data.encode(out);
     }

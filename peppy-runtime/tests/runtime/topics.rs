@@ -5,10 +5,12 @@ use std::time::Duration;
 
 use peppy_runtime::codegen::{
     ConsumedServiceSpec, ConsumedTopicSpec, Decode, DecodeError, Decoder, Encode, FormatSpec,
-    OwnerSpec, QosProfile, ServiceSpec, TopicSpec, call, emit, handle_next, next_message,
+    OwnerSpec, QosProfile, ServiceSpec, TopicSpec, Writer, call, emit, handle_next, next_message,
+    next_payload,
 };
 
-use crate::support::{WAIT, hub, namespace, start, test_node};
+use crate::support::{WAIT, hub, namespace, start, start_configured, test_node};
+use peppy_runtime::{NodeBuilder, NodeRunner, SharedMemory};
 
 #[derive(Debug, Clone, PartialEq)]
 struct Command {
@@ -17,7 +19,7 @@ struct Command {
 }
 
 impl Encode for Command {
-    fn encode(&self, out: &mut Vec<u8>) {
+    fn encode(&self, out: &mut Writer<'_>) {
         self.target.encode(out);
         self.max_velocity.encode(out);
     }
@@ -374,21 +376,7 @@ async fn a_reader_that_never_reads_one_topic_stalls_nothing_else() {
             {}
         }
     });
-    // Both subscriptions matched: a beat gets through.
-    tokio::time::timeout(WAIT, async {
-        loop {
-            emit(&flood, &BEAT_OUT, &u32::MAX).await.unwrap();
-            let beat = tokio::time::timeout(
-                Duration::from_millis(100),
-                next_message::<u32>(&station, &BEAT_IN, None),
-            );
-            if beat.await.is_ok() {
-                break;
-            }
-        }
-    })
-    .await
-    .expect("subscription matched");
+    beats_pass(&flood, &station).await;
     // 40 MiB on `frames`, which the station does not read: far beyond its
     // inbox's nominal depth (256) and every socket buffer on the way.
     const FRAMES: u32 = 10_000;
@@ -437,4 +425,123 @@ async fn a_reader_that_never_reads_one_topic_stalls_nothing_else() {
     .expect("every frame is kept for the reader");
     station.shutdown().await;
     flood.shutdown().await;
+}
+
+/// Waits until a beat from `flood` reaches `station`: both subscriptions
+/// of the station are matched.
+async fn beats_pass(flood: &NodeRunner, station: &NodeRunner) {
+    tokio::time::timeout(WAIT, async {
+        loop {
+            emit(flood, &BEAT_OUT, &u32::MAX).await.unwrap();
+            let beat = tokio::time::timeout(
+                Duration::from_millis(100),
+                next_message::<u32>(station, &BEAT_IN, None),
+            );
+            if beat.await.is_ok() {
+                break;
+            }
+        }
+    })
+    .await
+    .expect("subscription matched");
+}
+
+/// Starts `P` with these shared-memory settings.
+async fn start_shm<P: peppy_runtime::codegen::NodeParameters>(
+    hub: &crate::support::Hub,
+    ns: &str,
+    instance: &str,
+    bind: &str,
+    shm: SharedMemory,
+) -> std::sync::Arc<NodeRunner> {
+    let configure = |b: NodeBuilder<P>| b.shared_memory(shm);
+    start_configured(hub, ns, instance, &["--bind", bind], configure)
+        .await
+        .1
+}
+
+/// A frame whose bytes differ from one frame to the next.
+fn patterned(seq: u32, len: usize) -> crate::support::Frame {
+    crate::support::Frame {
+        seq,
+        data: (0..len)
+            .map(|i| (i as u32).wrapping_mul(31).wrapping_add(seq) as u8)
+            .collect(),
+    }
+}
+
+/// Large frames are written once into the producer's shared memory and read
+/// in place by a reader on this host; small ones, a topic turned off and a
+/// reader whose Zenoh has shared memory off (as on another host) get the
+/// same bytes the ordinary way.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn large_frames_travel_through_shared_memory_and_everything_else_as_bytes() {
+    let hub = hub().await;
+    let ns = namespace("shm");
+    let on = SharedMemory::default();
+    let station = start_shm::<Station>(&hub, &ns, "station", "src@flood", on).await;
+    let remote = start_shm::<Station>(&hub, &ns, "remote", "src@flood", SharedMemory::off()).await;
+    let flood = start_shm::<Flood>(&hub, &ns, "flood", "st@station", on).await;
+    beats_pass(&flood, &station).await;
+    beats_pass(&flood, &remote).await;
+    let in_shm = |r: &NodeRunner| r.received_in_shared_memory(&FLOOD_IN).unwrap();
+
+    // (frame, this topic's threshold when it is sent, whether it travels in
+    // shared memory to the local reader)
+    let default = Some(SharedMemory::DEFAULT_THRESHOLD);
+    let steps = [
+        (patterned(0, 1 << 20), default, true),
+        (patterned(1, 100), default, false),
+        (patterned(2, 4 << 20), default, true),
+        (patterned(3, SharedMemory::DEFAULT_THRESHOLD), default, true),
+        // This topic only: off, then from 64 bytes.
+        (patterned(4, 1 << 20), None, false),
+        (patterned(5, 100), Some(64), true),
+    ];
+    let mut shared = 0;
+    for (frame, threshold, in_place) in &steps {
+        flood.set_shm_threshold(&FLOOD_OUT, *threshold);
+        emit(&flood, &FLOOD_OUT, frame).await.unwrap();
+        tokio::time::timeout(WAIT, async {
+            let (from, got): (String, crate::support::Frame) =
+                next_message(&station, &FLOOD_IN, None).await.unwrap();
+            assert_eq!((from.as_str(), got.seq), ("flood", frame.seq));
+            assert!(got == *frame, "frame {} arrives intact", frame.seq);
+            let (_, got): (String, crate::support::Frame) =
+                next_message(&remote, &FLOOD_IN, None).await.unwrap();
+            assert!(
+                got == *frame,
+                "frame {} reaches the remote reader intact",
+                frame.seq
+            );
+        })
+        .await
+        .expect("the frame arrives");
+        shared += u64::from(*in_place);
+        assert_eq!(in_shm(&station), shared, "after frame {}", frame.seq);
+    }
+    flood.set_shm_threshold(&FLOOD_OUT, default);
+    assert_eq!(in_shm(&remote), 0, "shared memory off: nothing mapped");
+    assert_eq!(flood.shared_memory(), on);
+
+    // Undecoded, a frame's pixels are a slice of the producer's pages.
+    let frame = patterned(6, 1 << 20);
+    emit(&flood, &FLOOD_OUT, &frame).await.unwrap();
+    let (_, payload) = tokio::time::timeout(WAIT, next_payload(&station, &FLOOD_IN, None))
+        .await
+        .expect("the frame arrives")
+        .unwrap();
+    assert!(payload.in_shared_memory());
+    let bytes = payload.bytes();
+    assert!(matches!(bytes, std::borrow::Cow::Borrowed(_)), "not copied");
+    let mut d = Decoder::new(&bytes);
+    assert_eq!(u32::decode(&mut d).unwrap(), 6);
+    let n = d.count(1).unwrap();
+    let pixels = d.take(n).unwrap();
+    assert!(pixels == frame.data.as_slice());
+    assert!(bytes.as_ptr_range().contains(&pixels.as_ptr()));
+    assert!(payload.decode::<crate::support::Frame>().unwrap() == frame);
+    for r in [station, remote, flood] {
+        r.shutdown().await;
+    }
 }

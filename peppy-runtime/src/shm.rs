@@ -1,0 +1,432 @@
+//! Large messages through shared memory.
+//!
+//! A node that emits a message at or above its threshold (default 4 KiB)
+//! encodes it straight into a chunk of its own shared-memory pool and
+//! publishes the chunk: a consumer on the same host maps the same pages and
+//! decodes from them, so a camera frame is written once and copied never.
+//! A consumer on another host gets the bytes over the network; Zenoh copies
+//! the chunk into the transport for it, with no change in node code.
+//!
+//! The pool is made on the first large message (a node that only emits
+//! small messages maps nothing). When it cannot be made (`/dev/shm` too
+//! small, the memory-lock limit too low) or is full (readers holding every
+//! chunk), messages are encoded into ordinary buffers instead; each reason
+//! is logged once.
+
+use std::collections::HashMap;
+use std::fmt;
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::{OnceLock, RwLock};
+
+use tracing::{info, warn};
+use zenoh::Wait;
+use zenoh::bytes::ZBytes;
+use zenoh::shm::{GarbageCollect, PosixShmProviderBackend, ShmProvider, ShmProviderBuilder};
+
+use crate::spec::TopicSpec;
+use crate::wire::codec::{Encode, Writer, encoded_len};
+
+/// The environment variable that sets a node's shared-memory use: `off`,
+/// `on` (the defaults), or the size from which a message goes through
+/// shared memory (`4096`, `64KiB`, `1MiB`). It overrides
+/// [`NodeBuilder::shared_memory`](crate::NodeBuilder::shared_memory).
+pub const SHM_ENV: &str = "PEPPY_SHM";
+
+/// How a node uses shared memory for the messages it emits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SharedMemory {
+    threshold: Option<usize>,
+    pool_bytes: usize,
+}
+
+impl Default for SharedMemory {
+    fn default() -> Self {
+        SharedMemory {
+            threshold: Some(Self::DEFAULT_THRESHOLD),
+            pool_bytes: Self::DEFAULT_POOL,
+        }
+    }
+}
+
+impl SharedMemory {
+    /// Messages from this size up go through shared memory by default.
+    pub const DEFAULT_THRESHOLD: usize = 4 << 10;
+    /// The default pool: eight 4 MiB frames in flight.
+    pub const DEFAULT_POOL: usize = 32 << 20;
+
+    /// Never: every message is sent as bytes, and Zenoh's own shared-memory
+    /// transport is turned off, so the node behaves as on a remote host.
+    pub const fn off() -> Self {
+        SharedMemory {
+            threshold: None,
+            pool_bytes: Self::DEFAULT_POOL,
+        }
+    }
+
+    /// Messages of at least `bytes` go through shared memory.
+    pub const fn from_size(bytes: usize) -> Self {
+        SharedMemory {
+            threshold: Some(bytes),
+            pool_bytes: Self::DEFAULT_POOL,
+        }
+    }
+
+    /// The pool's size: the most bytes of messages in flight (sent and not
+    /// yet dropped by every reader). Capped by what the host allows.
+    pub const fn pool(mut self, bytes: usize) -> Self {
+        self.pool_bytes = bytes;
+        self
+    }
+
+    /// The size from which messages go through shared memory (`None`: off).
+    pub const fn threshold(&self) -> Option<usize> {
+        self.threshold
+    }
+
+    /// Whether shared memory is used at all.
+    pub const fn enabled(&self) -> bool {
+        self.threshold.is_some()
+    }
+
+    /// Reads [`SHM_ENV`]; `Ok(None)` when it is not set.
+    pub fn from_env() -> Result<Option<SharedMemory>, String> {
+        match std::env::var(SHM_ENV) {
+            Ok(v) => v
+                .parse()
+                .map(Some)
+                .map_err(|e| format!("{SHM_ENV}=`{v}`: {e}")),
+            Err(std::env::VarError::NotPresent) => Ok(None),
+            Err(std::env::VarError::NotUnicode(_)) => Err(format!("{SHM_ENV} is not valid UTF-8")),
+        }
+    }
+}
+
+impl std::str::FromStr for SharedMemory {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "off" | "false" => Ok(SharedMemory::off()),
+            "on" | "true" => Ok(SharedMemory::default()),
+            size => parse_size(size)
+                .map(SharedMemory::from_size)
+                .ok_or_else(|| {
+                    "expected `off`, `on` or a size such as `4096`, `64KiB` or `1MiB`".to_string()
+                }),
+        }
+    }
+}
+
+impl fmt::Display for SharedMemory {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.threshold {
+            None => f.write_str("off"),
+            Some(t) => write!(f, "from {t} bytes, pool {} MiB", self.pool_bytes >> 20),
+        }
+    }
+}
+
+/// `4096`, `4KiB`, `4 KiB`, `1MiB`, `2GiB` (binary units; `K`, `M`, `G`
+/// and `KB`-style spellings mean the same).
+fn parse_size(s: &str) -> Option<usize> {
+    let digits = s.find(|c: char| !c.is_ascii_digit()).unwrap_or(s.len());
+    let (n, unit) = s.split_at(digits);
+    let n: usize = n.parse().ok()?;
+    let shift = match unit.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 0,
+        "k" | "kb" | "kib" => 10,
+        "m" | "mb" | "mib" => 20,
+        "g" | "gb" | "gib" => 30,
+        _ => return None,
+    };
+    n.checked_mul(1 << shift)
+}
+
+/// A node's shared-memory state: its settings, per-topic overrides and the
+/// pool, made when first needed.
+pub(crate) struct Shm {
+    settings: SharedMemory,
+    overrides: RwLock<HashMap<usize, Option<usize>>>,
+    pool: OnceLock<Option<Pool>>,
+    warned_full: AtomicBool,
+    warned_size: AtomicBool,
+    warned_encode: AtomicBool,
+}
+
+impl fmt::Debug for Shm {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Shm")
+            .field("settings", &self.settings)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Shm {
+    pub(crate) fn new(settings: SharedMemory) -> Self {
+        Shm {
+            settings,
+            overrides: RwLock::new(HashMap::new()),
+            pool: OnceLock::new(),
+            warned_full: AtomicBool::new(false),
+            warned_size: AtomicBool::new(false),
+            warned_encode: AtomicBool::new(false),
+        }
+    }
+
+    pub(crate) fn settings(&self) -> SharedMemory {
+        self.settings
+    }
+
+    /// Sets one topic's threshold, overriding the node's.
+    pub(crate) fn set_threshold(&self, spec: &'static TopicSpec, threshold: Option<usize>) {
+        if let Ok(mut o) = self.overrides.write() {
+            o.insert(std::ptr::from_ref(spec) as usize, threshold);
+        }
+    }
+
+    fn threshold(&self, spec: &'static TopicSpec) -> Option<usize> {
+        if !self.settings.enabled() {
+            return None;
+        }
+        let key = std::ptr::from_ref(spec) as usize;
+        match self
+            .overrides
+            .read()
+            .ok()
+            .and_then(|o| o.get(&key).copied())
+        {
+            Some(t) => t,
+            None => self.settings.threshold,
+        }
+    }
+
+    /// Encodes `message` for `spec`: into a shared-memory chunk when it is
+    /// large enough and a chunk is free, else into an ordinary buffer.
+    pub(crate) fn payload<M: Encode + ?Sized>(
+        &self,
+        spec: &'static TopicSpec,
+        message: &M,
+    ) -> ZBytes {
+        let len = encoded_len(message);
+        if self.threshold(spec).is_some_and(|t| len >= t.max(1))
+            && let Some(bytes) = self.encode_shared(spec, message, len)
+        {
+            return bytes;
+        }
+        let mut out = Vec::with_capacity(len);
+        message.encode(&mut Writer::new(&mut out));
+        ZBytes::from(out)
+    }
+
+    fn encode_shared<M: Encode + ?Sized>(
+        &self,
+        spec: &'static TopicSpec,
+        message: &M,
+        len: usize,
+    ) -> Option<ZBytes> {
+        let pool = self
+            .pool
+            .get_or_init(|| open_pool(self.settings.pool_bytes))
+            .as_ref()?;
+        let mut chunk = match pool
+            .provider
+            .alloc(len)
+            .with_policy::<GarbageCollect>()
+            .wait()
+        {
+            Ok(chunk) => chunk,
+            Err(e) => {
+                let (flag, why) = if len > pool.bytes {
+                    (&self.warned_size, "the message is larger than the pool")
+                } else {
+                    (
+                        &self.warned_full,
+                        "every chunk of the pool is still held by readers",
+                    )
+                };
+                if !flag.swap(true, Relaxed) {
+                    warn!(
+                        topic = spec.name,
+                        bytes = len,
+                        error = ?e,
+                        "{why}; sending such messages as ordinary buffers (logged once)"
+                    );
+                }
+                return None;
+            }
+        };
+        let mut w = Writer::fill(chunk.as_mut());
+        message.encode(&mut w);
+        if w.filled() {
+            return Some(ZBytes::from(chunk));
+        }
+        if !self.warned_encode.swap(true, Relaxed) {
+            warn!(
+                topic = spec.name,
+                "this message's Encode impl wrote a different size than it counted; sending it as an ordinary buffer (logged once)"
+            );
+        }
+        None
+    }
+}
+
+/// A node's pool and its size.
+struct Pool {
+    provider: ShmProvider<PosixShmProviderBackend>,
+    bytes: usize,
+}
+
+/// Makes the pool, no larger than the host allows: pages are locked in
+/// memory (so a message is never paged out under a reader), so the pool
+/// must fit under the memory-lock limit and in half of `/dev/shm`.
+fn open_pool(wanted: usize) -> Option<Pool> {
+    let (bytes, limited_by) = host_cap(wanted);
+    if bytes < SharedMemory::DEFAULT_THRESHOLD {
+        warn!(
+            wanted_mib = wanted >> 20,
+            limited_by,
+            "no room for a shared-memory pool; large messages are sent as ordinary buffers"
+        );
+        return None;
+    }
+    match ShmProviderBuilder::default_backend(bytes).wait() {
+        Ok(p) => {
+            info!(
+                pool_mib = bytes >> 20,
+                limited_by, "large messages go through shared memory to readers on this host"
+            );
+            Some(Pool { provider: p, bytes })
+        }
+        Err(e) => {
+            warn!(
+                pool_bytes = bytes,
+                error = %e,
+                "cannot make a shared-memory pool; large messages are sent as ordinary buffers"
+            );
+            None
+        }
+    }
+}
+
+/// `wanted`, capped by the memory-lock limit and half of `/dev/shm`'s free
+/// space; with what capped it.
+fn host_cap(wanted: usize) -> (usize, &'static str) {
+    let mut cap = (wanted, "the node's setting");
+    if let Some(lock) = memlock_limit()
+        && lock < cap.0
+    {
+        // Leave room for Zenoh's own small segments under the same limit.
+        cap = (lock / 2, "the memory-lock limit (ulimit -l)");
+    }
+    if let Some(free) = shm_free()
+        && free / 2 < cap.0
+    {
+        cap = (free / 2, "free space in /dev/shm");
+    }
+    cap
+}
+
+/// The least a process must be allowed to lock to use shared memory: a
+/// reader maps (and Zenoh locks) the whole pool of every producer it
+/// hears from, and Zenoh drops a message whose pool it cannot map.
+pub(crate) const MIN_LOCKABLE: usize = 256 << 20;
+
+/// `settings`, or off when this process may not lock enough memory to map
+/// its producers' pools (logged): better a copy than a lost message.
+pub(crate) fn usable(settings: SharedMemory) -> SharedMemory {
+    if !settings.enabled() {
+        return settings;
+    }
+    match memlock_limit() {
+        Some(limit) if limit < MIN_LOCKABLE => {
+            info!(
+                lockable_mib = limit >> 20,
+                "shared memory off: readers lock every producer's pool they map, and this process may lock only this much (ulimit -l); raise it (`ulimit -l unlimited`, systemd `LimitMEMLOCK=infinity`) to send large messages through shared memory"
+            );
+            SharedMemory::off()
+        }
+        _ => settings,
+    }
+}
+
+/// How much memory this process may lock; `None`: no limit (unlimited, or
+/// `CAP_IPC_LOCK`, which root usually has and which bypasses the limit).
+#[cfg(target_os = "linux")]
+fn memlock_limit() -> Option<usize> {
+    const CAP_IPC_LOCK: u32 = 14;
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let can_lock_anything = status
+        .lines()
+        .find_map(|l| l.strip_prefix("CapEff:"))
+        .and_then(|hex| u64::from_str_radix(hex.trim(), 16).ok())
+        .is_some_and(|caps| caps & (1 << CAP_IPC_LOCK) != 0);
+    if can_lock_anything {
+        return None;
+    }
+    let mut r = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit writes one rlimit through a valid pointer.
+    if unsafe { libc::getrlimit(libc::RLIMIT_MEMLOCK, &mut r) } != 0 {
+        return None;
+    }
+    (r.rlim_cur != libc::RLIM_INFINITY).then(|| usize::try_from(r.rlim_cur).unwrap_or(usize::MAX))
+}
+
+#[cfg(target_os = "linux")]
+fn shm_free() -> Option<usize> {
+    let mut s = std::mem::MaybeUninit::<libc::statvfs>::uninit();
+    // SAFETY: the path is a NUL-terminated literal and statvfs fills the
+    // struct it points to when it returns 0.
+    let s = unsafe {
+        if libc::statvfs(c"/dev/shm".as_ptr(), s.as_mut_ptr()) != 0 {
+            return None;
+        }
+        s.assume_init()
+    };
+    usize::try_from(s.f_bavail.saturating_mul(s.f_frsize)).ok()
+}
+
+#[cfg(not(target_os = "linux"))]
+fn memlock_limit() -> Option<usize> {
+    None
+}
+
+#[cfg(not(target_os = "linux"))]
+fn shm_free() -> Option<usize> {
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn settings_parse_from_the_environment_spellings() {
+        assert_eq!("off".parse::<SharedMemory>(), Ok(SharedMemory::off()));
+        assert_eq!("on".parse::<SharedMemory>(), Ok(SharedMemory::default()));
+        assert_eq!(
+            "64KiB".parse::<SharedMemory>().map(|s| s.threshold()),
+            Ok(Some(64 << 10))
+        );
+        assert_eq!(
+            "1 MiB".parse::<SharedMemory>().map(|s| s.threshold()),
+            Ok(Some(1 << 20))
+        );
+        assert_eq!(
+            "4096".parse::<SharedMemory>().map(|s| s.threshold()),
+            Ok(Some(4096))
+        );
+        for bad in ["", "lots", "4 parsecs", "-1", "99999999999999999999GiB"] {
+            let err = bad.parse::<SharedMemory>().unwrap_err();
+            assert!(err.contains("expected `off`"), "{bad}: {err}");
+        }
+    }
+
+    #[test]
+    fn the_host_cap_never_exceeds_the_wish() {
+        let (bytes, _) = host_cap(1 << 20);
+        assert!(bytes <= 1 << 20);
+    }
+}
