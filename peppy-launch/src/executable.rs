@@ -91,6 +91,11 @@ async fn run_build(
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .kill_on_drop(true);
+    for (key, _) in std::env::vars_os() {
+        if key.to_str().is_some_and(describes_own_package) {
+            build.env_remove(&key);
+        }
+    }
     if cargo {
         build.envs(CARGO_PROGRESS_ENV);
     }
@@ -308,6 +313,21 @@ fn profile_dir(build_cmd: &[String]) -> PathBuf {
     }
 }
 
+/// Whether `key` is one of the variables `cargo run` sets to describe the
+/// program it runs, here peppy-launch's own package. A node's build must not
+/// inherit them: build scripts that watch them (ring's watches
+/// `CARGO_PKG_NAME` and `OUT_DIR`) would rerun, and every crate above them
+/// (rustls, zenoh's TLS link, zenoh) would be rebuilt for the first node
+/// `up` builds after `cargo run -p peppy-launch`.
+fn describes_own_package(key: &str) -> bool {
+    key.starts_with("CARGO_PKG_")
+        || key.starts_with("CARGO_MANIFEST_")
+        || matches!(
+            key,
+            "CARGO_CRATE_NAME" | "CARGO_BIN_NAME" | "CARGO_PRIMARY_PACKAGE" | "OUT_DIR"
+        )
+}
+
 /// The executable of the package in `dir`, without building it.
 async fn from_metadata(
     dir: &Path,
@@ -364,6 +384,33 @@ mod tests {
 
     fn argv(s: &str) -> Vec<String> {
         s.split_whitespace().map(String::from).collect()
+    }
+
+    #[test]
+    fn a_node_build_forgets_what_cargo_run_said_about_the_launcher() {
+        for own in [
+            "CARGO_PKG_NAME",
+            "CARGO_PKG_VERSION_MAJOR",
+            "CARGO_MANIFEST_DIR",
+            "CARGO_MANIFEST_PATH",
+            "CARGO_CRATE_NAME",
+            "CARGO_BIN_NAME",
+            "CARGO_PRIMARY_PACKAGE",
+            "OUT_DIR",
+        ] {
+            assert!(describes_own_package(own), "{own}");
+        }
+        // The user's own cargo settings stay.
+        for theirs in [
+            "CARGO",
+            "CARGO_HOME",
+            "CARGO_TARGET_DIR",
+            "CARGO_TERM_COLOR",
+            "CARGO_BUILD_JOBS",
+            "PATH",
+        ] {
+            assert!(!describes_own_package(theirs), "{theirs}");
+        }
     }
 
     #[test]
