@@ -291,10 +291,19 @@ fn open_pool(wanted: usize) -> Option<Pool> {
     }
     match ShmProviderBuilder::default_backend(bytes).wait() {
         Ok(p) => {
-            info!(
-                pool_mib = bytes >> 20,
-                limited_by, "large messages go through shared memory to readers on this host"
-            );
+            if bytes < wanted {
+                info!(
+                    pool_mib = bytes >> 20,
+                    wanted_mib = wanted >> 20,
+                    limited_by,
+                    "large messages go through shared memory to readers on this host, in a smaller pool than asked"
+                );
+            } else {
+                info!(
+                    pool_mib = bytes >> 20,
+                    "large messages go through shared memory to readers on this host"
+                );
+            }
             Some(Pool { provider: p, bytes })
         }
         Err(e) => {
