@@ -13,39 +13,67 @@ use crate::roles::{Res, now_ns};
 use crate::stats::{Figure, Row};
 use crate::workspace;
 
-/// Builds what the launches start (the debug build `up` uses, as a
-/// newcomer's), then measures.
+/// How the launched programs are built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Build {
+    /// The debug build `up` makes, as a newcomer's first launch runs.
+    Debug,
+    /// The same profile with every crate optimised, in its own target
+    /// directory: what a robot runs.
+    Optimised,
+}
+
+impl Build {
+    fn group(self) -> &'static str {
+        match self {
+            Build::Debug => "launch (already built, debug nodes)",
+            Build::Optimised => "launch (already built, optimised nodes)",
+        }
+    }
+
+    /// The target directory (`None`: the workspace's own).
+    fn target_dir(self) -> Option<PathBuf> {
+        match self {
+            Build::Debug => None,
+            Build::Optimised => Some(target().join("bench-optimised")),
+        }
+    }
+}
+
+/// Builds what the launches start, both ways, then measures.
 pub(crate) fn launch(_quick: bool) -> Res<Vec<Row>> {
-    let launcher = build_examples()?;
     let mut rows = Vec::new();
-    for n in [10usize, 50] {
-        let (first, all, rss) = launch_once(&launcher, n)?;
-        let ms = |v: f64| Figure::Value {
-            value: v,
-            unit: "ms".into(),
-        };
-        rows.push(Row::new(
-            "launch (already built, debug nodes)",
-            format!("{n} instances: up to first message"),
-            None,
-            Some(ms(first)),
-        ));
-        rows.push(Row::new(
-            "launch (already built, debug nodes)",
-            format!("{n} instances: up to a message from each"),
-            None,
-            all.map(ms),
-        ));
-        if let Some(rss) = rss {
+    for build in [Build::Debug, Build::Optimised] {
+        let launcher = build_examples(build)?;
+        for n in [10usize, 50] {
+            let (first, all, rss) = launch_once(&launcher, build, n)?;
+            let ms = |v: f64| Figure::Value {
+                value: v,
+                unit: "ms".into(),
+            };
             rows.push(Row::new(
-                "launch (already built, debug nodes)",
-                format!("{n} instances: resident memory of a camera node"),
+                build.group(),
+                format!("{n} instances: up to first message"),
                 None,
-                Some(Figure::Value {
-                    value: rss,
-                    unit: "MiB".into(),
-                }),
+                Some(ms(first)),
             ));
+            rows.push(Row::new(
+                build.group(),
+                format!("{n} instances: up to a message from each"),
+                None,
+                all.map(ms),
+            ));
+            if let Some(rss) = rss {
+                rows.push(Row::new(
+                    build.group(),
+                    format!("{n} instances: resident memory of a camera node"),
+                    None,
+                    Some(Figure::Value {
+                        value: rss,
+                        unit: "MiB".into(),
+                    }),
+                ));
+            }
         }
     }
     let mut idle = [None, None];
@@ -79,7 +107,7 @@ pub(crate) fn launch(_quick: bool) -> Res<Vec<Row>> {
     let [zenoh, peppy] = idle;
     rows.push(
         Row::new(
-            "launch (already built, debug nodes)",
+            Build::Optimised.group(),
             "idle process: resident memory (release)".into(),
             zenoh,
             peppy,
@@ -89,24 +117,47 @@ pub(crate) fn launch(_quick: bool) -> Res<Vec<Row>> {
     Ok(rows)
 }
 
+/// The workspace's target directory.
+fn target() -> PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| workspace().join("target"), PathBuf::from)
+}
+
 /// `cargo build -p peppy-launch -p realsense_d405`; the launcher's path.
-fn build_examples() -> Res<PathBuf> {
-    eprintln!("peppy-bench: building peppy-launch and realsense_d405 (debug, as `up` would)…");
-    let status = Command::new(env!("CARGO"))
+fn build_examples(build: Build) -> Res<PathBuf> {
+    eprintln!("peppy-bench: building peppy-launch and realsense_d405 ({build:?})…");
+    let mut cargo = Command::new(env!("CARGO"));
+    cargo
         .args(["build", "-p", "peppy-launch", "-p", "realsense_d405"])
-        .current_dir(workspace())
-        .status()?;
-    if !status.success() {
+        .current_dir(workspace());
+    if build == Build::Optimised {
+        // The dev profile (the one `up` looks in), optimised like release.
+        cargo.args([
+            "--config",
+            "profile.dev.opt-level=3",
+            "--config",
+            "profile.dev.package.\"*\".opt-level=3",
+            "--config",
+            "profile.dev.debug-assertions=false",
+            "--config",
+            "profile.dev.overflow-checks=false",
+        ]);
+    }
+    if let Some(dir) = build.target_dir() {
+        cargo.env("CARGO_TARGET_DIR", dir);
+    }
+    if !cargo.status()?.success() {
         return Err("the build of peppy-launch and realsense_d405 failed".into());
     }
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map_or_else(|| workspace().join("target"), PathBuf::from);
-    Ok(target.join("debug").join("peppy-launch"))
+    Ok(build
+        .target_dir()
+        .unwrap_or_else(target)
+        .join("debug")
+        .join("peppy-launch"))
 }
 
 /// One launch of `n` cameras: ms to the first message, to one from each,
 /// and the median camera's resident memory (MiB) once all are heard.
-fn launch_once(launcher: &Path, n: usize) -> Res<(f64, Option<f64>, Option<f64>)> {
+fn launch_once(launcher: &Path, build: Build, n: usize) -> Res<(f64, Option<f64>, Option<f64>)> {
     let dir = tempfile::tempdir()?;
     let node = workspace().join("examples/nodes/realsense_d405");
     let instances: Vec<String> = (0..n)
@@ -138,22 +189,23 @@ fn launch_once(launcher: &Path, n: usize) -> Res<(f64, Option<f64>, Option<f64>)
     )?;
     watch.next_with("ready", Duration::from_secs(30))?;
     let started = now_ns();
-    let up = Proc::spawn(
-        launcher.to_path_buf(),
-        &[
-            "up",
-            &file.display().to_string(),
-            "--no-build",
-            "--namespace",
-            &ns,
-            "--listen",
-            &format!("tcp/127.0.0.1:{router}"),
-            "--connect",
-            &watch_at,
-        ]
-        .map(String::from),
-        "peppy-launch up",
-    )?;
+    let mut command = Command::new(launcher);
+    command.args([
+        "up",
+        &file.display().to_string(),
+        "--no-build",
+        "--namespace",
+        &ns,
+        "--listen",
+        &format!("tcp/127.0.0.1:{router}"),
+        "--connect",
+        &watch_at,
+    ]);
+    // `up --no-build` finds the nodes in the target directory they were built in.
+    if let Some(dir) = build.target_dir() {
+        command.env("CARGO_TARGET_DIR", dir);
+    }
+    let up = Proc::spawn(command, "peppy-launch up")?;
     let seen = watch.next_with("heard", Duration::from_secs(150));
     // The instances' pids, from `started `cam_0` (...) as pid N`.
     let pids: Vec<u32> = up

@@ -2,7 +2,6 @@
 //! lines with a bound on every wait, stop it, read its memory.
 
 use std::io::{BufRead, BufReader, Read};
-use std::path::PathBuf;
 use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
 use std::time::Duration;
@@ -24,21 +23,20 @@ impl Proc {
     /// `peppy-bench child ARGS...`.
     pub(crate) fn child(args: &[String]) -> Res<Proc> {
         let exe = std::env::current_exe()?;
-        let mut all = vec!["child".to_string()];
-        all.extend_from_slice(args);
-        Proc::spawn(exe, &all, &args.join(" "))
+        let mut command = Command::new(exe);
+        command.arg("child").args(args);
+        Proc::spawn(command, &args.join(" "))
     }
 
     /// Any program, its stdout read as JSON lines.
-    pub(crate) fn spawn(program: PathBuf, args: &[String], what: &str) -> Res<Proc> {
-        let mut child = Command::new(&program)
-            .args(args)
+    pub(crate) fn spawn(mut command: Command, what: &str) -> Res<Proc> {
+        let mut child = command
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .env("NO_COLOR", "1")
             .spawn()
-            .map_err(|e| format!("cannot start {}: {e}", program.display()))?;
+            .map_err(|e| format!("cannot start {}: {e}", command.get_program().display()))?;
         let (tx, lines) = channel();
         let stdout = child.stdout.take().expect("piped");
         std::thread::spawn(move || {
