@@ -183,17 +183,25 @@ pub(crate) async fn throughput<S: Sink>(s: &S, size: usize, count: u32) -> Res<T
             }
         }
     }
-    s.flood(size as u32, count, 0.0).await?;
-    let (mut first, mut last, mut received) = (None, Instant::now(), 0u32);
-    while let Ok(next) = timeout(Duration::from_secs(10), s.stream()).await {
-        let (seq, _, _) = next?;
-        last = Instant::now();
-        first.get_or_insert(last);
-        received += 1;
-        if seq + 1 == u64::from(count) {
-            break;
+    // Read while the request is answered: the source's stream (DataHigh)
+    // can overtake its reply (Data), and a raw subscriber's bounded channel
+    // that nobody reads stalls the session's delivery, reply included.
+    let read = async {
+        let (mut first, mut last, mut received) = (None, Instant::now(), 0u32);
+        while let Ok(next) = timeout(Duration::from_secs(10), s.stream()).await {
+            let (seq, _, _) = next?;
+            last = Instant::now();
+            first.get_or_insert(last);
+            received += 1;
+            if seq + 1 == u64::from(count) {
+                break;
+            }
         }
-    }
+        Res::Ok((first, last, received))
+    };
+    let (asked, read) = tokio::join!(s.flood(size as u32, count, 0.0), read);
+    asked?;
+    let (first, last, received) = read?;
     let span = first.map_or(0.0, |f| (last - f).as_secs_f64());
     let msgs_per_s = if span > 0.0 {
         f64::from(received.saturating_sub(1)) / span

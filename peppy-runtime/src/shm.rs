@@ -16,7 +16,7 @@
 use std::collections::HashMap;
 use std::fmt;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
-use std::sync::{OnceLock, RwLock};
+use std::sync::{Arc, Mutex, RwLock};
 
 use tracing::{info, warn};
 use zenoh::Wait;
@@ -51,8 +51,13 @@ impl Default for SharedMemory {
 impl SharedMemory {
     /// Messages from this size up go through shared memory by default.
     pub const DEFAULT_THRESHOLD: usize = 4 << 10;
-    /// The default pool: eight 4 MiB frames in flight.
+    /// The largest pool a node makes by default: eight 4 MiB frames in
+    /// flight.
     pub const DEFAULT_POOL: usize = 32 << 20;
+    /// The smallest pool a node makes.
+    pub const MIN_POOL: usize = 2 << 20;
+    /// A pool holds this many messages of the size that made it.
+    pub const POOL_MESSAGES: usize = 16;
 
     /// Never: every message is sent as bytes, and Zenoh's own shared-memory
     /// transport is turned off, so the node behaves as on a remote host.
@@ -71,8 +76,12 @@ impl SharedMemory {
         }
     }
 
-    /// The pool's size: the most bytes of messages in flight (sent and not
-    /// yet dropped by every reader). Capped by what the host allows.
+    /// The most bytes the pool may hold (messages sent and not yet dropped
+    /// by every reader). The pool is made on the first large message, room
+    /// for [`Self::POOL_MESSAGES`] of its size, at least
+    /// [`Self::MIN_POOL`] and at most this: every reader on the host maps
+    /// and locks it, so a small camera does not take 32 MiB of everyone's
+    /// memory. Capped by what the host allows too.
     pub const fn pool(mut self, bytes: usize) -> Self {
         self.pool_bytes = bytes;
         self
@@ -147,7 +156,12 @@ fn parse_size(s: &str) -> Option<usize> {
 pub(crate) struct Shm {
     settings: SharedMemory,
     overrides: RwLock<HashMap<usize, Option<usize>>>,
-    pool: OnceLock<Option<Pool>>,
+    /// Every pool made, the newest (largest) last. A pool grows by making
+    /// a larger one; older ones stay mapped, since a reader may not have
+    /// opened a message still in flight in them.
+    pools: Mutex<Vec<Arc<Pool>>>,
+    /// No pool could be made: do not try again for every message.
+    no_pool: AtomicBool,
     warned_full: AtomicBool,
     warned_size: AtomicBool,
     warned_encode: AtomicBool,
@@ -166,7 +180,8 @@ impl Shm {
         Shm {
             settings,
             overrides: RwLock::new(HashMap::new()),
-            pool: OnceLock::new(),
+            pools: Mutex::new(Vec::new()),
+            no_pool: AtomicBool::new(false),
             warned_full: AtomicBool::new(false),
             warned_size: AtomicBool::new(false),
             warned_encode: AtomicBool::new(false),
@@ -218,16 +233,40 @@ impl Shm {
         ZBytes::from(out)
     }
 
+    /// The pool to take `len` bytes from: the newest, or a new one when
+    /// there is none yet or the newest is too small for `len` and may grow.
+    fn pool_for(&self, len: usize) -> Option<Arc<Pool>> {
+        if self.no_pool.load(Relaxed) {
+            return None;
+        }
+        let mut pools = self.pools.lock().ok()?;
+        let most = self.settings.pool_bytes;
+        match pools.last() {
+            Some(p) if len <= p.bytes || p.bytes >= most => return Some(p.clone()),
+            _ => {}
+        }
+        match open_pool(pool_size(len, most)) {
+            Some(p) => {
+                pools.push(Arc::new(p));
+                pools.last().cloned()
+            }
+            None => {
+                // Keep using the pool there is, for the messages it fits.
+                if pools.is_empty() {
+                    self.no_pool.store(true, Relaxed);
+                }
+                pools.last().cloned()
+            }
+        }
+    }
+
     fn encode_shared<M: Encode + ?Sized>(
         &self,
         spec: &'static TopicSpec,
         message: &M,
         len: usize,
     ) -> Option<ZBytes> {
-        let pool = self
-            .pool
-            .get_or_init(|| open_pool(self.settings.pool_bytes))
-            .as_ref()?;
+        let pool = self.pool_for(len)?;
         let mut chunk = match pool
             .provider
             .alloc(len)
@@ -274,6 +313,13 @@ impl Shm {
 struct Pool {
     provider: ShmProvider<PosixShmProviderBackend>,
     bytes: usize,
+}
+
+/// The pool for a first large message of `len` bytes, at most `most`.
+fn pool_size(len: usize, most: usize) -> usize {
+    len.saturating_mul(SharedMemory::POOL_MESSAGES)
+        .max(SharedMemory::MIN_POOL)
+        .min(most)
 }
 
 /// Makes the pool, no larger than the host allows: pages are locked in
@@ -431,6 +477,15 @@ mod tests {
             let err = bad.parse::<SharedMemory>().unwrap_err();
             assert!(err.contains("expected `off`"), "{bad}: {err}");
         }
+    }
+
+    #[test]
+    fn the_pool_fits_the_first_message_within_its_bounds() {
+        let most = SharedMemory::DEFAULT_POOL;
+        assert_eq!(pool_size(19_200, most), SharedMemory::MIN_POOL);
+        assert_eq!(pool_size(1 << 20, most), 16 << 20);
+        assert_eq!(pool_size(4 << 20, most), most);
+        assert_eq!(pool_size(usize::MAX, 8 << 20), 8 << 20);
     }
 
     #[test]
