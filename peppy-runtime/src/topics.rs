@@ -317,9 +317,13 @@ async fn next_delivery(
         return Err(stop::refused().await);
     }
     loop {
-        let delivery = tokio::select! {
-            d = inbox.rx.recv_async() => d.map_err(|_| Error::ShuttingDown)?,
-            () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
+        // A message already queued is taken without parking the task.
+        let delivery = match inbox.rx.try_recv() {
+            Ok(d) => d,
+            Err(_) => tokio::select! {
+                d = inbox.rx.recv_async() => d.map_err(|_| Error::ShuttingDown)?,
+                () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
+            },
         };
         inbox
             .backlog
