@@ -160,8 +160,9 @@ pub(crate) struct Shm {
     /// a larger one; older ones stay mapped, since a reader may not have
     /// opened a message still in flight in them.
     pools: Mutex<Vec<Arc<Pool>>>,
-    /// No pool could be made: do not try again for every message.
-    no_pool: AtomicBool,
+    /// A pool could not be made: do not try again (and warn again) for
+    /// every message; keep using the pool there is, if any.
+    cannot_grow: AtomicBool,
     warned_full: AtomicBool,
     warned_size: AtomicBool,
     warned_encode: AtomicBool,
@@ -181,7 +182,7 @@ impl Shm {
             settings,
             overrides: RwLock::new(HashMap::new()),
             pools: Mutex::new(Vec::new()),
-            no_pool: AtomicBool::new(false),
+            cannot_grow: AtomicBool::new(false),
             warned_full: AtomicBool::new(false),
             warned_size: AtomicBool::new(false),
             warned_encode: AtomicBool::new(false),
@@ -236,28 +237,19 @@ impl Shm {
     /// The pool to take `len` bytes from: the newest, or a new one when
     /// there is none yet or the newest is too small for `len` and may grow.
     fn pool_for(&self, len: usize) -> Option<Arc<Pool>> {
-        if self.no_pool.load(Relaxed) {
-            return None;
-        }
         let mut pools = self.pools.lock().ok()?;
         let most = self.settings.pool_bytes;
+        let stuck = self.cannot_grow.load(Relaxed);
         match pools.last() {
-            Some(p) if len <= p.bytes || p.bytes >= most => return Some(p.clone()),
+            Some(p) if len <= p.bytes || p.bytes >= most || stuck => return Some(p.clone()),
+            None if stuck => return None,
             _ => {}
         }
         match open_pool(pool_size(len, most)) {
-            Some(p) => {
-                pools.push(Arc::new(p));
-                pools.last().cloned()
-            }
-            None => {
-                // Keep using the pool there is, for the messages it fits.
-                if pools.is_empty() {
-                    self.no_pool.store(true, Relaxed);
-                }
-                pools.last().cloned()
-            }
+            Some(p) => pools.push(Arc::new(p)),
+            None => self.cannot_grow.store(true, Relaxed),
         }
+        pools.last().cloned()
     }
 
     fn encode_shared<M: Encode + ?Sized>(
