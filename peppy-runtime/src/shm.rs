@@ -24,7 +24,7 @@ use zenoh::bytes::ZBytes;
 use zenoh::shm::{GarbageCollect, PosixShmProviderBackend, ShmProvider, ShmProviderBuilder};
 
 use crate::spec::TopicSpec;
-use crate::wire::codec::{Encode, Writer, encoded_len};
+use crate::wire::codec::{Encode, Writer, encoded_len, to_bytes};
 
 /// The environment variable that sets a node's shared-memory use: `off`,
 /// `on` (the defaults), or the size from which a message goes through
@@ -223,15 +223,17 @@ impl Shm {
         spec: &'static TopicSpec,
         message: &M,
     ) -> ZBytes {
-        let len = encoded_len(message);
-        if self.threshold(spec).is_some_and(|t| len >= t.max(1))
-            && let Some(bytes) = self.encode_shared(spec, message, len)
-        {
-            return bytes;
+        // Sizing the message is a pass over it: only done when its size
+        // decides where it goes.
+        if let Some(threshold) = self.threshold(spec) {
+            let len = encoded_len(message);
+            if len >= threshold.max(1)
+                && let Some(bytes) = self.encode_shared(spec, message, len)
+            {
+                return bytes;
+            }
         }
-        let mut out = Vec::with_capacity(len);
-        message.encode(&mut Writer::new(&mut out));
-        ZBytes::from(out)
+        ZBytes::from(to_bytes(message))
     }
 
     /// The pool to take `len` bytes from: the newest, or a new one when

@@ -249,7 +249,7 @@ impl Decode for Raw {
 
 /// Encodes a whole message.
 pub fn to_bytes<T: Encode + ?Sized>(value: &T) -> Vec<u8> {
-    let mut out = Vec::with_capacity(encoded_len(value));
+    let mut out = Vec::new();
     value.encode(&mut Writer::new(&mut out));
     out
 }
