@@ -41,7 +41,7 @@
 //!     NodeBuilder::new().run(|_params: Parameters, runner| async move {
 //!         tokio::spawn(async move {
 //!             while let Ok((from, command)) =
-//!                 joint_commands::on_next_message_received(&runner, None).await
+//!                 joint_commands::on_next_message_received(&runner, None, None).await
 //!             {
 //!                 println!("{from} asks for {}", command.max_velocity);
 //!                 let _ = joint_states::emit(&runner, [0.0; 3], std::time::SystemTime::now()).await;

@@ -44,13 +44,13 @@ pub(crate) async fn source(ns: &str, listen: &str, stop: impl Future<Output = ()
     let runner = start::<source_node::Parameters>("source", ns, &["--listen", listen]).await?;
     let r = runner.clone();
     tokio::spawn(async move {
-        while let Ok((_, m)) = ping_reliable::on_next_message_received(&r, None).await {
+        while let Ok((_, m)) = ping_reliable::on_next_message_received(&r, None, None).await {
             let _ = pong_reliable::emit(&r, m.seq, m.sent_ns, m.data).await;
         }
     });
     let r = runner.clone();
     tokio::spawn(async move {
-        while let Ok((_, m)) = ping_sensor::on_next_message_received(&r, None).await {
+        while let Ok((_, m)) = ping_sensor::on_next_message_received(&r, None, None).await {
             let _ = pong_sensor::emit(&r, m.seq, m.sent_ns, m.data).await;
         }
     });

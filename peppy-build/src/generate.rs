@@ -543,6 +543,7 @@ impl Gen<'_> {
         let name = &t.name;
         let qos = qos(t.qos);
         let format = format_spec(t.format.as_ref());
+        let reads = self.topic_readers(t);
         quote! {
             #types
 
@@ -555,20 +556,69 @@ impl Gen<'_> {
                 format: #format,
             };
 
-            #[doc = " Waits for the next message: `(producer instance id, message)`. Messages are queued from node start-up, so none is lost between calls. `from_core_node: Some(id)` keeps only messages from instances started by that launch. `Error::ShuttingDown` once the node stops, after a short pause when called on a stopped node, so a loop ignoring it does not spin."]
+            #reads
+        }
+    }
+
+    /// The readers of a consumed topic. External topics take the
+    /// original's third argument, `from_instance_id` (no binding names
+    /// their producers), and so does every consumed topic of a legacy
+    /// `schema_version: 1` node, whose published code passes it; linked
+    /// topics of a `node_v1` node take two, as the current docs show.
+    fn topic_readers(&self, t: &ResolvedTopic) -> TokenStream {
+        let by_instance = t.slot.is_none() || self.node.node.legacy;
+        let message_doc = " Waits for the next message: `(producer instance id, message)`. Messages are queued from node start-up, so none is lost between calls. `from_core_node: Some(id)` keeps only messages from instances started by that launch. `Error::ShuttingDown` once the node stops, after a short pause when called on a stopped node, so a loop ignoring it does not spin.";
+        let payload_doc = " Like `on_next_message_received`, without decoding: the message's bytes where they arrived. A large message from this host is read in place from the producer's shared memory; `Payload::decode::<Message>()` decodes it, and a `Decoder` walking `Payload::bytes()` borrows byte fields without copying them.";
+        if !by_instance {
+            return quote! {
+                #[doc = #message_doc]
+                pub async fn on_next_message_received(
+                    node_runner: &::peppy::codegen::NodeRunner,
+                    from_core_node: ::core::option::Option<&str>,
+                ) -> ::peppy::codegen::Result<(::std::string::String, Message)> {
+                    ::peppy::codegen::next_message(node_runner, &SPEC, from_core_node).await
+                }
+
+                #[doc = #payload_doc]
+                pub async fn on_next_payload_received(
+                    node_runner: &::peppy::codegen::NodeRunner,
+                    from_core_node: ::core::option::Option<&str>,
+                ) -> ::peppy::codegen::Result<(::std::string::String, ::peppy::codegen::Payload)> {
+                    ::peppy::codegen::next_payload(node_runner, &SPEC, from_core_node).await
+                }
+            };
+        }
+        let instance_doc =
+            " `from_instance_id: Some(id)` keeps only messages from that producer instance.";
+        quote! {
+            #[doc = #message_doc]
+            #[doc = ""]
+            #[doc = #instance_doc]
             pub async fn on_next_message_received(
                 node_runner: &::peppy::codegen::NodeRunner,
                 from_core_node: ::core::option::Option<&str>,
+                from_instance_id: ::core::option::Option<&str>,
             ) -> ::peppy::codegen::Result<(::std::string::String, Message)> {
-                ::peppy::codegen::next_message(node_runner, &SPEC, from_core_node).await
+                let senders = ::peppy::codegen::Senders {
+                    core_node: from_core_node,
+                    instance_id: from_instance_id,
+                };
+                ::peppy::codegen::next_message_from(node_runner, &SPEC, senders).await
             }
 
-            #[doc = " Like `on_next_message_received`, without decoding: the message's bytes where they arrived. A large message from this host is read in place from the producer's shared memory; `Payload::decode::<Message>()` decodes it, and a `Decoder` walking `Payload::bytes()` borrows byte fields without copying them."]
+            #[doc = #payload_doc]
+            #[doc = ""]
+            #[doc = #instance_doc]
             pub async fn on_next_payload_received(
                 node_runner: &::peppy::codegen::NodeRunner,
                 from_core_node: ::core::option::Option<&str>,
+                from_instance_id: ::core::option::Option<&str>,
             ) -> ::peppy::codegen::Result<(::std::string::String, ::peppy::codegen::Payload)> {
-                ::peppy::codegen::next_payload(node_runner, &SPEC, from_core_node).await
+                let senders = ::peppy::codegen::Senders {
+                    core_node: from_core_node,
+                    instance_id: from_instance_id,
+                };
+                ::peppy::codegen::next_payload_from(node_runner, &SPEC, senders).await
             }
         }
     }

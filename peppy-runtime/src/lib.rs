@@ -59,7 +59,7 @@ pub use startup::{
     StartupConfig, startup_from_flags,
 };
 pub use tokio_util::sync::CancellationToken;
-pub use topics::Payload;
+pub use topics::{Payload, Senders};
 
 /// What generated code calls. Not a stable API for hand-written code.
 #[doc(hidden)]
@@ -70,7 +70,9 @@ pub mod codegen {
     };
     pub use crate::services::{Caller, Reply, call, handle_next};
     pub use crate::spec::*;
-    pub use crate::topics::{emit, next_message, next_payload};
+    pub use crate::topics::{
+        Senders, emit, next_message, next_message_from, next_payload, next_payload_from,
+    };
     pub use crate::wire::codec::{Decode, DecodeError, Decoder, Encode, Writer};
     pub use peppy_schema::QosProfile;
     pub use serde;

@@ -273,6 +273,23 @@ pub fn emit<'a, M: Encode + ?Sized>(
     }
 }
 
+/// Which producers a read accepts, on top of the slot's own routing: a
+/// message from any other producer is taken off the queue and dropped.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Senders<'a> {
+    /// Only instances started by this launch (core node).
+    pub core_node: Option<&'a str>,
+    /// Only this producer instance.
+    pub instance_id: Option<&'a str>,
+}
+
+impl Senders<'_> {
+    fn accept(&self, delivery: &Delivery) -> bool {
+        self.core_node.is_none_or(|c| c == delivery.core)
+            && self.instance_id.is_none_or(|i| i == delivery.instance)
+    }
+}
+
 /// Waits for the next message of a consumed topic: `(producer instance id, message)`.
 ///
 /// `from_core_node` keeps only messages from instances started by that launch.
@@ -285,8 +302,24 @@ pub async fn next_message<M: Decode>(
     spec: &'static ConsumedTopicSpec,
     from_core_node: Option<&str>,
 ) -> Result<(String, M)> {
+    let senders = Senders {
+        core_node: from_core_node,
+        instance_id: None,
+    };
+    next_message_from(runner, spec, senders).await
+}
+
+/// [`next_message`] keeping only messages from `senders`: the form of
+/// external consumed topics (and of every consumed topic of a legacy
+/// `schema_version: 1` node), whose third argument names one producer
+/// instance since no binding does.
+pub async fn next_message_from<M: Decode>(
+    runner: &NodeRunner,
+    spec: &'static ConsumedTopicSpec,
+    senders: Senders<'_>,
+) -> Result<(String, M)> {
     loop {
-        let delivery = next_delivery(runner, spec, from_core_node).await?;
+        let delivery = next_delivery(runner, spec, senders).await?;
         match from_bytes::<M>(&delivery.payload.to_bytes()) {
             Ok(m) => return Ok((delivery.instance, m)),
             Err(e) => {
@@ -303,14 +336,27 @@ pub async fn next_payload(
     spec: &'static ConsumedTopicSpec,
     from_core_node: Option<&str>,
 ) -> Result<(String, Payload)> {
-    let delivery = next_delivery(runner, spec, from_core_node).await?;
+    let senders = Senders {
+        core_node: from_core_node,
+        instance_id: None,
+    };
+    next_payload_from(runner, spec, senders).await
+}
+
+/// [`next_payload`] keeping only messages from `senders`.
+pub async fn next_payload_from(
+    runner: &NodeRunner,
+    spec: &'static ConsumedTopicSpec,
+    senders: Senders<'_>,
+) -> Result<(String, Payload)> {
+    let delivery = next_delivery(runner, spec, senders).await?;
     Ok((delivery.instance, Payload(delivery.payload)))
 }
 
 async fn next_delivery(
     runner: &NodeRunner,
     spec: &'static ConsumedTopicSpec,
-    from_core_node: Option<&str>,
+    senders: Senders<'_>,
 ) -> Result<Delivery> {
     let inbox = runner.inbox(spec)?;
     if runner.cancellation_token().is_cancelled() {
@@ -328,7 +374,7 @@ async fn next_delivery(
         inbox
             .backlog
             .taken(spec.name, delivery.payload.len(), inbox.rx.is_empty());
-        if from_core_node.is_none_or(|c| c == delivery.core) {
+        if senders.accept(&delivery) {
             return Ok(delivery);
         }
     }

@@ -10,6 +10,21 @@ use crate::nodes::{
 };
 use crate::support::{WAIT, eventually, hub, namespace, start};
 
+/// Runs `$send` (a block using `$s: &NodeRunner`) every 20 ms until the
+/// returned task is aborted.
+macro_rules! keep_sending {
+    ($runner:expr, |$s:ident| $send:block) => {{
+        let runner: Arc<NodeRunner> = $runner;
+        tokio::spawn(async move {
+            let $s: &NodeRunner = &runner;
+            while !$s.cancellation_token().is_cancelled() {
+                $send
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        })
+    }};
+}
+
 /// Seed 002's loop: the controller's commands reach the arm through its
 /// external consumed topic, the arm's states reach the controller through
 /// its linked one.
@@ -30,7 +45,8 @@ async fn robot_arm_and_controller_close_the_loop() {
             use robot_arm::emitted_topics::joint_states;
             loop {
                 let (from, command) =
-                    joint_commands::on_next_message_received(&arm, Some("standalone")).await?;
+                    joint_commands::on_next_message_received(&arm, Some("standalone"), None)
+                        .await?;
                 assert_eq!(from, "controller");
                 joint_states::emit(
                     &arm,
@@ -51,7 +67,7 @@ async fn robot_arm_and_controller_close_the_loop() {
             .unwrap();
         tokio::time::timeout(
             Duration::from_millis(200),
-            robot_arm_joint_states::on_next_message_received(&controller, None),
+            robot_arm_joint_states::on_next_message_received(&controller, None, None),
         )
         .await
         .ok()
@@ -67,19 +83,50 @@ async fn robot_arm_and_controller_close_the_loop() {
     controller.shutdown().await;
 }
 
-/// Runs `$send` (a block using `$s: &NodeRunner`) every 20 ms until the
-/// returned task is aborted.
-macro_rules! keep_sending {
-    ($runner:expr, |$s:ident| $send:block) => {{
-        let runner: Arc<NodeRunner> = $runner;
-        tokio::spawn(async move {
-            let $s: &NodeRunner = &runner;
-            while !$s.cancellation_token().is_cancelled() {
-                $send
-                tokio::time::sleep(Duration::from_millis(20)).await;
-            }
-        })
-    }};
+/// An external topic's third argument (the original's `from_instance_id`)
+/// keeps one producer's messages when several emit the topic; without it
+/// every producer's arrive.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_external_topic_reads_one_producer_when_asked() {
+    let hub = hub().await;
+    let ns = namespace("arm-two-controllers");
+    let (_, arm) = start::<robot_arm::Parameters>(&hub, &ns, "arm", &[]).await;
+    let mut senders = Vec::new();
+    for (id, max_velocity) in [("ctl_a", 1.0), ("ctl_b", 2.0)] {
+        let (_, controller) =
+            start::<arm_controller::Parameters>(&hub, &ns, id, &["--bind", "robot_arm@arm"]).await;
+        senders.push(keep_sending!(controller, |s| {
+            let _ = arm_controller::emitted_topics::joint_commands::emit(s, [0.0; 3], max_velocity)
+                .await;
+        }));
+    }
+
+    use robot_arm::consumed_topics::joint_commands;
+    for _ in 0..20 {
+        let (from, command) = tokio::time::timeout(
+            WAIT,
+            joint_commands::on_next_message_received(&arm, None, Some("ctl_b")),
+        )
+        .await
+        .expect("a command from ctl_b")
+        .unwrap();
+        assert_eq!((from.as_str(), command.max_velocity), ("ctl_b", 2.0));
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    while seen.len() < 2 {
+        let (from, _) = tokio::time::timeout(
+            WAIT,
+            joint_commands::on_next_message_received(&arm, None, None),
+        )
+        .await
+        .expect("commands from both controllers")
+        .unwrap();
+        seen.insert(from);
+    }
+    for sender in senders {
+        sender.abort();
+    }
+    arm.shutdown().await;
 }
 
 /// A conforming producer's inherited topic reaches interface slots and

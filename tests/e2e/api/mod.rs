@@ -6,10 +6,9 @@
 mod actions;
 mod conformance;
 mod hygiene;
-mod legacy_arm_controller;
-mod legacy_robot_arm;
 mod node_builder;
 mod parameters;
+mod seeds;
 mod services;
 mod spawned_action;
 mod topics;

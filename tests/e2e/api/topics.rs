@@ -13,7 +13,8 @@ use peppygen::{NodeRunner, Result};
 async fn use_api(runner: &NodeRunner) -> Result<()> {
     let (producer, reading) = cam_temperature::on_next_message_received(runner, None).await?;
     let _: (String, f32) = (producer, reading.celsius);
-    let (_, command) = joint_commands::on_next_message_received(runner, Some("launch-1")).await?;
+    let (_, command) =
+        joint_commands::on_next_message_received(runner, Some("launch-1"), None).await?;
     let _: ([f64; 3], f64) = (command.target_positions, command.max_velocity);
     frames::emit(
         runner,

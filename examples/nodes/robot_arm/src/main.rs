@@ -32,7 +32,7 @@ fn main() -> Result<()> {
         tokio::spawn(async move {
             let mut count = 0u64;
             while let Ok((from, command)) =
-                joint_commands::on_next_message_received(&listener, None).await
+                joint_commands::on_next_message_received(&listener, None, None).await
             {
                 count += 1;
                 if count == 1 || count.is_multiple_of(20) {
