@@ -90,9 +90,11 @@ mod generate;
 pub mod macro_support;
 mod naming;
 mod params;
+mod python;
 mod types;
 
 pub use config::{
     Config, Error, GENERATED_HEADER, Generated, OUTPUT_FILE, Synced, pretty, render, sync, try_sync,
 };
 pub use generate::{generate, stub};
+pub use python::{PythonFile, python_package};

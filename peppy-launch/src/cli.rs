@@ -57,6 +57,10 @@ pub(crate) enum Command {
     /// Actions of a running stack: list, send-goal.
     #[command(subcommand)]
     Action(ActionCommand),
+    /// Write a Python node's generated `peppygen` package beside its
+    /// `peppy.json5` (`up` does it before building). A Rust node generates
+    /// its API when it builds, so there is nothing to write for one.
+    Sync(SyncArgs),
     /// Run a bare Zenoh router for core nodes to meet at, where they cannot
     /// reach each other directly (give each launch `--connect` to it); a
     /// stand-in for `zenohd`.
@@ -99,6 +103,17 @@ pub(crate) struct StreamArgs {
     /// is a failure (exit 1).
     #[arg(long, value_name = "SECONDS", value_parser = parse_wait)]
     pub(crate) timeout: Option<Duration>,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct SyncArgs {
+    /// The node: its directory or `peppy.json5`, or a `name:tag` from the
+    /// repositories.
+    #[arg(value_name = "NODE")]
+    pub(crate) node: PathBuf,
+    /// An extra repository directory (repeatable).
+    #[arg(long = "repo", value_name = "DIR")]
+    pub(crate) repos: Vec<PathBuf>,
 }
 
 #[derive(Debug, Subcommand)]

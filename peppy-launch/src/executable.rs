@@ -51,6 +51,15 @@ pub enum ExecutableError {
         /// What was found instead.
         why: String,
     },
+    /// A tool the node's commands name (`uv`) is missing and could not be
+    /// installed.
+    #[error("cannot build or run {node}: {why}")]
+    Tool {
+        /// The node (`name:tag`).
+        node: String,
+        /// What failed.
+        why: String,
+    },
     /// The node runs in a container (refused by `check` already).
     #[error("`{0}` runs in a container, which peppy-launch does not start yet")]
     Container(String),
@@ -169,12 +178,19 @@ pub(crate) async fn prepare(
     build: bool,
 ) -> Result<Vec<String>, ExecutableError> {
     let cargo = matches!(execution.launch(), Launch::CargoBinary);
+    let tool = |why| ExecutableError::Tool {
+        node: node.to_string(),
+        why,
+    };
     let stdout = match (build, build_of(execution)) {
-        (true, Some(cmd)) => Some(run_build(node, label, dir, &cmd, cargo).await?),
+        (true, Some(cmd)) => {
+            let cmd = crate::python_sync::with_uv(&cmd).map_err(tool)?;
+            Some(run_build(node, label, dir, &cmd, cargo).await?)
+        }
         _ => None,
     };
     match execution.launch() {
-        Launch::Command(argv) => Ok(argv.to_vec()),
+        Launch::Command(argv) => crate::python_sync::with_uv(argv).map_err(tool),
         Launch::Container(_) => Err(ExecutableError::Container(node.to_string())),
         Launch::CargoBinary => {
             let exe = match stdout {

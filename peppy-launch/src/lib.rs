@@ -16,6 +16,7 @@ mod inspect;
 mod output;
 mod placement;
 mod presence;
+mod python_sync;
 mod report;
 mod run_node;
 mod runs;
@@ -40,6 +41,7 @@ pub fn run(cli: Cli) -> Result {
         cli::Command::Topic(cmd) => inspect::topic(cmd),
         cli::Command::Service(cmd) => inspect::service(cmd),
         cli::Command::Action(cmd) => inspect::action(cmd),
+        cli::Command::Sync(args) => python_sync::run(&args),
         cli::Command::Router(args) => up::router(&args),
         cli::Command::Keys(args) => security::keys::run(&args),
         cli::Command::Ps(args) => runs::ps(&args),
@@ -49,13 +51,17 @@ pub fn run(cli: Cli) -> Result {
 
 /// `peppy-launch LAUNCHER ...` means `peppy-launch up LAUNCHER ...`.
 pub fn with_default_command(mut args: Vec<std::ffi::OsString>) -> Vec<std::ffi::OsString> {
-    const COMMANDS: &[&str] = &[
-        "validate", "check", "up", "run", "graph", "node", "topic", "service", "action", "router",
-        "keys", "ps", "logs", "help",
-    ];
+    // The subcommands clap knows, so a new one is never mistaken for a launcher.
+    let command = <Cli as clap::CommandFactory>::command();
+    let known = |name: &str| {
+        name == "help"
+            || command
+                .get_subcommands()
+                .any(|c| c.get_name() == name || c.get_all_aliases().any(|a| a == name))
+    };
     if let Some(first) = args.get(1).and_then(|a| a.to_str())
         && !first.starts_with('-')
-        && !COMMANDS.contains(&first)
+        && !known(first)
     {
         args.insert(1, "up".into());
     }

@@ -125,7 +125,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
 
 /// `NODE` is a path to a node (directory or peppy.json5) or a `name:tag`
 /// found in the repositories.
-fn locate(node: &str, options: &RepoOptions) -> std::result::Result<PathBuf, String> {
+pub(crate) fn locate(node: &str, options: &RepoOptions) -> std::result::Result<PathBuf, String> {
     let as_path = PathBuf::from(node);
     if as_path.exists() {
         return Ok(node_file(&as_path));

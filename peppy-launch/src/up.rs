@@ -283,6 +283,15 @@ async fn prepare_all(
             label = format!("{identity} ({built}/{total})");
             out.note(&format!("building {label}: {}", cmd.join(" ")));
         }
+        if crate::python_sync::is_python(&d.resolved) {
+            // The generated package follows the documents before every start.
+            crate::python_sync::write_package(&d.resolved, &d.dir).map_err(|e| {
+                ExecutableError::Tool {
+                    node: identity.to_string(),
+                    why: format!("generating its peppygen package: {e}"),
+                }
+            })?;
+        }
         let argv = executable::prepare(
             &identity.to_string(),
             &label,

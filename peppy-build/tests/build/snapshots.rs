@@ -19,3 +19,20 @@ fn generated_code_of_every_fixture() {
         insta::assert_snapshot!(name, redact(&text));
     }
 }
+
+/// The Python package of every fixture: each file under its path, in
+/// order. The same document gives the same module tree in both languages.
+#[test]
+fn python_package_of_every_fixture() {
+    for dir in fixture_dirs() {
+        let name = dir.file_name().unwrap().to_string_lossy().into_owned();
+        let generated = config(&dir).generate().expect("the fixture resolves");
+        let files = peppy_build::python_package(&generated.check.resolved)
+            .unwrap_or_else(|d| panic!("fixture {name}:\n{d}"));
+        let mut text = String::new();
+        for (path, body) in files {
+            text.push_str(&format!("=== {} ===\n{body}\n", path.display()));
+        }
+        insta::assert_snapshot!(format!("python_{name}"), redact(&text));
+    }
+}

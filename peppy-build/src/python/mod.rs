@@ -1,0 +1,330 @@
+//! The Python side of code generation: a `peppygen` package for a node
+//! whose `execution.language` is `python`, with the module tree, names and
+//! call shapes of the Rust API, on the `peppy` runtime package
+//! (`python/peppy-runtime` in this repository).
+//!
+//! The Rust generator runs first on the same node, so every naming rule
+//! (two entries mapping to one module, two nested types with one name) is
+//! checked once, in one place, with the same located errors.
+
+mod messages;
+mod modules;
+mod params;
+mod source;
+
+use std::path::PathBuf;
+
+use peppy_schema::names::{consumed_module, module};
+use peppy_schema::{Diagnostics, Origin, ResolvedNode};
+
+use source::{Source, py_string};
+
+/// One generated file: its path below the package directory, and text.
+pub type PythonFile = (PathBuf, String);
+
+/// The files of package `peppygen` for `node`, paths relative to the
+/// package directory, in a stable order. Errors are the located naming
+/// errors the Rust generator reports for the same document.
+pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostics> {
+    crate::generate(node)?;
+    let document = node.node.file.path().file_name().map_or_else(
+        || "peppy.json5".to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let identity = node.node.identity().to_string();
+    let mut files = Files {
+        document: document.clone(),
+        list: Vec::new(),
+        specs: Vec::new(),
+    };
+    let by_instance_default = node.node.legacy;
+
+    let mut specs = Specs::default();
+    for p in &node.emitted_topics {
+        let path = files.provided("emitted_topics", &p.decl.name, &p.origin, node, |out| {
+            modules::emitted_topic(out, p)
+        });
+        specs.emitted.push(path);
+    }
+    for t in &node.consumed_topics {
+        let m = consumed_module(t.slot.as_ref().map(|s| s.link_id.as_str()), &t.name);
+        let by_instance = t.slot.is_none() || by_instance_default;
+        let path = files.entry(
+            "consumed_topics",
+            &[m],
+            &format!("Topic `{}`, consumed.", t.name),
+            |out| modules::consumed_topic(out, t, by_instance),
+        );
+        specs.consumed.push(path);
+    }
+    for p in &node.exposed_services {
+        let path = files.provided("exposed_services", &p.decl.name, &p.origin, node, |out| {
+            modules::exposed_service(out, p)
+        });
+        specs.services.push(path);
+    }
+    for c in &node.consumed_services {
+        let m = consumed_module(Some(&c.slot.link_id), &c.decl.name);
+        let path = files.entry(
+            "consumed_services",
+            &[m],
+            &format!(
+                "Service `{}`, called through slot `{}`.",
+                c.decl.name, c.slot.link_id
+            ),
+            |out| modules::consumed_service(out, c),
+        );
+        specs.consumed_services.push(path);
+    }
+    for p in &node.exposed_actions {
+        let path = files.provided("exposed_actions", &p.decl.name, &p.origin, node, |out| {
+            modules::exposed_action(out, p)
+        });
+        specs.actions.push(path);
+    }
+    for c in &node.consumed_actions {
+        let m = consumed_module(Some(&c.slot.link_id), &c.decl.name);
+        let path = files.entry(
+            "consumed_actions",
+            &[m],
+            &format!(
+                "Action `{}`, called through slot `{}`.",
+                c.decl.name, c.slot.link_id
+            ),
+            |out| modules::consumed_action(out, c),
+        );
+        specs.consumed_actions.push(path);
+    }
+    files.flat_reexports();
+    files.packages();
+
+    let mut out = Source::default();
+    params::parameters(&mut out, &node.node.execution.parameters.fields, &identity);
+    files.list.push(("parameters.py".into(), out.finish()));
+    files
+        .list
+        .push(("__init__.py".into(), init(node, &document, &specs)));
+    files.list.sort();
+    Ok(files.list)
+}
+
+/// Module paths (dotted, below `peppygen`) of each descriptor list.
+#[derive(Default)]
+struct Specs {
+    emitted: Vec<String>,
+    consumed: Vec<String>,
+    services: Vec<String>,
+    consumed_services: Vec<String>,
+    actions: Vec<String>,
+    consumed_actions: Vec<String>,
+}
+
+struct Files {
+    document: String,
+    list: Vec<PythonFile>,
+    /// Conformed entries: (category, flat module, nested dotted path).
+    specs: Vec<(String, String, String)>,
+}
+
+impl Files {
+    /// Writes `<category>/<parts...>.py`; returns its dotted path.
+    fn entry(
+        &mut self,
+        category: &str,
+        parts: &[String],
+        doc: &str,
+        body: impl FnOnce(&mut Source),
+    ) -> String {
+        let mut out = Source::default();
+        modules::header(&mut out, doc, &self.document);
+        body(&mut out);
+        let mut path = PathBuf::from(category);
+        for p in parts {
+            path.push(p);
+        }
+        path.set_extension("py");
+        self.list.push((path, out.finish()));
+        format!("{category}.{}", parts.join("."))
+    }
+
+    /// A provided entry: own ones under their name; conformed ones under
+    /// `<interface>/<tag>/<name>`, and under their name as well when that
+    /// is unambiguous (as the Rust API lays them out).
+    fn provided(
+        &mut self,
+        category: &str,
+        name: &str,
+        origin: &Origin,
+        node: &ResolvedNode,
+        body: impl FnOnce(&mut Source),
+    ) -> String {
+        let _ = node;
+        match origin {
+            Origin::Node(_) => self.entry(category, &[module(name)], &format!("`{name}`."), body),
+            Origin::Interface(id) => {
+                let parts = [module(&id.name), module(&id.tag), module(name)];
+                let doc = format!("`{name}` of interface `{id}`.");
+                let path = self.entry(category, &parts, &doc, body);
+                self.specs
+                    .push((category.to_string(), module(name), path.clone()));
+                path
+            }
+        }
+    }
+
+    /// `<category>/<name>.py` re-exporting a conformed entry when no other
+    /// module of the category takes that name.
+    fn flat_reexports(&mut self) {
+        let taken: Vec<PathBuf> = self.list.iter().map(|(p, _)| p.clone()).collect();
+        let mut add = Vec::new();
+        for (category, flat, nested) in &self.specs {
+            let path = PathBuf::from(category).join(format!("{flat}.py"));
+            let interface_dir = PathBuf::from(category).join(flat);
+            let clash = taken.contains(&path)
+                || taken.iter().any(|t| t.starts_with(&interface_dir))
+                || self
+                    .specs
+                    .iter()
+                    .filter(|(c, f, _)| c == category && f == flat)
+                    .count()
+                    > 1;
+            if clash {
+                continue;
+            }
+            let relative = nested.trim_start_matches(&format!("{category}."));
+            let text = format!(
+                "\"\"\"`{flat}` of a conformed interface, under its own name.\"\"\"\n\
+                 # Generated by peppy; `peppy-launch sync` rewrites it. Do not edit.\n\
+                 from .{relative} import *  # noqa: F401,F403\n\
+                 from .{relative} import SPEC  # noqa: F401\n"
+            );
+            add.push((path, text));
+        }
+        self.list.extend(add);
+    }
+
+    /// An `__init__.py` in every directory that holds modules.
+    fn packages(&mut self) {
+        let mut dirs: Vec<PathBuf> = Vec::new();
+        for (path, _) in &self.list {
+            let mut dir = path.parent();
+            while let Some(d) = dir {
+                if d.as_os_str().is_empty() {
+                    break;
+                }
+                if !dirs.contains(&d.to_path_buf()) {
+                    dirs.push(d.to_path_buf());
+                }
+                dir = d.parent();
+            }
+        }
+        for category in [
+            "emitted_topics",
+            "consumed_topics",
+            "exposed_services",
+            "consumed_services",
+            "exposed_actions",
+            "consumed_actions",
+        ] {
+            if !dirs.contains(&PathBuf::from(category)) {
+                dirs.push(PathBuf::from(category));
+            }
+        }
+        for d in dirs {
+            let text = format!("\"\"\"Generated by peppy: `{}`.\"\"\"\n", d.display());
+            self.list.push((d.join("__init__.py"), text));
+        }
+    }
+}
+
+/// `peppygen/__init__.py`: the descriptor and the re-exports node code
+/// starts from (`from peppygen import NodeBuilder, NodeRunner`).
+fn init(node: &ResolvedNode, document: &str, specs: &Specs) -> String {
+    let n = &node.node;
+    let mut out = Source::default();
+    out.docstring(&format!(
+        "The typed API of node `{}`, generated from `{document}` by peppy.\n\n\
+         `NodeBuilder().run(setup)` runs the node; the modules below hold its entries.",
+        n.identity()
+    ));
+    out.line("# Generated by peppy; `peppy-launch sync` rewrites it. Do not edit.");
+    out.line("from peppy import NodeRunner, QoSProfile  # noqa: F401");
+    out.line("from peppy import node as _node");
+    out.line("from peppy import spec as _s");
+    out.blank();
+    let all: Vec<&String> = specs
+        .emitted
+        .iter()
+        .chain(&specs.consumed)
+        .chain(&specs.services)
+        .chain(&specs.consumed_services)
+        .chain(&specs.actions)
+        .chain(&specs.consumed_actions)
+        .collect();
+    for m in &all {
+        out.line(&format!("from .{} import SPEC as _{}", m, alias(m)));
+    }
+    out.line("from .parameters import Parameters");
+    out.blank();
+    let slots: Vec<String> = n
+        .dependencies
+        .iter()
+        .map(|d| {
+            format!(
+                "_s.SlotSpec({}, {}, {}, {}, {})",
+                py_string(&d.link_id),
+                py_string(d.kind.as_str()),
+                py_string(&d.target.name),
+                py_string(&d.target.tag),
+                if d.from_any { "True" } else { "False" }
+            )
+        })
+        .collect();
+    let list = |ms: &[String]| -> String {
+        let items: Vec<String> = ms.iter().map(|m| format!("_{},", alias(m))).collect();
+        format!("({})", items.join(" "))
+    };
+    out.line("DESCRIPTOR = _s.NodeDescriptor(");
+    out.indent();
+    out.line(&format!("name={},", py_string(&n.name)));
+    out.line(&format!("tag={},", py_string(&n.tag)));
+    out.line(&format!(
+        "slots=({}),",
+        slots.iter().map(|s| format!("{s},")).collect::<String>()
+    ));
+    out.line(&format!("emitted_topics={},", list(&specs.emitted)));
+    out.line(&format!("consumed_topics={},", list(&specs.consumed)));
+    out.line(&format!("exposed_services={},", list(&specs.services)));
+    out.line(&format!("exposed_actions={},", list(&specs.actions)));
+    out.line(&format!(
+        "consumed_services={},",
+        list(&specs.consumed_services)
+    ));
+    out.line(&format!(
+        "consumed_actions={},",
+        list(&specs.consumed_actions)
+    ));
+    out.line("parameters=Parameters,");
+    out.line(&format!("document={},", py_string(document)));
+    out.dedent();
+    out.line(")");
+    out.line("\"\"\"What the runtime knows about this node.\"\"\"");
+    out.blank();
+    out.blank();
+    out.line("class NodeBuilder(_node.NodeBuilder):");
+    out.indent();
+    out.docstring("Builds and runs this node: `NodeBuilder().run(setup)`.");
+    out.blank();
+    out.line("def __init__(self) -> None:");
+    out.line("    super().__init__(DESCRIPTOR)");
+    out.dedent();
+    out.blank();
+    out.blank();
+    out.line("__all__ = [\"DESCRIPTOR\", \"NodeBuilder\", \"NodeRunner\", \"Parameters\", \"QoSProfile\"]");
+    out.finish()
+}
+
+/// A private alias for a module's `SPEC` in `__init__.py`.
+fn alias(dotted: &str) -> String {
+    dotted.replace('.', "__")
+}
