@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use peppy_schema::{
-    Diagnostics, RepoOptions, RouteFilter, SlotBinding, SlotKind, StackCheck, check_launcher,
+    Diagnostics, RepoOptions, RouteFilter, SlotBinding, SlotKind, StackCheck, check_launcher_with,
 };
 use serde::Serialize;
 
@@ -59,7 +59,7 @@ pub(crate) fn run(args: &CheckArgs) -> Result {
         explicit: args.repos.clone(),
         env: None,
     };
-    let result = check_launcher(&args.launcher, &options);
+    let result = check_launcher_with(&args.launcher, &options, &crate::sources::Fetcher::new());
     let (diags, stack) = match &result {
         Ok(stack) => (stack.warnings.clone(), Some(stack)),
         Err(d) => (d.clone(), None),

@@ -21,6 +21,7 @@ mod report;
 mod run_node;
 mod runs;
 mod security;
+mod sources;
 mod supervise;
 mod up;
 mod validate;

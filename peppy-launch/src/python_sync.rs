@@ -152,12 +152,7 @@ fn on_path(program: &str) -> Option<PathBuf> {
         .find(|p| p.is_file())
 }
 
-/// `peppy/tools` under the user's cache directory (`XDG_CACHE_HOME`, else
-/// `~/.cache`).
+/// `tools` under peppy's cache directory.
 fn tools_dir() -> PathBuf {
-    let cache = std::env::var_os("XDG_CACHE_HOME")
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
-        .unwrap_or_else(std::env::temp_dir);
-    cache.join("peppy").join("tools")
+    crate::sources::cache_dir().join("tools")
 }

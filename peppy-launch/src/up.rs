@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use peppy_runtime::{Endpoints, StartupConfig};
-use peppy_schema::{Identity, RepoOptions, StackCheck, check_launcher};
+use peppy_schema::{Identity, RepoOptions, StackCheck, check_launcher_with};
 
 use crate::cli::UpArgs;
 use crate::error::LaunchError;
@@ -24,7 +24,8 @@ pub(crate) fn run(args: &UpArgs) -> Outcome {
         explicit: args.repos.clone(),
         env: None,
     };
-    let stack = match check_launcher(&args.launcher, &options) {
+    let stack = match check_launcher_with(&args.launcher, &options, &crate::sources::Fetcher::new())
+    {
         Ok(stack) => stack,
         Err(diags) => {
             report::print_human(&diags);

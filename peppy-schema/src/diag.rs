@@ -109,7 +109,8 @@ codes! {
     DuplicateInRepositories,
     /// A launcher source that cannot be used.
     InvalidSource,
-    /// A launcher source kind that is not supported yet.
+    /// A launcher source that cannot be had: a git or archive source that
+    /// could not be fetched (or checked where nothing fetches).
     UnsupportedSource,
     /// A node whose execution peppy-launch cannot start (a container).
     UnsupportedExecution,

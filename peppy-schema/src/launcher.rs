@@ -76,7 +76,7 @@ pub enum Source {
         /// `name:tag`.
         identity: Identity,
     },
-    /// A git repository checkout (not supported yet).
+    /// A node in a git repository, at a branch, tag or commit.
     Git {
         /// Repository URL.
         repo: String,
@@ -85,7 +85,7 @@ pub enum Source {
         /// Branch, tag or commit.
         reference: String,
     },
-    /// An archive by URL and sha256 (not supported yet).
+    /// A node in an archive (`.tar`, `.tar.gz`) by URL, checked by sha256.
     Archive {
         /// Archive URL.
         url: String,

@@ -93,24 +93,84 @@ pub struct StackCheck {
     pub warnings: Diagnostics,
 }
 
+/// Brings the files of a remote source (`{ repo, path, ref }` or
+/// `{ url, sha256 }`) to a local directory. The schema only describes
+/// sources; a launcher that fetches them (git, downloads, a cache)
+/// implements this and passes it to [`check_launcher_with`].
+pub trait FetchSource {
+    /// The directory holding the source's node (its `peppy.json5`), or why
+    /// it cannot be had. Called only for [`Source::Git`] and
+    /// [`Source::Archive`].
+    fn fetch(&self, source: &Source) -> Result<PathBuf, String>;
+}
+
+/// The fetcher of [`check_launcher`]: remote sources are not supported.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoFetch;
+
+impl FetchSource for NoFetch {
+    fn fetch(&self, source: &Source) -> Result<PathBuf, String> {
+        let kind = if matches!(source, Source::Git { .. }) {
+            "git (`repo`/`path`/`ref`)"
+        } else {
+            "archive (`url`/`sha256`)"
+        };
+        Err(format!(
+            "{kind} sources are not supported here (`peppy-launch check` and `up` fetch them)"
+        ))
+    }
+}
+
 /// Checks the launcher at `path`: all errors of every stage are collected.
+/// Remote sources are refused; see [`check_launcher_with`].
 pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, Diagnostics> {
+    check_launcher_with(path, options, &NoFetch)
+}
+
+/// [`check_launcher`], with `fetcher` bringing remote sources' nodes to
+/// local directories first; from there they are checked like `local` ones.
+pub fn check_launcher_with(
+    path: &Path,
+    options: &RepoOptions,
+    fetcher: &dyn FetchSource,
+) -> Result<StackCheck, Diagnostics> {
     let (launcher, mut diags) = crate::document::load_launcher_for_plan(path)?;
     let base = absolute(&launcher.base_dir());
     let mut repositories =
         RepositoryList::discover(&options.explicit, options.env_value().as_deref(), &base)?;
-    // Local nodes bring their own nearest repositories list.
-    for d in &launcher.deployments {
-        if let Source::Local { path } = &d.source {
-            let dir = base.join(path);
-            let dir = if dir.is_file() {
-                dir.parent().map(Path::to_path_buf).unwrap_or(dir)
-            } else {
-                dir
-            };
-            if let Err(e) = repositories.add_nearest_file(&dir) {
-                diags.extend(e);
-            }
+    // Remote sources become local directories before anything looks at them.
+    let fetched: Vec<Option<PathBuf>> = launcher
+        .deployments
+        .iter()
+        .map(|d| match &d.source {
+            Source::Git { .. } | Source::Archive { .. } => match fetcher.fetch(&d.source) {
+                Ok(dir) => Some(dir),
+                Err(why) => {
+                    diags.push(
+                        d.source_loc
+                            .error(Code::UnsupportedSource, why)
+                            .with_help("a local checkout works offline: `{ local: \"path\" }`"),
+                    );
+                    None
+                }
+            },
+            _ => None,
+        })
+        .collect();
+    // Local (and fetched) nodes bring their own nearest repositories list.
+    for (d, fetched) in launcher.deployments.iter().zip(&fetched) {
+        let dir = match (&d.source, fetched) {
+            (Source::Local { path }, _) => base.join(path),
+            (_, Some(dir)) => dir.clone(),
+            _ => continue,
+        };
+        let dir = if dir.is_file() {
+            dir.parent().map(Path::to_path_buf).unwrap_or(dir)
+        } else {
+            dir
+        };
+        if let Err(e) = repositories.add_nearest_file(&dir) {
+            diags.extend(e);
         }
     }
     let mut index = RepoIndex::scan(&repositories.paths);
@@ -119,7 +179,11 @@ pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, 
     let loaded: Vec<Option<(Arc<NodeDoc>, PathBuf)>> = launcher
         .deployments
         .iter()
-        .map(|d| load_deployment(d, &base, &index, &mut diags))
+        .zip(&fetched)
+        .map(|(d, fetched)| match fetched {
+            Some(dir) => load_local(d, dir, &mut diags),
+            None => load_deployment(d, &base, &index, &mut diags),
+        })
         .collect();
     // Refused here rather than after building and opening the router: a
     // launch that cannot start every node starts none.
@@ -214,28 +278,7 @@ fn load_deployment(
     diags: &mut Diagnostics,
 ) -> Option<(Arc<NodeDoc>, PathBuf)> {
     match &d.source {
-        Source::Local { path } => {
-            let file = node_file(&base.join(path));
-            if !file.is_file() {
-                diags.push(
-                    d.source_loc
-                        .error(Code::InvalidSource, format!("`{}` has no node: `{}` does not exist", path.display(), file.display()))
-                        .with_help("`local` is a node's directory (or its peppy.json5), relative to the launcher file"),
-                );
-                None
-            } else {
-                match NodeDoc::load(&file) {
-                    Ok((doc, w)) => {
-                        diags.extend(w);
-                        Some((Arc::new(doc), absolute(&file)))
-                    }
-                    Err(e) => {
-                        diags.extend(e);
-                        None
-                    }
-                }
-            }
-        }
+        Source::Local { path } => load_local(d, &base.join(path), diags),
         Source::Repository { identity } => match index.node(identity) {
             Some(e) => Some((e.doc.clone(), e.path.clone())),
             None => {
@@ -273,17 +316,36 @@ fn load_deployment(
                 None
             }
         },
-        Source::Git { .. } | Source::Archive { .. } => {
-            let kind = if matches!(d.source, Source::Git { .. }) {
-                "git (`repo`/`path`/`ref`)"
-            } else {
-                "archive (`url`/`sha256`)"
-            };
-            diags.push(
-                d.source_loc
-                    .error(Code::UnsupportedSource, format!("{kind} sources are not supported yet"))
-                    .with_help("check the node out locally and use `{ local: \"path\" }`, or add its repository and use `{ name: \"n:t\" }`"),
-            );
+        // Fetched (or refused) before: see `check_launcher_with`.
+        Source::Git { .. } | Source::Archive { .. } => None,
+    }
+}
+
+/// The node in directory (or file) `path`, for deployment `d`.
+fn load_local(
+    d: &Deployment,
+    path: &Path,
+    diags: &mut Diagnostics,
+) -> Option<(Arc<NodeDoc>, PathBuf)> {
+    let file = node_file(path);
+    if !file.is_file() {
+        diags.push(
+            d.source_loc
+                .error(
+                    Code::InvalidSource,
+                    format!("`{}` has no node: `{}` does not exist", path.display(), file.display()),
+                )
+                .with_help("`local` is a node's directory (or its peppy.json5), relative to the launcher file; a `repo` source's `path` is relative to the repository"),
+        );
+        return None;
+    }
+    match NodeDoc::load(&file) {
+        Ok((doc, w)) => {
+            diags.extend(w);
+            Some((Arc::new(doc), absolute(&file)))
+        }
+        Err(e) => {
+            diags.extend(e);
             None
         }
     }

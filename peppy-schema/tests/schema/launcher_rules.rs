@@ -379,7 +379,7 @@ fn remote_sources_are_not_supported_yet() {
     );
     assert_eq!(
         found[0].message,
-        "git (`repo`/`path`/`ref`) sources are not supported yet"
+        "git (`repo`/`path`/`ref`) sources are not supported here (`peppy-launch check` and `up` fetch them)"
     );
     assert_at(
         found[1],
@@ -390,7 +390,7 @@ fn remote_sources_are_not_supported_yet() {
     );
     assert_eq!(
         found[1].message,
-        "archive (`url`/`sha256`) sources are not supported yet"
+        "archive (`url`/`sha256`) sources are not supported here (`peppy-launch check` and `up` fetch them)"
     );
     assert!(
         help(found[0]).contains("{ local: \"path\" }"),

@@ -1,0 +1,153 @@
+//! Python nodes beside Rust ones: the runtime's own tests, and the mixed
+//! example stacks under `up` (generated `peppygen`, `uv sync`, `uv run`).
+
+use std::process::Command;
+use std::time::Duration;
+
+use crate::seeds::{BUILD_AND_START, Launch, first_frames};
+use crate::support::root;
+
+/// `uv` as `up` finds it (on PATH, or installed for peppy on first use).
+fn uv() -> String {
+    let out = Command::new("sh")
+        .args(["-c", "command -v uv || true"])
+        .output()
+        .unwrap();
+    let found = String::from_utf8_lossy(&out.stdout).trim().to_string();
+    if !found.is_empty() {
+        return found;
+    }
+    // Where `up` keeps the uv it installs (peppy-launch/src/sources.rs).
+    let cache = std::env::var("PEPPY_CACHE_DIR").unwrap_or_else(|_| {
+        let base = std::env::var("XDG_CACHE_HOME")
+            .unwrap_or_else(|_| format!("{}/.cache", std::env::var("HOME").unwrap()));
+        format!("{base}/peppy")
+    });
+    let exe = format!("{cache}/tools/uv/bin/uv");
+    if !std::path::Path::new(&exe).is_file() {
+        let status = Command::new("python3")
+            .args([
+                "-m",
+                "pip",
+                "install",
+                "--quiet",
+                "--disable-pip-version-check",
+                "--target",
+            ])
+            .arg(format!("{cache}/tools/uv"))
+            .arg("uv")
+            .status()
+            .expect("python3 -m pip");
+        assert!(status.success(), "installing uv failed");
+    }
+    exe
+}
+
+/// The Python runtime's own tests (codec golden bytes, routing, services,
+/// actions between Python nodes), run here so they cannot be skipped.
+#[test]
+fn python_runtime_tests_pass() {
+    let project = root().join("python/peppy-runtime");
+    let out = Command::new(uv())
+        .args(["run", "--project"])
+        .arg(&project)
+        .args(["python", "-m", "unittest", "discover", "-s"])
+        .arg(project.join("tests"))
+        .args(["-t"])
+        .arg(&project)
+        .current_dir(&project)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "python tests failed:\n{stderr}");
+    assert!(
+        stderr
+            .lines()
+            .any(|l| l.starts_with("Ran ") && !l.starts_with("Ran 0 ")),
+        "no python test ran:\n{stderr}"
+    );
+}
+
+/// A Python camera (conforming to depth_camera:v1) pinned into the
+/// reconstruction's right_cam slot: its frames reach that slot and no
+/// other, and its service answers a Rust tool.
+#[test]
+fn a_python_camera_fills_its_pinned_slot_in_a_rust_stack() {
+    let mut launch = Launch::up("examples/launchers/mixed_stack.json5", &[]);
+    launch.expect("with py_right's frames at recon_1", BUILD_AND_START, |l| {
+        l.starts_with("[recon_1]") && l.contains("right_cam: first frame from py_right (64x48)")
+    });
+    launch.expect("with recon_1's summary", Duration::from_secs(30), |l| {
+        l.starts_with("[recon_1]") && l.contains("reconstructing from")
+    });
+    launch.read_for(Duration::from_secs(2));
+    let mut firsts = first_frames(&launch.seen, "recon_1");
+    firsts.sort();
+    assert_eq!(
+        firsts,
+        [
+            ("backup_cams".to_string(), "zed_overhead".to_string()),
+            ("left_cam".to_string(), "rs_left".to_string()),
+            ("right_cam".to_string(), "py_right".to_string()),
+        ],
+        "each slot hears exactly its producers"
+    );
+
+    let call = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+        .args([
+            "service",
+            "call",
+            "py_right",
+            "video_stream_info",
+            "--launcher",
+            "examples/launchers/mixed_stack.json5",
+            "--format",
+            "json",
+        ])
+        .current_dir(root())
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&call.stdout);
+    assert!(
+        call.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&call.stderr)
+    );
+    let reply: serde_json::Value = serde_json::from_str(stdout.lines().next().unwrap()).unwrap();
+    assert_eq!(reply["response"]["width"], 64, "{reply}");
+    assert_eq!(reply["response"]["encoding"], "mono8", "{reply}");
+    launch.expect(
+        "with the python camera's log of the call",
+        Duration::from_secs(10),
+        |l| l.starts_with("[py_right]") && l.contains("stream info asked by"),
+    );
+    assert_eq!(launch.stop(), 0);
+}
+
+/// The arm loop with a Python controller: it homes the Rust arm through
+/// the move_arm action (feedback, then the result) and then drives it
+/// through joint_commands, hearing joint_states back.
+#[test]
+fn a_python_controller_closes_the_rust_arm_loop() {
+    let mut launch = Launch::up("examples/launchers/robot_arm_loop_py.json5", &[]);
+    launch.expect("with the homing result", BUILD_AND_START, |l| {
+        l.starts_with("[py_controller]") && l.contains("homed by arm: reached=True")
+    });
+    assert!(
+        launch
+            .seen
+            .iter()
+            .any(|l| l.starts_with("[py_controller]") && l.contains("rad to go")),
+        "no homing feedback:\n{}",
+        launch.seen.join("\n")
+    );
+    launch.expect("with the loop running", Duration::from_secs(30), |l| {
+        l.starts_with("[py_controller]") && l.contains("cycle 20: arm at")
+    });
+    launch.expect(
+        "with the arm hearing the python controller",
+        Duration::from_secs(10),
+        |l| l.starts_with("[arm]") && l.contains("from py_controller"),
+    );
+    assert_eq!(launch.stop(), 0);
+}
