@@ -29,6 +29,7 @@ mod validate;
 pub use cli::Cli;
 pub use error::{LaunchError, Result, exit};
 pub use executable::ExecutableError;
+pub use python_sync::uv;
 
 /// Runs one parsed command line.
 pub fn run(cli: Cli) -> Result {

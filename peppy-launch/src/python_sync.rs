@@ -109,9 +109,10 @@ pub(crate) fn with_uv(argv: &[String]) -> std::result::Result<Vec<String>, Strin
     Ok(argv)
 }
 
-/// `uv` on `PATH`, else the copy under the user's cache directory,
-/// installed there with `python3 -m pip` when missing.
-pub(crate) fn uv() -> std::result::Result<PathBuf, String> {
+/// The `uv` that runs Python nodes' `uv` commands: the one on `PATH`, else
+/// peppy's own copy under the user's cache directory, installed there from
+/// PyPI with `python3 -m pip` on first use (once per machine).
+pub fn uv() -> std::result::Result<PathBuf, String> {
     if let Some(found) = on_path("uv") {
         return Ok(found);
     }

@@ -10,6 +10,7 @@ mod actions;
 mod api;
 mod nodes;
 mod params;
+mod python;
 mod roundtrip;
 mod services;
 mod support;

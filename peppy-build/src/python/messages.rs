@@ -129,15 +129,26 @@ fn describe(ty: &FieldType, optional: bool) -> String {
 /// `fields`, nested types named from `prefix`, and the argument names in
 /// order.
 pub(super) fn fields_args(prefix: &str, fields: &[Field]) -> (Vec<String>, Vec<String>) {
+    // Names the functions' bodies use (their own parameters, the module's
+    // `SPEC` and types); a field so named gets a trailing `_`.
+    const RESERVED: &[&str] = &["node_runner", "self", "SPEC", "Message", "inspect"];
+    let taken: Vec<String> = fields.iter().map(|f| py_ident(&f.name)).collect();
     fields
         .iter()
         .map(|f| {
             let id = py_ident(&f.name);
+            let mut arg = id.clone();
+            while RESERVED.contains(&arg.as_str())
+                || arg == prefix
+                || (arg != id && taken.contains(&arg))
+            {
+                arg.push('_');
+            }
             let mut h = hint(prefix, &f.name, &f.ty);
             if f.optional {
                 h = format!("Optional[{h}]");
             }
-            (format!("{id}: {h}"), id)
+            (format!("{arg}: {h}"), arg)
         })
         .unzip()
 }

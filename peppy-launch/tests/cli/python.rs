@@ -8,39 +8,8 @@ use crate::seeds::{BUILD_AND_START, Launch, first_frames};
 use crate::support::root;
 
 /// `uv` as `up` finds it (on PATH, or installed for peppy on first use).
-fn uv() -> String {
-    let out = Command::new("sh")
-        .args(["-c", "command -v uv || true"])
-        .output()
-        .unwrap();
-    let found = String::from_utf8_lossy(&out.stdout).trim().to_string();
-    if !found.is_empty() {
-        return found;
-    }
-    // Where `up` keeps the uv it installs (peppy-launch/src/sources.rs).
-    let cache = std::env::var("PEPPY_CACHE_DIR").unwrap_or_else(|_| {
-        let base = std::env::var("XDG_CACHE_HOME")
-            .unwrap_or_else(|_| format!("{}/.cache", std::env::var("HOME").unwrap()));
-        format!("{base}/peppy")
-    });
-    let exe = format!("{cache}/tools/uv/bin/uv");
-    if !std::path::Path::new(&exe).is_file() {
-        let status = Command::new("python3")
-            .args([
-                "-m",
-                "pip",
-                "install",
-                "--quiet",
-                "--disable-pip-version-check",
-                "--target",
-            ])
-            .arg(format!("{cache}/tools/uv"))
-            .arg("uv")
-            .status()
-            .expect("python3 -m pip");
-        assert!(status.success(), "installing uv failed");
-    }
-    exe
+fn uv() -> std::path::PathBuf {
+    peppy_launch::uv().expect("uv")
 }
 
 /// The Python runtime's own tests (codec golden bytes, routing, services,
@@ -53,8 +22,6 @@ fn python_runtime_tests_pass() {
         .arg(&project)
         .args(["python", "-m", "unittest", "discover", "-s"])
         .arg(project.join("tests"))
-        .args(["-t"])
-        .arg(&project)
         .current_dir(&project)
         .output()
         .unwrap();
@@ -148,6 +115,89 @@ fn a_python_controller_closes_the_rust_arm_loop() {
         "with the arm hearing the python controller",
         Duration::from_secs(10),
         |l| l.starts_with("[arm]") && l.contains("from py_controller"),
+    );
+    assert_eq!(launch.stop(), 0);
+}
+
+/// A Python node emitting `joint_commands` in another format than the Rust
+/// arm reads: the arm drops it with the warning two Rust nodes get, naming
+/// both formats (the Python node answers for its format's text).
+#[test]
+fn a_python_emitter_with_another_format_is_dropped_with_the_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let node = dir.path().join("py_bad");
+    std::fs::create_dir_all(&node).unwrap();
+    let runtime = root().join("python/peppy-runtime");
+    let doc = serde_json::json!({
+        "peppy_schema": "node_v1",
+        "manifest": { "name": "py_bad_controller", "tag": "v1" },
+        "interfaces": { "topics": { "emits": [{
+            "name": "joint_commands",
+            "qos_profile": "reliable",
+            "message_format": {
+                "target_positions": { "$type": "array", "$items": "f32", "$length": 3 },
+                "max_velocity": "f64",
+            },
+        }] } },
+        "execution": {
+            "language": "python",
+            "run_cmd": ["uv", "run", "--quiet", "--project", runtime, "python", "bad.py"],
+        },
+    });
+    std::fs::write(node.join("peppy.json5"), doc.to_string()).unwrap();
+    std::fs::write(
+        node.join("bad.py"),
+        "import asyncio\n\
+         from peppygen import NodeBuilder\n\
+         from peppygen.emitted_topics import joint_commands\n\n\
+         async def send(node_runner):\n\
+         \x20   while True:\n\
+         \x20       await joint_commands.emit(node_runner, [0.1, 0.2, 0.3], 1.0)\n\
+         \x20       await asyncio.sleep(0.05)\n\n\
+         async def setup(params, node_runner):\n\
+         \x20   return [asyncio.create_task(send(node_runner))]\n\n\
+         NodeBuilder().run(setup)\n",
+    )
+    .unwrap();
+    let launcher = dir.path().join("stack.json5");
+    let text = serde_json::json!({
+        "peppy_schema": "launcher_v1",
+        "deployments": [
+            { "source": { "local": root().join("examples/nodes/robot_arm") }, "instances": [{ "instance_id": "arm" }] },
+            { "source": { "local": node }, "instances": [{ "instance_id": "py_bad" }] },
+        ],
+    });
+    std::fs::write(&launcher, text.to_string()).unwrap();
+
+    let mut launch = Launch::up(launcher.to_str().unwrap(), &[]);
+    let warning = launch.expect("with the arm's warning", BUILD_AND_START, |l| {
+        l.starts_with("[arm]") && l.contains("dropping topic `joint_commands` from `py_bad`")
+    });
+    assert!(
+        warning.contains("it sends {target_positions:[f32;3],max_velocity:f64}"),
+        "the python node's format is named: {warning}"
+    );
+    assert!(
+        warning.contains("this node expects {target_positions:[f64;3],max_velocity:f64}"),
+        "{warning}"
+    );
+    launch.read_for(Duration::from_secs(2));
+    assert!(
+        !launch
+            .seen
+            .iter()
+            .any(|l| l.contains("command 1 from py_bad")),
+        "a mismatched message reached the arm:\n{}",
+        launch.seen.join("\n")
+    );
+    assert_eq!(
+        launch
+            .seen
+            .iter()
+            .filter(|l| l.contains("dropping topic `joint_commands`"))
+            .count(),
+        1,
+        "one warning per producer"
     );
     assert_eq!(launch.stop(), 0);
 }

@@ -1,0 +1,229 @@
+"""The consumed side of an action (docs/WIRE.md §4): sending a goal through
+a slot, and the goal a caller holds (feedback, result, cancel)."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any, Optional
+
+from . import attachment
+from .action_states import (
+    CancelState,
+    ResultOutcome,
+    ResultStatus,
+    decode_decision,
+    encode_string,
+    new_goal_id,
+)
+from .attachment import QueryHeader, QueryKind
+from .bridge import END, Mailbox
+from .errors import FeedbackEnded, ServiceError
+from .keys import ACTION, action_part_key, entry_key, feedback_key
+from .request import Request
+from .spec import ConsumedActionSpec, QoSProfile
+from .target import Entry, choose, header
+from .topics import refused
+
+log = logging.getLogger("peppy")
+
+
+class _FeedbackIntake:
+    """The feedback subscription's callback (Zenoh thread)."""
+
+    def __init__(self, mailbox: Mailbox, fingerprint: int, on_end: Any) -> None:
+        self.mailbox = mailbox
+        self.fingerprint = fingerprint
+        self.on_end = on_end
+
+    def __call__(self, sample: Any) -> None:
+        att = sample.attachment
+        data = b"" if att is None else att.to_bytes()
+        if data == attachment.END_OF_FEEDBACK:
+            self.mailbox.put(END)
+            self.on_end()
+        elif attachment.parse_topic(data) == self.fingerprint:
+            self.mailbox.put(sample.payload.to_bytes())
+        else:
+            log.debug("dropping feedback with another format")
+
+
+class GoalClient:
+    """A goal sent to an action server, seen from the caller."""
+
+    def __init__(
+        self,
+        runner: Any,
+        spec: ConsumedActionSpec,
+        goal_id: str,
+        base_key: str,
+        feedback: Mailbox,
+        subscriber: Any,
+        accepted: bool,
+        error_message: Optional[str],
+        instance_id: str,
+        core_node: str,
+    ) -> None:
+        self.spec = spec
+        self.goal_id = goal_id
+        self.accepted = accepted
+        self.error_message = error_message
+        self.instance_id = instance_id
+        self.core_node = core_node
+        self._runner = runner
+        self._base_key = base_key
+        self._feedback = feedback
+        self._subscriber = subscriber
+        self._ended = False
+
+    def __repr__(self) -> str:
+        return f"GoalClient(goal_id={self.goal_id!r}, accepted={self.accepted}, server={self.instance_id!r})"
+
+    def close(self) -> None:
+        """Stops following the goal's feedback (its result can still be asked)."""
+        subscriber, self._subscriber = self._subscriber, None
+        if subscriber is not None:
+            try:
+                subscriber.undeclare()
+            except Exception:
+                pass
+
+    def __del__(self) -> None:
+        self.close()
+
+    async def next_feedback(self) -> Any:
+        """The next feedback message; `FeedbackEnded` once the goal is
+        terminal and every feedback message was read. Raises
+        `ShuttingDown` once this node stops."""
+        if self._runner.is_stopping():
+            raise await refused()
+        while not self._ended:
+            item = await self._feedback.get()
+            if item is END:
+                self._ended = True
+                break
+            try:
+                return self.spec.feedback.decode(item)
+            except ValueError as e:
+                log.warning("action `%s`: dropping feedback that does not decode: %s", self.spec.name, e)
+        raise FeedbackEnded(self.spec.name)
+
+    async def _ask(self, part: str, timeout: float) -> bytes:
+        result = self.spec.result
+        answer = await Request(
+            key=action_part_key(self._base_key, part),
+            # As the Rust client: result and cancel queries name no caller.
+            header=QueryHeader(QueryKind.REQUEST, 0, "", "").encode(),
+            payload=encode_string(self.goal_id),
+            deadline=self._runner.loop.time() + timeout,
+            describe=f"{self.spec.name} (action {part})",
+            instance=self.instance_id,
+            request_format="a goal id",
+            response=(result.fingerprint, result.canonical) if part == "result" else None,
+        ).send(self._runner)
+        return answer.body
+
+    async def get_result(self, timeout: float) -> ResultOutcome:
+        """Waits (up to `timeout` seconds) until the goal is terminal:
+        `(status, result)`, the result None unless COMPLETED or CANCELLED."""
+        body = await self._ask("result", timeout)
+        if not body or body[0] > 3:
+            raise ServiceError(self.spec.name, self.instance_id, "malformed result")
+        status = ResultStatus(body[0])
+        if status in (ResultStatus.ABANDONED, ResultStatus.EXPIRED):
+            return ResultOutcome(status, None)
+        try:
+            return ResultOutcome(status, self.spec.result.decode(body[1:]))
+        except ValueError as e:
+            raise ServiceError(self.spec.name, self.instance_id, f"cannot decode the result: {e}") from None
+
+    async def cancel(self, timeout: float) -> CancelState:
+        """Asks the server to cancel the goal."""
+        body = await self._ask("cancel", timeout)
+        if body[:1] == b"\x00":
+            return CancelState.SIGNALLED
+        if body[:1] == b"\x01":
+            return CancelState.ALREADY_TERMINAL
+        return CancelState.UNKNOWN
+
+
+async def fire_goal(
+    runner: Any,
+    spec: ConsumedActionSpec,
+    timeout: float,
+    goal: Any,
+    feedback_qos: Optional[QoSProfile] = None,
+) -> GoalClient:
+    """Sends a goal through the action's slot and waits for the server's
+    decision (`.accepted`, `.error_message`). The feedback stream is
+    subscribed before the goal is sent, so none is missed; `feedback_qos`
+    sets its queue (drop profiles keep the newest, others everything)."""
+    body = spec.goal.encode(goal)
+    if runner.is_stopping():
+        raise await refused()
+    loop = runner.loop
+    deadline = loop.time() + timeout
+    entry = Entry(
+        spec.link_id, spec.owner, ACTION, spec.name, "goal", spec.goal.fingerprint, f"{spec.name} (action goal)"
+    )
+    server = await choose(runner, entry, deadline)
+    goal_id = new_goal_id()
+    keep = feedback_qos.keep_newest if isinstance(feedback_qos, QoSProfile) else None
+    feedback = Mailbox(loop, maxlen=keep)
+    runner._track_mailbox(feedback)
+    holder: list = []
+
+    def ended() -> None:
+        # Undeclared on the loop: not from inside its own callback.
+        def close() -> None:
+            if holder:
+                try:
+                    holder[0].undeclare()
+                except Exception:
+                    pass
+
+        try:
+            loop.call_soon_threadsafe(close)
+        except RuntimeError:
+            pass
+
+    subscriber = runner.session.declare_subscriber(
+        feedback_key(entry.base(runner, server), goal_id),
+        _FeedbackIntake(feedback, spec.feedback.fingerprint, ended),
+    )
+    holder.append(subscriber)
+    try:
+        answer = await Request(
+            key=entry.selector(runner, server),
+            header=header(runner, QueryKind.REQUEST, spec.goal.fingerprint),
+            payload=encode_string(goal_id) + body,
+            deadline=deadline,
+            describe=entry.describe,
+            instance=server,
+            request_format=spec.goal.canonical,
+            response=None,  # the decision is a status reply without a format of its own
+        ).send(runner)
+        accepted, error_message = decode_decision(answer.body)
+    except ValueError as e:
+        subscriber.undeclare()
+        raise ServiceError(entry.describe, server, f"cannot decode the goal response: {e}") from None
+    except BaseException:
+        subscriber.undeclare()
+        raise
+    owner = spec.owner.segments(runner.node_name, runner.node_tag)
+    base_key = entry_key(runner.namespace, ACTION, owner or "", spec.name, answer.core, answer.instance)
+    client = GoalClient(
+        runner,
+        spec,
+        goal_id,
+        base_key,
+        feedback,
+        subscriber,
+        accepted,
+        error_message,
+        answer.instance,
+        answer.core,
+    )
+    if not accepted:
+        client._ended = True
+        client.close()
+    return client

@@ -1,0 +1,95 @@
+"""Key expressions of docs/WIRE.md §1: where every entry, token and
+queryable of a node lives."""
+
+from __future__ import annotations
+
+from typing import NamedTuple, Optional, Tuple
+
+_FORBIDDEN = set("/*$#?@")
+
+TOPIC = "topic"
+SERVICE = "service"
+ACTION = "action"
+
+
+def is_segment(s: str) -> bool:
+    """Whether `s` can be one key segment: non-empty, no `/`, no Zenoh
+    special character, no whitespace."""
+    return bool(s) and not any(c in _FORBIDDEN or c.isspace() for c in s)
+
+
+def entry_key(ns: str, channel: str, owner: str, entry: str, core: str, instance: str) -> str:
+    """The key one producer instance publishes on (or serves) for an entry;
+    `owner` is `<kind>/<name>/<tag>`."""
+    return f"peppy/{ns}/{channel}/{owner}/{entry}/{core}/{instance}"
+
+
+def entry_selector(
+    ns: str,
+    channel: str,
+    owner: Optional[str],
+    entry: str,
+    core: Optional[str] = None,
+    instance: Optional[str] = None,
+) -> str:
+    """A selector over producers: a `None` part matches any value."""
+    return f"peppy/{ns}/{channel}/{owner or '*/*/*'}/{entry}/{core or '*'}/{instance or '*'}"
+
+
+def action_part_key(action: str, part: str) -> str:
+    """`<action key or selector>/<goal|cancel|result>`."""
+    return f"{action}/{part}"
+
+
+def feedback_key(action: str, goal_id: str) -> str:
+    """`<action key or selector>/feedback/<goal_id>`."""
+    return f"{action}/feedback/{goal_id}"
+
+
+def format_key(ns: str, fingerprint: int, instance: str) -> str:
+    """Where an instance answers the canonical text of a format it emits."""
+    return f"peppy/{ns}/format/{fingerprint:016x}/{instance}"
+
+
+def liveliness_key(ns: str, core: str, instance: str, node: str, tag: str) -> str:
+    """The token an instance holds while it is up."""
+    return f"peppy/{ns}/live/{core}/{instance}/{node}/{tag}"
+
+
+def liveliness_selector(ns: str, node: str, tag: str) -> str:
+    """The tokens of every instance of node `node:tag`."""
+    return f"peppy/{ns}/live/*/*/{node}/{tag}"
+
+
+def describe_key(ns: str, core: str, instance: str) -> str:
+    """Where an instance answers its description (WIRE §9)."""
+    return f"peppy/{ns}/describe/{core}/{instance}"
+
+
+def parse_liveliness_key(key: str) -> Optional[Tuple[str, str]]:
+    """`(core, instance)` of a liveliness token's key."""
+    parts = key.split("/")
+    if len(parts) < 5 or parts[0] != "peppy" or parts[2] != "live":
+        return None
+    core, instance = parts[3], parts[4]
+    return (core, instance) if is_segment(core) and is_segment(instance) else None
+
+
+class Sender(NamedTuple):
+    """The identity at the end of an entry key."""
+
+    kind: str
+    name: str
+    tag: str
+    entry: str
+    core: str
+    instance: str
+
+
+def parse_entry_key(key: str) -> Optional[Sender]:
+    """Parses `peppy/<ns>/<channel>/<kind>/<name>/<tag>/<entry>/<core>/<instance>[/...]`."""
+    parts = key.split("/", 9)
+    if len(parts) < 9 or parts[0] != "peppy" or parts[3] not in ("node", "interface"):
+        return None
+    s = Sender(parts[3], parts[4], parts[5], parts[6], parts[7], parts[8])
+    return s if is_segment(s.core) and is_segment(s.instance) else None

@@ -1,0 +1,194 @@
+"""The node entry point: `NodeBuilder` reads the start-up inputs, opens
+the session, declares everything, runs the node's setup and keeps the
+node up until it is stopped. `NodeRunner` is the handle node code gets."""
+
+from __future__ import annotations
+
+import asyncio
+import inspect
+import logging
+import os
+import signal
+import sys
+from typing import Any, Callable, Iterable, List, Optional
+
+from . import params as _params
+from .action_server import DEFAULT_RESULT_RETENTION
+from .declare import declare_all
+from .errors import PeppyError, StartupError
+from .runner import NodeRunner
+from .spec import NodeDescriptor
+from .startup import Startup, config_file_from_env, load
+
+__all__ = ["NodeBuilder", "NodeRunner"]
+
+log = logging.getLogger("peppy")
+
+Setup = Callable[[Any, NodeRunner], Any]
+"""`async def setup(params, node_runner)`, returning the tasks it started (or None)."""
+
+_UNSET: Any = object()
+
+
+class NodeBuilder:
+    """Builds and runs a node: reads its start-up inputs, opens one Zenoh
+    session, declares every publisher, subscription and service up front,
+    runs the node's setup code, then keeps the node up until SIGINT or
+    SIGTERM (or `NodeRunner.stop()`)."""
+
+    def __init__(self, descriptor: NodeDescriptor) -> None:
+        self._descriptor = descriptor
+        self._args: Optional[List[str]] = None
+        self._runtime_config: Any = _UNSET
+        self._retention = DEFAULT_RESULT_RETENTION
+
+    def with_args(self, args: Iterable[str]) -> "NodeBuilder":
+        """Uses these command-line arguments (without the program name) instead of `sys.argv[1:]`."""
+        self._args = list(args)
+        return self
+
+    def with_runtime_config(self, path: Optional[str]) -> "NodeBuilder":
+        """Uses this runtime-config file (or none) instead of `PEPPY_RUNTIME_CONFIG`."""
+        self._runtime_config = path
+        return self
+
+    def action_result_retention(self, seconds: float) -> "NodeBuilder":
+        """How long exposed actions keep a finished goal's result (default 30 s)."""
+        self._retention = float(seconds)
+        return self
+
+    def _parameters(self, startup: Startup) -> Any:
+        cls = self._descriptor.parameters
+        data = startup.parameters
+        if data is None:
+            data = {}
+        if not isinstance(data, dict):
+            raise StartupError(
+                f"invalid parameters:\n  - parameters are an object of values, found {type(data).__name__}"
+            )
+        if cls is None:
+            return data
+        try:
+            with _params.typed_overrides(startup.overrides):
+                value = cls.from_json(data)
+            _params.refuse_unknown(data, value)
+        except ValueError as e:
+            raise StartupError(f"invalid parameters:\n  - {e}") from None
+        return value
+
+    async def start(self, setup: Optional[Setup] = None) -> NodeRunner:
+        """Starts the node in the running loop and returns its runner, with
+        `setup` run and its tasks adopted (tests, embedding). Call
+        `await runner.shutdown()` when done."""
+        import zenoh
+
+        config_file = config_file_from_env() if self._runtime_config is _UNSET else self._runtime_config
+        args = sys.argv[1:] if self._args is None else self._args
+        startup = load(self._descriptor, args, config_file)
+        parameters = self._parameters(startup)
+        config = startup.endpoints.zenoh_config()
+        loop = asyncio.get_running_loop()
+        try:
+            session = await loop.run_in_executor(None, zenoh.open, config)
+        except Exception as e:
+            raise StartupError(f"cannot open the zenoh session: {e}") from None
+        runner = NodeRunner(self._descriptor, startup, session, parameters)
+        try:
+            await declare_all(runner, self._retention)
+        except BaseException:
+            await runner.shutdown()
+            raise
+        log.info(
+            "node up: %s:%s, instance %s, namespace %s",
+            runner.node_name,
+            runner.node_tag,
+            runner.instance_id,
+            runner.namespace,
+        )
+        if setup is not None:
+            try:
+                runner.adopt(await _call_setup(setup, parameters, runner))
+            except BaseException:
+                await runner.shutdown()
+                raise
+        return runner
+
+    def run(self, setup: Setup) -> None:
+        """Runs the node to completion. `setup(params, node_runner)` runs
+        once (an `async def` returning the tasks it started, or None); a
+        setup that fails is printed and the process exits non-zero."""
+        _init_logging()
+        try:
+            asyncio.run(self._run(setup))
+        except KeyboardInterrupt:
+            raise SystemExit(130) from None
+        except PeppyError as e:
+            print(f"error: {e}", file=sys.stderr)
+            raise SystemExit(1) from None
+        except Exception as e:
+            log.error("the node failed: %r", e, exc_info=e)
+            print(f"error: {e}", file=sys.stderr)
+            raise SystemExit(1) from None
+
+    async def _run(self, setup: Setup) -> None:
+        runner = await self.start()
+        loop = runner.loop
+        installed = []
+        for sig, why in ((signal.SIGINT, "interrupted"), (signal.SIGTERM, "terminated")):
+            try:
+                loop.add_signal_handler(sig, _stop_on, runner, why)
+                installed.append(sig)
+            except (NotImplementedError, RuntimeError, ValueError):
+                pass
+        setup_task = loop.create_task(_call_setup(setup, runner.parameters, runner))
+        stop_wait = loop.create_task(runner.stopped.wait())
+        try:
+            await asyncio.wait({setup_task, stop_wait}, return_when=asyncio.FIRST_COMPLETED)
+            if setup_task.done():
+                # A failing setup ends the node with its error.
+                runner.adopt(setup_task.result())
+                await stop_wait
+            else:
+                # Stopped during setup: setup is dropped, as the Rust runtime does.
+                setup_task.cancel()
+                await asyncio.gather(setup_task, return_exceptions=True)
+        finally:
+            if not stop_wait.done():
+                stop_wait.cancel()
+            for sig in installed:
+                loop.remove_signal_handler(sig)
+            await runner.shutdown()
+
+
+def _stop_on(runner: NodeRunner, why: str) -> None:
+    log.info("%s; shutting down", why)
+    runner.stop()
+
+
+async def _call_setup(setup: Setup, parameters: Any, runner: NodeRunner) -> List[Any]:
+    result = setup(parameters, runner)
+    if inspect.isawaitable(result):
+        result = await result
+    if result is None:
+        return []
+    if isinstance(result, asyncio.Future) or inspect.iscoroutine(result):
+        return [result]
+    return list(result)
+
+
+def _init_logging() -> None:
+    """Logs to stderr (the launcher pipes it), `PEPPY_LOG` setting the level."""
+    level = os.environ.get("PEPPY_LOG", "INFO").upper()
+    root = logging.getLogger()
+    if not root.handlers:
+        logging.basicConfig(
+            stream=sys.stderr,
+            level=getattr(logging, level, logging.INFO),
+            format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+        )
+    try:
+        import zenoh
+
+        zenoh.try_init_log_from_env()
+    except Exception:
+        pass

@@ -1,0 +1,198 @@
+//! Python and Rust nodes on one wire: every message shape of the `shapes`
+//! fixture goes Rust -> Python -> Rust (decoded into Python dataclasses and
+//! encoded again), with the fingerprints of both languages compared; and a
+//! Python emitter whose format differs is dropped by a Rust consumer with
+//! the warning two Rust nodes get.
+
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Child, ChildStdout, Command, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use crate::nodes::{shapes, shapes_client};
+use crate::support::{Hub, WAIT, hub, namespace, start};
+
+/// `peppy-build/tests/fixtures/<name>`'s Python package, written as the
+/// top-level package `package` under `dir`.
+fn python_package(fixture: &str, dir: &Path, package: &str) {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("peppy-build/tests/fixtures");
+    let mut config = peppy_build::Config::new();
+    config
+        .manifest_dir(fixtures.join(fixture))
+        .repositories_env(None);
+    let generated = config.generate().expect("the fixture resolves");
+    let files = peppy_build::python_package(&generated.check.resolved).expect("a package");
+    for (path, text) in files {
+        let path = dir.join(package).join(path);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, text).unwrap();
+    }
+}
+
+/// A Python program on the peppy runtime package, with `dir` importable.
+struct Python {
+    child: Child,
+    lines: mpsc::Receiver<String>,
+}
+
+impl Python {
+    fn start(dir: &Path, script: &Path, args: &[&str]) -> Python {
+        let runtime = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/peppy-runtime");
+        let mut child = Command::new(peppy_launch::uv().expect("uv"))
+            .args(["run", "--quiet", "--project"])
+            .arg(&runtime)
+            .arg("python")
+            .arg(script)
+            .args(args)
+            .env("PYTHONPATH", dir)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("uv run");
+        let stdout: ChildStdout = child.stdout.take().unwrap();
+        let (tx, lines) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        Python { child, lines }
+    }
+
+    /// The next line it prints, within a bound that covers `uv`'s first
+    /// environment set-up.
+    fn line(&self) -> String {
+        self.lines
+            .recv_timeout(Duration::from_secs(300))
+            .expect("a line from the python program")
+    }
+}
+
+impl Drop for Python {
+    fn drop(&mut self) {
+        drop(self.child.stdin.take());
+        for _ in 0..100 {
+            if self.child.try_wait().ok().flatten().is_some() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+async fn relay(hub: &Hub, ns: &str, upstream: &str) -> (Python, tempfile::TempDir) {
+    let dir = tempfile::tempdir().unwrap();
+    python_package("shapes", dir.path(), "shapes_gen");
+    python_package("shapes_client", dir.path(), "client_gen");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/e2e/python_relay.py");
+    let params = crate::params::SHAPES_ARGS[1];
+    let python = Python::start(dir.path(), &script, &[&hub.endpoint, ns, upstream, params]);
+    (python, dir)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_message_shape_crosses_from_rust_through_python_and_back() {
+    let hub = hub().await;
+    let ns = namespace("python-shapes");
+    let (_, server) =
+        start::<shapes::Parameters>(&hub, &ns, "shapes_rs", &crate::params::SHAPES_ARGS).await;
+    let (_, client) =
+        start::<shapes_client::Parameters>(&hub, &ns, "client_rs", &["--bind", "shapes@shapes_py"])
+            .await;
+    let (python, _dir) = relay(&hub, &ns, "shapes_rs").await;
+    let prints: serde_json::Value = serde_json::from_str(&python.line()).unwrap();
+    assert_eq!(python.line(), "ready");
+
+    // The same document gives the same fingerprints in both languages.
+    use shapes::emitted_topics as e;
+    for (name, rust) in [
+        ("everything", e::everything::SPEC.format.fingerprint),
+        ("nested", e::nested::SPEC.format.fingerprint),
+        ("optionals", e::optionals::SPEC.format.fingerprint),
+        ("keywords", e::keywords::SPEC.format.fingerprint),
+        ("tick", e::tick::SPEC.format.fingerprint),
+        ("video_stream", e::video_stream::SPEC.format.fingerprint),
+    ] {
+        assert_eq!(prints[name][0], rust, "{name}: consumed in python");
+        assert_eq!(prints[name][1], rust, "{name}: emitted by python");
+    }
+
+    let sample = crate::roundtrip::Samples::new(1);
+    let sender = tokio::spawn({
+        let server = server.clone();
+        async move {
+            loop {
+                let m = sample.everything();
+                let _ = e::everything::emit(
+                    &server, m.flag, m.small, m.medium, m.large, m.huge, m.tiny, m.short, m.int,
+                    m.long, m.single, m.double, m.text, m.blob, m.when,
+                )
+                .await;
+                let m = sample.nested();
+                let _ = e::nested::emit(
+                    &server, m.header, m.pose, m.mask, m.points, m.names, m.stamps, m.chunks,
+                )
+                .await;
+                let m = sample.optionals();
+                let _ =
+                    e::optionals::emit(&server, m.note, m.raw, m.seen, m.samples, m.fixed, m.extra)
+                        .await;
+                let m = sample.keywords();
+                let _ = e::keywords::emit(
+                    &server,
+                    m.r#type,
+                    m.r#match,
+                    m.r#async,
+                    m.SPEC,
+                    m.node_runner,
+                    m.Mixed_Case,
+                    m.r#loop,
+                )
+                .await;
+                let _ = e::tick::emit(&server).await;
+                let _ = e::video_stream::emit(&server, vec![9; 3]).await;
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+        }
+    });
+
+    use shapes_client::consumed_topics as c;
+    let sample = crate::roundtrip::Samples::new(1);
+    macro_rules! receive {
+        ($module:ident, $expected:expr) => {{
+            let (from, got) =
+                tokio::time::timeout(WAIT, c::$module::on_next_message_received(&client, None))
+                    .await
+                    .expect(concat!(
+                        "a message relayed by python on ",
+                        stringify!($module)
+                    ))
+                    .unwrap();
+            assert_eq!(from, "shapes_py");
+            assert_eq!(
+                format!("{got:?}"),
+                format!("{:?}", $expected),
+                stringify!($module)
+            );
+        }};
+    }
+    receive!(shapes_everything, sample.everything());
+    receive!(shapes_nested, sample.nested());
+    receive!(shapes_optionals, sample.optionals());
+    receive!(shapes_keywords, sample.keywords());
+    receive!(shapes_tick, e::tick::Message);
+    receive!(
+        shapes_video_stream,
+        e::video_stream::Message { frame: vec![9; 3] }
+    );
+    sender.abort();
+    drop(python);
+    client.shutdown().await;
+    server.shutdown().await;
+}
