@@ -60,6 +60,10 @@ pub(crate) fn run(args: &RunArgs) -> Result {
         )));
     }
     let dir = file.parent().map(PathBuf::from).unwrap_or_default();
+    if crate::python_sync::is_python(&check.resolved) {
+        // The generated package follows the documents before every start.
+        crate::python_sync::write_package(&check.resolved, &dir)?;
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()

@@ -97,6 +97,9 @@ pub(crate) fn spawn(
     let mut cmd = Command::new(&program);
     cmd.args(&spec.argv[1..])
         .current_dir(&spec.dir)
+        // Output is multiplexed line by line: a Python node's prints must
+        // not sit in a pipe buffer until it fills.
+        .env("PYTHONUNBUFFERED", "1")
         .envs(spec.env.iter().map(|(k, v)| (k, v)))
         .stdin(Stdio::null())
         .stdout(Stdio::piped())

@@ -201,3 +201,59 @@ fn a_python_emitter_with_another_format_is_dropped_with_the_warning() {
     );
     assert_eq!(launch.stop(), 0);
 }
+
+/// Seed 002's Python nodes, documents and code as the page prints them
+/// (tests/seeds/python): the arm and the controller close the loop once a
+/// first command starts it (the page's loop waits for one).
+#[test]
+fn seed_002_python_loop_runs_as_written() {
+    let launcher = "tests/seeds/python/arm_loop.json5";
+    let mut launch = Launch::up(launcher, &[]);
+    launch.expect("with the controller up", BUILD_AND_START, |l| {
+        l.starts_with("[controller]") && l.contains("node up")
+    });
+    launch.expect("with the arm up", Duration::from_secs(30), |l| {
+        l.starts_with("[arm]") && l.contains("node up")
+    });
+    let kick = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+        .args([
+            "topic",
+            "pub",
+            "joint_commands",
+            "{ target_positions: [0, 0, 0], max_velocity: 1.0 }",
+            "--launcher",
+            launcher,
+        ])
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert!(
+        kick.status.success(),
+        "{}",
+        String::from_utf8_lossy(&kick.stderr)
+    );
+    for target in ["[0.1, 0.0, 0.0]", "[0.2, 0.0, 0.0]"] {
+        launch.expect(
+            &format!("with the arm at {target}"),
+            Duration::from_secs(30),
+            |l| {
+                l.starts_with("[arm]")
+                    && l.contains(&format!(
+                        "received from controller: target={target} max_vel=1.0"
+                    ))
+            },
+        );
+    }
+    assert_eq!(launch.stop(), 0);
+}
+
+/// Seed 000's Python consumer fragment, as printed, keeps state per
+/// producer for two Rust cameras under free-form keys.
+#[test]
+fn seed_000_python_consumer_keys_frames_by_producer() {
+    let mut launch = Launch::up("tests/seeds/python/cameras.json5", &[]);
+    launch.expect("with frames from both cameras", BUILD_AND_START, |l| {
+        l.starts_with("[recon_1]") && l.contains("reconstructing from rs_back, rs_front")
+    });
+    assert_eq!(launch.stop(), 0);
+}

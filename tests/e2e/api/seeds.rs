@@ -1,4 +1,5 @@
-// The Rust code of both seed pages exactly as they print it: only the line
+// The Rust code of both seed pages exactly as they print it (the Python
+// code is in tests/seeds/python, checked here too): only the line
 // breaks the pages lost are restored (and indentation added), every token
 // and comment is the page's. Each snippet sits between `seed <page>: begin`
 // and `end` lines; around it is only what a page leaves to the reader (the
@@ -152,18 +153,33 @@ mod seed_002_arm_controller {
     }
 }
 
-/// The snippets, whitespace removed, as SHA-256 of what the pages print
-/// (whitespace removed the same way): an edit to a snippet fails here. With
-/// the pages at hand (`PEPPY_SEEDS_DIR`, or `../shared/seeds` beside the
-/// checkout), each snippet is also found in its page's text.
+/// The Python snippets, beside their seed documents in `tests/seeds/python`
+/// (run by peppy-launch's tests), marked with `# seed <page>: begin`.
+const PYTHON_SOURCES: [&str; 3] = [
+    include_str!("../../seeds/python/video_reconstruction/video_reconstruction.py"),
+    include_str!("../../seeds/python/robot_arm/robot_arm.py"),
+    include_str!("../../seeds/python/arm_controller/arm_controller.py"),
+];
+
+/// The snippets (Rust here, then Python), whitespace removed, as SHA-256 of
+/// what the pages print (whitespace removed the same way): an edit to a
+/// snippet fails here. With the pages at hand (`PEPPY_SEEDS_DIR`, or
+/// `../shared/seeds` beside the checkout), each snippet is also found in
+/// its page's text.
 #[test]
 fn snippets_are_the_seeds_text() {
     use sha2::{Digest, Sha256};
-    let source = include_str!("seeds.rs");
-    let snippets = snippets(source);
-    let pages: Vec<&str> = snippets.iter().map(|(page, _)| page.as_str()).collect();
-    assert_eq!(pages, ["000", "002", "002"], "the snippets found");
-    let hashes: Vec<String> = snippets
+    let mut found = snippets(include_str!("seeds.rs"));
+    for source in PYTHON_SOURCES {
+        found.extend(snippets(source));
+    }
+    let pages: Vec<&str> = found.iter().map(|(page, _)| page.as_str()).collect();
+    assert_eq!(
+        pages,
+        ["000", "002", "002", "000", "002", "002"],
+        "the snippets found"
+    );
+    let hashes: Vec<String> = found
         .iter()
         .map(|(_, text)| {
             Sha256::digest(text.as_bytes())
@@ -196,7 +212,7 @@ fn snippets_are_the_seeds_text() {
             Some((name, squeeze(&text)))
         })
         .collect();
-    for (page, snippet) in &snippets {
+    for (page, snippet) in &found {
         let (_, text) = texts
             .iter()
             .find(|(name, _)| name.starts_with(&format!("{page}_")))
@@ -208,11 +224,15 @@ fn snippets_are_the_seeds_text() {
     }
 }
 
-/// The hashes of the three snippets, in file order.
-const SNIPPET_HASHES: [&str; 3] = [
+/// The hashes of the snippets, in order: this file's three, then the
+/// Python ones.
+const SNIPPET_HASHES: [&str; 6] = [
     "f2f1eaeb1630e187d109caa4a42a8324f9e3fdaeb8f9a7def69e764f2438d21f",
     "17c1f41a35e43a7e5813353b66bf20ef341178c057e3dcdcaa82187ed778544b",
     "f03026d9ee201ceb854cb51a40d0f9c3c94ab42c5179dfa3238f8545795d7833",
+    "6c09a451edc10053a335aa8b290c7e175bec7dadb07e6c6c6ed5740c94b5dddb",
+    "1d1c8dde06e13e2932aeebe701deaa8675e467181deb05bb3c9c5f7acfd75a97",
+    "0a9518e18f80ecc52886180728bf27ca4f9e21325568b1597e49e1f2b8b9d5de",
 ];
 
 /// `(page, text without whitespace)` of each marked snippet in `source`.
@@ -220,7 +240,10 @@ fn snippets(source: &str) -> Vec<(String, String)> {
     let mut out = Vec::new();
     let mut current: Option<(String, String)> = None;
     for line in source.lines() {
-        let marker = line.trim().strip_prefix("// seed ");
+        let trimmed = line.trim();
+        let marker = trimmed
+            .strip_prefix("// seed ")
+            .or_else(|| trimmed.strip_prefix("# seed "));
         match marker.and_then(|m| m.split_once(": ")) {
             Some((page, "begin")) => current = Some((page.to_owned(), String::new())),
             Some((_, "end")) => out.extend(current.take()),

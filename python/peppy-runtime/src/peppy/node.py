@@ -140,6 +140,7 @@ class NodeBuilder:
                 installed.append(sig)
             except (NotImplementedError, RuntimeError, ValueError):
                 pass
+        orphan_watch = loop.create_task(_stop_when_orphaned(runner))
         setup_task = loop.create_task(_call_setup(setup, runner.parameters, runner))
         stop_wait = loop.create_task(runner.stopped.wait())
         try:
@@ -153,11 +154,28 @@ class NodeBuilder:
                 setup_task.cancel()
                 await asyncio.gather(setup_task, return_exceptions=True)
         finally:
+            orphan_watch.cancel()
             if not stop_wait.done():
                 stop_wait.cancel()
             for sig in installed:
                 loop.remove_signal_handler(sig)
             await runner.shutdown()
+
+
+async def _stop_when_orphaned(runner: NodeRunner) -> None:
+    """Stops the node once the process that started it is gone.
+
+    A launcher gives its children a parent-death signal, but a Python node
+    usually runs under `uv run`, which does not pass that on: without this
+    a killed launcher would leave the interpreter running."""
+    parent = os.getppid()
+    if parent <= 1:
+        return
+    while True:
+        await asyncio.sleep(1.0)
+        if os.getppid() != parent:
+            _stop_on(runner, "the process that started this node is gone")
+            return
 
 
 def _stop_on(runner: NodeRunner, why: str) -> None:
