@@ -125,6 +125,10 @@ pub fn uv() -> std::result::Result<PathBuf, String> {
         "peppy-launch: uv is not installed; installing it for peppy into {} (once)",
         dir.display()
     );
+    // Installed beside its place and moved in at once: several launches (or
+    // tests) may install it at the same time, and none may see half of it.
+    let partial = dir.with_extension(format!("partial.{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&partial);
     let status = std::process::Command::new("python3")
         .args([
             "-m",
@@ -134,11 +138,19 @@ pub fn uv() -> std::result::Result<PathBuf, String> {
             "--disable-pip-version-check",
             "--target",
         ])
-        .arg(&dir)
+        .arg(&partial)
         .arg("uv")
         .status()
         .map_err(|e| format!("cannot run `python3 -m pip` to install uv: {e}"))?;
-    if !status.success() || !exe.is_file() {
+    if status.success() && partial.join("bin").join("uv").is_file() {
+        if std::fs::rename(&partial, &dir).is_err() {
+            // Another installation finished first; theirs is as good.
+            let _ = std::fs::remove_dir_all(&partial);
+        }
+    } else {
+        let _ = std::fs::remove_dir_all(&partial);
+    }
+    if !exe.is_file() {
         return Err(format!(
             "installing uv with `python3 -m pip install --target {} uv` failed; install uv (https://docs.astral.sh/uv/) and retry",
             dir.display()

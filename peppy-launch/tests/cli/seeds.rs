@@ -432,7 +432,11 @@ fn copy_dir(from: &Path, to: &Path) {
     for entry in std::fs::read_dir(from).unwrap() {
         let entry = entry.unwrap();
         let name = entry.file_name();
-        if name == ".peppy" || name == "src" || name == "target" {
+        // Documents only: not run directories, Python environments (their
+        // links would not copy), sources or build output.
+        if name.to_string_lossy().starts_with('.')
+            || ["src", "target", "__pycache__"].iter().any(|n| name == *n)
+        {
             continue;
         }
         let dest = to.join(&name);
