@@ -11,7 +11,7 @@ use std::sync::mpsc;
 use std::time::Duration;
 
 use crate::nodes::{shapes, shapes_client};
-use crate::support::{Hub, WAIT, hub, namespace, start};
+use crate::support::{Hub, hub, namespace, start};
 
 /// `peppy-build/tests/fixtures/<name>`'s Python package, written as the
 /// top-level package `package` under `dir`.
@@ -128,69 +128,12 @@ async fn every_message_shape_crosses_from_rust_through_python_and_back() {
         let server = server.clone();
         async move {
             loop {
-                let m = sample.everything();
-                let _ = e::everything::emit(
-                    &server, m.flag, m.small, m.medium, m.large, m.huge, m.tiny, m.short, m.int,
-                    m.long, m.single, m.double, m.text, m.blob, m.when,
-                )
-                .await;
-                let m = sample.nested();
-                let _ = e::nested::emit(
-                    &server, m.header, m.pose, m.mask, m.points, m.names, m.stamps, m.chunks,
-                )
-                .await;
-                let m = sample.optionals();
-                let _ =
-                    e::optionals::emit(&server, m.note, m.raw, m.seen, m.samples, m.fixed, m.extra)
-                        .await;
-                let m = sample.keywords();
-                let _ = e::keywords::emit(
-                    &server,
-                    m.r#type,
-                    m.r#match,
-                    m.r#async,
-                    m.SPEC,
-                    m.node_runner,
-                    m.Mixed_Case,
-                    m.r#loop,
-                )
-                .await;
-                let _ = e::tick::emit(&server).await;
-                let _ = e::video_stream::emit(&server, vec![9; 3]).await;
+                let _ = sample.emit_all(&server).await;
                 tokio::time::sleep(Duration::from_millis(50)).await;
             }
         }
     });
-
-    use shapes_client::consumed_topics as c;
-    let sample = crate::roundtrip::Samples::new(1);
-    macro_rules! receive {
-        ($module:ident, $expected:expr) => {{
-            let (from, got) =
-                tokio::time::timeout(WAIT, c::$module::on_next_message_received(&client, None))
-                    .await
-                    .expect(concat!(
-                        "a message relayed by python on ",
-                        stringify!($module)
-                    ))
-                    .unwrap();
-            assert_eq!(from, "shapes_py");
-            assert_eq!(
-                format!("{got:?}"),
-                format!("{:?}", $expected),
-                stringify!($module)
-            );
-        }};
-    }
-    receive!(shapes_everything, sample.everything());
-    receive!(shapes_nested, sample.nested());
-    receive!(shapes_optionals, sample.optionals());
-    receive!(shapes_keywords, sample.keywords());
-    receive!(shapes_tick, e::tick::Message);
-    receive!(
-        shapes_video_stream,
-        e::video_stream::Message { frame: vec![9; 3] }
-    );
+    sample.expect_all(&client, "shapes_py").await;
     sender.abort();
     drop(python);
     client.shutdown().await;

@@ -53,6 +53,71 @@ impl Rng {
 }
 
 impl Samples {
+    /// Publishes one message of every shape the `shapes` node emits.
+    pub(crate) async fn emit_all(&self, s: &peppy::NodeRunner) -> peppy::Result<()> {
+        let m = self.everything();
+        e::everything::emit(
+            s, m.flag, m.small, m.medium, m.large, m.huge, m.tiny, m.short, m.int, m.long,
+            m.single, m.double, m.text, m.blob, m.when,
+        )
+        .await?;
+        let m = self.nested();
+        e::nested::emit(
+            s, m.header, m.pose, m.mask, m.points, m.names, m.stamps, m.chunks,
+        )
+        .await?;
+        let m = self.optionals();
+        e::optionals::emit(s, m.note, m.raw, m.seen, m.samples, m.fixed, m.extra).await?;
+        let m = self.keywords();
+        e::keywords::emit(
+            s,
+            m.r#type,
+            m.r#match,
+            m.r#async,
+            m.SPEC,
+            m.node_runner,
+            m.Mixed_Case,
+            m.r#loop,
+        )
+        .await?;
+        e::tick::emit(s).await?;
+        e::video_stream::emit(s, vec![9; 3]).await
+    }
+
+    /// Reads one message of every shape on `client` (a `shapes_client`)
+    /// and checks each is from `producer` and equal to what
+    /// [`emit_all`](Self::emit_all) sends.
+    pub(crate) async fn expect_all(&self, client: &peppy::NodeRunner, producer: &str) {
+        use crate::support::WAIT;
+        use shapes_client::consumed_topics as c;
+        macro_rules! receive {
+            ($module:ident, $expected:expr) => {{
+                let (from, got) =
+                    tokio::time::timeout(WAIT, c::$module::on_next_message_received(client, None))
+                        .await
+                        .expect(concat!("a message on ", stringify!($module)))
+                        .unwrap();
+                assert_eq!(from, producer, stringify!($module));
+                assert_eq!(
+                    format!("{got:?}"),
+                    format!("{:?}", $expected),
+                    stringify!($module)
+                );
+            }};
+        }
+        receive!(shapes_everything, self.everything());
+        receive!(shapes_nested, self.nested());
+        receive!(shapes_optionals, self.optionals());
+        receive!(shapes_keywords, self.keywords());
+        receive!(shapes_tick, e::tick::Message);
+        receive!(
+            shapes_video_stream,
+            e::video_stream::Message { frame: vec![9; 3] }
+        );
+    }
+}
+
+impl Samples {
     pub(crate) fn new(seed: u64) -> Self {
         Samples { seed }
     }

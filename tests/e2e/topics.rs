@@ -207,67 +207,9 @@ async fn every_message_shape_crosses_the_wire() {
         start::<shapes::Parameters>(&hub, &ns, "shapes", &crate::params::SHAPES_ARGS).await;
     let sample = crate::roundtrip::Samples::new(1);
     let sender = keep_sending!(server.clone(), |s| {
-        use shapes::emitted_topics as e;
-        let m = sample.everything();
-        e::everything::emit(
-            s, m.flag, m.small, m.medium, m.large, m.huge, m.tiny, m.short, m.int, m.long,
-            m.single, m.double, m.text, m.blob, m.when,
-        )
-        .await
-        .unwrap();
-        let m = sample.nested();
-        e::nested::emit(
-            s, m.header, m.pose, m.mask, m.points, m.names, m.stamps, m.chunks,
-        )
-        .await
-        .unwrap();
-        let m = sample.optionals();
-        e::optionals::emit(s, m.note, m.raw, m.seen, m.samples, m.fixed, m.extra)
-            .await
-            .unwrap();
-        let m = sample.keywords();
-        e::keywords::emit(
-            s,
-            m.r#type,
-            m.r#match,
-            m.r#async,
-            m.SPEC,
-            m.node_runner,
-            m.Mixed_Case,
-            m.r#loop,
-        )
-        .await
-        .unwrap();
-        e::tick::emit(s).await.unwrap();
-        e::video_stream::emit(s, vec![9; 3]).await.unwrap();
+        sample.emit_all(s).await.unwrap();
     });
-
-    use shapes_client::consumed_topics as c;
-    let sample = crate::roundtrip::Samples::new(1);
-    macro_rules! receive {
-        ($module:ident, $expected:expr) => {{
-            let (from, got) =
-                tokio::time::timeout(WAIT, c::$module::on_next_message_received(&client, None))
-                    .await
-                    .expect(concat!("a message on ", stringify!($module)))
-                    .unwrap();
-            assert_eq!(from, "shapes");
-            assert_eq!(
-                format!("{got:?}"),
-                format!("{:?}", $expected),
-                stringify!($module)
-            );
-        }};
-    }
-    receive!(shapes_everything, sample.everything());
-    receive!(shapes_nested, sample.nested());
-    receive!(shapes_optionals, sample.optionals());
-    receive!(shapes_keywords, sample.keywords());
-    receive!(shapes_tick, shapes::emitted_topics::tick::Message);
-    receive!(
-        shapes_video_stream,
-        shapes::emitted_topics::video_stream::Message { frame: vec![9; 3] }
-    );
+    sample.expect_all(&client, "shapes").await;
     sender.abort();
     client.shutdown().await;
     server.shutdown().await;

@@ -147,6 +147,21 @@ pub(super) fn consumed_topic(out: &mut Source, t: &ResolvedTopic, by_instance: b
     out.dedent();
 }
 
+/// `@dataclass class <name>: instance_id, core_node, data: <data>`: a
+/// message with the identity of the node on the other side.
+fn with_identity(out: &mut Source, name: &str, doc: &str, data: &str) {
+    out.line("@dataclass");
+    out.line(&format!("class {name}:"));
+    out.indent();
+    out.docstring(doc);
+    out.line("instance_id: str");
+    out.line("core_node: str");
+    out.line(&format!("data: {data}"));
+    out.dedent();
+    out.blank();
+    out.blank();
+}
+
 pub(super) fn exposed_service(out: &mut Source, p: &Provided<ServiceDecl>) {
     let d = &p.decl;
     let prefix = type_prefix(&d.name);
@@ -164,16 +179,12 @@ pub(super) fn exposed_service(out: &mut Source, p: &Provided<ServiceDecl>) {
         d.response.as_ref(),
         &format!("The response of service `{}`.", d.name),
     );
-    out.line("@dataclass");
-    out.line("class Request:");
-    out.indent();
-    out.docstring("A request, with the caller's identity.");
-    out.line("instance_id: str");
-    out.line("core_node: str");
-    out.line("data: RequestData");
-    out.dedent();
-    out.blank();
-    out.blank();
+    with_identity(
+        out,
+        "Request",
+        "A request, with the caller's identity.",
+        "RequestData",
+    );
     out.line(&format!(
         "SPEC = _s.ServiceSpec({}, {}, {request}, {response})",
         owner(Some(&p.origin), true),
@@ -223,16 +234,12 @@ pub(super) fn consumed_service(out: &mut Source, c: &ResolvedCall<ServiceDecl>) 
         d.response.as_ref(),
         &format!("The response data of service `{}`.", d.name),
     );
-    out.line("@dataclass");
-    out.line("class Response:");
-    out.indent();
-    out.docstring("A response, with the server's identity.");
-    out.line("instance_id: str");
-    out.line("core_node: str");
-    out.line("data: ResponseData");
-    out.dedent();
-    out.blank();
-    out.blank();
+    with_identity(
+        out,
+        "Response",
+        "A response, with the server's identity.",
+        "ResponseData",
+    );
     out.line(&format!(
         "SPEC = _s.ConsumedServiceSpec({}, {}, {}, {request}, {response})",
         py_string(&c.slot.link_id),

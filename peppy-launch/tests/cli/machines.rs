@@ -292,8 +292,10 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
         "each slot hears exactly its producers across the link"
     );
 
-    // A service on the other side answers across the link...
-    let call = || {
+    // A service on the other side answers across the link (a debug build on
+    // a machine busy with the other tests may need more than a few
+    // seconds)...
+    let call = |timeout: &str| {
         crate::support::peppy_launch_in(
             &hosts.on(&hosts.b),
             &root(),
@@ -305,14 +307,14 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
                 "--format",
                 "json",
                 "--timeout",
-                "5",
+                timeout,
                 "-l",
                 launcher,
             ],
             &[("PEPPY_STATE_DIR", st_b)],
         )
     };
-    let answered = call();
+    let answered = call("20");
     assert_eq!(answered.code, 0, "{}", answered.stderr);
     assert!(
         answered.stdout.contains(r#""width":160"#),
@@ -333,7 +335,7 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
     });
     // ...and the command line cannot reach it either, at once.
     let started = std::time::Instant::now();
-    let down = call();
+    let down = call("5");
     assert_eq!(down.code, 2, "{}", down.stderr);
     assert!(
         down.stderr.contains("no instance `rs_left` answers"),
