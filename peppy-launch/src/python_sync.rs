@@ -136,6 +136,8 @@ pub fn uv() -> std::result::Result<PathBuf, String> {
             "install",
             "--quiet",
             "--disable-pip-version-check",
+            // Root in CI and containers: a private target directory is fine.
+            "--root-user-action=ignore",
             "--target",
         ])
         .arg(&partial)

@@ -505,8 +505,17 @@ class ActionHandle:
 
     async def cancel_goal(self, timeout: float) -> CancelResponse:
         state = await self._client.cancel(timeout)
-        return CancelResponse(self.instance_id, self.core_node, state)"#,
+        return CancelResponse(self.instance_id, self.core_node, state)
+
+
+async def fire_goal(
+    node_runner: NodeRunner{original_goal_arg}, timeout: float, qos: QoSProfile = QoSProfile.STANDARD
+) -> ActionHandle:
+    """`ActionHandle.fire_goal` in the original Python argument order (the goal before the timeout)."""
+    return await ActionHandle.fire_goal(node_runner, timeout{original_goal_pass}, qos)"#,
         name = d.name,
         link = c.slot.link_id,
+        original_goal_arg = if d.goal.is_some() { ", request: GoalRequest" } else { "" },
+        original_goal_pass = if d.goal.is_some() { ", request" } else { "" },
     ));
 }

@@ -22,8 +22,10 @@ async def home(node_runner: NodeRunner, max_velocity: float) -> None:
     goal = robot_arm_move_arm.GoalRequest([0.5, 0.0, 0.0], max_velocity)
     while True:
         try:
-            handle = await robot_arm_move_arm.ActionHandle.fire_goal(
-                node_runner, 2.0, goal, QoSProfile.STANDARD
+            # The original Python order (goal, then timeout); the Rust-like
+            # `ActionHandle.fire_goal(node_runner, 2.0, goal, qos)` is the same call.
+            handle = await robot_arm_move_arm.fire_goal(
+                node_runner, goal, 2.0, QoSProfile.STANDARD
             )
             break
         except PeppyError:
