@@ -96,6 +96,49 @@ async fn relay(hub: &Hub, ns: &str, upstream: &str) -> (Python, tempfile::TempDi
     (python, dir)
 }
 
+/// Every fixture's Python package imports, every module of it: its
+/// syntax, its codec layouts and its fingerprints (checked against the
+/// canonical texts at import) are what the runtime accepts.
+#[test]
+fn every_fixture_python_package_imports() {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("peppy-build/tests/fixtures");
+    let dir = tempfile::tempdir().unwrap();
+    let mut packages = Vec::new();
+    for entry in std::fs::read_dir(&fixtures).unwrap() {
+        let path = entry.unwrap().path();
+        if path.join("peppy.json5").is_file() {
+            let name = format!("gen_{}", path.file_name().unwrap().to_string_lossy());
+            python_package(
+                &path.file_name().unwrap().to_string_lossy(),
+                dir.path(),
+                &name,
+            );
+            packages.push(name);
+        }
+    }
+    assert!(packages.len() >= 6, "{packages:?}");
+    let script = dir.path().join("import_all.py");
+    std::fs::write(
+        &script,
+        [
+            "import importlib, pkgutil, sys",
+            "count = 0",
+            "for name in sys.argv[1:]:",
+            "    package = importlib.import_module(name)",
+            "    for info in pkgutil.walk_packages(package.__path__, name + '.'):",
+            "        importlib.import_module(info.name)",
+            "        count += 1",
+            "print(count, flush=True)",
+        ]
+        .join("\n"),
+    )
+    .unwrap();
+    let args: Vec<&str> = packages.iter().map(String::as_str).collect();
+    let python = Python::start(dir.path(), &script, &args);
+    let modules: usize = python.line().parse().expect("a module count");
+    assert!(modules > 50, "only {modules} modules imported");
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn every_message_shape_crosses_from_rust_through_python_and_back() {
     let hub = hub().await;
