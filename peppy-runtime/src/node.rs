@@ -5,6 +5,7 @@ use std::collections::HashMap;
 use std::future::Future;
 use std::marker::PhantomData;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use peppy_schema::{Identity, NodeModel, SlotKind, SlotPlan};
@@ -226,6 +227,9 @@ pub struct NodeRunner {
     token: CancellationToken,
     slots: Vec<SlotPlan>,
     publishers: HashMap<usize, Publisher<'static>>,
+    /// Per emitted topic, whether Zenoh knows a subscriber for it: only
+    /// then does a large message go through shared memory.
+    readers_known: HashMap<usize, Arc<AtomicBool>>,
     inboxes: HashMap<usize, Inbox>,
     service_inboxes: HashMap<usize, (ServiceInbox, String)>,
     action_servers: HashMap<usize, (flume::Receiver<PendingGoal>, Arc<Registry>)>,
@@ -287,6 +291,7 @@ impl NodeRunner {
             token: CancellationToken::new(),
             slots: startup.slots,
             publishers: HashMap::new(),
+            readers_known: HashMap::new(),
             inboxes: HashMap::new(),
             service_inboxes: HashMap::new(),
             action_servers: HashMap::new(),
@@ -345,6 +350,25 @@ impl NodeRunner {
                 .priority(qos::priority(spec.qos))
                 .express(qos::express(spec.qos))
                 .await?;
+            // Until a session has heard which subscriptions a new peer
+            // holds, Zenoh sends it every message in case it wants them;
+            // one in shared memory would make that peer map and lock the
+            // producer's whole pool for nothing (each of 50 cameras mapped
+            // every other camera's pool). Frames go through shared memory
+            // only while a subscriber is known.
+            let known = Arc::new(AtomicBool::new(
+                publisher
+                    .matching_status()
+                    .await
+                    .map_or(true, |s| s.matching()),
+            ));
+            let flag = known.clone();
+            publisher
+                .matching_listener()
+                .callback(move |status| flag.store(status.matching(), Ordering::Relaxed))
+                .background()
+                .await?;
+            self.readers_known.insert(address(*spec), known);
             self.publishers.insert(address(*spec), publisher);
         }
         Ok(())
@@ -688,15 +712,18 @@ impl NodeRunner {
     /// How many messages of `topic` have arrived in shared memory: read
     /// in place from the producer's pages rather than copied off a socket.
     pub fn received_in_shared_memory(&self, topic: &'static ConsumedTopicSpec) -> Result<u64> {
-        Ok(self
-            .inbox(topic)?
-            .backlog
-            .shared
-            .load(std::sync::atomic::Ordering::Relaxed))
+        Ok(self.inbox(topic)?.backlog.shared.load(Ordering::Relaxed))
     }
 
     pub(crate) fn shm(&self) -> &Shm {
         &self.shm
+    }
+
+    /// Whether Zenoh knows a subscriber of this emitted topic.
+    pub(crate) fn readers_known(&self, spec: &'static TopicSpec) -> bool {
+        self.readers_known
+            .get(&address(spec))
+            .is_none_or(|known| known.load(Ordering::Relaxed))
     }
 
     pub(crate) fn publisher(&self, spec: &'static TopicSpec) -> Result<&Publisher<'static>> {

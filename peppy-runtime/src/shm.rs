@@ -217,15 +217,17 @@ impl Shm {
     }
 
     /// Encodes `message` for `spec`: into a shared-memory chunk when it is
-    /// large enough and a chunk is free, else into an ordinary buffer.
+    /// large enough, a subscriber is known (`readers_known`) and a chunk is
+    /// free, else into an ordinary buffer.
     pub(crate) fn payload<M: Encode + ?Sized>(
         &self,
         spec: &'static TopicSpec,
         message: &M,
+        readers_known: bool,
     ) -> ZBytes {
         // Sizing the message is a pass over it: only done when its size
         // decides where it goes.
-        if let Some(threshold) = self.threshold(spec) {
+        if readers_known && let Some(threshold) = self.threshold(spec) {
             let len = encoded_len(message);
             if len >= threshold.max(1)
                 && let Some(bytes) = self.encode_shared(spec, message, len)

@@ -259,7 +259,9 @@ pub fn emit<'a, M: Encode + ?Sized>(
     spec: &'static TopicSpec,
     message: &M,
 ) -> impl Future<Output = Result<()>> + Send + use<'a, M> {
-    let payload = runner.shm().payload(spec, message);
+    let payload = runner
+        .shm()
+        .payload(spec, message, runner.readers_known(spec));
     async move {
         if runner.session().is_closed() {
             return Err(stop::refused().await);
