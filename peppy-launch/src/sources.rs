@@ -36,14 +36,35 @@ pub(crate) fn cache_dir() -> PathBuf {
 }
 
 /// Fetches remote sources into [`cache_dir`].
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub(crate) struct Fetcher {
     cache: PathBuf,
+    /// Repositories already asked for their refs by this fetcher: several
+    /// deployments from one repository fetch it once per check.
+    refreshed: std::sync::Mutex<std::collections::HashSet<String>>,
 }
 
 impl Fetcher {
     pub(crate) fn new() -> Fetcher {
-        Fetcher { cache: cache_dir() }
+        Fetcher {
+            cache: cache_dir(),
+            refreshed: Default::default(),
+        }
+    }
+
+    /// `git fetch` of `repo`'s mirror, tried once per fetcher (a failure is
+    /// reported to the first caller only).
+    fn refresh(&self, repo: &str, mirror: &Path) -> Result<(), String> {
+        if !self.first_time(repo) {
+            return Ok(());
+        }
+        git(Some(mirror), &["fetch", "--quiet", "--prune", "origin"])
+    }
+
+    /// Whether `repo` is new to this fetcher (and now known).
+    fn first_time(&self, repo: &str) -> bool {
+        let mut done = self.refreshed.lock().unwrap_or_else(|p| p.into_inner());
+        done.insert(repo.to_string())
     }
 }
 
@@ -78,17 +99,19 @@ impl Fetcher {
             )
             .map_err(|e| format!("cannot clone {repo}: {e}"))?;
             publish(&tmp, &mirror)?;
+            // Just cloned: as fresh as a fetch would make it.
+            self.first_time(repo);
         }
         let commit = if is_commit_id(reference) {
             if resolve(&mirror, reference).is_none() {
                 // A commit the mirror has not seen yet: the remote may have it.
-                let _ = git(Some(&mirror), &["fetch", "--quiet", "--prune", "origin"]);
+                let _ = self.refresh(repo, &mirror);
             }
             resolve(&mirror, reference)
                 .ok_or_else(|| format!("commit {reference} is not in {repo}"))?
         } else {
             // A branch or tag moves: ask the remote, else use the mirror.
-            if let Err(e) = git(Some(&mirror), &["fetch", "--quiet", "--prune", "origin"]) {
+            if let Err(e) = self.refresh(repo, &mirror) {
                 eprintln!(
                     "peppy-launch: cannot reach {repo} ({}); using its cached copy",
                     e.trim()
