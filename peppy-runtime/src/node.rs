@@ -226,10 +226,7 @@ pub struct NodeRunner {
     namespace: String,
     token: CancellationToken,
     slots: Vec<SlotPlan>,
-    publishers: HashMap<usize, Publisher<'static>>,
-    /// Per emitted topic, whether Zenoh knows a subscriber for it: only
-    /// then does a large message go through shared memory.
-    readers_known: HashMap<usize, Arc<AtomicBool>>,
+    publishers: HashMap<usize, Outlet>,
     inboxes: HashMap<usize, Inbox>,
     service_inboxes: HashMap<usize, (ServiceInbox, String)>,
     action_servers: HashMap<usize, (flume::Receiver<PendingGoal>, Arc<Registry>)>,
@@ -291,7 +288,6 @@ impl NodeRunner {
             token: CancellationToken::new(),
             slots: startup.slots,
             publishers: HashMap::new(),
-            readers_known: HashMap::new(),
             inboxes: HashMap::new(),
             service_inboxes: HashMap::new(),
             action_servers: HashMap::new(),
@@ -368,8 +364,13 @@ impl NodeRunner {
                 .callback(move |status| flag.store(status.matching(), Ordering::Relaxed))
                 .background()
                 .await?;
-            self.readers_known.insert(address(*spec), known);
-            self.publishers.insert(address(*spec), publisher);
+            self.publishers.insert(
+                address(*spec),
+                Outlet {
+                    publisher,
+                    readers_known: known,
+                },
+            );
         }
         Ok(())
     }
@@ -719,14 +720,7 @@ impl NodeRunner {
         &self.shm
     }
 
-    /// Whether Zenoh knows a subscriber of this emitted topic.
-    pub(crate) fn readers_known(&self, spec: &'static TopicSpec) -> bool {
-        self.readers_known
-            .get(&address(spec))
-            .is_none_or(|known| known.load(Ordering::Relaxed))
-    }
-
-    pub(crate) fn publisher(&self, spec: &'static TopicSpec) -> Result<&Publisher<'static>> {
+    pub(crate) fn outlet(&self, spec: &'static TopicSpec) -> Result<&Outlet> {
         self.publishers
             .get(&address(spec))
             .ok_or_else(|| Error::Undeclared(format!("emitted topic `{}`", spec.name)))
@@ -780,6 +774,20 @@ impl NodeRunner {
         if let Err(e) = self.session.close().await {
             warn!("closing the zenoh session: {e}");
         }
+    }
+}
+
+/// An emitted topic's publisher, and whether Zenoh knows a subscriber
+/// for it: only then does a large message go through shared memory.
+pub(crate) struct Outlet {
+    pub(crate) publisher: Publisher<'static>,
+    readers_known: Arc<AtomicBool>,
+}
+
+impl Outlet {
+    /// Whether Zenoh knows a subscriber of this topic.
+    pub(crate) fn readers_known(&self) -> bool {
+        self.readers_known.load(Ordering::Relaxed)
     }
 }
 

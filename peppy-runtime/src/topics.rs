@@ -259,15 +259,15 @@ pub fn emit<'a, M: Encode + ?Sized>(
     spec: &'static TopicSpec,
     message: &M,
 ) -> impl Future<Output = Result<()>> + Send + use<'a, M> {
-    let payload = runner
-        .shm()
-        .payload(spec, message, runner.readers_known(spec));
+    let outlet = runner.outlet(spec);
+    let readers_known = outlet.as_ref().is_ok_and(|o| o.readers_known());
+    let payload = runner.shm().payload(spec, message, readers_known);
     async move {
         if runner.session().is_closed() {
             return Err(stop::refused().await);
         }
-        let publisher = runner.publisher(spec)?;
-        publisher
+        outlet?
+            .publisher
             .put(payload)
             .attachment(attachment::topic(spec.format.fingerprint))
             .await
