@@ -33,6 +33,7 @@ mod error;
 mod intake;
 mod members;
 mod node;
+mod producers;
 mod qos;
 mod request;
 mod services;

@@ -21,6 +21,7 @@ use crate::describe::{
 };
 use crate::error::{Error, Result};
 use crate::members::Members;
+use crate::producers::Declarer;
 use crate::qos;
 use crate::services::{self, ServiceInbox};
 use crate::shm::{SharedMemory, Shm};
@@ -415,6 +416,7 @@ impl NodeRunner {
         let own = Identity::new(&self.node_name, &self.node_tag);
         let mut routes = Vec::new();
         let mismatch = mismatch_reporter(self.session.clone(), self.namespace.clone());
+        let declarer = Declarer::start(self.session.clone(), self.token.clone());
         let mut trackers = HashMap::new();
         for spec in descriptor.consumed_topics {
             let filter = match spec.link_id {
@@ -442,7 +444,8 @@ impl NodeRunner {
                     .flatten()
                     .map(|s| s.target.clone()),
             });
-            let (intake, inbox) = Intake::new(spec, filter, members, mismatch.clone());
+            let (intake, inbox) =
+                Intake::new(spec, filter, members, declarer.clone(), mismatch.clone());
             let subscriber = self
                 .session
                 .declare_subscriber(selector)

@@ -13,19 +13,19 @@ use zenoh::sample::Sample;
 use crate::error::{Error, Result};
 use crate::members::Members;
 use crate::node::NodeRunner;
+use crate::producers::{Declarer, Producer, Producers};
 use crate::qos::{QueuePolicy, queue};
 use crate::spec::{ConsumedTopicSpec, TopicSpec};
 use crate::stop;
 use crate::wire::attachment;
 use crate::wire::codec::{Decode, DecodeError, Encode, from_bytes};
-use crate::wire::keys::{Channel, entry_selector, parse_entry_key};
+use crate::wire::keys::{Channel, entry_selector};
 
 /// One received message, not yet decoded. The payload is Zenoh's own
 /// buffer: queueing it copies nothing.
 #[derive(Debug)]
 pub(crate) struct Delivery {
-    pub(crate) core: String,
-    pub(crate) instance: String,
+    pub(crate) producer: Arc<Producer>,
     pub(crate) payload: ZBytes,
 }
 
@@ -71,6 +71,7 @@ pub(crate) struct Intake {
     pub(crate) filter: RouteFilter,
     /// For a node slot on an interface's key: the instances of its node.
     pub(crate) members: Option<Arc<Members>>,
+    pub(crate) producers: Producers,
     pub(crate) tx: flume::Sender<Delivery>,
     pub(crate) rx: flume::Receiver<Delivery>,
     pub(crate) policy: QueuePolicy,
@@ -84,6 +85,7 @@ impl Intake {
         spec: &'static ConsumedTopicSpec,
         filter: RouteFilter,
         members: Option<Arc<Members>>,
+        declarer: Declarer,
         mismatch: Arc<dyn Fn(&'static ConsumedTopicSpec, String, u64) + Send + Sync>,
     ) -> (Intake, Inbox) {
         let policy = queue(spec.qos);
@@ -97,6 +99,7 @@ impl Intake {
                 spec,
                 filter,
                 members,
+                producers: Producers::new(declarer),
                 tx,
                 rx: rx.clone(),
                 policy,
@@ -111,53 +114,42 @@ impl Intake {
     /// The Zenoh callback: route, check the fingerprint, queue.
     pub(crate) fn accept(&self, sample: Sample) {
         let key = sample.key_expr().as_str();
-        let Some(sender) = parse_entry_key(key) else {
+        let Some(producer) = self.producers.of(key) else {
             debug!(key, "dropping a sample with a malformed key");
             return;
         };
-        if !self.filter.accepts(&sender.instance)
+        if !self.filter.accepts(&producer.instance)
             || self
                 .members
                 .as_ref()
-                .is_some_and(|m| !m.contains(&sender.core, &sender.instance))
+                .is_some_and(|m| !m.contains(&producer.core, &producer.instance))
         {
             return;
         }
         let fingerprint = sample
             .attachment()
             .and_then(|a| attachment::parse_topic(&a.to_bytes()));
-        match fingerprint {
-            Some(fp) if fp == self.spec.format.fingerprint => {}
-            Some(fp) => {
-                let first = self
-                    .warned
-                    .lock()
-                    .map(|mut w| w.insert(sender.instance.clone()))
-                    .unwrap_or(false);
-                if first {
-                    (self.mismatch)(self.spec, sender.instance.clone(), fp);
+        if fingerprint != Some(self.spec.format.fingerprint) {
+            let first = self
+                .warned
+                .lock()
+                .map(|mut w| w.insert(producer.instance.to_string()))
+                .unwrap_or(false);
+            match fingerprint {
+                Some(fp) if first => (self.mismatch)(self.spec, producer.instance.to_string(), fp),
+                None if first => {
+                    warn!(topic = self.spec.name, producer = %producer.instance, "dropping messages without a valid peppy attachment");
                 }
-                return;
+                _ => {}
             }
-            None => {
-                let first = self
-                    .warned
-                    .lock()
-                    .map(|mut w| w.insert(sender.instance.clone()))
-                    .unwrap_or(false);
-                if first {
-                    warn!(topic = self.spec.name, producer = %sender.instance, "dropping messages without a valid peppy attachment");
-                }
-                return;
-            }
+            return;
         }
         let size = sample.payload().len();
         if sample.payload().as_shm().is_some() && self.backlog.shared.fetch_add(1, Relaxed) == 0 {
-            info!(topic = self.spec.name, producer = %sender.instance, "receiving this topic through shared memory");
+            info!(topic = self.spec.name, producer = %producer.instance, "receiving this topic through shared memory");
         }
         let delivery = Delivery {
-            core: sender.core,
-            instance: sender.instance,
+            producer,
             payload: sample.payload().clone(),
         };
         match self.policy {
@@ -287,8 +279,10 @@ pub struct Senders<'a> {
 
 impl Senders<'_> {
     fn accept(&self, delivery: &Delivery) -> bool {
-        self.core_node.is_none_or(|c| c == delivery.core)
-            && self.instance_id.is_none_or(|i| i == delivery.instance)
+        self.core_node.is_none_or(|c| c == &*delivery.producer.core)
+            && self
+                .instance_id
+                .is_none_or(|i| i == &*delivery.producer.instance)
     }
 }
 
@@ -323,9 +317,9 @@ pub async fn next_message_from<M: Decode>(
     loop {
         let delivery = next_delivery(runner, spec, senders).await?;
         match from_bytes::<M>(&delivery.payload.to_bytes()) {
-            Ok(m) => return Ok((delivery.instance, m)),
+            Ok(m) => return Ok((delivery.producer.instance.to_string(), m)),
             Err(e) => {
-                warn!(topic = spec.name, producer = %delivery.instance, error = %e, "dropping a message that does not decode")
+                warn!(topic = spec.name, producer = %delivery.producer.instance, error = %e, "dropping a message that does not decode")
             }
         }
     }
@@ -352,7 +346,10 @@ pub async fn next_payload_from(
     senders: Senders<'_>,
 ) -> Result<(String, Payload)> {
     let delivery = next_delivery(runner, spec, senders).await?;
-    Ok((delivery.instance, Payload(delivery.payload)))
+    Ok((
+        delivery.producer.instance.to_string(),
+        Payload(delivery.payload),
+    ))
 }
 
 async fn next_delivery(
@@ -447,15 +444,23 @@ mod tests {
 
     fn delivery(byte: u8) -> Delivery {
         Delivery {
-            core: "core".into(),
-            instance: "ticker".into(),
+            producer: Arc::new(Producer {
+                core: "core".into(),
+                instance: "ticker".into(),
+            }),
             payload: ZBytes::from(vec![byte; 100]),
         }
     }
 
     #[test]
     fn a_keep_all_inbox_keeps_everything_up_to_its_byte_bound_then_counts_drops() {
-        let (intake, inbox) = Intake::new(&TICKS, RouteFilter::Any, None, Arc::new(|_, _, _| {}));
+        let (intake, inbox) = Intake::new(
+            &TICKS,
+            RouteFilter::Any,
+            None,
+            Declarer::none(),
+            Arc::new(|_, _, _| {}),
+        );
         assert!(matches!(intake.policy, QueuePolicy::KeepAll { .. }));
         for n in 0..12 {
             intake.keep(delivery(n), 100, 4, 1_000);
