@@ -11,6 +11,7 @@ use std::sync::{Arc, Mutex};
 use peppy_schema::{Identity, NodeModel, SlotKind, SlotPlan};
 use tokio_util::sync::CancellationToken;
 use tracing::{info, warn};
+use zenoh::bytes::ZBytes;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::query::Queryable;
 
@@ -31,6 +32,7 @@ use crate::spec::{
 };
 use crate::startup::{self, RUNTIME_CONFIG_ENV, StandaloneConfig, Startup};
 use crate::topics::{self, Inbox, Intake};
+use crate::wire::attachment;
 use crate::wire::keys::{
     ActionPart, Channel, action_part_key, describe_key, entry_key, format_key, liveliness_key,
 };
@@ -370,6 +372,7 @@ impl NodeRunner {
                 Outlet {
                     publisher,
                     readers_known: known,
+                    attachment: ZBytes::from(attachment::topic(spec.format.fingerprint)),
                 },
             );
         }
@@ -785,6 +788,9 @@ impl NodeRunner {
 pub(crate) struct Outlet {
     pub(crate) publisher: Publisher<'static>,
     readers_known: Arc<AtomicBool>,
+    /// The topic's attachment (its format's fingerprint), made once: each
+    /// message shares it.
+    pub(crate) attachment: ZBytes,
 }
 
 impl Outlet {

@@ -24,7 +24,7 @@ use zenoh::bytes::ZBytes;
 use zenoh::shm::{GarbageCollect, PosixShmProviderBackend, ShmProvider, ShmProviderBuilder};
 
 use crate::spec::TopicSpec;
-use crate::wire::codec::{Encode, Writer, encoded_len, to_bytes};
+use crate::wire::codec::{Encode, Writer, encoded_len};
 
 /// The environment variable that sets a node's shared-memory use: `off`,
 /// `on` (the defaults), or the size from which a message goes through
@@ -225,17 +225,19 @@ impl Shm {
         message: &M,
         readers_known: bool,
     ) -> ZBytes {
-        // Sizing the message is a pass over it: only done when its size
-        // decides where it goes.
-        if readers_known && let Some(threshold) = self.threshold(spec) {
-            let len = encoded_len(message);
-            if len >= threshold.max(1)
-                && let Some(bytes) = self.encode_shared(spec, message, len)
-            {
-                return bytes;
-            }
+        // Sizing is a pass over the message without writing; it saves the
+        // buffer's regrowth (a copy of all written so far each time).
+        let len = encoded_len(message);
+        if readers_known
+            && let Some(threshold) = self.threshold(spec)
+            && len >= threshold.max(1)
+            && let Some(bytes) = self.encode_shared(spec, message, len)
+        {
+            return bytes;
         }
-        ZBytes::from(to_bytes(message))
+        let mut out = Vec::with_capacity(len);
+        message.encode(&mut Writer::new(&mut out));
+        ZBytes::from(out)
     }
 
     /// The pool to take `len` bytes from: the newest, or a new one when

@@ -258,10 +258,11 @@ pub fn emit<'a, M: Encode + ?Sized>(
         if runner.session().is_closed() {
             return Err(stop::refused().await);
         }
-        outlet?
+        let outlet = outlet?;
+        outlet
             .publisher
             .put(payload)
-            .attachment(attachment::topic(spec.format.fingerprint))
+            .attachment(outlet.attachment.clone())
             .await
             .map_err(Error::from)
     }
