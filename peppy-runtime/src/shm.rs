@@ -241,18 +241,27 @@ impl Shm {
     }
 
     /// The pool to take `len` bytes from: the newest, or a new one when
-    /// there is none yet or the newest is too small for `len` and may grow.
+    /// there is none yet or the newest has room for fewer than
+    /// [`SharedMemory::POOL_MESSAGES`] messages of `len` bytes and may grow.
+    /// A pool too small for the stream it carries is full of frames the
+    /// readers still hold, and every later frame goes as an ordinary buffer
+    /// (a 2 MiB pool made for 64 KiB messages carried 1 MiB frames at a
+    /// third of raw Zenoh's rate).
     fn pool_for(&self, len: usize) -> Option<Arc<Pool>> {
         let mut pools = self.pools.lock().ok()?;
-        let most = self.settings.pool_bytes;
         let stuck = self.cannot_grow.load(Relaxed);
-        match pools.last() {
-            Some(p) if len <= p.bytes || p.bytes >= most || stuck => return Some(p.clone()),
-            None if stuck => return None,
-            _ => {}
-        }
-        match open_pool(pool_size(len, most)) {
-            Some(p) => pools.push(Arc::new(p)),
+        let newest = pools.last().map(|p| p.bytes);
+        let Some(size) = next_pool(newest, len, self.settings.pool_bytes, stuck) else {
+            return pools.last().cloned();
+        };
+        match open_pool(size) {
+            Some(p) => {
+                // A pool the host capped is as large as it will get.
+                if p.bytes < size {
+                    self.cannot_grow.store(true, Relaxed);
+                }
+                pools.push(Arc::new(p));
+            }
             None => self.cannot_grow.store(true, Relaxed),
         }
         pools.last().cloned()
@@ -311,6 +320,20 @@ impl Shm {
 struct Pool {
     provider: ShmProvider<PosixShmProviderBackend>,
     bytes: usize,
+}
+
+/// The size of the pool to make for a message of `len` bytes when the
+/// newest pool has `newest` bytes (`None`: no pool yet); `None` when the
+/// newest will do or no pool can be made. Growing at least doubles, so
+/// slowly growing messages make a few pools, not one each.
+fn next_pool(newest: Option<usize>, len: usize, most: usize, stuck: bool) -> Option<usize> {
+    let wanted = pool_size(len, most);
+    match newest {
+        _ if stuck => None,
+        Some(n) if n >= wanted || n >= most => None,
+        Some(n) => Some(wanted.max(n.saturating_mul(2)).min(most)),
+        None => Some(wanted),
+    }
 }
 
 /// The pool for a first large message of `len` bytes, at most `most`.
@@ -484,6 +507,27 @@ mod tests {
         assert_eq!(pool_size(1 << 20, most), 16 << 20);
         assert_eq!(pool_size(4 << 20, most), most);
         assert_eq!(pool_size(usize::MAX, 8 << 20), 8 << 20);
+    }
+
+    #[test]
+    fn a_pool_grows_when_it_holds_too_few_of_the_messages_sent() {
+        let most = SharedMemory::DEFAULT_POOL;
+        let min = SharedMemory::MIN_POOL;
+        assert_eq!(next_pool(None, 64 << 10, most, false), Some(min));
+        assert_eq!(next_pool(Some(min), 64 << 10, most, false), None);
+        assert_eq!(
+            next_pool(Some(min), 1 << 20, most, false),
+            Some(16 << 20),
+            "64 KiB made it, 1 MiB frames need room for sixteen"
+        );
+        assert_eq!(
+            next_pool(Some(16 << 20), (1 << 20) + 1, most, false),
+            Some(most),
+            "at least doubles"
+        );
+        assert_eq!(next_pool(Some(most), 4 << 20, most, false), None);
+        assert_eq!(next_pool(Some(min), 1 << 20, most, true), None);
+        assert_eq!(next_pool(None, 1 << 20, most, true), None);
     }
 
     #[test]
