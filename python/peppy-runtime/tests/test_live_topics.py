@@ -8,9 +8,42 @@ import logging
 import unittest
 
 import peppy_testing as t
-from peppy import ShuttingDown, topics
+from peppy import ShuttingDown, attachment, topics
 from peppy.bridge import END, ReplyStream
 from peppy.keys import describe_key
+from peppy.routing import ANY
+
+
+class _Payload:
+    def __init__(self, data: bytes) -> None:
+        self._data = data
+
+    def to_bytes(self) -> bytes:
+        return self._data
+
+
+class _Sample:
+    def __init__(self, key: str, fingerprint: int) -> None:
+        self.key_expr = key
+        self.attachment = _Payload(attachment.topic(fingerprint))
+        self.payload = _Payload(b"")
+
+
+class IntakeKeysTest(unittest.IsolatedAsyncioTestCase):
+    async def test_each_producer_key_is_parsed_and_declared_once_up_to_a_bound(self):
+        spec = t.EXTERNAL_READINGS_IN
+        declared = []
+        inbox = topics.Inbox(asyncio.get_running_loop(), spec)
+        intake = topics.Intake(spec, ANY, None, inbox, lambda *a: None, declared.append)
+        key = "peppy/lab/topic/node/cam/v1/readings/c1/cam_a"
+        for _ in range(3):
+            intake(_Sample(key, spec.format.fingerprint))
+        intake(_Sample("peppy/lab/topic/other/x/v1/t/c/i", spec.format.fingerprint))
+        self.assertEqual(declared, [key])
+        self.assertEqual(inbox.mailbox.take_all()[0].instance, "cam_a")
+        for n in range(topics.REMEMBERED + 5):
+            intake(_Sample(f"peppy/lab/topic/node/cam/v1/readings/c1/cam_{n}", spec.format.fingerprint))
+        self.assertEqual(len(declared), topics.REMEMBERED)
 
 
 class TopicRoutingTest(t.LiveTest):

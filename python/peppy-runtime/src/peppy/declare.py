@@ -92,6 +92,7 @@ async def _subscribe(runner: NodeRunner) -> List[Dict[str, Any]]:
     returns how each is routed, for the description."""
     routes: List[Dict[str, Any]] = []
     trackers: Dict[str, Members] = {}
+    declarer = _key_declarer(runner)
     for spec in runner.descriptor.consumed_topics:
         slot: Optional[SlotPlan] = None
         if spec.link_id is not None:
@@ -116,10 +117,43 @@ async def _subscribe(runner: NodeRunner) -> List[Dict[str, Any]]:
         routes.append(consumed_topic(spec, runner.node_name, runner.node_tag, selector, route_filter, members_of))
         inbox = Inbox(runner.loop, spec)
         runner._track_mailbox(inbox.mailbox)
-        intake = Intake(spec, route_filter, members, inbox, lambda *a: _mismatch(runner, *a))
+        intake = Intake(spec, route_filter, members, inbox, lambda *a: _mismatch(runner, *a), declarer)
         runner._declared.append(runner.session.declare_subscriber(selector, intake))
         runner._inboxes[spec] = inbox
     return routes
+
+
+class _DeclaredKey:
+    """A key expression declared to the session, undeclared with the node."""
+
+    def __init__(self, session: Any, key_expr: Any) -> None:
+        self._session = session
+        self._key_expr = key_expr
+
+    def undeclare(self) -> None:
+        self._session.undeclare(self._key_expr)
+
+
+def _key_declarer(runner: NodeRunner) -> Any:
+    """Declares producer keys on the loop thread: Zenoh's delivery thread,
+    which hears of a new producer, holds the routing tables a declaration
+    needs."""
+
+    def on_loop(key: str) -> None:
+        if runner.session_closed:
+            return
+        try:
+            runner._declared.append(_DeclaredKey(runner.session, runner.session.declare_keyexpr(key)))
+        except Exception as e:  # the session closed meanwhile
+            log.debug("could not declare producer key %s: %s", key, e)
+
+    def declare(key: str) -> None:
+        try:
+            runner.loop.call_soon_threadsafe(on_loop, key)
+        except RuntimeError:  # the loop is closed: the node is gone
+            pass
+
+    return declare
 
 
 def _serve_action(runner: NodeRunner, spec: ActionSpec, retention: float) -> None:

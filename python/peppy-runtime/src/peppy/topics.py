@@ -6,7 +6,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import threading
-from typing import Any, Callable, NamedTuple, Optional, Set, Tuple
+from typing import Any, Callable, Dict, NamedTuple, Optional, Set, Tuple
 
 from . import attachment
 from .bridge import Mailbox, should_yield
@@ -23,6 +23,10 @@ WARN_AT = 256
 
 KEEP_ALL_BYTES = 1 << 30
 """Past this many unread bytes on one keep-all topic, arrivals are dropped (a reader that stopped)."""
+
+REMEMBERED = 1024
+"""How many producer keys one consumed topic remembers (parsed once, declared
+to the session once); past it a key is parsed per message, never stored."""
 
 REFUSAL_PAUSE = 0.1
 """How long a call made on an already stopped node waits before raising
@@ -133,6 +137,7 @@ class Intake:
         members: Optional[Members],
         inbox: Inbox,
         mismatch: Callable[[ConsumedTopicSpec, str, int], None],
+        declare: Optional[Callable[[str], None]] = None,
     ) -> None:
         self.spec = spec
         self.filter = filter
@@ -142,6 +147,12 @@ class Intake:
         self.fingerprint = spec.format.fingerprint
         self._warned: Set[str] = set()
         self._lock = threading.Lock()
+        # A consumer subscribes with a wildcard, so no resource of its
+        # session has a producer's exact key and Zenoh would match each
+        # message's key against every subscription; a declared key has its
+        # route cached. Each key is also parsed once.
+        self._producers: Dict[str, Tuple[str, str]] = {}
+        self._declare = declare
 
     def _first_warning(self, producer: str) -> bool:
         with self._lock:
@@ -152,28 +163,36 @@ class Intake:
 
     def __call__(self, sample: Any) -> None:
         key = str(sample.key_expr)
-        sender = parse_entry_key(key)
-        if sender is None:
-            log.debug("dropping a sample with a malformed key: %s", key)
+        producer = self._producers.get(key)
+        if producer is None:
+            sender = parse_entry_key(key)
+            if sender is None:
+                log.debug("dropping a sample with a malformed key: %s", key)
+                return
+            producer = (sender.core, sender.instance)
+            if len(self._producers) < REMEMBERED:
+                self._producers[key] = producer
+                if self._declare is not None:
+                    self._declare(key)
+        core, instance = producer
+        if not self.filter.accepts(instance):
             return
-        if not self.filter.accepts(sender.instance):
-            return
-        if self.members is not None and not self.members.contains(sender.core, sender.instance):
+        if self.members is not None and not self.members.contains(core, instance):
             return
         att = sample.attachment
         fingerprint = attachment.parse_topic(None if att is None else att.to_bytes())
         if fingerprint != self.fingerprint:
-            if self._first_warning(sender.instance):
+            if self._first_warning(instance):
                 if fingerprint is None:
                     log.warning(
                         "topic `%s`: dropping messages from `%s` without a valid peppy attachment",
                         self.spec.name,
-                        sender.instance,
+                        instance,
                     )
                 else:
-                    self.mismatch(self.spec, sender.instance, fingerprint)
+                    self.mismatch(self.spec, instance, fingerprint)
             return
-        self.inbox.put(Delivery(sender.core, sender.instance, sample.payload.to_bytes()))
+        self.inbox.put(Delivery(core, instance, sample.payload.to_bytes()))
 
 
 def subscription_selector(namespace: str, owner: Optional[str], spec: ConsumedTopicSpec, filter: RouteFilter) -> str:
