@@ -27,6 +27,22 @@ impl Spread {
             n: samples.len(),
         })
     }
+
+    /// Rounds of one measurement taken as one: the median round's p50 and
+    /// p99 (each taken separately), the largest max, every sample counted.
+    pub(crate) fn median_of(rounds: &[Spread]) -> Option<Spread> {
+        let median = |pick: fn(&Spread) -> f64| {
+            let mut v: Vec<f64> = rounds.iter().map(pick).collect();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        (!rounds.is_empty()).then(|| Spread {
+            p50: median(|s| s.p50),
+            p99: median(|s| s.p99),
+            max: rounds.iter().map(|s| s.max).fold(0.0, f64::max),
+            n: rounds.iter().map(|s| s.n).sum(),
+        })
+    }
 }
 
 /// One measured figure of one system.

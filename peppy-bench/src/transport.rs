@@ -103,8 +103,7 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     let mut rows = Vec::new();
     for qos in [Qos::Reliable, Qos::Sensor] {
         let modes = [RAW_TCP, PEPPY_TCP, RAW_SHM, PEPPY_SHM];
-        let mut got: [Vec<Value>; 4] = Default::default();
-        for (i, mode) in modes.into_iter().enumerate() {
+        let got = in_rounds(&modes, rounds(quick), |mode| {
             let source = Source::start(mode, "rt")?;
             let mut args = source.args("round-trip");
             let sizes: Vec<String> = sizes.iter().map(ToString::to_string).collect();
@@ -114,36 +113,48 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
                 "--sizes".into(),
                 sizes.join(","),
                 "--count".into(),
-                count.to_string(),
+                (count / rounds(quick)).to_string(),
             ]);
             let mut sink = Proc::child(&args)?;
+            let mut got = Vec::new();
             for _ in 0..sizes.len() {
-                got[i].push(sink.next_with("spread", BOUND)?);
+                got.push(sink.next_with("spread", BOUND)?);
             }
             sink.wait_or_kill(Duration::from_secs(10));
             source.proc.stop();
-        }
+            Ok(got)
+        })?;
+        // Per mode and size: the rounds' spreads, and their unanswered pings.
+        let got: Vec<Vec<(Option<Spread>, u64, usize)>> = got
+            .iter()
+            .map(|cases| {
+                cases
+                    .iter()
+                    .map(|runs| {
+                        let spreads: Vec<Spread> =
+                            runs.iter().filter_map(|v| spread(&v["spread"])).collect();
+                        let lost = runs.iter().map(|v| v["lost"].as_u64().unwrap_or(0)).sum();
+                        let bytes = runs[0]["size"].as_u64().unwrap_or(0) as usize;
+                        (Spread::median_of(&spreads), lost, bytes)
+                    })
+                    .collect()
+            })
+            .collect();
         let cases = [
             ("topic round trip, TCP (SHM off both sides)", 0, 1),
             ("topic round trip, shared memory both sides", 2, 3),
             ("topic round trip, peppy with SHM vs raw over TCP", 0, 3),
         ];
         for (group, z, p) in cases {
-            for (z, p) in got[z].iter().zip(&got[p]) {
-                let bytes = z["size"].as_u64().unwrap_or(0) as usize;
-                let lost = |v: &Value| v["lost"].as_u64().unwrap_or(0);
+            for ((zs, zlost, bytes), (ps, plost, _)) in got[z].iter().zip(&got[p]) {
                 let mut row = Row::new(
                     group,
-                    format!("{} {}", qos.name(), size(bytes)),
-                    spread(&z["spread"]).map(Figure::Latency),
-                    spread(&p["spread"]).map(Figure::Latency),
+                    format!("{} {}", qos.name(), size(*bytes)),
+                    zs.map(Figure::Latency),
+                    ps.map(Figure::Latency),
                 );
-                if lost(z) + lost(p) > 0 {
-                    row = row.with_note(format!(
-                        "unanswered in 2 s: raw {}, peppy {}",
-                        lost(z),
-                        lost(p)
-                    ));
+                if zlost + plost > 0 {
+                    row = row.with_note(format!("unanswered in 2 s: raw {zlost}, peppy {plost}"));
                 }
                 rows.push(row);
             }
@@ -170,34 +181,47 @@ pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
         (64 << 10, 5_000 / scale),
         (1 << 20, 500 / scale),
     ];
-    let rate = |v: &Value| Figure::Rate {
-        msgs_per_s: v["msgs_per_s"].as_f64().unwrap_or(0.0),
-        bytes_per_s: v["bytes_per_s"].as_f64().unwrap_or(0.0),
+    // The median round by message rate.
+    let rate = |runs: &[Value]| {
+        let mut runs: Vec<&Value> = runs.iter().collect();
+        runs.sort_by(|a, b| {
+            let r = |v: &Value| v["msgs_per_s"].as_f64().unwrap_or(0.0);
+            r(a).total_cmp(&r(b))
+        });
+        let v = runs[runs.len() / 2];
+        Figure::Rate {
+            msgs_per_s: v["msgs_per_s"].as_f64().unwrap_or(0.0),
+            bytes_per_s: v["bytes_per_s"].as_f64().unwrap_or(0.0),
+        }
     };
     let mut rows = Vec::new();
     for (raw, peppy) in PAIRS {
-        let mut got: [Vec<Value>; 2] = Default::default();
-        for (i, mode) in [raw, peppy].into_iter().enumerate() {
+        let got = in_rounds(&[raw, peppy], rounds(quick), |mode| {
             let source = Source::start(mode, "tp")?;
             let mut args = source.args("throughput");
             let list: Vec<String> = cases.iter().map(|(s, c)| format!("{s}:{c}")).collect();
             args.extend(["--cases".into(), list.join(",")]);
             let mut sink = Proc::child(&args)?;
+            let mut got = Vec::new();
             for _ in 0..cases.len() {
-                got[i].push(sink.next_with("msgs_per_s", BOUND)?);
+                got.push(sink.next_with("msgs_per_s", BOUND)?);
             }
             sink.wait_or_kill(Duration::from_secs(10));
             source.proc.stop();
-        }
+            Ok(got)
+        })?;
         let group = format!(
             "topic throughput (reliable, one to one, {})",
             transport(raw.shm)
         );
         rows.extend(got[0].iter().zip(&got[1]).map(|(z, p)| {
-            let bytes = z["size"].as_u64().unwrap_or(0) as usize;
+            let bytes = z[0]["size"].as_u64().unwrap_or(0) as usize;
             let mut row = Row::new(&group, size(bytes), Some(rate(z)), Some(rate(p)));
-            let short =
-                |v: &Value| v["sent"].as_u64().unwrap_or(0) - v["received"].as_u64().unwrap_or(0);
+            let short = |runs: &[Value]| -> u64 {
+                runs.iter()
+                    .map(|v| v["sent"].as_u64().unwrap_or(0) - v["received"].as_u64().unwrap_or(0))
+                    .sum()
+            };
             if short(z) + short(p) > 0 {
                 row = row.with_note(format!(
                     "not received: raw {}, peppy {}",
@@ -209,6 +233,33 @@ pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
         }));
     }
     Ok(rows)
+}
+
+/// How many rounds a like-for-like group runs: the systems take turns,
+/// so a slow spell of the machine falls on both, and each figure is the
+/// median of its rounds.
+fn rounds(quick: bool) -> usize {
+    if quick { 1 } else { 3 }
+}
+
+/// Runs `run` for each mode, `rounds` times, the modes taking turns.
+/// Returns, per mode and per case, what each round reported.
+fn in_rounds(
+    modes: &[Mode],
+    rounds: usize,
+    mut run: impl FnMut(Mode) -> Res<Vec<Value>>,
+) -> Res<Vec<Vec<Vec<Value>>>> {
+    let mut got: Vec<Vec<Vec<Value>>> = vec![Vec::new(); modes.len()];
+    for _ in 0..rounds {
+        for (i, mode) in modes.iter().enumerate() {
+            let cases = run(*mode)?;
+            got[i].resize(cases.len(), Vec::new());
+            for (case, v) in cases.into_iter().enumerate() {
+                got[i][case].push(v);
+            }
+        }
+    }
+    Ok(got)
 }
 
 /// One producer, eight consumer processes, 1 MiB frames at 30 Hz, both
