@@ -37,7 +37,7 @@ pub(crate) fn build(quick: bool) -> Res<Vec<Row>> {
     let node = workspace().join("examples/nodes/realsense_d405");
     let cargo_build = || -> Res<Duration> {
         let start = Instant::now();
-        let status = Command::new(env!("CARGO"))
+        let status = Command::new(crate::cargo())
             .args(["build", "-p", "realsense_d405", "--quiet"])
             .current_dir(workspace())
             .status()?;

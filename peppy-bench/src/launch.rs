@@ -125,7 +125,7 @@ fn target() -> PathBuf {
 /// `cargo build -p peppy-launch -p realsense_d405`; the launcher's path.
 fn build_examples(build: Build) -> Res<PathBuf> {
     eprintln!("peppy-bench: building peppy-launch and realsense_d405 ({build:?})…");
-    let mut cargo = Command::new(env!("CARGO"));
+    let mut cargo = Command::new(crate::cargo());
     cargo
         .args(["build", "-p", "peppy-launch", "-p", "realsense_d405"])
         .current_dir(workspace());

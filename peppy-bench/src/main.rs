@@ -78,6 +78,16 @@ enum Group {
 /// Measures one group (`true`: quickly).
 type Measure = fn(bool) -> roles::Res<Vec<Row>>;
 
+/// The cargo to build examples with: the one running this benchmark
+/// (`cargo run` says which, with the toolchain rustup chose for it), else
+/// rustup's on `PATH`. Not the path of the cargo this binary was compiled
+/// by: run without rustup's word on the toolchain, it leaves `rustc` to
+/// rustup's proxy, which then follows a dependency's own
+/// `rust-toolchain.toml` (one pins a release that may not be installed).
+pub(crate) fn cargo() -> std::ffi::OsString {
+    std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into())
+}
+
 /// The workspace root (the benchmark builds and launches its examples).
 fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

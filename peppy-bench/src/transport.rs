@@ -352,20 +352,25 @@ pub(crate) fn fan_out(quick: bool) -> Res<Vec<Row>> {
 /// goal to result against the same raw query.
 pub(crate) fn services(quick: bool) -> Res<Vec<Row>> {
     let count = if quick { 100 } else { 1000 };
-    let mut service: [Option<Spread>; 2] = [None, None];
-    let mut action = None;
-    for (i, mode) in [RAW_SHM, PEPPY_SHM].into_iter().enumerate() {
+    let got = in_rounds(&[RAW_SHM, PEPPY_SHM], rounds(quick), |mode| {
         let source = Source::start(mode, "svc")?;
         let mut args = source.args("service");
-        args.extend(["--count".into(), count.to_string()]);
+        args.extend(["--count".into(), (count / rounds(quick)).to_string()]);
         let mut sink = Proc::child(&args)?;
-        service[i] = spread(&sink.next_with("service", BOUND)?["service"]);
+        let mut got = vec![sink.next_with("service", BOUND)?["service"].clone()];
         if mode.system == System::Peppy {
-            action = spread(&sink.next_with("action", BOUND)?["action"]);
+            got.push(sink.next_with("action", BOUND)?["action"].clone());
         }
         sink.wait_or_kill(Duration::from_secs(10));
         source.proc.stop();
-    }
+        Ok(got)
+    })?;
+    let median = |runs: Option<&Vec<Value>>| {
+        let spreads: Vec<Spread> = runs.into_iter().flatten().filter_map(spread).collect();
+        Spread::median_of(&spreads)
+    };
+    let service = [median(got[0].first()), median(got[1].first())];
+    let action = median(got[1].get(1));
     Ok(vec![
         Row::new(
             "services and actions (64 B)",
