@@ -94,6 +94,12 @@ fn spread(v: &Value) -> Option<Spread> {
     serde_json::from_value(v.clone()).ok()
 }
 
+/// The rounds' spreads of one figure taken as one ([`Spread::median_of`]).
+fn median_spread<'a>(rounds: impl IntoIterator<Item = &'a Value>) -> Option<Spread> {
+    let spreads: Vec<Spread> = rounds.into_iter().filter_map(spread).collect();
+    Spread::median_of(&spreads)
+}
+
 /// Topic round trips at 64 B to 4 MiB, for both profiles: like for like
 /// over TCP and with shared memory, then peppy with shared memory against
 /// raw Zenoh over TCP (what zero-copy buys between processes on one host).
@@ -131,11 +137,10 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
                 cases
                     .iter()
                     .map(|runs| {
-                        let spreads: Vec<Spread> =
-                            runs.iter().filter_map(|v| spread(&v["spread"])).collect();
+                        let spread = median_spread(runs.iter().map(|v| &v["spread"]));
                         let lost = runs.iter().map(|v| v["lost"].as_u64().unwrap_or(0)).sum();
                         let bytes = runs[0]["size"].as_u64().unwrap_or(0) as usize;
-                        (Spread::median_of(&spreads), lost, bytes)
+                        (spread, lost, bytes)
                     })
                     .collect()
             })
@@ -365,10 +370,7 @@ pub(crate) fn services(quick: bool) -> Res<Vec<Row>> {
         source.proc.stop();
         Ok(got)
     })?;
-    let median = |runs: Option<&Vec<Value>>| {
-        let spreads: Vec<Spread> = runs.into_iter().flatten().filter_map(spread).collect();
-        Spread::median_of(&spreads)
-    };
+    let median = |runs: Option<&Vec<Value>>| median_spread(runs.into_iter().flatten());
     let service = [median(got[0].first()), median(got[1].first())];
     let action = median(got[1].get(1));
     Ok(vec![
