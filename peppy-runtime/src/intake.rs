@@ -1,12 +1,15 @@
 //! The server side of a request, one way for every queryable (services and
 //! action goals): read the caller's header, answer a probe and a request in
-//! another format, ack, and queue without ever blocking Zenoh's delivery
-//! thread (a full queue answers busy).
+//! another format, and queue without ever blocking Zenoh's delivery thread
+//! (a full queue answers busy; [`Acker`] acks what stays unanswered).
+
+use std::sync::Arc;
 
 use tracing::{debug, warn};
 use zenoh::Wait;
 use zenoh::query::Query;
 
+use crate::acks::{Acker, Held};
 use crate::spec::FormatSpec;
 use crate::wire::attachment::{self, QueryHeader, QueryKind, ReplyStatus};
 
@@ -32,7 +35,7 @@ pub(crate) fn reply(
 /// Admits a query to `entry` served on `key`: a query without a valid
 /// header is dropped, a probe is answered `Present`, a request in another
 /// format than `request` is answered `FormatMismatch` with this server's
-/// format. Returns the header of a request to handle, already acked.
+/// format. Returns the header of a request to handle.
 /// Status replies carry `fingerprint`.
 pub(crate) fn admit(
     query: &Query,
@@ -66,31 +69,27 @@ pub(crate) fn admit(
     }
 }
 
-/// Acks a request and queues it for the node's handler. A full queue
-/// answers busy (`queued` names what is queued, e.g. `requests`).
+/// Queues a request for the node's handler and has `acker` ack it if it is
+/// still unanswered after the grace. A full queue answers busy (`queued`
+/// names what is queued, e.g. `requests`).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn enqueue<T>(
     tx: &flume::Sender<T>,
     item: T,
-    query_of: fn(&T) -> &Query,
-    key: &str,
+    query_of: fn(&T) -> &Held,
+    acker: &Acker,
+    key: &Arc<str>,
     fingerprint: u64,
-    entry: &str,
+    entry: &'static str,
     queued: &str,
 ) {
-    reply(
-        query_of(&item),
-        key,
-        ReplyStatus::Ack,
-        fingerprint,
-        Vec::new(),
-        entry,
-    );
+    let held = query_of(&item).clone();
     match tx.try_send(item) {
-        Ok(()) => {}
-        Err(flume::TrySendError::Full(item)) => {
+        Ok(()) => acker.watch(&held, key, fingerprint, entry),
+        Err(flume::TrySendError::Full(_)) => {
             warn!(entry, "{queued} queue full; answering busy");
             reply(
-                query_of(&item),
+                &held,
                 key,
                 ReplyStatus::HandlerError,
                 fingerprint,

@@ -27,6 +27,7 @@
 //! The wire format (key expressions, attachments, payload encoding) is in
 //! [`wire`] and docs/WIRE.md.
 
+mod acks;
 mod actions;
 pub mod describe;
 mod error;

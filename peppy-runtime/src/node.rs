@@ -10,11 +10,12 @@ use std::sync::{Arc, Mutex};
 
 use peppy_schema::{Identity, NodeModel, SlotKind, SlotPlan};
 use tokio_util::sync::CancellationToken;
-use tracing::{info, warn};
+use tracing::{debug, info, warn};
 use zenoh::bytes::ZBytes;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::query::Queryable;
 
+use crate::acks::Acker;
 use crate::actions::{self, DEFAULT_RESULT_RETENTION, PendingGoal, Registry};
 use crate::describe::{
     self, ConsumedTopic, EmittedTopic, InstanceInfo, OwnerInfo, ServedAction, ServedService,
@@ -24,6 +25,7 @@ use crate::error::{Error, Result};
 use crate::members::Members;
 use crate::producers::Declarer;
 use crate::qos;
+use crate::request::RequestKeys;
 use crate::services::{self, ServiceInbox};
 use crate::shm::{SharedMemory, Shm};
 use crate::spec::{
@@ -235,12 +237,17 @@ pub struct NodeRunner {
     action_servers: HashMap<usize, (flume::Receiver<PendingGoal>, Arc<Registry>)>,
     entities: Mutex<Entities>,
     shm: Shm,
+    /// Started with the first exposed service or action.
+    acker: Option<Acker>,
+    request_keys: RequestKeys,
 }
 
 #[derive(Default)]
 struct Entities {
     subscribers: Vec<Subscriber<()>>,
     queryables: Vec<Queryable<()>>,
+    /// Declared key expressions: dropping one undeclares it.
+    keys: Vec<zenoh::key_expr::KeyExpr<'static>>,
     liveliness: Option<zenoh::liveliness::LivelinessToken>,
 }
 
@@ -296,6 +303,8 @@ impl NodeRunner {
             action_servers: HashMap::new(),
             entities: Mutex::new(Entities::default()),
             shm: Shm::new(shared_memory),
+            acker: None,
+            request_keys: RequestKeys::default(),
         };
         let mut entities = Entities::default();
         let started_at_ms = describe::now_ms();
@@ -553,6 +562,25 @@ impl NodeRunner {
         Ok(())
     }
 
+    /// The node's acker, started on first use.
+    fn acker(&mut self) -> Acker {
+        let token = &self.token;
+        self.acker
+            .get_or_insert_with(|| Acker::start(token.clone()))
+            .clone()
+    }
+
+    /// Declares the selector callers pinned to this node ask one of its
+    /// queryables on. It holds a wildcard (the core node), so no resource
+    /// of the session had it and Zenoh computed each request's route here;
+    /// declared, the route is cached. Failing only costs that saving.
+    async fn declare_pinned(&self, selector: String, entities: &mut Entities) {
+        match self.session.declare_keyexpr(selector).await {
+            Ok(key) => entities.keys.push(key),
+            Err(e) => debug!(error = %e, "could not declare a pinned callers' selector"),
+        }
+    }
+
     /// One queryable and inbox per exposed service.
     async fn serve_services(
         &mut self,
@@ -562,13 +590,16 @@ impl NodeRunner {
         for spec in descriptor.exposed_services {
             let key = services::server_key(self, spec);
             let (tx, rx) = flume::bounded(64);
+            let acker = self.acker();
             let queryable = self
                 .session
                 .declare_queryable(key.clone())
                 .complete(true)
-                .callback(services::intake(spec, key.clone(), tx))
+                .callback(services::intake(spec, key.clone(), tx, acker))
                 .await?;
             entities.queryables.push(queryable);
+            self.declare_pinned(services::pinned_selector(self, spec), entities)
+                .await;
             self.service_inboxes
                 .insert(address(*spec), (ServiceInbox { rx }, key));
         }
@@ -585,14 +616,21 @@ impl NodeRunner {
     ) -> Result<()> {
         for spec in descriptor.exposed_actions {
             let base = actions::server_base_key(self, spec);
-            let registry = Registry::new(spec, base.clone(), self.session.clone(), retention);
+            let acker = self.acker();
+            let registry = Registry::new(
+                spec,
+                base.clone(),
+                self.session.clone(),
+                retention,
+                acker.clone(),
+            );
             let (tx, rx) = flume::bounded(64);
             let goal_key = action_part_key(&base, ActionPart::Goal);
             let goal = self
                 .session
                 .declare_queryable(goal_key.clone())
                 .complete(true)
-                .callback(actions::goal_intake(spec, goal_key, tx))
+                .callback(actions::goal_intake(spec, goal_key, tx, acker))
                 .await?;
             let r = registry.clone();
             let cancel = self
@@ -609,6 +647,9 @@ impl NodeRunner {
                 .callback(move |q| r.on_result(q))
                 .await?;
             entities.queryables.extend([goal, cancel, result]);
+            let pinned = actions::pinned_base_selector(self, spec);
+            self.declare_pinned(action_part_key(&pinned, ActionPart::Goal), entities)
+                .await;
             let (r, token) = (registry.clone(), self.token.clone());
             tokio::spawn(async move {
                 let mut tick = tokio::time::interval((retention / 4).clamp(
@@ -655,6 +696,11 @@ impl NodeRunner {
     /// Fires when the node stops; spawned tasks watch it to end cleanly.
     pub fn cancellation_token(&self) -> &CancellationToken {
         &self.token
+    }
+
+    /// The keys this node's requests go to, declared once each.
+    pub(crate) fn request_keys(&self) -> &RequestKeys {
+        &self.request_keys
     }
 
     /// The Zenoh session, for anything peppy does not wrap.

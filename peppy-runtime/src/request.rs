@@ -5,12 +5,14 @@
 //! Service calls, action goals and a goal's result and cancel queries all
 //! go through here, so they fail the same way with the same words.
 
-use std::sync::Arc;
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, RwLock};
 use std::time::Duration;
 
 use tokio::time::Instant;
 use tokio_util::sync::CancellationToken;
+use zenoh::key_expr::KeyExpr;
 use zenoh::query::{ConsolidationMode, QueryTarget};
 use zenoh::sample::Sample;
 
@@ -18,6 +20,38 @@ use crate::error::{Error, Result};
 use crate::stop;
 use crate::wire::attachment::{self, ReplyStatus};
 use crate::wire::keys::parse_entry_key;
+
+/// How many request keys a node declares; calls to further keys send the
+/// key as text (as before the first call to any key).
+const DECLARED_KEYS: usize = 1024;
+
+/// The keys a node sends requests to, each declared to its session on first
+/// use. A request key names one server but holds a wildcard (the server's
+/// core node, unknown to a pinned slot), so no resource of the session has
+/// it and Zenoh computed the request's route, matching the key against
+/// every queryable, on each call; a declared key carries the route cache
+/// (the same cause and cure as a consumer's producer keys, see
+/// `producers.rs`).
+#[derive(Default)]
+pub(crate) struct RequestKeys {
+    known: RwLock<HashMap<Box<str>, KeyExpr<'static>>>,
+}
+
+impl RequestKeys {
+    /// `key` declared to `session`; `None` when it could not be (or more
+    /// than [`DECLARED_KEYS`] already are).
+    async fn declared(&self, session: &zenoh::Session, key: &str) -> Option<KeyExpr<'static>> {
+        if let Some(k) = self.known.read().ok()?.get(key) {
+            return Some(k.clone());
+        }
+        if self.known.read().ok()?.len() >= DECLARED_KEYS {
+            return None;
+        }
+        let declared = session.declare_keyexpr(key.to_string()).await.ok()?;
+        let mut known = self.known.write().ok()?;
+        Some(known.entry(key.into()).or_insert(declared).clone())
+    }
+}
 
 /// One request to one server.
 pub(crate) struct Request<'a> {
@@ -27,6 +61,8 @@ pub(crate) struct Request<'a> {
     pub(crate) stop: &'a CancellationToken,
     /// The server's key (one instance).
     pub(crate) key: String,
+    /// The node's declared request keys (`None`: send the key as text).
+    pub(crate) keys: Option<&'a RequestKeys>,
     /// The query header (`QueryHeader::encode`).
     pub(crate) header: Vec<u8>,
     /// The request body.
@@ -83,8 +119,16 @@ impl Request<'_> {
         let acked = Arc::new(AtomicBool::new(false));
         let (tx, replies) = flume::unbounded::<(ReplyStatus, u64, Sample)>();
         let seen = acked.clone();
+        let declared = match self.keys {
+            Some(keys) => keys.declared(self.session, &self.key).await,
+            None => None,
+        };
+        let key = match declared {
+            Some(key) => key,
+            None => KeyExpr::try_from(self.key.as_str())?,
+        };
         self.session
-            .get(self.key.as_str())
+            .get(&key)
             .payload(self.payload.clone())
             .attachment(self.header.clone())
             .target(QueryTarget::All)

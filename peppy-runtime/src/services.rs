@@ -2,12 +2,14 @@
 //! node and queues requests, and calls that go straight to a bound
 //! producer or discover one.
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use tokio::time::Instant;
 use tracing::warn;
 use zenoh::query::Query;
 
+use crate::acks::{Acker, Held};
 use crate::error::{Error, Result};
 use crate::intake;
 use crate::node::NodeRunner;
@@ -17,7 +19,7 @@ use crate::stop;
 use crate::target;
 use crate::wire::attachment::{self, QueryHeader, QueryKind, ReplyStatus};
 use crate::wire::codec::{Decode, Encode, from_bytes, to_bytes};
-use crate::wire::keys::{Channel, entry_key};
+use crate::wire::keys::{Channel, entry_key, entry_selector};
 
 /// Requests waiting for `handle_next_request`.
 pub(crate) struct ServiceInbox {
@@ -25,17 +27,19 @@ pub(crate) struct ServiceInbox {
 }
 
 pub(crate) struct Pending {
-    query: Query,
+    query: Held,
     header: QueryHeader,
 }
 
-/// The queryable callback: answer probes, check the request format, ack
-/// and queue requests.
+/// The queryable callback: answer probes, check the request format, queue
+/// requests (acked by `acker` if not answered promptly).
 pub(crate) fn intake(
     spec: &'static ServiceSpec,
     key: String,
     tx: flume::Sender<Pending>,
+    acker: Acker,
 ) -> impl Fn(Query) + Send + Sync + 'static {
+    let key: Arc<str> = key.into();
     move |query: Query| {
         let fingerprint = spec.response.fingerprint;
         let Some(header) = intake::admit(&query, &key, spec.name, spec.request, fingerprint) else {
@@ -43,8 +47,12 @@ pub(crate) fn intake(
         };
         intake::enqueue(
             &tx,
-            Pending { query, header },
+            Pending {
+                query: Arc::new(query),
+                header,
+            },
             |p| &p.query,
+            &acker,
             &key,
             fingerprint,
             spec.name,
@@ -184,6 +192,7 @@ async fn request_to<Resp: Decode>(
         session: runner.session(),
         stop: runner.cancellation_token(),
         key: entry.selector(runner, Some(instance)),
+        keys: Some(runner.request_keys()),
         header: target::header(runner, QueryKind::Request, spec.request.fingerprint),
         payload,
         deadline,
@@ -218,5 +227,19 @@ pub(crate) fn server_key(runner: &NodeRunner, spec: &ServiceSpec) -> String {
         spec.name,
         runner.core_node(),
         runner.instance_id(),
+    )
+}
+
+/// What a caller pinned to this server asks: its key with any core node (a
+/// slot knows the instance it is bound to, not its core node).
+pub(crate) fn pinned_selector(runner: &NodeRunner, spec: &ServiceSpec) -> String {
+    let owner = spec.owner.resolve(runner.node_name(), runner.node_tag());
+    entry_selector(
+        runner.namespace(),
+        Channel::Service,
+        owner.as_ref(),
+        spec.name,
+        None,
+        Some(runner.instance_id()),
     )
 }

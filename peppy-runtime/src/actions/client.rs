@@ -10,7 +10,7 @@ use tracing::{debug, warn};
 
 use crate::error::{Error, Result};
 use crate::node::NodeRunner;
-use crate::request::Request;
+use crate::request::{Request, RequestKeys};
 use crate::spec::ConsumedActionSpec;
 use crate::stop;
 use crate::target;
@@ -95,6 +95,7 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
             action: spec.name,
             describe: &entry.describe,
             selector: entry.selector(runner, Some(&target)),
+            keys: Some(runner.request_keys()),
             feedback_base: base,
             header: target::header(runner, QueryKind::Request, spec.goal.fingerprint),
             server: &target,
@@ -127,6 +128,8 @@ pub(crate) struct GoalOpening<'a> {
     pub(crate) describe: &'a str,
     /// The goal queryable's key (or selector) of the server.
     pub(crate) selector: String,
+    /// The node's declared request keys (`None`: send the key as text).
+    pub(crate) keys: Option<&'a RequestKeys>,
     /// The action's base key (or selector) the feedback key hangs below.
     pub(crate) feedback_base: String,
     /// The query header.
@@ -174,6 +177,7 @@ pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
         session: o.session,
         stop: o.stop,
         key: o.selector,
+        keys: o.keys,
         header: o.header,
         payload,
         deadline: o.deadline,
@@ -249,6 +253,7 @@ impl GoalClient {
             session: &self.session,
             stop: &self.stop,
             key: action_part_key(&self.base_key, part),
+            keys: None,
             header: QueryHeader {
                 kind: QueryKind::Request,
                 fingerprint: 0,

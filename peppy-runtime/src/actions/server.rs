@@ -12,6 +12,7 @@ use tracing::{debug, warn};
 use zenoh::Wait;
 use zenoh::query::Query;
 
+use crate::acks::{Acker, Held};
 use crate::error::{Error, Result};
 use crate::intake;
 use crate::node::NodeRunner;
@@ -20,7 +21,9 @@ use crate::spec::ActionSpec;
 use crate::stop;
 use crate::wire::attachment::{self, QueryHeader, ReplyStatus};
 use crate::wire::codec::{Decode, Decoder, Encode, from_bytes, to_bytes};
-use crate::wire::keys::{ActionPart, Channel, action_part_key, entry_key, feedback_key};
+use crate::wire::keys::{
+    ActionPart, Channel, action_part_key, entry_key, entry_selector, feedback_key,
+};
 
 use super::{CancelState, END_OF_FEEDBACK};
 
@@ -39,7 +42,7 @@ enum Terminal {
 enum GoalState {
     Active {
         cancel: CancellationToken,
-        waiters: Vec<Query>,
+        waiters: Vec<Held>,
     },
     Done {
         how: Terminal,
@@ -56,6 +59,7 @@ pub(crate) struct Registry {
     retention: Duration,
     base_key: String,
     session: zenoh::Session,
+    acker: Acker,
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -80,6 +84,7 @@ impl Registry {
         base_key: String,
         session: zenoh::Session,
         retention: Duration,
+        acker: Acker,
     ) -> Arc<Registry> {
         Arc::new(Registry {
             spec,
@@ -88,6 +93,7 @@ impl Registry {
             retention,
             base_key,
             session,
+            acker,
         })
     }
 
@@ -176,7 +182,8 @@ impl Registry {
             .wait();
     }
 
-    /// The result queryable: answer at once when terminal, else park.
+    /// The result queryable: answer at once when terminal, else park (and
+    /// ack, unless the goal ends within the grace).
     pub(crate) fn on_result(&self, query: Query) {
         let Some(goal_id) = goal_id_of(&query) else {
             return;
@@ -185,11 +192,10 @@ impl Registry {
         let mut goals = lock(&self.goals);
         match goals.get_mut(&goal_id) {
             Some(GoalState::Active { waiters, .. }) => {
-                let _ = query
-                    .reply(key.as_str(), Vec::<u8>::new())
-                    .attachment(attachment::reply(ReplyStatus::Ack, 0))
-                    .wait();
-                waiters.push(query);
+                let held = Arc::new(query);
+                self.acker
+                    .watch(&held, &key.as_str().into(), 0, self.spec.name);
+                waiters.push(held);
             }
             Some(GoalState::Done { how, body, .. }) => {
                 reply_result(&query, &key, *how, body, self.spec.result.fingerprint)
@@ -230,18 +236,21 @@ fn is_goal_id(s: &str) -> bool {
 
 /// A goal waiting for the server's decision.
 pub(crate) struct PendingGoal {
-    query: Query,
+    query: Held,
     header: QueryHeader,
     goal_id: String,
     body: Vec<u8>,
 }
 
-/// The goal queryable: ack, check the format, queue for the decider.
+/// The goal queryable: check the format, queue for the decider (acked by
+/// `acker` if not decided promptly).
 pub(crate) fn goal_intake(
     spec: &'static ActionSpec,
     key: String,
     tx: flume::Sender<PendingGoal>,
+    acker: Acker,
 ) -> impl Fn(Query) + Send + Sync + 'static {
+    let key: Arc<str> = key.into();
     move |query: Query| {
         // A goal's status replies carry no format of their own.
         let Some(header) = intake::admit(&query, &key, spec.name, spec.goal, 0) else {
@@ -267,12 +276,12 @@ pub(crate) fn goal_intake(
         };
         let body = payload[payload.len() - d.remaining()..].to_vec();
         let goal = PendingGoal {
-            query,
+            query: Arc::new(query),
             header,
             goal_id,
             body,
         };
-        intake::enqueue(&tx, goal, |g| &g.query, &key, 0, spec.name, "goals");
+        intake::enqueue(&tx, goal, |g| &g.query, &acker, &key, 0, spec.name, "goals");
     }
 }
 
@@ -522,5 +531,19 @@ pub(crate) fn server_base_key(runner: &NodeRunner, spec: &ActionSpec) -> String 
         spec.name,
         runner.core_node(),
         runner.instance_id(),
+    )
+}
+
+/// What a caller pinned to this server asks its action on: its base key
+/// with any core node (a slot knows the instance, not its core node).
+pub(crate) fn pinned_base_selector(runner: &NodeRunner, spec: &ActionSpec) -> String {
+    let owner = spec.owner.resolve(runner.node_name(), runner.node_tag());
+    entry_selector(
+        runner.namespace(),
+        Channel::Action,
+        owner.as_ref(),
+        spec.name,
+        None,
+        Some(runner.instance_id()),
     )
 }

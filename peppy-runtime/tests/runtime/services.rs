@@ -7,8 +7,11 @@ use peppy_runtime::Error;
 use peppy_runtime::codegen::{
     ConsumedServiceSpec, FormatSpec, OwnerSpec, ServiceSpec, call, handle_next,
 };
+use peppy_runtime::wire::attachment::{QueryHeader, QueryKind, ReplyStatus, parse_reply};
+use peppy_runtime::wire::codec::to_bytes;
+use zenoh::query::{ConsolidationMode, QueryTarget};
 
-use crate::support::{WAIT, hub, namespace, start, test_node};
+use crate::support::{Hub, WAIT, hub, namespace, start, test_node};
 
 const INFO_REQ: FormatSpec = FormatSpec::EMPTY;
 const INFO_RESP: FormatSpec = FormatSpec {
@@ -226,6 +229,79 @@ async fn unreachable_timeout_and_handler_errors_are_distinct() {
     }
     assert_eq!(results, (1..=10).map(|x| x * 2).collect::<Vec<_>>());
     recon.shutdown().await;
+    cam.shutdown().await;
+}
+
+/// The statuses, in order, of the replies to one raw request for `scale`
+/// of `rs_left` in `ns`, sent from the hub's session.
+async fn raw_statuses(hub: &Hub, ns: &str, x: u32, budget: Duration) -> Vec<ReplyStatus> {
+    let header = QueryHeader {
+        kind: QueryKind::Request,
+        fingerprint: 0x51,
+        core: "standalone".into(),
+        instance: "raw_caller".into(),
+    };
+    let replies = hub
+        .session
+        .get(format!(
+            "peppy/{ns}/service/node/realsense_d405/v1/scale/*/rs_left"
+        ))
+        .payload(to_bytes(&x))
+        .attachment(header.encode())
+        .target(QueryTarget::All)
+        .consolidation(ConsolidationMode::None)
+        .timeout(budget)
+        .await
+        .unwrap();
+    let mut statuses = Vec::new();
+    while let Ok(reply) = replies.recv_async().await {
+        // Zenoh's own `Timeout` error ends a request still held.
+        let Ok(sample) = reply.into_result() else {
+            continue;
+        };
+        let attachment = sample.attachment().expect("a status").to_bytes();
+        statuses.push(parse_reply(&attachment).expect("a valid status").0);
+    }
+    statuses
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_prompt_answer_comes_alone_and_a_held_request_is_acked() {
+    let hub = hub().await;
+    let ns = namespace("svc-acks");
+    let (_, cam) = start::<Camera>(&hub, &ns, "rs_left", &[]).await;
+    // Nobody handles: the server holds the request and acks it, once.
+    let held = tokio::time::timeout(WAIT, async {
+        loop {
+            let statuses = raw_statuses(&hub, &ns, 1, Duration::from_millis(300)).await;
+            if !statuses.is_empty() {
+                return statuses;
+            }
+        }
+    })
+    .await
+    .unwrap();
+    assert_eq!(held, [ReplyStatus::Ack]);
+
+    let server = cam.clone();
+    tokio::spawn(async move {
+        while handle_next::<u32, u32, _>(&server, &SCALE, |_, x| Ok(x * 2))
+            .await
+            .is_ok()
+        {}
+    });
+    // An answer within the grace needs no ack; a late one (a busy machine)
+    // is acked first. Either way exactly one answer ends the request.
+    let mut alone = 0;
+    for x in 0..10 {
+        let statuses = raw_statuses(&hub, &ns, x, Duration::from_secs(5)).await;
+        match statuses.as_slice() {
+            [ReplyStatus::Ok] => alone += 1,
+            [ReplyStatus::Ack, ReplyStatus::Ok] => {}
+            other => panic!("request {x}: replies {other:?}"),
+        }
+    }
+    assert!(alone > 0, "every prompt answer was acked first");
     cam.shutdown().await;
 }
 
