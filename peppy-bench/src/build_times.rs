@@ -86,14 +86,15 @@ fn touch(path: &Path) -> Res<()> {
 }
 
 /// The best of `tries` generations of a node of `topics` topics (each with
-/// a nested header, an array and an optional field), formatted as the
-/// build script writes it; and the best of the generations alone.
+/// a nested header, an array and an optional field, one topic per line as
+/// a person writes them), formatted as the build script writes it; and the
+/// best of the generations alone.
 fn codegen(topics: usize, tries: usize) -> Res<(Duration, Duration)> {
     let mut emits = String::new();
     for i in 0..topics {
         write!(
             emits,
-            r#"{{ name: "topic_{i}", message_format: {{ header: {{ stamp: "time", frame_id: "u32" }}, data: {{ $type: "array", $items: "f32", $length: 16 }}, note: {{ $type: "string", $optional: true }} }} }},"#
+            "\n  {{ name: \"topic_{i}\", message_format: {{ header: {{ stamp: \"time\", frame_id: \"u32\" }}, data: {{ $type: \"array\", $items: \"f32\", $length: 16 }}, note: {{ $type: \"string\", $optional: true }} }} }},"
         )?;
     }
     let doc = format!(
