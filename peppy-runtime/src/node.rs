@@ -216,6 +216,10 @@ async fn wait_for_stop(runner: &NodeRunner) {
     }
 }
 
+/// What a node keeps per entry, keyed by the address of the entry's
+/// generated spec (looked up on every message, so not with SipHash).
+type ByAddress<V> = HashMap<usize, V, foldhash::fast::FixedState>;
+
 fn address<T>(spec: &'static T) -> usize {
     spec as *const T as usize
 }
@@ -231,10 +235,10 @@ pub struct NodeRunner {
     namespace: String,
     token: CancellationToken,
     slots: Vec<SlotPlan>,
-    publishers: HashMap<usize, Outlet>,
-    inboxes: HashMap<usize, Inbox>,
-    service_inboxes: HashMap<usize, (ServiceInbox, String)>,
-    action_servers: HashMap<usize, (flume::Receiver<PendingGoal>, Arc<Registry>)>,
+    publishers: ByAddress<Outlet>,
+    inboxes: ByAddress<Inbox>,
+    service_inboxes: ByAddress<(ServiceInbox, String)>,
+    action_servers: ByAddress<(flume::Receiver<PendingGoal>, Arc<Registry>)>,
     entities: Mutex<Entities>,
     shm: Shm,
     /// Started with the first exposed service or action.
@@ -297,10 +301,10 @@ impl NodeRunner {
             namespace: startup.config.namespace.clone(),
             token: CancellationToken::new(),
             slots: startup.slots,
-            publishers: HashMap::new(),
-            inboxes: HashMap::new(),
-            service_inboxes: HashMap::new(),
-            action_servers: HashMap::new(),
+            publishers: ByAddress::default(),
+            inboxes: ByAddress::default(),
+            service_inboxes: ByAddress::default(),
+            action_servers: ByAddress::default(),
             entities: Mutex::new(Entities::default()),
             shm: Shm::new(shared_memory),
             acker: None,

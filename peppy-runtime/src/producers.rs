@@ -53,14 +53,14 @@ impl Producer {
 /// The producers one consumed topic has heard from, by key.
 #[derive(Debug)]
 pub(crate) struct Producers {
-    known: RwLock<HashMap<Box<str>, Arc<Producer>>>,
+    known: RwLock<HashMap<Box<str>, Arc<Producer>, foldhash::fast::FixedState>>,
     declarer: Declarer,
 }
 
 impl Producers {
     pub(crate) fn new(declarer: Declarer) -> Self {
         Producers {
-            known: RwLock::new(HashMap::new()),
+            known: RwLock::new(HashMap::default()),
             declarer,
         }
     }

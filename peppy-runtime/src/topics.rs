@@ -42,6 +42,9 @@ pub(crate) struct Inbox {
 pub(crate) struct Backlog {
     /// Payload bytes queued.
     bytes: AtomicUsize,
+    /// Messages queued: counted here, since asking the channel takes its
+    /// lock on every message.
+    messages: AtomicUsize,
     /// The queue length that earns the next warning (0: none given yet).
     next_warning: AtomicUsize,
     /// Messages dropped since the reader last caught up.
@@ -51,10 +54,27 @@ pub(crate) struct Backlog {
 }
 
 impl Backlog {
-    /// The reader took a message of `size` bytes; `empty` when it has
-    /// caught up, which ends a warning episode.
-    fn taken(&self, topic: &str, size: usize, empty: bool) {
+    /// A message of `size` bytes is about to be queued: the bytes and
+    /// messages then queued.
+    fn queueing(&self, size: usize) -> (usize, usize) {
+        (
+            self.bytes.fetch_add(size, Relaxed) + size,
+            self.messages.fetch_add(1, Relaxed) + 1,
+        )
+    }
+
+    /// A message of `size` bytes left the queue without being read (it
+    /// could not be queued, or made room for a newer one).
+    fn unqueued(&self, size: usize) {
         self.bytes.fetch_sub(size, Relaxed);
+        self.messages.fetch_sub(1, Relaxed);
+    }
+
+    /// The reader took a message of `size` bytes; catching up with the
+    /// queue ends a warning episode.
+    fn taken(&self, topic: &str, size: usize) {
+        self.bytes.fetch_sub(size, Relaxed);
+        let empty = self.messages.fetch_sub(1, Relaxed) == 1;
         if empty && self.next_warning.swap(0, Relaxed) != 0 {
             let dropped = self.dropped.swap(0, Relaxed);
             info!(
@@ -157,18 +177,21 @@ impl Intake {
                 self.keep(delivery, size, warn_at, max_bytes)
             }
             QueuePolicy::KeepNewest(_) => {
-                self.backlog.bytes.fetch_add(size, Relaxed);
+                self.backlog.queueing(size);
                 let mut delivery = delivery;
                 loop {
                     match self.tx.try_send(delivery) {
                         Ok(()) => break,
                         Err(flume::TrySendError::Full(d)) => {
                             if let Ok(oldest) = self.rx.try_recv() {
-                                self.backlog.bytes.fetch_sub(oldest.payload.len(), Relaxed);
+                                self.backlog.unqueued(oldest.payload.len());
                             }
                             delivery = d;
                         }
-                        Err(flume::TrySendError::Disconnected(_)) => break,
+                        Err(flume::TrySendError::Disconnected(_)) => {
+                            self.backlog.unqueued(size);
+                            break;
+                        }
                     }
                 }
             }
@@ -180,9 +203,9 @@ impl Intake {
     /// past `max_bytes` unread.
     fn keep(&self, delivery: Delivery, size: usize, warn_at: usize, max_bytes: usize) {
         let topic = self.spec.name;
-        let queued = self.backlog.bytes.fetch_add(size, Relaxed) + size;
+        let (queued, unread) = self.backlog.queueing(size);
         if queued > max_bytes {
-            self.backlog.bytes.fetch_sub(size, Relaxed);
+            self.backlog.unqueued(size);
             let dropped = self.backlog.dropped.fetch_add(1, Relaxed) + 1;
             if dropped.is_power_of_two() {
                 error!(
@@ -195,10 +218,9 @@ impl Intake {
             return;
         }
         if self.tx.send(delivery).is_err() {
-            self.backlog.bytes.fetch_sub(size, Relaxed);
+            self.backlog.unqueued(size);
             return;
         }
-        let unread = self.tx.len();
         let next = self.backlog.next_warning.load(Relaxed);
         let threshold = if next == 0 { warn_at } else { next };
         if unread >= threshold
@@ -254,17 +276,21 @@ pub fn emit<'a, M: Encode + ?Sized>(
     let outlet = runner.outlet(spec);
     let readers_known = outlet.as_ref().is_ok_and(|o| o.readers_known());
     let payload = runner.shm().payload(spec, message, readers_known);
+    // The session's state is read only when a put fails, and the pause of
+    // a refused call is boxed: this future is built and moved for every
+    // message, and an inline timer made it several times larger.
     async move {
-        if runner.session().is_closed() {
-            return Err(stop::refused().await);
-        }
         let outlet = outlet?;
-        outlet
+        match outlet
             .publisher
             .put(payload)
             .attachment(outlet.attachment.clone())
             .await
-            .map_err(Error::from)
+        {
+            Ok(()) => Ok(()),
+            Err(_) if runner.session().is_closed() => Err(Box::pin(stop::refused()).await),
+            Err(e) => Err(Error::from(e)),
+        }
     }
 }
 
@@ -371,9 +397,7 @@ async fn next_delivery(
                 () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
             },
         };
-        inbox
-            .backlog
-            .taken(spec.name, delivery.payload.len(), inbox.rx.is_empty());
+        inbox.backlog.taken(spec.name, delivery.payload.len());
         if senders.accept(&delivery) {
             return Ok(delivery);
         }
@@ -479,15 +503,14 @@ mod tests {
         );
         let first = inbox.rx.try_recv().unwrap();
         assert_eq!(first.payload.to_bytes()[0], 0, "the oldest is read first");
-        inbox.backlog.taken("ticks", 100, false);
+        inbox.backlog.taken("ticks", 100);
         intake.keep(delivery(12), 100, 4, 1_000);
         assert_eq!(inbox.rx.len(), 10, "room for one more once one is read");
         while let Ok(d) = inbox.rx.try_recv() {
-            inbox
-                .backlog
-                .taken("ticks", d.payload.len(), inbox.rx.is_empty());
+            inbox.backlog.taken("ticks", d.payload.len());
         }
         assert_eq!(intake.backlog.bytes.load(Relaxed), 0);
+        assert_eq!(intake.backlog.messages.load(Relaxed), 0);
         assert_eq!(
             intake.backlog.dropped.load(Relaxed),
             0,
