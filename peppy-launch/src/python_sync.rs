@@ -126,8 +126,14 @@ pub fn uv() -> std::result::Result<PathBuf, String> {
         dir.display()
     );
     // Installed beside its place and moved in at once: several launches (or
-    // tests) may install it at the same time, and none may see half of it.
-    let partial = dir.with_extension(format!("partial.{}", std::process::id()));
+    // tests, several threads of one process among them) may install it at
+    // the same time, and none may see half of it or remove another's.
+    static INSTALLS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let partial = dir.with_extension(format!(
+        "partial.{}.{}",
+        std::process::id(),
+        INSTALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+    ));
     let _ = std::fs::remove_dir_all(&partial);
     let status = std::process::Command::new("python3")
         .args([
