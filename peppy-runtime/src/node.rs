@@ -36,7 +36,8 @@ use crate::startup::{self, RUNTIME_CONFIG_ENV, StandaloneConfig, Startup};
 use crate::topics::{self, Inbox, Intake};
 use crate::wire::attachment;
 use crate::wire::keys::{
-    ActionPart, Channel, action_part_key, describe_key, entry_key, format_key, liveliness_key,
+    ActionPart, Channel, action_part_key, describe_key, entry_key, entry_selector, format_key,
+    liveliness_key,
 };
 
 /// How long [`NodeBuilder::run`] waits, once the node has shut down, for
@@ -574,11 +575,31 @@ impl NodeRunner {
             .clone()
     }
 
-    /// Declares the selector callers pinned to this node ask one of its
-    /// queryables on. It holds a wildcard (the core node), so no resource
-    /// of the session had it and Zenoh computed each request's route here;
-    /// declared, the route is cached. Failing only costs that saving.
-    async fn declare_pinned(&self, selector: String, entities: &mut Entities) {
+    /// Declares the selector callers pinned to this instance ask an entry
+    /// on (`part`: an action's goal queryable): the entry's key with any
+    /// core node, which a slot does not know. The wildcard meant no
+    /// resource of the session had it and Zenoh computed each request's
+    /// route here; declared, the route is cached. Failing only costs that.
+    async fn declare_pinned(
+        &self,
+        channel: Channel,
+        owner: &OwnerSpec,
+        name: &str,
+        part: Option<ActionPart>,
+        entities: &mut Entities,
+    ) {
+        let owner = owner.resolve(&self.node_name, &self.node_tag);
+        let mut selector = entry_selector(
+            &self.namespace,
+            channel,
+            owner.as_ref(),
+            name,
+            None,
+            Some(&self.instance_id),
+        );
+        if let Some(part) = part {
+            selector = action_part_key(&selector, part);
+        }
         match self.session.declare_keyexpr(selector).await {
             Ok(key) => entities.keys.push(key),
             Err(e) => debug!(error = %e, "could not declare a pinned callers' selector"),
@@ -602,7 +623,7 @@ impl NodeRunner {
                 .callback(services::intake(spec, key.clone(), tx, acker))
                 .await?;
             entities.queryables.push(queryable);
-            self.declare_pinned(services::pinned_selector(self, spec), entities)
+            self.declare_pinned(Channel::Service, &spec.owner, spec.name, None, entities)
                 .await;
             self.service_inboxes
                 .insert(address(*spec), (ServiceInbox { rx }, key));
@@ -651,8 +672,8 @@ impl NodeRunner {
                 .callback(move |q| r.on_result(q))
                 .await?;
             entities.queryables.extend([goal, cancel, result]);
-            let pinned = actions::pinned_base_selector(self, spec);
-            self.declare_pinned(action_part_key(&pinned, ActionPart::Goal), entities)
+            let goal = Some(ActionPart::Goal);
+            self.declare_pinned(Channel::Action, &spec.owner, spec.name, goal, entities)
                 .await;
             let (r, token) = (registry.clone(), self.token.clone());
             tokio::spawn(async move {

@@ -41,11 +41,14 @@ impl RequestKeys {
     /// `key` declared to `session`; `None` when it could not be (or more
     /// than [`DECLARED_KEYS`] already are).
     async fn declared(&self, session: &zenoh::Session, key: &str) -> Option<KeyExpr<'static>> {
-        if let Some(k) = self.known.read().ok()?.get(key) {
-            return Some(k.clone());
-        }
-        if self.known.read().ok()?.len() >= DECLARED_KEYS {
-            return None;
+        {
+            let known = self.known.read().ok()?;
+            if let Some(k) = known.get(key) {
+                return Some(k.clone());
+            }
+            if known.len() >= DECLARED_KEYS {
+                return None;
+            }
         }
         let declared = session.declare_keyexpr(key.to_string()).await.ok()?;
         let mut known = self.known.write().ok()?;

@@ -19,7 +19,7 @@ use crate::stop;
 use crate::target;
 use crate::wire::attachment::{self, QueryHeader, QueryKind, ReplyStatus};
 use crate::wire::codec::{Decode, Encode, from_bytes, to_bytes};
-use crate::wire::keys::{Channel, entry_key, entry_selector};
+use crate::wire::keys::{Channel, entry_key};
 
 /// Requests waiting for `handle_next_request`.
 pub(crate) struct ServiceInbox {
@@ -227,19 +227,5 @@ pub(crate) fn server_key(runner: &NodeRunner, spec: &ServiceSpec) -> String {
         spec.name,
         runner.core_node(),
         runner.instance_id(),
-    )
-}
-
-/// What a caller pinned to this server asks: its key with any core node (a
-/// slot knows the instance it is bound to, not its core node).
-pub(crate) fn pinned_selector(runner: &NodeRunner, spec: &ServiceSpec) -> String {
-    let owner = spec.owner.resolve(runner.node_name(), runner.node_tag());
-    entry_selector(
-        runner.namespace(),
-        Channel::Service,
-        owner.as_ref(),
-        spec.name,
-        None,
-        Some(runner.instance_id()),
     )
 }

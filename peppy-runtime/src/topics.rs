@@ -276,9 +276,9 @@ pub fn emit<'a, M: Encode + ?Sized>(
     let outlet = runner.outlet(spec);
     let readers_known = outlet.as_ref().is_ok_and(|o| o.readers_known());
     let payload = runner.shm().payload(spec, message, readers_known);
-    // The session's state is read only when a put fails, and the pause of
-    // a refused call is boxed: this future is built and moved for every
-    // message, and an inline timer made it several times larger.
+    // The session's state is read only when a put fails (the put reads it
+    // anyway), and the pause of a refused call is boxed so its timer is not
+    // part of this future, which is built and moved for every message.
     async move {
         let outlet = outlet?;
         match outlet

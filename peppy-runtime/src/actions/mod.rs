@@ -20,9 +20,7 @@ mod server;
 
 pub use client::{GoalClient, send_goal};
 pub use server::{GoalContext, GoalServer, IncomingGoal, next_goal};
-pub(crate) use server::{
-    PendingGoal, Registry, goal_intake, pinned_base_selector, server_base_key,
-};
+pub(crate) use server::{PendingGoal, Registry, goal_intake, server_base_key};
 
 /// How long a terminal goal's result stays available.
 pub const DEFAULT_RESULT_RETENTION: Duration = Duration::from_secs(30);

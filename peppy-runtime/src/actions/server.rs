@@ -21,9 +21,7 @@ use crate::spec::ActionSpec;
 use crate::stop;
 use crate::wire::attachment::{self, QueryHeader, ReplyStatus};
 use crate::wire::codec::{Decode, Decoder, Encode, from_bytes, to_bytes};
-use crate::wire::keys::{
-    ActionPart, Channel, action_part_key, entry_key, entry_selector, feedback_key,
-};
+use crate::wire::keys::{ActionPart, Channel, action_part_key, entry_key, feedback_key};
 
 use super::{CancelState, END_OF_FEEDBACK};
 
@@ -531,19 +529,5 @@ pub(crate) fn server_base_key(runner: &NodeRunner, spec: &ActionSpec) -> String 
         spec.name,
         runner.core_node(),
         runner.instance_id(),
-    )
-}
-
-/// What a caller pinned to this server asks its action on: its base key
-/// with any core node (a slot knows the instance, not its core node).
-pub(crate) fn pinned_base_selector(runner: &NodeRunner, spec: &ActionSpec) -> String {
-    let owner = spec.owner.resolve(runner.node_name(), runner.node_tag());
-    entry_selector(
-        runner.namespace(),
-        Channel::Action,
-        owner.as_ref(),
-        spec.name,
-        None,
-        Some(runner.instance_id()),
     )
 }
