@@ -112,28 +112,16 @@ impl Structs<'_> {
             #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::marker::Copy, ::core::cmp::PartialEq, ::core::cmp::Eq, ::core::default::Default)]
             pub struct #name;
 
-            impl ::peppy::codegen::Encode for #name {
-                fn encode(&self, _out: &mut ::peppy::codegen::Writer<'_>) {}
-            }
-
-            impl ::peppy::codegen::Decode for #name {
-                const MIN_SIZE: usize = 0;
-                fn decode(
-                    _decoder: &mut ::peppy::codegen::Decoder<'_>,
-                ) -> ::core::result::Result<Self, ::peppy::codegen::DecodeError> {
-                    ::core::result::Result::Ok(Self)
-                }
-            }
+            ::peppy::codegen::codec!(#name {});
         });
     }
 
-    /// A struct with `fields` and its codec impls.
+    /// A struct with `fields`, and its codec impls from the runtime's
+    /// `codec!` macro (one copy of the impls' code, not one per struct).
     fn object(&mut self, name: &str, prefix: &str, fields: &[Field], doc: &str) {
         let doc = crate::docs::Doc::new(doc);
         let mut decls = Vec::new();
-        let mut encodes = Vec::new();
-        let mut decodes = Vec::new();
-        let mut sizes = Vec::new();
+        let mut ids = Vec::new();
         for f in fields {
             let ty = self.field_type(prefix, f);
             let id = field_ident(&f.name);
@@ -142,19 +130,8 @@ impl Structs<'_> {
                 #fdoc
                 pub #id: #ty,
             });
-            encodes.push(quote! {
-                ::peppy::codegen::Encode::encode(&self.#id, out);
-            });
-            decodes.push(quote! {
-                #id: ::peppy::codegen::Decode::decode(decoder)?,
-            });
-            sizes.push(quote!(<#ty as ::peppy::codegen::Decode>::MIN_SIZE));
+            ids.push(id);
         }
-        let min_size = if sizes.is_empty() {
-            quote!(0)
-        } else {
-            quote!(#(#sizes)+*)
-        };
         let allow = snake_allow(fields);
         let name = ident(name);
         self.out.extend(quote! {
@@ -165,22 +142,7 @@ impl Structs<'_> {
                 #(#decls)*
             }
 
-            impl ::peppy::codegen::Encode for #name {
-                fn encode(&self, out: &mut ::peppy::codegen::Writer<'_>) {
-                    #(#encodes)*
-                }
-            }
-
-            impl ::peppy::codegen::Decode for #name {
-                const MIN_SIZE: usize = #min_size;
-                fn decode(
-                    decoder: &mut ::peppy::codegen::Decoder<'_>,
-                ) -> ::core::result::Result<Self, ::peppy::codegen::DecodeError> {
-                    ::core::result::Result::Ok(Self {
-                        #(#decodes)*
-                    })
-                }
-            }
+            ::peppy::codegen::codec!(#name { #(#ids),* });
         });
     }
 

@@ -66,6 +66,7 @@ pub use topics::{Payload, Senders};
 /// What generated code calls. Not a stable API for hand-written code.
 #[doc(hidden)]
 pub mod codegen {
+    pub use crate::__peppy_codec as codec;
     pub use crate::actions::{
         CancelState, GoalClient, GoalContext, GoalServer, IncomingGoal, Outcome, next_goal,
         send_goal,
@@ -76,6 +77,7 @@ pub mod codegen {
         Senders, emit, next_message, next_message_from, next_payload, next_payload_from,
     };
     pub use crate::wire::codec::{Decode, DecodeError, Decoder, Encode, Writer};
+    pub use crate::wire::struct_codec::min_size_of;
     pub use peppy_schema::QosProfile;
     pub use serde;
 }

@@ -4,3 +4,4 @@
 pub mod attachment;
 pub mod codec;
 pub mod keys;
+pub mod struct_codec;
