@@ -483,7 +483,7 @@ impl Gen<'_> {
         let qos = qos(decl.qos);
         let format = format_spec(decl.format.as_ref());
         let emit_doc = crate::docs::Doc::new(format!(
-            "Publishes one message on `{name}`, the fields in declaration order."
+            "Publishes one message on `{name}`, the fields in declaration order. The message is encoded by this call and sent when the returned future is first polled."
         ));
         quote! {
             #types
@@ -499,12 +499,11 @@ impl Gen<'_> {
             #emit_doc
             #allow_snake
             #allow_many
-            pub async fn emit(
+            pub fn emit(
                 node_runner: &::peppy::codegen::NodeRunner,
                 #(#params),*
-            ) -> ::peppy::codegen::Result<()> {
-                let message = Message { #(#inits),* };
-                ::peppy::codegen::emit(node_runner, &SPEC, &message).await
+            ) -> impl ::core::future::Future<Output = ::peppy::codegen::Result<()>> + ::core::marker::Send + '_ {
+                ::peppy::codegen::emit(node_runner, &SPEC, &Message { #(#inits),* })
             }
 
             #[doc = " Sends messages of this topic of at least `threshold` bytes through shared memory to readers on this host (`None`: never), overriding the node's threshold (default 4 KiB; `PEPPY_SHM` or `NodeBuilder::shared_memory`)."]

@@ -797,10 +797,8 @@ impl NodeRunner {
         &self.shm
     }
 
-    pub(crate) fn outlet(&self, spec: &'static TopicSpec) -> Result<&Outlet> {
-        self.publishers
-            .get(&address(spec))
-            .ok_or_else(|| Error::Undeclared(format!("emitted topic `{}`", spec.name)))
+    pub(crate) fn outlet(&self, spec: &'static TopicSpec) -> Option<&Outlet> {
+        self.publishers.get(&address(spec))
     }
 
     pub(crate) fn inbox(&self, spec: &'static ConsumedTopicSpec) -> Result<&Inbox> {
