@@ -313,7 +313,7 @@ impl NodeRunner {
         };
         let mut entities = Entities::default();
         let started_at_ms = describe::now_ms();
-        runner.declare_publishers(descriptor).await?;
+        runner.declare_publishers(descriptor, &mut entities).await?;
         runner.serve_formats(descriptor, &mut entities).await?;
         let consumes = runner.subscribe(descriptor, &mut entities).await?;
         runner.serve_services(descriptor, &mut entities).await?;
@@ -341,8 +341,13 @@ impl NodeRunner {
         Ok(Arc::new(runner))
     }
 
-    /// One publisher per emitted topic, declared up front.
-    async fn declare_publishers(&mut self, descriptor: &'static NodeDescriptor) -> Result<()> {
+    /// One publisher per emitted topic, declared up front, and the key
+    /// declared to every peer.
+    async fn declare_publishers(
+        &mut self,
+        descriptor: &'static NodeDescriptor,
+        entities: &mut Entities,
+    ) -> Result<()> {
         for spec in descriptor.emitted_topics {
             let owner = spec
                 .owner
@@ -356,6 +361,18 @@ impl NodeRunner {
                 &self.core_node,
                 &self.instance_id,
             );
+            // A consumer subscribes with a wildcard (a slot does not know
+            // its producer's launch), and Zenoh names a message by the
+            // longest part of its key a peer has declared: without this,
+            // every message carries the key's rest after the subscription's
+            // wildcard-free prefix as text, for the consumer to resolve. A queryable is the declaration Zenoh
+            // passes on to every peer; it answers nothing (WIRE.md §1).
+            let declares_key = self
+                .session
+                .declare_queryable(key.clone())
+                .callback(|_query| {})
+                .await?;
+            entities.queryables.push(declares_key);
             let publisher = self
                 .session
                 .declare_publisher(key)

@@ -32,8 +32,13 @@ async def declare_all(runner: NodeRunner, retention: float) -> None:
     session = runner.session
     started_at_ms = int(time.time() * 1000)
     for spec in d.emitted_topics:
+        key = runner._own_key(TOPIC, spec.owner, spec.name)
+        # Declares the exact key to every peer, so messages on it travel
+        # under a numeric id instead of text (docs/WIRE.md §1); it answers
+        # no query.
+        runner._declared.append(session.declare_queryable(key, _answer_nothing))
         publisher = session.declare_publisher(
-            runner._own_key(TOPIC, spec.owner, spec.name),
+            key,
             congestion_control=spec.qos.congestion_control,
             priority=spec.qos.priority,
             express=spec.qos.express,
@@ -57,6 +62,13 @@ async def declare_all(runner: NodeRunner, retention: float) -> None:
     runner._token = session.liveliness().declare_token(
         liveliness_key(runner.namespace, runner.core_node, runner.instance_id, runner.node_name, runner.node_tag)
     )
+
+
+def _answer_nothing(query: Any) -> None:
+    try:
+        query.drop()
+    except Exception:
+        pass
 
 
 def _answer(runner: NodeRunner, key: str, body: bytes) -> None:
