@@ -15,7 +15,7 @@
 
 use std::collections::HashMap;
 use std::fmt;
-use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering::Relaxed};
 use std::sync::{Arc, Mutex, RwLock};
 
 use tracing::{info, warn};
@@ -156,6 +156,9 @@ fn parse_size(s: &str) -> Option<usize> {
 pub(crate) struct Shm {
     settings: SharedMemory,
     overrides: RwLock<HashMap<usize, Option<usize>>>,
+    /// No topic's threshold is below this (`usize::MAX`: shared memory is
+    /// off), so a small message skips the overrides' lock and lookup.
+    lowest: AtomicUsize,
     /// Every pool made, the newest (largest) last. A pool grows by making
     /// a larger one; older ones stay mapped, since a reader may not have
     /// opened a message still in flight in them.
@@ -181,6 +184,7 @@ impl Shm {
         Shm {
             settings,
             overrides: RwLock::new(HashMap::new()),
+            lowest: AtomicUsize::new(settings.threshold().map_or(usize::MAX, |t| t.max(1))),
             pools: Mutex::new(Vec::new()),
             cannot_grow: AtomicBool::new(false),
             warned_full: AtomicBool::new(false),
@@ -197,6 +201,11 @@ impl Shm {
     pub(crate) fn set_threshold(&self, spec: &'static TopicSpec, threshold: Option<usize>) {
         if let Ok(mut o) = self.overrides.write() {
             o.insert(std::ptr::from_ref(spec) as usize, threshold);
+        }
+        if let Some(t) = threshold
+            && self.settings.enabled()
+        {
+            self.lowest.fetch_min(t.max(1), Relaxed);
         }
     }
 
@@ -229,6 +238,7 @@ impl Shm {
         // buffer's regrowth (a copy of all written so far each time).
         let len = encoded_len(message);
         if readers_known
+            && len >= self.lowest.load(Relaxed)
             && let Some(threshold) = self.threshold(spec)
             && len >= threshold.max(1)
             && let Some(bytes) = self.encode_shared(spec, message, len)
