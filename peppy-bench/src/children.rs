@@ -76,7 +76,7 @@ pub(crate) enum Child {
         qos: Qos,
         #[arg(long, value_delimiter = ',')]
         sizes: Vec<usize>,
-        /// Round trips per size up to 64 KiB (a fifth of it above).
+        /// Round trips per size up to 64 KiB (a 25th of it above).
         #[arg(long)]
         count: usize,
     },
@@ -173,7 +173,7 @@ async fn role(child: Child) -> Res<()> {
         } => {
             with_sink(&place, "sink", async |s| {
                 for &size in &sizes {
-                    let n = if size > 64 << 10 { count / 5 } else { count }.max(10);
+                    let n = if size > 64 << 10 { count / 25 } else { count }.max(10);
                     report(&roles::round_trips(s, qos, size, n).await?);
                 }
                 Ok(())

@@ -105,7 +105,11 @@ fn median_spread<'a>(rounds: impl IntoIterator<Item = &'a Value>) -> Option<Spre
 /// raw Zenoh over TCP (what zero-copy buys between processes on one host).
 pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     let sizes = [64usize, 4 << 10, 64 << 10, 1 << 20, 4 << 20];
-    let count = if quick { 100 } else { 1000 };
+    // Round trips per size in all rounds: a small one takes a fifth of a
+    // millisecond, so fewer would leave a round's median to whatever the
+    // machine did in that tenth of a second. Sizes above 64 KiB take a
+    // 25th of it (the child divides).
+    let count = if quick { 100 } else { 5000 };
     let mut rows = Vec::new();
     for qos in [Qos::Reliable, Qos::Sensor] {
         let modes = [RAW_TCP, PEPPY_TCP, RAW_SHM, PEPPY_SHM];
@@ -179,12 +183,14 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
 
 /// One producer to one consumer, as fast as it can, `reliable`.
 pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
-    let scale = if quick { 5 } else { 1 };
+    // Each round runs about a second per case: shorter ones measured the
+    // connection's start and the machine's passing mood more than the rate.
+    let scale = if quick { 50 } else { 1 };
     let cases = [
-        (8usize, 100_000 / scale),
-        (64, 100_000 / scale),
-        (64 << 10, 5_000 / scale),
-        (1 << 20, 500 / scale),
+        (8usize, 1_000_000 / scale),
+        (64, 1_000_000 / scale),
+        (64 << 10, 20_000 / scale),
+        (1 << 20, 1_000 / scale),
     ];
     // The median round by message rate.
     let rate = |runs: &[Value]| {

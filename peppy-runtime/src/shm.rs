@@ -261,9 +261,35 @@ impl Shm {
         let mut pools = self.pools.lock().ok()?;
         let stuck = self.cannot_grow.load(Relaxed);
         let newest = pools.last().map(|p| p.bytes);
-        let Some(size) = next_pool(newest, len, self.settings.pool_bytes, stuck) else {
-            return pools.last().cloned();
-        };
+        match next_pool(newest, len, self.settings.pool_bytes, stuck) {
+            Some(size) => self.open_next(&mut pools, size),
+            None => pools.last().cloned(),
+        }
+    }
+
+    /// A larger pool than `full`, whose every chunk readers still hold:
+    /// double it, up to the node's bound. A stream read a little behind
+    /// holds more chunks than its first sixteen (64 KiB messages flooding
+    /// a 2 MiB pool went as ordinary buffers at half raw Zenoh's rate).
+    /// `None` once the bound is reached: what follows goes as bytes until
+    /// readers let go.
+    fn grown_from(&self, full: &Arc<Pool>) -> Option<Arc<Pool>> {
+        let mut pools = self.pools.lock().ok()?;
+        let newest = pools.last()?;
+        if !Arc::ptr_eq(newest, full) {
+            // Another message grew it meanwhile.
+            return Some(newest.clone());
+        }
+        let most = self.settings.pool_bytes;
+        if self.cannot_grow.load(Relaxed) || full.bytes >= most {
+            return None;
+        }
+        self.open_next(&mut pools, full.bytes.saturating_mul(2).min(most))
+    }
+
+    /// Opens a pool of `size` bytes as the newest of `pools` (the one
+    /// messages are taken from), or notes that none can be made.
+    fn open_next(&self, pools: &mut Vec<Arc<Pool>>, size: usize) -> Option<Arc<Pool>> {
         match open_pool(size) {
             Some(p) => {
                 // A pool the host capped is as large as it will get.
@@ -284,12 +310,21 @@ impl Shm {
         len: usize,
     ) -> Option<ZBytes> {
         let pool = self.pool_for(len)?;
-        let mut chunk = match pool
-            .provider
-            .alloc(len)
-            .with_policy::<GarbageCollect>()
-            .wait()
-        {
+        let alloc = |pool: &Pool| {
+            pool.provider
+                .alloc(len)
+                .with_policy::<GarbageCollect>()
+                .wait()
+        };
+        let mut chunk = match alloc(&pool).or_else(|e| {
+            match (len <= pool.bytes)
+                .then(|| self.grown_from(&pool))
+                .flatten()
+            {
+                Some(grown) => alloc(&grown),
+                None => Err(e),
+            }
+        }) {
             Ok(chunk) => chunk,
             Err(e) => {
                 let (flag, why) = if len > pool.bytes {
@@ -538,6 +573,52 @@ mod tests {
         assert_eq!(next_pool(Some(most), 4 << 20, most, false), None);
         assert_eq!(next_pool(Some(min), 1 << 20, most, true), None);
         assert_eq!(next_pool(None, 1 << 20, most, true), None);
+    }
+
+    /// Readers holding every chunk make the pool double, up to the node's
+    /// bound; past it messages go as bytes, and in shared memory again
+    /// once readers let go.
+    #[test]
+    fn a_full_pool_grows_to_its_bound_then_messages_go_as_bytes() {
+        static FRAMES: TopicSpec = TopicSpec {
+            owner: crate::spec::OwnerSpec::Any,
+            name: "frames",
+            qos: peppy_schema::QosProfile::Reliable,
+            format: crate::spec::FormatSpec::EMPTY,
+        };
+        let most = 8 << 20;
+        let shm = Shm::new(SharedMemory::default().pool(most));
+        let frame = vec![7u8; 64 << 10];
+        let mut held = Vec::new();
+        let mut shared = 0;
+        while held.len() < 400 {
+            let bytes = shm.payload(&FRAMES, &frame, true);
+            if bytes.as_shm().is_none() {
+                break;
+            }
+            shared += bytes.len();
+            held.push(bytes);
+        }
+        let pools: Vec<usize> = shm.pools.lock().unwrap().iter().map(|p| p.bytes).collect();
+        if pools
+            .first()
+            .is_none_or(|&first| first < SharedMemory::MIN_POOL)
+        {
+            return; // this host allows no pool of the smallest size: nothing to grow
+        }
+        assert_eq!(pools, [2 << 20, 4 << 20, most], "doubling from the first");
+        assert!(
+            shared > (6 << 20) && shared <= (14 << 20),
+            "{shared} bytes held in shared memory"
+        );
+        let over = shm.payload(&FRAMES, &frame, true);
+        assert!(over.as_shm().is_none(), "past the bound: bytes");
+        assert_eq!(over.to_bytes().len(), encoded_len(&frame));
+        held.clear();
+        assert!(
+            shm.payload(&FRAMES, &frame, true).as_shm().is_some(),
+            "readers let go: shared memory again"
+        );
     }
 
     #[test]
