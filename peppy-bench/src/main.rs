@@ -39,6 +39,11 @@ struct Cli {
     /// Fewer samples: a quick look, not a figure to record.
     #[arg(long)]
     quick: bool,
+    /// Run the whole table this many times, the groups taking turns, and
+    /// report each figure's median run with its range over the runs (on a
+    /// small shared machine one run moves 10 to 20 %).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=99))]
+    runs: u32,
     /// Where the JSON results go (default: target/peppy-bench.json in the
     /// workspace).
     #[arg(long, value_name = "FILE")]
@@ -107,7 +112,7 @@ fn main() -> std::process::ExitCode {
         );
     }
     let wanted = |g| cli.only.is_empty() || cli.only.contains(&g);
-    let mut rows: Vec<Row> = Vec::new();
+    let mut runs: Vec<Vec<Row>> = Vec::new();
     let mut failures = Vec::new();
     let groups: [(Group, Measure); 6] = [
         (Group::Roundtrip, transport::round_trips),
@@ -117,22 +122,34 @@ fn main() -> std::process::ExitCode {
         (Group::Launch, launch::launch),
         (Group::Build, build_times::build),
     ];
-    for (group, run) in groups {
-        if !wanted(group) {
-            continue;
-        }
-        eprintln!("peppy-bench: measuring {group:?}…");
-        match run(cli.quick) {
-            Ok(mut r) => {
-                eprint!("{}", stats::render(&r));
-                rows.append(&mut r);
+    for run in 1..=cli.runs {
+        let mut rows = Vec::new();
+        for (group, measure) in groups {
+            if !wanted(group) {
+                continue;
             }
-            Err(e) => {
-                eprintln!("peppy-bench: {group:?} failed: {e}");
-                failures.push(format!("{group:?}: {e}"));
+            if cli.runs > 1 {
+                eprintln!(
+                    "peppy-bench: run {run} of {}: measuring {group:?}…",
+                    cli.runs
+                );
+            } else {
+                eprintln!("peppy-bench: measuring {group:?}…");
+            }
+            match measure(cli.quick) {
+                Ok(mut r) => {
+                    eprint!("{}", stats::render(&r));
+                    rows.append(&mut r);
+                }
+                Err(e) => {
+                    eprintln!("peppy-bench: {group:?} failed: {e}");
+                    failures.push(format!("run {run}, {group:?}: {e}"));
+                }
             }
         }
+        runs.push(rows);
     }
+    let rows = stats::median_run(runs);
     println!("{}", machine_line());
     print!("{}", stats::render(&rows));
     let out = cli
@@ -141,6 +158,7 @@ fn main() -> std::process::ExitCode {
     let json = serde_json::json!({
         "machine": machine_line(),
         "quick": cli.quick,
+        "runs": cli.runs,
         "release": !cfg!(debug_assertions),
         "rows": rows,
         "failures": failures,

@@ -67,6 +67,15 @@ impl Figure {
         }
     }
 
+    /// The unit of the headline, for a figure without a raw side.
+    fn unit(&self) -> Option<&str> {
+        match self {
+            Figure::Latency(_) => Some("µs"),
+            Figure::Rate { .. } => Some("msg/s"),
+            Figure::Value { unit, .. } => Some(unit),
+        }
+    }
+
     fn text(&self) -> String {
         match self {
             Figure::Latency(s) => {
@@ -100,6 +109,18 @@ pub(crate) struct Row {
     /// Anything the figures do not say (messages lost, a comparison base).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub(crate) note: Option<String>,
+    /// Over several runs ([`median_run`]): how many, and the lowest and
+    /// highest ratio (or peppy's figure, where there is no raw side).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(crate) over_runs: Option<OverRuns>,
+}
+
+/// How one figure moved over the runs of the whole table.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+pub(crate) struct OverRuns {
+    pub(crate) runs: usize,
+    pub(crate) lowest: f64,
+    pub(crate) highest: f64,
 }
 
 impl Row {
@@ -127,6 +148,7 @@ impl Row {
             ratio,
             ratio_p99,
             note: None,
+            over_runs: None,
         }
     }
 
@@ -134,6 +156,48 @@ impl Row {
         self.note = Some(note.into());
         self
     }
+}
+
+/// Several runs of the whole table taken as one, figure by figure: the run
+/// whose ratio (or, without a raw side, whose peppy figure) is the median
+/// (the upper middle one for an even count), with the range over the runs.
+/// A figure on this machine moves 10 to 20 % from one run to the next,
+/// more than some targets leave, so one run cannot say which side of a
+/// target a figure is on.
+pub(crate) fn median_run(runs: Vec<Vec<Row>>) -> Vec<Row> {
+    let mut order: Vec<(String, String)> = Vec::new();
+    let mut by_figure: std::collections::HashMap<(String, String), Vec<Row>> =
+        std::collections::HashMap::new();
+    for row in runs.into_iter().flatten() {
+        let key = (row.group.clone(), row.case.clone());
+        if !by_figure.contains_key(&key) {
+            order.push(key.clone());
+        }
+        by_figure.entry(key).or_default().push(row);
+    }
+    let measure = |r: &Row| {
+        r.ratio
+            .or_else(|| r.peppy.as_ref().map(Figure::headline))
+            .unwrap_or(f64::NAN)
+    };
+    order
+        .into_iter()
+        .filter_map(|key| {
+            let mut rows = by_figure.remove(&key)?;
+            if rows.len() < 2 {
+                return rows.pop();
+            }
+            rows.sort_by(|a, b| measure(a).total_cmp(&measure(b)));
+            let over = OverRuns {
+                runs: rows.len(),
+                lowest: measure(&rows[0]),
+                highest: measure(&rows[rows.len() - 1]),
+            };
+            let mut row = rows.swap_remove(rows.len() / 2);
+            row.over_runs = Some(over);
+            Some(row)
+        })
+        .collect()
 }
 
 /// The table as people read it: one block per group.
@@ -170,8 +234,25 @@ pub(crate) fn render(rows: &[Row]) -> String {
             cell(&r.peppy),
             ratio
         ));
-        if let Some(note) = &r.note {
-            out.push_str(&format!("  ({note})"));
+        let over = r.over_runs.map(|o| {
+            let unit = r.peppy.as_ref().and_then(Figure::unit);
+            match (r.ratio, unit) {
+                (Some(_), _) => format!("{} runs: ×{:.2} to ×{:.2}", o.runs, o.lowest, o.highest),
+                (None, Some(unit)) => {
+                    format!(
+                        "{} runs: {:.1} to {:.1} {unit}",
+                        o.runs, o.lowest, o.highest
+                    )
+                }
+                (None, None) => format!("{} runs: {:.1} to {:.1}", o.runs, o.lowest, o.highest),
+            }
+        });
+        let notes: Vec<&str> = [over.as_deref(), r.note.as_deref()]
+            .into_iter()
+            .flatten()
+            .collect();
+        if !notes.is_empty() {
+            out.push_str(&format!("  ({})", notes.join("; ")));
         }
         out.push('\n');
     }
@@ -208,5 +289,64 @@ pub(crate) fn size(bytes: usize) -> String {
         format!("{} KiB", bytes >> 10)
     } else {
         format!("{bytes} B")
+    }
+}
+
+// Not in `cargo test --workspace` (the benchmark builds no test binary
+// there, to keep CI's zenoh links few); `cargo test -p peppy-bench --bin
+// peppy-bench` runs it.
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn latency(p50: f64) -> Option<Figure> {
+        Some(Figure::Latency(Spread {
+            p50,
+            p99: p50 * 2.0,
+            max: p50 * 3.0,
+            n: 100,
+        }))
+    }
+
+    fn value(v: f64) -> Option<Figure> {
+        Some(Figure::Value {
+            value: v,
+            unit: "ms".into(),
+        })
+    }
+
+    #[test]
+    fn several_runs_give_each_figure_its_median_run_and_range() {
+        let run = |raw: f64, peppy: f64, launch: f64| {
+            vec![
+                Row::new("rt", "64 B".into(), latency(raw), latency(peppy)),
+                Row::new("launch", "first".into(), None, value(launch)),
+            ]
+        };
+        let rows = median_run(vec![
+            run(200.0, 260.0, 600.0),
+            run(200.0, 200.0, 500.0),
+            run(200.0, 220.0, 700.0),
+        ]);
+        assert_eq!(rows.len(), 2, "one row per figure, in the table's order");
+        assert_eq!(
+            (rows[0].group.as_str(), rows[1].group.as_str()),
+            ("rt", "launch")
+        );
+        assert_eq!(rows[0].ratio, Some(1.1), "the median run's ratio");
+        assert_eq!(
+            rows[0].over_runs,
+            Some(OverRuns {
+                runs: 3,
+                lowest: 1.0,
+                highest: 1.3
+            })
+        );
+        assert_eq!(rows[1].peppy, value(600.0));
+        let table = render(&rows);
+        assert!(table.contains("3 runs: ×1.00 to ×1.30"), "{table}");
+        assert!(table.contains("3 runs: 500.0 to 700.0 ms"), "{table}");
+        let one = median_run(vec![run(200.0, 260.0, 600.0)]);
+        assert_eq!(one[0].over_runs, None, "a single run is shown as it is");
     }
 }
