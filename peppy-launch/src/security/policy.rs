@@ -403,7 +403,15 @@ impl Policy {
                     format!("peppy/{ns}/describe/**"),
                 ],
             );
-            add("emits", "ingress", &["put", "delete"], keys_of(&inst.emits));
+            // A producer also declares a queryable on each emitted key (it
+            // answers nothing): Zenoh then sends its messages under a
+            // numeric id (WIRE.md §1).
+            add(
+                "emits",
+                "ingress",
+                &["put", "delete", "declare_queryable"],
+                keys_of(&inst.emits),
+            );
             add(
                 "serves",
                 "ingress",
