@@ -364,9 +364,10 @@ impl NodeRunner {
             // A consumer subscribes with a wildcard (a slot does not know
             // its producer's launch), and Zenoh names a message by the
             // longest part of its key a peer has declared: without this,
-            // every message carries the key's rest after the subscription's
-            // wildcard-free prefix as text, for the consumer to resolve. A queryable is the declaration Zenoh
-            // passes on to every peer; it answers nothing (WIRE.md §1).
+            // every message carries the rest of its key after the
+            // subscription's wildcard-free prefix as text, for the consumer
+            // to resolve. A queryable is the declaration Zenoh passes on to
+            // every peer; it answers nothing (WIRE.md §1).
             let declares_key = self
                 .session
                 .declare_queryable(key.clone())

@@ -1,7 +1,7 @@
-//! The macro generated code implements a message struct's codec with:
-//! [`Encode`](super::codec::Encode) and [`Decode`](super::codec::Decode)
-//! over the fields in declaration order, from the struct's name and its
-//! field names alone.
+//! The macro with which generated code implements a message struct's
+//! [`Encode`](super::codec::Encode) and [`Decode`](super::codec::Decode):
+//! the fields in declaration order, from the struct's name and its field
+//! names alone.
 //!
 //! Generated code used to spell the two impls out for every struct, and
 //! they were most of a node's generated tokens: a build script parses and
