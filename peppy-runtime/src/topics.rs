@@ -225,20 +225,8 @@ impl Intake {
             ..
         } = sample.into();
         let size = payload.len();
-        let producer = match self.policy {
-            QueuePolicy::KeepAll { .. } => None,
-            QueuePolicy::KeepNewest(_) => {
-                let admitted =
-                    self.admission
-                        .admit(key_expr.as_str(), attachment.as_ref(), &payload);
-                if admitted.is_none() {
-                    return;
-                }
-                admitted
-            }
-        };
-        let arrival = Arrival {
-            producer,
+        let mut arrival = Arrival {
+            producer: None,
             key: key_expr,
             payload,
             attachment,
@@ -248,8 +236,15 @@ impl Intake {
                 self.keep(arrival, size, warn_at, max_bytes)
             }
             QueuePolicy::KeepNewest(_) => {
+                arrival.producer = self.admission.admit(
+                    arrival.key.as_str(),
+                    arrival.attachment.as_ref(),
+                    &arrival.payload,
+                );
+                if arrival.producer.is_none() {
+                    return;
+                }
                 self.backlog.queueing(size);
-                let mut arrival = arrival;
                 loop {
                     match self.tx.try_send(arrival) {
                         Ok(()) => break,
