@@ -39,6 +39,10 @@ pub(crate) struct Place {
     /// everything over TCP on loopback, as between two hosts).
     #[arg(long)]
     shm: bool,
+    /// Zenoh's default threads, as most Zenoh programs run (default: the
+    /// threads a peppy node runs Zenoh on, `peppy::runtime::threads`).
+    #[arg(long)]
+    zenoh_defaults: bool,
 }
 
 /// Whether this child runs with shared memory (set once from its [`Place`]).
@@ -127,6 +131,11 @@ pub(crate) enum Child {
 
 /// Runs a child role; errors are printed, and the exit code says so.
 pub(crate) fn run(child: Child) -> std::process::ExitCode {
+    // Both systems on the threads a node runs Zenoh on, unless asked for
+    // Zenoh's defaults.
+    if !child.place().is_some_and(|p| p.zenoh_defaults) {
+        peppy::runtime::threads::share_zenoh_threads();
+    }
     let runtime = match tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()

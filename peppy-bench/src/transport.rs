@@ -20,23 +20,37 @@ const BOUND: Duration = Duration::from_secs(300);
 struct Mode {
     system: System,
     shm: bool,
+    /// On Zenoh's default threads (else on a node's layout).
+    zenoh_defaults: bool,
 }
 
 const RAW_TCP: Mode = Mode {
     system: System::Zenoh,
     shm: false,
+    zenoh_defaults: false,
 };
 const PEPPY_TCP: Mode = Mode {
     system: System::Peppy,
     shm: false,
+    zenoh_defaults: false,
 };
 const RAW_SHM: Mode = Mode {
     system: System::Zenoh,
     shm: true,
+    zenoh_defaults: false,
 };
 const PEPPY_SHM: Mode = Mode {
     system: System::Peppy,
     shm: true,
+    zenoh_defaults: false,
+};
+
+/// Raw Zenoh as most programs run it, on its default threads. Not like
+/// for like: what a node's thread layout buys, next to peppy over TCP.
+const RAW_TCP_DEFAULTS: Mode = Mode {
+    system: System::Zenoh,
+    shm: false,
+    zenoh_defaults: true,
 };
 
 /// Like for like, each pair raw first: both over TCP, then both with
@@ -87,6 +101,9 @@ fn place_args(role: &str, mode: Mode, ns: &str, endpoint: &str) -> Vec<String> {
     if mode.shm {
         args.push("--shm".into());
     }
+    if mode.zenoh_defaults {
+        args.push("--zenoh-defaults".into());
+    }
     args
 }
 
@@ -112,7 +129,7 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     let count = if quick { 100 } else { 5000 };
     let mut rows = Vec::new();
     for qos in [Qos::Reliable, Qos::Sensor] {
-        let modes = [RAW_TCP, PEPPY_TCP, RAW_SHM, PEPPY_SHM];
+        let modes = [RAW_TCP, PEPPY_TCP, RAW_SHM, PEPPY_SHM, RAW_TCP_DEFAULTS];
         let got = in_rounds(&modes, rounds(quick), |mode| {
             let source = Source::start(mode, "rt")?;
             let mut args = source.args("round-trip");
@@ -153,6 +170,11 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
             ("topic round trip, TCP (SHM off both sides)", 0, 1),
             ("topic round trip, shared memory both sides", 2, 3),
             ("topic round trip, peppy with SHM vs raw over TCP", 0, 3),
+            (
+                "topic round trip, raw Zenoh on its default threads vs peppy (TCP)",
+                4,
+                1,
+            ),
         ];
         for (group, z, p) in cases {
             for ((zs, zlost, bytes), (ps, plost, _)) in got[z].iter().zip(&got[p]) {
@@ -174,6 +196,7 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
             "topic round trip, TCP",
             "topic round trip, shared",
             "topic round trip, peppy",
+            "topic round trip, raw",
         ]
         .iter()
         .position(|g| r.group.starts_with(g))
@@ -250,20 +273,27 @@ pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
 /// so a slow spell of the machine falls on both, and each figure is the
 /// median of its rounds.
 fn rounds(quick: bool) -> usize {
-    if quick { 1 } else { 3 }
+    if quick { 1 } else { 4 }
 }
 
-/// Runs `run` for each mode, `rounds` times, the modes taking turns.
-/// Returns, per mode and per case, what each round reported.
+/// Runs `run` for each mode, `rounds` times, the modes taking turns, in
+/// reverse order every other round (so no mode always runs first, or
+/// always right after another). Returns, per mode and per case, what each
+/// round reported.
 fn in_rounds(
     modes: &[Mode],
     rounds: usize,
     mut run: impl FnMut(Mode) -> Res<Vec<Value>>,
 ) -> Res<Vec<Vec<Vec<Value>>>> {
     let mut got: Vec<Vec<Vec<Value>>> = vec![Vec::new(); modes.len()];
-    for _ in 0..rounds {
-        for (i, mode) in modes.iter().enumerate() {
-            let cases = run(*mode)?;
+    for round in 0..rounds {
+        let order: Vec<usize> = if round % 2 == 0 {
+            (0..modes.len()).collect()
+        } else {
+            (0..modes.len()).rev().collect()
+        };
+        for i in order {
+            let cases = run(modes[i])?;
             got[i].resize(cases.len(), Vec::new());
             for (case, v) in cases.into_iter().enumerate() {
                 got[i][case].push(v);
@@ -365,7 +395,7 @@ pub(crate) fn services(quick: bool) -> Res<Vec<Row>> {
     // A call takes a quarter of a millisecond, so a slow spell of this
     // machine lasting a second moves one round's median: more, shorter
     // rounds than the other groups keep the figure steady.
-    let (count, rounds) = if quick { (100, 1) } else { (3500, 7) };
+    let (count, rounds) = if quick { (100, 1) } else { (4000, 8) };
     let got = in_rounds(&[RAW_SHM, PEPPY_SHM], rounds, |mode| {
         let source = Source::start(mode, "svc")?;
         let mut args = source.args("service");

@@ -43,6 +43,7 @@ pub mod spec;
 mod startup;
 mod stop;
 mod target;
+pub mod threads;
 pub mod tool;
 mod topics;
 pub mod wire;

@@ -110,7 +110,10 @@ impl<P: NodeParameters> NodeBuilder<P> {
     }
 
     /// Runs the node to completion on its own multi-threaded tokio runtime.
-    /// `setup` runs once; spawn long-running work from it.
+    /// `setup` runs once; spawn long-running work from it. Call it first
+    /// thing in `main`, before the program starts threads of its own: it
+    /// sets Zenoh's thread layout for the process
+    /// ([`threads::share_zenoh_threads`](crate::threads::share_zenoh_threads)).
     ///
     /// A stop (Ctrl-C, SIGTERM, the cancellation token) is prompt whatever
     /// the node's tasks do: a `setup` still running is dropped, the node
@@ -123,6 +126,7 @@ impl<P: NodeParameters> NodeBuilder<P> {
         Fut: Future<Output = Result<()>>,
     {
         init_logging();
+        crate::threads::share_zenoh_threads();
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .enable_all()
             .build()
