@@ -412,7 +412,7 @@ pub async fn next_message_from<M: Decode>(
     loop {
         let delivery = next_delivery(runner, spec, senders).await?;
         match from_bytes::<M>(&delivery.payload.to_bytes()) {
-            Ok(m) => return Ok((delivery.producer.instance.to_string(), m)),
+            Ok(m) => return Ok((String::from(&*delivery.producer.instance), m)),
             Err(e) => {
                 warn!(topic = spec.name, producer = %delivery.producer.instance, error = %e, "dropping a message that does not decode")
             }
@@ -442,7 +442,7 @@ pub async fn next_payload_from(
 ) -> Result<(String, Payload)> {
     let delivery = next_delivery(runner, spec, senders).await?;
     Ok((
-        delivery.producer.instance.to_string(),
+        String::from(&*delivery.producer.instance),
         Payload(delivery.payload),
     ))
 }
