@@ -1,8 +1,9 @@
 //! The groups that run both systems side by side: each case starts a fresh
-//! source process and measuring process(es) for raw Zenoh, then for peppy,
-//! on their own port and namespace. A run is a [`Mode`]: the system, and
-//! whether shared memory is on (peppy's pool and Zenoh's SHM transport) or
-//! off (everything over TCP on loopback, as between two hosts).
+//! source process and measuring process(es) for each system in turn, on
+//! their own port and namespace. A run is a [`Mode`]: the system, whether
+//! shared memory is on (peppy's pool and Zenoh's SHM transport) or off
+//! (everything over TCP on loopback, as between two hosts), and whether
+//! Zenoh runs on its default threads or on a node's.
 
 use std::time::Duration;
 
@@ -53,8 +54,8 @@ const RAW_TCP_DEFAULTS: Mode = Mode {
     zenoh_defaults: true,
 };
 
-/// Like for like, each pair raw first: both over TCP, then both with
-/// shared memory.
+/// Like for like (raw first in the pair, first to run in every other
+/// round): both over TCP, then both with shared memory.
 const PAIRS: [(Mode, Mode); 2] = [(RAW_TCP, PEPPY_TCP), (RAW_SHM, PEPPY_SHM)];
 
 fn transport(shm: bool) -> &'static str {

@@ -12,6 +12,7 @@ use peppy_schema::{Identity, NodeModel, SlotKind, SlotPlan};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, info, warn};
 use zenoh::bytes::ZBytes;
+use zenoh::key_expr::KeyExpr;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::query::Queryable;
 
@@ -242,7 +243,7 @@ pub struct NodeRunner {
     slots: Vec<SlotPlan>,
     publishers: ByAddress<Outlet>,
     inboxes: ByAddress<Inbox>,
-    service_inboxes: ByAddress<(ServiceInbox, String)>,
+    service_inboxes: ByAddress<(ServiceInbox, KeyExpr<'static>)>,
     action_servers: ByAddress<(flume::Receiver<PendingGoal>, Arc<Registry>)>,
     entities: Mutex<Entities>,
     shm: Shm,
@@ -256,7 +257,7 @@ struct Entities {
     subscribers: Vec<Subscriber<()>>,
     queryables: Vec<Queryable<()>>,
     /// Declared key expressions: dropping one undeclares it.
-    keys: Vec<zenoh::key_expr::KeyExpr<'static>>,
+    keys: Vec<KeyExpr<'static>>,
     liveliness: Option<zenoh::liveliness::LivelinessToken>,
 }
 
@@ -644,11 +645,14 @@ impl NodeRunner {
                 .complete(true)
                 .callback(services::intake(spec, key.clone(), tx, acker))
                 .await?;
+            // Replies name the key as the queryable holds it, checked once
+            // here rather than parsed from text on every reply.
+            let reply_key = queryable.key_expr().clone();
             entities.queryables.push(queryable);
             self.declare_pinned(Channel::Service, &spec.owner, spec.name, None, entities)
                 .await;
             self.service_inboxes
-                .insert(address(*spec), (ServiceInbox { rx }, key));
+                .insert(address(*spec), (ServiceInbox { rx }, reply_key));
         }
         Ok(())
     }
@@ -829,10 +833,14 @@ impl NodeRunner {
             .ok_or_else(|| Error::Undeclared(format!("consumed topic `{}`", spec.name)))
     }
 
-    pub(crate) fn service_inbox(&self, spec: &'static ServiceSpec) -> Result<&ServiceInbox> {
+    /// An exposed service's inbox, and the key its replies carry.
+    pub(crate) fn service_inbox(
+        &self,
+        spec: &'static ServiceSpec,
+    ) -> Result<(&ServiceInbox, &KeyExpr<'static>)> {
         self.service_inboxes
             .get(&address(spec))
-            .map(|(i, _)| i)
+            .map(|(i, k)| (i, k))
             .ok_or_else(|| Error::Undeclared(format!("exposed service `{}`", spec.name)))
     }
 
@@ -844,13 +852,6 @@ impl NodeRunner {
             .get(&address(spec))
             .map(|(rx, r)| (rx, r))
             .ok_or_else(|| Error::Undeclared(format!("exposed action `{}`", spec.name)))
-    }
-
-    pub(crate) fn service_key(&self, spec: &'static ServiceSpec) -> String {
-        self.service_inboxes
-            .get(&address(spec))
-            .map(|(_, k)| k.clone())
-            .unwrap_or_default()
     }
 
     /// Stops the node: cancels the token, undeclares every subscription and

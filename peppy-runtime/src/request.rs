@@ -105,7 +105,7 @@ impl Request<'_> {
     }
 
     /// Sends the request and waits for the answer.
-    pub(crate) async fn send(self) -> Result<Answer> {
+    pub(crate) async fn send(mut self) -> Result<Answer> {
         if self.stop.is_cancelled() {
             return Err(stop::refused().await);
         }
@@ -132,8 +132,8 @@ impl Request<'_> {
         };
         self.session
             .get(&key)
-            .payload(self.payload.clone())
-            .attachment(self.header.clone())
+            .payload(std::mem::take(&mut self.payload))
+            .attachment(std::mem::take(&mut self.header))
             .target(QueryTarget::All)
             .consolidation(ConsolidationMode::None)
             .timeout(budget)

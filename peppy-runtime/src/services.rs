@@ -87,7 +87,7 @@ where
     Resp: Encode,
     F: FnOnce(Caller, Req) -> Result<Resp>,
 {
-    let inbox = runner.service_inbox(spec)?;
+    let (inbox, key) = runner.service_inbox(spec)?;
     if runner.cancellation_token().is_cancelled() {
         return Err(stop::refused().await);
     }
@@ -95,16 +95,12 @@ where
         p = inbox.rx.recv_async() => p.map_err(|_| Error::ShuttingDown)?,
         () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
     };
-    let key = runner.service_key(spec);
+    let Pending { query, header } = pending;
     let caller = Caller {
-        instance_id: pending.header.instance.clone(),
-        core_node: pending.header.core.clone(),
+        instance_id: header.instance,
+        core_node: header.core,
     };
-    let payload = pending
-        .query
-        .payload()
-        .map(|p| p.to_bytes().into_owned())
-        .unwrap_or_default();
+    let payload = query.payload().map(|p| p.to_bytes()).unwrap_or_default();
     let (status, body) = match from_bytes::<Req>(&payload) {
         Err(e) => {
             warn!(service = spec.name, caller = %caller.instance_id, error = %e, "refusing a request that does not decode");
@@ -118,9 +114,8 @@ where
             Err(e) => (ReplyStatus::HandlerError, e.to_string().into_bytes()),
         },
     };
-    pending
-        .query
-        .reply(key.as_str(), body)
+    query
+        .reply(key.clone(), body)
         .attachment(attachment::reply(status, spec.response.fingerprint))
         .await
         .map_err(Error::from)
