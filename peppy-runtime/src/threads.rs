@@ -17,7 +17,9 @@
 //! to free a batch, and Zenoh sends from its receiving tasks too (replies,
 //! declarations). On one runtime, a receiving task waiting so could hold
 //! the only thread the transmitting task can run on. The node's own tasks
-//! keep their runtime for the same reason.
+//! keep their own runtime: on Zenoh's, a task that sends a large message
+//! would wait the same way, and one that computes without yielding would
+//! stop the node's sockets being read.
 //!
 //! Zenoh reads its layout once, from the `ZENOH_RUNTIME` environment
 //! variable, when it first starts a runtime; there is no other way to give
