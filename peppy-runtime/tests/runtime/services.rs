@@ -157,6 +157,61 @@ async fn pinned_and_discovered_calls_reach_the_right_server() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_pinned_call_follows_its_server_into_another_launch() {
+    let hub = hub().await;
+    let ns = namespace("relaunch");
+    let (_, recon) = start::<Recon>(
+        &hub,
+        &ns,
+        "recon",
+        &["--bind", "left_cam@rs_left", "--bind", "left_node@rs_left"],
+    )
+    .await;
+    let (_, first) = start::<Camera>(&hub, &ns, "rs_left", &[]).await;
+    serve_info(first.clone(), 640);
+    let call = async || call::<(), [u32; 2]>(&recon, &LEFT_INFO, Duration::from_secs(2), &()).await;
+    // The first answer teaches the caller the server's own key (its core
+    // node); the next calls go there.
+    for _ in 0..3 {
+        let r = call_until_up(call).await;
+        assert_eq!((r.core_node.as_str(), r.data), ("standalone", [640, 480]));
+    }
+    first.shutdown().await;
+    // The same instance id, started by a launch: another core node, so
+    // another key. The caller finds it again through the wildcard.
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let config = dir.path().join("rs_left.json");
+    let startup = peppy_runtime::StartupConfig {
+        instance_id: "rs_left".into(),
+        core_node: "lab-2".into(),
+        namespace: ns.clone(),
+        bindings: Default::default(),
+        parameters: serde_json::json!({}),
+        zenoh: peppy_runtime::Endpoints {
+            connect: vec![hub.endpoint.clone()],
+            ..Default::default()
+        },
+    };
+    std::fs::write(&config, serde_json::to_string(&startup).expect("json")).expect("written");
+    let (_, second) = tokio::time::timeout(
+        WAIT,
+        peppy_runtime::NodeBuilder::<Camera>::new()
+            .with_runtime_config(Some(config))
+            .with_args(vec!["node".to_string()])
+            .start(),
+    )
+    .await
+    .expect("node start timed out")
+    .expect("node starts");
+    serve_info(second.clone(), 1280);
+    let r = call_until_up(call).await;
+    assert_eq!((r.core_node.as_str(), r.data), ("lab-2", [1280, 480]));
+    for r in [&recon, &second] {
+        r.shutdown().await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn unreachable_timeout_and_handler_errors_are_distinct() {
     let hub = hub().await;
     let ns = namespace("svc-errors");
