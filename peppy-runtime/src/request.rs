@@ -12,6 +12,7 @@ use std::time::Duration;
 
 use tokio::time::Instant;
 use tokio_util::sync::CancellationToken;
+use zenoh::bytes::ZBytes;
 use zenoh::key_expr::KeyExpr;
 use zenoh::query::{ConsolidationMode, QueryTarget};
 use zenoh::sample::Sample;
@@ -40,9 +41,9 @@ const DECLARED_KEYS: usize = 1024;
 /// topic keys), and a key without a wildcard is compared as text where one
 /// with a wildcard is walked chunk by chunk (callgrind, a pinned call of
 /// the benchmark: 9300 fewer instructions on the server, of 88 000, and
-/// 3800 fewer on the caller, of 98 000). A call to that key that no server
-/// answers forgets it, so the next one asks with the wildcard again (a
-/// server relaunched by another launch).
+/// 3800 fewer on the caller, of 98 000). A call that finds nobody at that
+/// key (the instance runs under another launch now) forgets it and asks
+/// again with the wildcard, in what is left of its budget.
 #[derive(Default)]
 pub(crate) struct RequestKeys {
     known: RwLock<HashMap<Box<str>, Keys>>,
@@ -58,21 +59,18 @@ struct Keys {
 }
 
 impl RequestKeys {
-    /// The key to send a request for `key` to, declared to `session`, and
-    /// whether it is a server's own; `None` when it could not be declared
-    /// (or more than [`DECLARED_KEYS`] already are).
+    /// `key` declared to `session`, and the key its server answered on if
+    /// one has; `None` when `key` could not be declared (or more than
+    /// [`DECLARED_KEYS`] already are).
     async fn for_call(
         &self,
         session: &zenoh::Session,
         key: &str,
-    ) -> Option<(KeyExpr<'static>, bool)> {
+    ) -> Option<(KeyExpr<'static>, Option<KeyExpr<'static>>)> {
         {
             let known = self.known.read().ok()?;
             if let Some(k) = known.get(key) {
-                return Some(match &k.answered {
-                    Some(server) => (server.clone(), true),
-                    None => (k.asked.clone(), false),
-                });
+                return Some((k.asked.clone(), k.answered.clone()));
             }
             if known.len() >= DECLARED_KEYS {
                 return None;
@@ -84,7 +82,7 @@ impl RequestKeys {
             asked,
             answered: None,
         });
-        Some((keys.asked.clone(), false))
+        Some((keys.asked.clone(), None))
     }
 
     /// Notes that a server answered a request for `key` on `answered`, to
@@ -166,6 +164,44 @@ impl Request<'_> {
         if self.stop.is_cancelled() {
             return Err(stop::refused().await);
         }
+        let payload = ZBytes::from(std::mem::take(&mut self.payload));
+        let header = ZBytes::from(std::mem::take(&mut self.header));
+        let declared = match self.keys {
+            Some(keys) => keys.for_call(self.session, &self.key).await,
+            None => None,
+        };
+        let (asked, server) = match declared {
+            Some(declared) => declared,
+            None => (KeyExpr::try_from(self.key.clone())?, None),
+        };
+        if let Some(server) = server {
+            match self.ask(&server, payload.clone(), header.clone()).await? {
+                Asked::Answered(answer, _) => return Ok(answer),
+                // The server holds the request: it is there, only slow.
+                Asked::Unanswered { acked: true } => return Err(self.unanswered(true)),
+                // Nobody is at that key any more (the instance runs under
+                // another launch now, say): ask as before it was known.
+                Asked::Unanswered { acked: false } => {
+                    if let Some(keys) = self.keys {
+                        keys.unanswered(&self.key);
+                    }
+                }
+            }
+        }
+        match self.ask(&asked, payload, header).await? {
+            Asked::Answered(answer, on) => {
+                if let Some(keys) = self.keys {
+                    keys.answered(self.session, &self.key, &on).await;
+                }
+                Ok(answer)
+            }
+            Asked::Unanswered { acked } => Err(self.unanswered(acked)),
+        }
+    }
+
+    /// One query to `key`, followed until an answer, the deadline, the end
+    /// of replies or the node's stop.
+    async fn ask(&self, key: &KeyExpr<'static>, payload: ZBytes, header: ZBytes) -> Result<Asked> {
         let budget = self
             .deadline
             .saturating_duration_since(Instant::now())
@@ -179,18 +215,10 @@ impl Request<'_> {
         let acked = Arc::new(AtomicBool::new(false));
         let (tx, replies) = flume::unbounded::<(ReplyStatus, u64, Sample)>();
         let seen = acked.clone();
-        let declared = match self.keys {
-            Some(keys) => keys.for_call(self.session, &self.key).await,
-            None => None,
-        };
-        let (key, to_server) = match declared {
-            Some(declared) => declared,
-            None => (KeyExpr::try_from(self.key.as_str())?, false),
-        };
         self.session
-            .get(&key)
-            .payload(std::mem::take(&mut self.payload))
-            .attachment(std::mem::take(&mut self.header))
+            .get(key)
+            .payload(payload)
+            .attachment(header)
             .target(QueryTarget::All)
             .consolidation(ConsolidationMode::None)
             .timeout(budget)
@@ -238,15 +266,12 @@ impl Request<'_> {
                         ));
                     }
                     _ => {
-                        if !to_server && let Some(keys) = self.keys {
-                            keys.answered(self.session, &self.key, sample.key_expr())
-                                .await;
-                        }
-                        return Ok(Answer {
+                        let answer = Answer {
                             core: sender.core,
                             instance: sender.instance,
                             body,
-                        });
+                        };
+                        return Ok(Asked::Answered(answer, sample.key_expr().clone()));
                     }
                 },
                 ReplyStatus::HandlerError => {
@@ -263,14 +288,28 @@ impl Request<'_> {
                 }
             }
         }
-        if to_server && let Some(keys) = self.keys {
-            keys.unanswered(&self.key);
-        }
+        Ok(Asked::Unanswered {
+            acked: acked.load(Ordering::Relaxed),
+        })
+    }
+
+    /// The error of a request no server answered: held by one (`acked`)
+    /// but not answered in time, or never reached.
+    fn unanswered(&self, acked: bool) -> Error {
         let (service, instance) = (self.describe.to_string(), Some(self.instance.to_string()));
-        Err(if acked.load(Ordering::Relaxed) {
+        if acked {
             Error::ServiceTimeout { service, instance }
         } else {
             Error::ServiceUnreachable { service, instance }
-        })
+        }
     }
+}
+
+/// How one query ended, short of an error.
+enum Asked {
+    /// A server's `ok`, and the key it answered on.
+    Answered(Answer, KeyExpr<'static>),
+    /// No answer before the deadline or the end of replies; `acked`: a
+    /// server said it held the request.
+    Unanswered { acked: bool },
 }

@@ -169,16 +169,17 @@ async fn a_pinned_call_follows_its_server_into_another_launch() {
     .await;
     let (_, first) = start::<Camera>(&hub, &ns, "rs_left", &[]).await;
     serve_info(first.clone(), 640);
-    let call = async || call::<(), [u32; 2]>(&recon, &LEFT_INFO, Duration::from_secs(2), &()).await;
+    let ask_left =
+        async || call::<(), [u32; 2]>(&recon, &LEFT_INFO, Duration::from_secs(2), &()).await;
     // The first answer teaches the caller the server's own key (its core
     // node); the next calls go there.
     for _ in 0..3 {
-        let r = call_until_up(call).await;
+        let r = call_until_up(ask_left).await;
         assert_eq!((r.core_node.as_str(), r.data), ("standalone", [640, 480]));
     }
     first.shutdown().await;
     // The same instance id, started by a launch: another core node, so
-    // another key. The caller finds it again through the wildcard.
+    // another key.
     let dir = tempfile::tempdir().expect("a temporary directory");
     let config = dir.path().join("rs_left.json");
     let startup = peppy_runtime::StartupConfig {
@@ -204,9 +205,27 @@ async fn a_pinned_call_follows_its_server_into_another_launch() {
     .expect("node start timed out")
     .expect("node starts");
     serve_info(second.clone(), 1280);
-    let r = call_until_up(call).await;
+    // Once a caller that never knew the old key reaches the new server,
+    // the old caller does at its first call: it finds nobody at the key it
+    // knew and asks again with the wildcard within the same call.
+    let (_, fresh) = start::<Recon>(
+        &hub,
+        &ns,
+        "recon_2",
+        &["--bind", "left_cam@rs_left", "--bind", "left_node@rs_left"],
+    )
+    .await;
+    let r = call_until_up(async || {
+        call::<(), [u32; 2]>(&fresh, &LEFT_INFO, Duration::from_secs(2), &()).await
+    })
+    .await;
     assert_eq!((r.core_node.as_str(), r.data), ("lab-2", [1280, 480]));
-    for r in [&recon, &second] {
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let r = ask_left()
+        .await
+        .expect("the old caller finds the relaunched server");
+    assert_eq!((r.core_node.as_str(), r.data), ("lab-2", [1280, 480]));
+    for r in [&recon, &fresh, &second] {
         r.shutdown().await;
     }
 }
