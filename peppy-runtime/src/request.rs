@@ -88,7 +88,13 @@ impl RequestKeys {
     /// Notes that a server answered a request for `key` on `answered`, to
     /// send the next ones there (a key without wildcards only).
     async fn answered(&self, session: &zenoh::Session, key: &str, answered: &KeyExpr<'_>) {
-        if answered.is_wild() {
+        // Only for a request key of the table (not one past its bound),
+        // whose server is not known yet.
+        let unknown = self
+            .known
+            .read()
+            .is_ok_and(|known| known.get(key).is_some_and(|k| k.answered.is_none()));
+        if !unknown || answered.is_wild() {
             return;
         }
         let Ok(answered) = session.declare_keyexpr(answered.clone().into_owned()).await else {
