@@ -50,7 +50,6 @@ pub(crate) struct RequestKeys {
 }
 
 /// The declared keys of one request key.
-#[derive(Clone)]
 struct Keys {
     /// The request key, wildcard and all.
     asked: KeyExpr<'static>,

@@ -107,6 +107,22 @@ fn serve_info(runner: std::sync::Arc<peppy_runtime::NodeRunner>, width: u32) {
     });
 }
 
+/// A reconstruction node as `instance`, both its pinned slots on
+/// `rs_left`.
+async fn start_recon(
+    hub: &Hub,
+    ns: &str,
+    instance: &str,
+) -> (Recon, std::sync::Arc<peppy_runtime::NodeRunner>) {
+    start::<Recon>(
+        hub,
+        ns,
+        instance,
+        &["--bind", "left_cam@rs_left", "--bind", "left_node@rs_left"],
+    )
+    .await
+}
+
 async fn call_until_up<T>(f: impl AsyncFn() -> peppy_runtime::Result<T>) -> T {
     tokio::time::timeout(WAIT, async {
         loop {
@@ -127,13 +143,7 @@ async fn call_until_up<T>(f: impl AsyncFn() -> peppy_runtime::Result<T>) -> T {
 async fn pinned_and_discovered_calls_reach_the_right_server() {
     let hub = hub().await;
     let ns = namespace("svc");
-    let (_, recon) = start::<Recon>(
-        &hub,
-        &ns,
-        "recon",
-        &["--bind", "left_cam@rs_left", "--bind", "left_node@rs_left"],
-    )
-    .await;
+    let (_, recon) = start_recon(&hub, &ns, "recon").await;
     let (_, left) = start::<Camera>(&hub, &ns, "rs_left", &[]).await;
     let (_, other) = start::<Camera>(&hub, &ns, "rs_other", &[]).await;
     serve_info(left.clone(), 640);
@@ -160,13 +170,7 @@ async fn pinned_and_discovered_calls_reach_the_right_server() {
 async fn a_pinned_call_follows_its_server_into_another_launch() {
     let hub = hub().await;
     let ns = namespace("relaunch");
-    let (_, recon) = start::<Recon>(
-        &hub,
-        &ns,
-        "recon",
-        &["--bind", "left_cam@rs_left", "--bind", "left_node@rs_left"],
-    )
-    .await;
+    let (_, recon) = start_recon(&hub, &ns, "recon").await;
     let (_, first) = start::<Camera>(&hub, &ns, "rs_left", &[]).await;
     serve_info(first.clone(), 640);
     let ask_left =
@@ -208,13 +212,7 @@ async fn a_pinned_call_follows_its_server_into_another_launch() {
     // Once a caller that never knew the old key reaches the new server,
     // the old caller does at its first call: it finds nobody at the key it
     // knew and asks again with the wildcard within the same call.
-    let (_, fresh) = start::<Recon>(
-        &hub,
-        &ns,
-        "recon_2",
-        &["--bind", "left_cam@rs_left", "--bind", "left_node@rs_left"],
-    )
-    .await;
+    let (_, fresh) = start_recon(&hub, &ns, "recon_2").await;
     let r = call_until_up(async || {
         call::<(), [u32; 2]>(&fresh, &LEFT_INFO, Duration::from_secs(2), &()).await
     })
@@ -234,13 +232,7 @@ async fn a_pinned_call_follows_its_server_into_another_launch() {
 async fn unreachable_timeout_and_handler_errors_are_distinct() {
     let hub = hub().await;
     let ns = namespace("svc-errors");
-    let (_, recon) = start::<Recon>(
-        &hub,
-        &ns,
-        "recon",
-        &["--bind", "left_cam@rs_left", "--bind", "left_node@rs_left"],
-    )
-    .await;
+    let (_, recon) = start_recon(&hub, &ns, "recon").await;
     // Nobody serves yet.
     let err = call::<u32, u32>(&recon, &LEFT_SCALE, Duration::from_millis(500), &1)
         .await
