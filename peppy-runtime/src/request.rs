@@ -15,12 +15,13 @@ use tokio_util::sync::CancellationToken;
 use zenoh::bytes::ZBytes;
 use zenoh::key_expr::KeyExpr;
 use zenoh::query::{ConsolidationMode, QueryTarget};
+use zenoh::sample::Locality;
 use zenoh::sample::Sample;
 
 use crate::error::{Error, Result};
 use crate::stop;
 use crate::wire::attachment::{self, ReplyStatus};
-use crate::wire::keys::parse_entry_key;
+use crate::wire::keys::split_entry_key;
 
 /// How many request keys a node declares; calls to further keys send the
 /// key as text (as before the first call to any key).
@@ -35,15 +36,15 @@ const DECLARED_KEYS: usize = 1024;
 /// `producers.rs`).
 ///
 /// Once a server has answered, its calls go to the key it answered on,
-/// which names its core node: Zenoh still matches each request's key
-/// against every queryable of the caller's session and of the server's
-/// (a node holds a dozen: its services, actions, formats, description and
-/// topic keys), and a key without a wildcard is compared as text where one
-/// with a wildcard is walked chunk by chunk (callgrind, a pinned call of
-/// the benchmark: 9300 fewer instructions on the server, of 88 000, and
-/// 3800 fewer on the caller, of 98 000). A call that finds nobody at that
-/// key (the instance runs under another launch now) forgets it and asks
-/// again with the wildcard, in what is left of its budget.
+/// which names its core node. Zenoh matches each request's key against
+/// each queryable of the server's session (a node holds a dozen: its
+/// services, actions, formats, description and topic keys); a key without
+/// a wildcard is compared as text where one with a wildcard is walked chunk
+/// by chunk, and it can be asked with target `AllComplete` ([`target_of`]),
+/// which leaves the node's other queryables out before matching
+/// (docs/PERFORMANCE.md has the instruction counts). A call that finds
+/// nobody at that key (the instance runs under another launch now) forgets
+/// it and asks again with the wildcard, in what is left of its budget.
 #[derive(Default)]
 pub(crate) struct RequestKeys {
     known: RwLock<HashMap<Box<str>, Keys>>,
@@ -136,6 +137,11 @@ pub(crate) struct Request<'a> {
     pub(crate) describe: &'a str,
     /// The server instance, for errors.
     pub(crate) instance: &'a str,
+    /// The server runs in another session than `session` (another node's;
+    /// a tool's session serves nothing): the query skips the session's own
+    /// queryables, which Zenoh would otherwise match the key against one by
+    /// one on every call.
+    pub(crate) remote: bool,
     /// This node's request format, named when the server expects another.
     pub(crate) request_format: &'a str,
     /// The response format an `Ok` must carry, as fingerprint and
@@ -151,8 +157,8 @@ pub(crate) struct Answer {
     pub(crate) core: String,
     /// The server's instance id.
     pub(crate) instance: String,
-    /// The response body, not yet decoded.
-    pub(crate) body: Vec<u8>,
+    /// The response body as it arrived, not yet decoded.
+    pub(crate) body: ZBytes,
 }
 
 impl Request<'_> {
@@ -224,7 +230,12 @@ impl Request<'_> {
             .get(key)
             .payload(payload)
             .attachment(header)
-            .target(QueryTarget::All)
+            .target(target_of(key))
+            .allowed_destination(if self.remote {
+                Locality::Remote
+            } else {
+                Locality::Any
+            })
             .consolidation(ConsolidationMode::None)
             .timeout(budget)
             .callback(move |reply| {
@@ -245,26 +256,29 @@ impl Request<'_> {
                 }
             })
             .await?;
+        // No timer of its own: Zenoh ends the query at `budget` and drops
+        // the callback, which closes `replies`. (A timer per call cost a
+        // wake-up of the runtime's timer thread per call: a new deadline
+        // earlier than every other has it recompute its sleep.)
         loop {
             let (status, fingerprint, sample) = tokio::select! {
                 r = replies.recv_async() => match r {
                     Ok(r) => r,
                     Err(_) => break,
                 },
-                () = tokio::time::sleep_until(self.deadline) => break,
                 () = self.stop.cancelled() => return Err(Error::ShuttingDown),
             };
-            let Some(sender) = parse_entry_key(sample.key_expr().as_str()) else {
+            let Some(sender) = split_entry_key(sample.key_expr().as_str()) else {
                 continue;
             };
-            let body = sample.payload().to_bytes().into_owned();
+            let body = sample.payload();
             match status {
                 // Noted by the callback; never queued.
                 ReplyStatus::Ack | ReplyStatus::Present => continue,
                 ReplyStatus::Ok => match self.response {
                     Some((expected, canonical)) if fingerprint != expected => {
                         return Err(self.failed(
-                            sender.instance,
+                            sender.instance.to_string(),
                             format!(
                                 "the server's response format differs from this node's ({canonical}); rebuild one side",
                             ),
@@ -272,24 +286,24 @@ impl Request<'_> {
                     }
                     _ => {
                         let answer = Answer {
-                            core: sender.core,
-                            instance: sender.instance,
-                            body,
+                            core: sender.core.to_string(),
+                            instance: sender.instance.to_string(),
+                            body: body.clone(),
                         };
                         return Ok(Asked::Answered(answer, sample.key_expr().clone()));
                     }
                 },
                 ReplyStatus::HandlerError => {
-                    let reason = String::from_utf8_lossy(&body).into_owned();
-                    return Err(self.failed(sender.instance, reason));
+                    let reason = String::from_utf8_lossy(&body.to_bytes()).into_owned();
+                    return Err(self.failed(sender.instance.to_string(), reason));
                 }
                 ReplyStatus::FormatMismatch => {
                     let reason = format!(
                         "the server expects request format {}, this node sends {}; rebuild one side",
-                        String::from_utf8_lossy(&body),
+                        String::from_utf8_lossy(&body.to_bytes()),
                         self.request_format
                     );
-                    return Err(self.failed(sender.instance, reason));
+                    return Err(self.failed(sender.instance.to_string(), reason));
                 }
             }
         }
@@ -317,4 +331,20 @@ enum Asked {
     /// No answer before the deadline or the end of replies; `acked`: a
     /// server said it held the request.
     Unanswered { acked: bool },
+}
+
+/// Which queryables a query to `key` goes to. Every server's service and
+/// action queryables are complete (WIRE.md §3), so a key without wildcards
+/// (a server's own key) reaches the same one with `AllComplete` as with
+/// `All`; but each session that receives a query matches its key against
+/// each of its queryables that the target admits, and `AllComplete` leaves
+/// out a node's others (its topic keys, formats and description) before
+/// matching. A wildcard key needs `All`: Zenoh calls a queryable complete
+/// for a query only when the queryable's key includes the query's.
+fn target_of(key: &KeyExpr<'_>) -> QueryTarget {
+    if key.is_wild() {
+        QueryTarget::All
+    } else {
+        QueryTarget::AllComplete
+    }
 }

@@ -171,7 +171,7 @@ fn entry(spec: &ConsumedServiceSpec) -> target::Entry<'static> {
         name: spec.name,
         part: None,
         fingerprint: spec.request.fingerprint,
-        describe: spec.name.to_string(),
+        describe: spec.name.into(),
     }
 }
 
@@ -193,12 +193,13 @@ async fn request_to<Resp: Decode>(
         deadline,
         describe: &entry.describe,
         instance,
+        remote: instance != runner.instance_id(),
         request_format: spec.request.canonical,
         response: Some((spec.response.fingerprint, spec.response.canonical)),
     }
     .send()
     .await?;
-    let data = from_bytes::<Resp>(&answer.body).map_err(|source| Error::Decode {
+    let data = from_bytes::<Resp>(&answer.body.to_bytes()).map_err(|source| Error::Decode {
         what: format!("response of `{}`", spec.name),
         source,
     })?;

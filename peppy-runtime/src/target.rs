@@ -6,6 +6,7 @@
 //! and takes the first that the slot's routing filter accepts and, for a
 //! node slot reached on an interface's key, that runs the slot's node.
 
+use std::borrow::Cow;
 use std::time::Duration;
 
 use peppy_schema::{RouteFilter, SlotBinding, SlotKind};
@@ -37,7 +38,7 @@ pub(crate) struct Entry<'a> {
     /// The request format's fingerprint, sent with the probe.
     pub(crate) fingerprint: u64,
     /// How the entry reads in an `Unreachable` error.
-    pub(crate) describe: String,
+    pub(crate) describe: Cow<'static, str>,
 }
 
 impl Entry<'_> {
@@ -66,7 +67,7 @@ impl Entry<'_> {
 
     fn unreachable(&self) -> Error {
         Error::ServiceUnreachable {
-            service: self.describe.clone(),
+            service: self.describe.to_string(),
             instance: None,
         }
     }
@@ -74,13 +75,7 @@ impl Entry<'_> {
 
 /// A query header from this node.
 pub(crate) fn header(runner: &NodeRunner, kind: QueryKind, fingerprint: u64) -> Vec<u8> {
-    QueryHeader {
-        kind,
-        fingerprint,
-        core: runner.core_node().to_string(),
-        instance: runner.instance_id().to_string(),
-    }
-    .encode()
+    QueryHeader::encode_parts(kind, fingerprint, runner.core_node(), runner.instance_id())
 }
 
 /// The server instance a request through `entry`'s slot goes to.

@@ -73,6 +73,8 @@ impl ToolCaller {
             deadline: Instant::now() + timeout,
             describe: &describe,
             instance,
+            // A tool's session serves nothing.
+            remote: true,
             request_format: &service.request.canonical,
             response: Some((
                 service.response.fingerprint,
@@ -81,7 +83,7 @@ impl ToolCaller {
         }
         .send()
         .await?;
-        Ok(answer.body)
+        Ok(answer.body.to_bytes().into_owned())
     }
 
     /// Sends a goal to `action` on the instance that described it and waits
@@ -104,6 +106,7 @@ impl ToolCaller {
             feedback_base: action.key.clone(),
             header: self.header(action.goal.fingerprint),
             server: instance,
+            remote: true,
             goal: (action.goal.fingerprint, &action.goal.canonical),
             feedback_fingerprint: action.feedback.fingerprint,
             result: (action.result.fingerprint, &action.result.canonical),

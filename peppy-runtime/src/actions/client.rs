@@ -39,6 +39,8 @@ pub struct GoalClient {
     pub instance_id: String,
     /// The server's core node.
     pub core_node: String,
+    /// The server runs in another session (see `Request::remote`).
+    remote: bool,
 }
 
 impl std::fmt::Debug for GoalClient {
@@ -85,7 +87,7 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
             name: spec.name,
             part: Some(ActionPart::Goal),
             fingerprint: spec.goal.fingerprint,
-            describe: format!("{} (action goal)", spec.name),
+            describe: format!("{} (action goal)", spec.name).into(),
         };
         let target = target::choose(runner, &entry, deadline).await?;
         let base = entry.base(runner, Some(&target));
@@ -99,6 +101,7 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
             feedback_base: base,
             header: target::header(runner, QueryKind::Request, spec.goal.fingerprint),
             server: &target,
+            remote: target != runner.instance_id(),
             goal: (spec.goal.fingerprint, spec.goal.canonical),
             feedback_fingerprint: spec.feedback.fingerprint,
             result: (spec.result.fingerprint, spec.result.canonical),
@@ -136,6 +139,8 @@ pub(crate) struct GoalOpening<'a> {
     pub(crate) header: Vec<u8>,
     /// The server instance, for errors.
     pub(crate) server: &'a str,
+    /// The server runs in another session (see `Request::remote`).
+    pub(crate) remote: bool,
     /// Goal format: fingerprint and canonical text.
     pub(crate) goal: (u64, &'a str),
     /// The feedback format's fingerprint.
@@ -183,6 +188,7 @@ pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
         deadline: o.deadline,
         describe: o.describe,
         instance: o.server,
+        remote: o.remote,
         request_format: o.goal.1,
         // The decision is a status reply without a format of its own.
         response: None,
@@ -193,7 +199,8 @@ pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
         what: "goal response".into(),
         source,
     };
-    let mut d = Decoder::new(&answer.body);
+    let body = answer.body.to_bytes();
+    let mut d = Decoder::new(&body);
     let accepted = bool::decode(&mut d).map_err(malformed)?;
     let error_message = Option::<String>::decode(&mut d).map_err(malformed)?;
     Ok(GoalClient {
@@ -209,6 +216,7 @@ pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
         error_message,
         instance_id: answer.instance,
         core_node: answer.core,
+        remote: o.remote,
     })
 }
 
@@ -265,13 +273,14 @@ impl GoalClient {
             deadline: Instant::now() + timeout,
             describe: &describe,
             instance: &self.instance_id,
+            remote: self.remote,
             request_format: "a goal id",
             response: (part == ActionPart::Result)
                 .then_some((self.result_format.0, self.result_format.1.as_str())),
         }
         .send()
         .await?;
-        Ok(answer.body)
+        Ok(answer.body.to_bytes().into_owned())
     }
 
     /// Waits (up to `timeout`) until the goal is terminal and returns how it

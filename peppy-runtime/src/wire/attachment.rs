@@ -47,10 +47,18 @@ pub struct QueryHeader {
 impl QueryHeader {
     /// Encodes the header.
     pub fn encode(&self) -> Vec<u8> {
-        let mut out = vec![VERSION, self.kind as u8];
-        out.extend_from_slice(&self.fingerprint.to_be_bytes());
-        for s in [&self.core, &self.instance] {
-            let bytes = &s.as_bytes()[..s.len().min(255)];
+        Self::encode_parts(self.kind, self.fingerprint, &self.core, &self.instance)
+    }
+
+    /// Encodes a header from its parts, as [`QueryHeader::encode`] does,
+    /// without owning them first.
+    pub fn encode_parts(kind: QueryKind, fingerprint: u64, core: &str, instance: &str) -> Vec<u8> {
+        let text = |s: &str| s.len().min(255);
+        let mut out = Vec::with_capacity(12 + text(core) + text(instance));
+        out.extend_from_slice(&[VERSION, kind as u8]);
+        out.extend_from_slice(&fingerprint.to_be_bytes());
+        for s in [core, instance] {
+            let bytes = &s.as_bytes()[..text(s)];
             out.push(bytes.len() as u8);
             out.extend_from_slice(bytes);
         }

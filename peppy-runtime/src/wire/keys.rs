@@ -67,9 +67,14 @@ impl Channel {
 /// Whether `s` can be one key segment: non-empty, no `/`, and none of
 /// zenoh's special characters.
 pub fn is_segment(s: &str) -> bool {
+    // One pass: every reply of a call checks its sender's two segments.
+    let reserved = |c: char| matches!(c, '/' | '*' | '$' | '#' | '?' | '@') || c.is_whitespace();
     !s.is_empty()
-        && !s.contains(['/', '*', '$', '#', '?', '@'])
-        && !s.chars().any(char::is_whitespace)
+        && if s.is_ascii() {
+            !s.bytes().any(|b| reserved(char::from(b)))
+        } else {
+            !s.chars().any(reserved)
+        }
 }
 
 /// The key one producer instance publishes on (or serves) for an entry.
@@ -96,13 +101,33 @@ pub fn entry_selector(
     core: Option<&str>,
     instance: Option<&str>,
 ) -> String {
-    let owner = owner.map_or_else(|| "*/*/*".to_string(), ToString::to_string);
-    format!(
-        "peppy/{ns}/{}/{owner}/{entry}/{}/{}",
+    // Built by hand, not with `format!`: a service call builds its
+    // server's selector on every call.
+    let (kind, name, tag) = match owner {
+        Some(Owner::Node { name, tag }) => ("node", *name, *tag),
+        Some(Owner::Interface { name, tag }) => ("interface", *name, *tag),
+        None => ("*", "*", "*"),
+    };
+    let (core, instance) = (core.unwrap_or("*"), instance.unwrap_or("*"));
+    let parts = [
+        "peppy",
+        ns,
         channel.as_str(),
-        core.unwrap_or("*"),
-        instance.unwrap_or("*")
-    )
+        kind,
+        name,
+        tag,
+        entry,
+        core,
+        instance,
+    ];
+    let mut key = String::with_capacity(parts.iter().map(|p| p.len() + 1).sum());
+    for (i, part) in parts.into_iter().enumerate() {
+        if i > 0 {
+            key.push('/');
+        }
+        key.push_str(part);
+    }
+    key
 }
 
 /// The parts of an action below its entry key.
@@ -225,25 +250,66 @@ pub struct Sender {
 
 /// Parses `peppy/<ns>/<channel>/<kind>/<name>/<tag>/<entry>/<core>/<instance>[/...]`.
 pub fn parse_entry_key(key: &str) -> Option<Sender> {
-    let mut parts = key.split('/');
-    if parts.next()? != "peppy" {
+    let s = split_entry_key(key)?;
+    Some(Sender {
+        kind: s.kind.to_string(),
+        name: s.name.to_string(),
+        tag: s.tag.to_string(),
+        entry: s.entry.to_string(),
+        core: s.core.to_string(),
+        instance: s.instance.to_string(),
+    })
+}
+
+/// An entry key's parts, borrowed from the key: [`Sender`] without copying.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SenderRef<'a> {
+    /// The owner kind, `node` or `interface`.
+    pub kind: &'a str,
+    /// The owner's name.
+    pub name: &'a str,
+    /// The owner's tag.
+    pub tag: &'a str,
+    /// The entry (topic, service, action) name.
+    pub entry: &'a str,
+    /// The sender's core node.
+    pub core: &'a str,
+    /// The sender's instance id.
+    pub instance: &'a str,
+}
+
+/// [`parse_entry_key`] without copying the parts out of `key`.
+pub fn split_entry_key(key: &str) -> Option<SenderRef<'_>> {
+    // One pass over the bytes (`/` is ASCII, so every cut is on a char
+    // boundary): `str::split` searches afresh for each of the nine parts,
+    // and every reply of a call is parsed.
+    let mut parts = [""; 9];
+    let (mut found, mut start) = (0, 0);
+    for (at, _) in key.bytes().enumerate().filter(|&(_, b)| b == b'/') {
+        parts[found] = &key[start..at];
+        found += 1;
+        start = at + 1;
+        if found == parts.len() {
+            break;
+        }
+    }
+    if found < parts.len() {
+        parts[found] = &key[start..];
+        found += 1;
+    }
+    let [peppy, _ns, _channel, kind, name, tag, entry, core, instance] = parts;
+    if found < parts.len() || peppy != "peppy" || (kind != "node" && kind != "interface") {
         return None;
     }
-    let _ns = parts.next()?;
-    let _channel = parts.next()?;
-    let kind = parts.next()?;
-    if kind != "node" && kind != "interface" {
-        return None;
-    }
-    let s = Sender {
-        kind: kind.to_string(),
-        name: parts.next()?.to_string(),
-        tag: parts.next()?.to_string(),
-        entry: parts.next()?.to_string(),
-        core: parts.next()?.to_string(),
-        instance: parts.next()?.to_string(),
+    let s = SenderRef {
+        kind,
+        name,
+        tag,
+        entry,
+        core,
+        instance,
     };
-    (is_segment(&s.core) && is_segment(&s.instance)).then_some(s)
+    (is_segment(s.core) && is_segment(s.instance)).then_some(s)
 }
 
 #[cfg(test)]
@@ -357,5 +423,26 @@ mod tests {
         assert!(parse_entry_key("peppy/lab/topic/other/x/v1/t/c/i").is_none());
         assert!(parse_entry_key("peppy/lab/topic/node/x/v1/t/c").is_none());
         assert!(parse_entry_key("elsewhere/lab/topic/node/x/v1/t/c/i").is_none());
+        // Exactly nine parts, the instance last; and an action's part after it.
+        let exact = split_entry_key("peppy/lab/service/interface/cam/v1/grab/c1/left").unwrap();
+        assert_eq!(
+            (exact.entry, exact.core, exact.instance),
+            ("grab", "c1", "left")
+        );
+        let part = split_entry_key("peppy/lab/action/node/arm/v1/move/c1/arm/goal").unwrap();
+        assert_eq!((part.kind, part.tag, part.instance), ("node", "v1", "arm"));
+        // Wildcards, empty parts and whitespace (ASCII or not) are no sender.
+        for bad in [
+            "peppy/lab/topic/node/x/v1/t/*/i",
+            "peppy/lab/topic/node/x/v1/t/c/",
+            "peppy/lab/topic/node/x/v1/t//i",
+            "peppy/lab/topic/node/x/v1/t/c/i\u{b}",
+            "peppy/lab/topic/node/x/v1/t/c/caf\u{e9}\u{2003}",
+            "",
+        ] {
+            assert!(split_entry_key(bad).is_none(), "{bad:?}");
+        }
+        let unicode = split_entry_key("peppy/lab/topic/node/x/v1/t/c/caf\u{e9}").unwrap();
+        assert_eq!(unicode.instance, "caf\u{e9}");
     }
 }
