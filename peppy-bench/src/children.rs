@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use clap::{Args, Subcommand, ValueEnum};
 use serde::Serialize;
 use serde_json::json;
-use tokio::io::AsyncReadExt as _;
+use tokio::io::{AsyncBufReadExt as _, AsyncReadExt as _};
 use zenoh::Wait as _;
 
 use crate::peppy_side::{self, PeppySink};
@@ -116,6 +116,12 @@ pub(crate) enum Child {
         place: Place,
         #[arg(long)]
         count: usize,
+        /// Calls in batches of this many, each started by a line on stdin
+        /// and followed by `{"batch": ...}` (after `{"warm": true}` once the
+        /// server answers): the parent takes turns with another system's
+        /// sink at this grain.
+        #[arg(long)]
+        batch: Option<usize>,
     },
     /// Watch a launch: when the first message comes, and when every
     /// instance has been heard.
@@ -224,9 +230,35 @@ async fn role(child: Child) -> Res<()> {
             })
             .await
         }
-        Child::Service { place, count } => {
+        Child::Service {
+            place,
+            count,
+            batch,
+        } => {
             let spread = with_sink(&place, "sink", async |s| {
-                report(&json!({ "service": roles::service_calls(s, 64, count).await? }));
+                let spread = match batch {
+                    None => roles::service_calls(s, 64, count, count, async || Ok(())).await?,
+                    Some(batch) => {
+                        let mut turns = tokio::io::BufReader::new(tokio::io::stdin()).lines();
+                        let mut done = None;
+                        let spread = roles::service_calls(s, 64, count, batch, async || {
+                            match done.replace(done.map_or(0, |n: usize| n + 1)) {
+                                None => report(&json!({ "warm": true })),
+                                Some(n) => report(&json!({ "batch": n })),
+                            }
+                            match turns.next_line().await? {
+                                Some(_) => Ok(()),
+                                None => Err("the parent closed stdin between batches".into()),
+                            }
+                        })
+                        .await?;
+                        if let Some(n) = done {
+                            report(&json!({ "batch": n }));
+                        }
+                        spread
+                    }
+                };
+                report(&json!({ "service": spread }));
                 Ok(())
             });
             spread.await?;

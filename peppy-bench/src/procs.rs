@@ -108,6 +108,15 @@ impl Proc {
         }
     }
 
+    /// Writes `line` to its stdin.
+    pub(crate) fn say(&mut self, line: &str) -> Res<()> {
+        use std::io::Write as _;
+        let stdin = self.stdin.as_mut().ok_or("stdin already closed")?;
+        writeln!(stdin, "{line}")
+            .and_then(|()| stdin.flush())
+            .map_err(|e| format!("`{}` stopped listening: {e}", self.what).into())
+    }
+
     /// The next JSON line that has `key`.
     pub(crate) fn next_with(&mut self, key: &str, bound: Duration) -> Res<Value> {
         let deadline = std::time::Instant::now() + bound;

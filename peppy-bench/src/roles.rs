@@ -257,11 +257,14 @@ pub(crate) async fn fan_out<S: Sink>(
     })
 }
 
-/// `count` calls of the echo service with `size` bytes.
+/// `count` calls of the echo service with `size` bytes, `batch` at a time,
+/// each batch after `before_batch` returns.
 pub(crate) async fn service_calls<S: Sink>(
     s: &S,
     size: usize,
     count: usize,
+    batch: usize,
+    mut before_batch: impl AsyncFnMut() -> Res<()>,
 ) -> Res<Option<Spread>> {
     let data = vec![7u8; size];
     // The first call finds the server (and waits for it to be up).
@@ -273,7 +276,10 @@ pub(crate) async fn service_calls<S: Sink>(
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     let mut samples = Vec::with_capacity(count);
-    for _ in 0..count {
+    for call in 0..count {
+        if call % batch.max(1) == 0 {
+            before_batch().await?;
+        }
         let payload = data.clone();
         let start = Instant::now();
         let n = s.echo(payload).await?;

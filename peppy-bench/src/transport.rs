@@ -393,26 +393,53 @@ pub(crate) fn fan_out(quick: bool) -> Res<Vec<Row>> {
 /// A pinned service call against a raw query and queryable; an action's
 /// goal to result against the same raw query.
 pub(crate) fn services(quick: bool) -> Res<Vec<Row>> {
-    // A call takes a quarter of a millisecond, so a slow spell of this
-    // machine lasting a second moves one round's median: more, shorter
-    // rounds than the other groups keep the figure steady.
-    let (count, rounds) = if quick { (100, 1) } else { (4000, 8) };
-    let got = in_rounds(&[RAW_SHM, PEPPY_SHM], rounds, |mode| {
-        let source = Source::start(mode, "svc")?;
-        let mut args = source.args("service");
-        args.extend(["--count".into(), (count / rounds).to_string()]);
-        let mut sink = Proc::child(&args)?;
-        let mut got = vec![sink.next_with("service", BOUND)?["service"].clone()];
-        if mode.system == System::Peppy {
-            got.push(sink.next_with("action", BOUND)?["action"].clone());
+    // A call takes a quarter of a millisecond and this machine's speed
+    // drifts by a fifth within seconds: both systems' processes are up at
+    // once and take turns in batches of about ten milliseconds, so a drift
+    // reaches both sides alike. Each round starts fresh processes.
+    let (count, rounds, batch): (usize, usize, usize) =
+        if quick { (100, 1, 50) } else { (4000, 8, 50) };
+    let (mut service, mut action) = ([Vec::new(), Vec::new()], Vec::new());
+    for round in 0..rounds {
+        let modes = [RAW_SHM, PEPPY_SHM];
+        let mut sides = Vec::new();
+        for mode in modes {
+            let source = Source::start(mode, "svc")?;
+            let mut args = source.args("service");
+            args.extend([
+                "--count".into(),
+                (count / rounds).to_string(),
+                "--batch".into(),
+                batch.to_string(),
+            ]);
+            sides.push((source, Proc::child(&args)?));
         }
-        sink.wait_or_kill(Duration::from_secs(10));
-        source.proc.stop();
-        Ok(got)
-    })?;
-    let median = |runs: Option<&Vec<Value>>| median_spread(runs.into_iter().flatten());
-    let service = [median(got[0].first()), median(got[1].first())];
-    let action = median(got[1].get(1));
+        for (_, sink) in &mut sides {
+            sink.next_with("warm", BOUND)?;
+        }
+        for turn in 0..(count / rounds).div_ceil(batch) {
+            let order = if (round + turn) % 2 == 0 {
+                [0, 1]
+            } else {
+                [1, 0]
+            };
+            for i in order {
+                let sink = &mut sides[i].1;
+                sink.say("go")?;
+                sink.next_with("batch", BOUND)?;
+            }
+        }
+        for (i, (source, mut sink)) in sides.into_iter().enumerate() {
+            service[i].push(sink.next_with("service", BOUND)?["service"].clone());
+            if modes[i].system == System::Peppy {
+                action.push(sink.next_with("action", BOUND)?["action"].clone());
+            }
+            sink.wait_or_kill(Duration::from_secs(10));
+            source.proc.stop();
+        }
+    }
+    let service = service.map(|runs| median_spread(&runs));
+    let action = median_spread(&action);
     Ok(vec![
         Row::new(
             "services and actions (64 B)",
