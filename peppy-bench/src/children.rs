@@ -7,12 +7,12 @@ use std::time::{Duration, Instant};
 use clap::{Args, Subcommand, ValueEnum};
 use serde::Serialize;
 use serde_json::json;
-use tokio::io::{AsyncBufReadExt as _, AsyncReadExt as _};
+use tokio::io::AsyncReadExt as _;
 use zenoh::Wait as _;
 
 use crate::peppy_side::{self, PeppySink};
 use crate::raw_side::{self, RawSink};
-use crate::roles::{self, Qos, Res, Sink, cpu_ms, report};
+use crate::roles::{self, Pace, Qos, Res, Sink, cpu_ms, report};
 
 /// Which system a child runs on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
@@ -83,6 +83,10 @@ pub(crate) enum Child {
         /// Round trips per size up to 64 KiB (a 25th of it above).
         #[arg(long)]
         count: usize,
+        /// Each size's round trips in this many batches, taking turns
+        /// with other processes (`roles::Pace`); none: straight through.
+        #[arg(long)]
+        turns: Option<usize>,
     },
     /// Flood throughput at each size.
     Throughput {
@@ -116,12 +120,10 @@ pub(crate) enum Child {
         place: Place,
         #[arg(long)]
         count: usize,
-        /// Calls in batches of this many, each started by a line on stdin
-        /// and followed by `{"batch": ...}` (after `{"warm": true}` once the
-        /// server answers): the parent takes turns with another system's
-        /// sink at this grain.
+        /// The calls in this many batches, taking turns with other
+        /// processes (`roles::Pace`); none: straight through.
         #[arg(long)]
-        batch: Option<usize>,
+        turns: Option<usize>,
     },
     /// Watch a launch: when the first message comes, and when every
     /// instance has been heard.
@@ -185,11 +187,14 @@ async fn role(child: Child) -> Res<()> {
             qos,
             sizes,
             count,
+            turns,
         } => {
             with_sink(&place, "sink", async |s| {
+                let mut pace = turns.map_or_else(Pace::free, Pace::turns);
                 for &size in &sizes {
-                    let n = if size > 64 << 10 { count / 25 } else { count }.max(10);
-                    report(&roles::round_trips(s, qos, size, n).await?);
+                    let n = if size > 64 << 10 { count / 25 } else { count };
+                    let n = n.max(10).max(turns.unwrap_or(0));
+                    report(&roles::round_trips(s, qos, size, n, &mut pace).await?);
                 }
                 Ok(())
             })
@@ -233,31 +238,12 @@ async fn role(child: Child) -> Res<()> {
         Child::Service {
             place,
             count,
-            batch,
+            turns,
         } => {
             let spread = with_sink(&place, "sink", async |s| {
-                let spread = match batch {
-                    None => roles::service_calls(s, 64, count, count, async || Ok(())).await?,
-                    Some(batch) => {
-                        let mut turns = tokio::io::BufReader::new(tokio::io::stdin()).lines();
-                        let mut done = None;
-                        let spread = roles::service_calls(s, 64, count, batch, async || {
-                            match done.replace(done.map_or(0, |n: usize| n + 1)) {
-                                None => report(&json!({ "warm": true })),
-                                Some(n) => report(&json!({ "batch": n })),
-                            }
-                            match turns.next_line().await? {
-                                Some(_) => Ok(()),
-                                None => Err("the parent closed stdin between batches".into()),
-                            }
-                        })
-                        .await?;
-                        if let Some(n) = done {
-                            report(&json!({ "batch": n }));
-                        }
-                        spread
-                    }
-                };
+                let mut pace = turns.map_or_else(Pace::free, Pace::turns);
+                let count = count.max(turns.unwrap_or(0));
+                let spread = roles::service_calls(s, 64, count, &mut pace).await?;
                 report(&json!({ "service": spread }));
                 Ok(())
             });

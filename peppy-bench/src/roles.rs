@@ -9,6 +9,65 @@ use tokio::time::timeout;
 
 use crate::stats::Spread;
 
+/// How a measuring loop takes turns with the other systems' measuring
+/// processes: its samples fall into `turns` batches, each started by a
+/// line on stdin and followed by `{"batch": n}` on stdout, so the parent
+/// lets one process measure at a time, switching every few milliseconds.
+/// On this machine speed drifts by a fifth within seconds; taking turns
+/// that often lets a drift reach every system alike.
+pub(crate) struct Pace {
+    turns: Option<(
+        usize,
+        tokio::io::Lines<tokio::io::BufReader<tokio::io::Stdin>>,
+    )>,
+}
+
+impl Pace {
+    /// Never waits: the loop runs through.
+    pub(crate) fn free() -> Pace {
+        Pace { turns: None }
+    }
+
+    /// `turns` batches per loop, each on the parent's word.
+    pub(crate) fn turns(turns: usize) -> Pace {
+        let stdin = tokio::io::BufReader::new(tokio::io::stdin());
+        Pace {
+            turns: Some((turns.max(1), tokio::io::AsyncBufReadExt::lines(stdin))),
+        }
+    }
+
+    /// The batch of sample `i` of `count` (`count` at least the turns, so
+    /// none is empty).
+    fn batch(&self, i: usize, count: usize) -> Option<usize> {
+        let (turns, _) = self.turns.as_ref()?;
+        Some(i * turns / count.max(1))
+    }
+
+    /// Before sample `i` of `count` (and before a loop's warm-up, as
+    /// sample 0): waits for the parent's word if a batch starts here.
+    async fn before(&mut self, i: usize, count: usize) -> Res<()> {
+        let starts = match self.batch(i, count) {
+            Some(b) => i == 0 || self.batch(i - 1, count) != Some(b),
+            None => false,
+        };
+        if let (true, Some((_, lines))) = (starts, &mut self.turns) {
+            if lines.next_line().await?.is_none() {
+                return Err("the parent closed stdin between batches".into());
+            }
+        }
+        Ok(())
+    }
+
+    /// After sample `i` of `count`: reports a finished batch.
+    fn after(&self, i: usize, count: usize) {
+        if let Some(b) = self.batch(i, count)
+            && (i + 1 == count || self.batch(i + 1, count) != Some(b))
+        {
+            report(&serde_json::json!({ "batch": b }));
+        }
+    }
+}
+
 /// Errors of a benchmark process: reported, never recovered from.
 pub(crate) type Res<T> = Result<T, Box<dyn std::error::Error + Send + Sync>>;
 
@@ -115,17 +174,23 @@ pub(crate) struct RoundTrips {
     pub(crate) lost: usize,
 }
 
-/// `count` ping-pongs of `size` bytes, one in flight at a time.
+/// `count` ping-pongs of `size` bytes, one in flight at a time, paced by
+/// `pace` (its first batch includes the warm-up).
 pub(crate) async fn round_trips<S: Sink>(
     s: &S,
     qos: Qos,
     size: usize,
     count: usize,
+    pace: &mut Pace,
 ) -> Res<RoundTrips> {
     let data = vec![0xa5u8; size];
+    pace.before(0, count).await?;
     warm_up(s, qos, &data).await?;
     let (mut samples, mut lost) = (Vec::with_capacity(count), 0);
     for i in 0..count {
+        if i > 0 {
+            pace.before(i, count).await?;
+        }
         let seq = 1_000_000 + i as u64;
         let payload = data.clone();
         let start = Instant::now();
@@ -144,6 +209,7 @@ pub(crate) async fn round_trips<S: Sink>(
             }
             Err(_) => lost += 1,
         }
+        pace.after(i, count);
     }
     Ok(RoundTrips {
         qos,
@@ -257,16 +323,16 @@ pub(crate) async fn fan_out<S: Sink>(
     })
 }
 
-/// `count` calls of the echo service with `size` bytes, `batch` at a time,
-/// each batch after `before_batch` returns.
+/// `count` calls of the echo service with `size` bytes, paced by `pace`
+/// (its first batch includes finding the server).
 pub(crate) async fn service_calls<S: Sink>(
     s: &S,
     size: usize,
     count: usize,
-    batch: usize,
-    mut before_batch: impl AsyncFnMut() -> Res<()>,
+    pace: &mut Pace,
 ) -> Res<Option<Spread>> {
     let data = vec![7u8; size];
+    pace.before(0, count).await?;
     // The first call finds the server (and waits for it to be up).
     let deadline = Instant::now() + Duration::from_secs(20);
     while s.echo(data.clone()).await.is_err() {
@@ -277,8 +343,8 @@ pub(crate) async fn service_calls<S: Sink>(
     }
     let mut samples = Vec::with_capacity(count);
     for call in 0..count {
-        if call % batch.max(1) == 0 {
-            before_batch().await?;
+        if call > 0 {
+            pace.before(call, count).await?;
         }
         let payload = data.clone();
         let start = Instant::now();
@@ -287,6 +353,7 @@ pub(crate) async fn service_calls<S: Sink>(
         if n != size {
             return Err(format!("the echo returned {n} bytes for {size}").into());
         }
+        pace.after(call, count);
     }
     Ok(Spread::of(&mut samples))
 }

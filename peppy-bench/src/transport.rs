@@ -131,27 +131,25 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     let mut rows = Vec::new();
     for qos in [Qos::Reliable, Qos::Sensor] {
         let modes = [RAW_TCP, PEPPY_TCP, RAW_SHM, PEPPY_SHM, RAW_TCP_DEFAULTS];
-        let got = in_rounds(&modes, rounds(quick), |mode| {
-            let source = Source::start(mode, "rt")?;
-            let mut args = source.args("round-trip");
-            let sizes: Vec<String> = sizes.iter().map(ToString::to_string).collect();
-            args.extend([
-                "--qos".into(),
-                qos.name().replace("_data", ""),
-                "--sizes".into(),
-                sizes.join(","),
-                "--count".into(),
-                (count / rounds(quick)).to_string(),
-            ]);
-            let mut sink = Proc::child(&args)?;
-            let mut got = Vec::new();
-            for _ in 0..sizes.len() {
-                got.push(sink.next_with("spread", BOUND)?);
-            }
-            sink.wait_or_kill(Duration::from_secs(10));
-            source.proc.stop();
-            Ok(got)
-        })?;
+        let sizes_arg: Vec<String> = sizes.iter().map(ToString::to_string).collect();
+        let got = in_turns(
+            &modes,
+            rounds(quick),
+            sizes.len(),
+            |source| {
+                let mut args = source.args("round-trip");
+                args.extend([
+                    "--qos".into(),
+                    qos.name().replace("_data", ""),
+                    "--sizes".into(),
+                    sizes_arg.join(","),
+                    "--count".into(),
+                    (count / rounds(quick)).to_string(),
+                ]);
+                args
+            },
+            |_, _, sink| Ok(vec![sink.next_with("spread", BOUND)?]),
+        )?;
         // Per mode and size: the rounds' spreads, and their unanswered pings.
         let got: Vec<Vec<(Option<Spread>, u64, usize)>> = got
             .iter()
@@ -304,6 +302,67 @@ fn in_rounds(
     Ok(got)
 }
 
+/// How many batches each case of `in_turns` is cut into.
+const TURNS: usize = 10;
+
+/// Like [`in_rounds`], but within a round every mode's source and sink are
+/// up at once and the sinks take turns ([`roles::Pace`]): each of the
+/// `cases` a sink measures is cut into [`TURNS`] batches, and the modes
+/// run one batch each in turn (the order turning each time), so the
+/// machine's drift within a round reaches every mode alike. `sink_args`
+/// gives a sink's arguments for its source (`--turns` is added);
+/// `collect` reads a sink's results of one case once all its batches ran.
+fn in_turns(
+    modes: &[Mode],
+    rounds: usize,
+    cases: usize,
+    sink_args: impl Fn(&Source) -> Vec<String>,
+    mut collect: impl FnMut(usize, Mode, &mut Proc) -> Res<Vec<Value>>,
+) -> Res<Vec<Vec<Vec<Value>>>> {
+    let mut got: Vec<Vec<Vec<Value>>> = vec![Vec::new(); modes.len()];
+    for round in 0..rounds {
+        let mut sides = Vec::new();
+        for &mode in modes {
+            let source = Source::start(mode, "turns")?;
+            let mut args = sink_args(&source);
+            args.extend(["--turns".into(), TURNS.to_string()]);
+            let sink = Proc::child(&args)?;
+            sides.push((source, sink));
+        }
+        let mut position = vec![0; modes.len()];
+        for case in 0..cases {
+            for turn in 0..TURNS {
+                let shift = round + case + turn;
+                let mut order: Vec<usize> = (0..modes.len())
+                    .map(|k| (k + shift) % modes.len())
+                    .collect();
+                if shift % 2 == 1 {
+                    order.reverse();
+                }
+                for i in order {
+                    let sink = &mut sides[i].1;
+                    sink.say("go")?;
+                    sink.next_with("batch", BOUND)?;
+                }
+            }
+            for (i, (_, sink)) in sides.iter_mut().enumerate() {
+                for v in collect(case, modes[i], sink)? {
+                    if got[i].len() <= position[i] {
+                        got[i].push(Vec::new());
+                    }
+                    got[i][position[i]].push(v);
+                    position[i] += 1;
+                }
+            }
+        }
+        for (source, mut sink) in sides {
+            sink.wait_or_kill(Duration::from_secs(10));
+            source.proc.stop();
+        }
+    }
+    Ok(got)
+}
+
 /// One producer, eight consumer processes, 1 MiB frames at 30 Hz, both
 /// with shared memory (each system's default on one host).
 pub(crate) fn fan_out(quick: bool) -> Res<Vec<Row>> {
@@ -393,53 +452,29 @@ pub(crate) fn fan_out(quick: bool) -> Res<Vec<Row>> {
 /// A pinned service call against a raw query and queryable; an action's
 /// goal to result against the same raw query.
 pub(crate) fn services(quick: bool) -> Res<Vec<Row>> {
-    // A call takes a quarter of a millisecond and this machine's speed
-    // drifts by a fifth within seconds: both systems' processes are up at
-    // once and take turns in batches of about ten milliseconds, so a drift
-    // reaches both sides alike. Each round starts fresh processes.
-    let (count, rounds, batch): (usize, usize, usize) =
-        if quick { (100, 1, 50) } else { (4000, 8, 50) };
-    let (mut service, mut action) = ([Vec::new(), Vec::new()], Vec::new());
-    for round in 0..rounds {
-        let modes = [RAW_SHM, PEPPY_SHM];
-        let mut sides = Vec::new();
-        for mode in modes {
-            let source = Source::start(mode, "svc")?;
+    // A call takes a quarter of a millisecond: eight rounds of 500 calls,
+    // the two systems taking turns every 50 (`in_turns`).
+    let (count, rounds) = if quick { (100, 1) } else { (4000, 8) };
+    let got = in_turns(
+        &[RAW_SHM, PEPPY_SHM],
+        rounds,
+        1,
+        |source| {
             let mut args = source.args("service");
-            args.extend([
-                "--count".into(),
-                (count / rounds).to_string(),
-                "--batch".into(),
-                batch.to_string(),
-            ]);
-            sides.push((source, Proc::child(&args)?));
-        }
-        for (_, sink) in &mut sides {
-            sink.next_with("warm", BOUND)?;
-        }
-        for turn in 0..(count / rounds).div_ceil(batch) {
-            let order = if (round + turn) % 2 == 0 {
-                [0, 1]
-            } else {
-                [1, 0]
-            };
-            for i in order {
-                let sink = &mut sides[i].1;
-                sink.say("go")?;
-                sink.next_with("batch", BOUND)?;
+            args.extend(["--count".into(), (count / rounds).to_string()]);
+            args
+        },
+        |_, mode, sink| {
+            let mut got = vec![sink.next_with("service", BOUND)?["service"].clone()];
+            if mode.system == System::Peppy {
+                got.push(sink.next_with("action", BOUND)?["action"].clone());
             }
-        }
-        for (i, (source, mut sink)) in sides.into_iter().enumerate() {
-            service[i].push(sink.next_with("service", BOUND)?["service"].clone());
-            if modes[i].system == System::Peppy {
-                action.push(sink.next_with("action", BOUND)?["action"].clone());
-            }
-            sink.wait_or_kill(Duration::from_secs(10));
-            source.proc.stop();
-        }
-    }
-    let service = service.map(|runs| median_spread(&runs));
-    let action = median_spread(&action);
+            Ok(got)
+        },
+    )?;
+    let median = |runs: Option<&Vec<Value>>| median_spread(runs.into_iter().flatten());
+    let service = [median(got[0].first()), median(got[1].first())];
+    let action = median(got[1].get(1));
     Ok(vec![
         Row::new(
             "services and actions (64 B)",
