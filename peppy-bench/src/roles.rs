@@ -50,10 +50,10 @@ impl Pace {
             Some(b) => i == 0 || self.batch(i - 1, count) != Some(b),
             None => false,
         };
-        if let (true, Some((_, lines))) = (starts, &mut self.turns) {
-            if lines.next_line().await?.is_none() {
-                return Err("the parent closed stdin between batches".into());
-            }
+        if let (true, Some((_, lines))) = (starts, &mut self.turns)
+            && lines.next_line().await?.is_none()
+        {
+            return Err("the parent closed stdin between batches".into());
         }
         Ok(())
     }
