@@ -86,10 +86,7 @@ pub fn entry_key(
     core: &str,
     instance: &str,
 ) -> String {
-    format!(
-        "peppy/{ns}/{}/{owner}/{entry}/{core}/{instance}",
-        channel.as_str()
-    )
+    entry_selector(ns, channel, Some(owner), entry, Some(core), Some(instance))
 }
 
 /// A selector over producers: `None` parts match any value.
@@ -101,8 +98,8 @@ pub fn entry_selector(
     core: Option<&str>,
     instance: Option<&str>,
 ) -> String {
-    // Built by hand, not with `format!`: a service call builds its
-    // server's selector on every call.
+    // Joined, not `format!`ted: a service call builds its server's
+    // selector on every call, and a join sizes the key once.
     let (kind, name, tag) = match owner {
         Some(Owner::Node { name, tag }) => ("node", *name, *tag),
         Some(Owner::Interface { name, tag }) => ("interface", *name, *tag),
@@ -120,14 +117,7 @@ pub fn entry_selector(
         core,
         instance,
     ];
-    let mut key = String::with_capacity(parts.iter().map(|p| p.len() + 1).sum());
-    for (i, part) in parts.into_iter().enumerate() {
-        if i > 0 {
-            key.push('/');
-        }
-        key.push_str(part);
-    }
-    key
+    parts.join("/")
 }
 
 /// The parts of an action below its entry key.
