@@ -257,9 +257,9 @@ impl Request<'_> {
             })
             .await?;
         // No timer of its own: Zenoh ends the query at `budget` and drops
-        // the callback, which closes `replies`. (A timer per call cost a
-        // wake-up of the runtime's timer thread per call: a new deadline
-        // earlier than every other has it recompute its sleep.)
+        // the callback, which closes `replies`. (In tokio's timer code, a
+        // new deadline earlier than the driver's next wake-up unparks the
+        // driver's thread: a wake-up per call.)
         loop {
             let (status, fingerprint, sample) = tokio::select! {
                 r = replies.recv_async() => match r {

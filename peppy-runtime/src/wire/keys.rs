@@ -67,7 +67,8 @@ impl Channel {
 /// Whether `s` can be one key segment: non-empty, no `/`, and none of
 /// zenoh's special characters.
 pub fn is_segment(s: &str) -> bool {
-    // One pass: every reply of a call checks its sender's two segments.
+    // Every reply of a call checks its sender's two segments: an ASCII
+    // segment is checked byte by byte, without decoding chars.
     let reserved = |c: char| matches!(c, '/' | '*' | '$' | '#' | '?' | '@') || c.is_whitespace();
     !s.is_empty()
         && if s.is_ascii() {
