@@ -14,6 +14,7 @@ mod sink_node {}
 
 mod build_times;
 mod children;
+mod floor;
 mod launch;
 mod peppy_side;
 mod procs;

@@ -214,11 +214,17 @@ pub(crate) fn render(rows: &[Row]) -> String {
                 Some(Figure::Latency(_))
             );
             let what = if latency { "p50 / p99 / max" } else { "figure" };
+            // The machine's own figures sit in the right-hand column.
+            let who = if group == crate::transport::MACHINE {
+                "measured"
+            } else {
+                "peppy"
+            };
             out.push_str(&format!(
                 "\n{group}\n  {:width$}  {:>30}  {:>30}  {:>13}\n",
                 "case",
                 format!("raw zenoh {what}"),
-                format!("peppy {what}"),
+                format!("{who} {what}"),
                 "peppy / raw"
             ));
         }

@@ -10,6 +10,7 @@ use std::time::Duration;
 use serde_json::Value;
 
 use crate::children::System;
+use crate::floor;
 use crate::procs::{Proc, free_port};
 use crate::roles::{Qos, Res};
 use crate::stats::{Figure, Row, Spread, size};
@@ -129,6 +130,7 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     // 25th of it (the child divides).
     let count = if quick { 100 } else { 5000 };
     let mut rows = Vec::new();
+    let mut floor = Vec::new();
     for qos in [Qos::Reliable, Qos::Sensor] {
         let modes = [RAW_TCP, PEPPY_TCP, RAW_SHM, PEPPY_SHM, RAW_TCP_DEFAULTS];
         let sizes_arg: Vec<String> = sizes.iter().map(ToString::to_string).collect();
@@ -147,6 +149,11 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
                     (count / rounds(quick)).to_string(),
                 ]);
                 args
+            },
+            |case| {
+                if sizes[case] == FLOOR_SIZE {
+                    floor.extend(floor::four_copies(FLOOR_SIZE, 5));
+                }
             },
             |_, _, sink| Ok(vec![sink.next_with("spread", BOUND)?]),
         )?;
@@ -190,10 +197,17 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
             }
         }
     }
+    rows.push(Row::new(
+        MACHINE,
+        "four 1 MiB copies between two threads".into(),
+        None,
+        Spread::of(&mut floor).map(Figure::Latency),
+    ));
     rows.sort_by_key(|r| {
         [
             "topic round trip, TCP",
             "topic round trip, shared",
+            MACHINE,
             "topic round trip, peppy",
             "topic round trip, raw",
         ]
@@ -202,6 +216,14 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     });
     Ok(rows)
 }
+
+/// The size whose round trips the machine's floor (`floor`) is measured
+/// beside, in the same turns.
+const FLOOR_SIZE: usize = 1 << 20;
+
+/// The group of figures measuring the machine alone (`stats::render`
+/// heads its column "measured").
+pub(crate) const MACHINE: &str = "machine: the memory floor under a shared-memory round trip";
 
 /// One producer to one consumer, as fast as it can, `reliable`.
 pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
@@ -311,12 +333,14 @@ const TURNS: usize = 10;
 /// run one batch each in turn (the order turning each time), so the
 /// machine's drift within a round reaches every mode alike. `sink_args`
 /// gives a sink's arguments for its source (`--turns` is added);
+/// `between` runs after every mode's batch of a turn, with the case;
 /// `collect` reads a sink's results of one case once all its batches ran.
 fn in_turns(
     modes: &[Mode],
     rounds: usize,
     cases: usize,
     sink_args: impl Fn(&Source) -> Vec<String>,
+    mut between: impl FnMut(usize),
     mut collect: impl FnMut(usize, Mode, &mut Proc) -> Res<Vec<Value>>,
 ) -> Res<Vec<Vec<Vec<Value>>>> {
     let mut got: Vec<Vec<Vec<Value>>> = vec![Vec::new(); modes.len()];
@@ -344,6 +368,7 @@ fn in_turns(
                     sink.say("go")?;
                     sink.next_with("batch", BOUND)?;
                 }
+                between(case);
             }
             for (i, (_, sink)) in sides.iter_mut().enumerate() {
                 for v in collect(case, modes[i], sink)? {
@@ -464,6 +489,7 @@ pub(crate) fn services(quick: bool) -> Res<Vec<Row>> {
             args.extend(["--count".into(), (count / rounds).to_string()]);
             args
         },
+        |_| {},
         |_, mode, sink| {
             let mut got = vec![sink.next_with("service", BOUND)?["service"].clone()];
             if mode.system == System::Peppy {
