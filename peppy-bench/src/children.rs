@@ -43,6 +43,11 @@ pub(crate) struct Place {
     /// threads a peppy node runs Zenoh on, `peppy::runtime::threads`).
     #[arg(long)]
     zenoh_defaults: bool,
+    /// Read messages where they arrived, as a camera consumer does, not
+    /// decoded into owned data: the source answers a ping from its bytes
+    /// in place, the sink reads a pong's sequence number and length only.
+    #[arg(long)]
+    in_place: bool,
 }
 
 /// Whether this child runs with shared memory (set once from its [`Place`]).
@@ -51,6 +56,15 @@ static SHM: AtomicBool = AtomicBool::new(false);
 /// Whether this child's sessions use shared memory.
 pub(crate) fn shared_memory() -> bool {
     SHM.load(Relaxed)
+}
+
+/// Whether this child reads round-trip messages in place (set once from
+/// its [`Place`]).
+static IN_PLACE: AtomicBool = AtomicBool::new(false);
+
+/// Whether this child reads round-trip messages in place.
+pub(crate) fn in_place() -> bool {
+    IN_PLACE.load(Relaxed)
 }
 
 impl Child {
@@ -171,6 +185,7 @@ async fn stdin_closed() {
 
 async fn role(child: Child) -> Res<()> {
     SHM.store(child.place().is_some_and(|p| p.shm), Relaxed);
+    IN_PLACE.store(child.place().is_some_and(|p| p.in_place), Relaxed);
     match child {
         Child::Source(p) => {
             let ready = async {

@@ -5,7 +5,8 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use peppy::{NodeBuilder, NodeRunner, QoSProfile, SharedMemory};
+use peppy::codegen::{Decode, DecodeError, Decoder, Encode, TopicSpec, Writer};
+use peppy::{NodeBuilder, NodeRunner, Payload, QoSProfile, SharedMemory};
 
 use crate::roles::{Qos, Res, Sink, cpu_ms, flood_done, now_ns};
 use crate::stats::Spread;
@@ -44,14 +45,26 @@ pub(crate) async fn source(ns: &str, listen: &str, stop: impl Future<Output = ()
     let runner = start::<source_node::Parameters>("source", ns, &["--listen", listen]).await?;
     let r = runner.clone();
     tokio::spawn(async move {
-        while let Ok((_, m)) = ping_reliable::on_next_message_received(&r, None, None).await {
-            let _ = pong_reliable::emit(&r, m.seq, m.sent_ns, m.data).await;
+        if crate::children::in_place() {
+            while let Ok((_, p)) = ping_reliable::on_next_payload_received(&r, None, None).await {
+                let _ = answer_in_place(&r, &pong_reliable::SPEC, &p).await;
+            }
+        } else {
+            while let Ok((_, m)) = ping_reliable::on_next_message_received(&r, None, None).await {
+                let _ = pong_reliable::emit(&r, m.seq, m.sent_ns, m.data).await;
+            }
         }
     });
     let r = runner.clone();
     tokio::spawn(async move {
-        while let Ok((_, m)) = ping_sensor::on_next_message_received(&r, None, None).await {
-            let _ = pong_sensor::emit(&r, m.seq, m.sent_ns, m.data).await;
+        if crate::children::in_place() {
+            while let Ok((_, p)) = ping_sensor::on_next_payload_received(&r, None, None).await {
+                let _ = answer_in_place(&r, &pong_sensor::SPEC, &p).await;
+            }
+        } else {
+            while let Ok((_, m)) = ping_sensor::on_next_message_received(&r, None, None).await {
+                let _ = pong_sensor::emit(&r, m.seq, m.sent_ns, m.data).await;
+            }
         }
     });
     let r = runner.clone();
@@ -110,6 +123,44 @@ pub(crate) async fn source(ns: &str, listen: &str, stop: impl Future<Output = ()
     stop.await;
     runner.shutdown().await;
     Ok(())
+}
+
+/// A round-trip message (`seq`, `sent_ns`, `data: bytes`) with its data
+/// borrowed, encoded as the generated message is (WIRE.md §5: the fields
+/// in order, bytes as a `u32` count and the bytes).
+struct FrameView<'a> {
+    seq: u64,
+    sent_ns: u64,
+    data: &'a [u8],
+}
+
+impl Encode for FrameView<'_> {
+    fn encode(&self, out: &mut Writer<'_>) {
+        self.seq.encode(out);
+        self.sent_ns.encode(out);
+        (self.data.len() as u32).encode(out);
+        u8::encode_slice(self.data, out);
+    }
+}
+
+impl<'a> FrameView<'a> {
+    /// The message in `bytes`, its data where it is.
+    fn read(bytes: &'a [u8]) -> Result<FrameView<'a>, DecodeError> {
+        let mut d = Decoder::new(bytes);
+        let seq = u64::decode(&mut d)?;
+        let sent_ns = u64::decode(&mut d)?;
+        let n = d.count(1)?;
+        let data = d.take(n)?;
+        Ok(FrameView { seq, sent_ns, data })
+    }
+}
+
+/// Answers a ping read in place: the pong is encoded from the ping's bytes
+/// where they arrived (one copy, into the pong's shared memory).
+async fn answer_in_place(r: &NodeRunner, pong: &'static TopicSpec, ping: &Payload) -> Res<()> {
+    let bytes = ping.bytes();
+    let frame = FrameView::read(&bytes)?;
+    Ok(peppy::codegen::emit(r, pong, &frame).await?)
 }
 
 /// The measuring end over peppy.
@@ -179,6 +230,14 @@ impl Sink for PeppySink {
     async fn pong(&self, qos: Qos) -> Res<u64> {
         use sink_node::consumed_topics::{source_pong_reliable, source_pong_sensor};
         let r = &self.runner;
+        if crate::children::in_place() {
+            let payload = match qos {
+                Qos::Reliable => source_pong_reliable::on_next_payload_received(r, None).await?,
+                Qos::Sensor => source_pong_sensor::on_next_payload_received(r, None).await?,
+            }
+            .1;
+            return Ok(FrameView::read(&payload.bytes())?.seq);
+        }
         Ok(match qos {
             Qos::Reliable => {
                 source_pong_reliable::on_next_message_received(r, None)

@@ -2,8 +2,9 @@
 //! source process and measuring process(es) for each system in turn, on
 //! their own port and namespace. A run is a [`Mode`]: the system, whether
 //! shared memory is on (peppy's pool and Zenoh's SHM transport) or off
-//! (everything over TCP on loopback, as between two hosts), and whether
-//! Zenoh runs on its default threads or on a node's.
+//! (everything over TCP on loopback, as between two hosts), whether
+//! Zenoh runs on its default threads or on a node's, and whether round-trip
+//! messages are decoded into owned data or read where they arrived.
 
 use std::time::Duration;
 
@@ -24,27 +25,44 @@ struct Mode {
     shm: bool,
     /// On Zenoh's default threads (else on a node's layout).
     zenoh_defaults: bool,
+    /// Round-trip messages read where they arrived, not decoded into owned
+    /// data (`--in-place`).
+    in_place: bool,
 }
 
 const RAW_TCP: Mode = Mode {
     system: System::Zenoh,
     shm: false,
     zenoh_defaults: false,
+    in_place: false,
 };
 const PEPPY_TCP: Mode = Mode {
     system: System::Peppy,
     shm: false,
     zenoh_defaults: false,
+    in_place: false,
 };
 const RAW_SHM: Mode = Mode {
     system: System::Zenoh,
     shm: true,
     zenoh_defaults: false,
+    in_place: false,
 };
 const PEPPY_SHM: Mode = Mode {
     system: System::Peppy,
     shm: true,
     zenoh_defaults: false,
+    in_place: false,
+};
+
+/// With shared memory, reading in place: a camera consumer's way.
+const RAW_SHM_IN_PLACE: Mode = Mode {
+    in_place: true,
+    ..RAW_SHM
+};
+const PEPPY_SHM_IN_PLACE: Mode = Mode {
+    in_place: true,
+    ..PEPPY_SHM
 };
 
 /// Raw Zenoh as most programs run it, on its default threads. Not like
@@ -53,6 +71,7 @@ const RAW_TCP_DEFAULTS: Mode = Mode {
     system: System::Zenoh,
     shm: false,
     zenoh_defaults: true,
+    in_place: false,
 };
 
 /// Like for like (raw first in the pair, first to run in every other
@@ -106,6 +125,9 @@ fn place_args(role: &str, mode: Mode, ns: &str, endpoint: &str) -> Vec<String> {
     if mode.zenoh_defaults {
         args.push("--zenoh-defaults".into());
     }
+    if mode.in_place {
+        args.push("--in-place".into());
+    }
     args
 }
 
@@ -120,8 +142,9 @@ fn median_spread<'a>(rounds: impl IntoIterator<Item = &'a Value>) -> Option<Spre
 }
 
 /// Topic round trips at 64 B to 4 MiB, for both profiles: like for like
-/// over TCP and with shared memory, then peppy with shared memory against
-/// raw Zenoh over TCP (what zero-copy buys between processes on one host).
+/// over TCP and with shared memory (decoded into owned data, and read in
+/// place), then peppy with shared memory against raw Zenoh over TCP (what
+/// zero-copy buys between processes on one host).
 pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     let sizes = [64usize, 4 << 10, 64 << 10, 1 << 20, 4 << 20];
     // Round trips per size in all rounds: a small one takes a fifth of a
@@ -132,7 +155,15 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     let mut rows = Vec::new();
     let mut floor = Vec::new();
     for qos in [Qos::Reliable, Qos::Sensor] {
-        let modes = [RAW_TCP, PEPPY_TCP, RAW_SHM, PEPPY_SHM, RAW_TCP_DEFAULTS];
+        let modes = [
+            RAW_TCP,
+            PEPPY_TCP,
+            RAW_SHM,
+            PEPPY_SHM,
+            RAW_TCP_DEFAULTS,
+            RAW_SHM_IN_PLACE,
+            PEPPY_SHM_IN_PLACE,
+        ];
         let sizes_arg: Vec<String> = sizes.iter().map(ToString::to_string).collect();
         let got = in_turns(
             &modes,
@@ -175,6 +206,11 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
         let cases = [
             ("topic round trip, TCP (SHM off both sides)", 0, 1),
             ("topic round trip, shared memory both sides", 2, 3),
+            (
+                "topic round trip, shared memory, read in place (a camera consumer's way)",
+                5,
+                6,
+            ),
             ("topic round trip, peppy with SHM vs raw over TCP", 0, 3),
             (
                 "topic round trip, raw Zenoh on its default threads vs peppy (TCP)",
@@ -206,7 +242,8 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     rows.sort_by_key(|r| {
         [
             "topic round trip, TCP",
-            "topic round trip, shared",
+            "topic round trip, shared memory both",
+            "topic round trip, shared memory, read",
             MACHINE,
             "topic round trip, peppy",
             "topic round trip, raw",
