@@ -187,9 +187,38 @@ pub(crate) fn rss_mib(pid: u32) -> Option<f64> {
     Some(kib / 1024.0)
 }
 
-/// A free TCP port on loopback.
+/// A free TCP port on loopback, below the kernel's ephemeral range: a port
+/// the kernel hands out for `:0` is also what it gives the next outgoing
+/// connection, and with a dozen processes connecting at once one took a
+/// source's port between this check and the source's bind.
 pub(crate) fn free_port() -> Res<u16> {
+    use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
+    const LOWEST: u32 = 10_000;
+    static NEXT: AtomicU32 = AtomicU32::new(0);
+    let below = ephemeral_start().unwrap_or(32_768).max(LOWEST + 1_000);
+    let span = below - LOWEST;
+    // Spread over the span by process, so two benchmarks seldom collide.
+    let start = std::process::id().wrapping_mul(7_919);
+    for _ in 0..span.min(5_000) {
+        let port = LOWEST + start.wrapping_add(NEXT.fetch_add(1, Relaxed)) % span;
+        let Ok(port) = u16::try_from(port) else {
+            continue;
+        };
+        if std::net::TcpListener::bind(("127.0.0.1", port)).is_ok() {
+            return Ok(port);
+        }
+    }
     Ok(std::net::TcpListener::bind("127.0.0.1:0")?
         .local_addr()?
         .port())
+}
+
+/// The first port of the kernel's ephemeral range.
+fn ephemeral_start() -> Option<u32> {
+    std::fs::read_to_string("/proc/sys/net/ipv4/ip_local_port_range")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
 }
