@@ -666,21 +666,26 @@ mod tests {
             format: crate::spec::FormatSpec::EMPTY,
         };
         let shm = Shm::new(SharedMemory::default());
-        let start = |frame: &Vec<u8>| {
+        // Where the message went (then it is dropped: every reader let go).
+        let chunk_of = |frame: &Vec<u8>| {
             let bytes = shm.payload(&FRAMES, frame, true);
             bytes.as_shm().map(|chunk| chunk.as_ptr() as usize)
         };
         let large = vec![1u8; 1 << 20];
-        let Some(first) = start(&large) else {
+        let Some(first) = chunk_of(&large) else {
             return; // this host allows no pool: nothing to reuse
         };
         for _ in 0..40 {
-            assert_eq!(start(&large), Some(first), "the 1 MiB chunk just released");
+            assert_eq!(
+                chunk_of(&large),
+                Some(first),
+                "the 1 MiB chunk just released"
+            );
         }
         let small = vec![2u8; 4 << 10];
         let mut seen = std::collections::HashSet::new();
         for i in 0..2000 {
-            let chunk = start(&small);
+            let chunk = chunk_of(&small);
             // The first cycle starts where the large chunks ended.
             if i >= 1000 {
                 seen.extend(chunk);
