@@ -609,17 +609,19 @@ mod tests {
         assert_eq!(next_pool(None, 1 << 20, most, true), None);
     }
 
+    /// A topic whose messages the pool tests encode.
+    static FRAMES: TopicSpec = TopicSpec {
+        owner: crate::spec::OwnerSpec::Any,
+        name: "frames",
+        qos: peppy_schema::QosProfile::Reliable,
+        format: crate::spec::FormatSpec::EMPTY,
+    };
+
     /// Readers holding every chunk make the pool double, up to the node's
     /// bound; past it messages go as bytes, and in shared memory again
     /// once readers let go.
     #[test]
     fn a_full_pool_grows_to_its_bound_then_messages_go_as_bytes() {
-        static FRAMES: TopicSpec = TopicSpec {
-            owner: crate::spec::OwnerSpec::Any,
-            name: "frames",
-            qos: peppy_schema::QosProfile::Reliable,
-            format: crate::spec::FormatSpec::EMPTY,
-        };
         let most = 8 << 20;
         let shm = Shm::new(SharedMemory::default().pool(most));
         let frame = vec![7u8; 64 << 10];
@@ -659,12 +661,6 @@ mod tests {
     /// cache, not after the whole pool has been walked.
     #[test]
     fn released_chunks_are_written_again_soon() {
-        static FRAMES: TopicSpec = TopicSpec {
-            owner: crate::spec::OwnerSpec::Any,
-            name: "frames",
-            qos: peppy_schema::QosProfile::Reliable,
-            format: crate::spec::FormatSpec::EMPTY,
-        };
         let shm = Shm::new(SharedMemory::default());
         // Where the message went (then it is dropped: every reader let go).
         let chunk_of = |frame: &Vec<u8>| {
