@@ -40,6 +40,13 @@ pub(crate) enum Command {
     /// Without `--connect` it joins (or hosts) the local hub on
     /// tcp/127.0.0.1:7447, so several `run`s find each other.
     Run(RunArgs),
+    /// Print the plan a standalone command line gives a node: its slots
+    /// (bindings and filters, decided by the launcher's binding engine),
+    /// its checked parameters, its identity and endpoints, as the JSON a
+    /// launch hands each instance. A Python node started by hand asks this
+    /// for its plan, so every node binds through one engine, e.g.
+    /// `peppy-launch plan examples/nodes/video_reconstruction -- --bind left_cam@rs_left`.
+    Plan(PlanArgs),
     /// Draw the stack: instances, bindings, dashed `(any)` edges for
     /// unbound from_any slots, dotted edges for external topics; `--live`
     /// draws the running stack with measured rates. DOT on stdout, or
@@ -103,6 +110,26 @@ pub(crate) struct StreamArgs {
     /// is a failure (exit 1).
     #[arg(long, value_name = "SECONDS", value_parser = parse_wait)]
     pub(crate) timeout: Option<Duration>,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct PlanArgs {
+    /// The node: its directory or `peppy.json5`, or a `name:tag` from the
+    /// repositories.
+    #[arg(value_name = "NODE", required_unless_present = "model")]
+    pub(crate) node: Option<String>,
+    /// The node's model as its generated code carries it (JSON; `-` reads
+    /// standard input), instead of NODE's documents.
+    #[arg(long, value_name = "FILE", conflicts_with = "node")]
+    pub(crate) model: Option<PathBuf>,
+    /// An extra repository directory (repeatable).
+    #[arg(long = "repo", value_name = "DIR")]
+    pub(crate) repos: Vec<PathBuf>,
+    /// The node's own command line, after `--`: `--instance-id`, `--bind
+    /// KEY@INSTANCE`, `--params FILE`, `--namespace`, `--connect`,
+    /// `--listen`, `key=value`.
+    #[arg(last = true, value_name = "NODE_ARGS")]
+    pub(crate) args: Vec<String>,
 }
 
 #[derive(Debug, Args)]

@@ -39,6 +39,7 @@ pub fn run(cli: Cli) -> Result {
         cli::Command::Up(args) => up::run(&args),
         cli::Command::Graph(args) => graph::run(&args),
         cli::Command::Run(args) => run_node::run(&args),
+        cli::Command::Plan(args) => run_node::plan(&args),
         cli::Command::Node(cmd) => inspect::node(cmd),
         cli::Command::Topic(cmd) => inspect::topic(cmd),
         cli::Command::Service(cmd) => inspect::service(cmd),

@@ -5,11 +5,11 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use peppy_schema::{
-    DocumentKind, Identity, Launch, NodeDoc, NodeModel, RepoIndex, RepoOptions, RepositoryList,
-    check_node, node_file,
+    DocumentKind, Identity, Launch, NodeCheck, NodeDoc, NodeModel, RepoIndex, RepoOptions,
+    RepositoryList, check_node, node_file,
 };
 
-use crate::cli::RunArgs;
+use crate::cli::{PlanArgs, RunArgs};
 use crate::error::{LaunchError, Result};
 use crate::executable;
 use crate::output::Output;
@@ -20,25 +20,67 @@ use crate::up::{Planned, open_router, run_instances};
 /// The well-known local port: the first `run` listens here, later ones join.
 use crate::inspect::LOCAL_HUB;
 
-pub(crate) fn run(args: &RunArgs) -> Result {
+/// The node `node` names (a path or a `name:tag`), its documents checked;
+/// its diagnostics are printed when they are not valid.
+fn checked_node(node: &str, repos: &[PathBuf]) -> Result<(PathBuf, NodeCheck)> {
     let options = RepoOptions {
-        explicit: args.repos.clone(),
+        explicit: repos.to_vec(),
         env: None,
     };
-    let file = locate(&args.node, &options).map_err(LaunchError::Usage)?;
-    let check = match check_node(&file, &options) {
-        Ok(c) => c,
+    let file = locate(node, &options).map_err(LaunchError::Usage)?;
+    match check_node(&file, &options) {
+        Ok(check) => Ok((file, check)),
         Err(diags) => {
             report::print_human(&diags);
             eprintln!(
                 "invalid: {}; nothing was started",
                 report::count(diags.error_count(), "error")
             );
-            return Err(LaunchError::Invalid {
+            Err(LaunchError::Invalid {
                 errors: diags.error_count(),
-            });
+            })
         }
+    }
+}
+
+/// `peppy-launch plan`: the plan a standalone command line gives a node,
+/// decided by the engine a launch uses (`peppy_runtime::startup_from_flags`).
+pub(crate) fn plan(args: &PlanArgs) -> Result {
+    let model = match (&args.model, &args.node) {
+        (Some(path), _) => read_model(path)?,
+        (None, Some(node)) => NodeModel::of(&checked_node(node, &args.repos)?.1.resolved.node),
+        (None, None) => return Err(LaunchError::Usage("give a NODE or --model".into())),
     };
+    let flags = std::iter::once("peppy-launch plan".to_string())
+        .chain(args.args.iter().cloned())
+        .collect();
+    let config = peppy_runtime::startup_from_flags(&model, flags)?;
+    let text = serde_json::to_string_pretty(&config)
+        .map_err(|e| LaunchError::Setup(format!("cannot write the plan as JSON: {e}")))?;
+    println!("{text}");
+    Ok(())
+}
+
+/// A node model from `path` (`-`: standard input).
+fn read_model(path: &std::path::Path) -> Result<NodeModel> {
+    use std::io::Read;
+    let mut text = String::new();
+    let read = if path.as_os_str() == "-" {
+        std::io::stdin().read_to_string(&mut text).map(drop)
+    } else {
+        std::fs::read_to_string(path).map(|t| text = t)
+    };
+    read.map_err(|e| LaunchError::Usage(format!("cannot read --model {}: {e}", path.display())))?;
+    NodeModel::from_json(&text).map_err(|e| {
+        LaunchError::Usage(format!(
+            "--model {} is not a node model: {e}",
+            path.display()
+        ))
+    })
+}
+
+pub(crate) fn run(args: &RunArgs) -> Result {
+    let (file, check) = checked_node(&args.node, &args.repos)?;
     let doc: &NodeDoc = &check.resolved.node;
     let mut flags = vec!["peppy-launch".to_string()];
     if let Some(id) = &args.instance_id {

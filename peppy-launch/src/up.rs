@@ -1,7 +1,7 @@
 //! `peppy-launch up LAUNCHER`: check everything, build each node once, start
 //! a Zenoh router and every instance, supervise, and stop cleanly.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
@@ -508,11 +508,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
                     instance_id: inst.instance_id.clone(),
                     core_node: core_node.clone(),
                     namespace: namespace.clone(),
-                    bindings: inst
-                        .slots
-                        .iter()
-                        .map(|s| (s.link_id.clone(), s.binding.clone()))
-                        .collect::<BTreeMap<_, _>>(),
+                    slots: inst.slots.clone(),
                     parameters: inst.parameters.clone(),
                     // Secured, every instance is a client of the router,
                     // which checks everything it sends and receives; a peer

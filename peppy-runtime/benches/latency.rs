@@ -544,7 +544,11 @@ fn runtime_configs(dir: &std::path::Path, endpoint: &str, passwords: Option<[&st
         }
         let config = serde_json::json!({
             "instance_id": id, "core_node": "standalone", "namespace": "bench",
-            "bindings": { producer: { "kind": "pinned", "producer": producer } },
+            "slots": [{
+                "link_id": producer, "kind": "node", "target": { "name": producer, "tag": "v1" },
+                "binding": { "kind": "pinned", "producer": producer },
+                "filter": { "kind": "pin", "producers": producer },
+            }],
             "zenoh": zenoh,
         });
         std::fs::write(dir.join(format!("{id}.json")), config.to_string()).unwrap();

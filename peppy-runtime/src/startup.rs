@@ -2,14 +2,12 @@
 //! endpoints, from the launcher's runtime-config file or, in a standalone
 //! `cargo run`, from command-line flags and [`StandaloneConfig`].
 
-use std::collections::BTreeMap;
 use std::hash::{BuildHasher, Hasher};
 use std::path::{Path, PathBuf};
 
 use clap::Parser;
 use peppy_schema::{
-    BindRequest, NodeModel, ParamKind, ParameterSchema, Primitive, SlotBinding, SlotPlan, assign,
-    requests_for,
+    BindRequest, NodeModel, ParamKind, ParameterSchema, Primitive, SlotPlan, assign, fit_plan,
 };
 use serde::{Deserialize, Serialize};
 use serde_json::Value as Json;
@@ -25,8 +23,11 @@ pub const DEFAULT_NAMESPACE: &str = "default";
 /// The core node of a plain `cargo run`.
 pub const STANDALONE_CORE: &str = "standalone";
 
-/// What a node is told at start-up. The launcher writes it as JSON and names
-/// the file in `PEPPY_RUNTIME_CONFIG`.
+/// What a node is told at start-up: its plan. The launcher writes it as
+/// JSON and names the file in `PEPPY_RUNTIME_CONFIG`; `peppy-launch plan`
+/// prints the one a standalone command line gives. Its slots and
+/// parameters were decided by the binding engine and the parameter checker
+/// (`peppy_schema`): a node applies them as they are.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct StartupConfig {
@@ -36,10 +37,11 @@ pub struct StartupConfig {
     pub core_node: String,
     /// The namespace every key lives under.
     pub namespace: String,
-    /// What fills each slot, by link_id.
+    /// Every slot of the node, in `depends_on` order: what fills it and the
+    /// filter its consumers apply.
     #[serde(default)]
-    pub bindings: BTreeMap<String, SlotBinding>,
-    /// Parameter values (defaults are filled again by the node).
+    pub slots: Vec<SlotPlan>,
+    /// Parameter values, checked and with every default filled in.
     #[serde(default)]
     pub parameters: Json,
     /// How to reach the other nodes.
@@ -232,7 +234,7 @@ pub(crate) fn load(
     env_file: Option<PathBuf>,
     standalone: &StandaloneConfig,
 ) -> Result<Startup> {
-    let (config, binds_given) = match env_file {
+    let (mut config, binds_given) = match env_file {
         Some(path) => (read_config_file(&path)?, None),
         None => {
             let flags = Flags::try_parse_from(args).map_err(|e| Error::Startup(e.to_string()))?;
@@ -250,12 +252,21 @@ pub(crate) fn load(
     }
     let slots = match binds_given {
         Some(binds) => slots_from_flags(doc, &config.instance_id, &binds)?,
-        None => slots_from_config(doc, &config.instance_id, &config.bindings)?,
+        None => fit_plan(&doc.dependencies, std::mem::take(&mut config.slots)).map_err(|e| {
+            Error::Startup(format!(
+                "the runtime config does not fit `{}`: {e}; was this binary built from another peppy.json5 than the launcher read?",
+                doc.identity
+            ))
+        })?,
     };
+    // The launcher filled the parameters already; a binary built from other
+    // documents than the launcher read is caught here, by the same checker.
     let parameters = doc
         .parameters
         .resolve(&config.parameters)
         .map_err(Error::Parameters)?;
+    config.slots = slots.clone();
+    config.parameters = parameters.clone();
     Ok(Startup {
         config,
         slots,
@@ -268,15 +279,7 @@ pub(crate) fn load(
 /// describes, with bindings checked and parameters filled. `peppy-launch run`
 /// hands this to the node it starts.
 pub fn startup_from_flags(doc: &NodeModel, args: Vec<String>) -> Result<StartupConfig> {
-    let s = load(doc, args, None, &StandaloneConfig::default())?;
-    let mut config = s.config;
-    config.bindings = s
-        .slots
-        .into_iter()
-        .map(|slot| (slot.link_id, slot.binding))
-        .collect();
-    config.parameters = s.parameters;
-    Ok(config)
+    load(doc, args, None, &StandaloneConfig::default()).map(|s| s.config)
 }
 
 fn read_config_file(path: &Path) -> Result<StartupConfig> {
@@ -367,7 +370,7 @@ fn standalone_config(
             .namespace
             .or_else(|| standalone.namespace.clone())
             .unwrap_or_else(|| DEFAULT_NAMESPACE.to_string()),
-        bindings: BTreeMap::new(),
+        slots: Vec::new(),
         parameters,
         zenoh: endpoints,
     };
@@ -456,24 +459,6 @@ fn slots_from_flags(
     engine(doc, instance, &requests)
 }
 
-/// Slots from the launcher's bindings, re-checked by the same engine (the
-/// launcher decided them; a disagreement means the binary and the launcher
-/// read different documents).
-fn slots_from_config(
-    doc: &NodeModel,
-    instance: &str,
-    bindings: &BTreeMap<String, SlotBinding>,
-) -> Result<Vec<SlotPlan>> {
-    if let Some(unknown) = bindings.keys().find(|k| doc.dependency(k).is_none()) {
-        return Err(Error::Startup(format!(
-            "the runtime config binds `{unknown}`, which is not a slot of `{}`; was this binary built from another peppy.json5 than the launcher read?",
-            doc.identity
-        )));
-    }
-    let requests = requests_for(bindings.iter().map(|(k, b)| (k.as_str(), b)));
-    engine(doc, instance, &requests)
-}
-
 fn engine(doc: &NodeModel, instance: &str, requests: &[BindRequest<'_>]) -> Result<Vec<SlotPlan>> {
     let outcome = assign(instance, &doc.identity, &doc.dependencies, requests);
     if outcome.errors.is_empty() {
@@ -488,7 +473,7 @@ fn engine(doc: &NodeModel, instance: &str, requests: &[BindRequest<'_>]) -> Resu
 #[cfg(test)]
 mod tests {
     use super::*;
-    use peppy_schema::{NodeDoc, RouteFilter};
+    use peppy_schema::{NodeDoc, RouteFilter, SlotBinding};
 
     /// A node's model as its binary sees it: through the JSON the build embeds.
     fn model(text: &str) -> NodeModel {
@@ -620,40 +605,105 @@ mod tests {
         );
     }
 
-    #[test]
-    fn runtime_config_file_is_used_when_set() {
-        let dir = tempfile::tempdir().unwrap();
+    fn slot(link_id: &str, binding: SlotBinding, filter: RouteFilter) -> SlotPlan {
+        SlotPlan {
+            link_id: link_id.into(),
+            kind: peppy_schema::SlotKind::Interface,
+            target: peppy_schema::Identity::new("depth_camera", "v1"),
+            binding,
+            filter,
+        }
+    }
+
+    fn plan_file(dir: &tempfile::TempDir, cfg: &StartupConfig) -> PathBuf {
         let path = dir.path().join("rt.json");
-        let cfg = StartupConfig {
+        std::fs::write(&path, serde_json::to_string(cfg).unwrap()).unwrap();
+        path
+    }
+
+    fn launcher_config(slots: Vec<SlotPlan>) -> StartupConfig {
+        StartupConfig {
             instance_id: "recon_1".into(),
             core_node: "lab-1".into(),
             namespace: "lab".into(),
-            bindings: [(
-                "left_cam".to_string(),
-                SlotBinding::Pinned {
-                    producer: "rs_left".into(),
-                },
-            )]
-            .into(),
-            parameters: serde_json::json!({ "name": "n" }),
+            slots,
+            parameters: serde_json::json!({ "fps": 30, "name": "n", "video": { "scale": 1.0 } }),
             zenoh: Endpoints {
                 connect: vec!["tcp/127.0.0.1:7447".into()],
                 ..Endpoints::default()
             },
-        };
-        std::fs::write(&path, serde_json::to_string(&cfg).unwrap()).unwrap();
+        }
+    }
+
+    #[test]
+    fn the_launchers_plan_is_applied_as_it_is() {
+        let dir = tempfile::tempdir().unwrap();
+        // Out of `depends_on` order, and a filter the engine would not
+        // compute from these bindings alone: the node takes the plan, it
+        // does not bind again.
+        let backup = slot(
+            "backup",
+            SlotBinding::FromAnyUnbound,
+            RouteFilter::AnyExcept(["rs_left".to_string(), "rs_spare".to_string()].into()),
+        );
+        let left = slot(
+            "left_cam",
+            SlotBinding::Pinned {
+                producer: "rs_left".into(),
+            },
+            RouteFilter::Pin("rs_left".into()),
+        );
+        let cfg = launcher_config(vec![backup.clone(), left.clone()]);
         let s = load(
             &doc(),
             args(&["ignored=1"]),
-            Some(path),
+            Some(plan_file(&dir, &cfg)),
             &StandaloneConfig::new(),
         )
         .unwrap();
-        assert_eq!(s.config, cfg);
-        assert_eq!(
-            s.slots[1].filter,
-            RouteFilter::AnyExcept(["rs_left".to_string()].into())
-        );
+        assert_eq!(s.slots, [left, backup]);
+        assert_eq!(s.config.instance_id, "recon_1");
+        assert_eq!(s.config.zenoh, cfg.zenoh);
+        assert_eq!(s.parameters, cfg.parameters);
+    }
+
+    #[test]
+    fn a_plan_for_other_slots_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let pinned = |id: &str| {
+            slot(
+                id,
+                SlotBinding::Pinned {
+                    producer: "rs_left".into(),
+                },
+                RouteFilter::Pin("rs_left".into()),
+            )
+        };
+        let unbound = |id: &str| slot(id, SlotBinding::FromAnyUnbound, RouteFilter::Any);
+        for (slots, why) in [
+            (vec![pinned("left_cam")], "leaves slot `backup` out"),
+            (
+                vec![pinned("left_cam"), unbound("backup"), unbound("spare")],
+                "fills slot `spare`",
+            ),
+            (
+                vec![pinned("left_cam"), unbound("backup"), unbound("backup")],
+                "fills slot `backup` twice",
+            ),
+            (
+                vec![unbound("left_cam"), unbound("backup")],
+                "binds slot `left_cam` as from_any",
+            ),
+        ] {
+            let path = plan_file(&dir, &launcher_config(slots));
+            let err = load(&doc(), args(&[]), Some(path), &StandaloneConfig::new())
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains(why) && err.contains("another peppy.json5"),
+                "{err}"
+            );
+        }
     }
 
     #[test]

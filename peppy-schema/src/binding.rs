@@ -4,11 +4,12 @@
 //! This is the one implementation of those rules. The launcher's plan
 //! (`check`, `up`, `graph`) feeds it bindings whose producers it knows from
 //! the launcher file; a node started on its own (`run --bind`, a plain
-//! `cargo run`) feeds it `--bind` flags whose producers it may not know, and
-//! a node started by the launcher re-checks the bindings it was handed. The
-//! rules and the wording of every error are the same in all three; only the
-//! help text differs, because the fix is spelled differently in a launcher
-//! file and on a command line.
+//! `cargo run`, a Python node through `peppy-launch plan`) feeds it `--bind`
+//! flags whose producers it may not know. The rules and the wording of
+//! every error are the same in both; only the help text differs, because
+//! the fix is spelled differently in a launcher file and on a command line.
+//! A node started by the launcher takes the slots it is handed as they are
+//! ([`fit_plan`] only checks they are its slots): nothing binds twice.
 
 use std::collections::BTreeSet;
 use std::fmt;
@@ -62,8 +63,11 @@ impl RouteFilter {
     }
 }
 
-/// One slot of one consumer instance, filled.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+/// One slot of one consumer instance, filled. The launcher hands each
+/// instance its slots in its runtime config; the node applies them as
+/// they are ([`fit_plan`]), it never binds again.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SlotPlan {
     /// The slot's link_id.
     pub link_id: String,
@@ -561,27 +565,79 @@ fn free_form_slot(
     Ok(from_any.first().copied())
 }
 
-/// The requests that reproduce slot bindings already decided (a launcher's
-/// runtime config): every producer is bound by its slot's link_id.
-pub fn requests_for<'a>(
-    bindings: impl IntoIterator<Item = (&'a str, &'a SlotBinding)>,
-) -> Vec<BindRequest<'a>> {
-    let mut out = Vec::new();
-    for (link_id, binding) in bindings {
-        let instances: Vec<&'a str> = match binding {
-            SlotBinding::Pinned { producer } => vec![producer.as_str()],
-            SlotBinding::FromAnyBound { producers } => {
-                producers.iter().map(String::as_str).collect()
-            }
-            SlotBinding::FromAnyUnbound => Vec::new(),
-        };
-        out.extend(instances.into_iter().map(|instance| BindRequest {
-            key: link_id,
-            instance,
-            producer: None,
-        }));
+/// Why a plan handed to a node does not fit the node's own slots. The
+/// launcher decided the plan from the documents it read; a mismatch means
+/// the node's program was generated from other documents.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PlanMismatch {
+    /// The plan fills a slot the node does not declare.
+    #[error("the plan fills slot `{0}`, which this node does not declare")]
+    UnknownSlot(String),
+    /// The plan fills one slot twice.
+    #[error("the plan fills slot `{0}` twice")]
+    Twice(String),
+    /// The plan leaves a slot of the node out.
+    #[error("the plan leaves slot `{0}` out")]
+    Missing(String),
+    /// The plan's slot wants another node or interface than the node's.
+    #[error("the plan's slot `{link_id}` wants {planned}, this node's wants {declared}")]
+    Target {
+        /// The slot.
+        link_id: String,
+        /// What the plan says it wants (`node x:v1`).
+        planned: String,
+        /// What the node declares (`interface y:v1`).
+        declared: String,
+    },
+    /// A pinned slot with a `from_any` binding, or the other way round.
+    #[error("the plan binds slot `{0}` as {1}, which its declaration does not allow")]
+    Binding(String, &'static str),
+}
+
+/// Checks that `slots`, a plan the launcher decided, is a plan for exactly
+/// the slots in `dependencies` (same link_ids, kinds and targets; a pinned
+/// slot pinned, a `from_any` slot not), and returns it in `depends_on`
+/// order. Bindings and filters are taken as they are: deciding them is
+/// [`assign`]'s, once, in the launcher (or in a standalone run's flag
+/// parser), never again in the node.
+pub fn fit_plan(
+    dependencies: &[Dependency],
+    mut slots: Vec<SlotPlan>,
+) -> Result<Vec<SlotPlan>, PlanMismatch> {
+    if let Some(extra) = slots
+        .iter()
+        .find(|s| !dependencies.iter().any(|d| d.link_id == s.link_id))
+    {
+        return Err(PlanMismatch::UnknownSlot(extra.link_id.clone()));
     }
-    out
+    let mut ordered = Vec::with_capacity(dependencies.len());
+    for dep in dependencies {
+        let mut found = slots
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.link_id == dep.link_id)
+            .map(|(i, _)| i);
+        let at = match (found.next(), found.next()) {
+            (Some(at), None) => at,
+            (Some(_), Some(_)) => return Err(PlanMismatch::Twice(dep.link_id.clone())),
+            (None, _) => return Err(PlanMismatch::Missing(dep.link_id.clone())),
+        };
+        let slot = slots.swap_remove(at);
+        if slot.kind != dep.kind || slot.target != dep.target {
+            return Err(PlanMismatch::Target {
+                link_id: slot.link_id,
+                planned: describe(slot.kind, &slot.target),
+                declared: describe(dep.kind, &dep.target),
+            });
+        }
+        let pinned = matches!(slot.binding, SlotBinding::Pinned { .. });
+        if pinned == dep.from_any {
+            let what = if pinned { "pinned" } else { "from_any" };
+            return Err(PlanMismatch::Binding(slot.link_id, what));
+        }
+        ordered.push(slot);
+    }
+    Ok(ordered)
 }
 
 fn mismatch(consumer: &str, b: &BindRequest<'_>, p: Producer<'_>, dep: &Dependency) -> BindError {

@@ -306,6 +306,12 @@ fn init(node: &ResolvedNode, document: &str, specs: &Specs) -> String {
     ));
     out.line("parameters=Parameters,");
     out.line(&format!("document={},", py_string(document)));
+    // What a node started by hand hands `peppy-launch plan`, as a Rust
+    // binary embeds it.
+    out.line(&format!(
+        "model={},",
+        py_string(&peppy_schema::NodeModel::of(n).to_json())
+    ));
     out.dedent();
     out.line(")");
     out.line("\"\"\"What the runtime knows about this node.\"\"\"");

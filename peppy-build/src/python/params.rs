@@ -1,6 +1,7 @@
 //! `peppygen/parameters.py`: the node's parameters as dataclasses with a
-//! `from_json` that fills defaults and checks types, so a Python node gets
-//! the same typed values a Rust node does.
+//! `from_json` that reads the values of the node's plan (checked, defaults
+//! filled, by peppy-schema's one parameter checker) into them, so a Python
+//! node gets the same typed values a Rust node does.
 
 use peppy_schema::names::nested_type;
 use peppy_schema::{ParamField, ParamItem, ParamKind, Primitive};
@@ -17,7 +18,7 @@ pub(super) fn parameters(out: &mut Source, fields: &[ParamField], identity: &str
     out.line("from dataclasses import dataclass");
     out.line("from typing import Any, List");
     out.blank();
-    out.line("from peppy.params import MISSING, array, group, leaf");
+    out.line("from peppy.params import array, group, leaf");
     out.blank();
     out.blank();
     group(
@@ -50,7 +51,7 @@ fn group(out: &mut Source, name: &str, prefix: &str, fields: &[ParamField], doc:
         "def from_json(cls, data: Any, where: str = \"\") -> \"{name}\":"
     ));
     out.indent();
-    out.docstring("Reads JSON values (a dict), filling defaults; `ValueError` names a bad one.");
+    out.docstring("Reads the plan's values (a dict, checked and with defaults filled in).");
     out.line("if not isinstance(data, dict):");
     out.line(
         "    raise ValueError(f\"parameter group `{where or 'parameters'}`: expected an object\")",
@@ -72,13 +73,9 @@ fn group(out: &mut Source, name: &str, prefix: &str, fields: &[ParamField], doc:
 fn field(out: &mut Source, prefix: &str, f: &ParamField) -> (String, String) {
     let key = py_string(&f.name);
     match &f.kind {
-        ParamKind::Leaf { ty, default } => (
+        ParamKind::Leaf { ty, .. } => (
             hint(*ty).to_string(),
-            format!(
-                "leaf(data, {key}, {}, {}, where)",
-                default_of(default.as_ref()),
-                py_string(ty.name())
-            ),
+            format!("leaf(data, {key}, {}, where)", py_string(ty.name())),
         ),
         ParamKind::Group(fields) => {
             let name = nested_type(prefix, &f.name);
@@ -89,11 +86,7 @@ fn field(out: &mut Source, prefix: &str, f: &ParamField) -> (String, String) {
                 format!("group(data, {key}, {name}.from_json, where)"),
             )
         }
-        ParamKind::Array {
-            items,
-            length,
-            default,
-        } => {
+        ParamKind::Array { items, .. } => {
             let (item_hint, item) = match items {
                 ParamItem::Primitive(p) => (hint(*p).to_string(), py_string(p.name())),
                 ParamItem::Object(fields) => {
@@ -103,13 +96,9 @@ fn field(out: &mut Source, prefix: &str, f: &ParamField) -> (String, String) {
                     (name.clone(), format!("{name}.from_json"))
                 }
             };
-            let length = length.map_or("None".to_string(), |n| n.to_string());
             (
                 format!("List[{item_hint}]"),
-                format!(
-                    "array(data, {key}, {}, {item}, {length}, where)",
-                    default_of(default.as_ref())
-                ),
+                format!("array(data, {key}, {item}, where)"),
             )
         }
     }
@@ -122,39 +111,5 @@ fn hint(p: Primitive) -> &'static str {
         Primitive::String => "str",
         Primitive::Bytes => "bytes",
         _ => "int",
-    }
-}
-
-/// A JSON default as a Python literal (`MISSING` when there is none).
-fn default_of(default: Option<&serde_json::Value>) -> String {
-    match default {
-        None => "MISSING".into(),
-        Some(v) => json_literal(v),
-    }
-}
-
-fn json_literal(v: &serde_json::Value) -> String {
-    use serde_json::Value;
-    match v {
-        Value::Null => "None".into(),
-        Value::Bool(true) => "True".into(),
-        Value::Bool(false) => "False".into(),
-        Value::Number(n) => n.to_string(),
-        Value::String(s) => py_string(s),
-        Value::Array(items) => format!(
-            "[{}]",
-            items
-                .iter()
-                .map(json_literal)
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
-        Value::Object(map) => format!(
-            "{{{}}}",
-            map.iter()
-                .map(|(k, v)| format!("{}: {}", py_string(k), json_literal(v)))
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
     }
 }

@@ -419,8 +419,14 @@ fn run_starts_one_node_with_checked_bindings_and_typed_parameters() {
     assert_eq!(config["instance_id"], "echo_1");
     assert_eq!(config["namespace"], "lab");
     assert_eq!(
-        config["bindings"]["source"],
-        serde_json::json!({ "kind": "pinned", "producer": "cam_1" })
+        config["slots"],
+        serde_json::json!([{
+            "link_id": "source",
+            "kind": "node",
+            "target": { "name": "cam", "tag": "v1" },
+            "binding": { "kind": "pinned", "producer": "cam_1" },
+            "filter": { "kind": "pin", "producers": "cam_1" },
+        }])
     );
     assert_eq!(
         config["parameters"],

@@ -190,7 +190,7 @@ async fn a_pinned_call_follows_its_server_into_another_launch() {
         instance_id: "rs_left".into(),
         core_node: "lab-2".into(),
         namespace: ns.clone(),
-        bindings: Default::default(),
+        slots: Vec::new(),
         parameters: serde_json::json!({}),
         zenoh: peppy_runtime::Endpoints {
             connect: vec![hub.endpoint.clone()],

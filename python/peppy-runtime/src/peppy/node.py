@@ -12,7 +12,6 @@ import signal
 import sys
 from typing import Any, Callable, Iterable, List, Optional
 
-from . import params as _params
 from .action_server import DEFAULT_RESULT_RETENTION
 from .declare import declare_all
 from .errors import PeppyError, StartupError
@@ -69,12 +68,9 @@ class NodeBuilder:
         if cls is None:
             return data
         try:
-            with _params.typed_overrides(startup.overrides):
-                value = cls.from_json(data)
-            _params.refuse_unknown(data, value)
+            return cls.from_json(data)
         except ValueError as e:
             raise StartupError(f"invalid parameters:\n  - {e}") from None
-        return value
 
     async def start(self, setup: Optional[Setup] = None) -> NodeRunner:
         """Starts the node in the running loop and returns its runner, with

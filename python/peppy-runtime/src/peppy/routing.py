@@ -1,6 +1,8 @@
 """Slots: what fills each one (its binding) and which producers' messages
-it keeps (its route filter), as peppy-schema's binding engine decides them
-(`assign` and `compute_filters` in peppy-schema/src/binding.rs)."""
+it keeps (its route filter). Both are decided by peppy-schema's binding
+engine (`assign` in peppy-schema/src/binding.rs), in the launcher or in
+`peppy-launch plan` for a node started by hand; a Python node reads its
+plan and applies it (`SlotPlan.from_json`, `fit_plan`), never binding again."""
 
 from __future__ import annotations
 
@@ -83,6 +85,26 @@ class RouteFilter:
         """The one producer of a `pin` filter."""
         return next(iter(self.producers)) if self.kind == "pin" else None
 
+    @classmethod
+    def from_json(cls, data: Any, link_id: str) -> "RouteFilter":
+        """A filter as serde writes `peppy_schema::RouteFilter`."""
+        if not isinstance(data, dict) or data.get("kind") not in ("any", "pin", "only_from", "any_except"):
+            raise StartupError(f"slot `{link_id}`: `filter` must be an object with kind any, pin, only_from or any_except")
+        kind = data["kind"]
+        extra = set(data) - ({"kind"} if kind == "any" else {"kind", "producers"})
+        if extra:
+            raise StartupError(f"slot `{link_id}`: `filter` has unknown field(s) {sorted(extra)}")
+        producers = data.get("producers")
+        if kind == "any":
+            return ANY
+        if kind == "pin":
+            if not isinstance(producers, str):
+                raise StartupError(f"slot `{link_id}`: a `pin` filter names one producer (a string)")
+            return cls("pin", frozenset((producers,)))
+        if not isinstance(producers, list) or not all(isinstance(p, str) for p in producers):
+            raise StartupError(f"slot `{link_id}`: an `{kind}` filter lists its producers (strings)")
+        return cls(kind, frozenset(producers))
+
     def to_json(self) -> Dict[str, Any]:
         """As serde writes `peppy_schema::RouteFilter` (sets sorted)."""
         if self.kind == "any":
@@ -117,74 +139,73 @@ class SlotPlan:
         }
 
 
-def _describe(slot: SlotSpec) -> str:
-    return f"{slot.kind} `{slot.name}:{slot.tag}`"
+_SLOT_FIELDS = ("link_id", "kind", "target", "binding", "filter")
 
 
-def assign(consumer: str, slots: Sequence[SlotSpec], binds: Sequence[Tuple[str, str]]) -> List[SlotPlan]:
-    """Fills `slots` from `(link_id, producer)` binds in order, then computes
-    each slot's filter. A from_any slot collects its producers; a pinned slot
-    takes exactly one. Every refusal is reported at once, each with its help."""
-    pinned: Dict[str, str] = {}
-    producers: Dict[str, List[str]] = {s.link_id: [] for s in slots}
-    errors: List[str] = []
-    by_id = {s.link_id: s for s in slots}
-    for key, instance in binds:
-        slot = by_id.get(key)
-        if slot is None:
-            declared = ", ".join(f"`{s.link_id}` ({_describe(s)}{', from_any' if s.from_any else ''})" for s in slots)
-            errors.append(
-                f"binding `{key}` on instance `{consumer}` matches no slot (DeadBindingKey)\n"
-                f"    help: {'slots: ' + declared if declared else 'this node declares no slots; remove the binding'}"
-            )
-        elif slot.from_any:
-            producers[key].append(instance)
-        elif key in pinned:
-            errors.append(
-                f"instance `{consumer}`: pinned slot `{key}` is bound twice, to `{pinned[key]}` and `{instance}`"
-                f" (DuplicateBindingKey)\n    help: a pinned slot takes one producer; pass --bind {key}@... once"
-            )
-        else:
-            pinned[key] = instance
-    plans: List[SlotPlan] = []
-    for s in slots:
-        if s.from_any:
-            got = producers[s.link_id]
-            binding = SlotBinding(FROM_ANY_BOUND, tuple(got)) if got else SlotBinding(FROM_ANY_UNBOUND)
-        elif s.link_id in pinned:
-            binding = SlotBinding.pinned(pinned[s.link_id])
-        else:
-            errors.append(
-                f"instance `{consumer}`: pinned slot `{s.link_id}` ({_describe(s)}) is unbound (PinnedSlotUnbound)\n"
-                f"    help: pass --bind {s.link_id}@<producer instance id>"
-            )
-            continue
-        plans.append(SlotPlan(s.link_id, s.kind, s.name, s.tag, binding, ANY))
-    if errors:
-        raise StartupError("invalid bindings:" + "".join(f"\n  - {e}" for e in errors))
-    return compute_filters(plans)
+def slot_from_json(data: Any) -> SlotPlan:
+    """One slot of a plan, as serde writes `peppy_schema::SlotPlan`."""
+    if not isinstance(data, dict):
+        raise StartupError("every entry of `slots` must be an object")
+    link_id = data.get("link_id")
+    if not isinstance(link_id, str):
+        raise StartupError("every entry of `slots` needs a `link_id` string")
+    extra = [k for k in data if k not in _SLOT_FIELDS]
+    missing = [k for k in _SLOT_FIELDS if k not in data]
+    if extra or missing:
+        raise StartupError(f"slot `{link_id}`: expected the fields {', '.join(_SLOT_FIELDS)}")
+    target = data["target"]
+    if (
+        not isinstance(target, dict)
+        or set(target) != {"name", "tag"}
+        or not all(isinstance(v, str) for v in target.values())
+    ):
+        raise StartupError(f"slot `{link_id}`: `target` must be {{ name, tag }}")
+    if data["kind"] not in ("node", "interface"):
+        raise StartupError(f"slot `{link_id}`: `kind` must be node or interface")
+    return SlotPlan(
+        link_id,
+        data["kind"],
+        target["name"],
+        target["tag"],
+        SlotBinding.from_json(data["binding"], link_id),
+        RouteFilter.from_json(data["filter"], link_id),
+    )
 
 
-def compute_filters(slots: Sequence[SlotPlan]) -> List[SlotPlan]:
-    """Per slot: pinned -> that producer; from_any bound -> the listed
-    producers minus those pinned by a sibling; from_any unbound -> any except
-    producers claimed by siblings. Siblings are the other slots of the same
-    kind and `name:tag`."""
-    out: List[SlotPlan] = []
+def fit_plan(slots: Sequence[SlotPlan], declared: Sequence[SlotSpec]) -> List[SlotPlan]:
+    """`slots` in `depends_on` order, once they are exactly the declared
+    slots (link_ids, kinds, targets; a pinned slot pinned, a from_any slot
+    not), as peppy-schema's `fit_plan` checks. Bindings and filters are
+    taken as the plan gives them. A mismatch means this package was
+    generated from other documents than the launcher read."""
+    by_id: Dict[str, SlotPlan] = {}
+    declared_ids = {d.link_id for d in declared}
     for slot in slots:
-        siblings = [
-            s
-            for s in slots
-            if s.kind == slot.kind and (s.name, s.tag) == (slot.name, slot.tag) and s.link_id != slot.link_id
-        ]
-        b = slot.binding
-        if b.kind == PINNED:
-            f = RouteFilter("pin", frozenset(b.producers))
-        elif b.kind == FROM_ANY_BOUND:
-            pinned_elsewhere = {s.binding.producers[0] for s in siblings if s.binding.kind == PINNED}
-            f = RouteFilter("only_from", frozenset(p for p in b.producers if p not in pinned_elsewhere))
-        else:
-            claimed = frozenset(p for s in siblings for p in s.binding.producers)
-            f = RouteFilter("any_except", claimed) if claimed else ANY
-        out.append(SlotPlan(slot.link_id, slot.kind, slot.name, slot.tag, slot.binding, f))
-    return out
+        if slot.link_id not in declared_ids:
+            raise _mismatch(f"the plan fills slot `{slot.link_id}`, which this node does not declare")
+        if slot.link_id in by_id:
+            raise _mismatch(f"the plan fills slot `{slot.link_id}` twice")
+        by_id[slot.link_id] = slot
+    ordered: List[SlotPlan] = []
+    for d in declared:
+        slot = by_id.get(d.link_id)
+        if slot is None:
+            raise _mismatch(f"the plan leaves slot `{d.link_id}` out")
+        if (slot.kind, slot.name, slot.tag) != (d.kind, d.name, d.tag):
+            raise _mismatch(
+                f"the plan's slot `{d.link_id}` wants {slot.kind} `{slot.name}:{slot.tag}`, "
+                f"this node's wants {d.kind} `{d.name}:{d.tag}`"
+            )
+        pinned = slot.binding.kind == PINNED
+        if pinned == d.from_any:
+            what = "pinned" if pinned else "from_any"
+            raise _mismatch(f"the plan binds slot `{d.link_id}` as {what}, which its declaration does not allow")
+        ordered.append(slot)
+    return ordered
+
+
+def _mismatch(why: str) -> StartupError:
+    return StartupError(
+        f"the runtime config does not fit this node: {why}; "
+        "was its peppygen generated from another peppy.json5 than the launcher read?"
+    )

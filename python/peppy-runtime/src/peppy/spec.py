@@ -178,7 +178,9 @@ class NodeDescriptor:
 
     `parameters` is the generated Parameters class (`from_json(dict)`), or
     None for a node whose parameters stay plain JSON; `document` is the
-    node document's path, for messages.
+    node document's path, for messages; `model` is the node's model as JSON
+    (`peppy_schema::NodeModel`, what a Rust binary embeds), which a node
+    started by hand hands `peppy-launch plan`.
     """
 
     name: str
@@ -192,6 +194,7 @@ class NodeDescriptor:
     consumed_actions: Tuple[ConsumedActionSpec, ...] = ()
     parameters: Any = None
     document: str = "peppy.json5"
+    model: Optional[str] = None
 
     def slot(self, link_id: str) -> Optional[SlotSpec]:
         """The slot named `link_id`, if the node has one."""

@@ -1,35 +1,27 @@
-"""Start-up inputs (docs/WIRE.md §8): identity, bindings, parameters,
-namespace and Zenoh endpoints, from the launcher's runtime-config file
-(`PEPPY_RUNTIME_CONFIG`) or, run by hand, from command-line flags."""
+"""Start-up inputs (docs/WIRE.md §8): identity, slots, parameters,
+namespace and Zenoh endpoints. They are a plan decided by peppy's one
+binding engine and parameter checker (peppy-schema): the launcher's
+runtime-config file (`PEPPY_RUNTIME_CONFIG`), or, for a node started by
+hand, the plan `peppy-launch plan` gives its command line. This module
+reads a plan; it never binds or checks parameters itself."""
 
 from __future__ import annotations
 
 import json
 import os
-import re
+import shutil
+import subprocess
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, List, Optional, Sequence, Tuple
 
 from .errors import StartupError
-from .routing import FROM_ANY_BOUND, PINNED, SlotBinding, SlotPlan, assign
+from .routing import SlotPlan, fit_plan, slot_from_json
 from .spec import NodeDescriptor
 
 RUNTIME_CONFIG_ENV = "PEPPY_RUNTIME_CONFIG"
-DEFAULT_NAMESPACE = "default"
-STANDALONE_CORE = "standalone"
-STANDALONE_INSTANCE = "standalone"
-
-_NAME = re.compile(r"[A-Za-z0-9_-]+\Z")
-
-
-def check_name(what: str, value: Any) -> str:
-    """`value` if it is a valid instance id / core node / namespace, else StartupError."""
-    if not isinstance(value, str) or not _NAME.match(value):
-        raise StartupError(
-            f"invalid {what} `{value}`: "
-            + ("must not be empty" if value == "" else "allowed: ASCII letters, digits, `_` and `-`")
-        )
-    return value
+PEPPY_LAUNCH_ENV = "PEPPY_LAUNCH"
+"""The `peppy-launch` program a node started by hand asks for its plan
+(else `peppy-launch` on `PATH`)."""
 
 
 @dataclass(frozen=True)
@@ -93,7 +85,6 @@ class Startup:
     endpoints: Endpoints
     slots: List[SlotPlan]
     parameters: Any
-    overrides: Dict[str, str] = field(default_factory=dict)
 
 
 def _reject_unknown(data: Dict[str, Any], allowed: Sequence[str], where: str) -> None:
@@ -137,168 +128,84 @@ def endpoints_from_json(data: Any, where: str) -> Endpoints:
 
 
 def read_config_file(path: str, descriptor: NodeDescriptor) -> Startup:
-    """A launcher's runtime config: checked as strictly as the Rust runtime reads it."""
-    where = f"invalid runtime config `{path}` ({RUNTIME_CONFIG_ENV})"
+    """A launcher's runtime config, checked as strictly as the Rust runtime reads it."""
     try:
         with open(path, encoding="utf-8") as f:
             text = f.read()
     except OSError as e:
         raise StartupError(f"cannot read the runtime config `{path}` ({RUNTIME_CONFIG_ENV}): {e}") from None
+    return plan_from_text(text, f"invalid runtime config `{path}` ({RUNTIME_CONFIG_ENV})", descriptor)
+
+
+_PLAN_FIELDS = ("instance_id", "core_node", "namespace", "slots", "parameters", "zenoh")
+
+
+def plan_from_text(text: str, where: str, descriptor: NodeDescriptor) -> Startup:
+    """A plan (`peppy_runtime::StartupConfig` as JSON), applied to this node."""
     try:
         data = json.loads(text)
     except ValueError as e:
         raise StartupError(f"{where}: {e}") from None
     if not isinstance(data, dict):
         raise StartupError(f"{where}: expected a JSON object")
-    _reject_unknown(data, ("instance_id", "core_node", "namespace", "bindings", "parameters", "zenoh"), where)
+    _reject_unknown(data, _PLAN_FIELDS, where)
     for required in ("instance_id", "core_node", "namespace"):
         if not isinstance(data.get(required), str):
             raise StartupError(f"{where}: missing `{required}` (a string)")
-    instance_id = check_name("instance id", data["instance_id"])
-    core_node = check_name("core node", data["core_node"])
-    namespace = check_name("namespace", data["namespace"])
-    bindings = data.get("bindings") or {}
-    if not isinstance(bindings, dict):
-        raise StartupError(f"{where}: `bindings` must be an object")
-    binds: List[Tuple[str, str]] = []
-    for link_id, raw in bindings.items():
-        if descriptor.slot(link_id) is None:
-            raise StartupError(
-                f"the runtime config binds `{link_id}`, which is not a slot of `{descriptor.name}:{descriptor.tag}`; "
-                f"was this program generated from another {descriptor.document} than the launcher read?"
-            )
-        binding = SlotBinding.from_json(raw, link_id)
-        if binding.kind in (PINNED, FROM_ANY_BOUND):
-            binds.extend((link_id, p) for p in binding.producers)
+    slots = data.get("slots", [])
+    if not isinstance(slots, list):
+        raise StartupError(f"{where}: `slots` must be a list")
+    parameters = data.get("parameters")
     return Startup(
-        instance_id=instance_id,
-        core_node=core_node,
-        namespace=namespace,
+        instance_id=data["instance_id"],
+        core_node=data["core_node"],
+        namespace=data["namespace"],
         endpoints=endpoints_from_json(data.get("zenoh", {}), where),
-        slots=assign(instance_id, descriptor.slots, binds),
-        parameters=data.get("parameters"),
+        slots=fit_plan([slot_from_json(s) for s in slots], descriptor.slots),
+        parameters={} if parameters is None else parameters,
     )
 
 
-def usage(descriptor: NodeDescriptor) -> str:
-    """The help text of a standalone run."""
-    lines = [
-        f"Node `{descriptor.name}:{descriptor.tag}`. Started by `peppy-launch`, or standalone with these flags.",
-        "",
-        "Usage: [OPTIONS] [KEY=VALUE]...",
-        "",
-        "Options:",
-        "  --instance-id <ID>      this instance's id (default: standalone)",
-        "  --bind <KEY@INSTANCE>   bind a slot, e.g. --bind left_cam@rs_left (repeatable)",
-        "  --params <FILE.json>    parameter values from a JSON file",
-        "  --namespace <NS>        the namespace to join (default: default)",
-        "  --connect <ENDPOINT>    a Zenoh endpoint to connect to (repeatable), e.g. tcp/10.0.0.2:7447",
-        "  --listen <ENDPOINT>     a Zenoh endpoint to listen on (repeatable)",
-        "  KEY=VALUE               a parameter override, dot-paths for groups (video.fps=30)",
-    ]
-    if descriptor.slots:
-        lines += ["", "Slots:"]
-        for s in descriptor.slots:
-            many = ", from_any" if s.from_any else ""
-            lines.append(f"  {s.link_id}: {s.kind} `{s.name}:{s.tag}`{many}")
-    return "\n".join(lines)
-
-
-_FLAGS = ("--instance-id", "--bind", "--params", "--namespace", "--connect", "--listen")
-
-
-def _parse_flags(args: Sequence[str], descriptor: NodeDescriptor) -> Tuple[Dict[str, List[str]], List[str]]:
-    flags: Dict[str, List[str]] = {f: [] for f in _FLAGS}
-    positional: List[str] = []
-    i = 0
-    only_positional = False
-    while i < len(args):
-        arg = args[i]
-        i += 1
-        if only_positional or not arg.startswith("-"):
-            positional.append(arg)
-            continue
-        if arg == "--":
-            only_positional = True
-            continue
-        if arg in ("-h", "--help"):
-            raise StartupError(usage(descriptor))
-        name, eq, value = arg.partition("=")
-        if name not in flags:
-            raise StartupError(f"unexpected argument `{arg}`\n\n{usage(descriptor)}")
-        if not eq:
-            if i >= len(args):
-                raise StartupError(f"`{name}` needs a value\n\n{usage(descriptor)}")
-            value = args[i]
-            i += 1
-        flags[name].append(value)
-    for single in ("--instance-id", "--params", "--namespace"):
-        if len(flags[single]) > 1:
-            raise StartupError(f"`{single}` given more than once\n\n{usage(descriptor)}")
-    return flags, positional
-
-
-def _merge(base: Any, patch: Any) -> Any:
-    """Deep merge: objects merge key by key, anything else replaces."""
-    if isinstance(base, dict) and isinstance(patch, dict):
-        out = dict(base)
-        for k, v in patch.items():
-            out[k] = _merge(out.get(k), v)
-        return out
-    return patch
+def peppy_launch() -> Optional[str]:
+    """The `peppy-launch` program: `PEPPY_LAUNCH`, else the one on `PATH`."""
+    return os.environ.get(PEPPY_LAUNCH_ENV) or shutil.which("peppy-launch")
 
 
 def from_flags(args: Sequence[str], descriptor: NodeDescriptor) -> Startup:
-    """The start-up inputs a standalone command line gives."""
-    flags, positional = _parse_flags(args, descriptor)
-    binds: List[Tuple[str, str]] = []
-    for b in flags["--bind"]:
-        key, at, instance = b.partition("@")
-        if not at or not key or not instance:
-            raise StartupError(f"invalid --bind `{b}`: expected KEY@INSTANCE, e.g. --bind left_cam@rs_left")
-        binds.append((key, instance))
-    parameters: Any = None
-    if flags["--params"]:
-        file = flags["--params"][0]
-        try:
-            with open(file, encoding="utf-8") as f:
-                parameters = json.load(f)
-        except OSError as e:
-            raise StartupError(f"cannot read --params `{file}`: {e}") from None
-        except ValueError as e:
-            raise StartupError(f"--params `{file}` is not valid JSON: {e}") from None
-    overrides: Dict[str, str] = {}
-    for o in positional:
-        path, eq, raw = o.partition("=")
-        if not eq or not path:
-            raise StartupError(f"unexpected argument `{o}`: parameter overrides are `key=value` (dot-paths for groups)")
-        try:
-            value: Any = json.loads(raw)
-        except ValueError:
-            value = raw
-        for key in reversed(path.split(".")):
-            value = {key: value}
-        parameters = _merge(parameters, value)
-        overrides[path] = raw
-    if flags["--connect"] or flags["--listen"]:
-        endpoints = Endpoints(listen=tuple(flags["--listen"]), connect=tuple(flags["--connect"]))
-    else:
-        endpoints = Endpoints(multicast_scouting=True)
-    instance_id = check_name("instance id", (flags["--instance-id"] or [STANDALONE_INSTANCE])[0])
-    namespace = check_name("namespace", (flags["--namespace"] or [DEFAULT_NAMESPACE])[0])
-    return Startup(
-        instance_id=instance_id,
-        core_node=STANDALONE_CORE,
-        namespace=namespace,
-        endpoints=endpoints,
-        slots=assign(instance_id, descriptor.slots, binds),
-        parameters=parameters,
-        overrides=overrides,
-    )
+    """The plan a standalone command line gives: `peppy-launch plan` runs
+    the node's flags (`--instance-id`, `--bind`, `--params`, `key=value`,
+    ...) through the engine a launch uses, so a Python node started by hand
+    binds exactly as a Rust one does."""
+    if descriptor.model is None:
+        raise StartupError(
+            f"node `{descriptor.name}:{descriptor.tag}` has no model to plan with; "
+            "regenerate its peppygen (`peppy-launch sync`) or give it a runtime config"
+        )
+    program = peppy_launch()
+    if program is None:
+        raise StartupError(
+            "a node started by hand asks `peppy-launch plan` for its slots and parameters, and "
+            f"peppy-launch was not found: put it on PATH, set {PEPPY_LAUNCH_ENV}, "
+            "or start the node with `peppy-launch run NODE_DIR ...`"
+        )
+    try:
+        done = subprocess.run(
+            [program, "plan", "--model", "-", "--", *args],
+            input=descriptor.model,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    except (OSError, subprocess.SubprocessError) as e:
+        raise StartupError(f"cannot run `{program} plan`: {e}") from None
+    if done.returncode != 0:
+        message = done.stderr.strip()
+        raise StartupError(message.removeprefix("peppy-launch: ") or f"`{program} plan` failed")
+    return plan_from_text(done.stdout, f"`{program} plan` answered", descriptor)
 
 
 def load(descriptor: NodeDescriptor, args: Sequence[str], config_file: Optional[str]) -> Startup:
-    """The runtime config when the launcher names one, else the flags in `args`."""
+    """The runtime config when the launcher names one, else the plan the flags in `args` give."""
     if config_file:
         return read_config_file(config_file, descriptor)
     return from_flags(args, descriptor)
