@@ -576,6 +576,29 @@ mod tests {
     }
 
     #[test]
+    fn a_free_form_key_without_a_from_any_slot_is_dead() {
+        let doc = model(
+            r#"{ peppy_schema: "node_v1",
+                manifest: { name: "single", tag: "v1", depends_on: {
+                    interfaces: [ { name: "depth_camera", tag: "v1", link_id: "left_cam" } ] } },
+                execution: { language: "rust", run_cmd: ["x"] } }"#,
+        );
+        let err = load(
+            &doc,
+            args(&["--bind", "left_cam@a", "--bind", "front@rs_a"]),
+            None,
+            &StandaloneConfig::new(),
+        )
+        .unwrap_err();
+        let Error::Bindings(errors) = &err else {
+            panic!("{err}")
+        };
+        assert_eq!(errors.len(), 1, "{err}");
+        assert_eq!(errors[0].code(), peppy_schema::Code::DeadBindingKey);
+        assert!(err.to_string().contains("binding `front`"), "{err}");
+    }
+
+    #[test]
     fn a_pinned_slot_without_binding_names_the_flag() {
         let err = load(&doc(), args(&["name=x"]), None, &StandaloneConfig::new())
             .unwrap_err()

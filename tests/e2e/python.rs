@@ -86,13 +86,40 @@ impl Drop for Python {
     }
 }
 
+/// The plan a standalone command line gives node `P`, as `peppy-launch
+/// plan` gives a Python node's (the binding engine and the parameter
+/// checker every node is planned by), written to `dir/<instance>.json`.
+fn plan<P: peppy::codegen::NodeParameters>(dir: &Path, instance: &str, args: &[&str]) -> String {
+    let model = peppy_schema::NodeModel::from_json(P::descriptor().model).expect("a model");
+    let flags = ["plan", "--instance-id", instance]
+        .iter()
+        .chain(args)
+        .map(|a| a.to_string())
+        .collect();
+    let config = peppy_runtime::startup_from_flags(&model, flags).expect("a plan");
+    let path = dir.join(format!("{instance}.json"));
+    std::fs::write(&path, serde_json::to_string(&config).unwrap()).unwrap();
+    path.display().to_string()
+}
+
 async fn relay(hub: &Hub, ns: &str, upstream: &str) -> (Python, tempfile::TempDir) {
     let dir = tempfile::tempdir().unwrap();
     python_package("shapes", dir.path(), "shapes_gen");
     python_package("shapes_client", dir.path(), "client_gen");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/e2e/python_relay.py");
-    let params = crate::params::SHAPES_ARGS[1];
-    let python = Python::start(dir.path(), &script, &[&hub.endpoint, ns, upstream, params]);
+    let common = ["--namespace", ns, "--connect", &hub.endpoint];
+    let bind = format!("shapes@{upstream}");
+    let client = plan::<shapes_client::Parameters>(
+        dir.path(),
+        "py_client",
+        &[&["--bind", bind.as_str()][..], &common].concat(),
+    );
+    let server = plan::<shapes::Parameters>(
+        dir.path(),
+        "shapes_py",
+        &[&crate::params::SHAPES_ARGS[..], &common].concat(),
+    );
+    let python = Python::start(dir.path(), &script, &[&client, &server]);
     (python, dir)
 }
 

@@ -6,7 +6,8 @@ field by field and publishes it. A Rust client bound to the Python
 producer then sees exactly what the Rust producer sent, or nothing at all
 (a fingerprint that differed would make it drop the messages).
 
-Usage: python_relay.py ENDPOINT NAMESPACE UPSTREAM PARAMS_JSON
+Usage: python_relay.py CLIENT_PLAN SERVER_PLAN (the two nodes' runtime
+configs, planned by the test as `peppy-launch plan` plans a node)
 Prints the Python side's fingerprints as one JSON line, then `ready`, and
 relays until stdin closes.
 """
@@ -47,20 +48,9 @@ async def relay(client, server, source, target) -> None:
 
 
 async def main() -> None:
-    endpoint, namespace, upstream, params = sys.argv[1:5]
-    common = ["--namespace", namespace, "--connect", endpoint]
-    client = await (
-        client_gen.NodeBuilder()
-        .with_runtime_config(None)
-        .with_args(["--instance-id", "py_client", "--bind", f"shapes@{upstream}", *common])
-        .start()
-    )
-    server = await (
-        shapes_gen.NodeBuilder()
-        .with_runtime_config(None)
-        .with_args(["--instance-id", "shapes_py", "--params", params, *common])
-        .start()
-    )
+    client_plan, server_plan = sys.argv[1:3]
+    client = await client_gen.NodeBuilder().with_runtime_config(client_plan).start()
+    server = await shapes_gen.NodeBuilder().with_runtime_config(server_plan).start()
     prints = {
         name: [source.SPEC.format.fingerprint, target.SPEC.format.fingerprint]
         for name, (source, target) in PAIRS.items()

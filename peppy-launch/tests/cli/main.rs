@@ -5,6 +5,7 @@ mod check;
 mod inspect;
 mod machines;
 mod netns;
+mod one_engine;
 mod python;
 mod security;
 mod seeds;

@@ -13,7 +13,8 @@ fn uv() -> std::path::PathBuf {
 }
 
 /// The Python runtime's own tests (codec golden bytes, routing, services,
-/// actions between Python nodes), run here so they cannot be skipped.
+/// actions between Python nodes), run here so they cannot be skipped. Nodes
+/// they start by hand ask this build's `peppy-launch plan` for their plans.
 #[test]
 fn python_runtime_tests_pass() {
     let project = root().join("python/peppy-runtime");
@@ -22,6 +23,7 @@ fn python_runtime_tests_pass() {
         .arg(&project)
         .args(["python", "-m", "unittest", "discover", "-s"])
         .arg(project.join("tests"))
+        .env("PEPPY_LAUNCH", env!("CARGO_BIN_EXE_peppy-launch"))
         .current_dir(&project)
         .output()
         .unwrap();

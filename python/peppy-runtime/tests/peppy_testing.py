@@ -8,6 +8,7 @@ import asyncio
 import json
 import os
 import socket
+import subprocess
 import tempfile
 import unittest
 import uuid
@@ -18,6 +19,7 @@ from peppy import NodeBuilder, NodeRunner, QoSProfile
 from peppy import codec as c
 from peppy import spec as s
 from peppy.members import live_instances
+from peppy.startup import PEPPY_LAUNCH_ENV, peppy_launch
 
 WAIT = 10.0
 """The bound on every wait of a live test (seconds)."""
@@ -145,6 +147,44 @@ def free_port() -> int:
         return sock.getsockname()[1]
 
 
+def model_of(descriptor: s.NodeDescriptor) -> str:
+    """The model (`peppy_schema::NodeModel` as JSON) generated code would
+    carry for a hand-written descriptor without parameters."""
+    return json.dumps(
+        {
+            "identity": {"name": descriptor.name, "tag": descriptor.tag},
+            "dependencies": [
+                {
+                    "kind": x.kind,
+                    "target": {"name": x.name, "tag": x.tag},
+                    "link_id": x.link_id,
+                    "from_any": x.from_any,
+                    "sha256": None,
+                }
+                for x in descriptor.slots
+            ],
+            "parameters": {"fields": []},
+        }
+    )
+
+
+def plan(descriptor: s.NodeDescriptor, args: List[str]) -> Dict[str, Any]:
+    """The plan `peppy-launch plan` gives `descriptor` for the command line `args`."""
+    program = peppy_launch()
+    if program is None:
+        raise AssertionError(f"the live tests plan their nodes with peppy-launch: set {PEPPY_LAUNCH_ENV}")
+    done = subprocess.run(
+        [program, "plan", "--model", "-", "--", *args],
+        input=descriptor.model or model_of(descriptor),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    if done.returncode != 0:
+        raise AssertionError(f"peppy-launch plan {args}: {done.stderr}")
+    return json.loads(done.stdout)
+
+
 class LiveTest(unittest.IsolatedAsyncioTestCase):
     """Starts nodes in one namespace of its own; every node listens on its
     own port and connects to every node started before it (peers do not
@@ -161,22 +201,34 @@ class LiveTest(unittest.IsolatedAsyncioTestCase):
             await asyncio.wait_for(r.shutdown(), WAIT)
         self.tmp.cleanup()
 
-    def write_config(self, instance: str, core: str, bindings: Dict[str, Any], parameters: Any = None) -> str:
-        """A runtime-config file as the launcher writes it."""
+    def write_config(
+        self,
+        descriptor: s.NodeDescriptor,
+        instance: str,
+        core: str,
+        bindings: Dict[str, Any],
+    ) -> str:
+        """A runtime-config file as the launcher writes it: the slots are
+        planned by `peppy-launch plan` (the launcher's binding engine) from
+        `bindings` (link_id -> a binding as the runtime config writes one),
+        the identity and endpoints are this test's."""
         endpoint = f"tcp/127.0.0.1:{free_port()}"
-        config = {
-            "instance_id": instance,
-            "core_node": core,
-            "namespace": self.namespace,
-            "bindings": bindings,
-            "parameters": parameters if parameters is not None else {},
-            "zenoh": {
+        args = ["--instance-id", instance]
+        for link_id, binding in bindings.items():
+            producers = [binding["producer"]] if binding["kind"] == "pinned" else binding.get("producers", [])
+            for producer in producers:
+                args += ["--bind", f"{link_id}@{producer}"]
+        config = plan(descriptor, args)
+        config.update(
+            core_node=core,
+            namespace=self.namespace,
+            zenoh={
                 "mode": "peer",
                 "listen": [endpoint],
                 "connect": list(self.endpoints),
                 "multicast_scouting": False,
             },
-        }
+        )
         self.endpoints.append(endpoint)
         path = os.path.join(self.tmp.name, f"{instance}.json")
         with open(path, "w") as f:
@@ -192,7 +244,7 @@ class LiveTest(unittest.IsolatedAsyncioTestCase):
         retention: Optional[float] = None,
     ) -> NodeRunner:
         """Starts a node from a runtime config; shut down at the end of the test."""
-        path = self.write_config(instance, core, bindings or {})
+        path = self.write_config(descriptor, instance, core, bindings or {})
         builder = NodeBuilder(descriptor).with_runtime_config(path)
         if retention is not None:
             builder.action_result_retention(retention)

@@ -13,14 +13,14 @@ import textwrap
 import unittest
 import uuid
 from dataclasses import dataclass
-from typing import Any, List
+from typing import Any, Dict, List
 
 from peppy import StartupError
 from peppy import spec as s
 from peppy.node import NodeBuilder
-from peppy.params import MISSING, array, group, leaf
-from peppy.routing import RouteFilter, SlotBinding, SlotPlan, compute_filters
-from peppy.startup import load
+from peppy.params import array, group, leaf
+from peppy.routing import RouteFilter, SlotBinding, SlotPlan, fit_plan
+from peppy.startup import PEPPY_LAUNCH_ENV, load, peppy_launch
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SRC = os.path.join(os.path.dirname(HERE), "src")
@@ -33,9 +33,7 @@ class Video:
 
     @classmethod
     def from_json(cls, data: Any, where: str = "") -> "Video":
-        if not isinstance(data, dict):
-            raise ValueError(f"parameter group `{where or 'parameters'}`: expected an object")
-        return cls(fps=leaf(data, "fps", 30, "u16", where), scale=leaf(data, "scale", 1, "f64", where))
+        return cls(fps=leaf(data, "fps", "u16", where), scale=leaf(data, "scale", "f64", where))
 
 
 @dataclass
@@ -46,55 +44,79 @@ class Parameters:
     video: Video
     gains: List[float]
     class_: bool
+    key: bytes
 
     @classmethod
     def from_json(cls, data: Any, where: str = "") -> "Parameters":
-        if not isinstance(data, dict):
-            raise ValueError(f"parameter group `{where or 'parameters'}`: expected an object")
         return cls(
-            name=leaf(data, "name", MISSING, "string", where),
+            name=leaf(data, "name", "string", where),
             video=group(data, "video", Video.from_json, where),
-            gains=array(data, "gains", [1, 2], "f64", 2, where),
-            class_=leaf(data, "class", False, "bool", where),
+            gains=array(data, "gains", "f64", where),
+            class_=leaf(data, "class", "bool", where),
+            key=leaf(data, "key", "bytes", where),
         )
 
 
-RECON = s.NodeDescriptor(
-    name="recon",
-    tag="v1",
-    slots=(
-        s.SlotSpec("left_cam", "interface", "depth_camera", "v1", False),
-        s.SlotSpec("backup", "interface", "depth_camera", "v1", True),
-        s.SlotSpec("spare", "interface", "depth_camera", "v1", True),
-    ),
-    parameters=Parameters,
-)
+def _leaf(name: str, ty: str, default: Any = None) -> Dict[str, Any]:
+    return {"name": name, "kind": {"leaf": {"ty": ty, "default": default}}}
 
 
-class FilterTest(unittest.TestCase):
-    def plan(self, link_id, binding, kind="interface", name="depth_camera"):
-        return SlotPlan(link_id, kind, name, "v1", binding, RouteFilter("any"))
+PARAMETER_SCHEMA = {
+    "fields": [
+        _leaf("name", "string"),
+        {"name": "video", "kind": {"group": [_leaf("fps", "u16", 30), _leaf("scale", "f64", 1)]}},
+        {"name": "gains", "kind": {"array": {"items": {"primitive": "f64"}, "length": 2, "default": [1, 2]}}},
+        _leaf("class", "bool", False),
+        _leaf("key", "bytes", "k"),
+    ]
+}
 
-    def test_compute_filters_as_peppy_schema(self):
-        slots = compute_filters(
-            [
-                self.plan("left", SlotBinding.pinned("rs_left")),
-                self.plan("bound", SlotBinding("from_any_bound", ("rs_left", "zed"))),
-                self.plan("rest", SlotBinding("from_any_unbound")),
-                self.plan("other", SlotBinding("from_any_unbound"), name="lidar"),
-                self.plan("node", SlotBinding("from_any_unbound"), kind="node"),
-            ]
-        )
-        f = {x.link_id: x.filter for x in slots}
-        self.assertEqual(f["left"].to_json(), {"kind": "pin", "producers": "rs_left"})
-        self.assertEqual(f["bound"].to_json(), {"kind": "only_from", "producers": ["zed"]})
-        self.assertEqual(f["rest"].to_json(), {"kind": "any_except", "producers": ["rs_left", "zed"]})
-        self.assertEqual(f["other"].to_json(), {"kind": "any"})
-        self.assertEqual(f["node"].to_json(), {"kind": "any"}, "a node slot is no sibling of an interface slot")
-        self.assertTrue(f["rest"].accepts("rs_right"))
-        self.assertFalse(f["rest"].accepts("zed"))
-        self.assertTrue(f["bound"].accepts("zed"))
-        self.assertFalse(f["bound"].accepts("rs_left"))
+
+def descriptor(name: str, *slots: s.SlotSpec) -> s.NodeDescriptor:
+    """A node as generated code describes it, with the model
+    (`peppy_schema::NodeModel` as JSON) its package carries."""
+    model = {
+        "identity": {"name": name, "tag": "v1"},
+        "dependencies": [
+            {
+                "kind": x.kind,
+                "target": {"name": x.name, "tag": x.tag},
+                "link_id": x.link_id,
+                "from_any": x.from_any,
+                "sha256": None,
+            }
+            for x in slots
+        ],
+        "parameters": PARAMETER_SCHEMA,
+    }
+    return s.NodeDescriptor(name=name, tag="v1", slots=slots, parameters=Parameters, model=json.dumps(model))
+
+
+LEFT = s.SlotSpec("left_cam", "interface", "depth_camera", "v1", False)
+BACKUP = s.SlotSpec("backup", "interface", "depth_camera", "v1", True)
+ARMS = s.SlotSpec("arms", "node", "robot_arm", "v1", True)
+
+RECON = descriptor("recon", LEFT, BACKUP)
+"""A pinned slot and a from_any slot: a free-form key joins `backup`."""
+MIXER = descriptor("mixer", LEFT, BACKUP, ARMS)
+"""Two from_any slots wanting different producers: a free-form key is ambiguous."""
+SINGLE = descriptor("single", LEFT)
+"""No from_any slot: a free-form key is dead."""
+
+FULL = {"name": "n", "video": {"fps": 60, "scale": 1}, "gains": [1, 2], "class": False, "key": "k"}
+
+
+def slot(link_id, binding, filter_, kind="interface", name="depth_camera"):
+    return {
+        "link_id": link_id,
+        "kind": kind,
+        "target": {"name": name, "tag": "v1"},
+        "binding": binding,
+        "filter": filter_,
+    }
+
+
+PINNED_LEFT = slot("left_cam", {"kind": "pinned", "producer": "rs_left"}, {"kind": "pin", "producers": "rs_left"})
 
 
 class ConfigFileTest(unittest.TestCase):
@@ -113,11 +135,17 @@ class ConfigFileTest(unittest.TestCase):
             "instance_id": "recon_1",
             "core_node": "lab-1",
             "namespace": "lab",
-            "bindings": {
-                "left_cam": {"kind": "pinned", "producer": "rs_left"},
-                "backup": {"kind": "from_any_bound", "producers": ["zed_overhead", "rs_left"]},
-            },
-            "parameters": {"name": "n", "video": {"fps": 60}},
+            "slots": [
+                # Out of depends_on order, with a filter the bindings alone
+                # would not give: the node takes the plan as it is.
+                slot(
+                    "backup",
+                    {"kind": "from_any_bound", "producers": ["zed_overhead", "rs_left"]},
+                    {"kind": "only_from", "producers": ["zed_overhead"]},
+                ),
+                PINNED_LEFT,
+            ],
+            "parameters": FULL,
             "zenoh": {
                 "mode": "client",
                 "listen": [],
@@ -129,13 +157,14 @@ class ConfigFileTest(unittest.TestCase):
         base.update(changes)
         return base
 
-    def test_the_launcher_config_is_read(self):
+    def test_the_launchers_plan_is_applied_as_it_is(self):
         st = load(RECON, ["ignored=1"], self.write(self.config()))
         self.assertEqual((st.instance_id, st.core_node, st.namespace), ("recon_1", "lab-1", "lab"))
+        self.assertEqual([p.link_id for p in st.slots], ["left_cam", "backup"], "depends_on order")
         filters = {p.link_id: p.filter.to_json() for p in st.slots}
         self.assertEqual(filters["left_cam"], {"kind": "pin", "producers": "rs_left"})
         self.assertEqual(filters["backup"], {"kind": "only_from", "producers": ["zed_overhead"]})
-        self.assertEqual(filters["spare"], {"kind": "any_except", "producers": ["rs_left", "zed_overhead"]})
+        self.assertEqual(st.slots[1].binding.producers, ("zed_overhead", "rs_left"))
         self.assertEqual(st.endpoints.connect, ("tcp/127.0.0.1:7447",))
         self.assertEqual(st.endpoints.login.user, "recon_1")
         self.assertNotIn("secret", repr(st.endpoints))
@@ -148,18 +177,32 @@ class ConfigFileTest(unittest.TestCase):
         self.assertFalse(setting("transport/shared_memory/enabled"))
         self.assertEqual(setting("connect/endpoints"), ["tcp/127.0.0.1:7447"])
         params = NodeBuilder(RECON)._parameters(st)
-        self.assertEqual(params, Parameters("n", Video(60, 1.0), [1.0, 2.0], False))
+        self.assertEqual(params, Parameters("n", Video(60, 1.0), [1.0, 2.0], False, b"k"))
         self.assertIsInstance(params.video.scale, float)
+        self.assertIsInstance(params.gains[0], float)
+
+    def test_a_plan_for_other_slots_is_refused(self):
+        unbound = slot("backup", {"kind": "from_any_unbound"}, {"kind": "any"})
+        for slots, words in (
+            ([PINNED_LEFT], "leaves slot `backup` out"),
+            ([PINNED_LEFT, unbound, slot("spare", {"kind": "from_any_unbound"}, {"kind": "any"})], "fills slot `spare`"),
+            ([PINNED_LEFT, unbound, unbound], "fills slot `backup` twice"),
+            ([slot("left_cam", {"kind": "from_any_unbound"}, {"kind": "any"}), unbound], "binds slot `left_cam` as from_any"),
+            ([PINNED_LEFT, slot("backup", {"kind": "from_any_unbound"}, {"kind": "any"}, name="lidar")], "wants interface `lidar:v1`"),
+        ):
+            with self.assertRaises(StartupError) as caught:
+                load(RECON, [], self.write(self.config(slots=slots)))
+            self.assertIn(words, str(caught.exception))
+            self.assertIn("another peppy.json5", str(caught.exception))
 
     def test_bad_configs_are_refused(self):
         for config, words in (
             (self.config(extra=1), "unknown field `extra`"),
-            (self.config(bindings={"nope": {"kind": "pinned", "producer": "x"}}), "binds `nope`, which is not a slot"),
-            (self.config(bindings={}), "pinned slot `left_cam`"),
-            (self.config(bindings={"left_cam": {"kind": "from_any_bound", "producers": ["a", "b"]}}), "bound twice"),
-            (self.config(bindings={"left_cam": {"kind": "mystery"}}), "kind 'mystery'"),
-            (self.config(instance_id="a/b"), "invalid instance id `a/b`"),
-            (self.config(namespace=""), "invalid namespace"),
+            (self.config(bindings={}), "unknown field `bindings`"),
+            (self.config(slots=[dict(PINNED_LEFT, binding={"kind": "mystery"})]), "kind 'mystery'"),
+            (self.config(slots=[dict(PINNED_LEFT, filter={"kind": "pin"})]), "names one producer"),
+            (self.config(slots=[dict(PINNED_LEFT, more=1)]), "expected the fields"),
+            (self.config(slots={}), "`slots` must be a list"),
             (self.config(zenoh={"mode": "peer", "port": 1}), "unknown field `port`"),
             ("{not json", "invalid runtime config"),
         ):
@@ -169,27 +212,35 @@ class ConfigFileTest(unittest.TestCase):
         with self.assertRaises(StartupError):
             load(RECON, [], os.path.join(self.tmp.name, "missing.json"))
 
-    def test_parameters_are_checked(self):
-        for parameters, words in (
-            ({}, "missing required parameter `name` (a `string`)"),
-            ({"name": 5}, "parameter `name` expects a `string`, found `5`"),
-            (
-                {"name": "n", "video": {"fps": 70000}},
-                "parameter `video.fps` expects a `u16` (an integer from 0 to 65535)",
-            ),
-            ({"name": "n", "video": 3}, "parameter `video` expects an object (a parameter group)"),
-            ({"name": "n", "gains": [1]}, "parameter `gains` expects an array of exactly 2 `f64`"),
-            ({"name": "n", "gains": [1, "x"]}, "parameter `gains[1]` expects an `f64`"),
-            ({"name": "n", "nmae": 1}, "unknown parameter `nmae`"),
-            ({"name": "n", "video": {"fsp": 1}}, "unknown parameter `video.fsp`"),
-        ):
-            st = load(RECON, [], self.write(self.config(parameters=parameters)))
-            with self.assertRaises(StartupError) as caught:
-                NodeBuilder(RECON)._parameters(st)
-            self.assertIn(words, str(caught.exception))
+    def test_parameters_missing_from_the_plan_are_named(self):
+        st = load(RECON, [], self.write(self.config(parameters={"name": "n"})))
+        with self.assertRaises(StartupError) as caught:
+            NodeBuilder(RECON)._parameters(st)
+        self.assertIn("the plan has no value for parameter `video`", str(caught.exception))
+
+
+def launcher_program() -> str:
+    program = peppy_launch()
+    if program is None:
+        raise AssertionError(
+            f"these tests start nodes by hand, which ask `peppy-launch plan` for their plan: "
+            f"set {PEPPY_LAUNCH_ENV} or put peppy-launch on PATH"
+        )
+    return program
 
 
 class FlagsTest(unittest.TestCase):
+    """A node started by hand gets its plan from `peppy-launch plan`: the
+    binding engine and parameter checker a launch and a Rust node use."""
+
+    def setUp(self):
+        launcher_program()
+
+    def refused(self, node, args):
+        with self.assertRaises(StartupError) as caught:
+            load(node, args, None)
+        return str(caught.exception)
+
     def test_standalone_flags(self):
         with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
             json.dump({"name": "from-file", "video": {"scale": 3}}, f)
@@ -201,9 +252,9 @@ class FlagsTest(unittest.TestCase):
                 "r1",
                 "--bind",
                 "left_cam@cam_a",
-                "--bind=spare@cam_b",
+                "--bind=backup@cam_b",
                 "--bind",
-                "spare@cam_c",
+                "backup@cam_c",
                 "--params",
                 f.name,
                 "--connect",
@@ -219,39 +270,55 @@ class FlagsTest(unittest.TestCase):
         self.assertEqual((st.instance_id, st.core_node, st.namespace), ("r1", "standalone", "default"))
         plans = {p.link_id: p for p in st.slots}
         self.assertEqual(plans["left_cam"].filter.to_json(), {"kind": "pin", "producers": "cam_a"})
-        self.assertEqual(plans["spare"].binding.to_json(), {"kind": "from_any_bound", "producers": ["cam_b", "cam_c"]})
-        self.assertEqual(
-            plans["backup"].filter.to_json(), {"kind": "any_except", "producers": ["cam_a", "cam_b", "cam_c"]}
-        )
+        self.assertEqual(plans["backup"].binding.to_json(), {"kind": "from_any_bound", "producers": ["cam_b", "cam_c"]})
+        self.assertEqual(plans["backup"].filter.to_json(), {"kind": "only_from", "producers": ["cam_b", "cam_c"]})
         self.assertEqual(st.endpoints.connect, ("tcp/127.0.0.1:7447",))
         self.assertEqual(st.endpoints.listen, ("tcp/127.0.0.1:0",))
         self.assertFalse(st.endpoints.multicast_scouting)
-        # `name=123` is a string because `name` is declared one, as the Rust runtime reads it.
-        self.assertEqual(NodeBuilder(RECON)._parameters(st), Parameters("123", Video(24, 3.0), [0.5, 1.0], True))
+        # `name=123` is a string because `name` is declared one.
+        self.assertEqual(NodeBuilder(RECON)._parameters(st), Parameters("123", Video(24, 3.0), [0.5, 1.0], True, b"k"))
 
     def test_defaults(self):
         st = load(RECON, ["--bind", "left_cam@x", "name=n"], None)
-        self.assertEqual((st.instance_id, st.namespace), ("standalone", "default"))
+        self.assertRegex(st.instance_id, r"^recon-[0-9a-f]{4}$", "a readable id, as a Rust node's")
+        self.assertEqual(st.namespace, "default")
         self.assertTrue(st.endpoints.multicast_scouting, "no endpoints given: find peers by multicast")
-        self.assertEqual(st.parameters, {"name": "n"})
+        self.assertEqual(st.parameters, dict(FULL, video={"fps": 30, "scale": 1.0}))
+
+    def test_a_free_form_key_joins_the_from_any_slot(self):
+        st = load(RECON, ["--instance-id", "r1", "--bind", "left_cam@a", "--bind", "zed_overhead@zed_1", "name=n"], None)
+        backup = {p.link_id: p for p in st.slots}["backup"]
+        self.assertEqual(backup.binding.to_json(), {"kind": "from_any_bound", "producers": ["zed_1"]})
+        self.assertEqual(backup.filter.to_json(), {"kind": "only_from", "producers": ["zed_1"]})
+
+    def test_an_ambiguous_key_is_refused(self):
+        text = self.refused(MIXER, ["--instance-id", "m1", "--bind", "left_cam@a", "--bind", "front@rs_a", "name=n"])
+        self.assertIn("binding `front` on instance `m1`", text)
+        self.assertIn("(DeadBindingKey)", text)
+        self.assertIn("--bind arms@rs_a or --bind backup@rs_a", text)
+
+    def test_a_dead_key_is_refused(self):
+        text = self.refused(SINGLE, ["--instance-id", "s1", "--bind", "left_cam@a", "--bind", "front@rs_a", "name=n"])
+        self.assertIn("binding `front` on instance `s1` matches no slot", text)
+        self.assertIn("(DeadBindingKey)", text)
 
     def test_bad_flags(self):
         for args, words in (
             (["--bind", "nokey"], "expected KEY@INSTANCE"),
-            (["--bind", "mystery@x"], "binding `mystery` on instance `standalone` matches no slot"),
-            (["--bind", "mystery@x"], "`left_cam` (interface `depth_camera:v1`)"),
-            (["--bind", "left_cam@a", "--bind", "left_cam@b"], "bound twice"),
-            ([], "pass --bind left_cam@<producer instance id>"),
-            (["--bind", "left_cam@a", "--frobnicate"], "unexpected argument `--frobnicate`"),
-            (["--bind", "left_cam@a", "--frobnicate"], "Usage:"),
+            (["--bind", "left_cam@a", "--bind", "left_cam@b", "name=n"], "(DuplicateBindingKey)"),
+            (["name=n"], "pass --bind left_cam@<producer instance id>"),
+            (["--bind", "left_cam@a", "--frobnicate"], "unexpected argument '--frobnicate'"),
             (["--bind", "left_cam@a", "positional"], "parameter overrides are `key=value`"),
-            (["--instance-id"], "needs a value"),
-            (["--instance-id", "a b", "--bind", "left_cam@a"], "invalid instance id"),
+            (["--bind", "left_cam@a"], "missing required parameter `name`"),
+            (["--bind", "left_cam@a", "name=n", "video.fps=70000"], "`video.fps`"),
+            (["--instance-id", "a b", "--bind", "left_cam@a", "name=n"], "invalid instance id"),
             (["--help"], "--bind <KEY@INSTANCE>"),
         ):
-            with self.assertRaises(StartupError) as caught:
-                load(RECON, args, None)
-            self.assertIn(words, str(caught.exception), args)
+            self.assertIn(words, self.refused(RECON, args), args)
+
+    def test_a_descriptor_without_model_cannot_plan(self):
+        bare = s.NodeDescriptor(name="old", tag="v1")
+        self.assertIn("has no model to plan with", self.refused(bare, []))
 
 
 NODE_SCRIPT = textwrap.dedent(
@@ -270,12 +337,24 @@ NODE_SCRIPT = textwrap.dedent(
         print("ready", runner.instance_id, runner.core_node, runner.namespace, flush=True)
         return [asyncio.ensure_future(tick())]
 
-    NodeBuilder(s.NodeDescriptor(name="ticker", tag="v1")).run(setup)
+    NodeBuilder(s.NodeDescriptor(name="ticker", tag="v1", model={model!r})).run(setup)
     """
 )
 
 
+TICKER_MODEL = json.dumps(
+    {
+        "identity": {"name": "ticker", "tag": "v1"},
+        "dependencies": [],
+        "parameters": {"fields": [_leaf("fail", "bool", False)]},
+    }
+)
+
+
 class ProcessTest(unittest.TestCase):
+    def setUp(self):
+        launcher_program()
+
     def spawn(self, *args):
         env = dict(os.environ)
         env.pop("PEPPY_RUNTIME_CONFIG", None)
@@ -284,7 +363,7 @@ class ProcessTest(unittest.TestCase):
             [
                 sys.executable,
                 "-c",
-                NODE_SCRIPT.format(src=SRC),
+                NODE_SCRIPT.format(src=SRC, model=TICKER_MODEL),
                 "--namespace",
                 ns,
                 "--listen",
@@ -323,7 +402,7 @@ class ProcessTest(unittest.TestCase):
         proc = self.spawn("--frobnicate")
         _, err = proc.communicate(timeout=20)
         self.assertNotEqual(proc.returncode, 0)
-        self.assertIn("Usage:", err)
+        self.assertIn("unexpected argument '--frobnicate'", err)
 
 
 if __name__ == "__main__":
