@@ -315,238 +315,50 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         .map(|&i| stack.plan.instances[i].instance_id.as_str())
         .collect();
     let out = Arc::new(Output::new(&ids));
-    let namespace = args
-        .namespace
-        .clone()
-        .unwrap_or_else(|| default_namespace(&args.launcher));
-    if let Err(why) = peppy_schema::names::check_name(&namespace) {
-        return Err(LaunchError::Usage(format!(
-            "invalid --namespace `{namespace}`: {why}"
-        )));
-    }
-    let run_dir = stack
-        .launcher
-        .base_dir()
-        .join(".peppy")
-        .join("runs")
-        .join(format!(
-            "{}-{}",
-            std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0, |d| d.as_secs()),
-            std::process::id()
-        ));
-    // Absolute: instances run in their own directories and read their
-    // runtime config from here.
-    let run_dir =
-        match std::fs::create_dir_all(&run_dir).and_then(|()| std::fs::canonicalize(&run_dir)) {
-            Ok(d) => d,
-            Err(e) => {
-                return Err(LaunchError::Setup(format!(
-                    "cannot create the run directory {}: {e}",
-                    run_dir.display()
-                )));
-            }
-        };
+    let namespace = launch_namespace(args)?;
+    let run_dir = create_run_dir(&stack)?;
     out.note(&format!(
         "namespace {namespace}; logs in {}",
         run_dir.display()
     ));
-
     let deployments: Vec<usize> = share
         .instances
         .iter()
         .map(|&i| stack.plan.instances[i].deployment)
         .collect();
     let programs = prepare_all(&stack, &deployments, &out, !args.no_build).await?;
-
-    let listen = if share.listen.is_empty() {
-        let endpoint = free_local_endpoint()
-            .map_err(|e| LaunchError::Setup(format!("cannot find a free local port: {e}")))?;
-        vec![endpoint]
-    } else {
-        share.listen.clone()
-    };
-    let decision = crate::security::decide(&stack.launcher, &listen, &share.connect, args.insecure);
-    let keys = if decision.on {
-        stack_keys(&stack, &share, args)?
-    } else {
-        None
-    };
-    if decision.on && keys.is_none() && !share.connect.is_empty() {
-        return Err(LaunchError::Setup(format!(
-            "security is on ({}), and this launch would link to {} with no keys to link with: only the core nodes of one launcher (`up --core-node NAME`) link securely; make both sides core nodes of one launcher, or run both with --insecure",
-            decision.reason,
-            share.connect.join(", ")
-        )));
-    }
-    let (listen, connect, local) = match &keys {
-        Some(_) => {
-            // Secured, the core node's own endpoints are for other core
-            // nodes (TLS); its instances and tools reach the router on a
-            // loopback port of their own (the free one taken above when
-            // the core node has no endpoints of its own).
-            let local = if share.listen.is_empty() {
-                listen[0].clone()
-            } else {
-                free_local_endpoint().map_err(|e| {
-                    LaunchError::Setup(format!("cannot find a free local port: {e}"))
-                })?
-            };
-            let mut tls: Vec<String> = share
-                .listen
-                .iter()
-                .map(|e| crate::security::keys::over_tls(e))
-                .collect();
-            tls.push(local.clone());
-            let connect = share
-                .connect
-                .iter()
-                .map(|e| crate::security::keys::over_tls(e))
-                .collect();
-            (tls, connect, Some(local))
-        }
-        None => (listen, share.connect.clone(), None),
-    };
-    let secured = if decision.on {
+    let links = choose_links(&stack, &share, args)?;
+    let secured = if links.security.on {
+        let keys = links.keys.as_ref();
         Some(secure(
             &stack,
             &share,
             &namespace,
             &run_dir,
-            keys.as_ref(),
+            keys,
             out.clone(),
         )?)
     } else {
         None
     };
-    if decision.on {
-        out.note(&format!(
-            "security on ({}): each instance may only publish its own topics and receive and call what its bindings name; `check --security` shows the policy",
-            decision.reason
-        ));
-    } else if args.insecure
-        || matches!(stack.launcher.security, Some((false, _)))
-        || !listen
-            .iter()
-            .chain(&connect)
-            .all(|e| crate::security::is_loopback(e))
-    {
-        out.note(&format!(
-            "WARNING: security is OFF ({}): any process that reaches {} can read and write every topic of this stack and answer its services",
-            decision.reason,
-            listen.join(", ")
-        ));
-    }
+    note_security(&out, &stack, args, &links);
     let router = open_router(
-        &listen,
-        &connect,
+        &links.listen,
+        &links.connect,
         !stack.launcher.core_nodes.is_empty(),
         secured.as_ref().map(|s| &s.guard),
     )
     .await
     .map_err(LaunchError::Setup)?;
-    if stack.launcher.core_nodes.len() > 1
-        && !args.local
-        && connect.is_empty()
-        && listen.iter().all(|e| crate::security::is_loopback(e))
-    {
-        out.note(&format!(
-            "note: core node {} listens on loopback only and connects nowhere, so no other machine can link to it; give it endpoints in `core_nodes` or --listen / --connect",
-            share.name
-        ));
-    }
-    let _presence = if stack.launcher.core_nodes.is_empty() {
-        None
-    } else {
-        presence::announce(&router, &namespace, &share.name, out.clone())
-            .await
-            .map_err(|e| out.note(&e))
-            .ok()
+    let _presence =
+        announce_core_node(&router, &stack, args, &share, &links, &namespace, &out).await;
+    let instances = Instances {
+        namespace: &namespace,
+        connect: links.node_endpoints(),
+        secured: secured.as_ref(),
     };
-    if !stack.launcher.core_nodes.is_empty() {
-        out.note(&format!(
-            "core node {}: {} (router on {}{})",
-            share.name,
-            if ids.is_empty() {
-                "no instances, the router only".to_string()
-            } else {
-                ids.join(", ")
-            },
-            listen.join(", "),
-            if connect.is_empty() {
-                String::new()
-            } else {
-                format!(", linked to {}", connect.join(", "))
-            }
-        ));
-    }
-    // Nodes reach each other through the launch's router; a listen address
-    // on all interfaces is still reached locally on loopback.
-    let node_connect: Vec<String> = match local {
-        Some(local) => vec![local],
-        None => listen
-            .iter()
-            .map(|e| e.replace("0.0.0.0", "127.0.0.1").replace("[::]", "[::1]"))
-            .collect(),
-    };
-
-    let planned: Vec<Result<Planned, String>> = share
-        .instances
-        .iter()
-        .zip(&share.core_of)
-        .map(|(&i, core_node)| {
-            let inst = &stack.plan.instances[i];
-            let deployment = &stack.deployments[inst.deployment];
-            let node = &deployment.resolved.node;
-            let argv = programs
-                .get(&node.identity())
-                .cloned()
-                .ok_or_else(|| format!("no program for `{}`", inst.instance_id))?;
-            Ok(Planned {
-                config: StartupConfig {
-                    instance_id: inst.instance_id.clone(),
-                    core_node: core_node.clone(),
-                    namespace: namespace.clone(),
-                    slots: inst.slots.clone(),
-                    parameters: inst.parameters.clone(),
-                    // Secured, every instance is a client of the router,
-                    // which checks everything it sends and receives; a peer
-                    // would link to other peers directly, past the router.
-                    zenoh: Endpoints {
-                        mode: secured.as_ref().map(|_| "client".to_string()),
-                        listen: Vec::new(),
-                        connect: node_connect.clone(),
-                        multicast_scouting: false,
-                        login: secured
-                            .as_ref()
-                            .and_then(|s| s.secrets.instances.get(&inst.instance_id).cloned()),
-                    },
-                },
-                node: node.identity().to_string(),
-                dir: deployment.dir.clone(),
-                argv,
-                env: inst.env_vars.clone(),
-                restart: inst.restart,
-            })
-        })
-        .collect();
-    let launcher = std::fs::canonicalize(&args.launcher).unwrap_or_else(|_| args.launcher.clone());
-    let record = LaunchRecord {
-        pid: std::process::id(),
-        launcher,
-        namespace: namespace.clone(),
-        core_node: share.name.clone(),
-        connect: node_connect.clone(),
-        run_dir: run_dir.clone(),
-        started_at_ms: runs::now_ms(),
-        instances: planned
-            .iter()
-            .flatten()
-            .map(|p| (p.config.instance_id.clone(), p.node.clone()))
-            .collect(),
-        login: secured.as_ref().map(|s| s.secrets.operator.clone()),
-    };
+    let planned = instances.plan(&stack, &share, &programs);
+    let record = launch_record(args, &share, &namespace, &instances, &run_dir, &planned);
     let _registration = runs::register(&record).map_err(|e| out.note(&e)).ok();
     let code = if planned.is_empty() {
         // A machine with only a router still links the others: it stays up.
@@ -560,6 +372,303 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     };
     let _ = router.close().await;
     code
+}
+
+/// `--namespace`, or the launcher's own ([`default_namespace`]).
+fn launch_namespace(args: &UpArgs) -> Result<String, LaunchError> {
+    let namespace = args
+        .namespace
+        .clone()
+        .unwrap_or_else(|| default_namespace(&args.launcher));
+    match peppy_schema::names::check_name(&namespace) {
+        Ok(()) => Ok(namespace),
+        Err(why) => Err(LaunchError::Usage(format!(
+            "invalid --namespace `{namespace}`: {why}"
+        ))),
+    }
+}
+
+/// `.peppy/runs/<start>-<pid>` beside the launcher, absolute: instances
+/// run in their own directories and read their runtime config from here.
+fn create_run_dir(stack: &StackCheck) -> Result<std::path::PathBuf, LaunchError> {
+    let run_dir = stack
+        .launcher
+        .base_dir()
+        .join(".peppy")
+        .join("runs")
+        .join(format!(
+            "{}-{}",
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs()),
+            std::process::id()
+        ));
+    std::fs::create_dir_all(&run_dir)
+        .and_then(|()| std::fs::canonicalize(&run_dir))
+        .map_err(|e| {
+            LaunchError::Setup(format!(
+                "cannot create the run directory {}: {e}",
+                run_dir.display()
+            ))
+        })
+}
+
+/// How this launch's router is reached, and whether it is secured.
+struct Links {
+    /// Where the router listens.
+    listen: Vec<String>,
+    /// What the router connects to.
+    connect: Vec<String>,
+    /// Secured and linked to other core nodes: the loopback endpoint the
+    /// launch's own instances and tools reach the router on.
+    local: Option<String>,
+    /// Whether security is on, and why.
+    security: crate::security::Decision,
+    /// The stack's keys, when this router links securely to other core nodes.
+    keys: Option<crate::security::keys::StackKeys>,
+}
+
+impl Links {
+    /// Where the launch's instances connect: its router, reached locally
+    /// on loopback even when it listens on all interfaces.
+    fn node_endpoints(&self) -> Vec<String> {
+        match &self.local {
+            Some(local) => vec![local.clone()],
+            None => self
+                .listen
+                .iter()
+                .map(|e| e.replace("0.0.0.0", "127.0.0.1").replace("[::]", "[::1]"))
+                .collect(),
+        }
+    }
+}
+
+/// The router's endpoints (a free loopback port unless the share names
+/// some), whether security is on, and, secured between core nodes, the
+/// keys and TLS endpoints it links with.
+fn choose_links(
+    stack: &StackCheck,
+    share: &placement::Share,
+    args: &UpArgs,
+) -> Result<Links, LaunchError> {
+    let free = || {
+        free_local_endpoint()
+            .map_err(|e| LaunchError::Setup(format!("cannot find a free local port: {e}")))
+    };
+    let listen = if share.listen.is_empty() {
+        vec![free()?]
+    } else {
+        share.listen.clone()
+    };
+    let security = crate::security::decide(&stack.launcher, &listen, &share.connect, args.insecure);
+    let keys = if security.on {
+        stack_keys(stack, share, args)?
+    } else {
+        None
+    };
+    if security.on && keys.is_none() && !share.connect.is_empty() {
+        return Err(LaunchError::Setup(format!(
+            "security is on ({}), and this launch would link to {} with no keys to link with: only the core nodes of one launcher (`up --core-node NAME`) link securely; make both sides core nodes of one launcher, or run both with --insecure",
+            security.reason,
+            share.connect.join(", ")
+        )));
+    }
+    if keys.is_none() {
+        let connect = share.connect.clone();
+        return Ok(Links {
+            listen,
+            connect,
+            local: None,
+            security,
+            keys,
+        });
+    }
+    // Secured, the core node's own endpoints are for other core nodes
+    // (TLS); its instances and tools reach the router on a loopback port of
+    // their own (the free one taken above when it has no endpoints).
+    let local = if share.listen.is_empty() {
+        listen[0].clone()
+    } else {
+        free()?
+    };
+    let over_tls = |e: &String| crate::security::keys::over_tls(e);
+    let mut tls: Vec<String> = share.listen.iter().map(over_tls).collect();
+    tls.push(local.clone());
+    Ok(Links {
+        listen: tls,
+        connect: share.connect.iter().map(over_tls).collect(),
+        local: Some(local),
+        security,
+        keys,
+    })
+}
+
+/// Tells the user whether the launch is secured, and warns when it is
+/// not and could be reached from beyond this machine.
+fn note_security(out: &Output, stack: &StackCheck, args: &UpArgs, links: &Links) {
+    let reason = &links.security.reason;
+    if links.security.on {
+        out.note(&format!(
+            "security on ({reason}): each instance may only publish its own topics and receive and call what its bindings name; `check --security` shows the policy"
+        ));
+    } else if args.insecure
+        || matches!(stack.launcher.security, Some((false, _)))
+        || !links
+            .listen
+            .iter()
+            .chain(&links.connect)
+            .all(|e| crate::security::is_loopback(e))
+    {
+        out.note(&format!(
+            "WARNING: security is OFF ({reason}): any process that reaches {} can read and write every topic of this stack and answer its services",
+            links.listen.join(", ")
+        ));
+    }
+}
+
+/// For a launcher with core nodes: says which share this is and where its
+/// router is, warns when no other machine can reach it, and announces the
+/// core node to the others (the returned handle keeps it announced).
+async fn announce_core_node(
+    router: &zenoh::Session,
+    stack: &StackCheck,
+    args: &UpArgs,
+    share: &placement::Share,
+    links: &Links,
+    namespace: &str,
+    out: &Arc<Output>,
+) -> Option<presence::Presence> {
+    if stack.launcher.core_nodes.is_empty() {
+        return None;
+    }
+    let (listen, connect) = (&links.listen, &links.connect);
+    if stack.launcher.core_nodes.len() > 1
+        && !args.local
+        && connect.is_empty()
+        && listen.iter().all(|e| crate::security::is_loopback(e))
+    {
+        out.note(&format!(
+            "note: core node {} listens on loopback only and connects nowhere, so no other machine can link to it; give it endpoints in `core_nodes` or --listen / --connect",
+            share.name
+        ));
+    }
+    let presence = presence::announce(router, namespace, &share.name, out.clone())
+        .await
+        .map_err(|e| out.note(&e))
+        .ok();
+    let ids: Vec<&str> = share
+        .instances
+        .iter()
+        .map(|&i| stack.plan.instances[i].instance_id.as_str())
+        .collect();
+    out.note(&format!(
+        "core node {}: {} (router on {}{})",
+        share.name,
+        if ids.is_empty() {
+            "no instances, the router only".to_string()
+        } else {
+            ids.join(", ")
+        },
+        listen.join(", "),
+        if connect.is_empty() {
+            String::new()
+        } else {
+            format!(", linked to {}", connect.join(", "))
+        }
+    ));
+    presence
+}
+
+/// What every instance of this launch shares in its plan.
+struct Instances<'a> {
+    namespace: &'a str,
+    /// Where instances connect (the launch's router).
+    connect: Vec<String>,
+    secured: Option<&'a Secured>,
+}
+
+impl Instances<'_> {
+    /// Each instance of `share`, ready to start: its plan (runtime config)
+    /// and its program.
+    fn plan(
+        &self,
+        stack: &StackCheck,
+        share: &placement::Share,
+        programs: &HashMap<Identity, Vec<String>>,
+    ) -> Vec<Result<Planned, String>> {
+        share
+            .instances
+            .iter()
+            .zip(&share.core_of)
+            .map(|(&i, core_node)| {
+                let inst = &stack.plan.instances[i];
+                let deployment = &stack.deployments[inst.deployment];
+                let node = deployment.resolved.node.identity();
+                let argv = programs
+                    .get(&node)
+                    .cloned()
+                    .ok_or_else(|| format!("no program for `{}`", inst.instance_id))?;
+                Ok(Planned {
+                    config: self.config(inst, core_node),
+                    node: node.to_string(),
+                    dir: deployment.dir.clone(),
+                    argv,
+                    env: inst.env_vars.clone(),
+                    restart: inst.restart,
+                })
+            })
+            .collect()
+    }
+
+    /// One instance's runtime config: the launcher's decisions for it.
+    fn config(&self, inst: &peppy_schema::InstancePlan, core_node: &str) -> StartupConfig {
+        let login = self
+            .secured
+            .and_then(|s| s.secrets.instances.get(&inst.instance_id).cloned());
+        StartupConfig {
+            instance_id: inst.instance_id.clone(),
+            core_node: core_node.to_string(),
+            namespace: self.namespace.to_string(),
+            slots: inst.slots.clone(),
+            parameters: inst.parameters.clone(),
+            // Secured, every instance is a client of the router, which
+            // checks everything it sends and receives; a peer would link to
+            // other peers directly, past the router.
+            zenoh: Endpoints {
+                mode: self.secured.map(|_| "client".to_string()),
+                listen: Vec::new(),
+                connect: self.connect.clone(),
+                multicast_scouting: false,
+                login,
+            },
+        }
+    }
+}
+
+/// What `ps`, `logs` and the inspection commands read about this launch.
+fn launch_record(
+    args: &UpArgs,
+    share: &placement::Share,
+    namespace: &str,
+    instances: &Instances<'_>,
+    run_dir: &Path,
+    planned: &[Result<Planned, String>],
+) -> LaunchRecord {
+    LaunchRecord {
+        pid: std::process::id(),
+        launcher: std::fs::canonicalize(&args.launcher).unwrap_or_else(|_| args.launcher.clone()),
+        namespace: namespace.to_string(),
+        core_node: share.name.clone(),
+        connect: instances.connect.clone(),
+        run_dir: run_dir.to_path_buf(),
+        started_at_ms: runs::now_ms(),
+        instances: planned
+            .iter()
+            .flatten()
+            .map(|p| (p.config.instance_id.clone(), p.node.clone()))
+            .collect(),
+        login: instances.secured.map(|s| s.secrets.operator.clone()),
+    }
 }
 
 /// One instance ready to start.
@@ -582,81 +691,21 @@ pub(crate) async fn run_instances(
     out: Arc<Output>,
 ) -> Outcome {
     let signals = StopSignals::default();
-    let ctrl_c = {
-        let signals = signals.clone();
-        let out = out.clone();
-        tokio::spawn(async move {
-            wait_for_interrupt().await;
-            out.note("stopping (press Ctrl-C again to kill at once)");
-            signals.stop.cancel();
-            wait_for_interrupt().await;
-            out.note("killing every instance");
-            signals.kill.cancel();
-        })
-    };
+    let ctrl_c = tokio::spawn(stop_on_interrupts(signals.clone(), out.clone()));
     let mut running = Vec::new();
     let mut start_failure = None;
     for p in planned {
-        let p = match p {
-            Ok(p) => p,
-            Err(e) => {
-                start_failure = Some(e);
-                break;
-            }
-        };
-        let id = p.config.instance_id.clone();
-        let config_path = run_dir.join(format!("{id}.json"));
-        // It may hold the instance's password: readable by this user only.
-        if let Err(e) = crate::security::write_private(
-            &config_path,
-            &serde_json::to_vec_pretty(&p.config).unwrap_or_default(),
-        ) {
-            start_failure = Some(format!("cannot write {}: {e}", config_path.display()));
-            break;
-        }
-        let mut env = p.env;
-        env.push((
-            peppy_runtime::RUNTIME_CONFIG_ENV.to_string(),
-            config_path.display().to_string(),
-        ));
-        let spec = InstanceSpec {
-            id: id.clone(),
-            dir: p.dir,
-            argv: p.argv,
-            env,
-            restart: p.restart,
-            log: run_dir.join(format!("{id}.log")),
-        };
-        match supervise::spawn(&spec, &out) {
-            Ok((child, pumps)) => {
-                out.note(&format!(
-                    "started `{id}` ({}) as pid {}",
-                    p.node,
-                    child.id().unwrap_or(0)
-                ));
-                let task = tokio::spawn(supervise::supervise(
-                    spec,
-                    child,
-                    pumps,
-                    grace,
-                    signals.clone(),
-                    out.clone(),
-                ));
-                running.push((id, task));
-            }
-            Err(e) => {
-                start_failure = Some(format!(
-                    "instance `{id}` failed to start: {e} (log: {})",
-                    spec.log.display()
-                ));
+        let started = p.and_then(|p| start_instance(p, run_dir, grace, &signals, &out));
+        match started {
+            Ok(instance) => running.push(instance),
+            Err(why) => {
+                out.note(&why);
+                out.note("stopping the instances already started");
+                signals.stop.cancel();
+                start_failure = Some(why);
                 break;
             }
         }
-    }
-    if let Some(why) = &start_failure {
-        out.note(why);
-        out.note("stopping the instances already started");
-        signals.stop.cancel();
     }
     let mut failed = start_failure.is_some();
     for (id, task) in running {
@@ -681,6 +730,61 @@ pub(crate) async fn run_instances(
         out.note("done");
         Ok(())
     }
+}
+
+/// A first Ctrl-C (or SIGTERM) stops every instance, a second kills them.
+async fn stop_on_interrupts(signals: StopSignals, out: Arc<Output>) {
+    wait_for_interrupt().await;
+    out.note("stopping (press Ctrl-C again to kill at once)");
+    signals.stop.cancel();
+    wait_for_interrupt().await;
+    out.note("killing every instance");
+    signals.kill.cancel();
+}
+
+/// Writes an instance's runtime config, starts it and hands it to its
+/// supervisor: the instance's id and its supervising task.
+fn start_instance(
+    p: Planned,
+    run_dir: &Path,
+    grace: Duration,
+    signals: &StopSignals,
+    out: &Arc<Output>,
+) -> Result<(String, tokio::task::JoinHandle<Ended>), String> {
+    let id = p.config.instance_id.clone();
+    let config_path = run_dir.join(format!("{id}.json"));
+    // It may hold the instance's password: readable by this user only.
+    crate::security::write_private(
+        &config_path,
+        &serde_json::to_vec_pretty(&p.config).unwrap_or_default(),
+    )
+    .map_err(|e| format!("cannot write {}: {e}", config_path.display()))?;
+    let mut env = p.env;
+    env.push((
+        peppy_runtime::RUNTIME_CONFIG_ENV.to_string(),
+        config_path.display().to_string(),
+    ));
+    let spec = InstanceSpec {
+        id: id.clone(),
+        dir: p.dir,
+        argv: p.argv,
+        env,
+        restart: p.restart,
+        log: run_dir.join(format!("{id}.log")),
+    };
+    let (child, pumps) = supervise::spawn(&spec, out).map_err(|e| {
+        format!(
+            "instance `{id}` failed to start: {e} (log: {})",
+            spec.log.display()
+        )
+    })?;
+    out.note(&format!(
+        "started `{id}` ({}) as pid {}",
+        p.node,
+        child.id().unwrap_or(0)
+    ));
+    let supervisor = supervise::supervise(spec, child, pumps, grace, signals.clone(), out.clone());
+    Ok((id, tokio::spawn(supervisor)))
 }
 
 async fn wait_for_interrupt() {
