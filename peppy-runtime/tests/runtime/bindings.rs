@@ -1,11 +1,11 @@
 //! One binding engine: a node started on its own with `--bind` flags (as
-//! `peppy-launch run` starts it) fills its slots exactly as `up` plans them
-//! from the launcher file, for every example launcher.
+//! `peppy-launch run` and `peppy-launch plan` start it) gets exactly the
+//! plan `up` gives it from the launcher file (slots, filters, parameters),
+//! for every example launcher.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use peppy_schema::{NodeModel, RepoOptions, SlotBinding, check_launcher};
+use peppy_schema::{NodeModel, RepoOptions, check_launcher};
 
 fn examples() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples")
@@ -50,20 +50,10 @@ fn run_bind_and_up_bind_every_example_launcher_identically() {
                 args.extend(["--bind".into(), format!("{}@{}", b.key, b.target)]);
             }
             let from_flags = peppy_runtime::startup_from_flags(&doc, args)
-                .unwrap_or_else(|e| panic!("{}: {}: {e}", launcher.display(), inst.instance_id))
-                .bindings;
-            let from_plan: BTreeMap<String, SlotBinding> = planned
-                .slots
-                .iter()
-                .map(|s| (s.link_id.clone(), s.binding.clone()))
-                .collect();
-            assert_eq!(
-                from_flags,
-                from_plan,
-                "{}: instance `{}`",
-                launcher.display(),
-                inst.instance_id
-            );
+                .unwrap_or_else(|e| panic!("{}: {}: {e}", launcher.display(), inst.instance_id));
+            let at = format!("{}: instance `{}`", launcher.display(), inst.instance_id);
+            assert_eq!(from_flags.slots, planned.slots, "{at}");
+            assert_eq!(from_flags.parameters, planned.parameters, "{at}");
             compared.push(inst.instance_id.clone());
         }
     }
