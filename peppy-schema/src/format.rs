@@ -488,9 +488,9 @@ pub(crate) fn primitive_name(
     None
 }
 
-/// The grammar shared by message formats and parameters: `$length`, from
-/// 1 to [`MAX_FIXED_LENGTH`]. `Err` when it was refused (and reported).
-pub(crate) fn fixed_length(r: &mut Reader<'_>, node: &Node, path: &str) -> Result<u32, ()> {
+/// `$length`, from 1 to [`MAX_FIXED_LENGTH`]. `Err` when it was refused
+/// (and reported).
+fn fixed_length(r: &mut Reader<'_>, node: &Node, path: &str) -> Result<u32, ()> {
     match r.uint(node, path, MAX_FIXED_LENGTH) {
         Some(0) => {
             r.error(
@@ -503,6 +503,79 @@ pub(crate) fn fixed_length(r: &mut Reader<'_>, node: &Node, path: &str) -> Resul
         }
         Some(n) => Ok(n as u32),
         None => Err(()),
+    }
+}
+
+/// An array's item type, as a message format or a parameter schema reads
+/// it, for [`parse_array_shape`].
+pub(crate) trait ArrayItem: Sized {
+    /// Whether the items are numbers or `bool`, the only items a fixed
+    /// array (`$length`) may hold: it is a packed run of scalars.
+    fn is_scalar(&self) -> bool;
+}
+
+/// The array grammar shared by message formats and parameters: `$items`
+/// (required, no arrays of arrays; read by `items`, each kind of document
+/// its own way) and `$length` (1 to [`MAX_FIXED_LENGTH`], over numbers or
+/// `bool` only). `None` when the array cannot be read at all; `ok` turns
+/// false when only its `$length` is refused.
+pub(crate) fn parse_array_shape<T: ArrayItem>(
+    r: &mut Reader<'_>,
+    node: &Node,
+    path: &str,
+    ok: &mut bool,
+    items: impl FnOnce(&mut Reader<'_>, &Node, &str) -> Option<T>,
+) -> Option<(T, Option<u32>)> {
+    let items_path = join(path, "$items");
+    let Some(items_node) = node.get("$items") else {
+        r.error_help(
+            Code::MissingKey,
+            node.span,
+            path,
+            format!("missing required key `$items` in array `{path}`"),
+            "write `{ $type: \"array\", $items: \"f64\" }`",
+        );
+        return None;
+    };
+    let is_nested_array = match &items_node.value {
+        Value::Object(_) => items_node.get("$type").and_then(Node::as_str) == Some("array"),
+        Value::String(s) => s == "array",
+        _ => false,
+    };
+    if is_nested_array {
+        r.error_help(
+            Code::NestedArray,
+            items_node.span,
+            &items_path,
+            "arrays of arrays are not supported",
+            "wrap the inner array in an object: `$items: { values: { $type: \"array\", $items: \"f64\" } }`",
+        );
+        return None;
+    }
+    let items = items(r, items_node, &items_path)?;
+    let length = node.get("$length").and_then(|l| {
+        let lpath = join(path, "$length");
+        let n = fixed_length(r, l, &lpath).ok();
+        if n.is_some() && !items.is_scalar() {
+            r.error_help(
+                Code::LengthMisuse,
+                l.span,
+                &lpath,
+                "`$length` is only allowed when the items are numbers or `bool`",
+                "drop `$length` to get a variable-length array",
+            );
+        }
+        if n.is_none() || !items.is_scalar() {
+            *ok = false;
+        }
+        n
+    });
+    Some((items, length))
+}
+
+impl ArrayItem for FieldType {
+    fn is_scalar(&self) -> bool {
+        matches!(self, FieldType::Primitive(p) if p.is_scalar())
     }
 }
 
@@ -740,70 +813,15 @@ fn parse_object(
     FieldType::Object(fields)
 }
 
-/// An array: `$items` (no arrays of arrays) and `$length` (numbers and
-/// `bool` only). `None` when the array itself cannot be read.
+/// An array of a message format ([`parse_array_shape`]).
 fn parse_array(r: &mut Reader<'_>, node: &Node, path: &str, ok: &mut bool) -> Option<FieldType> {
-    let items_path = join(path, "$items");
-    let Some(items_node) = node.get("$items") else {
-        r.error_help(
-            Code::MissingKey,
-            node.span,
-            path,
-            format!("missing required key `$items` in array `{path}`"),
-            "write `{ $type: \"array\", $items: \"u8\" }`",
-        );
-        return None;
+    let place = Place {
+        root: false,
+        item: true,
     };
-    let is_nested_array = match &items_node.value {
-        Value::Object(_) => items_node.get("$type").and_then(Node::as_str) == Some("array"),
-        Value::String(s) => s == "array",
-        _ => false,
-    };
-    if is_nested_array {
-        r.error_help(
-            Code::NestedArray,
-            items_node.span,
-            &items_path,
-            "arrays of arrays are not supported",
-            "wrap the inner array in an object: `$items: { values: { $type: \"array\", $items: \"f64\" } }`",
-        );
-        return None;
-    }
-    let (items, _) = parse_type(
-        r,
-        items_node,
-        &items_path,
-        Place {
-            root: false,
-            item: true,
-        },
-    )?;
-    let length = match node.get("$length") {
-        None => None,
-        Some(l) => {
-            let lpath = join(path, "$length");
-            match fixed_length(r, l, &lpath) {
-                Ok(n) => {
-                    let scalar = matches!(items, FieldType::Primitive(p) if p.is_scalar());
-                    if !scalar {
-                        r.error_help(
-                            Code::LengthMisuse,
-                            l.span,
-                            &lpath,
-                            "`$length` is only allowed when the items are numbers or `bool`",
-                            "drop `$length` to get a variable-length array",
-                        );
-                        *ok = false;
-                    }
-                    Some(n)
-                }
-                Err(()) => {
-                    *ok = false;
-                    None
-                }
-            }
-        }
-    };
+    let (items, length) = parse_array_shape(r, node, path, ok, |r, items, ipath| {
+        parse_type(r, items, ipath, place).map(|(ty, _)| ty)
+    })?;
     Some(FieldType::Array {
         items: Box::new(items),
         length,

@@ -3,7 +3,7 @@
 //! functions that check values later.
 
 use crate::diag::Code;
-use crate::format::{fixed_length, primitive_name};
+use crate::format::{ArrayItem, parse_array_shape, primitive_name};
 use crate::json::{Node, Value};
 use crate::names::check_field_name;
 use crate::primitive::Primitive;
@@ -192,58 +192,35 @@ fn parse_array(
         r.unknown_key(m, path, &["$type", "$items", "$length", "$default"]);
         *ok = false;
     }
-    let Some(items_node) = node.get("$items") else {
-        r.error_help(
-            Code::MissingKey,
-            node.span,
-            path,
-            format!("missing required key `$items` in array parameter `{path}`"),
-            "write `{ $type: \"array\", $items: \"f64\" }`",
-        );
-        return None;
-    };
-    let ipath = join(path, "$items");
-    let items = match &items_node.value {
-        Value::String(s) => ParamItem::Primitive(parse_primitive_name(r, items_node, &ipath, s)?),
-        Value::Object(_) => match parse_param(r, items_node, &ipath, true)? {
-            ParamKind::Leaf { ty, default: None } => ParamItem::Primitive(ty),
-            ParamKind::Group(fields) => ParamItem::Object(fields),
-            ParamKind::Array { .. } => {
+    let (items, length) = parse_array_shape(r, node, path, ok, |r, items_node, ipath| {
+        match &items_node.value {
+            Value::String(s) => Some(ParamItem::Primitive(parse_primitive_name(
+                r, items_node, ipath, s,
+            )?)),
+            Value::Object(_) => match parse_param(r, items_node, ipath, true)? {
+                ParamKind::Leaf { ty, default: None } => Some(ParamItem::Primitive(ty)),
+                ParamKind::Group(fields) => Some(ParamItem::Object(fields)),
+                // Arrays of arrays are refused before the items are read; an
+                // item's `$default` is refused where it is read.
+                ParamKind::Array { .. }
+                | ParamKind::Leaf {
+                    default: Some(_), ..
+                } => None,
+            },
+            other => {
                 r.error(
-                    Code::NestedArray,
+                    Code::WrongType,
                     items_node.span,
-                    &ipath,
-                    "arrays of arrays are not supported",
+                    ipath,
+                    format!(
+                        "expected a type name or an object for `{ipath}`, found {}",
+                        other.kind()
+                    ),
                 );
-                return None;
-            }
-            ParamKind::Leaf {
-                default: Some(_), ..
-            } => return None,
-        },
-        other => {
-            r.error(
-                Code::WrongType,
-                items_node.span,
-                &ipath,
-                format!(
-                    "expected a type name or an object for `{ipath}`, found {}",
-                    other.kind()
-                ),
-            );
-            return None;
-        }
-    };
-    let length = match node.get("$length") {
-        None => None,
-        Some(l) => match fixed_length(r, l, &join(path, "$length")) {
-            Ok(n) => Some(n),
-            Err(()) => {
-                *ok = false;
                 None
             }
-        },
-    };
+        }
+    })?;
     let default = match node.get("$default") {
         None => None,
         Some(d) => {
@@ -499,5 +476,11 @@ mod tests {
             .unwrap_err();
         let paths: Vec<&str> = errs.iter().map(|e| e.path.as_str()).collect();
         assert_eq!(paths, ["l", "b", "o[0].x"]);
+    }
+}
+
+impl ArrayItem for ParamItem {
+    fn is_scalar(&self) -> bool {
+        matches!(self, ParamItem::Primitive(p) if p.is_scalar())
     }
 }

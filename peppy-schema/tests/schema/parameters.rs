@@ -168,3 +168,38 @@ fn a_valid_schema_is_carried_in_order_with_its_defaults() {
         ]
     );
 }
+
+/// Arrays follow one grammar, in parameters as in message formats: a fixed
+/// `$length` only over numbers or `bool`, at least 1, no arrays of arrays.
+#[test]
+fn parameter_arrays_follow_the_message_formats_array_rules() {
+    let text = r#"{
+  peppy_schema: "node_v1",
+  manifest: { name: "cam", tag: "v1" },
+  execution: {
+    language: "rust",
+    run_cmd: ["./cam"],
+    parameters: {
+      names: { $type: "array", $items: "string", $length: 2 },
+      empty: { $type: "array", $items: "u8", $length: 0 },
+      grid: { $type: "array", $items: { $type: "array", $items: "u8" } },
+      pair: { $type: "array", $items: "f64", $length: 2 },
+    },
+  },
+}"#;
+    let errors = node_err(text);
+    let got: Vec<(Code, &str)> = errors.sorted().iter().map(|d| (d.code, key(d))).collect();
+    assert_eq!(
+        got,
+        [
+            (Code::LengthMisuse, "execution.parameters.names.$length"),
+            (Code::LengthMisuse, "execution.parameters.empty.$length"),
+            (Code::NestedArray, "execution.parameters.grid.$items"),
+        ]
+    );
+    let message = |d: &peppy_schema::Diagnostic| d.message.clone();
+    assert_eq!(
+        message(all(&errors, Code::LengthMisuse)[0]),
+        "`$length` is only allowed when the items are numbers or `bool`"
+    );
+}
