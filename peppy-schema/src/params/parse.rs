@@ -364,6 +364,12 @@ fn item_node<'n>(d: &'n Node, path: &str) -> Option<&'n Node> {
     }
 }
 
+impl ArrayItem for ParamItem {
+    fn is_scalar(&self) -> bool {
+        matches!(self, ParamItem::Primitive(p) if p.is_scalar())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -476,11 +482,5 @@ mod tests {
             .unwrap_err();
         let paths: Vec<&str> = errs.iter().map(|e| e.path.as_str()).collect();
         assert_eq!(paths, ["l", "b", "o[0].x"]);
-    }
-}
-
-impl ArrayItem for ParamItem {
-    fn is_scalar(&self) -> bool {
-        matches!(self, ParamItem::Primitive(p) if p.is_scalar())
     }
 }
