@@ -156,7 +156,14 @@ pub(crate) fn run(child: Child) -> std::process::ExitCode {
     // Both systems on the threads a node runs Zenoh on, unless asked for
     // Zenoh's defaults.
     if !child.place().is_some_and(|p| p.zenoh_defaults) {
-        peppy::runtime::threads::share_zenoh_threads();
+        use peppy::runtime::threads::{Sharing, share_zenoh_threads};
+        // A layout silently not applied would be measured as if it were.
+        if share_zenoh_threads() == Sharing::OtherThreads {
+            eprintln!(
+                "peppy-bench child: other threads run before Zenoh's layout was set; it cannot be"
+            );
+            return std::process::ExitCode::FAILURE;
+        }
     }
     let runtime = match tokio::runtime::Builder::new_multi_thread()
         .enable_all()

@@ -29,7 +29,7 @@ mod validate;
 pub use cli::Cli;
 pub use error::{LaunchError, Result, exit};
 pub use executable::ExecutableError;
-pub use python_sync::uv;
+pub use python_sync::{UV_VERSION, uv};
 
 /// Runs one parsed command line.
 pub fn run(cli: Cli) -> Result {

@@ -109,20 +109,61 @@ pub(crate) fn with_uv(argv: &[String]) -> std::result::Result<Vec<String>, Strin
     Ok(argv)
 }
 
-/// The `uv` that runs Python nodes' `uv` commands: the one on `PATH`, else
-/// peppy's own copy under the user's cache directory, installed there from
-/// PyPI with `python3 -m pip` on first use (once per machine).
+/// The uv version peppy installs when none is on `PATH`.
+pub const UV_VERSION: &str = "0.13.9";
+
+/// The sha256 of each PyPI wheel of uv [`UV_VERSION`] pip may pick on Linux
+/// x86_64 and aarch64, glibc and musl (each checked against a download of
+/// the wheel): pip installs these bytes or nothing (`--require-hashes`).
+/// Another platform has no listed wheel, so the install fails and asks for
+/// uv on `PATH`.
+const UV_WHEEL_SHA256: [(&str, &str); 4] = [
+    (
+        "manylinux_2_17_x86_64",
+        "d7f459fe4fd247d830351c75686d3996ace3c6f3f728eb0e85a30b7ada0cef19",
+    ),
+    (
+        "musllinux_1_1_x86_64",
+        "2c45530751517d6c3bbc69a19473f6effe47cce047bede01ffd8af7ea7b36b25",
+    ),
+    (
+        "manylinux_2_17_aarch64 and musllinux_1_1_aarch64",
+        "5435c5ce14a56431208ca0996416d310f1598e8c2c8ba707688985a16bb82dbe",
+    ),
+    (
+        "manylinux_2_28_aarch64",
+        "ecb6028d79dc96fbeafffe5c8af62a7099487ebc05a701e76714eebcffd06375",
+    ),
+];
+
+/// The requirements file pinning uv: its version and its wheels' hashes.
+fn uv_requirements() -> String {
+    let mut line = format!("uv=={UV_VERSION}");
+    for (_, sha256) in UV_WHEEL_SHA256 {
+        line.push_str(&format!(" --hash=sha256:{sha256}"));
+    }
+    line.push('\n');
+    line
+}
+
+/// The `uv` that runs Python nodes' `uv` commands: the one on `PATH`, used
+/// as it is (whatever its version: the user chose it), else peppy's own
+/// copy of uv [`UV_VERSION`] under the user's cache directory, installed
+/// there from PyPI with `python3 -m pip` on first use, its wheel checked
+/// against the sha256 listed here for each Linux x86_64 and aarch64 wheel
+/// (pip's `--require-hashes`). The directory names the version, so a
+/// release of peppy that pins another installs that one beside it.
 pub fn uv() -> std::result::Result<PathBuf, String> {
     if let Some(found) = on_path("uv") {
         return Ok(found);
     }
-    let dir = tools_dir().join("uv");
+    let dir = tools_dir().join(format!("uv-{UV_VERSION}"));
     let exe = dir.join("bin").join("uv");
     if exe.is_file() {
         return Ok(exe);
     }
     eprintln!(
-        "peppy-launch: uv is not installed; installing it for peppy into {} (once)",
+        "peppy-launch: uv is not installed; installing uv {UV_VERSION} for peppy into {} (once)",
         dir.display()
     );
     // Installed beside its place and moved in at once: several launches (or
@@ -135,6 +176,18 @@ pub fn uv() -> std::result::Result<PathBuf, String> {
         INSTALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
     ));
     let _ = std::fs::remove_dir_all(&partial);
+    // The hashes go to pip in a requirements file (it takes them nowhere
+    // else), written in the user's own cache rather than a shared /tmp,
+    // where another user could swap it before pip reads it.
+    let requirements = partial.with_extension("requirements.txt");
+    std::fs::create_dir_all(tools_dir())
+        .and_then(|()| std::fs::write(&requirements, uv_requirements()))
+        .map_err(|e| {
+            format!(
+                "cannot write uv's requirements file {}: {e}",
+                requirements.display()
+            )
+        })?;
     let status = std::process::Command::new("python3")
         .args([
             "-m",
@@ -144,12 +197,18 @@ pub fn uv() -> std::result::Result<PathBuf, String> {
             "--disable-pip-version-check",
             // Root in CI and containers: a private target directory is fine.
             "--root-user-action=ignore",
+            "--require-hashes",
+            // A wheel or nothing: no source build, whose hash is not listed.
+            "--only-binary=:all:",
+            "--no-deps",
             "--target",
         ])
         .arg(&partial)
-        .arg("uv")
-        .status()
-        .map_err(|e| format!("cannot run `python3 -m pip` to install uv: {e}"))?;
+        .arg("-r")
+        .arg(&requirements)
+        .status();
+    let _ = std::fs::remove_file(&requirements);
+    let status = status.map_err(|e| format!("cannot run `python3 -m pip` to install uv: {e}"))?;
     if status.success() && partial.join("bin").join("uv").is_file() {
         if std::fs::rename(&partial, &dir).is_err() {
             // Another installation finished first; theirs is as good.
@@ -160,7 +219,9 @@ pub fn uv() -> std::result::Result<PathBuf, String> {
     }
     if !exe.is_file() {
         return Err(format!(
-            "installing uv with `python3 -m pip install --target {} uv` failed; install uv (https://docs.astral.sh/uv/) and retry",
+            "installing uv {UV_VERSION} with `python3 -m pip install --require-hashes --target {}` failed \
+             (peppy pins the wheels for Linux on x86_64 and aarch64); install uv \
+             (https://docs.astral.sh/uv/) on PATH and retry",
             dir.display()
         ));
     }
@@ -176,4 +237,27 @@ fn on_path(program: &str) -> Option<PathBuf> {
 /// `tools` under peppy's cache directory.
 fn tools_dir() -> PathBuf {
     crate::sources::cache_dir().join("tools")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uv_is_pinned_to_one_version_and_its_wheels_hashes() {
+        let text = uv_requirements();
+        assert_eq!(text.lines().count(), 1, "{text}");
+        assert!(text.starts_with(&format!("uv=={UV_VERSION} ")), "{text}");
+        let hashes: Vec<&str> = text
+            .split_whitespace()
+            .filter_map(|word| word.strip_prefix("--hash=sha256:"))
+            .collect();
+        assert_eq!(hashes.len(), UV_WHEEL_SHA256.len(), "{text}");
+        for hash in hashes {
+            assert!(
+                hash.len() == 64 && hash.bytes().all(|b| b.is_ascii_hexdigit()),
+                "{hash}"
+            );
+        }
+    }
 }

@@ -7,17 +7,23 @@
 //!   mirror lacks it); a branch or tag is fetched fresh when the remote
 //!   answers, else read from the mirror, and the commit it names is
 //!   printed.
-//! - archives: downloaded (`file://` read directly, `http(s)://` by
-//!   `curl`), refused unless the bytes have the launcher's sha256, then
-//!   unpacked (`.tar`, `.tar.gz`) entry by entry: no absolute path, no `..`,
-//!   no links, nothing but files and directories.
+//! - archives: copied (`file://`) or downloaded (`http(s)://`, by `ureq` in
+//!   this process: redirects followed, timeouts on connecting, on a silent
+//!   server and on the whole download) into a file in the cache, hashed as
+//!   they are written and bounded in size; refused unless they hash to the
+//!   launcher's sha256; then unpacked from that file (`.tar`, `.tar.gz`)
+//!   entry by entry: no absolute path, no `..`, no links, nothing but files
+//!   and directories. HTTPS trusts the system's certificates (a proxy's CA
+//!   the system trusts too, as curl did), else Mozilla's built in.
 
-use std::io::Read;
+use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Component, Path, PathBuf};
 use std::process::Command;
+use std::time::Duration;
 
 use peppy_schema::Source;
 use peppy_schema::{FetchSource, sha256_hex};
+use sha2::{Digest, Sha256};
 
 /// Overrides where fetched sources are cached (tests, shared caches).
 pub(crate) const CACHE_ENV: &str = "PEPPY_CACHE_DIR";
@@ -131,7 +137,7 @@ impl Fetcher {
             let tar = git_output(Some(&mirror), &["archive", "--format=tar", &commit])
                 .map_err(|e| format!("cannot read commit {commit} of {repo}: {e}"))?;
             let tmp = fresh(&tree)?;
-            unpack(&tar, &tmp).map_err(|e| format!("commit {commit} of {repo}: {e}"))?;
+            unpack(tar.as_slice(), &tmp).map_err(|e| format!("commit {commit} of {repo}: {e}"))?;
             publish(&tmp, &tree)?;
         }
         let dir = tree.join(&sub);
@@ -145,18 +151,239 @@ impl Fetcher {
         let expected = sha256.to_ascii_lowercase();
         let dir = self.cache.join("archives").join(&expected);
         if !dir.is_dir() {
-            let bytes = download(url)?;
-            let actual = sha256_hex(&bytes);
-            if actual != expected {
-                return Err(format!(
-                    "{url} has sha256 {actual}, but the launcher expects {expected}; refusing to unpack it"
-                ));
-            }
+            let download = Scratch::beside(&dir)?;
+            fetch_archive(url, &expected, &download.0).map_err(|e| e.to_string())?;
+            // Unpacked from this process's own copy, the one that was hashed:
+            // the source cannot change between the check and the unpacking.
+            let file = std::fs::File::open(&download.0)
+                .map_err(|e| format!("cannot read {}: {e}", download.0.display()))?;
             let tmp = fresh(&dir)?;
-            unpack(&bytes, &tmp).map_err(|e| format!("{url}: {e}"))?;
+            if let Err(e) = unpack(BufReader::new(file), &tmp) {
+                let _ = std::fs::remove_dir_all(&tmp);
+                return Err(format!("{url}: {e}"));
+            }
             publish(&tmp, &dir)?;
         }
         Ok(node_root(&dir))
+    }
+}
+
+/// The most bytes an archive source may have: a node's sources, not a
+/// data set. Counted as they arrive, whatever the server announced.
+const MAX_ARCHIVE_BYTES: u64 = 1 << 30;
+
+/// Connecting to the server (each redirect's too).
+const CONNECT_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// How long the server may stay silent: before its response, or between
+/// two reads of the body.
+const SILENCE_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// The whole download, redirects included.
+const DOWNLOAD_TIMEOUT: Duration = Duration::from_secs(15 * 60);
+
+/// How many redirects a download follows.
+const MAX_REDIRECTS: u32 = 10;
+
+/// Why an archive source was not fetched.
+#[derive(Debug, thiserror::Error)]
+enum ArchiveError {
+    #[error("`{url}`: only file://, http:// and https:// URLs can be fetched")]
+    Scheme { url: String },
+    #[error("cannot download {url}: {source}")]
+    Request {
+        url: String,
+        #[source]
+        source: Box<ureq::Error>,
+    },
+    #[error("cannot read {url}: {source}")]
+    Read {
+        url: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("cannot write {}: {source}", path.display())]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{url} is larger than {max} bytes, the most an archive source may have")]
+    TooLarge { url: String, max: u64 },
+    #[error("{url} has sha256 {got}, but the launcher expects {expected}; refusing to unpack it")]
+    Mismatch {
+        url: String,
+        expected: String,
+        got: String,
+    },
+}
+
+/// Writes the archive at `url` into the file `to` and checks it hashes to
+/// `expected` (lowercase hex).
+fn fetch_archive(url: &str, expected: &str, to: &Path) -> Result<(), ArchiveError> {
+    let (body, announced): (Box<dyn Read>, Option<u64>) =
+        if let Some(path) = url.strip_prefix("file://") {
+            let file = std::fs::File::open(path).map_err(|source| ArchiveError::Read {
+                url: url.to_string(),
+                source,
+            })?;
+            (Box::new(file), None)
+        } else if url.starts_with("http://") || url.starts_with("https://") {
+            let response = agent()
+                .get(url)
+                .call()
+                .map_err(|source| ArchiveError::Request {
+                    url: url.to_string(),
+                    source: Box::new(source),
+                })?;
+            let announced = response.body().content_length();
+            (Box::new(response.into_body().into_reader()), announced)
+        } else {
+            return Err(ArchiveError::Scheme {
+                url: url.to_string(),
+            });
+        };
+    if announced.is_some_and(|n| n > MAX_ARCHIVE_BYTES) {
+        return Err(ArchiveError::TooLarge {
+            url: url.to_string(),
+            max: MAX_ARCHIVE_BYTES,
+        });
+    }
+    let got = copy_hashed(body, url, to, MAX_ARCHIVE_BYTES)?;
+    if got != expected {
+        return Err(ArchiveError::Mismatch {
+            url: url.to_string(),
+            expected: expected.to_string(),
+            got,
+        });
+    }
+    Ok(())
+}
+
+/// Copies at most `max` bytes of `body` into a new file `to` and returns
+/// their sha256 (lowercase hex), computed as they are written.
+fn copy_hashed(
+    mut body: impl Read,
+    url: &str,
+    to: &Path,
+    max: u64,
+) -> Result<String, ArchiveError> {
+    let write_error = |source| ArchiveError::Write {
+        path: to.to_path_buf(),
+        source,
+    };
+    let mut out = std::fs::File::create_new(to).map_err(write_error)?;
+    let mut hash = Sha256::new();
+    let mut buffer = vec![0; 64 * 1024];
+    let mut total = 0u64;
+    loop {
+        let n = match body.read(&mut buffer) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(source) => {
+                return Err(ArchiveError::Read {
+                    url: url.to_string(),
+                    source,
+                });
+            }
+        };
+        total += n as u64;
+        if total > max {
+            return Err(ArchiveError::TooLarge {
+                url: url.to_string(),
+                max,
+            });
+        }
+        hash.update(&buffer[..n]);
+        out.write_all(&buffer[..n]).map_err(write_error)?;
+    }
+    out.flush().map_err(write_error)?;
+    Ok(format!("{:x}", hash.finalize()))
+}
+
+/// The HTTP client of archive downloads: bounded in time, following
+/// redirects, an error for any status but success.
+fn agent() -> ureq::Agent {
+    let tls = ureq::tls::TlsConfig::builder()
+        .root_certs(root_certs())
+        .build();
+    ureq::Agent::config_builder()
+        .timeout_connect(Some(CONNECT_TIMEOUT))
+        .timeout_recv_response(Some(SILENCE_TIMEOUT))
+        .timeout_per_read(Some(SILENCE_TIMEOUT))
+        .timeout_global(Some(DOWNLOAD_TIMEOUT))
+        .max_redirects(MAX_REDIRECTS)
+        .http_status_as_error(true)
+        .user_agent(concat!("peppy-launch/", env!("CARGO_PKG_VERSION")))
+        .tls_config(tls)
+        .build()
+        .into()
+}
+
+/// Where Linux distributions (and the BSDs and macOS) keep the system's
+/// trusted certificates as one PEM file.
+const SYSTEM_BUNDLES: [&str; 5] = [
+    "/etc/ssl/certs/ca-certificates.crt",
+    "/etc/pki/tls/certs/ca-bundle.crt",
+    "/etc/pki/ca-trust/extracted/pem/tls-ca-bundle.pem",
+    "/etc/ssl/ca-bundle.pem",
+    "/etc/ssl/cert.pem",
+];
+
+/// The certificates HTTPS downloads trust: `SSL_CERT_FILE`, else the
+/// system's bundle, as curl trusted (so a company proxy's CA the system
+/// trusts still works); Mozilla's roots, built in, where there is neither.
+fn root_certs() -> ureq::tls::RootCerts {
+    let given = std::env::var_os("SSL_CERT_FILE").map(PathBuf::from);
+    let files = given
+        .into_iter()
+        .chain(SYSTEM_BUNDLES.iter().map(PathBuf::from));
+    for file in files {
+        let Ok(pem) = std::fs::read(&file) else {
+            continue;
+        };
+        let certificates: Vec<ureq::tls::Certificate<'static>> = ureq::tls::parse_pem(&pem)
+            .filter_map(|item| match item {
+                Ok(ureq::tls::PemItem::Certificate(c)) => Some(c),
+                _ => None,
+            })
+            .collect();
+        if !certificates.is_empty() {
+            return ureq::tls::RootCerts::new_with_certs(&certificates);
+        }
+    }
+    ureq::tls::RootCerts::WebPki
+}
+
+/// A file beside a cache entry that is removed when dropped: the
+/// downloaded archive, kept only until it is unpacked.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    /// A new path beside `final_dir`, unique to this process and call.
+    fn beside(final_dir: &Path) -> Result<Scratch, String> {
+        static NEXT: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+        let parent = final_dir.parent().unwrap_or(Path::new("."));
+        std::fs::create_dir_all(parent)
+            .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
+        let name = final_dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let path = parent.join(format!(
+            ".{name}.{}.{}.download",
+            std::process::id(),
+            NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+        ));
+        let _ = std::fs::remove_file(&path);
+        Ok(Scratch(path))
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
     }
 }
 
@@ -175,37 +402,17 @@ fn node_root(dir: &Path) -> PathBuf {
     }
 }
 
-/// The archive's bytes: `file://` (and plain paths) read here, `http(s)://`
-/// through `curl`.
-fn download(url: &str) -> Result<Vec<u8>, String> {
-    if let Some(path) = url.strip_prefix("file://") {
-        return std::fs::read(path).map_err(|e| format!("cannot read {url}: {e}"));
-    }
-    if url.starts_with("http://") || url.starts_with("https://") {
-        let out = Command::new("curl")
-            .args(["--fail", "--silent", "--show-error", "--location", url])
-            .output()
-            .map_err(|e| format!("cannot run curl to download {url}: {e}"))?;
-        if !out.status.success() {
-            return Err(format!(
-                "cannot download {url}: {}",
-                String::from_utf8_lossy(&out.stderr).trim()
-            ));
-        }
-        return Ok(out.stdout);
-    }
-    Err(format!(
-        "`{url}`: only file://, http:// and https:// URLs can be fetched"
-    ))
-}
-
 /// Unpacks a `.tar` or `.tar.gz` into `dst`, refusing anything that could
 /// land outside it or is not a plain file or directory.
-fn unpack(bytes: &[u8], dst: &Path) -> Result<(), String> {
-    let reader: Box<dyn Read + '_> = if bytes.starts_with(&[0x1f, 0x8b]) {
-        Box::new(flate2::read::GzDecoder::new(bytes))
+fn unpack(mut input: impl BufRead, dst: &Path) -> Result<(), String> {
+    let gzip = input
+        .fill_buf()
+        .map_err(|e| format!("cannot read the archive: {e}"))?
+        .starts_with(&[0x1f, 0x8b]);
+    let reader: Box<dyn Read + '_> = if gzip {
+        Box::new(flate2::bufread::GzDecoder::new(input))
     } else {
-        Box::new(bytes)
+        Box::new(input)
     };
     let mut archive = tar::Archive::new(reader);
     let entries = archive
@@ -240,12 +447,10 @@ fn unpack(bytes: &[u8], dst: &Path) -> Result<(), String> {
                     .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
             }
             let mode = entry.header().mode().unwrap_or(0o644);
-            let mut data = Vec::new();
-            entry
-                .read_to_end(&mut data)
-                .map_err(|e| format!("cannot read `{}`: {e}", path.display()))?;
-            std::fs::write(&target, &data)
+            let mut file = std::fs::File::create(&target)
                 .map_err(|e| format!("cannot write {}: {e}", target.display()))?;
+            std::io::copy(&mut entry, &mut file)
+                .map_err(|e| format!("cannot unpack `{}`: {e}", path.display()))?;
             set_mode(&target, mode & 0o755)?;
         } else {
             return Err(format!(
@@ -387,6 +592,39 @@ mod tests {
         assert_eq!(relative("a/../../x"), None);
         assert_eq!(relative("/etc/passwd"), None);
         assert_eq!(relative("."), Some(PathBuf::new()));
+    }
+
+    #[test]
+    fn a_copy_is_hashed_as_written_and_bounded() {
+        let dir = tempfile::tempdir().unwrap();
+        let to = dir.path().join("a");
+        let got = copy_hashed(&b"abc"[..], "mem://abc", &to, 3).unwrap();
+        assert_eq!(got, sha256_hex(b"abc"));
+        assert_eq!(std::fs::read(&to).unwrap(), b"abc");
+        let err = copy_hashed(&b"abcd"[..], "mem://abcd", &dir.path().join("b"), 3).unwrap_err();
+        assert!(
+            matches!(err, ArchiveError::TooLarge { max: 3, .. }),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn bytes_with_another_hash_are_refused_naming_both() {
+        let dir = tempfile::tempdir().unwrap();
+        let source = dir.path().join("src.tar");
+        std::fs::write(&source, b"not the archive").unwrap();
+        let url = format!("file://{}", source.display());
+        let expected = "0".repeat(64);
+        let err = fetch_archive(&url, &expected, &dir.path().join("copy")).unwrap_err();
+        let got = sha256_hex(b"not the archive");
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "{url} has sha256 {got}, but the launcher expects {expected}; refusing to unpack it"
+            )
+        );
+        let err = fetch_archive("ftp://x/y.tar", &expected, &dir.path().join("ftp")).unwrap_err();
+        assert!(matches!(err, ArchiveError::Scheme { .. }), "{err}");
     }
 
     #[test]

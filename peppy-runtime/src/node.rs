@@ -112,9 +112,10 @@ impl<P: NodeParameters> NodeBuilder<P> {
 
     /// Runs the node to completion on its own multi-threaded tokio runtime.
     /// `setup` runs once; spawn long-running work from it. Call it first
-    /// thing in `main`, before the program starts threads of its own: it
-    /// sets Zenoh's thread layout for the process
-    /// ([`threads::share_zenoh_threads`](crate::threads::share_zenoh_threads)).
+    /// thing in `main`, before the program starts threads of its own: then
+    /// it sets Zenoh's thread layout for the process
+    /// ([`threads::share_zenoh_threads`](crate::threads::share_zenoh_threads));
+    /// with other threads already running, Zenoh keeps its default one.
     ///
     /// A stop (Ctrl-C, SIGTERM, the cancellation token) is prompt whatever
     /// the node's tasks do: a `setup` still running is dropped, the node
@@ -126,8 +127,15 @@ impl<P: NodeParameters> NodeBuilder<P> {
         F: FnOnce(P, Arc<NodeRunner>) -> Fut,
         Fut: Future<Output = Result<()>>,
     {
+        // Before anything else: only while this is the process's one
+        // thread may the environment be written.
+        let sharing = crate::threads::share_zenoh_threads();
         init_logging();
-        crate::threads::share_zenoh_threads();
+        if sharing == crate::threads::Sharing::OtherThreads {
+            tracing::debug!(
+                "other threads run in this process: Zenoh keeps its default threads (docs/RUNNING.md)"
+            );
+        }
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .enable_all()
             .build()

@@ -8,7 +8,7 @@ use std::time::Duration;
 use peppy::{Error, NodeRunner};
 
 use crate::nodes::{realsense_d405, shapes, shapes_client, video_reconstruction};
-use crate::support::{eventually, hub, namespace, start};
+use crate::support::{hub, namespace, start, until_up};
 
 /// Serves with `$serve` (an expression of `$s: &NodeRunner`) until the node stops.
 macro_rules! serving {
@@ -19,15 +19,6 @@ macro_rules! serving {
             while $serve.await.is_ok() {}
         });
     }};
-}
-
-/// Polls until the server is up (`ServiceUnreachable` until then).
-async fn until_up<T>(f: impl AsyncFn() -> peppy::Result<T>) -> peppy::Result<T> {
-    eventually("the server to answer", async || match f().await {
-        Err(Error::ServiceUnreachable { .. }) => None,
-        other => Some(other),
-    })
-    .await
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

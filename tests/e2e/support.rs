@@ -4,13 +4,17 @@ use std::time::Duration;
 
 use peppy::NodeRunner;
 use peppy::codegen::NodeParameters;
+use peppy::runtime::describe::InstanceInfo;
+use peppy::runtime::tool::ToolCaller;
 
 /// Every wait in these tests is bounded by this.
 pub(crate) const WAIT: Duration = Duration::from_secs(20);
 
 /// A Zenoh router on a free loopback port, standing in for the launcher's.
 pub(crate) struct Hub {
-    _session: zenoh::Session,
+    /// The router's own session: what it subscribes to or asks is in place
+    /// before any node connects, so a node's first message is not raced.
+    pub(crate) session: zenoh::Session,
     pub(crate) endpoint: String,
 }
 
@@ -30,10 +34,7 @@ pub(crate) async fn hub() -> Hub {
         .insert_json5("scouting/multicast/enabled", "false")
         .unwrap();
     let session = zenoh::open(config).await.unwrap();
-    Hub {
-        _session: session,
-        endpoint,
-    }
+    Hub { session, endpoint }
 }
 
 static COUNTER: AtomicU32 = AtomicU32::new(0);
@@ -47,15 +48,8 @@ pub(crate) fn namespace(test: &str) -> String {
     )
 }
 
-/// Starts the node whose generated parameters are `P` as `instance`, with
-/// extra command-line flags, through the generated `NodeBuilder` alias's
-/// target type.
-pub(crate) async fn start<P: NodeParameters>(
-    hub: &Hub,
-    ns: &str,
-    instance: &str,
-    extra: &[&str],
-) -> (P, Arc<NodeRunner>) {
+/// The flags that start `instance` in `ns` against the hub.
+pub(crate) fn node_args(hub: &Hub, ns: &str, instance: &str, extra: &[&str]) -> Vec<String> {
     let mut args = vec![
         "node",
         "--instance-id",
@@ -66,11 +60,23 @@ pub(crate) async fn start<P: NodeParameters>(
         &hub.endpoint,
     ];
     args.extend_from_slice(extra);
+    args.into_iter().map(String::from).collect()
+}
+
+/// Starts the node whose generated parameters are `P` as `instance`, with
+/// extra command-line flags, through the generated `NodeBuilder` alias's
+/// target type.
+pub(crate) async fn start<P: NodeParameters>(
+    hub: &Hub,
+    ns: &str,
+    instance: &str,
+    extra: &[&str],
+) -> (P, Arc<NodeRunner>) {
     tokio::time::timeout(
         WAIT,
         peppy::NodeBuilder::<P>::new()
             .with_runtime_config(None)
-            .with_args(args)
+            .with_args(node_args(hub, ns, instance, extra))
             .start(),
     )
     .await
@@ -90,4 +96,76 @@ pub(crate) async fn eventually<T>(what: &str, mut f: impl AsyncFnMut() -> Option
     })
     .await
     .unwrap_or_else(|_| panic!("timed out: {what}"))
+}
+
+/// Polls until the server is up (`ServiceUnreachable` until then).
+pub(crate) async fn until_up<T>(f: impl AsyncFn() -> peppy::Result<T>) -> peppy::Result<T> {
+    eventually("the server to answer", async || match f().await {
+        Err(peppy::Error::ServiceUnreachable { .. }) => None,
+        other => Some(other),
+    })
+    .await
+}
+
+/// What the standalone instance `instance` of `ns` says about itself,
+/// asked from the hub (within [`WAIT`]).
+pub(crate) async fn describe(hub: &Hub, ns: &str, instance: &str) -> InstanceInfo {
+    let key =
+        peppy::runtime::wire::keys::describe_key(ns, peppy::runtime::STANDALONE_CORE, instance);
+    eventually(&format!("{instance} to describe itself"), async || {
+        let replies = hub
+            .session
+            .get(&key)
+            .timeout(Duration::from_secs(1))
+            .await
+            .ok()?;
+        let reply = replies.recv_async().await.ok()?;
+        InstanceInfo::from_json(&reply.result().ok()?.payload().to_bytes()).ok()
+    })
+    .await
+}
+
+/// A tool on the hub's session: calls services and sends goals with the
+/// formats an instance describes, so a test can play the other side of a
+/// node without generated code of its own.
+pub(crate) fn tool(hub: &Hub) -> ToolCaller {
+    ToolCaller::new(hub.session.clone(), "test", "tool")
+}
+
+/// Topic messages of one namespace as the hub hears them, kept by key.
+pub(crate) struct Heard {
+    subscriber:
+        zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+    first: std::collections::BTreeMap<String, Vec<u8>>,
+}
+
+/// Starts hearing every topic of `ns` on the hub. Call it before the
+/// producers start: the router then has the subscription when they connect.
+pub(crate) async fn hear_topics(hub: &Hub, ns: &str) -> Heard {
+    let subscriber = hub
+        .session
+        .declare_subscriber(format!("peppy/{ns}/topic/**"))
+        .await
+        .unwrap();
+    Heard {
+        subscriber,
+        first: Default::default(),
+    }
+}
+
+impl Heard {
+    /// The first message published on `key` (within [`WAIT`]).
+    pub(crate) async fn first(&mut self, key: &str) -> Vec<u8> {
+        tokio::time::timeout(WAIT, async {
+            while !self.first.contains_key(key) {
+                let sample = self.subscriber.recv_async().await.unwrap();
+                self.first
+                    .entry(sample.key_expr().to_string())
+                    .or_insert_with(|| sample.payload().to_bytes().into_owned());
+            }
+        })
+        .await
+        .unwrap_or_else(|_| panic!("timed out: a message on {key}"));
+        self.first[key].clone()
+    }
 }

@@ -1,8 +1,10 @@
 //! Remote sources (SPEC 6.2) through `peppy-launch check`: git at a commit,
 //! a branch and a tag, an unknown ref, archives with a good and a bad hash
 //! and one that tries to escape, and working offline from the cache. Local
-//! repositories and `file://` URLs only.
+//! repositories, `file://` URLs, and `http://` from a server on loopback in
+//! the test itself.
 
+use std::io::{BufRead as _, BufReader, Write as _};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -279,4 +281,110 @@ fn archive_sources_are_checked_before_they_are_unpacked() {
     assert!(!tmp.path().join("escaped.txt").exists());
     assert!(!cache.join("escaped.txt").exists());
     assert!(!cache.join("archives").join(&evil_hash).exists());
+}
+
+/// An HTTP server on a loopback port of its own for the rest of the test
+/// process: `/<name>` answers that file's bytes, `/moved/<name>` redirects
+/// there, anything else is 404. Returns its base URL.
+fn http_server(files: Vec<(&'static str, Vec<u8>)>) -> String {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let base = format!("http://{}", listener.local_addr().unwrap());
+    std::thread::spawn(move || {
+        for stream in listener.incoming() {
+            let Ok(mut stream) = stream else { continue };
+            let mut reader = BufReader::new(stream.try_clone().unwrap());
+            let mut request = String::new();
+            if reader.read_line(&mut request).is_err() {
+                continue;
+            }
+            loop {
+                let mut header = String::new();
+                match reader.read_line(&mut header) {
+                    Ok(0) | Err(_) => break,
+                    Ok(_) if header == "\r\n" => break,
+                    Ok(_) => {}
+                }
+            }
+            let path = request.split_whitespace().nth(1).unwrap_or("/");
+            let (status, extra, body): (&str, String, &[u8]) =
+                if let Some(name) = path.strip_prefix("/moved/") {
+                    ("302 Found", format!("Location: /{name}\r\n"), b"")
+                } else if let Some((_, bytes)) = files
+                    .iter()
+                    .find(|(name, _)| path.strip_prefix('/') == Some(*name))
+                {
+                    ("200 OK", String::new(), bytes)
+                } else {
+                    ("404 Not Found", String::new(), b"")
+                };
+            let head = format!(
+                "HTTP/1.1 {status}\r\n{extra}Content-Length: {}\r\nConnection: close\r\n\r\n",
+                body.len()
+            );
+            let _ = stream.write_all(head.as_bytes());
+            let _ = stream.write_all(body);
+        }
+    });
+    base
+}
+
+/// Over HTTP the launcher follows a redirect to the bytes, refuses them
+/// when they do not hash to the launcher's sha256 (naming both, leaving
+/// nothing in the cache), unpacks them when they do, and reports a missing
+/// file with its status.
+#[test]
+fn archive_sources_over_http() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (work, cache) = (tmp.path().join("work"), tmp.path().join("cache"));
+    std::fs::create_dir_all(&work).unwrap();
+    let good = archive(
+        &tmp.path().join("packed.tar.gz"),
+        &[("packed-1.0/peppy.json5", &node_doc("packed"))],
+    );
+    let hash = sha256(&good);
+    let base = http_server(vec![("packed.tar.gz", std::fs::read(&good).unwrap())]);
+    let url = format!("{base}/moved/packed.tar.gz");
+
+    let wrong = "f".repeat(64);
+    let bad = check(
+        &work,
+        &cache,
+        &format!("{{ url: \"{url}\", sha256: \"{wrong}\" }}"),
+    );
+    assert_eq!(bad.code, 2, "{}", bad.stderr);
+    assert!(
+        bad.stderr.contains(&format!(
+            "{url} has sha256 {hash}, but the launcher expects {wrong}; refusing to unpack it"
+        )),
+        "{}",
+        bad.stderr
+    );
+    let left: Vec<_> = std::fs::read_dir(cache.join("archives"))
+        .map(|entries| entries.map(|e| e.unwrap().file_name()).collect())
+        .unwrap_or_default();
+    assert!(left.is_empty(), "nothing kept: {left:?}");
+
+    let ok = check(
+        &work,
+        &cache,
+        &format!("{{ url: \"{url}\", sha256: \"{hash}\" }}"),
+    );
+    assert_eq!(ok.code, 0, "{}", ok.stderr);
+    assert!(ok.stdout.contains("packed:v1"), "{}", ok.stdout);
+    assert!(cache.join("archives").join(&hash).is_dir());
+
+    let missing = check(
+        &work,
+        &cache,
+        &format!("{{ url: \"{base}/gone.tar.gz\", sha256: \"{wrong}\" }}"),
+    );
+    assert_eq!(missing.code, 2, "{}", missing.stderr);
+    assert!(
+        missing
+            .stderr
+            .contains(&format!("cannot download {base}/gone.tar.gz"))
+            && missing.stderr.contains("404"),
+        "{}",
+        missing.stderr
+    );
 }

@@ -356,8 +356,11 @@ fn instance_shape() {
     assert!(help(one(&errors, Code::UnknownKey)).starts_with("did you mean `bindings`?"));
 }
 
+/// Without the launcher's fetcher (a plain `check_launcher`), git and
+/// archive sources are refused where they stand, and the message sends the
+/// reader to `peppy-launch check` and `up`, which fetch them.
 #[test]
-fn remote_sources_are_not_supported_yet() {
+fn remote_sources_without_a_fetcher_point_to_the_launcher() {
     let tree = Tree::new();
     let text = r#"{
   peppy_schema: "launcher_v1",

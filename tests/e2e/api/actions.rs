@@ -6,11 +6,17 @@ mod peppygen {}
 
 use std::time::Duration;
 
+use peppy::runtime::Outcome;
+use peppy::runtime::wire::codec::to_bytes;
 use peppygen::consumed_actions::cam_calibrate;
 use peppygen::exposed_actions::{home, move_to};
 use peppygen::{NodeRunner, QoSProfile, Result};
 
-async fn serve(node_runner: &NodeRunner) -> Result<()> {
+use crate::nodes::zed_2i;
+use crate::support::{WAIT, describe, hub, namespace, start, tool, until_up};
+
+/// Serves `move_to` until the node stops.
+async fn serve_move_to(node_runner: &NodeRunner) -> Result<()> {
     let mut handle = move_to::ActionHandle::expose(node_runner).await?;
     while let Some(ctx) = handle
         .handle_goal_next_request(|request: &move_to::GoalRequest| {
@@ -35,8 +41,13 @@ async fn serve(node_runner: &NodeRunner) -> Result<()> {
             () = std::future::ready(()) => ctx.complete(true).await?,
         }
     }
+    Ok(())
+}
+
+/// Serves `home` until the node stops.
+async fn serve_home(node_runner: &NodeRunner) -> Result<()> {
     let mut homing = home::ActionHandle::expose(node_runner).await?;
-    if let Some(ctx) = homing
+    while let Some(ctx) = homing
         .handle_goal_next_request(|_| Ok(home::GoalResponse::new(true, None)))
         .await?
     {
@@ -45,7 +56,10 @@ async fn serve(node_runner: &NodeRunner) -> Result<()> {
     Ok(())
 }
 
-async fn call(node_runner: &NodeRunner) -> Result<()> {
+/// Sends one calibration goal: the first feedback's view count, the RMS
+/// error it completed with, and the answer to a cancel sent after it ended
+/// (`None` if it was rejected or did not complete).
+async fn call(node_runner: &NodeRunner) -> Result<Option<(u32, f64, cam_calibrate::CancelState)>> {
     let goal = cam_calibrate::GoalRequest {
         board: cam_calibrate::GoalBoard { rows: 6, cols: 9 },
     };
@@ -58,27 +72,114 @@ async fn call(node_runner: &NodeRunner) -> Result<()> {
     .await?;
     if !handle.data.accepted {
         println!("rejected: {:?}", handle.data.error_message);
-        return Ok(());
+        return Ok(None);
     }
     let feedback: cam_calibrate::FeedbackMessage = handle.on_next_feedback_message().await?;
-    let _: u32 = feedback.views;
+    let views: u32 = feedback.views;
     let result = handle.get_result(Duration::from_secs(30)).await?;
     let _: (String, String) = (result.instance_id, result.core_node);
-    match result.outcome {
-        cam_calibrate::ResultOutcome::Completed(data) => println!("rms {}", data.rms_error),
-        cam_calibrate::ResultOutcome::Cancelled(data) => println!("partial {}", data.rms_error),
-        cam_calibrate::ResultOutcome::Abandoned | cam_calibrate::ResultOutcome::Expired => {}
-    }
+    let rms = match result.outcome {
+        cam_calibrate::ResultOutcome::Completed(data) => data.rms_error,
+        cam_calibrate::ResultOutcome::Cancelled(data) => {
+            println!("partial {}", data.rms_error);
+            return Ok(None);
+        }
+        cam_calibrate::ResultOutcome::Abandoned | cam_calibrate::ResultOutcome::Expired => {
+            return Ok(None);
+        }
+    };
     let cancel = handle.cancel_goal(Duration::from_secs(1)).await?;
     match cancel.state {
         cam_calibrate::CancelState::Signalled
         | cam_calibrate::CancelState::AlreadyTerminal
         | cam_calibrate::CancelState::Unknown => {}
     }
-    Ok(())
+    Ok(Some((views, rms, cancel.state)))
 }
 
-#[test]
-fn compiles_and_runs() {
-    let _ = (serve, call);
+/// The node serves both its actions to a tool (a goal rejected, one
+/// completed with feedback, a goal without data) and calls a camera's
+/// `calibrate` through its interface slot.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn compiles_and_runs() {
+    let hub = hub().await;
+    let ns = namespace("api-actions");
+    let (_, zed) = start::<zed_2i::Parameters>(&hub, &ns, "zed", &[]).await;
+    let mut calibrate = zed_2i::exposed_actions::calibrate::ActionHandle::expose(&zed)
+        .await
+        .unwrap();
+    tokio::spawn(async move {
+        while let Ok(Some(ctx)) = calibrate
+            .handle_goal_next_request(|_| {
+                Ok(zed_2i::exposed_actions::calibrate::GoalResponse::accept())
+            })
+            .await
+        {
+            ctx.publish_feedback(54).await.unwrap();
+            ctx.complete(0.5).await.unwrap();
+        }
+    });
+    let (_, node) = start::<peppygen::Parameters>(&hub, &ns, "arm", &["--bind", "cam@zed"]).await;
+    let serving = [
+        tokio::spawn({
+            let node = node.clone();
+            async move { serve_move_to(&node).await }
+        }),
+        tokio::spawn({
+            let node = node.clone();
+            async move { serve_home(&node).await }
+        }),
+    ];
+
+    let info = describe(&hub, &ns, "arm").await;
+    let tool = tool(&hub);
+    let t = Duration::from_secs(2);
+    let action = |name: &str| info.actions.iter().find(|a| a.name == name).unwrap();
+    let goal = |speed| {
+        to_bytes(&move_to::GoalRequestData {
+            target: move_to::GoalTarget { x: 1.0, y: 2.0 },
+            speed,
+        })
+    };
+    let fast = until_up(async || tool.send_goal(action("move_to"), "arm", goal(3.0), t).await)
+        .await
+        .unwrap();
+    assert!(!fast.accepted);
+    assert_eq!(fast.error_message.as_deref(), Some("too fast"));
+    let mut moving = tool
+        .send_goal(action("move_to"), "arm", goal(1.0), t)
+        .await
+        .unwrap();
+    assert!(moving.accepted, "{:?}", moving.error_message);
+    let feedback: move_to::MoveToFeedback = moving.next_feedback().await.unwrap();
+    assert_eq!(feedback.progress, 0.5);
+    assert_eq!(
+        moving.result(t).await.unwrap(),
+        Outcome::Completed(move_to::MoveToResult { reached: true })
+    );
+    let homing = tool
+        .send_goal(action("home"), "arm", Vec::new(), t)
+        .await
+        .unwrap();
+    assert!(homing.accepted, "{:?}", homing.error_message);
+    assert_eq!(
+        homing.result::<()>(t).await.unwrap(),
+        Outcome::Completed(())
+    );
+
+    let called = until_up(async || call(&node).await).await.unwrap();
+    assert_eq!(
+        called,
+        Some((54, 0.5, cam_calibrate::CancelState::AlreadyTerminal))
+    );
+
+    node.shutdown().await;
+    for task in serving {
+        tokio::time::timeout(WAIT, task)
+            .await
+            .expect("serving ends once the node stops")
+            .unwrap()
+            .unwrap();
+    }
+    zed.shutdown().await;
 }

@@ -1,7 +1,10 @@
 //! Node code written against every generated API shape, the way real nodes
 //! (and the original PeppyOS's) write it: each case must compile without a
-//! warning, and its test runs what it can without a stack. (The attribute's
-//! compile errors are checked through rustc in peppy-macros' UI tests.)
+//! warning, and its test runs that code against nodes on a loopback hub (a
+//! tool on the hub's session plays a side no generated node takes) and
+//! checks what came back. The seeds' snippets only compile: they are the
+//! seed pages' text. (The attribute's compile errors are checked through
+//! rustc in peppy-macros' UI tests.)
 
 mod actions;
 mod conformance;

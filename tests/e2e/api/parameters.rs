@@ -6,10 +6,13 @@ mod peppygen {}
 use std::time::{Duration, UNIX_EPOCH};
 
 use peppygen::parameters::{CamerasItem, Video, VideoEncoder};
-use peppygen::{Parameters, StandaloneConfig};
+use peppygen::{NodeBuilder, Parameters, StandaloneConfig};
 
-#[test]
-fn compiles_and_runs() {
+/// Parameters read from JSON, written back, refused at a wrong array
+/// length, and handed to a node as its standalone fallback, which starts
+/// with them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn compiles_and_runs() {
     let json = format!(
         r#"{{ "rate_hz": 10.0, "name": "cam", "start": 1.5, "type": "x",
              "video": {{ "fps": 30, "encoder": {{ "codec": "h264", "bitrate": 9 }} }},
@@ -42,5 +45,17 @@ fn compiles_and_runs() {
     assert_eq!(back, params);
     let wrong_length = json.replace(&format!("{:?}", vec![7u8; 64]), "[1, 2]");
     assert!(serde_json::from_str::<Parameters>(&wrong_length).is_err());
-    let _ = StandaloneConfig::new().with_parameters(&params);
+    let (given, runner) = tokio::time::timeout(
+        crate::support::WAIT,
+        NodeBuilder::<Parameters>::new()
+            .with_args(["node", "--listen", "tcp/127.0.0.1:0"])
+            .with_runtime_config(None)
+            .standalone(StandaloneConfig::new().with_parameters(&params))
+            .start(),
+    )
+    .await
+    .expect("node start timed out")
+    .unwrap();
+    assert_eq!(given, expected);
+    runner.shutdown().await;
 }
