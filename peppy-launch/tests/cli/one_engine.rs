@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use crate::support::{COMMAND_BOUND, peppy_launch, root, wait_bounded};
+use crate::support::{COMMAND_BOUND, example_binary, peppy_launch, root, wait_bounded};
 
 /// A finished command's exit code, stdout and stderr.
 struct Ended {
@@ -170,19 +170,7 @@ fn python_nodes_started_by_hand_bind_as_the_engine_says() {
 /// refused before anything starts, in the same words.
 #[test]
 fn a_rust_node_and_its_python_twin_refuse_a_dead_key_alike() {
-    let built = finish(
-        {
-            let mut c = Command::new(env!("CARGO"));
-            c.args(["build", "--quiet", "-p", "arm_controller"])
-                .current_dir(root());
-            c
-        },
-        "cargo build -p arm_controller",
-    );
-    assert_eq!(built.code, 0, "{}", built.stderr);
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root().join("target"));
+    let arm_controller = example_binary("arm_controller");
     let args = [
         "--instance-id",
         "c1",
@@ -195,7 +183,7 @@ fn a_rust_node_and_its_python_twin_refuse_a_dead_key_alike() {
     ];
     let rust = finish(
         {
-            let mut c = Command::new(target.join("debug/arm_controller"));
+            let mut c = Command::new(&arm_controller);
             c.args(args);
             c
         },

@@ -265,3 +265,26 @@ fn paeth(a: u8, b: u8, c: u8) -> u8 {
         c
     }
 }
+
+/// The debug executable of the workspace's example node package `name`,
+/// built first (nothing to do when `cargo test` built it already).
+pub(crate) fn example_binary(name: &str) -> PathBuf {
+    let child = Command::new(env!("CARGO"))
+        .args(["build", "--quiet", "-p", name])
+        .current_dir(root())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run cargo");
+    let out = wait_bounded(child, COMMAND_BOUND, &format!("cargo build -p {name}"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join("target"))
+        .join("debug")
+        .join(name)
+}

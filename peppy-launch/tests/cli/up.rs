@@ -573,3 +573,66 @@ fn a_cargo_node_runs_what_cargo_built_wherever_the_target_dir_is() {
     tiny_cargo_node(dir.path(), "three");
     assert_eq!(up(&["--no-build"]), "two");
 }
+
+/// The names of a process's threads.
+fn thread_names(pid: u32) -> Vec<String> {
+    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
+        return Vec::new();
+    };
+    tasks
+        .filter_map(|t| std::fs::read_to_string(t.ok()?.path().join("comm")).ok())
+        .map(|n| n.trim().to_string())
+        .collect()
+}
+
+/// A node started alone (its `main` the only thread when `NodeBuilder::run`
+/// begins) runs Zenoh's receiving, accepting and network work on its one
+/// `app` thread; a layout its caller set in `ZENOH_RUNTIME` is kept.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_node_runs_zenoh_on_the_node_layout_unless_told_otherwise() {
+    let program = crate::support::example_binary("arm_controller");
+    for (layout, wanted, unwanted) in [
+        (
+            None,
+            &["app-0"][..],
+            &["acc-0", "net-0", "rx-0", "app-1"][..],
+        ),
+        (
+            Some("(app: (worker_threads: 2))"),
+            &["app-0", "app-1", "acc-0", "net-0"][..],
+            &[][..],
+        ),
+    ] {
+        let mut command = Command::new(&program);
+        command
+            .args(["--instance-id", "c1", "--listen", "tcp/127.0.0.1:0"])
+            .args(["--bind", "robot_arm@arm"])
+            .env_remove("PEPPY_RUNTIME_CONFIG")
+            .env_remove("ZENOH_RUNTIME")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null());
+        if let Some(layout) = layout {
+            command.env("ZENOH_RUNTIME", layout);
+        }
+        let mut child = command.spawn().unwrap();
+        let deadline = Instant::now() + Duration::from_secs(30);
+        let mut names = thread_names(child.id());
+        while !wanted.iter().all(|w| names.iter().any(|n| n == w)) && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(50));
+            names = thread_names(child.id());
+        }
+        // Zenoh starts some of its threads on first use: look again once the
+        // node has been up a while.
+        std::thread::sleep(Duration::from_millis(500));
+        names = thread_names(child.id());
+        let _ = child.kill();
+        let _ = child.wait();
+        for w in wanted {
+            assert!(names.contains(&w.to_string()), "{layout:?}: {names:?}");
+        }
+        for u in unwanted {
+            assert!(!names.contains(&u.to_string()), "{layout:?}: {names:?}");
+        }
+    }
+}
