@@ -359,7 +359,9 @@ impl Encode for SystemTime {
             Err(e) => {
                 // Before the epoch: floor seconds, positive nanoseconds.
                 let d = e.duration();
-                let secs = -(d.as_secs() as i64);
+                // Wrapping: 2^63 seconds before the epoch is `i64::MIN`,
+                // whose negation overflows (a time the decoder gives).
+                let secs = (d.as_secs() as i64).wrapping_neg();
                 match d.subsec_nanos() {
                     0 => (secs, 0),
                     n => (secs - 1, 1_000_000_000 - n),
@@ -519,6 +521,11 @@ mod tests {
         let bytes = to_bytes(&t);
         assert_eq!(&bytes[..8], &(-2i64).to_le_bytes());
         assert_eq!(from_bytes::<SystemTime>(&bytes).unwrap(), t);
+        // The earliest time the wire holds, where this platform holds it.
+        let earliest: Vec<u8> = i64::MIN.to_le_bytes().into_iter().chain([0; 4]).collect();
+        if let Ok(t) = from_bytes::<SystemTime>(&earliest) {
+            assert_eq!(to_bytes(&t), earliest);
+        }
     }
 
     #[test]
