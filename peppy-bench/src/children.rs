@@ -5,6 +5,7 @@ use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::time::{Duration, Instant};
 
 use clap::{Args, Subcommand, ValueEnum};
+use peppy::runtime::wire::keys::{Space, space_selector, split_entry_key};
 use serde::Serialize;
 use serde_json::json;
 use tokio::io::AsyncReadExt as _;
@@ -351,7 +352,7 @@ impl Sink for AnySink {
 async fn watch(listen: &str, ns: &str, expect: usize) -> Res<()> {
     let session = raw_side::open(Some(listen), None).await?;
     let topics = session
-        .declare_subscriber(format!("peppy/{ns}/topic/**"))
+        .declare_subscriber(space_selector(ns, Space::Topic))
         .await?;
     report(&json!({ "ready": true }));
     let mut heard = std::collections::BTreeSet::new();
@@ -363,8 +364,8 @@ async fn watch(listen: &str, ns: &str, expect: usize) -> Res<()> {
             break;
         };
         first.get_or_insert_with(roles::now_ns);
-        if let Some(instance) = sample.key_expr().as_str().rsplit('/').next() {
-            heard.insert(instance.to_string());
+        if let Some(sender) = split_entry_key(sample.key_expr().as_str()) {
+            heard.insert(sender.instance.to_string());
         }
     }
     report(&json!({

@@ -34,6 +34,8 @@ pub(crate) async fn open(listen: Option<&str>, connect: Option<&str>) -> Res<Ses
     zenoh::open(c).await
 }
 
+/// The baseline's own keys: raw Zenoh with no peppy in it, so not
+/// `wire::keys` (a peppy key's owner, core and instance mean nothing here).
 fn key(ns: &str, what: &str) -> String {
     format!("bench/{ns}/{what}")
 }

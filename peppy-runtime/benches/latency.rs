@@ -33,6 +33,10 @@ use peppy_runtime::codegen::{
     ConsumedTopicSpec, Decode, DecodeError, Decoder, Encode, FormatSpec, NodeDescriptor,
     NodeParameters, OwnerSpec, QosProfile, TopicSpec, Writer, emit, next_message,
 };
+use peppy_runtime::wire::keys::{
+    Channel, Owner, Space, describe_key, entry_key, entry_selector, format_selector,
+    instance_liveliness_selector, namespace_selector, space_selector,
+};
 use peppy_runtime::{NodeBuilder, NodeRunner};
 
 const WARMUP: usize = 200;
@@ -560,16 +564,23 @@ fn runtime_configs(dir: &std::path::Path, endpoint: &str, passwords: Option<[&st
 /// other's; each announces itself, answers its format and description
 /// queries, follows liveliness and learns declarations.
 fn bench_policy() -> serde_json::Value {
+    let ns = "bench";
+    fn owner(node: &str) -> Owner<'_> {
+        Owner::Node {
+            name: node,
+            tag: "v1",
+        }
+    }
     let topic = |node: &str, name: &str| {
-        format!("peppy/bench/topic/node/{node}/v1/{name}/standalone/{node}")
+        entry_key(ns, Channel::Topic, &owner(node), name, "standalone", node)
     };
     let mut rules = vec![
         serde_json::json!({ "id": "any.declarations", "flows": ["egress"], "permission": "allow",
             "messages": ["declare_subscriber", "declare_queryable", "liveliness_token", "reply"],
-            "key_exprs": ["peppy/bench/**"] }),
+            "key_exprs": [namespace_selector(ns)] }),
         serde_json::json!({ "id": "any.live", "flows": ["ingress"], "permission": "allow",
             "messages": ["declare_liveliness_subscriber", "liveliness_query"],
-            "key_exprs": ["peppy/bench/live/**"] }),
+            "key_exprs": [space_selector(ns, Space::Live)] }),
     ];
     let mut subjects = Vec::new();
     let mut policies = Vec::new();
@@ -581,9 +592,9 @@ fn bench_policy() -> serde_json::Value {
             "messages": ["put"], "key_exprs": [topic(me, out)] }));
         rules.push(serde_json::json!({ "id": format!("{me}.self"), "flows": ["ingress"], "permission": "allow",
             "messages": ["liveliness_token", "declare_queryable", "reply"],
-            "key_exprs": [format!("peppy/bench/live/standalone/{me}/*/*"), format!("peppy/bench/format/*/{me}"), format!("peppy/bench/describe/standalone/{me}")] }));
+            "key_exprs": [instance_liveliness_selector(ns, "standalone", me), format_selector(ns, Some(me)), describe_key(ns, "standalone", me)] }));
         rules.push(serde_json::json!({ "id": format!("{me}.subscribe"), "flows": ["ingress"], "permission": "allow",
-            "messages": ["declare_subscriber"], "key_exprs": [format!("peppy/bench/topic/node/{other}/v1/{inp}/*/*")] }));
+            "messages": ["declare_subscriber"], "key_exprs": [entry_selector(ns, Channel::Topic, Some(&owner(other)), inp, None, None)] }));
         rules.push(serde_json::json!({ "id": format!("{me}.receives"), "flows": ["egress"], "permission": "allow",
             "messages": ["put"], "key_exprs": [topic(other, inp)] }));
         subjects.push(serde_json::json!({ "id": me, "usernames": [me] }));

@@ -203,7 +203,7 @@ impl InstanceInfo {
     /// instance make (a key with a wildcard would reach every server), and
     /// every subscription inside the namespace's topics.
     pub fn check(&self, ns: &str, reply_key: &str) -> Result<(), String> {
-        use crate::wire::keys::{Channel, describe_key, entry_key, is_segment};
+        use crate::wire::keys::{Channel, EntrySelector, describe_key, entry_key, is_segment};
         if self.version != DESCRIBE_VERSION {
             return Err(format!(
                 "description version {} (this build reads {DESCRIBE_VERSION})",
@@ -222,12 +222,13 @@ impl InstanceInfo {
                 self.instance_id, self.namespace
             ));
         }
-        let topics = format!("peppy/{ns}/topic/");
-        if let Some(c) = self
-            .consumes
-            .iter()
-            .find(|c| !c.selector.starts_with(&topics) || c.selector.contains("**"))
-        {
+        // What `entry_selector` builds for a topic of this namespace, and
+        // nothing wider: a tool subscribes to it (narrowed to a producer).
+        let subscription = |s: &str| {
+            EntrySelector::parse(s)
+                .is_some_and(|e| e.ns == ns && e.channel == Channel::Topic && e.part.is_none())
+        };
+        if let Some(c) = self.consumes.iter().find(|c| !subscription(&c.selector)) {
             return Err(format!("`{}` is not a topic subscription", c.selector));
         }
         let expect = |channel, owner: &OwnerInfo, name: &str, key: &str| {

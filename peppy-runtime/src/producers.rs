@@ -130,20 +130,26 @@ impl Declarer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::wire::keys::{Channel, Owner, entry_key};
 
     #[test]
     fn a_key_is_parsed_once_and_remembered_up_to_a_bound() {
         let producers = Producers::new(Declarer::none());
-        let key = "peppy/lab/topic/node/cam/v1/frames/c1/cam_a";
+        let cam = Owner::Node {
+            name: "cam",
+            tag: "v1",
+        };
+        let key = &entry_key("lab", Channel::Topic, &cam, "frames", "c1", "cam_a");
         let first = producers.of(key).unwrap();
         assert_eq!(&*first.core, "c1");
         assert_eq!(&*first.instance, "cam_a");
         assert!(Arc::ptr_eq(&first, &producers.of(key).unwrap()));
+        // Not an entry key: no owner kind.
         assert!(producers.of("peppy/lab/topic/other/x/v1/t/c/i").is_none());
         for n in 0..REMEMBERED + 10 {
-            let p = producers
-                .of(&format!("peppy/lab/topic/node/cam/v1/frames/c1/cam_{n}"))
-                .unwrap();
+            let instance = format!("cam_{n}");
+            let key = entry_key("lab", Channel::Topic, &cam, "frames", "c1", &instance);
+            let p = producers.of(&key).unwrap();
             assert_eq!(&*p.instance, format!("cam_{n}"));
         }
         assert_eq!(producers.known.read().unwrap().len(), REMEMBERED);

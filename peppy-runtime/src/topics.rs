@@ -539,6 +539,7 @@ fn emit_accepts_a_temporary<'a>(
 mod tests {
     use super::*;
     use crate::spec::{FormatSpec, OwnerSpec};
+    use crate::wire::keys::{Owner, entry_key};
     use peppy_schema::QosProfile;
 
     static TICKS: ConsumedTopicSpec = ConsumedTopicSpec {
@@ -563,7 +564,11 @@ mod tests {
     /// A sample of `instance` in a format of `fingerprint` (`None`: no
     /// attachment).
     fn sample(instance: &str, fingerprint: Option<u64>) -> Sample {
-        let key = format!("peppy/lab/topic/node/clock/v1/ticks/core/{instance}");
+        let clock = Owner::Node {
+            name: "clock",
+            tag: "v1",
+        };
+        let key = entry_key("lab", Channel::Topic, &clock, "ticks", "core", instance);
         let key = KeyExpr::try_from(key).unwrap();
         let b = zenoh::sample::SampleBuilder::put(key, vec![7u8; 10]);
         match fingerprint {

@@ -8,7 +8,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::time::Duration;
 
 use peppy_runtime::describe::{ConsumedTopic, EmittedTopic, InstanceInfo};
-use peppy_runtime::wire::keys::parse_entry_key;
+use peppy_runtime::wire::keys::{Space, parse_entry_key, space_selector};
 use peppy_schema::SlotBinding;
 
 use super::Observer;
@@ -26,7 +26,7 @@ pub(crate) async fn sample(observer: &Observer, window: Duration) -> Result<Coun
     let sink = counts.clone();
     let subscriber = observer
         .session
-        .declare_subscriber(format!("peppy/{}/topic/**", observer.reach.namespace))
+        .declare_subscriber(space_selector(&observer.reach.namespace, Space::Topic))
         .callback(move |sample| {
             if let Some(s) = parse_entry_key(sample.key_expr().as_str())
                 && let Ok(mut c) = sink.lock()

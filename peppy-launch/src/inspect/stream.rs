@@ -8,7 +8,9 @@ use std::time::Duration;
 
 use peppy_runtime::describe::{ConsumedTopic, EmittedTopic, InstanceInfo, OwnerInfo};
 use peppy_runtime::wire::attachment;
-use peppy_runtime::wire::keys::{Channel, Sender, entry_selector, format_key, parse_entry_key};
+use peppy_runtime::wire::keys::{
+    Channel, EntrySelector, Sender, entry_selector, format_key, parse_entry_key,
+};
 use peppy_schema::{Identity, MessageFormat, RouteFilter, SlotKind};
 use tokio::time::Instant;
 
@@ -278,8 +280,12 @@ impl Selection {
         }
         self.selector = match from {
             // Narrow the consumer's own selector to one producer.
-            Some(f) => match t.selector.rsplit_once('/') {
-                Some((head, "*")) => format!("{head}/{f}"),
+            Some(f) => match EntrySelector::parse(&t.selector) {
+                Some(any @ EntrySelector { instance: None, .. }) => EntrySelector {
+                    instance: Some(f),
+                    ..any
+                }
+                .to_string(),
                 _ => t.selector.clone(),
             },
             None => t.selector.clone(),

@@ -7,7 +7,9 @@
 use std::collections::BTreeSet;
 
 use peppy_runtime::wire::keys::{
-    ActionPart, Channel, Owner, action_part_key, entry_key, entry_selector,
+    ActionPart, Channel, EntrySelector, Owner, Space, action_part_key, action_parts_selector,
+    describe_key, entry_key, entry_selector, feedback_selector, format_selector, liveliness_key,
+    namespace_prefix, namespace_selector, space_selector,
 };
 use peppy_schema::{InstancePlan, Origin, RouteFilter, SlotBinding, StackCheck};
 use serde::Serialize;
@@ -31,9 +33,11 @@ pub(crate) struct InstancePolicy {
     pub(crate) instance_id: String,
     /// The core node it runs on (`*` when only the launch names it).
     pub(crate) core_node: String,
-    /// The node it runs, `name:tag`: the only one its liveliness token may
-    /// name.
+    /// The node it runs, `name:tag`.
     pub(crate) node: String,
+    /// The liveliness token it may hold: the only one, naming its own node.
+    #[serde(skip)]
+    pub(crate) token: String,
     /// Topics (and action feedback) it publishes: its own keys.
     pub(crate) emits: Vec<Grant>,
     /// Services and actions it answers: its own keys.
@@ -114,13 +118,13 @@ pub(crate) fn derive(
                 let base = mine(Channel::Action, &a.origin, &a.decl.name);
                 serves.push(own(
                     format!("action {}", a.decl.name),
-                    vec![format!("{base}/*")],
+                    vec![action_parts_selector(&base)],
                 ));
                 // Every goal ends its feedback stream, feedback declared or
                 // not.
                 emits.push(own(
                     format!("action {} feedback", a.decl.name),
-                    vec![format!("{base}/feedback/*")],
+                    vec![feedback_selector(&base)],
                 ));
             }
 
@@ -226,11 +230,15 @@ pub(crate) fn derive(
                         "action",
                         peers
                             .iter()
-                            .flat_map(|p| [format!("{}/*", at(p)), format!("{}/feedback/*", at(p))])
+                            .flat_map(|p| {
+                                [action_parts_selector(&at(p)), feedback_selector(&at(p))]
+                            })
                             .collect::<Vec<_>>(),
                         peers
                             .iter()
-                            .flat_map(|p| [format!("{}/*", to(p)), format!("{}/feedback/*", to(p))])
+                            .flat_map(|p| {
+                                [action_parts_selector(&to(p)), feedback_selector(&to(p))]
+                            })
                             .collect::<Vec<_>>(),
                     ),
                     _ => (
@@ -255,6 +263,7 @@ pub(crate) fn derive(
             }
             InstancePolicy {
                 instance_id: me.to_string(),
+                token: liveliness_key(namespace, &my_core, me, &inst.node.name, &inst.node.tag),
                 core_node: my_core,
                 node: inst.node.to_string(),
                 emits,
@@ -317,37 +326,37 @@ impl Policy {
                 "any.live",
                 "ingress",
                 &["declare_liveliness_subscriber", "liveliness_query"],
-                &[format!("peppy/{ns}/live/**")],
+                &[space_selector(ns, Space::Live)],
             ),
             rule(
                 "any.live.in",
                 "egress",
                 &["liveliness_token"],
-                &[format!("peppy/{ns}/**")],
+                &[namespace_selector(ns)],
             ),
             rule(
                 "any.format",
                 "ingress",
                 &["query"],
-                &[format!("peppy/{ns}/format/*/*")],
+                &[format_selector(ns, None)],
             ),
             rule(
                 "any.format.in",
                 "egress",
                 &["reply"],
-                &[format!("peppy/{ns}/format/*/*")],
+                &[format_selector(ns, None)],
             ),
             rule(
                 "any.declarations",
                 "egress",
                 &["declare_subscriber", "declare_queryable"],
-                &[format!("peppy/{ns}/**")],
+                &[namespace_selector(ns)],
             ),
             rule(
                 "everything",
                 "both",
                 &ALL_MESSAGES,
-                &[format!("peppy/{ns}/**")],
+                &[namespace_selector(ns)],
             ),
             rule("links", "both", &ALL_MESSAGES, &["**".to_string()]),
         ];
@@ -380,27 +389,21 @@ impl Policy {
                 "self",
                 "ingress",
                 &["liveliness_token"],
-                vec![format!(
-                    "peppy/{ns}/live/{core}/{id}/{}",
-                    inst.node.replace(':', "/")
-                )],
+                vec![inst.token.clone()],
             );
             add(
                 "self.answers",
                 "ingress",
                 &["declare_queryable", "reply"],
-                vec![
-                    format!("peppy/{ns}/format/*/{id}"),
-                    format!("peppy/{ns}/describe/{core}/{id}"),
-                ],
+                vec![format_selector(ns, Some(id)), describe_key(ns, core, id)],
             );
             add(
                 "self.asked",
                 "egress",
                 &["query"],
                 vec![
-                    format!("peppy/{ns}/format/*/{id}"),
-                    format!("peppy/{ns}/describe/**"),
+                    format_selector(ns, Some(id)),
+                    space_selector(ns, Space::Describe),
                 ],
             );
             // A producer also declares a queryable on each emitted key (it
@@ -511,20 +514,20 @@ fn selectors_of(grants: &[Grant]) -> Vec<String> {
         .collect()
 }
 
-/// `peppy/ns/service/<owner...>/<entry>/<core>/<instance>[/*]` with the
-/// core and instance segments made wild: what a probe asks.
+/// A server's key (or its action's parts) with the core and instance made
+/// wild: what a probe asks.
 fn widen(key: &str) -> String {
-    let (base, part) = match key.strip_suffix("/*") {
-        Some(base) => (base, "/*"),
-        None => (key, ""),
-    };
-    let mut segments: Vec<&str> = base.split('/').collect();
-    let n = segments.len();
-    if n >= 2 {
-        segments[n - 2] = "*";
-        segments[n - 1] = "*";
-    }
-    format!("{}{part}", segments.join("/"))
+    EntrySelector::parse(key).map_or_else(
+        || key.to_string(),
+        |server| {
+            EntrySelector {
+                core: None,
+                instance: None,
+                ..server
+            }
+            .to_string()
+        },
+    )
 }
 
 impl Policy {
@@ -533,7 +536,7 @@ impl Policy {
     /// `peppy/<namespace>/`, which is left out).
     pub(crate) fn table(&self) -> String {
         use std::fmt::Write as _;
-        let prefix = format!("peppy/{}/", self.namespace);
+        let prefix = namespace_prefix(&self.namespace);
         let short = |k: &str| k.strip_prefix(&prefix).unwrap_or(k).to_string();
         let mut rows: Vec<[String; 4]> = Vec::new();
         let mut out = String::new();

@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use peppy_runtime::wire::keys::{Channel, Owner, entry_key, namespace_selector};
 use serde_json::Value;
 
 use crate::seeds::{BUILD_AND_START, Launch};
@@ -86,10 +87,23 @@ fn runtime() -> tokio::runtime::Runtime {
         .unwrap()
 }
 
+/// The interface every camera of these stacks conforms to.
+const DEPTH_CAMERA: Owner<'static> = Owner::Interface {
+    name: "depth_camera",
+    tag: "v1",
+};
+
 /// Publishes 20 messages without a peppy attachment under `rs_left`'s key:
 /// a consumer that received them would log that it dropped them.
 async fn spoof_rs_left(session: &zenoh::Session, ns: &str, core: &str) {
-    let key = format!("peppy/{ns}/topic/interface/depth_camera/v1/video_stream/{core}/rs_left");
+    let key = entry_key(
+        ns,
+        Channel::Topic,
+        &DEPTH_CAMERA,
+        "video_stream",
+        core,
+        "rs_left",
+    );
     for _ in 0..20 {
         session.put(&key, vec![0xffu8; 64]).await.unwrap();
         tokio::time::sleep(Duration::from_millis(50)).await;
@@ -160,12 +174,17 @@ fn a_secured_stack_admits_only_what_its_bindings_name() {
             .await
             .unwrap();
         let everything = listener
-            .declare_subscriber(format!("peppy/{ns}/**"))
+            .declare_subscriber(namespace_selector(ns))
             .await
             .unwrap();
         // It may not call another camera's service...
-        let info_key = format!(
-            "peppy/{ns}/service/interface/depth_camera/v1/video_stream_info/{core}/rs_left"
+        let info_key = entry_key(
+            ns,
+            Channel::Service,
+            &DEPTH_CAMERA,
+            "video_stream_info",
+            &core,
+            "rs_left",
         );
         let replies = spare
             .get(&info_key)

@@ -18,7 +18,7 @@ use crate::wire::attachment::{self, QueryHeader, QueryKind};
 use crate::wire::codec::{Decode, Decoder, Encode, from_bytes, to_bytes};
 use crate::wire::keys::{ActionPart, Channel, action_part_key, entry_key, feedback_key};
 
-use super::{CancelState, END_OF_FEEDBACK, Outcome};
+use super::{CancelState, Outcome};
 
 /// A goal sent to an action server, seen from the caller.
 pub struct GoalClient {
@@ -167,7 +167,7 @@ pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
                 .attachment()
                 .map(|a| a.to_bytes().into_owned())
                 .unwrap_or_default();
-            if att == END_OF_FEEDBACK {
+            if att == attachment::END_OF_FEEDBACK {
                 let _ = tx.send(None);
             } else if attachment::parse_topic(&att) == Some(feedback_fp) {
                 let _ = tx.send(Some(sample.payload().to_bytes().into_owned()));

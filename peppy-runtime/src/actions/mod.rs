@@ -13,8 +13,6 @@
 
 use std::time::Duration;
 
-use crate::wire::attachment;
-
 pub(crate) mod client;
 mod server;
 
@@ -24,9 +22,6 @@ pub(crate) use server::{PendingGoal, Registry, goal_intake, server_base_key};
 
 /// How long a terminal goal's result stays available.
 pub const DEFAULT_RESULT_RETENTION: Duration = Duration::from_secs(30);
-
-/// Attachment of the last message of a goal's feedback stream.
-const END_OF_FEEDBACK: [u8; 2] = [attachment::VERSION, 0xEE];
 
 /// How a goal ended, as its caller sees it.
 #[derive(Debug, Clone, PartialEq)]

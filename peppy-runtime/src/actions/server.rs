@@ -23,7 +23,7 @@ use crate::wire::attachment::{self, QueryHeader, ReplyStatus};
 use crate::wire::codec::{Decode, Decoder, Encode, from_bytes, to_bytes};
 use crate::wire::keys::{ActionPart, Channel, action_part_key, entry_key, feedback_key};
 
-use super::{CancelState, END_OF_FEEDBACK};
+use super::CancelState;
 
 /// How many expired goal ids are remembered (to answer `Expired`, not unknown).
 const EXPIRED_MEMORY: usize = 4096;
@@ -132,7 +132,7 @@ impl Registry {
         if let Err(e) = self
             .session
             .put(self.feedback_key(goal_id), Vec::<u8>::new())
-            .attachment(END_OF_FEEDBACK.to_vec())
+            .attachment(attachment::END_OF_FEEDBACK.to_vec())
             .wait()
         {
             debug!(error = %e, "end-of-feedback publish failed");

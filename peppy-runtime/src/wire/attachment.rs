@@ -1,7 +1,9 @@
 //! Attachments: the small binary header that travels beside each payload.
 //!
 //! Every attachment starts with the protocol version byte [`VERSION`]. A
-//! sample or query without a valid attachment is dropped and logged.
+//! sample or query without a valid attachment is dropped and logged. The
+//! golden bytes of every attachment are shared with the Python runtime
+//! (`tests/golden/wire.json`, checked by `tests/runtime/golden.rs`).
 
 /// Wire protocol version carried in every attachment.
 pub const VERSION: u8 = 1;
@@ -13,6 +15,11 @@ pub fn topic(fingerprint: u64) -> Vec<u8> {
     out.extend_from_slice(&fingerprint.to_be_bytes());
     out
 }
+
+/// The attachment of the empty publication that ends a goal's feedback
+/// stream (docs/WIRE.md §4): no fingerprint, so no feedback reader takes it
+/// for a message.
+pub const END_OF_FEEDBACK: [u8; 2] = [VERSION, 0xEE];
 
 /// Reads a topic attachment's fingerprint.
 pub fn parse_topic(bytes: &[u8]) -> Option<u64> {
@@ -134,39 +141,4 @@ pub fn parse_reply(bytes: &[u8]) -> Option<(ReplyStatus, u64)> {
     };
     let fp: [u8; 8] = rest.try_into().ok()?;
     Some((status, u64::from_be_bytes(fp)))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn golden_attachments() {
-        assert_eq!(topic(0x0102030405060708), [1, 1, 2, 3, 4, 5, 6, 7, 8]);
-        assert_eq!(
-            parse_topic(&[1, 1, 2, 3, 4, 5, 6, 7, 8]),
-            Some(0x0102030405060708)
-        );
-        assert_eq!(parse_topic(&[2, 1, 2, 3, 4, 5, 6, 7, 8]), None);
-        assert_eq!(parse_topic(&[1, 1]), None);
-        let q = QueryHeader {
-            kind: QueryKind::Probe,
-            fingerprint: 7,
-            core: "c".into(),
-            instance: "me".into(),
-        };
-        let bytes = q.encode();
-        assert_eq!(
-            bytes,
-            [1, 1, 0, 0, 0, 0, 0, 0, 0, 7, 1, b'c', 2, b'm', b'e']
-        );
-        assert_eq!(QueryHeader::decode(&bytes), Some(q));
-        assert_eq!(QueryHeader::decode(&bytes[..bytes.len() - 1]), None);
-        assert_eq!(reply(ReplyStatus::Ok, 9), [1, 1, 0, 0, 0, 0, 0, 0, 0, 9]);
-        assert_eq!(
-            parse_reply(&reply(ReplyStatus::HandlerError, 9)),
-            Some((ReplyStatus::HandlerError, 9))
-        );
-        assert_eq!(parse_reply(&[1, 9, 0, 0, 0, 0, 0, 0, 0, 0]), None);
-    }
 }

@@ -359,7 +359,9 @@ impl Encode for SystemTime {
             Err(e) => {
                 // Before the epoch: floor seconds, positive nanoseconds.
                 let d = e.duration();
-                let secs = -(d.as_secs() as i64);
+                // Wrapping: 2^63 seconds before the epoch is `i64::MIN`,
+                // whose negation overflows (a time the decoder gives).
+                let secs = (d.as_secs() as i64).wrapping_neg();
                 match d.subsec_nanos() {
                     0 => (secs, 0),
                     n => (secs - 1, 1_000_000_000 - n),
@@ -480,6 +482,32 @@ impl Decode for () {
 mod tests {
     use super::*;
 
+    /// The bytes of a message of the golden vectors the Rust and Python
+    /// runtimes share (`tests/golden/wire.json`).
+    fn golden_bytes(name: &str) -> Vec<u8> {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/golden/wire.json");
+        let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+        let golden: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let message = golden["messages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|m| m["name"] == name)
+            .unwrap_or_else(|| panic!("no golden message `{name}`"));
+        let digits: String = message["hex"]
+            .as_str()
+            .unwrap()
+            .split_whitespace()
+            .collect();
+        (0..digits.len())
+            .step_by(2)
+            .map(|i| u8::from_str_radix(&digits[i..i + 2], 16).unwrap())
+            .collect()
+    }
+
+    /// docs/WIRE.md's example through the typed codec generated code uses
+    /// (the launcher's tests check every golden message from its format
+    /// text).
     #[test]
     fn golden_bytes_of_every_primitive() {
         let mut bytes = Vec::new();
@@ -495,22 +523,22 @@ mod tests {
         Some(3u8).encode(&mut out);
         None::<u8>.encode(&mut out);
         (UNIX_EPOCH + Duration::new(2, 5)).encode(&mut out);
-        assert_eq!(
-            bytes,
-            [
-                1, // bool
-                7, // u8
-                0x02, 0x01, // u16 LE
-                0xfe, 0xff, 0xff, 0xff, // i32 -2
-                0x00, 0x00, 0xc0, 0x3f, // f32 1.5
-                3, 0, 0, 0, b'h', 0xc3, 0xa9, // string: u32 length + UTF-8
-                2, 0, 0, 0, 1, 2, // Vec<u8>: u32 count + items
-                1, 0, 2, 0, // [u16; 2]: items only
-                1, 3, // Some(3u8)
-                0, // None
-                2, 0, 0, 0, 0, 0, 0, 0, 5, 0, 0, 0, // time: i64 secs + u32 nanos
-            ]
-        );
+        let golden = golden_bytes("wire_md_example");
+        assert_eq!(bytes, golden);
+        let mut d = Decoder::new(&golden);
+        assert!(bool::decode(&mut d).unwrap());
+        assert_eq!(u8::decode(&mut d).unwrap(), 7);
+        assert_eq!(u16::decode(&mut d).unwrap(), 0x0102);
+        assert_eq!(i32::decode(&mut d).unwrap(), -2);
+        assert_eq!(f32::decode(&mut d).unwrap(), 1.5);
+        assert_eq!(String::decode(&mut d).unwrap(), "hé");
+        assert_eq!(Vec::<u8>::decode(&mut d).unwrap(), [1, 2]);
+        assert_eq!(<[u16; 2]>::decode(&mut d).unwrap(), [1, 2]);
+        assert_eq!(Option::<u8>::decode(&mut d).unwrap(), Some(3));
+        assert_eq!(Option::<u8>::decode(&mut d).unwrap(), None);
+        let time = SystemTime::decode(&mut d).unwrap();
+        assert_eq!(time, UNIX_EPOCH + Duration::new(2, 5));
+        d.finish().unwrap();
     }
 
     #[test]
@@ -519,6 +547,11 @@ mod tests {
         let bytes = to_bytes(&t);
         assert_eq!(&bytes[..8], &(-2i64).to_le_bytes());
         assert_eq!(from_bytes::<SystemTime>(&bytes).unwrap(), t);
+        // The earliest time the wire holds, where this platform holds it.
+        let earliest: Vec<u8> = i64::MIN.to_le_bytes().into_iter().chain([0; 4]).collect();
+        if let Ok(t) = from_bytes::<SystemTime>(&earliest) {
+            assert_eq!(to_bytes(&t), earliest);
+        }
     }
 
     #[test]

@@ -1,13 +1,21 @@
-//! Zenoh key expressions. Every key starts with `peppy/<namespace>/`, so two
-//! stacks in different namespaces never see each other's traffic; the
-//! sender's identity (core node and instance id) is in the key, so a
-//! subscriber can pin a producer with the key alone.
+//! Zenoh key expressions: every key and selector of peppy is built (and
+//! read back) here, so the shape of a key is written down once
+//! (docs/WIRE.md §1; the Python runtime's twin is `peppy/keys.py`, and
+//! `tests/golden/wire.json` holds the keys both must build). Every key
+//! starts with `peppy/<namespace>/`, so two stacks in different namespaces
+//! never see each other's traffic; the sender's identity (core node and
+//! instance id) is in the key, so a subscriber can pin a producer with the
+//! key alone.
 //!
 //! ```text
 //! peppy/<ns>/topic/<kind>/<name>/<tag>/<topic>/<core>/<instance>
 //! peppy/<ns>/service/<kind>/<name>/<tag>/<service>/<core>/<instance>
 //! peppy/<ns>/action/<kind>/<name>/<tag>/<action>/<core>/<instance>/<goal|cancel|result>
 //! peppy/<ns>/action/<kind>/<name>/<tag>/<action>/<core>/<instance>/feedback/<goal_id>
+//! peppy/<ns>/live/<core>/<instance>/<node>/<tag>
+//! peppy/<ns>/format/<fingerprint as 16 hex>/<instance>
+//! peppy/<ns>/describe/<core>/<instance>
+//! peppy/<ns>/core/<core>/<launch>
 //! ```
 //!
 //! `<kind>` is `node` for a node's own declarations and `interface` for
@@ -43,7 +51,7 @@ impl fmt::Display for Owner<'_> {
     }
 }
 
-/// The three kinds of keys.
+/// The three kinds of entry keys.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Channel {
     /// Topic publications.
@@ -55,13 +63,96 @@ pub enum Channel {
 }
 
 impl Channel {
-    fn as_str(self) -> &'static str {
-        match self {
-            Channel::Topic => "topic",
-            Channel::Service => "service",
-            Channel::Action => "action",
+    fn parse(s: &str) -> Option<Channel> {
+        match s {
+            "topic" => Some(Channel::Topic),
+            "service" => Some(Channel::Service),
+            "action" => Some(Channel::Action),
+            _ => None,
         }
     }
+}
+
+/// What a key of a namespace is about: its third segment, after
+/// `peppy/<ns>/`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Space {
+    /// Topic publications (and the queryables producers declare on them).
+    Topic,
+    /// Service queryables.
+    Service,
+    /// Action sub-services and feedback.
+    Action,
+    /// Instances' liveliness tokens.
+    Live,
+    /// Where instances answer the canonical text of their formats.
+    Format,
+    /// Where instances answer their descriptions.
+    Describe,
+    /// Launches' core node tokens.
+    Core,
+}
+
+impl Space {
+    /// The segment: `topic`, `service`, `action`, `live`, `format`,
+    /// `describe` or `core`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Space::Topic => "topic",
+            Space::Service => "service",
+            Space::Action => "action",
+            Space::Live => "live",
+            Space::Format => "format",
+            Space::Describe => "describe",
+            Space::Core => "core",
+        }
+    }
+}
+
+impl From<Channel> for Space {
+    fn from(channel: Channel) -> Space {
+        match channel {
+            Channel::Topic => Space::Topic,
+            Channel::Service => Space::Service,
+            Channel::Action => Space::Action,
+        }
+    }
+}
+
+/// `peppy/<ns>/<space>/<parts...>`, sized once.
+fn key(ns: &str, space: Space, parts: &[&str]) -> String {
+    let space = space.as_str();
+    let len = "peppy/".len()
+        + ns.len()
+        + 1
+        + space.len()
+        + parts.iter().map(|p| p.len() + 1).sum::<usize>();
+    let mut key = String::with_capacity(len);
+    key.push_str("peppy/");
+    key.push_str(ns);
+    key.push('/');
+    key.push_str(space);
+    for part in parts {
+        key.push('/');
+        key.push_str(part);
+    }
+    key
+}
+
+/// `peppy/<ns>/`: what every key of namespace `ns` starts with.
+pub fn namespace_prefix(ns: &str) -> String {
+    format!("peppy/{ns}/")
+}
+
+/// `peppy/<ns>/**`: every key of namespace `ns`.
+pub fn namespace_selector(ns: &str) -> String {
+    format!("peppy/{ns}/**")
+}
+
+/// `peppy/<ns>/<space>/**`: every key of one space of namespace `ns`
+/// (every topic, every liveliness token, ...).
+pub fn space_selector(ns: &str, space: Space) -> String {
+    key(ns, space, &["**"])
 }
 
 /// Whether `s` can be one key segment: non-empty, no `/`, and none of
@@ -99,26 +190,98 @@ pub fn entry_selector(
     core: Option<&str>,
     instance: Option<&str>,
 ) -> String {
-    // Joined, not `format!`ted: a service call builds its server's
-    // selector on every call, and a join sizes the key once.
+    // Not `format!`ted: a service call builds its server's selector on
+    // every call, and `key` sizes the key once.
     let (kind, name, tag) = match owner {
         Some(Owner::Node { name, tag }) => ("node", *name, *tag),
         Some(Owner::Interface { name, tag }) => ("interface", *name, *tag),
         None => ("*", "*", "*"),
     };
     let (core, instance) = (core.unwrap_or("*"), instance.unwrap_or("*"));
-    let parts = [
-        "peppy",
+    key(
         ns,
-        channel.as_str(),
-        kind,
-        name,
-        tag,
-        entry,
-        core,
-        instance,
-    ];
-    parts.join("/")
+        channel.into(),
+        &[kind, name, tag, entry, core, instance],
+    )
+}
+
+/// An entry key or selector by its named parts: what [`entry_selector`]
+/// (and [`action_part_key`], [`feedback_key`] below an action) build, read
+/// back by [`EntrySelector::parse`]. A tool changes one part (a producer
+/// pinned, any server) by name rather than by counting segments; `None`
+/// parts are wildcards.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EntrySelector<'a> {
+    /// The namespace.
+    pub ns: &'a str,
+    /// Topic, service or action.
+    pub channel: Channel,
+    /// The entry's owner; `None` for any owner (`*/*/*`).
+    pub owner: Option<Owner<'a>>,
+    /// The entry (topic, service, action) name.
+    pub entry: &'a str,
+    /// The producer's core node; `None` for any.
+    pub core: Option<&'a str>,
+    /// The producer's instance id; `None` for any.
+    pub instance: Option<&'a str>,
+    /// What follows the instance: an action's part (`goal`, `*`,
+    /// `feedback/<goal_id>`), `None` when nothing does.
+    pub part: Option<&'a str>,
+}
+
+impl<'a> EntrySelector<'a> {
+    /// Reads an entry key or selector back into its parts. `None` for
+    /// anything [`entry_selector`] cannot build: another shape, `**`, a
+    /// wildcard in only part of the owner, or a part that is neither a
+    /// segment nor `*`.
+    pub fn parse(key_expr: &'a str) -> Option<EntrySelector<'a>> {
+        let mut parts = key_expr.splitn(10, '/');
+        // A missing part reads as empty, which no check below accepts.
+        let [peppy, ns, channel, kind, name, tag, entry, core, instance] =
+            std::array::from_fn(|_| parts.next().unwrap_or(""));
+        let part = parts.next();
+        let wild = |s: &'a str| match s {
+            "*" => Some(None),
+            s if is_segment(s) => Some(Some(s)),
+            _ => None,
+        };
+        let owner = match (kind, wild(name)?, wild(tag)?) {
+            ("node", Some(name), Some(tag)) => Some(Owner::Node { name, tag }),
+            ("interface", Some(name), Some(tag)) => Some(Owner::Interface { name, tag }),
+            ("*", None, None) => None,
+            _ => return None,
+        };
+        let part_ok = |p: &str| p.split('/').all(|s| s == "*" || is_segment(s));
+        if peppy != "peppy" || !is_segment(ns) || !is_segment(entry) || !part.is_none_or(part_ok) {
+            return None;
+        }
+        Some(EntrySelector {
+            ns,
+            channel: Channel::parse(channel)?,
+            owner,
+            entry,
+            core: wild(core)?,
+            instance: wild(instance)?,
+            part,
+        })
+    }
+}
+
+impl fmt::Display for EntrySelector<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let base = entry_selector(
+            self.ns,
+            self.channel,
+            self.owner.as_ref(),
+            self.entry,
+            self.core,
+            self.instance,
+        );
+        match self.part {
+            Some(part) => write!(f, "{base}/{part}"),
+            None => f.write_str(&base),
+        }
+    }
 }
 
 /// The parts of an action below its entry key.
@@ -148,44 +311,65 @@ pub fn action_part_key(action: &str, part: ActionPart) -> String {
     format!("{action}/{}", part.as_str())
 }
 
+/// `<action key or selector>/*`: an action's goal, cancel and result
+/// queryables (not its feedback, which is two segments further down).
+pub fn action_parts_selector(action: &str) -> String {
+    format!("{action}/*")
+}
+
 /// `<action key or selector>/feedback/<goal_id>`: one goal's feedback.
 pub fn feedback_key(action: &str, goal_id: &str) -> String {
     format!("{action}/feedback/{goal_id}")
 }
 
+/// `<action key or selector>/feedback/*`: the feedback of every goal.
+pub fn feedback_selector(action: &str) -> String {
+    feedback_key(action, "*")
+}
+
 /// `peppy/<ns>/format/<fingerprint as 16 hex>/<instance>`: where an instance
 /// answers the canonical text of a format it emits.
 pub fn format_key(ns: &str, fingerprint: u64, instance: &str) -> String {
-    format!("peppy/{ns}/format/{fingerprint:016x}/{instance}")
+    key(
+        ns,
+        Space::Format,
+        &[&format!("{fingerprint:016x}"), instance],
+    )
+}
+
+/// `peppy/<ns>/format/*/<instance>`: every format text `instance` answers,
+/// or every instance's with `None`.
+pub fn format_selector(ns: &str, instance: Option<&str>) -> String {
+    key(ns, Space::Format, &["*", instance.unwrap_or("*")])
 }
 
 /// The liveliness token an instance holds while it is up:
 /// `peppy/<ns>/live/<core>/<instance>/<node>/<tag>`.
 pub fn liveliness_key(ns: &str, core: &str, instance: &str, node: &str, tag: &str) -> String {
-    format!("peppy/{ns}/live/{core}/{instance}/{node}/{tag}")
+    key(ns, Space::Live, &[core, instance, node, tag])
 }
 
 /// `peppy/<ns>/describe/<core>/<instance>`: where an instance answers its
 /// [`InstanceInfo`](crate::describe::InstanceInfo).
 pub fn describe_key(ns: &str, core: &str, instance: &str) -> String {
-    format!("peppy/{ns}/describe/{core}/{instance}")
+    key(ns, Space::Describe, &[core, instance])
 }
 
 /// Every instance's description key in `ns`.
 pub fn describe_selector(ns: &str) -> String {
-    format!("peppy/{ns}/describe/*/*")
+    key(ns, Space::Describe, &["*", "*"])
 }
 
 /// `peppy/<ns>/core/<core>/<launch>`: the token a launch (named by its
 /// router's Zenoh id) holds for its core node while it runs, so the other
 /// machines of a stack see it come and go.
 pub fn core_key(ns: &str, core: &str, launch: &str) -> String {
-    format!("peppy/{ns}/core/{core}/{launch}")
+    key(ns, Space::Core, &[core, launch])
 }
 
 /// Every core node's token in `ns`.
 pub fn core_selector(ns: &str) -> String {
-    format!("peppy/{ns}/core/*/*")
+    key(ns, Space::Core, &["*", "*"])
 }
 
 /// `(core, launch)` of a core node token's key.
@@ -199,12 +383,17 @@ pub fn parse_core_key(key: &str) -> Option<(&str, &str)> {
 
 /// The tokens of every instance in `ns`.
 pub fn all_liveliness_selector(ns: &str) -> String {
-    format!("peppy/{ns}/live/*/*/*/*")
+    key(ns, Space::Live, &["*", "*", "*", "*"])
 }
 
 /// The tokens of every instance of node `node:tag` in `ns`.
 pub fn liveliness_selector(ns: &str, node: &str, tag: &str) -> String {
-    format!("peppy/{ns}/live/*/*/{node}/{tag}")
+    key(ns, Space::Live, &["*", "*", node, tag])
+}
+
+/// The token of one instance, whatever node it says it runs.
+pub fn instance_liveliness_selector(ns: &str, core: &str, instance: &str) -> String {
+    key(ns, Space::Live, &[core, instance, "*", "*"])
 }
 
 /// `(core, instance)` of a liveliness token's key.
@@ -305,135 +494,71 @@ pub fn split_entry_key(key: &str) -> Option<SenderRef<'_>> {
 
 #[cfg(test)]
 mod tests {
+    // Every key of the wire, and how each reads back, is a golden vector
+    // shared with the Python runtime (`tests/golden/wire.json`, checked
+    // by `tests/runtime/golden.rs`); what only this module does is here.
     use super::*;
 
+    /// Selectors read back by name: one part changed, the rest as built.
     #[test]
-    fn golden_keys() {
-        let cam = Owner::Interface {
-            name: "depth_camera",
-            tag: "v1",
-        };
-        assert_eq!(
-            entry_key(
-                "lab",
-                Channel::Topic,
-                &cam,
-                "video_stream",
-                "launch-1",
-                "rs_left"
-            ),
-            "peppy/lab/topic/interface/depth_camera/v1/video_stream/launch-1/rs_left"
-        );
-        assert_eq!(
-            entry_selector(
-                "lab",
-                Channel::Topic,
-                Some(&cam),
-                "video_stream",
-                None,
-                Some("rs_left")
-            ),
-            "peppy/lab/topic/interface/depth_camera/v1/video_stream/*/rs_left"
-        );
-        assert_eq!(
-            entry_selector("lab", Channel::Topic, None, "joint_commands", None, None),
-            "peppy/lab/topic/*/*/*/joint_commands/*/*"
-        );
+    fn entry_selectors_read_back_by_their_parts() {
         let arm = Owner::Node {
-            name: "robot_arm",
+            name: "arm",
             tag: "v1",
         };
-        assert_eq!(
-            entry_key("lab", Channel::Service, &arm, "home", "c", "arm"),
-            "peppy/lab/service/node/robot_arm/v1/home/c/arm"
+        let goal = action_part_key(
+            &entry_key("lab", Channel::Action, &arm, "move", "robot", "arm_1"),
+            ActionPart::Goal,
         );
-    }
-
-    #[test]
-    fn action_and_format_keys() {
-        let base = "peppy/lab/action/node/robot_arm/v1/move_arm/c/arm";
+        let parsed = EntrySelector::parse(&goal).unwrap();
         assert_eq!(
-            action_part_key(base, ActionPart::Goal),
-            format!("{base}/goal")
+            parsed,
+            EntrySelector {
+                ns: "lab",
+                channel: Channel::Action,
+                owner: Some(arm),
+                entry: "move",
+                core: Some("robot"),
+                instance: Some("arm_1"),
+                part: Some("goal"),
+            }
         );
+        assert_eq!(parsed.to_string(), goal);
+        let any_server = EntrySelector {
+            core: None,
+            instance: None,
+            ..parsed
+        };
         assert_eq!(
-            action_part_key(base, ActionPart::Cancel),
-            format!("{base}/cancel")
+            any_server.to_string(),
+            "peppy/lab/action/node/arm/v1/move/*/*/goal"
         );
+        let external = entry_selector("lab", Channel::Topic, None, "ticks", None, None);
+        let back = EntrySelector::parse(&external).unwrap();
+        assert_eq!((back.owner, back.core, back.instance), (None, None, None));
+        assert_eq!(back.to_string(), external);
+        let action = EntrySelector {
+            part: None,
+            ..any_server
+        };
+        let feedback = feedback_selector(&action.to_string());
         assert_eq!(
-            action_part_key(base, ActionPart::Result),
-            format!("{base}/result")
+            EntrySelector::parse(&feedback).unwrap().part,
+            Some("feedback/*")
         );
-        assert_eq!(feedback_key(base, "g1"), format!("{base}/feedback/g1"));
-        assert_eq!(
-            format_key("lab", 0x1111, "rs_left"),
-            "peppy/lab/format/0000000000001111/rs_left"
-        );
-    }
-
-    #[test]
-    fn liveliness_keys() {
-        let key = liveliness_key("lab", "launch-1", "rs_left", "realsense_d405", "v1");
-        assert_eq!(key, "peppy/lab/live/launch-1/rs_left/realsense_d405/v1");
-        assert_eq!(
-            parse_liveliness_key(&key),
-            Some(("launch-1".into(), "rs_left".into()))
-        );
-        assert_eq!(
-            liveliness_selector("lab", "realsense_d405", "v1"),
-            "peppy/lab/live/*/*/realsense_d405/v1"
-        );
-        assert_eq!(parse_liveliness_key("peppy/lab/live/c"), None);
-        assert_eq!(all_liveliness_selector("lab"), "peppy/lab/live/*/*/*/*");
-        assert_eq!(describe_key("lab", "c", "arm"), "peppy/lab/describe/c/arm");
-        assert_eq!(describe_selector("lab"), "peppy/lab/describe/*/*");
-        assert_eq!(core_key("lab", "robot", "z1"), "peppy/lab/core/robot/z1");
-        assert_eq!(core_selector("lab"), "peppy/lab/core/*/*");
-        assert_eq!(
-            parse_core_key("peppy/lab/core/robot/z1"),
-            Some(("robot", "z1"))
-        );
-        assert_eq!(parse_core_key("peppy/lab/core/robot"), None);
-        assert_eq!(parse_core_key("peppy/lab/live/robot/z1"), None);
-        assert_eq!(parse_liveliness_key("peppy/lab/topic/c/i/n/t"), None);
-    }
-
-    #[test]
-    fn parses_sender_identity() {
-        let s =
-            parse_entry_key("peppy/lab/topic/node/robot_arm/v1/joint_states/c1/arm/extra").unwrap();
-        assert_eq!(
-            (
-                s.kind.as_str(),
-                s.name.as_str(),
-                s.instance.as_str(),
-                s.core.as_str()
-            ),
-            ("node", "robot_arm", "arm", "c1")
-        );
-        assert!(parse_entry_key("peppy/lab/topic/other/x/v1/t/c/i").is_none());
-        assert!(parse_entry_key("peppy/lab/topic/node/x/v1/t/c").is_none());
-        assert!(parse_entry_key("elsewhere/lab/topic/node/x/v1/t/c/i").is_none());
-        // Exactly nine parts, the instance last; and an action's part after it.
-        let exact = split_entry_key("peppy/lab/service/interface/cam/v1/grab/c1/left").unwrap();
-        assert_eq!(
-            (exact.entry, exact.core, exact.instance),
-            ("grab", "c1", "left")
-        );
-        let part = split_entry_key("peppy/lab/action/node/arm/v1/move/c1/arm/goal").unwrap();
-        assert_eq!((part.kind, part.tag, part.instance), ("node", "v1", "arm"));
-        // Wildcards, empty parts and whitespace (ASCII or not) are no sender.
         for bad in [
-            "peppy/lab/topic/node/x/v1/t/*/i",
-            "peppy/lab/topic/node/x/v1/t/c/",
-            "peppy/lab/topic/node/x/v1/t//i",
-            "peppy/lab/topic/node/x/v1/t/c/i\u{b}",
-            "peppy/lab/topic/node/x/v1/t/c/caf\u{e9}\u{2003}",
+            "peppy/lab/topic/node/*/*/t/c/i",
+            "peppy/lab/topic/*/x/v1/t/c/i",
+            "peppy/lab/topic/node/x/v1/t/c",
+            "peppy/lab/topic/node/x/v1/t/**/i",
+            "peppy/lab/topic/node/x/v1/t/c/i/",
+            "peppy/lab/topic/node/x/v1/t/c/i/**",
+            "peppy/lab/live/node/x/v1/t/c/i",
+            "peppy/*/topic/node/x/v1/t/c/i",
+            "other/lab/topic/node/x/v1/t/c/i",
             "",
         ] {
-            assert!(split_entry_key(bad).is_none(), "{bad:?}");
+            assert_eq!(EntrySelector::parse(bad), None, "{bad:?}");
         }
-        let unicode = split_entry_key("peppy/lab/topic/node/x/v1/t/c/caf\u{e9}").unwrap();
-        assert_eq!(unicode.instance, "caf\u{e9}");
     }
 }

@@ -13,6 +13,7 @@ use peppy_runtime::codegen::{
     ActionSpec, ConsumedTopicSpec, FormatSpec, OwnerSpec, QosProfile, ServiceSpec, TopicSpec, emit,
     handle_next, next_goal, next_message,
 };
+use peppy_runtime::wire::keys::{Space, space_selector};
 use peppy_runtime::{Error, NodeBuilder, NodeRunner};
 
 use crate::routing::CAM_VIDEO;
@@ -214,7 +215,7 @@ fn stop_child_with(signal: &str, entry: &str) -> Duration {
         }
     }
     // The child is visible on the network.
-    let live = format!("peppy/{ns}/live/**");
+    let live = space_selector(&ns, Space::Live);
     rt.block_on(async {
         tokio::time::timeout(WAIT, async {
             loop {

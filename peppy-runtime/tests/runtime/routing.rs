@@ -9,6 +9,7 @@ use peppy_runtime::NodeRunner;
 use peppy_runtime::codegen::{
     ConsumedTopicSpec, FormatSpec, OwnerSpec, QosProfile, TopicSpec, next_message,
 };
+use peppy_runtime::wire::keys::{Space, liveliness_key, space_selector};
 
 use crate::support::{Frame, WAIT, hub, keep_emitting, namespace, start, test_node};
 
@@ -311,7 +312,7 @@ async fn a_node_is_visible_while_up_and_gone_after_shutdown() {
         async move {
             let replies = session
                 .liveliness()
-                .get(format!("peppy/{ns}/live/**"))
+                .get(space_selector(&ns, Space::Live))
                 .timeout(Duration::from_secs(2))
                 .await
                 .unwrap();
@@ -337,8 +338,12 @@ async fn a_node_is_visible_while_up_and_gone_after_shutdown() {
     .expect("the node's liveliness token appears");
     assert_eq!(
         keys,
-        [format!(
-            "peppy/{ns}/live/standalone/rs_left/realsense_d405/v1"
+        [liveliness_key(
+            &ns,
+            "standalone",
+            "rs_left",
+            "realsense_d405",
+            "v1"
         )]
     );
     cam.shutdown().await;

@@ -9,6 +9,7 @@ use peppy_runtime::codegen::{
 };
 use peppy_runtime::wire::attachment::{QueryHeader, QueryKind, ReplyStatus, parse_reply};
 use peppy_runtime::wire::codec::to_bytes;
+use peppy_runtime::wire::keys::{Channel, Owner, entry_selector};
 use zenoh::query::{ConsolidationMode, QueryTarget};
 
 use crate::support::{Hub, WAIT, hub, namespace, start, test_node};
@@ -309,8 +310,16 @@ async fn raw_statuses(hub: &Hub, ns: &str, x: u32, budget: Duration) -> Vec<Repl
     };
     let replies = hub
         .session
-        .get(format!(
-            "peppy/{ns}/service/node/realsense_d405/v1/scale/*/rs_left"
+        .get(entry_selector(
+            ns,
+            Channel::Service,
+            Some(&Owner::Node {
+                name: "realsense_d405",
+                tag: "v1",
+            }),
+            "scale",
+            None,
+            Some("rs_left"),
         ))
         .payload(to_bytes(&x))
         .attachment(header.encode())

@@ -1,9 +1,9 @@
-"""The payload encoding (WIRE.md §5) and formats (§6): golden bytes, round
-trips of every type, and every input a decoder must refuse."""
+"""The payload encoding (WIRE.md §5) and formats (§6): the golden vectors
+shared with the Rust runtime (tests/golden/wire.json), round trips of every
+type, and every input a decoder must refuse."""
 
 from __future__ import annotations
 
-import hashlib
 import math
 import struct
 import time
@@ -11,46 +11,10 @@ import unittest
 from dataclasses import dataclass
 from typing import Any, List, Optional
 
+import golden
+
 from peppy import Time
 from peppy import codec as c
-
-
-@dataclass
-class Golden:
-    flag: bool
-    small: int
-    word: int
-    negative: int
-    ratio: float
-    text: str
-    blob: bytes
-    pair: List[int]
-    present: Optional[int]
-    absent: Optional[int]
-    stamp: Any
-
-
-c.describe(
-    Golden,
-    [
-        ("flag", c.BOOL),
-        ("small", c.U8),
-        ("word", c.U16),
-        ("negative", c.I32),
-        ("ratio", c.F32),
-        ("text", c.STRING),
-        ("blob", c.Array(c.U8)),
-        ("pair", c.Array(c.U16, 2)),
-        ("present", c.Optional(c.U8)),
-        ("absent", c.Optional(c.U8)),
-        ("stamp", c.TIME),
-    ],
-)
-
-GOLDEN_HEX = (
-    "01 07 02 01 fe ff ff ff 00 00 c0 3f 03 00 00 00 68 c3 a9 02 00 00 00 01 02 "
-    "01 00 02 00 01 03 00 02 00 00 00 00 00 00 00 05 00 00 00"
-)
 
 
 @dataclass
@@ -156,18 +120,49 @@ def one(t):
     return Single
 
 
-class GoldenBytesTest(unittest.TestCase):
-    def test_golden_bytes_of_wire_md(self):
-        value = Golden(True, 7, 0x0102, -2, 1.5, "hé", b"\x01\x02", [1, 2], 3, None, Time(2, 5))
-        data = c.encode(Golden, value)
-        self.assertEqual(data, bytes.fromhex(GOLDEN_HEX))
-        self.assertEqual(c.decode(Golden, data), value)
-        self.assertEqual(c.decode(Golden, memoryview(data)), value)
+class GoldenTest(unittest.TestCase):
+    """Every message, refused payload and fingerprint of the shared file."""
+
+    def test_every_golden_message_encodes_and_decodes_as_written(self):
+        vectors = golden.load()["messages"]
+        self.assertTrue(vectors)
+        for v in vectors:
+            with self.subTest(v["name"]):
+                f = golden.format_of(v["format"], v["fingerprint"])
+                data = bytes.fromhex(v["hex"])
+                shape = golden.shape_of(v["format"])
+                if shape is None:
+                    self.assertEqual((v["value"], f.encode(None), f.decode(data)), ({}, data, None))
+                    continue
+                self.assertEqual(f.encode(golden.message(shape, v["value"])), data)
+                for received in (data, memoryview(data)):
+                    self.assertIsNone(golden.mismatch(shape, v["value"], f.decode(received)))
+
+    def test_every_golden_refusal_is_refused(self):
+        for v in golden.load()["rejected"]:
+            with self.subTest(v["why"], format=v["format"]):
+                shape = golden.shape_of(v["format"])
+                f = golden.EMPTY if shape is None else c.Format(shape.cls, v["format"], c.fingerprint_of(v["format"]))
+                with self.assertRaises(c.DecodeError):
+                    f.decode(bytes.fromhex(v["hex"]))
+
+    def test_every_golden_fingerprint(self):
+        for v in golden.load()["fingerprints"]:
+            with self.subTest(v["canonical"]):
+                fp = golden.fingerprint(v["fingerprint"])
+                if v["canonical"] == golden.NO_PAYLOAD:
+                    self.assertEqual((golden.EMPTY.canonical, golden.EMPTY.fingerprint), (v["canonical"], fp))
+                    continue
+                self.assertEqual(c.fingerprint_of(v["canonical"]), fp)
+                self.assertEqual(c.Format(None, v["canonical"], fp).fingerprint, fp)
 
     def test_u8_arrays_accept_any_bytes_like_value(self):
+        (v,) = [v for v in golden.load()["messages"] if v["name"] == "wire_md_example"]
+        shape = golden.shape_of(v["format"])
+        value = golden.message(shape, v["value"])
         for blob in (b"\x01\x02", bytearray(b"\x01\x02"), memoryview(b"\x01\x02"), [1, 2], (1, 2)):
-            value = Golden(True, 7, 0x0102, -2, 1.5, "hé", blob, [1, 2], 3, None, Time(2, 5))
-            self.assertEqual(c.encode(Golden, value), bytes.fromhex(GOLDEN_HEX))
+            value.g = blob
+            self.assertEqual(c.encode(shape.cls, value), bytes.fromhex(v["hex"]))
 
     def test_no_payload(self):
         self.assertEqual(c.encode(Empty, Empty()), b"")
@@ -331,13 +326,8 @@ class RefusalTest(unittest.TestCase):
 
 
 class FingerprintTest(unittest.TestCase):
-    EXAMPLE = "{header:{stamp:time,frame_id:u32},encoding:string,width:u32,height:u32,frame:[u8]}"
-
-    def test_the_wire_md_example(self):
-        independent = int.from_bytes(hashlib.sha256(self.EXAMPLE.encode("utf-8")).digest()[:8], "big")
-        self.assertEqual(c.fingerprint_of(self.EXAMPLE), independent)
-        # Pinned: a change here changes every node's wire identity.
-        self.assertEqual(c.fingerprint_of(self.EXAMPLE), 0xD5101520F11A7920)
+    # docs/WIRE.md §6's example, the first of the file's fingerprints.
+    EXAMPLE = golden.load()["fingerprints"][0]["canonical"]
 
     def test_formats_check_their_fingerprint(self):
         fp = c.fingerprint_of(self.EXAMPLE)

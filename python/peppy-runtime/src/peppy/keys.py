@@ -5,7 +5,15 @@ from __future__ import annotations
 
 from typing import NamedTuple, Optional, Tuple
 
-_FORBIDDEN = set("/*$#?@")
+# Unicode's White_Space, which Rust's `char::is_whitespace` reads:
+# `str.isspace` also counts U+001C to U+001F, which the Rust runtime takes
+# in a segment.
+_WHITESPACE = (
+    "\t\n\x0b\x0c\r \x85\xa0\u1680"
+    "\u2000\u2001\u2002\u2003\u2004\u2005\u2006\u2007\u2008\u2009\u200a"
+    "\u2028\u2029\u202f\u205f\u3000"
+)
+_FORBIDDEN = frozenset("/*$#?@" + _WHITESPACE)
 
 TOPIC = "topic"
 SERVICE = "service"
@@ -15,7 +23,7 @@ ACTION = "action"
 def is_segment(s: str) -> bool:
     """Whether `s` can be one key segment: non-empty, no `/`, no Zenoh
     special character, no whitespace."""
-    return bool(s) and not any(c in _FORBIDDEN or c.isspace() for c in s)
+    return bool(s) and not any(c in _FORBIDDEN for c in s)
 
 
 def entry_key(ns: str, channel: str, owner: str, entry: str, core: str, instance: str) -> str:

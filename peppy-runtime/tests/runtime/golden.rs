@@ -1,0 +1,304 @@
+//! The golden vectors the Rust and Python runtimes share
+//! (`tests/golden/wire.json`, docs/WIRE.md): every key, attachment and
+//! format fingerprint there, built and read back by this runtime. The
+//! message vectors are encoded and decoded from their format text by the
+//! launcher's `inspect::dynamic` (its tests read the same file), the codec
+//! walk that needs no generated type.
+
+use peppy_runtime::spec::FormatSpec;
+use peppy_runtime::wire::attachment::{
+    self, END_OF_FEEDBACK, QueryHeader, QueryKind, ReplyStatus, parse_reply, parse_topic,
+};
+use peppy_runtime::wire::keys::{
+    self, ActionPart, Channel, EntrySelector, Owner, Space, is_segment, parse_core_key,
+    parse_entry_key, parse_liveliness_key, split_entry_key,
+};
+use peppy_schema::MessageFormat;
+use serde_json::{Value, json};
+
+/// The shared file, read afresh by each test.
+fn golden() -> Value {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/golden/wire.json");
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+/// `"01 0a ff"` as bytes.
+fn hex(text: &str) -> Vec<u8> {
+    let digits: String = text.split_whitespace().collect();
+    assert!(digits.len().is_multiple_of(2), "odd hex `{text}`");
+    (0..digits.len())
+        .step_by(2)
+        .map(|i| {
+            u8::from_str_radix(&digits[i..i + 2], 16).unwrap_or_else(|e| panic!("{text}: {e}"))
+        })
+        .collect()
+}
+
+/// A fingerprint written as 16 hex digits.
+fn fingerprint(v: &Value) -> u64 {
+    let text = v.as_str().unwrap_or_else(|| panic!("fingerprint {v}"));
+    assert_eq!(text.len(), 16, "fingerprint `{text}`: 16 hex digits");
+    u64::from_str_radix(text, 16).unwrap()
+}
+
+fn text<'a>(args: &'a Value, name: &str) -> &'a str {
+    args[name]
+        .as_str()
+        .unwrap_or_else(|| panic!("argument `{name}` of {args}"))
+}
+
+/// A string, or `null` for a wildcard.
+fn wild<'a>(args: &'a Value, name: &str) -> Option<&'a str> {
+    match &args[name] {
+        Value::Null => None,
+        v => Some(
+            v.as_str()
+                .unwrap_or_else(|| panic!("argument `{name}` of {args}")),
+        ),
+    }
+}
+
+fn owner(v: &Value) -> Option<Owner<'_>> {
+    let (name, tag) = match v {
+        Value::Null => return None,
+        v => (text(v, "name"), text(v, "tag")),
+    };
+    Some(match text(v, "kind") {
+        "node" => Owner::Node { name, tag },
+        "interface" => Owner::Interface { name, tag },
+        other => panic!("owner kind `{other}`"),
+    })
+}
+
+fn channel(name: &str) -> Channel {
+    match name {
+        "topic" => Channel::Topic,
+        "service" => Channel::Service,
+        "action" => Channel::Action,
+        other => panic!("channel `{other}`"),
+    }
+}
+
+fn space(name: &str) -> Space {
+    [
+        Space::Topic,
+        Space::Service,
+        Space::Action,
+        Space::Live,
+        Space::Format,
+        Space::Describe,
+        Space::Core,
+    ]
+    .into_iter()
+    .find(|s| s.as_str() == name)
+    .unwrap_or_else(|| panic!("space `{name}`"))
+}
+
+/// What `wire::keys::<function>` builds from `args`.
+fn build(function: &str, a: &Value) -> String {
+    let s = |name| text(a, name);
+    match function {
+        "entry_key" => keys::entry_key(
+            s("ns"),
+            channel(s("channel")),
+            &owner(&a["owner"]).expect("an entry key's owner"),
+            s("entry"),
+            s("core"),
+            s("instance"),
+        ),
+        "entry_selector" => keys::entry_selector(
+            s("ns"),
+            channel(s("channel")),
+            owner(&a["owner"]).as_ref(),
+            s("entry"),
+            wild(a, "core"),
+            wild(a, "instance"),
+        ),
+        "action_part_key" => {
+            let part = [ActionPart::Goal, ActionPart::Cancel, ActionPart::Result]
+                .into_iter()
+                .find(|p| p.as_str() == s("part"))
+                .unwrap_or_else(|| panic!("action part {a}"));
+            keys::action_part_key(s("action"), part)
+        }
+        "action_parts_selector" => keys::action_parts_selector(s("action")),
+        "feedback_key" => keys::feedback_key(s("action"), s("goal_id")),
+        "feedback_selector" => keys::feedback_selector(s("action")),
+        "format_key" => keys::format_key(s("ns"), fingerprint(&a["fingerprint"]), s("instance")),
+        "format_selector" => keys::format_selector(s("ns"), wild(a, "instance")),
+        "liveliness_key" => {
+            keys::liveliness_key(s("ns"), s("core"), s("instance"), s("node"), s("tag"))
+        }
+        "liveliness_selector" => keys::liveliness_selector(s("ns"), s("node"), s("tag")),
+        "all_liveliness_selector" => keys::all_liveliness_selector(s("ns")),
+        "instance_liveliness_selector" => {
+            keys::instance_liveliness_selector(s("ns"), s("core"), s("instance"))
+        }
+        "describe_key" => keys::describe_key(s("ns"), s("core"), s("instance")),
+        "describe_selector" => keys::describe_selector(s("ns")),
+        "core_key" => keys::core_key(s("ns"), s("core"), s("launch")),
+        "core_selector" => keys::core_selector(s("ns")),
+        "namespace_prefix" => keys::namespace_prefix(s("ns")),
+        "namespace_selector" => keys::namespace_selector(s("ns")),
+        "space_selector" => keys::space_selector(s("ns"), space(s("space"))),
+        other => panic!("wire::keys has no `{other}`"),
+    }
+}
+
+#[test]
+fn every_golden_key_is_built_as_written() {
+    let golden = golden();
+    let vectors = golden["keys"]["build"].as_array().unwrap();
+    assert!(!vectors.is_empty());
+    for v in vectors {
+        let function = v["fn"].as_str().unwrap();
+        let key = v["key"].as_str().unwrap();
+        assert_eq!(build(function, &v["args"]), key, "{v}");
+        // Entry keys and selectors read back into the parts they were
+        // built from.
+        let entry = [
+            "entry_key",
+            "entry_selector",
+            "action_part_key",
+            "action_parts_selector",
+            "feedback_key",
+            "feedback_selector",
+        ];
+        if entry.contains(&function) {
+            let parsed = EntrySelector::parse(key).unwrap_or_else(|| panic!("{key}"));
+            assert_eq!(parsed.to_string(), key);
+            if let Some(o) = owner(&v["args"]["owner"]) {
+                assert_eq!(parsed.owner, Some(o), "{v}");
+            }
+        }
+    }
+}
+
+#[test]
+fn every_golden_key_is_parsed_as_written() {
+    let golden = golden();
+    for v in golden["keys"]["parse"].as_array().unwrap() {
+        let key = v["key"].as_str().unwrap();
+        let parts = match v["fn"].as_str().unwrap() {
+            "parse_entry_key" => {
+                let owned = parse_entry_key(key).map(|s| {
+                    json!({ "kind": s.kind, "name": s.name, "tag": s.tag,
+                            "entry": s.entry, "core": s.core, "instance": s.instance })
+                });
+                let borrowed = split_entry_key(key).map(|s| {
+                    json!({ "kind": s.kind, "name": s.name, "tag": s.tag,
+                            "entry": s.entry, "core": s.core, "instance": s.instance })
+                });
+                assert_eq!(owned, borrowed, "{key}");
+                owned
+            }
+            "parse_liveliness_key" => parse_liveliness_key(key)
+                .map(|(core, instance)| json!({ "core": core, "instance": instance })),
+            "parse_core_key" => {
+                parse_core_key(key).map(|(core, launch)| json!({ "core": core, "launch": launch }))
+            }
+            other => panic!("wire::keys has no `{other}`"),
+        };
+        assert_eq!(parts.unwrap_or(Value::Null), v["parts"], "{key:?}");
+    }
+    let segments = &golden["keys"]["segments"];
+    for (list, valid) in [("valid", true), ("invalid", false)] {
+        for s in segments[list].as_array().unwrap() {
+            let s = s.as_str().unwrap();
+            assert_eq!(is_segment(s), valid, "{s:?}");
+        }
+    }
+}
+
+#[test]
+fn every_golden_attachment_is_encoded_and_read_as_written() {
+    let golden = golden();
+    let a = &golden["attachments"];
+    let list = |name: &str| a[name].as_array().unwrap_or_else(|| panic!("{name}"));
+    for v in list("topic") {
+        let fp = fingerprint(&v["fingerprint"]);
+        let bytes = hex(v["hex"].as_str().unwrap());
+        assert_eq!(attachment::topic(fp), bytes, "{v}");
+        assert_eq!(parse_topic(&bytes), Some(fp), "{v}");
+    }
+    for v in list("topic_rejected") {
+        assert_eq!(parse_topic(&hex(v.as_str().unwrap())), None, "{v}");
+    }
+    assert_eq!(
+        END_OF_FEEDBACK.as_slice(),
+        hex(a["end_of_feedback"].as_str().unwrap())
+    );
+    for v in list("query") {
+        let header = QueryHeader {
+            kind: match text(v, "kind") {
+                "request" => QueryKind::Request,
+                "probe" => QueryKind::Probe,
+                other => panic!("query kind `{other}`"),
+            },
+            fingerprint: fingerprint(&v["fingerprint"]),
+            core: text(v, "core").into(),
+            instance: text(v, "instance").into(),
+        };
+        let bytes = hex(text(v, "hex"));
+        assert_eq!(header.encode(), bytes, "{v}");
+        assert_eq!(QueryHeader::decode(&bytes), Some(header), "{v}");
+    }
+    for v in list("query_rejected") {
+        assert_eq!(QueryHeader::decode(&hex(v.as_str().unwrap())), None, "{v}");
+    }
+    for v in list("reply") {
+        let status = match text(v, "status") {
+            "ack" => ReplyStatus::Ack,
+            "ok" => ReplyStatus::Ok,
+            "handler_error" => ReplyStatus::HandlerError,
+            "format_mismatch" => ReplyStatus::FormatMismatch,
+            "present" => ReplyStatus::Present,
+            other => panic!("reply status `{other}`"),
+        };
+        let fp = fingerprint(&v["fingerprint"]);
+        let bytes = hex(text(v, "hex"));
+        assert_eq!(attachment::reply(status, fp), bytes, "{v}");
+        assert_eq!(parse_reply(&bytes), Some((status, fp)), "{v}");
+    }
+    for v in list("reply_rejected") {
+        assert_eq!(parse_reply(&hex(v.as_str().unwrap())), None, "{v}");
+    }
+}
+
+/// Every format of the file, the messages' included: its canonical text
+/// reads back as itself (so a tool can decode from it), and hashes to
+/// the fingerprint written.
+#[test]
+fn every_golden_format_has_its_fingerprint() {
+    let golden = golden();
+    let formats = golden["fingerprints"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| (text(v, "canonical"), &v["fingerprint"]));
+    let messages = golden["messages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| (text(v, "format"), &v["fingerprint"]));
+    let mut no_payload = false;
+    for (canonical, fp) in formats.chain(messages) {
+        let fp = fingerprint(fp);
+        if canonical == FormatSpec::EMPTY.canonical {
+            assert_eq!(fp, FormatSpec::EMPTY.fingerprint);
+            no_payload = true;
+            continue;
+        }
+        let format =
+            MessageFormat::from_canonical(canonical).unwrap_or_else(|e| panic!("{canonical}: {e}"));
+        assert_eq!(format.canonical(), canonical);
+        assert_eq!(
+            format.fingerprint(),
+            fp,
+            "{canonical}: {:016x}",
+            format.fingerprint()
+        );
+    }
+    assert!(no_payload, "the file pins the format with no payload");
+}
