@@ -9,7 +9,7 @@
 use std::borrow::Cow;
 use std::time::Duration;
 
-use peppy_schema::{RouteFilter, SlotBinding, SlotKind};
+use peppy_schema::SlotKind;
 use tokio::time::Instant;
 use zenoh::query::{ConsolidationMode, QueryTarget};
 
@@ -85,14 +85,8 @@ pub(crate) async fn choose(
     deadline: Instant,
 ) -> Result<String> {
     let slot = runner.slot(entry.link_id)?;
-    match (&slot.binding, &slot.filter) {
-        (SlotBinding::Pinned { producer }, _) => return Ok(producer.clone()),
-        (_, RouteFilter::OnlyFrom(set)) if set.len() == 1 => {
-            if let Some(only) = set.iter().next() {
-                return Ok(only.clone());
-            }
-        }
-        _ => {}
+    if let Some(server) = slot.named_server() {
+        return Ok(server.to_string());
     }
     let budget = deadline
         .saturating_duration_since(Instant::now())

@@ -81,6 +81,22 @@ pub struct SlotPlan {
     pub filter: RouteFilter,
 }
 
+impl SlotPlan {
+    /// The server a request through this slot goes to without asking
+    /// anyone: the pinned producer, or the one producer a `from_any` slot's
+    /// filter lets through. `None`: requests probe every server of the
+    /// slot's kind and take the first the filter accepts.
+    pub fn named_server(&self) -> Option<&str> {
+        match (&self.binding, &self.filter) {
+            (SlotBinding::Pinned { producer }, _) => Some(producer),
+            (_, RouteFilter::OnlyFrom(set)) if set.len() == 1 => {
+                set.iter().next().map(String::as_str)
+            }
+            _ => None,
+        }
+    }
+}
+
 /// What the engine knows of a producer instance: the node it runs and the
 /// interfaces that node conforms to.
 #[derive(Debug, Clone, Copy)]

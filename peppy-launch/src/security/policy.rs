@@ -11,7 +11,7 @@ use peppy_runtime::wire::keys::{
     describe_key, entry_key, entry_selector, feedback_selector, format_selector, liveliness_key,
     namespace_prefix, namespace_selector, space_selector,
 };
-use peppy_schema::{InstancePlan, Origin, RouteFilter, SlotBinding, StackCheck};
+use peppy_schema::{InstancePlan, Origin, StackCheck};
 use serde::Serialize;
 use serde_json::{Value as Json, json};
 
@@ -214,10 +214,7 @@ pub(crate) fn derive(
                     .unwrap_or_default();
                 // Requests name their server by instance only (any core);
                 // a slot that does not name one server probes them all.
-                let probes = plan.is_some_and(|s| {
-                    !matches!((&s.binding, &s.filter), (SlotBinding::Pinned { .. }, _))
-                        && !matches!(&s.filter, RouteFilter::OnlyFrom(set) if set.len() == 1)
-                });
+                let probes = plan.is_some_and(|s| s.named_server().is_none());
                 let o = owner(origin);
                 let at = |p: &str| entry_key(namespace, channel, &o, name, &core_by_id(p), p);
                 let to =

@@ -257,6 +257,7 @@ fn unbound_from_any_takes_any_producer_not_claimed_by_a_sibling() {
     let cams = slot(s.plan.instance("m1").unwrap(), "cams");
     assert_eq!(cams.binding, SlotBinding::FromAnyUnbound);
     assert_eq!(cams.filter, RouteFilter::Any);
+    assert_eq!((extras.named_server(), cams.named_server()), (None, None));
 }
 
 #[test]
@@ -272,9 +273,14 @@ fn bound_from_any_excludes_producers_pinned_by_a_sibling() {
             ),
         ],
     );
-    let extras = slot(s.plan.instance("f1").unwrap(), "extras");
+    let f1 = s.plan.instance("f1").unwrap();
+    let extras = slot(f1, "extras");
     assert_eq!(extras.binding, bound(&["a1", "b1"]));
     assert_eq!(extras.filter, RouteFilter::OnlyFrom(set(&["b1"])));
+    // Requests go to the one server the filter lets through, or to the
+    // pinned one, without probing.
+    assert_eq!(extras.named_server(), Some("b1"));
+    assert_eq!(slot(f1, "left").named_server(), Some("a1"));
 }
 
 #[test]
