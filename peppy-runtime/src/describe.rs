@@ -10,7 +10,7 @@ use peppy_schema::{Identity, QosProfile, RouteFilter, SlotBinding, SlotKind};
 use serde::{Deserialize, Serialize};
 
 use crate::spec::{FormatSpec, OwnerSpec};
-use crate::wire::keys::Owner;
+use crate::wire::keys::{Owner, format_key};
 
 /// Version of the [`InstanceInfo`] document; bumped on incompatible change.
 pub const DESCRIBE_VERSION: u32 = 1;
@@ -280,6 +280,28 @@ pub(crate) fn now_ms() -> u64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_millis() as u64)
+}
+
+/// Asks instance `producer` for the text of the format whose fingerprint is
+/// `fingerprint` (its format queryable, docs/WIRE.md §1): the one way a
+/// node naming a mismatched producer's format and a tool decoding a
+/// stranger's messages learn it. `None` when nobody answers within
+/// `timeout`, or the answer is not text.
+pub async fn ask_format(
+    session: &zenoh::Session,
+    namespace: &str,
+    fingerprint: u64,
+    producer: &str,
+    timeout: std::time::Duration,
+) -> Option<String> {
+    let replies = session
+        .get(format_key(namespace, fingerprint, producer))
+        .timeout(timeout)
+        .await
+        .ok()?;
+    let reply = replies.recv_async().await.ok()?;
+    let sample = reply.result().ok()?;
+    String::from_utf8(sample.payload().to_bytes().into_owned()).ok()
 }
 
 #[cfg(test)]

@@ -909,20 +909,28 @@ fn mismatch_reporter(
     let handle = tokio::runtime::Handle::current();
     Arc::new(
         move |spec: &'static ConsumedTopicSpec, producer: String, theirs: u64| {
-            let (session, key) = (session.clone(), format_key(&ns, theirs, &producer));
-            handle.spawn(async move {
-            let mut their_text = format!("(fingerprint {theirs:016x})");
-            if let Ok(replies) = session.get(key).timeout(std::time::Duration::from_secs(2)).await
-                && let Ok(reply) = replies.recv_async().await
-                && let Ok(sample) = reply.result()
-            {
-                their_text = format!("{} (fingerprint {theirs:016x})", String::from_utf8_lossy(&sample.payload().to_bytes()));
-            }
-            warn!(
-                "dropping topic `{}` from `{producer}`: it sends {their_text}, this node expects {} (fingerprint {:016x}); rebuild the two nodes against the same format",
-                spec.name, spec.format.canonical, spec.format.fingerprint
+            let (session, ns) = (session.clone(), ns.clone());
+            handle.spawn(
+                async move { report_mismatch(&session, &ns, spec, &producer, theirs).await },
             );
-        });
         },
     )
+}
+
+async fn report_mismatch(
+    session: &zenoh::Session,
+    ns: &str,
+    spec: &ConsumedTopicSpec,
+    producer: &str,
+    theirs: u64,
+) {
+    let wait = std::time::Duration::from_secs(2);
+    let their_text = match crate::describe::ask_format(session, ns, theirs, producer, wait).await {
+        Some(text) => format!("{text} (fingerprint {theirs:016x})"),
+        None => format!("(fingerprint {theirs:016x})"),
+    };
+    warn!(
+        "dropping topic `{}` from `{producer}`: it sends {their_text}, this node expects {} (fingerprint {:016x}); rebuild the two nodes against the same format",
+        spec.name, spec.format.canonical, spec.format.fingerprint
+    );
 }

@@ -8,9 +8,7 @@ use std::time::Duration;
 
 use peppy_runtime::describe::{ConsumedTopic, EmittedTopic, InstanceInfo, OwnerInfo};
 use peppy_runtime::wire::attachment;
-use peppy_runtime::wire::keys::{
-    Channel, EntrySelector, Sender, entry_selector, format_key, parse_entry_key,
-};
+use peppy_runtime::wire::keys::{Channel, EntrySelector, Sender, entry_selector, parse_entry_key};
 use peppy_schema::{Identity, MessageFormat, RouteFilter, SlotKind};
 use tokio::time::Instant;
 
@@ -384,15 +382,15 @@ fn list_or_none<'a>(items: impl Iterator<Item = &'a str>) -> String {
 
 /// Asks a producer for the text of a format (its format queryable).
 async fn ask_format(observer: &Observer, fingerprint: u64, producer: &str) -> Option<String> {
-    let replies = observer
-        .session
-        .get(format_key(&observer.reach.namespace, fingerprint, producer))
-        .timeout(Duration::from_secs(1))
-        .await
-        .ok()?;
-    let reply = replies.recv_async().await.ok()?;
-    let sample = reply.result().ok()?;
-    String::from_utf8(sample.payload().to_bytes().into_owned()).ok()
+    let (session, namespace) = (&observer.session, &observer.reach.namespace);
+    peppy_runtime::describe::ask_format(
+        session,
+        namespace,
+        fingerprint,
+        producer,
+        Duration::from_secs(1),
+    )
+    .await
 }
 
 /// One sample as received.
