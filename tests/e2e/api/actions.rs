@@ -101,7 +101,7 @@ async fn call(node_runner: &NodeRunner) -> Result<Option<(u32, f64, cam_calibrat
 /// completed with feedback, a goal without data) and calls a camera's
 /// `calibrate` through its interface slot.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn compiles_and_runs() {
+async fn a_node_serves_its_actions_and_calls_one_through_a_slot() {
     let hub = hub().await;
     let ns = namespace("api-actions");
     let (_, zed) = start::<zed_2i::Parameters>(&hub, &ns, "zed", &[]).await;

@@ -72,7 +72,7 @@ async fn produce(runner: &NodeRunner) -> Result<()> {
 /// heard on its own key, each service answers, the flat action accepts the
 /// first goal and the nested one rejects the second.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn compiles_and_runs() {
+async fn a_conforming_node_serves_every_entry_of_its_interfaces() {
     let hub = hub().await;
     let ns = namespace("api-conformance");
     let mut heard = hear_topics(&hub, &ns).await;

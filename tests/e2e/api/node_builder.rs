@@ -70,7 +70,7 @@ fn through_the_facade(args: Vec<String>) -> peppy::Result<u16> {
 /// this is a plain test): the document's default, the standalone fallback,
 /// and a `key=value` flag over both.
 #[test]
-fn compiles_and_runs() {
+fn every_entry_point_runs_the_node_with_its_parameters() {
     assert_eq!(inferred(args(&[])).unwrap(), 30);
     assert_eq!(explicit(args(&[])).unwrap(), 60);
     assert_eq!(explicit(args(&["fps=15"])).unwrap(), 15);

@@ -12,7 +12,7 @@ use peppygen::{NodeBuilder, Parameters, StandaloneConfig};
 /// length, and handed to a node as its standalone fallback, which starts
 /// with them.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn compiles_and_runs() {
+async fn parameters_round_trip_and_start_a_node() {
     let json = format!(
         r#"{{ "rate_hz": 10.0, "name": "cam", "start": 1.5, "type": "x",
              "video": {{ "fps": 30, "encoder": {{ "codec": "h264", "bitrate": 9 }} }},

@@ -67,7 +67,7 @@ async fn call(runner: &NodeRunner) -> Result<((u32, u32), bool)> {
 /// One node both serves (a tool calls each of its services in turn) and
 /// calls (a camera answers through the interface slot and the node slot).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn compiles_and_runs() {
+async fn a_node_serves_and_calls_services_through_its_slots() {
     let hub = hub().await;
     let ns = namespace("api-services");
     let (_, cam) = start::<realsense_d405::Parameters>(&hub, &ns, "cam", &[]).await;

@@ -69,7 +69,7 @@ fn node_main(args: Vec<String>, up: mpsc::Sender<CancellationToken>) -> Result<(
 /// own, which owns its runtime) and serves a tool's goals from the spawned
 /// tasks after `setup` returned and dropped the runner.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn compiles_and_runs() {
+async fn spawned_goal_handlers_serve_after_setup_returned() {
     let hub = hub().await;
     let ns = namespace("api-spawned-action");
     let args = node_args(&hub, &ns, "arm", &["--bind", "cam@zed"]);

@@ -43,7 +43,7 @@ async fn use_api(runner: &NodeRunner) -> Result<((String, f32), f64)> {
 /// by the hub, as `topic pub` does), and only `launch-1`'s is read; what
 /// the node emits is heard on its keys.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn compiles_and_runs() {
+async fn a_node_reads_one_launchs_commands_and_emits_on_its_keys() {
     let hub = hub().await;
     let ns = namespace("api-topics");
     let mut heard = hear_topics(&hub, &ns).await;

@@ -76,7 +76,7 @@ fn camera(cam: Arc<NodeRunner>, frame_id: u32) {
 /// unbound: it takes every camera no sibling slot claims, and the loop
 /// keys their frames by instance id.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn compiles_and_runs() {
+async fn from_any_frames_are_keyed_by_producer_and_pinned_cameras_left_out() {
     let hub = hub().await;
     let ns = namespace("api-recon");
     let (_, recon) = start::<peppygen::Parameters>(
