@@ -1,6 +1,7 @@
 //! End-to-end tests of the `peppy-launch` binary: real files, real process,
 //! exit codes and output as users see them.
 
+mod build_reuse;
 mod check;
 mod inspect;
 mod machines;
