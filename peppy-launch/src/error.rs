@@ -474,6 +474,13 @@ mod tests {
             within: Duration::from_millis(1500),
         };
         assert_eq!(e.to_string(), "2 of 5 messages within 1.5 s");
+        let e = SetupError::ReservedInstanceId {
+            instance: "peppy-operator".into(),
+        };
+        assert_eq!(
+            e.to_string(),
+            "instance id `peppy-operator` is a user name a secured launch keeps for itself (`peppy-operator`, `peppy-router-*`): rename the instance"
+        );
         let e = InspectError::Rejected {
             instance: "arm".into(),
             reason: None,

@@ -291,6 +291,21 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_failed_install_says_what_to_do() {
+        let e = UvError::Install {
+            dir: PathBuf::from("/cache/tools/uv-x"),
+        };
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "installing uv {UV_VERSION} with `python3 -m pip install --require-hashes --target /cache/tools/uv-x` failed \
+                 (peppy pins the wheels for Linux on x86_64 and aarch64); install uv \
+                 (https://docs.astral.sh/uv/) on PATH and retry"
+            )
+        );
+    }
+
+    #[test]
     fn uv_is_pinned_to_one_version_and_its_wheels_hashes() {
         let text = uv_requirements();
         assert_eq!(text.lines().count(), 1, "{text}");

@@ -884,6 +884,68 @@ mod tests {
         assert!(matches!(err, ArchiveError::Scheme { .. }), "{err}");
     }
 
+    /// A tar holding one entry of `kind` at `path`, written raw so that
+    /// paths tar's builder refuses (`..`) can be tried.
+    fn tar_with(path: &str, kind: tar::EntryType) -> Vec<u8> {
+        let mut header = tar::Header::new_old();
+        header.as_old_mut().name[..path.len()].copy_from_slice(path.as_bytes());
+        header.set_entry_type(kind);
+        header.set_size(0);
+        header.set_mode(0o644);
+        header.set_cksum();
+        let mut bytes = header.as_bytes().to_vec();
+        bytes.extend_from_slice(&[0; 1024]);
+        bytes
+    }
+
+    #[test]
+    fn unpacking_refuses_what_leaves_the_directory_or_is_no_plain_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = unpack(
+            &tar_with("../evil", tar::EntryType::Regular)[..],
+            dir.path(),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(&err, UnpackError::Outside { entry } if entry == Path::new("../evil")),
+            "{err}"
+        );
+        assert_eq!(
+            err.to_string(),
+            "the entry `../evil` would land outside the directory it is unpacked into; refusing the archive"
+        );
+        let err = unpack(&tar_with("link", tar::EntryType::Symlink)[..], dir.path()).unwrap_err();
+        assert!(matches!(err, UnpackError::Special { .. }), "{err}");
+        unpack(&tar_with("ok.txt", tar::EntryType::Regular)[..], dir.path()).unwrap();
+        assert!(dir.path().join("ok.txt").is_file());
+    }
+
+    #[test]
+    fn a_missing_ref_names_what_the_repository_has() {
+        let e = SourceError::NoRef {
+            reference: "v9".into(),
+            repo: "https://example.org/r.git".into(),
+            refs: vec!["main".into(), "v1".into()],
+        };
+        assert_eq!(
+            e.to_string(),
+            "`v9` is not a branch, tag or commit of https://example.org/r.git (it has: `main`, `v1`)"
+        );
+        let none = SourceError::NoRef {
+            reference: "main".into(),
+            repo: "r".into(),
+            refs: Vec::new(),
+        };
+        assert!(none.to_string().ends_with("(it has: no branches or tags)"));
+        let fetched = Fetcher::new().fetch(&Source::Local { path: "x".into() });
+        assert!(
+            fetched
+                .unwrap_err()
+                .to_string()
+                .starts_with("not a remote source: Local")
+        );
+    }
+
     #[test]
     fn commit_ids_are_forty_hex_digits() {
         assert!(is_commit_id("0123456789abcdef0123456789abcdef01234567"));
