@@ -165,15 +165,14 @@ pub(crate) async fn open_router(
     guard: Option<&crate::security::RouterGuard>,
 ) -> Result<zenoh::Session, RouterError> {
     let mut config = zenoh::Config::default();
-    let set = set_router_option;
-    set(&mut config, "mode", "router".into())?;
-    set(&mut config, "listen/endpoints", listen.into())?;
+    set_router_option(&mut config, "mode", "router".into())?;
+    set_router_option(&mut config, "listen/endpoints", listen.into())?;
     if !connect.is_empty() {
-        set(&mut config, "connect/endpoints", connect.into())?;
+        set_router_option(&mut config, "connect/endpoints", connect.into())?;
     }
-    set(&mut config, "scouting/multicast/enabled", false.into())?;
+    set_router_option(&mut config, "scouting/multicast/enabled", false.into())?;
     if linked {
-        set(
+        set_router_option(
             &mut config,
             "transport/link/tx/lease",
             LINKED_LEASE_MS.into(),

@@ -183,8 +183,7 @@ pub(crate) struct RouterGuard {
 impl RouterGuard {
     /// Adds authentication and access control to a router's configuration.
     pub(crate) fn apply(&self, config: &mut zenoh::Config) -> Result<(), RouterError> {
-        let set = set_router_option;
-        set(
+        set_router_option(
             config,
             "transport/auth/usrpwd/dictionary_file",
             self.dictionary.display().to_string().into(),
@@ -193,9 +192,9 @@ impl RouterGuard {
             login.apply(config).map_err(RouterError::Login)?;
         }
         for (key, value) in &self.tls {
-            set(config, key, value.clone())?;
+            set_router_option(config, key, value.clone())?;
         }
-        set(config, "access_control", self.access_control.clone())
+        set_router_option(config, "access_control", self.access_control.clone())
     }
 }
 
