@@ -509,32 +509,50 @@ pub(crate) struct RunArgs {
 /// node should need to stop.
 const MAX_GRACE_SECONDS: f64 = 3600.0;
 
-/// A wait: a finite, positive number of seconds up to a day.
-fn parse_wait(s: &str) -> Result<Duration, String> {
-    let seconds: f64 = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
-    if !seconds.is_finite() || !(0.001..=86400.0).contains(&seconds) {
-        return Err(format!(
-            "`{s}` is out of range: give seconds from 0.001 to 86400"
-        ));
+/// A number of seconds on the command line that clap refuses.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub(crate) enum SecondsError {
+    /// Not a number.
+    #[error("`{text}` is not a number of seconds")]
+    NotANumber {
+        /// The value given.
+        text: String,
+    },
+    /// A number outside the option's range (or not finite).
+    #[error("`{text}` is out of range: give seconds from {min} to {max}")]
+    OutOfRange {
+        /// The value given.
+        text: String,
+        /// The least accepted.
+        min: f64,
+        /// The most accepted.
+        max: f64,
+    },
+}
+
+/// Seconds from `min` to `max` (finite).
+fn parse_seconds(s: &str, min: f64, max: f64) -> Result<Duration, SecondsError> {
+    let seconds: f64 = s.trim().parse().map_err(|_| SecondsError::NotANumber {
+        text: s.to_string(),
+    })?;
+    if !seconds.is_finite() || !(min..=max).contains(&seconds) {
+        return Err(SecondsError::OutOfRange {
+            text: s.to_string(),
+            min,
+            max,
+        });
     }
     Ok(Duration::from_secs_f64(seconds))
 }
 
+/// A wait: a finite, positive number of seconds up to a day.
+fn parse_wait(s: &str) -> Result<Duration, SecondsError> {
+    parse_seconds(s, 0.001, 86400.0)
+}
+
 /// `--grace`: a finite number of seconds from 0 to an hour.
-fn parse_grace(s: &str) -> Result<Duration, String> {
-    let seconds: f64 = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
-    if !seconds.is_finite() || !(0.0..=MAX_GRACE_SECONDS).contains(&seconds) {
-        return Err(format!(
-            "`{s}` is out of range: give seconds from 0 to {MAX_GRACE_SECONDS}"
-        ));
-    }
-    Ok(Duration::from_secs_f64(seconds))
+fn parse_grace(s: &str) -> Result<Duration, SecondsError> {
+    parse_seconds(s, 0.0, MAX_GRACE_SECONDS)
 }
 
 #[cfg(test)]
@@ -548,6 +566,16 @@ mod tests {
         for bad in ["-1", "NaN", "inf", "-inf", "1e300", "soon", ""] {
             assert!(parse_grace(bad).is_err(), "{bad}");
         }
+        assert_eq!(
+            parse_grace("3601").unwrap_err().to_string(),
+            "`3601` is out of range: give seconds from 0 to 3600"
+        );
+        assert_eq!(
+            parse_grace("soon").unwrap_err(),
+            SecondsError::NotANumber {
+                text: "soon".into()
+            }
+        );
     }
 
     #[test]
@@ -557,5 +585,9 @@ mod tests {
         for bad in ["0", "1e-10", "-1", "NaN", "inf", "86401", "soon"] {
             assert!(parse_wait(bad).is_err(), "{bad}");
         }
+        assert_eq!(
+            parse_wait("0").unwrap_err().to_string(),
+            "`0` is out of range: give seconds from 0.001 to 86400"
+        );
     }
 }

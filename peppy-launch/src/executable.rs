@@ -44,25 +44,79 @@ pub enum ExecutableError {
         output: String,
     },
     /// Cargo built no executable for the node's package, or several.
-    #[error("cannot tell which executable runs {node}: {why}")]
+    #[error("cannot tell which executable runs {node}: {source}")]
     NoExecutable {
         /// The node (`name:tag`).
         node: String,
         /// What was found instead.
-        why: String,
+        source: FindError,
     },
     /// A tool the node's commands name (`uv`) is missing and could not be
     /// installed.
-    #[error("cannot build or run {node}: {why}")]
+    #[error("cannot build or run {node}: {source}")]
     Tool {
         /// The node (`name:tag`).
         node: String,
-        /// What failed.
-        why: String,
+        /// Why there is no such tool.
+        source: crate::python_sync::UvError,
+    },
+    /// A Python node's generated `peppygen` package could not be written.
+    #[error("cannot build or run {node}: generating its peppygen package: {source}")]
+    Package {
+        /// The node (`name:tag`).
+        node: String,
+        /// Why.
+        source: crate::python_sync::PackageError,
     },
     /// The node runs in a container (refused by `check` already).
     #[error("`{0}` runs in a container, which peppy-launch does not start yet")]
     Container(String),
+}
+
+/// Why the executable of a Rust node without `run_cmd` cannot be told.
+#[derive(Debug, thiserror::Error)]
+pub enum FindError {
+    /// Cargo names no binary of the node's package.
+    #[error("{tool} names no binary of the package in this directory; give the node a `run_cmd`")]
+    NoBinary {
+        /// Where cargo said so: `` `cargo build` `` or `` `cargo metadata` ``.
+        tool: &'static str,
+    },
+    /// The package has several binaries, none named like the node.
+    #[error(
+        "the package has several binaries ({}) and none is named `{node_name}`; give the node a `run_cmd`",
+        binaries.iter().map(|b| format!("`{b}`")).collect::<Vec<_>>().join(", ")
+    )]
+    SeveralBinaries {
+        /// The binaries' target names.
+        binaries: Vec<String>,
+        /// The node's name.
+        node_name: String,
+    },
+    /// `cargo metadata` could not be started.
+    #[error("cannot run `cargo metadata`: {0}")]
+    MetadataSpawn(#[source] std::io::Error),
+    /// `cargo metadata` failed.
+    #[error("`cargo metadata` failed: {stderr}")]
+    MetadataFailed {
+        /// What it printed on stderr, trimmed.
+        stderr: String,
+    },
+    /// `cargo metadata` printed what is not its JSON.
+    #[error("cannot read `cargo metadata`: {0}")]
+    MetadataUnreadable(#[source] serde_json::Error),
+    /// No package of the workspace has its manifest in the node's directory.
+    #[error("no cargo package has its manifest in {}", dir.display())]
+    NoPackage {
+        /// The node's directory.
+        dir: PathBuf,
+    },
+    /// `--no-build`, and the binary is not there.
+    #[error("{} is not built yet; run without --no-build", exe.display())]
+    NotBuilt {
+        /// Where the binary would be.
+        exe: PathBuf,
+    },
 }
 
 /// `cargo build` argv with JSON messages on stdout (diagnostics still
@@ -178,9 +232,9 @@ pub(crate) async fn prepare(
     build: bool,
 ) -> Result<Vec<String>, ExecutableError> {
     let cargo = matches!(execution.launch(), Launch::CargoBinary);
-    let tool = |why| ExecutableError::Tool {
+    let tool = |source| ExecutableError::Tool {
         node: node.to_string(),
-        why,
+        source,
     };
     let stdout = match (build, build_of(execution)) {
         (true, Some(cmd)) => {
@@ -200,9 +254,9 @@ pub(crate) async fn prepare(
                     from_metadata(dir, &cmd, node_name).await
                 }
             }
-            .map_err(|why| ExecutableError::NoExecutable {
+            .map_err(|source| ExecutableError::NoExecutable {
                 node: node.to_string(),
-                why,
+                source,
             })?;
             Ok(vec![exe.display().to_string()])
         }
@@ -237,24 +291,20 @@ fn manifest_of(dir: &Path) -> PathBuf {
 fn pick(
     candidates: Vec<(String, PathBuf)>,
     node_name: &str,
-    what: &str,
-) -> Result<PathBuf, String> {
+    tool: &'static str,
+) -> Result<PathBuf, FindError> {
     match candidates.len() {
-        0 => Err(format!(
-            "{what} names no binary of the package in this directory; give the node a `run_cmd`"
-        )),
+        0 => Err(FindError::NoBinary { tool }),
         1 => Ok(candidates.into_iter().next().expect("one").1),
         _ => {
-            let names: Vec<String> = candidates.iter().map(|(n, _)| format!("`{n}`")).collect();
+            let binaries: Vec<String> = candidates.iter().map(|(n, _)| n.clone()).collect();
             candidates
                 .into_iter()
                 .find(|(n, _)| n == node_name)
                 .map(|(_, p)| p)
-                .ok_or_else(|| {
-                    format!(
-                        "the package has several binaries ({}) and none is named `{node_name}`; give the node a `run_cmd`",
-                        names.join(", ")
-                    )
+                .ok_or_else(|| FindError::SeveralBinaries {
+                    binaries,
+                    node_name: node_name.to_string(),
                 })
         }
     }
@@ -262,7 +312,7 @@ fn pick(
 
 /// The executable cargo's `compiler-artifact` messages report for the
 /// package whose manifest is in `dir`.
-fn from_build_messages(stdout: &str, dir: &Path, node_name: &str) -> Result<PathBuf, String> {
+fn from_build_messages(stdout: &str, dir: &Path, node_name: &str) -> Result<PathBuf, FindError> {
     let manifest = manifest_of(dir);
     let mut candidates = Vec::new();
     for line in stdout.lines().filter(|l| l.starts_with('{')) {
@@ -349,22 +399,21 @@ async fn from_metadata(
     dir: &Path,
     build_cmd: &[String],
     node_name: &str,
-) -> Result<PathBuf, String> {
+) -> Result<PathBuf, FindError> {
     let output = tokio::process::Command::new("cargo")
         .args(["metadata", "--no-deps", "--format-version", "1"])
         .current_dir(dir)
         .stdin(Stdio::null())
         .output()
         .await
-        .map_err(|e| format!("cannot run `cargo metadata`: {e}"))?;
+        .map_err(FindError::MetadataSpawn)?;
     if !output.status.success() {
-        return Err(format!(
-            "`cargo metadata` failed: {}",
-            String::from_utf8_lossy(&output.stderr).trim()
-        ));
+        return Err(FindError::MetadataFailed {
+            stderr: String::from_utf8_lossy(&output.stderr).trim().to_string(),
+        });
     }
-    let meta: Metadata = serde_json::from_slice(&output.stdout)
-        .map_err(|e| format!("cannot read `cargo metadata`: {e}"))?;
+    let meta: Metadata =
+        serde_json::from_slice(&output.stdout).map_err(FindError::MetadataUnreadable)?;
     let manifest = manifest_of(dir);
     let package = meta
         .packages
@@ -372,7 +421,9 @@ async fn from_metadata(
         .find(|p| {
             std::fs::canonicalize(&p.manifest_path).unwrap_or(p.manifest_path.clone()) == manifest
         })
-        .ok_or_else(|| format!("no cargo package has its manifest in {}", dir.display()))?;
+        .ok_or_else(|| FindError::NoPackage {
+            dir: dir.to_path_buf(),
+        })?;
     let bin_dir = meta.target_directory.join(profile_dir(build_cmd));
     let candidates = package
         .targets
@@ -387,10 +438,7 @@ async fn from_metadata(
     if exe.is_file() {
         Ok(exe)
     } else {
-        Err(format!(
-            "{} is not built yet; run without --no-build",
-            exe.display()
-        ))
+        Err(FindError::NotBuilt { exe })
     }
 }
 
@@ -502,8 +550,21 @@ mod tests {
             Path::new("/custom/target/debug/cam")
         );
         let err = from_build_messages(&two, dir.path(), "other").unwrap_err();
-        assert!(err.contains("`cam`, `tool`"), "{err}");
+        assert!(
+            matches!(&err, FindError::SeveralBinaries { binaries, .. } if binaries.len() == 2),
+            "{err}"
+        );
+        assert!(err.to_string().contains("(`cam`, `tool`)"), "{err}");
         let err = from_build_messages("", dir.path(), "cam").unwrap_err();
-        assert!(err.contains("run_cmd"), "{err}");
+        assert!(
+            matches!(
+                err,
+                FindError::NoBinary {
+                    tool: "`cargo build`"
+                }
+            ),
+            "{err}"
+        );
+        assert!(err.to_string().contains("run_cmd"), "{err}");
     }
 }

@@ -7,7 +7,7 @@ use peppy_schema::{RepoOptions, SlotBinding, StackCheck, check_launcher_with};
 
 use crate::cli::GraphArgs;
 use crate::drawing::{self, DrawEdge, DrawNode, Drawing, EdgeStyle, NodeState};
-use crate::error::{LaunchError, Result};
+use crate::error::{LaunchError, Result, SetupError, UsageError};
 use crate::flows;
 use crate::report;
 
@@ -24,7 +24,7 @@ pub(crate) fn run(args: &GraphArgs) -> Result {
         return show(args.output.as_deref(), format, &picture);
     }
     let Some(launcher) = &args.file else {
-        return Err(LaunchError::Usage("give a launcher file, or --live".into()));
+        return Err(UsageError::NothingToDraw.into());
     };
     let options = RepoOptions {
         explicit: args.repos.clone(),
@@ -75,10 +75,11 @@ impl Format {
             "svg" => Ok(Format::Svg),
             "html" | "htm" => Ok(Format::Html),
             "dot" | "gv" => Ok(Format::Dot),
-            other => Err(LaunchError::Usage(format!(
-                "cannot draw `{}`: unknown extension `.{other}` (use .svg, .html, .htm, .dot or .gv)",
-                path.display()
-            ))),
+            other => Err(UsageError::DrawingExtension {
+                path: path.to_path_buf(),
+                extension: other.to_string(),
+            }
+            .into()),
         }
     }
 
@@ -94,8 +95,10 @@ impl Format {
 
 /// Writes the picture and says so on stderr, keeping stdout empty.
 fn write(path: &Path, format: Format, picture: &Drawing) -> Result {
-    std::fs::write(path, format.render(picture))
-        .map_err(|e| LaunchError::Setup(format!("cannot write {}: {e}", path.display())))?;
+    std::fs::write(path, format.render(picture)).map_err(|source| SetupError::Write {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let instances = picture
         .nodes
         .iter()

@@ -27,9 +27,15 @@ mod up;
 mod validate;
 
 pub use cli::Cli;
-pub use error::{LaunchError, Result, exit};
-pub use executable::ExecutableError;
-pub use python_sync::{UV_VERSION, uv};
+pub use error::{InspectError, LaunchError, Result, SetupError, UsageError, exit};
+pub use executable::{ExecutableError, FindError};
+pub use inspect::SelectError;
+pub use placement::PlacementError;
+pub use python_sync::{PackageError, UV_VERSION, UvError, uv};
+pub use run_node::LocateError;
+pub use runs::LogsError;
+pub use security::keys::KeysError;
+pub use up::RouterError;
 
 /// Runs one parsed command line.
 pub fn run(cli: Cli) -> Result {

@@ -8,7 +8,36 @@
 use peppy_schema::{LauncherDoc, StackCheck};
 
 use crate::cli::UpArgs;
-use crate::error::LaunchError;
+
+/// Why `up`'s `--core-node` / `--local` do not fit the launcher.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PlacementError {
+    /// `--core-node` for a launcher that runs whole on one machine.
+    #[error(
+        "--core-node {core}: this launcher declares no core_nodes; it runs whole on one machine"
+    )]
+    NoCoreNodes {
+        /// The core node given.
+        core: String,
+    },
+    /// A launcher with core nodes, and neither `--core-node` nor `--local`.
+    #[error(
+        "this launcher places its instances on core nodes {}: start each machine's share with `up --core-node NAME` there, or all of it here with `up --local`",
+        core_nodes.join(", ")
+    )]
+    ShareNotChosen {
+        /// The launcher's core nodes.
+        core_nodes: Vec<String>,
+    },
+    /// `--core-node` names none of the launcher's core nodes.
+    #[error("--core-node {core}: the launcher's core nodes are {}", core_nodes.join(", "))]
+    UnknownCoreNode {
+        /// The core node given.
+        core: String,
+        /// The launcher's core nodes.
+        core_nodes: Vec<String>,
+    },
+}
 
 /// What this launch starts.
 #[derive(Debug, Clone, PartialEq)]
@@ -26,7 +55,7 @@ pub(crate) struct Share {
 }
 
 /// Decides the share from the launcher and `up`'s flags.
-pub(crate) fn share(stack: &StackCheck, args: &UpArgs) -> Result<Share, LaunchError> {
+pub(crate) fn share(stack: &StackCheck, args: &UpArgs) -> Result<Share, PlacementError> {
     share_of(
         &stack.launcher,
         stack.plan.instances.iter().map(|i| i.core_node.as_deref()),
@@ -44,7 +73,7 @@ fn share_of<'a>(
     local: bool,
     listen: &[String],
     connect: &[String],
-) -> Result<Share, LaunchError> {
+) -> Result<Share, PlacementError> {
     let names: Vec<&str> = launcher
         .core_nodes
         .iter()
@@ -59,9 +88,9 @@ fn share_of<'a>(
         connect: connect.to_vec(),
     };
     match (names.is_empty(), core_node, local) {
-        (true, Some(c), _) => Err(LaunchError::Usage(format!(
-            "--core-node {c}: this launcher declares no core_nodes; it runs whole on one machine"
-        ))),
+        (true, Some(c), _) => Err(PlacementError::NoCoreNodes {
+            core: c.to_string(),
+        }),
         (true, None, _) => {
             let name = format!("launch-{:x}", std::process::id());
             Ok(everything(name.clone(), vec![name; placements.len()]))
@@ -73,16 +102,15 @@ fn share_of<'a>(
                 .collect();
             Ok(everything("local".into(), core_of))
         }
-        (false, None, false) => Err(LaunchError::Usage(format!(
-            "this launcher places its instances on core nodes {}: start each machine's share with `up --core-node NAME` there, or all of it here with `up --local`",
-            names.join(", ")
-        ))),
+        (false, None, false) => Err(PlacementError::ShareNotChosen {
+            core_nodes: names.iter().map(|n| n.to_string()).collect(),
+        }),
         (false, Some(c), _) => {
             let Some(decl) = launcher.core_node(c) else {
-                return Err(LaunchError::Usage(format!(
-                    "--core-node {c}: the launcher's core nodes are {}",
-                    names.join(", ")
-                )));
+                return Err(PlacementError::UnknownCoreNode {
+                    core: c.to_string(),
+                    core_nodes: names.iter().map(|n| n.to_string()).collect(),
+                });
             };
             let instances: Vec<usize> = placements
                 .iter()
@@ -133,7 +161,7 @@ mod tests {
         placed: &[Option<&str>],
         core: Option<&str>,
         local: bool,
-    ) -> Result<Share, LaunchError> {
+    ) -> Result<Share, PlacementError> {
         share_of(l, placed.iter().copied(), core, local, &[], &[])
     }
 
@@ -143,7 +171,12 @@ mod tests {
         let s = run(&l, &[None, None], None, false).unwrap();
         assert_eq!(s.instances, [0, 1]);
         assert!(s.core_of[0].starts_with("launch-"));
-        assert!(run(&l, &[None, None], Some("robot"), false).is_err());
+        assert_eq!(
+            run(&l, &[None, None], Some("robot"), false),
+            Err(PlacementError::NoCoreNodes {
+                core: "robot".into()
+            })
+        );
     }
 
     #[test]

@@ -53,13 +53,30 @@ impl Seen {
     }
 }
 
+/// Why a core node could not take part in the others' presence (said in a
+/// note: the launch runs all the same).
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum PresenceError {
+    /// The other core nodes' tokens cannot be followed.
+    #[error("cannot follow the other core nodes: {0}")]
+    Follow(#[source] zenoh::Error),
+    /// This core node's token cannot be declared.
+    #[error("cannot announce core node {core}: {source}")]
+    Announce {
+        /// This core node.
+        core: String,
+        /// Zenoh's error.
+        source: zenoh::Error,
+    },
+}
+
 /// Announces `me` in `ns` on `router` and reports the other core nodes.
 pub(crate) async fn announce(
     router: &zenoh::Session,
     ns: &str,
     me: &str,
     out: Arc<Output>,
-) -> Result<Presence, String> {
+) -> Result<Presence, PresenceError> {
     let own = router.zid().to_string();
     let seen = Mutex::new(Seen::default());
     let me_name = me.to_string();
@@ -81,12 +98,15 @@ pub(crate) async fn announce(
             }
         })
         .await
-        .map_err(|e| format!("cannot follow the other core nodes: {e}"))?;
+        .map_err(PresenceError::Follow)?;
     let token = router
         .liveliness()
         .declare_token(core_key(ns, me, &router.zid().to_string()))
         .await
-        .map_err(|e| format!("cannot announce core node {me}: {e}"))?;
+        .map_err(|source| PresenceError::Announce {
+            core: me.to_string(),
+            source,
+        })?;
     Ok(Presence {
         _token: token,
         _watch: watch,

@@ -18,8 +18,7 @@ pub(crate) fn run(args: &SyncArgs) -> Result {
         explicit: args.repos.clone(),
         env: None,
     };
-    let file = crate::run_node::locate(&args.node.display().to_string(), &options)
-        .map_err(LaunchError::Usage)?;
+    let file = crate::run_node::locate(&args.node.display().to_string(), &options)?;
     let check = check_node(&file, &options).map_err(|diags| {
         report::print_human(&diags);
         LaunchError::Invalid {
@@ -51,19 +50,45 @@ pub(crate) fn is_python(node: &ResolvedNode) -> bool {
     node.node.execution.language.eq_ignore_ascii_case("python")
 }
 
+/// Why a Python node's `peppygen` package was not written.
+#[derive(Debug, thiserror::Error)]
+pub enum PackageError {
+    /// The generator refused the node; its diagnostics were printed.
+    #[error("invalid: {errors} error(s), reported above")]
+    Invalid {
+        /// How many errors were reported.
+        errors: usize,
+    },
+    /// A file or directory of the package could not be written or removed.
+    #[error("cannot {action} {}: {source}", path.display())]
+    Io {
+        /// What was done: `create` (a directory), `write`, `remove`.
+        action: &'static str,
+        /// The file or directory.
+        path: PathBuf,
+        /// Why it failed.
+        source: std::io::Error,
+    },
+}
+
 /// Writes `dir/peppygen` for `node`: files whose text changed, and removes
 /// generated files the documents no longer produce. Returns how many files
 /// it wrote or removed.
-pub(crate) fn write_package(node: &ResolvedNode, dir: &Path) -> Result<usize> {
+pub(crate) fn write_package(
+    node: &ResolvedNode,
+    dir: &Path,
+) -> std::result::Result<usize, PackageError> {
     let files = peppy_build::python_package(node).map_err(|diags| {
         report::print_human(&diags);
-        LaunchError::Invalid {
+        PackageError::Invalid {
             errors: diags.error_count(),
         }
     })?;
     let root = dir.join(PACKAGE);
-    let io = |what: &str, path: &Path, e: std::io::Error| {
-        LaunchError::Setup(format!("cannot {what} {}: {e}", path.display()))
+    let io = |action: &'static str, path: &Path, source: std::io::Error| PackageError::Io {
+        action,
+        path: path.to_path_buf(),
+        source,
     };
     let mut changed = 0;
     let mut wanted = Vec::new();
@@ -101,12 +126,41 @@ fn python_files(root: &Path) -> Vec<PathBuf> {
 /// `argv` with a leading `uv` replaced by the `uv` this machine has, or
 /// one installed for peppy from PyPI on first use, so a Python node's
 /// `["uv", "sync"]` works on a machine that never installed uv.
-pub(crate) fn with_uv(argv: &[String]) -> std::result::Result<Vec<String>, String> {
+pub(crate) fn with_uv(argv: &[String]) -> std::result::Result<Vec<String>, UvError> {
     let mut argv = argv.to_vec();
     if argv.first().is_some_and(|p| p == "uv") {
         argv[0] = uv()?.display().to_string();
     }
     Ok(argv)
+}
+
+/// Why no `uv` could be had for a Python node.
+#[derive(Debug, thiserror::Error)]
+pub enum UvError {
+    /// pip's requirements file (uv's version and hashes) could not be
+    /// written.
+    #[error("cannot write uv's requirements file {}: {source}", path.display())]
+    Requirements {
+        /// The requirements file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// `python3 -m pip` could not be started.
+    #[error("cannot run `python3 -m pip` to install uv: {0}")]
+    Pip(#[source] std::io::Error),
+    /// pip ran but left no uv (no wheel for this platform, no network, a
+    /// hash mismatch).
+    #[error(
+        "installing uv {UV_VERSION} with `python3 -m pip install --require-hashes --target {}` failed \
+         (peppy pins the wheels for Linux on x86_64 and aarch64); install uv \
+         (https://docs.astral.sh/uv/) on PATH and retry",
+        dir.display()
+    )]
+    Install {
+        /// Where uv was to be installed.
+        dir: PathBuf,
+    },
 }
 
 /// The uv version peppy installs when none is on `PATH`.
@@ -153,7 +207,7 @@ fn uv_requirements() -> String {
 /// against the sha256 listed here for each Linux x86_64 and aarch64 wheel
 /// (pip's `--require-hashes`). The directory names the version, so a
 /// release of peppy that pins another installs that one beside it.
-pub fn uv() -> std::result::Result<PathBuf, String> {
+pub fn uv() -> std::result::Result<PathBuf, UvError> {
     if let Some(found) = on_path("uv") {
         return Ok(found);
     }
@@ -182,11 +236,9 @@ pub fn uv() -> std::result::Result<PathBuf, String> {
     let requirements = partial.with_extension("requirements.txt");
     std::fs::create_dir_all(tools_dir())
         .and_then(|()| std::fs::write(&requirements, uv_requirements()))
-        .map_err(|e| {
-            format!(
-                "cannot write uv's requirements file {}: {e}",
-                requirements.display()
-            )
+        .map_err(|source| UvError::Requirements {
+            path: requirements.clone(),
+            source,
         })?;
     let status = std::process::Command::new("python3")
         .args([
@@ -208,7 +260,7 @@ pub fn uv() -> std::result::Result<PathBuf, String> {
         .arg(&requirements)
         .status();
     let _ = std::fs::remove_file(&requirements);
-    let status = status.map_err(|e| format!("cannot run `python3 -m pip` to install uv: {e}"))?;
+    let status = status.map_err(UvError::Pip)?;
     if status.success() && partial.join("bin").join("uv").is_file() {
         if std::fs::rename(&partial, &dir).is_err() {
             // Another installation finished first; theirs is as good.
@@ -218,12 +270,7 @@ pub fn uv() -> std::result::Result<PathBuf, String> {
         let _ = std::fs::remove_dir_all(&partial);
     }
     if !exe.is_file() {
-        return Err(format!(
-            "installing uv {UV_VERSION} with `python3 -m pip install --require-hashes --target {}` failed \
-             (peppy pins the wheels for Linux on x86_64 and aarch64); install uv \
-             (https://docs.astral.sh/uv/) on PATH and retry",
-            dir.display()
-        ));
+        return Err(UvError::Install { dir });
     }
     Ok(exe)
 }
@@ -242,6 +289,21 @@ fn tools_dir() -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_failed_install_says_what_to_do() {
+        let e = UvError::Install {
+            dir: PathBuf::from("/cache/tools/uv-x"),
+        };
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "installing uv {UV_VERSION} with `python3 -m pip install --require-hashes --target /cache/tools/uv-x` failed \
+                 (peppy pins the wheels for Linux on x86_64 and aarch64); install uv \
+                 (https://docs.astral.sh/uv/) on PATH and retry"
+            )
+        );
+    }
 
     #[test]
     fn uv_is_pinned_to_one_version_and_its_wheels_hashes() {

@@ -10,7 +10,7 @@ use peppy_schema::{
 };
 
 use crate::cli::{PlanArgs, RunArgs};
-use crate::error::{LaunchError, Result};
+use crate::error::{LaunchError, Result, SetupError, UsageError};
 use crate::executable;
 use crate::output::Output;
 use crate::report;
@@ -27,7 +27,7 @@ fn checked_node(node: &str, repos: &[PathBuf]) -> Result<(PathBuf, NodeCheck)> {
         explicit: repos.to_vec(),
         env: None,
     };
-    let file = locate(node, &options).map_err(LaunchError::Usage)?;
+    let file = locate(node, &options)?;
     match check_node(&file, &options) {
         Ok(check) => Ok((file, check)),
         Err(diags) => {
@@ -49,14 +49,13 @@ pub(crate) fn plan(args: &PlanArgs) -> Result {
     let model = match (&args.model, &args.node) {
         (Some(path), _) => read_model(path)?,
         (None, Some(node)) => NodeModel::of(&checked_node(node, &args.repos)?.1.resolved.node),
-        (None, None) => return Err(LaunchError::Usage("give a NODE or --model".into())),
+        (None, None) => return Err(UsageError::NoNodeOrModel.into()),
     };
     let flags = std::iter::once("peppy-launch plan".to_string())
         .chain(args.args.iter().cloned())
         .collect();
     let config = peppy_runtime::startup_from_flags(&model, flags)?;
-    let text = serde_json::to_string_pretty(&config)
-        .map_err(|e| LaunchError::Setup(format!("cannot write the plan as JSON: {e}")))?;
+    let text = serde_json::to_string_pretty(&config).map_err(SetupError::PlanJson)?;
     println!("{text}");
     Ok(())
 }
@@ -70,12 +69,16 @@ fn read_model(path: &std::path::Path) -> Result<NodeModel> {
     } else {
         std::fs::read_to_string(path).map(|t| text = t)
     };
-    read.map_err(|e| LaunchError::Usage(format!("cannot read --model {}: {e}", path.display())))?;
-    NodeModel::from_json(&text).map_err(|e| {
-        LaunchError::Usage(format!(
-            "--model {} is not a node model: {e}",
-            path.display()
-        ))
+    read.map_err(|source| UsageError::ReadModel {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    NodeModel::from_json(&text).map_err(|source| {
+        UsageError::NotAModel {
+            path: path.to_path_buf(),
+            source,
+        }
+        .into()
     })
 }
 
@@ -96,10 +99,10 @@ pub(crate) fn run(args: &RunArgs) -> Result {
     let mut config = peppy_runtime::startup_from_flags(&NodeModel::of(doc), flags)?;
     config.core_node = format!("run-{:x}", std::process::id());
     if let Launch::Container(_) = doc.execution.launch() {
-        return Err(LaunchError::Usage(format!(
-            "`{}` runs in a container, which peppy-launch does not start yet",
-            doc.identity()
-        )));
+        return Err(UsageError::Container {
+            node: doc.identity().to_string(),
+        }
+        .into());
     }
     let dir = file.parent().map(PathBuf::from).unwrap_or_default();
     if crate::python_sync::is_python(&check.resolved) {
@@ -109,7 +112,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
-        .map_err(|e| LaunchError::Setup(format!("cannot start the tokio runtime: {e}")))?;
+        .map_err(SetupError::Runtime)?;
     runtime.block_on(async move {
         let out = Arc::new(Output::new(&[config.instance_id.as_str()]));
         let build = !args.no_build;
@@ -138,8 +141,10 @@ pub(crate) fn run(args: &RunArgs) -> Result {
         };
         config.zenoh.listen = args.listen.clone();
         let run_dir = std::env::temp_dir().join(format!("peppy-run-{}", std::process::id()));
-        std::fs::create_dir_all(&run_dir)
-            .map_err(|e| LaunchError::Setup(format!("cannot create {}: {e}", run_dir.display())))?;
+        std::fs::create_dir_all(&run_dir).map_err(|source| SetupError::CreateDir {
+            path: run_dir.clone(),
+            source,
+        })?;
         out.note(&format!(
             "namespace {}; log in {}",
             config.namespace,
@@ -156,7 +161,9 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             instances: vec![(config.instance_id.clone(), doc.identity().to_string())],
             login: None,
         };
-        let _registration = runs::register(&record).map_err(|e| out.note(&e)).ok();
+        let _registration = runs::register(&record)
+            .map_err(|e| out.note(&e.to_string()))
+            .ok();
         let planned = Planned {
             node: doc.identity().to_string(),
             dir,
@@ -169,32 +176,67 @@ pub(crate) fn run(args: &RunArgs) -> Result {
     })
 }
 
+/// Why `NODE` (of `run`, `plan`, `sync`) names no node.
+#[derive(Debug, thiserror::Error)]
+pub enum LocateError {
+    /// `NODE` is no existing path, and no `name:tag` either.
+    #[error("`{node}` is neither a path nor a `name:tag`")]
+    NotANode {
+        /// `NODE` as given.
+        node: String,
+    },
+    /// The repositories list cannot be read.
+    #[error(transparent)]
+    Repositories(peppy_schema::Diagnostics),
+    /// The node's document is in a repository but invalid.
+    #[error("`{node}` is defined in {}, but that document is invalid", path.display())]
+    Invalid {
+        /// The node.
+        node: Identity,
+        /// Its document.
+        path: PathBuf,
+    },
+    /// No repository provides the node.
+    #[error("no repository provides node `{node}`; {searched}")]
+    NotFound {
+        /// The node.
+        node: Identity,
+        /// Where it was looked for.
+        searched: String,
+    },
+}
+
 /// `NODE` is a path to a node (directory or peppy.json5) or a `name:tag`
 /// found in the repositories.
-pub(crate) fn locate(node: &str, options: &RepoOptions) -> std::result::Result<PathBuf, String> {
+pub(crate) fn locate(
+    node: &str,
+    options: &RepoOptions,
+) -> std::result::Result<PathBuf, LocateError> {
     let as_path = PathBuf::from(node);
     if as_path.exists() {
         return Ok(node_file(&as_path));
     }
     let Some(id) = Identity::parse(node) else {
-        return Err(format!("`{node}` is neither a path nor a `name:tag`"));
+        return Err(LocateError::NotANode {
+            node: node.to_string(),
+        });
     };
     let cwd = std::env::current_dir().unwrap_or_default();
     let env = std::env::var_os(peppy_schema::REPOSITORIES_ENV);
     let repos = RepositoryList::discover(&options.explicit, env.as_deref(), &cwd)
-        .map_err(|d| d.to_string())?;
+        .map_err(LocateError::Repositories)?;
     let index = RepoIndex::scan(&repos.paths);
     if let Some(e) = index.node(&id) {
         return Ok(e.path.clone());
     }
     match index.broken(DocumentKind::Node, &id) {
-        Some(b) => Err(format!(
-            "`{id}` is defined in {}, but that document is invalid",
-            b.path.display()
-        )),
-        None => Err(format!(
-            "no repository provides node `{id}`; {}",
-            index.searched()
-        )),
+        Some(b) => Err(LocateError::Invalid {
+            path: b.path.clone(),
+            node: id,
+        }),
+        None => Err(LocateError::NotFound {
+            searched: index.searched(),
+            node: id,
+        }),
     }
 }

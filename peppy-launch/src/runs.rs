@@ -131,19 +131,46 @@ fn write_whole(path: &Path, text: &[u8], lock: bool) -> std::io::Result<std::fs:
     Ok(file)
 }
 
+/// Why a launch could not be registered (said in a note: the launch runs
+/// all the same).
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum RegistryError {
+    /// The record could not be written into the run directory.
+    #[error("cannot write {}: {source}", path.display())]
+    Record {
+        /// The record's file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The registry entry could not be written (or locked).
+    #[error("cannot register the launch in {}: {source}", dir.display())]
+    Register {
+        /// The registry directory.
+        dir: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
 /// Writes `record` into its run directory and the registry. A launch that
 /// cannot register still runs; only finding it later is harder, so the
 /// failure is returned for a note, not an error.
-pub(crate) fn register(record: &LaunchRecord) -> Result<Registration, String> {
+pub(crate) fn register(record: &LaunchRecord) -> Result<Registration, RegistryError> {
     let text = serde_json::to_vec_pretty(record).expect("a launch record serializes");
     let in_run = record.run_dir.join(RECORD_FILE);
-    write_whole(&in_run, &text, false)
-        .map_err(|e| format!("cannot write {}: {e}", in_run.display()))?;
+    write_whole(&in_run, &text, false).map_err(|source| RegistryError::Record {
+        path: in_run.clone(),
+        source,
+    })?;
     let dir = registry();
     let entry = dir.join(format!("{}-{}.json", record.pid, record.started_at_ms));
     let lock = std::fs::create_dir_all(&dir)
         .and_then(|()| write_whole(&entry, &text, true))
-        .map_err(|e| format!("cannot register the launch in {}: {e}", dir.display()))?;
+        .map_err(|source| RegistryError::Register {
+            dir: dir.clone(),
+            source,
+        })?;
     Ok(Registration { entry, _lock: lock })
 }
 
@@ -273,17 +300,60 @@ pub(crate) fn ps(args: &crate::cli::PsArgs) -> crate::error::Result {
     Ok(())
 }
 
+/// Why `logs` cannot tell which log to read.
+#[derive(Debug, thiserror::Error)]
+pub enum LogsError {
+    /// `--launcher` has never run here.
+    #[error(
+        "{} has no recorded run; start it with `peppy-launch up {}`",
+        launcher.display(),
+        launcher.display()
+    )]
+    NoRecordedRun {
+        /// The launcher file.
+        launcher: PathBuf,
+    },
+    /// No running launch has the instance.
+    #[error(
+        "no running launch has an instance `{instance}`; running instances: {} (for a stopped run, give --launcher)",
+        if running.is_empty() { "none".to_string() } else { running.join(", ") }
+    )]
+    NotRunning {
+        /// The instance asked for.
+        instance: String,
+        /// The instances of every running launch.
+        running: Vec<String>,
+    },
+    /// Several running launches have an instance of that id.
+    #[error("{launches} running launches have an instance `{instance}`; pick one with --launcher")]
+    Ambiguous {
+        /// The instance asked for.
+        instance: String,
+        /// How many launches have one.
+        launches: usize,
+    },
+    /// The launch given has no such instance.
+    #[error(
+        "{} has no instance `{instance}`; its instances: {}",
+        launcher.display(),
+        instances.join(", ")
+    )]
+    NoSuchInstance {
+        /// The launch's launcher.
+        launcher: PathBuf,
+        /// The instance asked for.
+        instance: String,
+        /// The launch's instances.
+        instances: Vec<String>,
+    },
+}
+
 /// The launch whose logs `logs` reads: the newest run of `--launcher`, or
 /// the running launch that has the instance.
-fn launch_with(args: &crate::cli::LogsArgs) -> crate::error::Result<LaunchRecord> {
-    use crate::error::LaunchError;
+fn launch_with(args: &crate::cli::LogsArgs) -> Result<LaunchRecord, LogsError> {
     if let Some(l) = &args.launcher {
-        return latest_run_of(l).ok_or_else(|| {
-            LaunchError::Usage(format!(
-                "{} has no recorded run; start it with `peppy-launch up {}`",
-                l.display(),
-                l.display()
-            ))
+        return latest_run_of(l).ok_or_else(|| LogsError::NoRecordedRun {
+            launcher: l.clone(),
         });
     }
     let launches = running();
@@ -294,44 +364,37 @@ fn launch_with(args: &crate::cli::LogsArgs) -> crate::error::Result<LaunchRecord
         .collect();
     match with.len() {
         1 => Ok(with.remove(0)),
-        0 => {
-            let known: Vec<&str> = launches
+        0 => Err(LogsError::NotRunning {
+            instance: args.instance.clone(),
+            running: launches
                 .iter()
-                .flat_map(|r| r.instances.iter().map(|(id, _)| id.as_str()))
-                .collect();
-            Err(LaunchError::Usage(format!(
-                "no running launch has an instance `{}`; running instances: {} (for a stopped run, give --launcher)",
-                args.instance,
-                if known.is_empty() {
-                    "none".to_string()
-                } else {
-                    known.join(", ")
-                }
-            )))
-        }
-        n => Err(LaunchError::Usage(format!(
-            "{n} running launches have an instance `{}`; pick one with --launcher",
-            args.instance
-        ))),
+                .flat_map(|r| r.instances.iter().map(|(id, _)| id.clone()))
+                .collect(),
+        }),
+        n => Err(LogsError::Ambiguous {
+            instance: args.instance.clone(),
+            launches: n,
+        }),
     }
 }
 
 /// `peppy-launch logs INSTANCE [-f]`.
 pub(crate) fn logs(args: &crate::cli::LogsArgs) -> crate::error::Result {
-    use crate::error::LaunchError;
+    use crate::error::InspectError;
     let record = launch_with(args)?;
     if !record.instances.iter().any(|(id, _)| id == &args.instance) {
-        let ids: Vec<&str> = record.instances.iter().map(|(id, _)| id.as_str()).collect();
-        return Err(LaunchError::Usage(format!(
-            "{} has no instance `{}`; its instances: {}",
-            record.launcher.display(),
-            args.instance,
-            ids.join(", ")
-        )));
+        return Err(LogsError::NoSuchInstance {
+            launcher: record.launcher.clone(),
+            instance: args.instance.clone(),
+            instances: record.instances.iter().map(|(id, _)| id.clone()).collect(),
+        }
+        .into());
     }
     let path = record.log_of(&args.instance);
-    let unreadable =
-        |e: std::io::Error| LaunchError::Inspect(format!("cannot read {}: {e}", path.display()));
+    let unreadable = |source| InspectError::ReadLog {
+        path: path.clone(),
+        source,
+    };
     let mut log = LogReader::default();
     let lines = log.read_new(&path).map_err(unreadable)?;
     let start = args.tail.map_or(0, |n| lines.len().saturating_sub(n));
@@ -354,11 +417,13 @@ pub(crate) fn logs(args: &crate::cli::LogsArgs) -> crate::error::Result {
     }
     out.print(&log.rest().into_iter().collect::<Vec<_>>());
     match (args.stream.count, args.stream.timeout) {
-        (Some(n), Some(t)) if out.printed < n => Err(LaunchError::Inspect(format!(
-            "{} of {n} lines within {} s",
-            out.printed,
-            t.as_secs_f64()
-        ))),
+        (Some(n), Some(t)) if out.printed < n => Err(InspectError::TooFew {
+            got: out.printed,
+            wanted: n,
+            what: "lines",
+            within: t,
+        }
+        .into()),
         _ => Ok(()),
     }
 }

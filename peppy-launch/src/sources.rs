@@ -22,7 +22,7 @@ use std::process::Command;
 use std::time::Duration;
 
 use peppy_schema::Source;
-use peppy_schema::{FetchSource, sha256_hex};
+use peppy_schema::{FetchError, FetchSource, sha256_hex};
 use sha2::{Digest, Sha256};
 
 /// Overrides where fetched sources are cached (tests, shared caches).
@@ -39,6 +39,205 @@ pub(crate) fn cache_dir() -> PathBuf {
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
         .unwrap_or_else(std::env::temp_dir)
         .join("peppy")
+}
+
+/// Why a remote source (git or archive) could not be had.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum SourceError {
+    /// A local source was handed to the fetcher.
+    #[error("not a remote source: {0:?}")]
+    NotRemote(Source),
+    /// The git source's `path` leaves the repository.
+    #[error("`path` `{path}` must be relative to the repository, without `..`")]
+    PathOutside {
+        /// The `path` given.
+        path: String,
+    },
+    /// The repository could not be cloned.
+    #[error("cannot clone {repo}: {source}")]
+    Clone {
+        /// The repository.
+        repo: String,
+        /// Git's complaint.
+        source: GitError,
+    },
+    /// A full commit id the repository does not have.
+    #[error("commit {commit} is not in {repo}")]
+    NoCommit {
+        /// The commit id.
+        commit: String,
+        /// The repository.
+        repo: String,
+    },
+    /// A `ref` that names no branch, tag or commit.
+    #[error(
+        "`{reference}` is not a branch, tag or commit of {repo} (it has: {})",
+        refs_text(refs)
+    )]
+    NoRef {
+        /// The `ref` given.
+        reference: String,
+        /// The repository.
+        repo: String,
+        /// The branches and tags the repository has.
+        refs: Vec<String>,
+    },
+    /// The commit's files could not be read from the mirror.
+    #[error("cannot read commit {commit} of {repo}: {source}")]
+    ReadCommit {
+        /// The commit id.
+        commit: String,
+        /// The repository.
+        repo: String,
+        /// Git's complaint.
+        source: GitError,
+    },
+    /// The commit's files could not be unpacked into the cache.
+    #[error("commit {commit} of {repo}: {source}")]
+    UnpackCommit {
+        /// The commit id.
+        commit: String,
+        /// The repository.
+        repo: String,
+        /// What went wrong unpacking.
+        source: UnpackError,
+    },
+    /// The commit has no `path`.
+    #[error("{repo} at {commit} has no `{}`", path.display())]
+    NoPath {
+        /// The repository.
+        repo: String,
+        /// The commit id.
+        commit: String,
+        /// The `path` asked for.
+        path: PathBuf,
+    },
+    /// The archive could not be fetched or does not match its sha256.
+    #[error(transparent)]
+    Archive(#[from] ArchiveError),
+    /// The downloaded archive could not be read back.
+    #[error("cannot read {}: {source}", path.display())]
+    ReadDownload {
+        /// The downloaded file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The archive could not be unpacked.
+    #[error("{url}: {source}")]
+    UnpackArchive {
+        /// The archive's URL.
+        url: String,
+        /// What went wrong unpacking.
+        source: UnpackError,
+    },
+    /// A directory of the cache could not be created.
+    #[error("cannot create {}: {source}", path.display())]
+    CreateDir {
+        /// The directory.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A filled cache entry could not be moved into place.
+    #[error("cannot write the cache entry {}", path.display())]
+    Publish {
+        /// The cache entry.
+        path: PathBuf,
+    },
+}
+
+/// A repository's branches and tags, for a message.
+fn refs_text(refs: &[String]) -> String {
+    if refs.is_empty() {
+        "no branches or tags".into()
+    } else {
+        refs.iter()
+            .map(|r| format!("`{r}`"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// A git command that failed.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum GitError {
+    /// Git could not be started.
+    #[error("cannot run git: {0}")]
+    Spawn(#[source] std::io::Error),
+    /// Git ran and failed.
+    #[error("{stderr}")]
+    Failed {
+        /// What git printed on stderr, trimmed.
+        stderr: String,
+    },
+}
+
+/// Why an archive (or a commit's tar) could not be unpacked.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum UnpackError {
+    /// Its first bytes could not be read.
+    #[error("cannot read the archive: {0}")]
+    Read(#[source] std::io::Error),
+    /// It is not a tar archive.
+    #[error("not a tar archive: {0}")]
+    NotTar(#[source] std::io::Error),
+    /// An entry could not be read.
+    #[error("a damaged archive entry: {0}")]
+    Damaged(#[source] std::io::Error),
+    /// An entry's path could not be read.
+    #[error("an entry with an unreadable path: {0}")]
+    UnreadablePath(#[source] std::io::Error),
+    /// An entry would land outside the directory it is unpacked into.
+    #[error(
+        "the entry `{}` would land outside the directory it is unpacked into; refusing the archive",
+        entry.display()
+    )]
+    Outside {
+        /// The entry's path.
+        entry: PathBuf,
+    },
+    /// An entry is a link or a special file.
+    #[error(
+        "the entry `{}` is a link or a special file; refusing the archive",
+        entry.display()
+    )]
+    Special {
+        /// The entry's path.
+        entry: PathBuf,
+    },
+    /// A directory could not be created.
+    #[error("cannot create {}: {source}", path.display())]
+    CreateDir {
+        /// The directory.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A file could not be created.
+    #[error("cannot write {}: {source}", path.display())]
+    Create {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// An entry's contents could not be copied out.
+    #[error("cannot unpack `{}`: {source}", entry.display())]
+    Copy {
+        /// The entry's path.
+        entry: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A file's mode could not be set.
+    #[error("cannot set the mode of {}: {source}", path.display())]
+    Mode {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
 }
 
 /// Fetches remote sources into [`cache_dir`].
@@ -60,7 +259,7 @@ impl Fetcher {
 
     /// `git fetch` of `repo`'s mirror, tried once per fetcher (a failure is
     /// reported to the first caller only).
-    fn refresh(&self, repo: &str, mirror: &Path) -> Result<(), String> {
+    fn refresh(&self, repo: &str, mirror: &Path) -> Result<(), GitError> {
         if !self.first_time(repo) {
             return Ok(());
         }
@@ -75,7 +274,14 @@ impl Fetcher {
 }
 
 impl FetchSource for Fetcher {
-    fn fetch(&self, source: &Source) -> Result<PathBuf, String> {
+    fn fetch(&self, source: &Source) -> Result<PathBuf, FetchError> {
+        Ok(self.fetch_source(source)?)
+    }
+}
+
+impl Fetcher {
+    /// The directory holding a remote source's node.
+    pub(crate) fn fetch_source(&self, source: &Source) -> Result<PathBuf, SourceError> {
         match source {
             Source::Git {
                 repo,
@@ -83,15 +289,13 @@ impl FetchSource for Fetcher {
                 reference,
             } => self.git(repo, path, reference),
             Source::Archive { url, sha256 } => self.archive(url, sha256),
-            other => Err(format!("not a remote source: {other:?}")),
+            other => Err(SourceError::NotRemote(other.clone())),
         }
     }
-}
 
-impl Fetcher {
-    fn git(&self, repo: &str, sub: &str, reference: &str) -> Result<PathBuf, String> {
-        let sub = relative(sub).ok_or_else(|| {
-            format!("`path` `{sub}` must be relative to the repository, without `..`")
+    fn git(&self, repo: &str, sub: &str, reference: &str) -> Result<PathBuf, SourceError> {
+        let sub = relative(sub).ok_or_else(|| SourceError::PathOutside {
+            path: sub.to_string(),
         })?;
         let mirror = self
             .cache
@@ -103,7 +307,10 @@ impl Fetcher {
                 None,
                 &["clone", "--quiet", "--mirror", repo, &path_arg(&tmp)],
             )
-            .map_err(|e| format!("cannot clone {repo}: {e}"))?;
+            .map_err(|source| SourceError::Clone {
+                repo: repo.to_string(),
+                source,
+            })?;
             publish(&tmp, &mirror)?;
             // Just cloned: as fresh as a fetch would make it.
             self.first_time(repo);
@@ -113,54 +320,74 @@ impl Fetcher {
                 // A commit the mirror has not seen yet: the remote may have it.
                 let _ = self.refresh(repo, &mirror);
             }
-            resolve(&mirror, reference)
-                .ok_or_else(|| format!("commit {reference} is not in {repo}"))?
+            resolve(&mirror, reference).ok_or_else(|| SourceError::NoCommit {
+                commit: reference.to_string(),
+                repo: repo.to_string(),
+            })?
         } else {
             // A branch or tag moves: ask the remote, else use the mirror.
             if let Err(e) = self.refresh(repo, &mirror) {
                 eprintln!(
                     "peppy-launch: cannot reach {repo} ({}); using its cached copy",
-                    e.trim()
+                    e.to_string().trim()
                 );
             }
-            let commit = resolve(&mirror, reference).ok_or_else(|| {
-                format!(
-                    "`{reference}` is not a branch, tag or commit of {repo} (it has: {})",
-                    refs_of(&mirror)
-                )
+            let commit = resolve(&mirror, reference).ok_or_else(|| SourceError::NoRef {
+                reference: reference.to_string(),
+                repo: repo.to_string(),
+                refs: refs_of(&mirror),
             })?;
             eprintln!("peppy-launch: {repo} `{reference}` is commit {commit}");
             commit
         };
         let tree = self.cache.join("git-trees").join(&commit);
         if !tree.is_dir() {
-            let tar = git_output(Some(&mirror), &["archive", "--format=tar", &commit])
-                .map_err(|e| format!("cannot read commit {commit} of {repo}: {e}"))?;
+            let tar = git_output(Some(&mirror), &["archive", "--format=tar", &commit]).map_err(
+                |source| SourceError::ReadCommit {
+                    commit: commit.clone(),
+                    repo: repo.to_string(),
+                    source,
+                },
+            )?;
             let tmp = fresh(&tree)?;
-            unpack(tar.as_slice(), &tmp).map_err(|e| format!("commit {commit} of {repo}: {e}"))?;
+            unpack(tar.as_slice(), &tmp).map_err(|source| SourceError::UnpackCommit {
+                commit: commit.clone(),
+                repo: repo.to_string(),
+                source,
+            })?;
             publish(&tmp, &tree)?;
         }
         let dir = tree.join(&sub);
         if !dir.exists() {
-            return Err(format!("{repo} at {commit} has no `{}`", sub.display()));
+            return Err(SourceError::NoPath {
+                repo: repo.to_string(),
+                commit,
+                path: sub,
+            });
         }
         Ok(dir)
     }
 
-    fn archive(&self, url: &str, sha256: &str) -> Result<PathBuf, String> {
+    fn archive(&self, url: &str, sha256: &str) -> Result<PathBuf, SourceError> {
         let expected = sha256.to_ascii_lowercase();
         let dir = self.cache.join("archives").join(&expected);
         if !dir.is_dir() {
             let download = Scratch::beside(&dir)?;
-            fetch_archive(url, &expected, &download.0).map_err(|e| e.to_string())?;
+            fetch_archive(url, &expected, &download.0)?;
             // Unpacked from this process's own copy, the one that was hashed:
             // the source cannot change between the check and the unpacking.
-            let file = std::fs::File::open(&download.0)
-                .map_err(|e| format!("cannot read {}: {e}", download.0.display()))?;
+            let file =
+                std::fs::File::open(&download.0).map_err(|source| SourceError::ReadDownload {
+                    path: download.0.clone(),
+                    source,
+                })?;
             let tmp = fresh(&dir)?;
-            if let Err(e) = unpack(BufReader::new(file), &tmp) {
+            if let Err(source) = unpack(BufReader::new(file), &tmp) {
                 let _ = std::fs::remove_dir_all(&tmp);
-                return Err(format!("{url}: {e}"));
+                return Err(SourceError::UnpackArchive {
+                    url: url.to_string(),
+                    source,
+                });
             }
             publish(&tmp, &dir)?;
         }
@@ -187,33 +414,56 @@ const MAX_REDIRECTS: u32 = 10;
 
 /// Why an archive source was not fetched.
 #[derive(Debug, thiserror::Error)]
-enum ArchiveError {
+pub(crate) enum ArchiveError {
+    /// The URL's scheme is not one peppy fetches.
     #[error("`{url}`: only file://, http:// and https:// URLs can be fetched")]
-    Scheme { url: String },
+    Scheme {
+        /// The URL.
+        url: String,
+    },
+    /// The download failed (connection, status, timeout).
     #[error("cannot download {url}: {source}")]
     Request {
+        /// The URL.
         url: String,
+        /// The HTTP client's error.
         #[source]
         source: Box<ureq::Error>,
     },
+    /// The archive could not be read.
     #[error("cannot read {url}: {source}")]
     Read {
+        /// The URL.
         url: String,
+        /// Why.
         #[source]
         source: std::io::Error,
     },
+    /// The copy in the cache could not be written.
     #[error("cannot write {}: {source}", path.display())]
     Write {
+        /// The file in the cache.
         path: PathBuf,
+        /// Why.
         #[source]
         source: std::io::Error,
     },
+    /// The archive is larger than an archive source may be.
     #[error("{url} is larger than {max} bytes, the most an archive source may have")]
-    TooLarge { url: String, max: u64 },
+    TooLarge {
+        /// The URL.
+        url: String,
+        /// The bound, in bytes.
+        max: u64,
+    },
+    /// The archive does not hash to the launcher's sha256.
     #[error("{url} has sha256 {got}, but the launcher expects {expected}; refusing to unpack it")]
     Mismatch {
+        /// The URL.
         url: String,
+        /// The launcher's sha256.
         expected: String,
+        /// The archive's.
         got: String,
     },
 }
@@ -362,11 +612,13 @@ struct Scratch(PathBuf);
 
 impl Scratch {
     /// A new path beside `final_dir`, unique to this process and call.
-    fn beside(final_dir: &Path) -> Result<Scratch, String> {
+    fn beside(final_dir: &Path) -> Result<Scratch, SourceError> {
         static NEXT: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
         let parent = final_dir.parent().unwrap_or(Path::new("."));
-        std::fs::create_dir_all(parent)
-            .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
+        std::fs::create_dir_all(parent).map_err(|source| SourceError::CreateDir {
+            path: parent.to_path_buf(),
+            source,
+        })?;
         let name = final_dir
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
@@ -404,10 +656,10 @@ fn node_root(dir: &Path) -> PathBuf {
 
 /// Unpacks a `.tar` or `.tar.gz` into `dst`, refusing anything that could
 /// land outside it or is not a plain file or directory.
-fn unpack(mut input: impl BufRead, dst: &Path) -> Result<(), String> {
+fn unpack(mut input: impl BufRead, dst: &Path) -> Result<(), UnpackError> {
     let gzip = input
         .fill_buf()
-        .map_err(|e| format!("cannot read the archive: {e}"))?
+        .map_err(UnpackError::Read)?
         .starts_with(&[0x1f, 0x8b]);
     let reader: Box<dyn Read + '_> = if gzip {
         Box::new(flate2::bufread::GzDecoder::new(input))
@@ -415,62 +667,66 @@ fn unpack(mut input: impl BufRead, dst: &Path) -> Result<(), String> {
         Box::new(input)
     };
     let mut archive = tar::Archive::new(reader);
-    let entries = archive
-        .entries()
-        .map_err(|e| format!("not a tar archive: {e}"))?;
+    let entries = archive.entries().map_err(UnpackError::NotTar)?;
     for entry in entries {
-        let mut entry = entry.map_err(|e| format!("a damaged archive entry: {e}"))?;
+        let mut entry = entry.map_err(UnpackError::Damaged)?;
         let raw = entry
             .path()
-            .map_err(|e| format!("an entry with an unreadable path: {e}"))?
+            .map_err(UnpackError::UnreadablePath)?
             .into_owned();
         let kind = entry.header().entry_type();
         if kind.is_pax_global_extensions() || kind.is_pax_local_extensions() {
             continue;
         }
-        let path = relative(&raw.to_string_lossy()).ok_or_else(|| {
-            format!(
-                "the entry `{}` would land outside the directory it is unpacked into; refusing the archive",
-                raw.display()
-            )
-        })?;
+        let path = relative(&raw.to_string_lossy())
+            .ok_or_else(|| UnpackError::Outside { entry: raw.clone() })?;
         if path.as_os_str().is_empty() {
             continue;
         }
         let target = dst.join(&path);
+        let create_dir = |dir: &Path| {
+            std::fs::create_dir_all(dir).map_err(|source| UnpackError::CreateDir {
+                path: dir.to_path_buf(),
+                source,
+            })
+        };
         if kind.is_dir() {
-            std::fs::create_dir_all(&target)
-                .map_err(|e| format!("cannot create {}: {e}", target.display()))?;
+            create_dir(&target)?;
         } else if kind.is_file() {
             if let Some(parent) = target.parent() {
-                std::fs::create_dir_all(parent)
-                    .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
+                create_dir(parent)?;
             }
             let mode = entry.header().mode().unwrap_or(0o644);
-            let mut file = std::fs::File::create(&target)
-                .map_err(|e| format!("cannot write {}: {e}", target.display()))?;
-            std::io::copy(&mut entry, &mut file)
-                .map_err(|e| format!("cannot unpack `{}`: {e}", path.display()))?;
+            let mut file =
+                std::fs::File::create(&target).map_err(|source| UnpackError::Create {
+                    path: target.clone(),
+                    source,
+                })?;
+            std::io::copy(&mut entry, &mut file).map_err(|source| UnpackError::Copy {
+                entry: path.clone(),
+                source,
+            })?;
             set_mode(&target, mode & 0o755)?;
         } else {
-            return Err(format!(
-                "the entry `{}` is a link or a special file; refusing the archive",
-                path.display()
-            ));
+            return Err(UnpackError::Special { entry: path });
         }
     }
     Ok(())
 }
 
 #[cfg(unix)]
-fn set_mode(path: &Path, mode: u32) -> Result<(), String> {
+fn set_mode(path: &Path, mode: u32) -> Result<(), UnpackError> {
     use std::os::unix::fs::PermissionsExt;
-    std::fs::set_permissions(path, std::fs::Permissions::from_mode(mode | 0o600))
-        .map_err(|e| format!("cannot set the mode of {}: {e}", path.display()))
+    std::fs::set_permissions(path, std::fs::Permissions::from_mode(mode | 0o600)).map_err(
+        |source| UnpackError::Mode {
+            path: path.to_path_buf(),
+            source,
+        },
+    )
 }
 
 #[cfg(not(unix))]
-fn set_mode(_path: &Path, _mode: u32) -> Result<(), String> {
+fn set_mode(_path: &Path, _mode: u32) -> Result<(), UnpackError> {
     Ok(())
 }
 
@@ -502,7 +758,7 @@ fn resolve(mirror: &Path, reference: &str) -> Option<String> {
 }
 
 /// Branches and tags of `mirror`, for an error message.
-fn refs_of(mirror: &Path) -> String {
+fn refs_of(mirror: &Path) -> Vec<String> {
     let out = git_output(
         Some(mirror),
         &[
@@ -513,23 +769,18 @@ fn refs_of(mirror: &Path) -> String {
         ],
     )
     .unwrap_or_default();
-    let names: Vec<String> = String::from_utf8_lossy(&out)
+    String::from_utf8_lossy(&out)
         .lines()
-        .map(|l| format!("`{l}`"))
-        .collect();
-    if names.is_empty() {
-        "no branches or tags".into()
-    } else {
-        names.join(", ")
-    }
+        .map(str::to_string)
+        .collect()
 }
 
-fn git(dir: Option<&Path>, args: &[&str]) -> Result<(), String> {
+fn git(dir: Option<&Path>, args: &[&str]) -> Result<(), GitError> {
     git_output(dir, args).map(drop)
 }
 
 /// Runs git (in `dir` as its git directory), returning its stdout.
-fn git_output(dir: Option<&Path>, args: &[&str]) -> Result<Vec<u8>, String> {
+fn git_output(dir: Option<&Path>, args: &[&str]) -> Result<Vec<u8>, GitError> {
     let mut cmd = Command::new("git");
     if let Some(dir) = dir {
         cmd.arg("--git-dir").arg(dir);
@@ -538,40 +789,46 @@ fn git_output(dir: Option<&Path>, args: &[&str]) -> Result<Vec<u8>, String> {
     cmd.args(args)
         .env("GIT_TERMINAL_PROMPT", "0")
         .stdin(std::process::Stdio::null());
-    let out = cmd.output().map_err(|e| format!("cannot run git: {e}"))?;
+    let out = cmd.output().map_err(GitError::Spawn)?;
     if out.status.success() {
         Ok(out.stdout)
     } else {
-        Err(String::from_utf8_lossy(&out.stderr).trim().to_string())
+        Err(GitError::Failed {
+            stderr: String::from_utf8_lossy(&out.stderr).trim().to_string(),
+        })
     }
 }
 
 /// A new empty directory beside `final_dir`, to fill and then publish.
-fn fresh(final_dir: &Path) -> Result<PathBuf, String> {
+fn fresh(final_dir: &Path) -> Result<PathBuf, SourceError> {
+    let create = |dir: &Path| {
+        std::fs::create_dir_all(dir).map_err(|source| SourceError::CreateDir {
+            path: dir.to_path_buf(),
+            source,
+        })
+    };
     let parent = final_dir.parent().unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent)
-        .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
+    create(parent)?;
     let name = final_dir
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let tmp = parent.join(format!(".{name}.{}.partial", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir_all(&tmp).map_err(|e| format!("cannot create {}: {e}", tmp.display()))?;
+    create(&tmp)?;
     Ok(tmp)
 }
 
 /// Moves a filled directory into place in one step, so an interrupted
 /// fetch never leaves a half-written cache entry (a concurrent launch that
 /// published first wins).
-fn publish(tmp: &Path, final_dir: &Path) -> Result<(), String> {
+fn publish(tmp: &Path, final_dir: &Path) -> Result<(), SourceError> {
     if std::fs::rename(tmp, final_dir).is_err() {
         let _ = std::fs::remove_dir_all(tmp);
         if !final_dir.exists() {
-            return Err(format!(
-                "cannot write the cache entry {}",
-                final_dir.display()
-            ));
+            return Err(SourceError::Publish {
+                path: final_dir.to_path_buf(),
+            });
         }
     }
     Ok(())
@@ -625,6 +882,68 @@ mod tests {
         );
         let err = fetch_archive("ftp://x/y.tar", &expected, &dir.path().join("ftp")).unwrap_err();
         assert!(matches!(err, ArchiveError::Scheme { .. }), "{err}");
+    }
+
+    /// A tar holding one entry of `kind` at `path`, written raw so that
+    /// paths tar's builder refuses (`..`) can be tried.
+    fn tar_with(path: &str, kind: tar::EntryType) -> Vec<u8> {
+        let mut header = tar::Header::new_old();
+        header.as_old_mut().name[..path.len()].copy_from_slice(path.as_bytes());
+        header.set_entry_type(kind);
+        header.set_size(0);
+        header.set_mode(0o644);
+        header.set_cksum();
+        let mut bytes = header.as_bytes().to_vec();
+        bytes.extend_from_slice(&[0; 1024]);
+        bytes
+    }
+
+    #[test]
+    fn unpacking_refuses_what_leaves_the_directory_or_is_no_plain_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = unpack(
+            &tar_with("../evil", tar::EntryType::Regular)[..],
+            dir.path(),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(&err, UnpackError::Outside { entry } if entry == Path::new("../evil")),
+            "{err}"
+        );
+        assert_eq!(
+            err.to_string(),
+            "the entry `../evil` would land outside the directory it is unpacked into; refusing the archive"
+        );
+        let err = unpack(&tar_with("link", tar::EntryType::Symlink)[..], dir.path()).unwrap_err();
+        assert!(matches!(err, UnpackError::Special { .. }), "{err}");
+        unpack(&tar_with("ok.txt", tar::EntryType::Regular)[..], dir.path()).unwrap();
+        assert!(dir.path().join("ok.txt").is_file());
+    }
+
+    #[test]
+    fn a_missing_ref_names_what_the_repository_has() {
+        let e = SourceError::NoRef {
+            reference: "v9".into(),
+            repo: "https://example.org/r.git".into(),
+            refs: vec!["main".into(), "v1".into()],
+        };
+        assert_eq!(
+            e.to_string(),
+            "`v9` is not a branch, tag or commit of https://example.org/r.git (it has: `main`, `v1`)"
+        );
+        let none = SourceError::NoRef {
+            reference: "main".into(),
+            repo: "r".into(),
+            refs: Vec::new(),
+        };
+        assert!(none.to_string().ends_with("(it has: no branches or tags)"));
+        let fetched = Fetcher::new().fetch(&Source::Local { path: "x".into() });
+        assert!(
+            fetched
+                .unwrap_err()
+                .to_string()
+                .starts_with("not a remote source: Local")
+        );
     }
 
     #[test]

@@ -10,7 +10,7 @@ use peppy_runtime::{Endpoints, StartupConfig};
 use peppy_schema::{Identity, RepoOptions, StackCheck, check_launcher_with};
 
 use crate::cli::UpArgs;
-use crate::error::LaunchError;
+use crate::error::{LaunchError, SetupError, UsageError};
 use crate::executable::{self, ExecutableError};
 use crate::output::Output;
 use crate::placement;
@@ -44,7 +44,7 @@ pub(crate) fn run(args: &UpArgs) -> Outcome {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
-        .map_err(|e| LaunchError::Setup(format!("cannot start the tokio runtime: {e}")))?;
+        .map_err(SetupError::Runtime)?;
     runtime.block_on(launch(stack, args))
 }
 
@@ -92,11 +92,9 @@ pub(crate) fn router(args: &crate::cli::RouterArgs) -> Outcome {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
-        .map_err(|e| LaunchError::Setup(format!("cannot start the tokio runtime: {e}")))?;
+        .map_err(SetupError::Runtime)?;
     runtime.block_on(async {
-        let router = open_router(&args.listen, &args.connect, true, None)
-            .await
-            .map_err(LaunchError::Setup)?;
+        let router = open_router(&args.listen, &args.connect, true, None).await?;
         let stop = interrupts_from_now();
         eprintln!(
             "peppy-launch: router {} on {}{}",
@@ -115,6 +113,46 @@ pub(crate) fn router(args: &crate::cli::RouterArgs) -> Outcome {
     })
 }
 
+/// Why a launch's Zenoh router did not open.
+#[derive(Debug, thiserror::Error)]
+pub enum RouterError {
+    /// Zenoh refused a setting of the router's configuration.
+    #[error("invalid zenoh setting `{key}`: {source}")]
+    Setting {
+        /// The configuration key.
+        key: String,
+        /// Zenoh's error.
+        source: zenoh::Error,
+    },
+    /// The router's own login (for the routers it links to) does not fit
+    /// the configuration.
+    #[error(transparent)]
+    Login(peppy_runtime::Error),
+    /// Zenoh did not open the router (an endpoint taken or unreachable, a
+    /// certificate unreadable).
+    #[error("cannot open the launch's zenoh router on {listen:?}: {source}")]
+    Open {
+        /// The endpoints it was to listen on.
+        listen: Vec<String>,
+        /// Zenoh's error.
+        source: zenoh::Error,
+    },
+}
+
+/// Sets `key` of a router's configuration to `value`.
+pub(crate) fn set_router_option(
+    config: &mut zenoh::Config,
+    key: &str,
+    value: serde_json::Value,
+) -> Result<(), RouterError> {
+    config
+        .insert_json5(key, &value.to_string())
+        .map_err(|source| RouterError::Setting {
+            key: key.to_string(),
+            source,
+        })
+}
+
 /// How soon a router of a stack placed over several machines declares a
 /// silent link lost (Zenoh's default is 10 s): a dropped link between
 /// machines is reported, and its traffic rerouted, within a few seconds.
@@ -125,20 +163,16 @@ pub(crate) async fn open_router(
     connect: &[String],
     linked: bool,
     guard: Option<&crate::security::RouterGuard>,
-) -> Result<zenoh::Session, String> {
+) -> Result<zenoh::Session, RouterError> {
     let mut config = zenoh::Config::default();
-    let set = |c: &mut zenoh::Config, k: &str, v: serde_json::Value| {
-        c.insert_json5(k, &v.to_string())
-            .map_err(|e| format!("invalid zenoh setting `{k}`: {e}"))
-    };
-    set(&mut config, "mode", "router".into())?;
-    set(&mut config, "listen/endpoints", listen.into())?;
+    set_router_option(&mut config, "mode", "router".into())?;
+    set_router_option(&mut config, "listen/endpoints", listen.into())?;
     if !connect.is_empty() {
-        set(&mut config, "connect/endpoints", connect.into())?;
+        set_router_option(&mut config, "connect/endpoints", connect.into())?;
     }
-    set(&mut config, "scouting/multicast/enabled", false.into())?;
+    set_router_option(&mut config, "scouting/multicast/enabled", false.into())?;
     if linked {
-        set(
+        set_router_option(
             &mut config,
             "transport/link/tx/lease",
             LINKED_LEASE_MS.into(),
@@ -149,7 +183,10 @@ pub(crate) async fn open_router(
     }
     zenoh::open(config)
         .await
-        .map_err(|e| format!("cannot open the launch's zenoh router on {listen:?}: {e}"))
+        .map_err(|source| RouterError::Open {
+            listen: listen.to_vec(),
+            source,
+        })
 }
 
 type Outcome = crate::error::Result;
@@ -184,7 +221,7 @@ fn stack_keys(
         &args.launcher,
     )
     .map(Some)
-    .map_err(LaunchError::Setup)
+    .map_err(LaunchError::from)
 }
 
 /// Generates this launch's credentials, writes the router's dictionary and
@@ -199,17 +236,20 @@ fn secure(
     out: Arc<Output>,
 ) -> Result<Secured, LaunchError> {
     use crate::security::{Secrets, denials, policy, write_private};
-    let setup = |what: &str, e: std::io::Error| LaunchError::Setup(format!("{what}: {e}"));
+    let cannot_write = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| SetupError::Write { path, source }
+    };
     if let Some(taken) = share
         .instances
         .iter()
         .map(|&i| stack.plan.instances[i].instance_id.as_str())
         .find(|id| Secrets::reserved(id))
     {
-        return Err(LaunchError::Setup(format!(
-            "instance id `{taken}` is a user name a secured launch keeps for itself (`{}`, `peppy-router-*`): rename the instance",
-            policy::OPERATOR
-        )));
+        return Err(SetupError::ReservedInstanceId {
+            instance: taken.to_string(),
+        }
+        .into());
     }
     let secrets = Secrets::generate(
         share
@@ -217,7 +257,7 @@ fn secure(
             .iter()
             .map(|&i| stack.plan.instances[i].instance_id.as_str()),
     )
-    .map_err(|e| setup("cannot generate credentials", e))?;
+    .map_err(SetupError::Credentials)?;
     let policy = policy::derive(stack, namespace, &|inst| {
         Some(
             stack
@@ -229,7 +269,7 @@ fn secure(
     let dictionary = run_dir.join("router.users");
     let routers = keys.map(|k| k.router_logins()).unwrap_or_default();
     write_private(&dictionary, secrets.dictionary(&routers).as_bytes())
-        .map_err(|e| setup(&format!("cannot write {}", dictionary.display()), e))?;
+        .map_err(cannot_write(&dictionary))?;
     let access_control = policy.access_control(keys.map_or(&[], |k| k.core_nodes()));
     let policy_file = run_dir.join("policy.json");
     std::fs::write(
@@ -240,7 +280,7 @@ fn secure(
         }))
         .unwrap_or_default(),
     )
-    .map_err(|e| setup(&format!("cannot write {}", policy_file.display()), e))?;
+    .map_err(cannot_write(&policy_file))?;
     denials::listen(Arc::new(move |d: &denials::Denial| out.note(&d.message())));
     Ok(Secured {
         secrets,
@@ -286,10 +326,10 @@ async fn prepare_all(
         }
         if crate::python_sync::is_python(&d.resolved) {
             // The generated package follows the documents before every start.
-            crate::python_sync::write_package(&d.resolved, &d.dir).map_err(|e| {
-                ExecutableError::Tool {
+            crate::python_sync::write_package(&d.resolved, &d.dir).map_err(|source| {
+                ExecutableError::Package {
                     node: identity.to_string(),
-                    why: format!("generating its peppygen package: {e}"),
+                    source,
                 }
             })?;
         }
@@ -348,8 +388,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         !stack.launcher.core_nodes.is_empty(),
         secured.as_ref().map(|s| &s.guard),
     )
-    .await
-    .map_err(LaunchError::Setup)?;
+    .await?;
     let _presence =
         announce_core_node(&router, &stack, args, &share, &links, &namespace, &out).await;
     let instances = Instances {
@@ -359,7 +398,9 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     };
     let planned = instances.plan(&stack, &share, &programs);
     let record = launch_record(args, &share, &namespace, &instances, &run_dir, &planned);
-    let _registration = runs::register(&record).map_err(|e| out.note(&e)).ok();
+    let _registration = runs::register(&record)
+        .map_err(|e| out.note(&e.to_string()))
+        .ok();
     let code = if planned.is_empty() {
         // A machine with only a router still links the others: it stays up.
         let stop = interrupts_from_now();
@@ -382,9 +423,7 @@ fn launch_namespace(args: &UpArgs) -> Result<String, LaunchError> {
         .unwrap_or_else(|| default_namespace(&args.launcher));
     match peppy_schema::names::check_name(&namespace) {
         Ok(()) => Ok(namespace),
-        Err(why) => Err(LaunchError::Usage(format!(
-            "invalid --namespace `{namespace}`: {why}"
-        ))),
+        Err(why) => Err(UsageError::Namespace { namespace, why }.into()),
     }
 }
 
@@ -405,11 +444,12 @@ fn create_run_dir(stack: &StackCheck) -> Result<std::path::PathBuf, LaunchError>
         ));
     std::fs::create_dir_all(&run_dir)
         .and_then(|()| std::fs::canonicalize(&run_dir))
-        .map_err(|e| {
-            LaunchError::Setup(format!(
-                "cannot create the run directory {}: {e}",
-                run_dir.display()
-            ))
+        .map_err(|source| {
+            SetupError::RunDir {
+                path: run_dir.clone(),
+                source,
+            }
+            .into()
         })
 }
 
@@ -451,10 +491,7 @@ fn choose_links(
     share: &placement::Share,
     args: &UpArgs,
 ) -> Result<Links, LaunchError> {
-    let free = || {
-        free_local_endpoint()
-            .map_err(|e| LaunchError::Setup(format!("cannot find a free local port: {e}")))
-    };
+    let free = || free_local_endpoint().map_err(SetupError::FreePort);
     let listen = if share.listen.is_empty() {
         vec![free()?]
     } else {
@@ -467,11 +504,11 @@ fn choose_links(
         None
     };
     if security.on && keys.is_none() && !share.connect.is_empty() {
-        return Err(LaunchError::Setup(format!(
-            "security is on ({}), and this launch would link to {} with no keys to link with: only the core nodes of one launcher (`up --core-node NAME`) link securely; make both sides core nodes of one launcher, or run both with --insecure",
-            security.reason,
-            share.connect.join(", ")
-        )));
+        return Err(SetupError::NoKeysToLink {
+            reason: security.reason,
+            connect: share.connect.clone(),
+        }
+        .into());
     }
     if keys.is_none() {
         let connect = share.connect.clone();
@@ -554,7 +591,7 @@ async fn announce_core_node(
     }
     let presence = presence::announce(router, namespace, &share.name, out.clone())
         .await
-        .map_err(|e| out.note(&e))
+        .map_err(|e| out.note(&e.to_string()))
         .ok();
     let ids: Vec<&str> = share
         .instances
@@ -595,7 +632,7 @@ impl Instances<'_> {
         stack: &StackCheck,
         share: &placement::Share,
         programs: &HashMap<Identity, Vec<String>>,
-    ) -> Vec<Result<Planned, String>> {
+    ) -> Vec<Result<Planned, StartError>> {
         share
             .instances
             .iter()
@@ -607,7 +644,9 @@ impl Instances<'_> {
                 let argv = programs
                     .get(&node)
                     .cloned()
-                    .ok_or_else(|| format!("no program for `{}`", inst.instance_id))?;
+                    .ok_or_else(|| StartError::NoProgram {
+                        instance: inst.instance_id.clone(),
+                    })?;
                 Ok(Planned {
                     config: self.config(inst, core_node),
                     node: node.to_string(),
@@ -652,7 +691,7 @@ fn launch_record(
     namespace: &str,
     instances: &Instances<'_>,
     run_dir: &Path,
-    planned: &[Result<Planned, String>],
+    planned: &[Result<Planned, StartError>],
 ) -> LaunchRecord {
     LaunchRecord {
         pid: std::process::id(),
@@ -681,11 +720,41 @@ pub(crate) struct Planned {
     pub(crate) restart: peppy_schema::RestartPolicy,
 }
 
+/// Why one instance could not be started (the launch then stops the
+/// instances already started).
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum StartError {
+    /// No program was prepared for the instance's node.
+    #[error("no program for `{instance}`")]
+    NoProgram {
+        /// The instance id.
+        instance: String,
+    },
+    /// The instance's runtime config could not be written.
+    #[error("cannot write {}: {source}", path.display())]
+    WriteConfig {
+        /// The runtime config file.
+        path: std::path::PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The instance's program did not start.
+    #[error("instance `{instance}` failed to start: {source} (log: {})", log.display())]
+    Spawn {
+        /// The instance id.
+        instance: String,
+        /// Its log.
+        log: std::path::PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
 /// Starts every instance in order (stopping those started if one cannot
 /// start), supervises them until they end or Ctrl-C: clean, or
 /// `InstanceFailed`.
 pub(crate) async fn run_instances(
-    planned: Vec<Result<Planned, String>>,
+    planned: Vec<Result<Planned, StartError>>,
     run_dir: &Path,
     grace: Duration,
     out: Arc<Output>,
@@ -699,7 +768,7 @@ pub(crate) async fn run_instances(
         match started {
             Ok(instance) => running.push(instance),
             Err(why) => {
-                out.note(&why);
+                out.note(&why.to_string());
                 out.note("stopping the instances already started");
                 signals.stop.cancel();
                 start_failure = Some(why);
@@ -750,7 +819,7 @@ fn start_instance(
     grace: Duration,
     signals: &StopSignals,
     out: &Arc<Output>,
-) -> Result<(String, tokio::task::JoinHandle<Ended>), String> {
+) -> Result<(String, tokio::task::JoinHandle<Ended>), StartError> {
     let id = p.config.instance_id.clone();
     let config_path = run_dir.join(format!("{id}.json"));
     // It may hold the instance's password: readable by this user only.
@@ -758,7 +827,10 @@ fn start_instance(
         &config_path,
         &serde_json::to_vec_pretty(&p.config).unwrap_or_default(),
     )
-    .map_err(|e| format!("cannot write {}: {e}", config_path.display()))?;
+    .map_err(|source| StartError::WriteConfig {
+        path: config_path.clone(),
+        source,
+    })?;
     let mut env = p.env;
     env.push((
         peppy_runtime::RUNTIME_CONFIG_ENV.to_string(),
@@ -772,11 +844,10 @@ fn start_instance(
         restart: p.restart,
         log: run_dir.join(format!("{id}.log")),
     };
-    let (child, pumps) = supervise::spawn(&spec, out).map_err(|e| {
-        format!(
-            "instance `{id}` failed to start: {e} (log: {})",
-            spec.log.display()
-        )
+    let (child, pumps) = supervise::spawn(&spec, out).map_err(|source| StartError::Spawn {
+        instance: id.clone(),
+        log: spec.log.clone(),
+        source,
     })?;
     out.note(&format!(
         "started `{id}` ({}) as pid {}",

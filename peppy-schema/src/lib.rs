@@ -129,6 +129,6 @@ pub use resolve::{
 pub use source::sha256_hex;
 #[cfg(feature = "documents")]
 pub use stack::{
-    DeployedNode, FetchSource, NoFetch, NodeCheck, RepoOptions, StackCheck, check_launcher,
-    check_launcher_with, check_node, node_file,
+    DeployedNode, FetchError, FetchSource, NoFetch, NodeCheck, RepoOptions, StackCheck,
+    check_launcher, check_launcher_with, check_node, node_file,
 };

@@ -99,17 +99,20 @@ pub struct StackCheck {
 /// implements this and passes it to [`check_launcher_with`].
 pub trait FetchSource {
     /// The directory holding the source's node (its `peppy.json5`), or why
-    /// it cannot be had. Called only for [`Source::Git`] and
-    /// [`Source::Archive`].
-    fn fetch(&self, source: &Source) -> Result<PathBuf, String>;
+    /// it cannot be had (its text becomes the deployment's diagnostic).
+    /// Called only for [`Source::Git`] and [`Source::Archive`].
+    fn fetch(&self, source: &Source) -> Result<PathBuf, FetchError>;
 }
+
+/// Why a remote source could not be fetched: the fetcher's own error.
+pub type FetchError = Box<dyn std::error::Error + Send + Sync>;
 
 /// The fetcher of [`check_launcher`]: remote sources are not supported.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct NoFetch;
 
 impl FetchSource for NoFetch {
-    fn fetch(&self, source: &Source) -> Result<PathBuf, String> {
+    fn fetch(&self, source: &Source) -> Result<PathBuf, FetchError> {
         let kind = if matches!(source, Source::Git { .. }) {
             "git (`repo`/`path`/`ref`)"
         } else {
@@ -117,7 +120,8 @@ impl FetchSource for NoFetch {
         };
         Err(format!(
             "{kind} sources are not supported here (`peppy-launch check` and `up` fetch them)"
-        ))
+        )
+        .into())
     }
 }
 
@@ -148,7 +152,7 @@ pub fn check_launcher_with(
                 Err(why) => {
                     diags.push(
                         d.source_loc
-                            .error(Code::UnsupportedSource, why)
+                            .error(Code::UnsupportedSource, why.to_string())
                             .with_help("a local checkout works offline: `{ local: \"path\" }`"),
                     );
                     None

@@ -9,38 +9,34 @@ use serde_json::json;
 use super::dynamic;
 use super::nodes::table;
 use super::topics::encode_arg;
-use super::{Observer, owner_label, print_json};
+use super::{Observer, SelectError, owner_label, print_json};
 use crate::cli::{CallArgs, Format, GoalArgs, ListArgs};
-use crate::error::{LaunchError, Result};
+use crate::error::{InspectError, LaunchError, Result};
 
 fn served<'a, T>(
     info: &'a InstanceInfo,
     items: &'a [T],
     name: &str,
-    what: &str,
+    kind: &'static str,
     name_of: impl Fn(&T) -> &str,
 ) -> Result<&'a T> {
     items.iter().find(|x| name_of(x) == name).ok_or_else(|| {
-        let have: Vec<&str> = items.iter().map(&name_of).collect();
-        LaunchError::Usage(format!(
-            "`{}` serves no {what} `{name}`; its {what}s: {}",
-            info.instance_id,
-            if have.is_empty() {
-                "none".to_string()
-            } else {
-                have.join(", ")
-            }
-        ))
+        SelectError::NotServed {
+            instance: info.instance_id.clone(),
+            kind,
+            name: name.to_string(),
+            served: items.iter().map(|x| name_of(x).to_string()).collect(),
+        }
+        .into()
     })
 }
 
 /// Decodes a body with a described format, for printing.
-fn decoded(canonical: &str, body: &[u8], what: &str) -> Result<dynamic::Dyn> {
-    let format = MessageFormat::from_canonical(canonical).map_err(|e| {
-        LaunchError::Inspect(format!("the instance described an unreadable format: {e}"))
-    })?;
+fn decoded(canonical: &str, body: &[u8], what: &'static str) -> Result<dynamic::Dyn> {
+    let format =
+        MessageFormat::from_canonical(canonical).map_err(InspectError::UnreadableFormat)?;
     dynamic::decode(&format, body)
-        .map_err(|e| LaunchError::Inspect(format!("the {what} does not decode: {e}")))
+        .map_err(|source| InspectError::Undecodable { what, source }.into())
 }
 
 fn show(format: Format, label: &str, value: &dynamic::Dyn) {
@@ -118,7 +114,7 @@ pub(crate) async fn call(args: CallArgs) -> Result {
         .caller()
         .call(service, &info.instance_id, request, args.timeout)
         .await
-        .map_err(|e| LaunchError::Inspect(e.to_string()))?;
+        .map_err(InspectError::Call)?;
     let response = decoded(&service.response.canonical, &body, "response")?;
     show(args.format, "response", &response);
     Ok(())
@@ -166,13 +162,13 @@ pub(crate) async fn send_goal(args: GoalArgs) -> Result {
     let mut client = caller
         .send_goal(action, &info.instance_id, goal, args.timeout)
         .await
-        .map_err(|e| LaunchError::Inspect(e.to_string()))?;
+        .map_err(InspectError::Call)?;
     if !client.accepted {
-        return Err(LaunchError::Inspect(format!(
-            "`{}` rejected the goal: {}",
-            info.instance_id,
-            client.error_message.as_deref().unwrap_or("no reason given")
-        )));
+        return Err(InspectError::Rejected {
+            instance: info.instance_id.clone(),
+            reason: client.error_message.clone(),
+        }
+        .into());
     }
     if args.format == Format::Human {
         println!("goal {} accepted by {}", client.goal_id(), info.instance_id);
@@ -221,32 +217,24 @@ pub(crate) async fn send_goal(args: GoalArgs) -> Result {
             if !cancelled {
                 cancel(&client, "no result within --timeout").await;
             }
-            return Err(LaunchError::Inspect(e.to_string()));
+            return Err(InspectError::Call(e).into());
         }
     };
     let (label, body) = match outcome {
         Outcome::Completed(Raw(b)) => ("result", b),
         Outcome::Cancelled(Raw(b)) => ("cancelled with result", b),
-        Outcome::Abandoned => {
-            return Err(LaunchError::Inspect(
-                "the server dropped the goal without a result".into(),
-            ));
-        }
-        Outcome::Expired => {
-            return Err(LaunchError::Inspect(
-                "the result expired before it was asked for".into(),
-            ));
-        }
+        Outcome::Abandoned => return Err(InspectError::Abandoned.into()),
+        Outcome::Expired => return Err(InspectError::Expired.into()),
     };
     let value = decoded(&action.result.canonical, &body, "result")?;
     show(args.format, label, &value);
     if label == "result" {
         Ok(())
     } else {
-        Err(LaunchError::Inspect(format!(
-            "goal {} was cancelled",
-            client.goal_id()
-        )))
+        Err(InspectError::Cancelled {
+            goal: client.goal_id().to_string(),
+        }
+        .into())
     }
 }
 

@@ -15,7 +15,7 @@ use super::Observer;
 use super::rates::hz;
 use super::stream::slot_keeps;
 use crate::drawing::{DrawEdge, DrawNode, Drawing, EdgeStyle, NodeState};
-use crate::error::{LaunchError, Result};
+use crate::error::{Result, SetupError};
 
 /// Messages seen per `(producer instance, topic)` while sampling.
 pub(crate) type Counts = HashMap<(String, String), u64>;
@@ -35,7 +35,7 @@ pub(crate) async fn sample(observer: &Observer, window: Duration) -> Result<Coun
             }
         })
         .await
-        .map_err(|e| LaunchError::Setup(format!("cannot sample the topics: {e}")))?;
+        .map_err(SetupError::Sample)?;
     tokio::time::sleep(window).await;
     drop(subscriber);
     let counts = counts.lock().map(|c| c.clone()).unwrap_or_default();

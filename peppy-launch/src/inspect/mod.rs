@@ -26,7 +26,7 @@ use tokio_util::sync::CancellationToken;
 use zenoh::query::{ConsolidationMode, QueryTarget};
 
 use crate::cli::{ActionCommand, NodeCommand, ServiceCommand, StackArgs, TopicCommand};
-use crate::error::{LaunchError, Result};
+use crate::error::{InspectError, LaunchError, Result, SetupError, UsageError};
 use crate::runs::{self, LaunchRecord};
 
 /// How long descriptions keep arriving after joining before a round that
@@ -100,7 +100,7 @@ fn runtime() -> Result<tokio::runtime::Runtime> {
         .worker_threads(2)
         .enable_all()
         .build()
-        .map_err(|e| LaunchError::Setup(format!("cannot start the tokio runtime: {e}")))
+        .map_err(|e| SetupError::Runtime(e).into())
 }
 
 /// Fires on the first Ctrl-C, so a command notices an interrupt at any
@@ -127,6 +127,188 @@ fn listen_for_interrupts() {
             std::process::exit(i32::from(crate::error::exit::INTERRUPTED));
         }
     });
+}
+
+/// What an inspection command names is not in the running stacks: a
+/// stack, an instance, an entry, a topic's producer or consumer.
+#[derive(Debug, thiserror::Error)]
+pub enum SelectError {
+    /// `--launcher` names a launcher with no launch running here.
+    #[error(
+        "no launch of {} is running on this machine; start it with `peppy-launch up {}`, or reach it elsewhere with --connect ENDPOINT",
+        launcher.display(),
+        launcher.display()
+    )]
+    NotRunning {
+        /// The launcher file.
+        launcher: std::path::PathBuf,
+    },
+    /// Several stacks run and none was chosen.
+    #[error(
+        "{} stacks are running; pick one with --launcher (or --namespace):\n{}",
+        stacks.len(),
+        stacks_text(stacks)
+    )]
+    SeveralStacks {
+        /// Each stack's (first) launcher and its namespace.
+        stacks: Vec<(std::path::PathBuf, String)>,
+    },
+    /// No running instance has that id.
+    #[error(
+        "no instance `{instance}` answers in {stack} (not running, or out of reach); answering: {}",
+        answering.join(", ")
+    )]
+    NoSuchInstance {
+        /// The instance asked for.
+        instance: String,
+        /// The stack, as the command found it.
+        stack: String,
+        /// The instances that answered.
+        answering: Vec<String>,
+    },
+    /// The instance serves no such service or action.
+    #[error(
+        "`{instance}` serves no {kind} `{name}`; its {kind}s: {}",
+        listed(served)
+    )]
+    NotServed {
+        /// The instance.
+        instance: String,
+        /// `service` or `action`.
+        kind: &'static str,
+        /// The name asked for.
+        name: String,
+        /// What it serves of that kind.
+        served: Vec<String>,
+    },
+    /// A `TOPIC` argument that is no topic.
+    #[error(
+        "`{arg}` is not a topic: give `NAME`, `OWNER/NAME` with OWNER as `name:tag`, or `node/OWNER/NAME` / `interface/OWNER/NAME`"
+    )]
+    NotATopic {
+        /// The argument.
+        arg: String,
+    },
+    /// No running instance emits or consumes the topic.
+    #[error(
+        "no running instance emits or consumes topic `{topic}`; topics: {}",
+        listed(topics)
+    )]
+    NoSuchTopic {
+        /// The topic asked for.
+        topic: String,
+        /// Every topic the running instances emit or consume.
+        topics: Vec<String>,
+    },
+    /// A node and an interface of one `name:tag` both emit the topic.
+    #[error(
+        "`{topic}` is emitted by a node and by an interface of that name; say which: `node/{topic}` or `interface/{topic}`"
+    )]
+    NodeOrInterface {
+        /// The topic asked for.
+        topic: String,
+    },
+    /// Nobody emits the topic, and nothing tells whose it is.
+    #[error(
+        "no running instance emits `{topic}`; say whose topic it is: `node/{topic}` or `interface/{topic}`"
+    )]
+    OwnerKindUnknown {
+        /// The topic asked for.
+        topic: String,
+    },
+    /// `--from` / `--as` names an instance that does not emit the topic.
+    #[error(
+        "`{instance}` does not emit `{topic}`; its producers: {}",
+        listed(producers)
+    )]
+    NotAProducer {
+        /// The instance given.
+        instance: String,
+        /// The topic.
+        topic: String,
+        /// The instances that emit it.
+        producers: Vec<String>,
+    },
+    /// `--slot` names a slot that does not receive the topic.
+    #[error(
+        "`{slot}` does not receive `{topic}`; slots that do: {}",
+        listed(slots)
+    )]
+    NotReceivedBy {
+        /// The slot given (`INSTANCE.SLOT`).
+        slot: String,
+        /// The topic name.
+        topic: String,
+        /// The slots that receive it.
+        slots: Vec<String>,
+    },
+    /// `--slot` and `--from` together, and the slot's binding keeps no
+    /// message of that producer.
+    #[error(
+        "`{slot}` never receives from `{from}`: its binding keeps {}",
+        stream::filter_text(keeps)
+    )]
+    FilteredOut {
+        /// The slot given (`INSTANCE.SLOT`).
+        slot: String,
+        /// The producer given.
+        from: String,
+        /// The slot's routing filter.
+        keeps: peppy_schema::RouteFilter,
+    },
+    /// `topic pub` without `--as`, and several instances emit the topic.
+    #[error(
+        "several instances emit `{topic}`: {}; publish as one of them with --as INSTANCE",
+        producers.join(", ")
+    )]
+    SeveralProducers {
+        /// The topic.
+        topic: String,
+        /// The instances that emit it.
+        producers: Vec<String>,
+    },
+    /// `topic pub` of a topic nobody emits or consumes as an external one.
+    #[error(
+        "no running instance emits `{topic}` or consumes it as an external topic; topics: {}",
+        listed(topics)
+    )]
+    NotPublishable {
+        /// The topic asked for.
+        topic: String,
+        /// Every topic the running instances emit or consume.
+        topics: Vec<String>,
+    },
+}
+
+/// One line per stack: its launcher and namespace.
+fn stacks_text(stacks: &[(std::path::PathBuf, String)]) -> String {
+    stacks
+        .iter()
+        .map(|(launcher, ns)| format!("  {}  (namespace {ns})", launcher.display()))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// `a, b, c`, or `none`.
+fn listed(items: &[String]) -> String {
+    if items.is_empty() {
+        "none".into()
+    } else {
+        items.join(", ")
+    }
+}
+
+/// Why a reply to a describe query is not a description of the instance
+/// it came from (the reply is ignored, with a note).
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum DescriptionError {
+    /// The reply is not an [`InstanceInfo`] in JSON.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    /// The description does not fit the key it was sent on
+    /// ([`InstanceInfo::check`]).
+    #[error("{0}")]
+    Mismatch(String),
 }
 
 /// Where a stack is: its namespace and how to reach it.
@@ -182,11 +364,10 @@ pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach>
     }
     match (stacks.as_slice(), &args.launcher) {
         ([one], _) | ([.., one], Some(_)) => Ok(reach_of(one)),
-        ([], Some(l)) => Err(LaunchError::Usage(format!(
-            "no launch of {} is running on this machine; start it with `peppy-launch up {}`, or reach it elsewhere with --connect ENDPOINT",
-            l.display(),
-            l.display()
-        ))),
+        ([], Some(l)) => Err(SelectError::NotRunning {
+            launcher: l.clone(),
+        }
+        .into()),
         ([], None) => {
             let namespace = args
                 .namespace
@@ -200,19 +381,13 @@ pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach>
                 login: None,
             })
         }
-        (several, None) => Err(LaunchError::Usage(format!(
-            "{} stacks are running; pick one with --launcher (or --namespace):\n{}",
-            several.len(),
-            several
+        (several, None) => Err(SelectError::SeveralStacks {
+            stacks: several
                 .iter()
-                .map(|s| format!(
-                    "  {}  (namespace {})",
-                    s[0].launcher.display(),
-                    s[0].namespace
-                ))
-                .collect::<Vec<_>>()
-                .join("\n")
-        ))),
+                .map(|s| (s[0].launcher.clone(), s[0].namespace.clone()))
+                .collect(),
+        }
+        .into()),
     }
 }
 
@@ -263,20 +438,15 @@ impl Observer {
             login: reach.login.clone(),
         }
         .zenoh_config()
-        .map_err(|e| LaunchError::Usage(e.to_string()))?;
-        let session = zenoh::open(config).await.map_err(|e| {
-            LaunchError::Inspect(format!(
-                "cannot reach {}{}: {e}",
-                reach.what,
-                if reach.connect == [LOCAL_HUB] {
-                    " (no launch is registered on this machine and nothing listens there)"
-                } else if reach.login.is_none() {
-                    " (a stack with security on admits only its launch's tools: run this on a machine of the stack, as the user who launched it)"
-                } else {
-                    ""
-                }
-            ))
-        })?;
+        .map_err(UsageError::Endpoints)?;
+        let session = zenoh::open(config)
+            .await
+            .map_err(|source| InspectError::Unreachable {
+                stack: reach.what.clone(),
+                local_hub: reach.connect == [LOCAL_HUB],
+                with_login: reach.login.is_some(),
+                source,
+            })?;
         Ok(Observer {
             session,
             reach,
@@ -337,7 +507,10 @@ impl Observer {
             .consolidation(ConsolidationMode::None)
             .timeout(budget)
             .await
-            .map_err(|e| LaunchError::Setup(format!("cannot query {}: {e}", self.reach.what)))?;
+            .map_err(|source| SetupError::Query {
+                stack: self.reach.what.clone(),
+                source,
+            })?;
         while let Ok(reply) = replies.recv_async().await {
             let Ok(sample) = reply.result() else { continue };
             match self.description(sample) {
@@ -373,10 +546,10 @@ impl Observer {
     fn description(
         &self,
         sample: &zenoh::sample::Sample,
-    ) -> std::result::Result<InstanceInfo, String> {
-        let info =
-            InstanceInfo::from_json(&sample.payload().to_bytes()).map_err(|e| e.to_string())?;
-        info.check(&self.reach.namespace, sample.key_expr().as_str())?;
+    ) -> std::result::Result<InstanceInfo, DescriptionError> {
+        let info = InstanceInfo::from_json(&sample.payload().to_bytes())?;
+        info.check(&self.reach.namespace, sample.key_expr().as_str())
+            .map_err(DescriptionError::Mismatch)?;
         Ok(info)
     }
 
@@ -384,10 +557,11 @@ impl Observer {
     pub(crate) async fn describe_some(&self) -> Result<BTreeMap<String, InstanceInfo>> {
         let all = self.describe_all().await?;
         if all.is_empty() {
-            return Err(LaunchError::Inspect(format!(
-                "no instance answered in {} within {:?}",
-                self.reach.what, self.wait
-            )));
+            return Err(InspectError::NoAnswer {
+                stack: self.reach.what.clone(),
+                wait: self.wait,
+            }
+            .into());
         }
         Ok(all)
     }
@@ -396,11 +570,12 @@ impl Observer {
     pub(crate) async fn describe_one(&self, instance: &str) -> Result<InstanceInfo> {
         let mut all = self.describe_some().await?;
         all.remove(instance).ok_or_else(|| {
-            LaunchError::Usage(format!(
-                "no instance `{instance}` answers in {} (not running, or out of reach); answering: {}",
-                self.reach.what,
-                all.keys().cloned().collect::<Vec<_>>().join(", ")
-            ))
+            SelectError::NoSuchInstance {
+                instance: instance.to_string(),
+                stack: self.reach.what.clone(),
+                answering: all.keys().cloned().collect(),
+            }
+            .into()
         })
     }
 

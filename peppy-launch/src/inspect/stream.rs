@@ -12,9 +12,9 @@ use peppy_runtime::wire::keys::{Channel, EntrySelector, Sender, entry_selector, 
 use peppy_schema::{Identity, MessageFormat, RouteFilter, SlotKind};
 use tokio::time::Instant;
 
-use super::Observer;
+use super::{Observer, SelectError};
 use crate::cli::{StreamArgs, TopicSelect};
-use crate::error::{LaunchError, Result};
+use crate::error::{InspectError, Result, SetupError};
 
 /// How many received samples wait for a slow reader (a terminal) before
 /// newer ones are dropped: the observer never holds a publisher back.
@@ -35,11 +35,9 @@ pub(crate) struct TopicArg {
 }
 
 impl TopicArg {
-    pub(crate) fn parse(arg: &str) -> Result<TopicArg> {
-        let bad = || {
-            LaunchError::Usage(format!(
-                "`{arg}` is not a topic: give `NAME`, `OWNER/NAME` with OWNER as `name:tag`, or `node/OWNER/NAME` / `interface/OWNER/NAME`"
-            ))
+    pub(crate) fn parse(arg: &str) -> std::result::Result<TopicArg, SelectError> {
+        let bad = || SelectError::NotATopic {
+            arg: arg.to_string(),
         };
         let parts: Vec<&str> = arg.split('/').collect();
         let (kind, owner, name) = match parts.as_slice() {
@@ -95,7 +93,7 @@ impl TopicArg {
 }
 
 /// Every topic name any running instance emits or consumes, for messages.
-pub(crate) fn topic_names(all: &BTreeMap<String, InstanceInfo>) -> String {
+pub(crate) fn topic_names(all: &BTreeMap<String, InstanceInfo>) -> Vec<String> {
     let names: BTreeSet<&str> = all
         .values()
         .flat_map(|i| {
@@ -105,11 +103,7 @@ pub(crate) fn topic_names(all: &BTreeMap<String, InstanceInfo>) -> String {
                 .chain(i.consumes.iter().map(|t| t.name.as_str()))
         })
         .collect();
-    if names.is_empty() {
-        "none".into()
-    } else {
-        names.into_iter().collect::<Vec<_>>().join(", ")
-    }
+    names.into_iter().map(str::to_string).collect()
 }
 
 /// Which samples a streaming command takes, and how to read them.
@@ -145,11 +139,11 @@ impl Selection {
             .filter(|(_, t)| topic.received_by(t))
             .collect();
         if emitters.is_empty() && consumed.is_empty() {
-            return Err(LaunchError::Usage(format!(
-                "no running instance emits or consumes topic `{}`; topics: {}",
-                args.topic,
-                topic_names(all)
-            )));
+            return Err(SelectError::NoSuchTopic {
+                topic: args.topic.clone(),
+                topics: topic_names(all),
+            }
+            .into());
         }
         let owners: BTreeSet<(&str, &str, &str)> = emitters
             .iter()
@@ -162,19 +156,23 @@ impl Selection {
             })
             .collect();
         if topic.owner.is_some() && owners.len() > 1 {
-            return Err(LaunchError::Usage(format!(
-                "`{}` is emitted by a node and by an interface of that name; say which: `node/{}` or `interface/{}`",
-                args.topic, args.topic, args.topic
-            )));
+            return Err(SelectError::NodeOrInterface {
+                topic: args.topic.clone(),
+            }
+            .into());
         }
         if let Some(from) = &args.from
             && !emitters.iter().any(|(i, _)| &i.instance_id == from)
         {
-            return Err(LaunchError::Usage(format!(
-                "`{from}` does not emit `{}`; its producers: {}",
-                args.topic,
-                list_or_none(emitters.iter().map(|(i, _)| i.instance_id.as_str()))
-            )));
+            return Err(SelectError::NotAProducer {
+                instance: from.clone(),
+                topic: args.topic.clone(),
+                producers: emitters
+                    .iter()
+                    .map(|(i, _)| i.instance_id.clone())
+                    .collect(),
+            }
+            .into());
         }
         let mut formats = HashMap::new();
         for (_, t) in &emitters {
@@ -214,10 +212,10 @@ impl Selection {
                             })
                         });
                         let Some(kind) = kind else {
-                            return Err(LaunchError::Usage(format!(
-                                "no running instance emits `{}`; say whose topic it is: `node/{}` or `interface/{}`",
-                                args.topic, args.topic, args.topic
-                            )));
+                            return Err(SelectError::OwnerKindUnknown {
+                                topic: args.topic.clone(),
+                            }
+                            .into());
                         };
                         Some(OwnerInfo {
                             kind,
@@ -256,25 +254,28 @@ impl Selection {
             .iter()
             .find(|(i, t)| i.instance_id == instance && t.slot.as_deref() == link);
         let Some((_, t)) = found else {
-            let here: Vec<String> = consumed
-                .iter()
-                .map(|(i, t)| match &t.slot {
-                    Some(l) => format!("{}.{l}", i.instance_id),
-                    None => i.instance_id.clone(),
-                })
-                .collect();
-            return Err(LaunchError::Usage(format!(
-                "`{slot}` does not receive `{name}`; slots that do: {}",
-                list_or_none(here.iter().map(String::as_str))
-            )));
+            return Err(SelectError::NotReceivedBy {
+                slot: slot.to_string(),
+                topic: name.to_string(),
+                slots: consumed
+                    .iter()
+                    .map(|(i, t)| match &t.slot {
+                        Some(l) => format!("{}.{l}", i.instance_id),
+                        None => i.instance_id.clone(),
+                    })
+                    .collect(),
+            }
+            .into());
         };
         if let Some(f) = from
             && !t.filter.accepts(f)
         {
-            return Err(LaunchError::Usage(format!(
-                "`{slot}` never receives from `{f}`: its binding keeps {}",
-                filter_text(&t.filter)
-            )));
+            return Err(SelectError::FilteredOut {
+                slot: slot.to_string(),
+                from: f.to_string(),
+                keeps: t.filter.clone(),
+            }
+            .into());
         }
         self.selector = match from {
             // Narrow the consumer's own selector to one producer.
@@ -361,22 +362,13 @@ pub(crate) fn slot_keeps(
 }
 
 /// A slot filter, for people.
-fn filter_text(filter: &RouteFilter) -> String {
+pub(crate) fn filter_text(filter: &RouteFilter) -> String {
     let join = |set: &BTreeSet<String>| set.iter().cloned().collect::<Vec<_>>().join(", ");
     match filter {
         RouteFilter::Pin(p) => format!("only `{p}`"),
         RouteFilter::OnlyFrom(set) => format!("only {}", join(set)),
         RouteFilter::AnyExcept(set) => format!("any producer except {}", join(set)),
         RouteFilter::Any => "any producer".into(),
-    }
-}
-
-fn list_or_none<'a>(items: impl Iterator<Item = &'a str>) -> String {
-    let v: Vec<&str> = items.collect();
-    if v.is_empty() {
-        "none".into()
-    } else {
-        v.join(", ")
     }
 }
 
@@ -452,7 +444,10 @@ impl Tap {
                 }
             })
             .await
-            .map_err(|e| LaunchError::Setup(format!("cannot subscribe to {selector}: {e}")))?;
+            .map_err(|source| SetupError::Subscribe {
+                selector: selector.to_string(),
+                source,
+            })?;
         Ok(Tap {
             _subscriber: subscriber,
             rx,
@@ -508,15 +503,18 @@ impl Limits {
 
     /// The outcome once the stream ended with `done` items of `what`:
     /// short of `--count` at the deadline is a failure.
-    pub(crate) fn outcome(&self, done: u64, what: &str) -> Result {
+    pub(crate) fn outcome(&self, done: u64, what: &'static str) -> Result {
         match (self.count, self.timeout) {
             (Some(n), Some(t))
                 if done < n && self.deadline.is_some_and(|d| Instant::now() >= d) =>
             {
-                Err(LaunchError::Inspect(format!(
-                    "{done} of {n} {what} within {} s",
-                    t.as_secs_f64()
-                )))
+                Err(InspectError::TooFew {
+                    got: done,
+                    wanted: n,
+                    what,
+                    within: t,
+                }
+                .into())
             }
             _ => Ok(()),
         }

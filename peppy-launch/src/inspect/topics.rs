@@ -12,9 +12,9 @@ use serde_json::json;
 use super::dynamic;
 use super::nodes::table;
 use super::stream::{Limits, Selection, Tap, TopicArg, sender_owner, topic_names};
-use super::{Observer, owner_label, print_json};
+use super::{Observer, SelectError, owner_label, print_json};
 use crate::cli::{EchoArgs, Format, ListArgs, PubArgs};
-use crate::error::{LaunchError, Result};
+use crate::error::{InspectError, LaunchError, Result, SetupError, UsageError};
 use crate::report;
 use crate::runs::now_ms;
 
@@ -242,20 +242,19 @@ fn pub_target(args: &PubArgs, ns: &str, all: &BTreeMap<String, InstanceInfo>) ->
     let producers = || {
         emitters
             .iter()
-            .map(|(i, _)| i.instance_id.as_str())
+            .map(|(i, _)| i.instance_id.clone())
             .collect::<Vec<_>>()
-            .join(", ")
     };
     let chosen = match (&args.as_instance, emitters.as_slice()) {
         (Some(id), _) => emitters.iter().find(|(i, _)| &i.instance_id == id),
         (None, [one]) => Some(one),
         (None, []) => None,
         (None, _) => {
-            return Err(LaunchError::Usage(format!(
-                "several instances emit `{}`: {}; publish as one of them with --as INSTANCE",
-                args.topic,
-                producers()
-            )));
+            return Err(SelectError::SeveralProducers {
+                topic: args.topic.clone(),
+                producers: producers(),
+            }
+            .into());
         }
     };
     if let Some((_, t)) = chosen {
@@ -269,11 +268,12 @@ fn pub_target(args: &PubArgs, ns: &str, all: &BTreeMap<String, InstanceInfo>) ->
     if let Some(id) = &args.as_instance
         && !emitters.is_empty()
     {
-        return Err(LaunchError::Usage(format!(
-            "`{id}` does not emit `{}`; its producers: {}",
-            args.topic,
-            producers()
-        )));
+        return Err(SelectError::NotAProducer {
+            instance: id.clone(),
+            topic: args.topic.clone(),
+            producers: producers(),
+        }
+        .into());
     }
     // Nobody emits it: an external topic reaches its consumers from any
     // owner, so the command publishes under its own name.
@@ -298,27 +298,28 @@ fn pub_target(args: &PubArgs, ns: &str, all: &BTreeMap<String, InstanceInfo>) ->
             format: t.format.canonical.clone(),
             fingerprint: t.format.fingerprint,
         }),
-        None => Err(LaunchError::Usage(format!(
-            "no running instance emits `{}` or consumes it as an external topic; topics: {}",
-            args.topic,
-            topic_names(all)
-        ))),
+        None => Err(SelectError::NotPublishable {
+            topic: args.topic.clone(),
+            topics: topic_names(all),
+        }
+        .into()),
     }
 }
 
 /// Encodes the user's JSON5 against `canonical`; a wrong field is shown in
 /// the text. `None` text means an empty message.
 pub(crate) fn encode_arg(canonical: &str, origin: &str, text: Option<&str>) -> Result<Vec<u8>> {
-    let format = MessageFormat::from_canonical(canonical).map_err(|e| {
-        LaunchError::Inspect(format!("the instance described an unreadable format: {e}"))
-    })?;
+    let format =
+        MessageFormat::from_canonical(canonical).map_err(InspectError::UnreadableFormat)?;
     let text = match text {
         Some(t) => t,
         None if format.fields.is_empty() => "{}",
         None => {
-            return Err(LaunchError::Usage(format!(
-                "give the {origin} as JSON5; its format is {canonical}"
-            )));
+            return Err(UsageError::NoValue {
+                origin: origin.to_string(),
+                format: canonical.to_string(),
+            }
+            .into());
         }
     };
     dynamic::encode_text(&format, origin, text).map_err(|diags| {
@@ -333,9 +334,7 @@ pub(crate) async fn publish(args: PubArgs) -> Result {
     if let Some(rate) = args.rate
         && !(rate.is_finite() && rate > 0.0 && rate <= 100_000.0)
     {
-        return Err(LaunchError::Usage(format!(
-            "--rate {rate} is out of range: give messages per second above 0, at most 100000"
-        )));
+        return Err(UsageError::Rate { rate }.into());
     }
     let observer = Observer::open(&args.stack).await?;
     let all = observer.describe_some().await?;
@@ -344,7 +343,7 @@ pub(crate) async fn publish(args: PubArgs) -> Result {
     let publisher =
         peppy_runtime::tool::publisher(&observer.session, target.key.clone(), target.qos)
             .await
-            .map_err(|e| LaunchError::Setup(e.to_string()))?;
+            .map_err(SetupError::Publisher)?;
     wait_for_subscribers(&publisher, Duration::from_secs(2)).await;
     let limits = Limits::new(&args.stream);
     let count = match (args.rate, limits.count) {
@@ -365,7 +364,7 @@ pub(crate) async fn publish(args: PubArgs) -> Result {
             .put(payload.clone())
             .attachment(attachment::topic(target.fingerprint))
             .await
-            .map_err(|e| LaunchError::Inspect(format!("cannot publish: {e}")))?;
+            .map_err(InspectError::Publish)?;
         sent += 1;
     }
     eprintln!("published {sent} message(s) on {}", target.key);

@@ -24,6 +24,51 @@ use sha2::{Digest, Sha256};
 
 use super::write_private;
 
+/// Why the stack's keys could not be made or used.
+#[derive(Debug, thiserror::Error)]
+pub enum KeysError {
+    /// A file or directory of the keys could not be written.
+    #[error("cannot create the stack's keys: {source}")]
+    Write {
+        /// The file or directory.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A key or certificate could not be generated or signed.
+    #[error("cannot create the stack's keys: {0}")]
+    Certificate(#[source] rcgen::Error),
+    /// No random bytes for the link secret.
+    #[error("cannot create the stack's keys: {0}")]
+    Random(#[source] std::io::Error),
+    /// Security is on and this core node's keys are not in the keys'
+    /// directory.
+    #[error(
+        "security is on, and core node {core} has no keys ({} is missing): create them once with `peppy-launch keys {}` on one machine and copy {} to every machine of the stack (or run with --insecure)",
+        missing.display(),
+        launcher.display(),
+        dir.display()
+    )]
+    Missing {
+        /// The core node.
+        core: String,
+        /// The first file missing.
+        missing: PathBuf,
+        /// The launcher, for the command that creates the keys.
+        launcher: PathBuf,
+        /// The keys' directory.
+        dir: PathBuf,
+    },
+    /// The link secret cannot be read.
+    #[error("cannot read {}: {source}", path.display())]
+    ReadSecret {
+        /// The secret's file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
 /// The stack authority's certificate.
 const CA: &str = "ca.pem";
 /// The secret the routers' passwords derive from.
@@ -72,10 +117,10 @@ pub(crate) fn run(args: &crate::cli::KeysArgs) -> crate::error::Result {
         }
     };
     if launcher.core_nodes.is_empty() {
-        return Err(LaunchError::Usage(format!(
-            "{} runs on one machine (no `core_nodes`): its router links to no other, so it needs no keys",
-            args.launcher.display()
-        )));
+        return Err(crate::error::UsageError::NoCoreNodes {
+            launcher: args.launcher.clone(),
+        }
+        .into());
     }
     let dir = dir_for(&launcher);
     let names: Vec<&str> = launcher
@@ -90,7 +135,7 @@ pub(crate) fn run(args: &crate::cli::KeysArgs) -> crate::error::Result {
             dir.display()
         );
     } else {
-        create(&dir, &names).map_err(LaunchError::Setup)?;
+        create(&dir, &names)?;
         eprintln!(
             "peppy-launch: {} keys for core nodes {} in {}",
             if args.rotate { "new" } else { "created" },
@@ -107,26 +152,29 @@ pub(crate) fn run(args: &crate::cli::KeysArgs) -> crate::error::Result {
 }
 
 /// Creates (or replaces) the keys of a stack of `core_nodes` in `dir`.
-pub(crate) fn create(dir: &Path, core_nodes: &[&str]) -> Result<(), String> {
-    let fail = |e: &dyn std::fmt::Display| format!("cannot create the stack's keys: {e}");
-    std::fs::create_dir_all(dir).map_err(|e| fail(&e))?;
+pub(crate) fn create(dir: &Path, core_nodes: &[&str]) -> Result<(), KeysError> {
+    let at = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| KeysError::Write { path, source }
+    };
+    let cert = KeysError::Certificate;
+    std::fs::create_dir_all(dir).map_err(at(dir))?;
     {
         use std::os::unix::fs::PermissionsExt as _;
-        std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700))
-            .map_err(|e| fail(&e))?;
+        std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700)).map_err(at(dir))?;
     }
-    let ca_key = KeyPair::generate().map_err(|e| fail(&e))?;
-    let mut ca = CertificateParams::new(Vec::<String>::new()).map_err(|e| fail(&e))?;
+    let ca_key = KeyPair::generate().map_err(cert)?;
+    let mut ca = CertificateParams::new(Vec::<String>::new()).map_err(cert)?;
     ca.is_ca = IsCa::Ca(BasicConstraints::Constrained(0));
     ca.key_usages = vec![KeyUsagePurpose::KeyCertSign, KeyUsagePurpose::CrlSign];
     ca.distinguished_name
         .push(DnType::CommonName, "peppy stack authority");
-    let ca_cert = ca.self_signed(&ca_key).map_err(|e| fail(&e))?;
+    let ca_cert = ca.self_signed(&ca_key).map_err(cert)?;
     let issuer = Issuer::from_params(&ca, &ca_key);
-    std::fs::create_dir_all(dir.join(CORES)).map_err(|e| fail(&e))?;
+    std::fs::create_dir_all(dir.join(CORES)).map_err(at(&dir.join(CORES)))?;
     for core in core_nodes {
-        let key = KeyPair::generate().map_err(|e| fail(&e))?;
-        let mut params = CertificateParams::new(Vec::<String>::new()).map_err(|e| fail(&e))?;
+        let key = KeyPair::generate().map_err(cert)?;
+        let mut params = CertificateParams::new(Vec::<String>::new()).map_err(cert)?;
         // The common name is what the routers' access control knows a core
         // node by.
         params.distinguished_name.push(DnType::CommonName, *core);
@@ -135,18 +183,19 @@ pub(crate) fn create(dir: &Path, core_nodes: &[&str]) -> Result<(), String> {
             ExtendedKeyUsagePurpose::ServerAuth,
             ExtendedKeyUsagePurpose::ClientAuth,
         ];
-        let cert = params.signed_by(&key, &issuer).map_err(|e| fail(&e))?;
-        std::fs::write(core_file(dir, core, "pem"), cert.pem()).map_err(|e| fail(&e))?;
-        write_private(&core_file(dir, core, "key"), key.serialize_pem().as_bytes())
-            .map_err(|e| fail(&e))?;
+        let signed = params.signed_by(&key, &issuer).map_err(cert)?;
+        let (pem, private) = (core_file(dir, core, "pem"), core_file(dir, core, "key"));
+        std::fs::write(&pem, signed.pem()).map_err(at(&pem))?;
+        write_private(&private, key.serialize_pem().as_bytes()).map_err(at(&private))?;
     }
+    let secret = dir.join(SECRET);
     write_private(
-        &dir.join(SECRET),
-        super::password().map_err(|e| fail(&e))?.as_bytes(),
+        &secret,
+        super::password().map_err(KeysError::Random)?.as_bytes(),
     )
-    .map_err(|e| fail(&e))?;
+    .map_err(at(&secret))?;
     // Last: a directory with the authority's certificate is complete.
-    std::fs::write(dir.join(CA), ca_cert.pem()).map_err(|e| fail(&e))
+    std::fs::write(dir.join(CA), ca_cert.pem()).map_err(at(&dir.join(CA)))
 }
 
 /// One core node's view of the stack's keys. No `Debug`: it holds the
@@ -167,7 +216,7 @@ impl StackKeys {
         me: &str,
         core_nodes: &[&str],
         launcher: &Path,
-    ) -> Result<StackKeys, String> {
+    ) -> Result<StackKeys, KeysError> {
         let missing = [
             CA.to_string(),
             SECRET.to_string(),
@@ -177,15 +226,18 @@ impl StackKeys {
         .into_iter()
         .find(|f| !dir.join(f).is_file());
         if let Some(file) = missing {
-            return Err(format!(
-                "security is on, and core node {me} has no keys ({} is missing): create them once with `peppy-launch keys {}` on one machine and copy {} to every machine of the stack (or run with --insecure)",
-                dir.join(file).display(),
-                launcher.display(),
-                dir.display()
-            ));
+            return Err(KeysError::Missing {
+                core: me.to_string(),
+                missing: dir.join(file),
+                launcher: launcher.to_path_buf(),
+                dir: dir.to_path_buf(),
+            });
         }
-        let secret = std::fs::read_to_string(dir.join(SECRET))
-            .map_err(|e| format!("cannot read {}: {e}", dir.join(SECRET).display()))?;
+        let secret =
+            std::fs::read_to_string(dir.join(SECRET)).map_err(|source| KeysError::ReadSecret {
+                path: dir.join(SECRET),
+                source,
+            })?;
         Ok(StackKeys {
             dir: dir.to_path_buf(),
             me: me.to_string(),
@@ -298,8 +350,14 @@ mod tests {
         let Err(missing) = StackKeys::load(&keys, "lab", &["lab"], Path::new("l.json5")) else {
             panic!("keys for a core node that has none");
         };
-        assert!(missing.contains("cores/lab.pem is missing"), "{missing}");
-        assert!(missing.contains("peppy-launch keys l.json5"), "{missing}");
+        assert!(
+            matches!(&missing, KeysError::Missing { core, missing, .. }
+                if core == "lab" && missing.ends_with("cores/lab.pem")),
+            "{missing}"
+        );
+        let text = missing.to_string();
+        assert!(text.contains("cores/lab.pem is missing"), "{text}");
+        assert!(text.contains("peppy-launch keys l.json5"), "{text}");
         assert_eq!(over_tls("tcp/0.0.0.0:7447"), "tls/0.0.0.0:7447");
         assert_eq!(over_tls("tls/[::1]:7447"), "tls/[::1]:7447");
     }

@@ -13,6 +13,8 @@ use std::path::Path;
 use peppy_runtime::Login;
 use peppy_schema::LauncherDoc;
 
+use crate::up::{RouterError, set_router_option};
+
 /// Whether a launch runs secured, and why, for the line `up` prints.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) struct Decision {
@@ -180,23 +182,19 @@ pub(crate) struct RouterGuard {
 
 impl RouterGuard {
     /// Adds authentication and access control to a router's configuration.
-    pub(crate) fn apply(&self, config: &mut zenoh::Config) -> Result<(), String> {
-        let set = |c: &mut zenoh::Config, k: &str, v: serde_json::Value| {
-            c.insert_json5(k, &v.to_string())
-                .map_err(|e| format!("invalid zenoh setting `{k}`: {e}"))
-        };
-        set(
+    pub(crate) fn apply(&self, config: &mut zenoh::Config) -> Result<(), RouterError> {
+        set_router_option(
             config,
             "transport/auth/usrpwd/dictionary_file",
             self.dictionary.display().to_string().into(),
         )?;
         if let Some(login) = &self.login {
-            login.apply(config).map_err(|e| e.to_string())?;
+            login.apply(config).map_err(RouterError::Login)?;
         }
         for (key, value) in &self.tls {
-            set(config, key, value.clone())?;
+            set_router_option(config, key, value.clone())?;
         }
-        set(config, "access_control", self.access_control.clone())
+        set_router_option(config, "access_control", self.access_control.clone())
     }
 }
 
