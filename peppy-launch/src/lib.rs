@@ -58,6 +58,19 @@ pub fn run(cli: Cli) -> Result {
     }
 }
 
+/// The tokio runtime a command runs its async part on. `workers`: its
+/// thread count (`None`: one per core, for a launch that supervises many
+/// instances; the inspection commands ask for two).
+pub(crate) fn tokio_runtime(
+    workers: Option<usize>,
+) -> std::result::Result<tokio::runtime::Runtime, SetupError> {
+    let mut builder = tokio::runtime::Builder::new_multi_thread();
+    if let Some(n) = workers {
+        builder.worker_threads(n);
+    }
+    builder.enable_all().build().map_err(SetupError::Runtime)
+}
+
 /// `peppy-launch LAUNCHER ...` means `peppy-launch up LAUNCHER ...`.
 pub fn with_default_command(mut args: Vec<std::ffi::OsString>) -> Vec<std::ffi::OsString> {
     // The subcommands clap knows, so a new one is never mistaken for a launcher.

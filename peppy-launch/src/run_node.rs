@@ -109,10 +109,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
         // The generated package follows the documents before every start.
         crate::python_sync::write_package(&check.resolved, &dir)?;
     }
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .map_err(SetupError::Runtime)?;
+    let runtime = crate::tokio_runtime(None)?;
     runtime.block_on(async move {
         let out = Arc::new(Output::new(&[config.instance_id.as_str()]));
         let build = !args.no_build;

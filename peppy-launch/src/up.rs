@@ -41,10 +41,7 @@ pub(crate) fn run(args: &UpArgs) -> Outcome {
     if !stack.warnings.is_empty() {
         report::print_human(&stack.warnings);
     }
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .map_err(SetupError::Runtime)?;
+    let runtime = crate::tokio_runtime(None)?;
     runtime.block_on(launch(stack, args))
 }
 
@@ -89,10 +86,7 @@ fn free_local_endpoint() -> std::io::Result<String> {
 
 /// `peppy-launch router`: a bare router until Ctrl-C or SIGTERM.
 pub(crate) fn router(args: &crate::cli::RouterArgs) -> Outcome {
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .map_err(SetupError::Runtime)?;
+    let runtime = crate::tokio_runtime(None)?;
     runtime.block_on(async {
         let router = open_router(&args.listen, &args.connect, true, None).await?;
         let stop = interrupts_from_now();
@@ -124,6 +118,9 @@ pub enum RouterError {
         /// Zenoh's error.
         source: zenoh::Error,
     },
+    /// The router's endpoints do not fit a Zenoh configuration.
+    #[error(transparent)]
+    Config(peppy_runtime::Error),
     /// The router's own login (for the routers it links to) does not fit
     /// the configuration.
     #[error(transparent)]
@@ -164,13 +161,19 @@ pub(crate) async fn open_router(
     linked: bool,
     guard: Option<&crate::security::RouterGuard>,
 ) -> Result<zenoh::Session, RouterError> {
-    let mut config = zenoh::Config::default();
-    set_router_option(&mut config, "mode", "router".into())?;
-    set_router_option(&mut config, "listen/endpoints", listen.into())?;
-    if !connect.is_empty() {
-        set_router_option(&mut config, "connect/endpoints", connect.into())?;
+    // Mode, endpoints and scouting as every session of peppy's gets them.
+    let endpoints = Endpoints {
+        mode: Some("router".into()),
+        listen: listen.to_vec(),
+        connect: connect.to_vec(),
+        multicast_scouting: false,
+        login: None,
+    };
+    let mut config = endpoints.zenoh_config().map_err(RouterError::Config)?;
+    if listen.is_empty() {
+        // A router listens on Zenoh's default port unless told otherwise.
+        set_router_option(&mut config, "listen/endpoints", listen.into())?;
     }
-    set_router_option(&mut config, "scouting/multicast/enabled", false.into())?;
     if linked {
         set_router_option(
             &mut config,

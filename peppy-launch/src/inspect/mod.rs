@@ -96,11 +96,7 @@ pub(crate) fn block_on_value<T, F: Future<Output = Result<T>>>(f: F) -> Result<T
 }
 
 fn runtime() -> Result<tokio::runtime::Runtime> {
-    tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .map_err(|e| SetupError::Runtime(e).into())
+    Ok(crate::tokio_runtime(Some(2))?)
 }
 
 /// Fires on the first Ctrl-C, so a command notices an interrupt at any
