@@ -1,11 +1,11 @@
 //! End-to-end tests of the `peppy-launch` binary: real files, real process,
 //! exit codes and output as users see them.
 
-mod build_reuse;
 mod check;
 mod inspect;
 mod machines;
 mod netns;
+mod node_deps;
 mod one_engine;
 mod python;
 mod security;
