@@ -2,7 +2,7 @@
 it keeps (its route filter). Both are decided by peppy-schema's binding
 engine (`assign` in peppy-schema/src/binding.rs), in the launcher or in
 `peppy-launch plan` for a node started by hand; a Python node reads its
-plan and applies it (`SlotPlan.from_json`, `fit_plan`), never binding again."""
+plan and applies it (`slot_from_json`, `fit_plan`), never binding again."""
 
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ import os
 import shutil
 import subprocess
 from dataclasses import dataclass, field
-from typing import Any, List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from .errors import StartupError
 from .routing import SlotPlan, fit_plan, slot_from_json
@@ -128,7 +128,8 @@ def endpoints_from_json(data: Any, where: str) -> Endpoints:
 
 
 def read_config_file(path: str, descriptor: NodeDescriptor) -> Startup:
-    """A launcher's runtime config, checked as strictly as the Rust runtime reads it."""
+    """A launcher's runtime config. Its shape is checked here; what it says
+    (names, slots, parameters) the launcher decided and checked already."""
     try:
         with open(path, encoding="utf-8") as f:
             text = f.read()
