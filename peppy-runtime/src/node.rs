@@ -33,7 +33,7 @@ use crate::spec::{
     ActionSpec, ConsumedTopicSpec, NodeDescriptor, NodeParameters, OwnerSpec, ServiceSpec,
     TopicSpec,
 };
-use crate::startup::{self, RUNTIME_CONFIG_ENV, StandaloneConfig, Startup};
+use crate::startup::{self, RUNTIME_CONFIG_ENV, StandaloneConfig, StartupConfig};
 use crate::topics::{self, Inbox, Intake};
 use crate::wire::attachment;
 use crate::wire::keys::{
@@ -286,11 +286,11 @@ impl NodeRunner {
     async fn open(
         doc: &NodeModel,
         descriptor: &'static NodeDescriptor,
-        startup: Startup,
+        startup: StartupConfig,
         retention: std::time::Duration,
         shared_memory: SharedMemory,
     ) -> Result<Arc<NodeRunner>> {
-        let mut config = startup.config.zenoh.zenoh_config()?;
+        let mut config = startup.zenoh.zenoh_config()?;
         // Off: no shared memory at all, as on another host. On: the
         // threshold decides, so Zenoh's own copying of every payload over
         // 3 KiB into a second pool is turned off.
@@ -310,9 +310,9 @@ impl NodeRunner {
             session,
             node_name: doc.identity.name.clone(),
             node_tag: doc.identity.tag.clone(),
-            instance_id: startup.config.instance_id.clone(),
-            core_node: startup.config.core_node.clone(),
-            namespace: startup.config.namespace.clone(),
+            instance_id: startup.instance_id.clone(),
+            core_node: startup.core_node.clone(),
+            namespace: startup.namespace.clone(),
             token: CancellationToken::new(),
             slots: startup.slots,
             publishers: ByAddress::default(),

@@ -218,14 +218,6 @@ struct Flags {
     overrides: Vec<String>,
 }
 
-/// Everything the node needs, resolved and checked.
-#[derive(Debug, Clone)]
-pub(crate) struct Startup {
-    pub(crate) config: StartupConfig,
-    pub(crate) slots: Vec<SlotPlan>,
-    pub(crate) parameters: Json,
-}
-
 /// Reads the start-up inputs: the runtime-config file when the launcher set
 /// `PEPPY_RUNTIME_CONFIG`, else `args` (the command line) and `standalone`.
 pub(crate) fn load(
@@ -233,7 +225,7 @@ pub(crate) fn load(
     args: Vec<String>,
     env_file: Option<PathBuf>,
     standalone: &StandaloneConfig,
-) -> Result<Startup> {
+) -> Result<StartupConfig> {
     let (mut config, binds_given) = match env_file {
         Some(path) => (read_config_file(&path)?, None),
         None => {
@@ -261,17 +253,12 @@ pub(crate) fn load(
     };
     // The launcher filled the parameters already; a binary built from other
     // documents than the launcher read is caught here, by the same checker.
-    let parameters = doc
+    config.parameters = doc
         .parameters
         .resolve(&config.parameters)
         .map_err(Error::Parameters)?;
-    config.slots = slots.clone();
-    config.parameters = parameters.clone();
-    Ok(Startup {
-        config,
-        slots,
-        parameters,
-    })
+    config.slots = slots;
+    Ok(config)
 }
 
 /// What a standalone command line (`--instance-id`, `--bind`, `--params`,
@@ -279,7 +266,7 @@ pub(crate) fn load(
 /// describes, with bindings checked and parameters filled. `peppy-launch run`
 /// hands this to the node it starts.
 pub fn startup_from_flags(doc: &NodeModel, args: Vec<String>) -> Result<StartupConfig> {
-    load(doc, args, None, &StandaloneConfig::default()).map(|s| s.config)
+    load(doc, args, None, &StandaloneConfig::default())
 }
 
 fn read_config_file(path: &Path) -> Result<StartupConfig> {
@@ -518,8 +505,8 @@ mod tests {
             &StandaloneConfig::new(),
         )
         .unwrap();
-        assert_eq!(s.config.instance_id, "r1");
-        assert_eq!(s.config.namespace, DEFAULT_NAMESPACE);
+        assert_eq!(s.instance_id, "r1");
+        assert_eq!(s.namespace, DEFAULT_NAMESPACE);
         assert_eq!(s.slots[0].filter, RouteFilter::Pin("cam_a".into()));
         assert_eq!(
             s.slots[1].binding,
@@ -685,8 +672,8 @@ mod tests {
         )
         .unwrap();
         assert_eq!(s.slots, [left, backup]);
-        assert_eq!(s.config.instance_id, "recon_1");
-        assert_eq!(s.config.zenoh, cfg.zenoh);
+        assert_eq!(s.instance_id, "recon_1");
+        assert_eq!(s.zenoh, cfg.zenoh);
         assert_eq!(s.parameters, cfg.parameters);
     }
 
