@@ -26,6 +26,11 @@ def is_segment(s: str) -> bool:
     return bool(s) and not any(c in _FORBIDDEN for c in s)
 
 
+def owner_segments(kind: str, name: str, tag: str) -> str:
+    """`<kind>/<name>/<tag>`: the owner part of an entry's key."""
+    return f"{kind}/{name}/{tag}"
+
+
 def entry_key(ns: str, channel: str, owner: str, entry: str, core: str, instance: str) -> str:
     """The key one producer instance publishes on (or serves) for an entry;
     `owner` is `<kind>/<name>/<tag>`."""

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from typing import Any, Optional, Tuple
 
 from .formats import Format
+from .keys import owner_segments
 
 
 @dataclass(frozen=True)
@@ -50,7 +51,7 @@ class Owner:
     def segments(self, node_name: str, node_tag: str) -> Optional[str]:
         """`<kind>/<name>/<tag>` for keys; None for `any`."""
         r = self.resolve(node_name, node_tag)
-        return None if r is None else "/".join(r)
+        return None if r is None else owner_segments(*r)
 
 
 class QoSProfile(enum.Enum):
