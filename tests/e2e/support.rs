@@ -144,7 +144,10 @@ pub(crate) struct Heard {
 pub(crate) async fn hear_topics(hub: &Hub, ns: &str) -> Heard {
     let subscriber = hub
         .session
-        .declare_subscriber(format!("peppy/{ns}/topic/**"))
+        .declare_subscriber(peppy_runtime::wire::keys::space_selector(
+            ns,
+            peppy_runtime::wire::keys::Space::Topic,
+        ))
         .await
         .unwrap();
     Heard {
