@@ -147,9 +147,10 @@ def free_port() -> int:
         return sock.getsockname()[1]
 
 
-def model_of(descriptor: s.NodeDescriptor) -> str:
+def model_of(descriptor: s.NodeDescriptor, parameters: Optional[Dict[str, Any]] = None) -> str:
     """The model (`peppy_schema::NodeModel` as JSON) generated code would
-    carry for a hand-written descriptor without parameters."""
+    carry for a hand-written descriptor; `parameters`: its parameter
+    schema as the model writes it (none by default)."""
     return json.dumps(
         {
             "identity": {"name": descriptor.name, "tag": descriptor.tag},
@@ -163,7 +164,7 @@ def model_of(descriptor: s.NodeDescriptor) -> str:
                 }
                 for x in descriptor.slots
             ],
-            "parameters": {"fields": []},
+            "parameters": parameters or {"fields": []},
         }
     )
 

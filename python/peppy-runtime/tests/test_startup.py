@@ -3,6 +3,7 @@ bindings and route filters, parameters; and `NodeBuilder.run` as a process."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -19,8 +20,8 @@ from peppy import StartupError
 from peppy import spec as s
 from peppy.node import NodeBuilder
 from peppy.params import array, group, leaf
-from peppy.routing import RouteFilter, SlotBinding, SlotPlan, fit_plan
 from peppy.startup import PEPPY_LAUNCH_ENV, load, peppy_launch
+from peppy_testing import model_of
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SRC = os.path.join(os.path.dirname(HERE), "src")
@@ -75,21 +76,8 @@ PARAMETER_SCHEMA = {
 def descriptor(name: str, *slots: s.SlotSpec) -> s.NodeDescriptor:
     """A node as generated code describes it, with the model
     (`peppy_schema::NodeModel` as JSON) its package carries."""
-    model = {
-        "identity": {"name": name, "tag": "v1"},
-        "dependencies": [
-            {
-                "kind": x.kind,
-                "target": {"name": x.name, "tag": x.tag},
-                "link_id": x.link_id,
-                "from_any": x.from_any,
-                "sha256": None,
-            }
-            for x in slots
-        ],
-        "parameters": PARAMETER_SCHEMA,
-    }
-    return s.NodeDescriptor(name=name, tag="v1", slots=slots, parameters=Parameters, model=json.dumps(model))
+    bare = s.NodeDescriptor(name=name, tag="v1", slots=slots, parameters=Parameters)
+    return dataclasses.replace(bare, model=model_of(bare, PARAMETER_SCHEMA))
 
 
 LEFT = s.SlotSpec("left_cam", "interface", "depth_camera", "v1", False)
@@ -342,13 +330,7 @@ NODE_SCRIPT = textwrap.dedent(
 )
 
 
-TICKER_MODEL = json.dumps(
-    {
-        "identity": {"name": "ticker", "tag": "v1"},
-        "dependencies": [],
-        "parameters": {"fields": [_leaf("fail", "bool", False)]},
-    }
-)
+TICKER_MODEL = model_of(s.NodeDescriptor(name="ticker", tag="v1"), {"fields": [_leaf("fail", "bool", False)]})
 
 
 class ProcessTest(unittest.TestCase):
