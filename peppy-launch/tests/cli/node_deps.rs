@@ -5,26 +5,23 @@
 //! the launcher's features (docs/PERFORMANCE.md, "Build time").
 
 use std::collections::BTreeSet;
-use std::process::{Command, Stdio};
 
-use crate::support::{COMMAND_BOUND, root, wait_bounded};
+use crate::support::cargo;
 
 /// The packages `package` links (its normal dependencies, every level).
 fn linked(package: &str) -> BTreeSet<String> {
-    let child = Command::new(env!("CARGO"))
-        .args(["tree", "--offline", "-e", "normal", "--prefix", "none"])
-        .args(["--format", "{p}", "-p", package])
-        .current_dir(root())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run cargo tree");
-    let out = wait_bounded(child, COMMAND_BOUND, &format!("cargo tree -p {package}"));
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = cargo(&[
+        "tree",
+        "--offline",
+        "-e",
+        "normal",
+        "--prefix",
+        "none",
+        "--format",
+        "{p}",
+        "-p",
+        package,
+    ]);
     String::from_utf8_lossy(&out.stdout)
         .lines()
         .filter_map(|l| l.split_whitespace().next())

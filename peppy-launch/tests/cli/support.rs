@@ -266,22 +266,29 @@ fn paeth(a: u8, b: u8, c: u8) -> u8 {
     }
 }
 
-/// The debug executable of the workspace's example node package `name`,
-/// built first (nothing to do when `cargo test` built it already).
-pub(crate) fn example_binary(name: &str) -> PathBuf {
+/// Runs `cargo ARGS` in the workspace root, bounded, and fails the test
+/// with cargo's stderr when it fails.
+pub(crate) fn cargo(args: &[&str]) -> Output {
     let child = Command::new(env!("CARGO"))
-        .args(["build", "--quiet", "-p", name])
+        .args(args)
         .current_dir(root())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .expect("run cargo");
-    let out = wait_bounded(child, COMMAND_BOUND, &format!("cargo build -p {name}"));
+    let out = wait_bounded(child, COMMAND_BOUND, &format!("cargo {args:?}"));
     assert!(
         out.status.success(),
-        "{}",
+        "cargo {args:?}: {}",
         String::from_utf8_lossy(&out.stderr)
     );
+    out
+}
+
+/// The debug executable of the workspace's example node package `name`,
+/// built first (nothing to do when `cargo test` built it already).
+pub(crate) fn example_binary(name: &str) -> PathBuf {
+    cargo(&["build", "--quiet", "-p", name]);
     std::env::var_os("CARGO_TARGET_DIR")
         .map(PathBuf::from)
         .unwrap_or_else(|| root().join("target"))
