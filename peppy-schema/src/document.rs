@@ -20,7 +20,7 @@ use crate::source::{SourceFile, sha256_hex};
 pub enum DocumentKind {
     /// `node_v1` (or legacy `schema_version: 1`).
     Node,
-    /// `interface_v1`.
+    /// `interface_v1`, or today's `contract/v1` (the same content).
     Interface,
     /// `launcher_v1`.
     Launcher,
@@ -51,7 +51,30 @@ impl DocumentKind {
 }
 
 /// The `peppy_schema` values.
-pub const SCHEMAS: &[&str] = &["node_v1", "interface_v1", "launcher_v1"];
+pub const SCHEMAS: &[&str] = &["node_v1", "interface_v1", "launcher_v1", "contract/v1"];
+
+/// Which spelling a document is written in: the seeds' (`node_v1`,
+/// `interface_v1`, `launcher_v1`) or today's PeppyOS (`contract/v1`, ...).
+/// Both are read into one model; the spelling decides only what each
+/// document may say and how.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Spelling {
+    /// The seeds' spelling, underscores in `peppy_schema`.
+    Seeds,
+    /// Today's PeppyOS spelling, `<kind>/v1` in `peppy_schema`.
+    Today,
+}
+
+impl Spelling {
+    /// The spelling of a document whose root is `root`.
+    pub(crate) fn of(root: &Node) -> Spelling {
+        match root.get("peppy_schema").and_then(Node::as_str) {
+            Some(s) if s.contains('/') => Spelling::Today,
+            _ => Spelling::Seeds,
+        }
+    }
+}
 
 /// The file name of a repositories list.
 pub const REPOSITORIES_FILE: &str = "peppy_repositories.json5";
@@ -102,7 +125,7 @@ pub fn detect_kind(root: &Node) -> Option<DocumentKind> {
             if let Some(s) = root.get("peppy_schema").and_then(Node::as_str) {
                 return match s {
                     "node_v1" => Some(DocumentKind::Node),
-                    "interface_v1" => Some(DocumentKind::Interface),
+                    "interface_v1" | "contract/v1" => Some(DocumentKind::Interface),
                     "launcher_v1" => Some(DocumentKind::Launcher),
                     _ => None,
                 };
@@ -191,7 +214,38 @@ fn parse_kind(
     }
 }
 
+/// Today's PeppyOS document kinds peppy does not read yet, each with the
+/// seeds' kind that says the same today.
+const NOT_YET_READ: &[(&str, &str)] = &[
+    ("node/v1", "node_v1"),
+    ("launcher/v1", "launcher_v1"),
+    ("launcher_fragment/v1", "launcher_v1"),
+    ("pairing/v1", ""),
+    ("repository/v1", ""),
+    ("mcp_exposure/v1", ""),
+];
+
 fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
+    let today = root
+        .get("peppy_schema")
+        .and_then(Node::as_str)
+        .and_then(|s| NOT_YET_READ.iter().find(|(k, _)| *k == s));
+    if let (Some((kind, seeds)), Some(n)) = (today, root.get("peppy_schema")) {
+        let instead = if seeds.is_empty() {
+            String::new()
+        } else {
+            format!("; write this document as `{seeds}` meanwhile")
+        };
+        return Diagnostic::error(
+            Code::UnknownSchema,
+            format!("`{kind}` is today's PeppyOS spelling, which peppy does not read yet"),
+        )
+        .at(file, n.span)
+        .with_key_path("peppy_schema")
+        .with_help(format!(
+            "of today's spelling peppy reads `contract/v1` so far{instead} (docs/DOCUMENTS.md)"
+        ));
+    }
     match (&root.value, root.get("peppy_schema")) {
         (Value::Object(_), Some(n)) => {
             let found = n

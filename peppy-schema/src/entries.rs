@@ -6,6 +6,7 @@ use std::fmt;
 use serde::Serialize;
 
 use crate::diag::{Code, did_you_mean, list};
+use crate::document::Spelling;
 use crate::format::{MessageFormat, parse_optional_format};
 use crate::json::Node;
 use crate::names::check_entry_name;
@@ -247,7 +248,29 @@ pub(crate) fn parse_service(r: &mut Reader<'_>, node: &Node, path: &str) -> Opti
     })
 }
 
+/// An action as the seeds spell it.
 pub(crate) fn parse_action(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<ActionDecl> {
+    parse_action_in(r, node, path, Spelling::Seeds)
+}
+
+/// An action as today's `contract/v1` spells it: a result request takes no
+/// format (an unknown key, not an ignored one), and the feedback topic may
+/// carry a `type` and a `name`, which peppy does not use.
+pub(crate) fn parse_contract_action(
+    r: &mut Reader<'_>,
+    node: &Node,
+    path: &str,
+) -> Option<ActionDecl> {
+    parse_action_in(r, node, path, Spelling::Today)
+}
+
+fn parse_action_in(
+    r: &mut Reader<'_>,
+    node: &Node,
+    path: &str,
+    spelling: Spelling,
+) -> Option<ActionDecl> {
+    let today = spelling == Spelling::Today;
     let obj = r.object(
         node,
         path,
@@ -275,7 +298,11 @@ pub(crate) fn parse_action(r: &mut Reader<'_>, node: &Node, path: &str) -> Optio
                     m.key_span,
                     &gobj.path_of("response_message_format"),
                     "`goal_service.response_message_format` is ignored",
-                    "a goal response is always `{ accepted: bool, error_message: optional string }`; remove the key",
+                    if today {
+                        "peppy answers a goal with `{ accepted: bool, error_message: optional string }` and does not carry a declared goal response yet"
+                    } else {
+                        "a goal response is always `{ accepted: bool, error_message: optional string }`; remove the key"
+                    },
                 );
             }
         } else {
@@ -285,7 +312,23 @@ pub(crate) fn parse_action(r: &mut Reader<'_>, node: &Node, path: &str) -> Optio
     let mut feedback = None;
     if let Some(f) = obj.get("feedback_topic") {
         let fpath = obj.path_of("feedback_topic");
-        if let Some(fobj) = r.object(f, &fpath, &["qos_profile", "message_format"]) {
+        let keys: &[&str] = if today {
+            &["qos_profile", "message_format", "type", "name"]
+        } else {
+            &["qos_profile", "message_format"]
+        };
+        if let Some(fobj) = r.object(f, &fpath, keys) {
+            for key in ["type", "name"] {
+                if let Some(m) = fobj.member(key) {
+                    r.warn_help(
+                        Code::IgnoredKey,
+                        m.key_span,
+                        &fobj.path_of(key),
+                        format!("`feedback_topic.{key}` is not used by peppy"),
+                        "a feedback stream is named by its action; the key can stay",
+                    );
+                }
+            }
             let qos = parse_qos(
                 r,
                 fobj.get("qos_profile"),
@@ -308,11 +351,12 @@ pub(crate) fn parse_action(r: &mut Reader<'_>, node: &Node, path: &str) -> Optio
     let mut result = None;
     if let Some(s) = obj.get("result_service") {
         let spath = obj.path_of("result_service");
-        if let Some(sobj) = r.object(
-            s,
-            &spath,
-            &["request_message_format", "response_message_format"],
-        ) {
+        let keys: &[&str] = if today {
+            &["response_message_format"]
+        } else {
+            &["request_message_format", "response_message_format"]
+        };
+        if let Some(sobj) = r.object(s, &spath, keys) {
             result = parse_optional_format(
                 r,
                 sobj.get("response_message_format"),

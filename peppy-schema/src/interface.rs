@@ -1,12 +1,14 @@
-//! Interface documents (`peppy_schema: "interface_v1"`): a named contract of
+//! Interface documents (`peppy_schema: "interface_v1"`, and today's
+//! `"contract/v1"`, which holds the same content): a named contract of
 //! topics, services and actions that nodes conform to.
 
 use std::sync::Arc;
 
 use crate::diag::{Code, Diagnostics};
+use crate::document::Spelling;
 use crate::entries::{
-    ActionDecl, EntryKind, ServiceDecl, TopicDecl, action_name, parse_action, parse_list,
-    parse_service, parse_topic, service_name, topic_name,
+    ActionDecl, EntryKind, ServiceDecl, TopicDecl, action_name, parse_action,
+    parse_contract_action, parse_list, parse_service, parse_topic, service_name, topic_name,
 };
 use crate::json::Node;
 use crate::names::{check_name, check_tag};
@@ -21,6 +23,8 @@ pub struct InterfaceDoc {
     pub file: Arc<SourceFile>,
     /// sha256 of the file's exact bytes (lowercase hex): its revision.
     pub sha256: String,
+    /// `interface_v1` or `contract/v1`.
+    pub spelling: Spelling,
     /// `manifest.name` / `manifest.tag`.
     pub identity: Identity,
     /// Where `manifest.name` is.
@@ -41,6 +45,7 @@ pub(crate) fn parse_interface(
     root: &Node,
     diags: &mut Diagnostics,
 ) -> Option<InterfaceDoc> {
+    let spelling = Spelling::of(root);
     let mut r = Reader::new(file, diags);
     let obj = r.object(root, "", &["peppy_schema", "manifest", "interfaces"])?;
     let mut ok = true;
@@ -116,7 +121,10 @@ pub(crate) fn parse_interface(
             "interfaces.actions",
             EntryKind::Action,
             &mut ok,
-            parse_action,
+            match spelling {
+                Spelling::Seeds => parse_action,
+                Spelling::Today => parse_contract_action,
+            },
             action_name,
         );
     }
@@ -127,6 +135,7 @@ pub(crate) fn parse_interface(
     Some(InterfaceDoc {
         file: file.clone(),
         sha256,
+        spelling,
         identity,
         name_loc,
         labels,

@@ -94,8 +94,8 @@ pub use binding::conformances;
 pub use core_nodes::CoreNode;
 #[cfg(feature = "documents")]
 pub use document::{
-    Document, DocumentKind, Parsed, REPOSITORIES_FILE, RepositoriesDoc, SCHEMAS, detect_kind,
-    load_as, load_document, parse_as, parse_document,
+    Document, DocumentKind, Parsed, REPOSITORIES_FILE, RepositoriesDoc, SCHEMAS, Spelling,
+    detect_kind, load_as, load_document, parse_as, parse_document,
 };
 #[cfg(feature = "documents")]
 pub use entries::{

@@ -8,6 +8,8 @@ mod support;
 
 #[path = "schema/binding_plan.rs"]
 mod binding_plan;
+#[path = "schema/contracts.rs"]
+mod contracts;
 #[path = "schema/examples.rs"]
 mod examples;
 #[path = "schema/formats.rs"]
