@@ -150,6 +150,67 @@ codes! {
     LegacySpelling,
     /// A key that is accepted but has no effect (warning).
     IgnoredKey,
+    // Today's `node/v1` rules, named as PeppyOS names them.
+    /// A malformed `refine` block.
+    InvalidRefine,
+    /// `refine` on a native entry (one without a `link_id`).
+    RefineWithoutLinkId,
+    /// `refine` on an entry consumed through a `depends_on.nodes` slot.
+    RefineOnNodeSlot,
+    /// An entry with a `link_id` that also states its shape.
+    LinkedEntryWithInlineShape,
+    /// A produced entry (`link_id`, `name`) listed twice.
+    DuplicateInterfaceEntry,
+    /// A contract implemented twice by one node.
+    DuplicateImplementsContract,
+    /// Two `implements` tags that read the same once `-` is `_`.
+    ImplementsTagSanitizationCollision,
+    /// A produced entry names a link_id no `implements` or pairing slot declares.
+    UndeclaredEmitsLinkId,
+    /// A produced entry names a `depends_on` slot instead of an `implements` slot.
+    EmitsLinkIdNotImplements,
+    /// `topics.emits` names a pairing observer slot.
+    EmitsOnObserverSlot,
+    /// A consumed entry names an `implements` slot.
+    ConsumedItemReferencesImplementsLinkId,
+    /// A consumed service or action names a pairing slot (pairings are topics-only).
+    ConsumedItemReferencesPairingLinkId,
+    /// A `cardinality` on a pairing participant slot.
+    CardinalityOnPairingSlot,
+    /// An `optional` on a pairing observer slot.
+    OptionalOnObserverSlot,
+    /// A pairing slot without a `role`.
+    PairingSlotMissingRole,
+    /// A pairing slot link_id that link targets cannot name.
+    PairingSentinelLinkId,
+    /// A pairing observer slot nothing consumes.
+    ObserverLinkNeverConsumed,
+    /// An implementer's members differ from the contract's (missing, unknown, duplicated, wrong kind).
+    ContractCoverageMismatch,
+    /// A `refine` pin that does not land on an open array of scalars.
+    RefinementMismatch,
+    /// An entry consumed through a node slot that the producer provides only through a contract.
+    ConsumedInterfaceOnlyContractBacked,
+    /// A node or stack uses pairings, which peppy does not run yet.
+    PairingsNotSupported,
+    /// A link key that names no slot of the node.
+    LinkUnknownSlot,
+    /// `{ vacant }` on a slot that may not stay empty, or that stays empty by omission.
+    LinkVacantInvalid,
+    /// A required slot (`one`, `one_or_more`, `zero_or_one` not vacated) left out.
+    BindingSlotUnfulfilled,
+    /// An array of targets on a slot that takes one.
+    BindingArrayOnScalarSlot,
+    /// A single target on a slot that takes a list.
+    BindingScalarOnMultiSlot,
+    /// A slot that takes one producer given several.
+    BindingSingleSlotMultipleTargets,
+    /// An empty list on a `one_or_more` slot.
+    BindingCardinalityUnmet,
+    /// A contract slot linked to an instance whose node does not implement the contract.
+    BindingContractNotImplemented,
+    /// The same producer twice in one slot.
+    DuplicateBoundProducer,
 }
 
 impl fmt::Display for Code {

@@ -10,6 +10,7 @@ use crate::diag::{Code, Diagnostic, Diagnostics, did_you_mean, list};
 use crate::interface::{InterfaceDoc, parse_interface};
 use crate::json::{Node, Value};
 use crate::launcher::{LauncherDoc, parse_launcher};
+pub(crate) use crate::model::Spelling;
 use crate::node::{NodeDoc, parse_node};
 use crate::read::{Reader, index};
 use crate::source::{SourceFile, sha256_hex};
@@ -51,20 +52,13 @@ impl DocumentKind {
 }
 
 /// The `peppy_schema` values.
-pub const SCHEMAS: &[&str] = &["node_v1", "interface_v1", "launcher_v1", "contract/v1"];
-
-/// Which spelling a document is written in: the seeds' (`node_v1`,
-/// `interface_v1`, `launcher_v1`) or today's PeppyOS (`contract/v1`, ...).
-/// Both are read into one model; the spelling decides only what each
-/// document may say and how.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Spelling {
-    /// The seeds' spelling, underscores in `peppy_schema`.
-    Seeds,
-    /// Today's PeppyOS spelling, `<kind>/v1` in `peppy_schema`.
-    Today,
-}
+pub const SCHEMAS: &[&str] = &[
+    "node_v1",
+    "interface_v1",
+    "launcher_v1",
+    "node/v1",
+    "contract/v1",
+];
 
 impl Spelling {
     /// The spelling of a document whose root is `root`.
@@ -124,7 +118,7 @@ pub fn detect_kind(root: &Node) -> Option<DocumentKind> {
         Value::Object(_) => {
             if let Some(s) = root.get("peppy_schema").and_then(Node::as_str) {
                 return match s {
-                    "node_v1" => Some(DocumentKind::Node),
+                    "node_v1" | "node/v1" => Some(DocumentKind::Node),
                     "interface_v1" | "contract/v1" => Some(DocumentKind::Interface),
                     "launcher_v1" => Some(DocumentKind::Launcher),
                     _ => None,
@@ -217,7 +211,6 @@ fn parse_kind(
 /// Today's PeppyOS document kinds peppy does not read yet, each with the
 /// seeds' kind that says the same today.
 const NOT_YET_READ: &[(&str, &str)] = &[
-    ("node/v1", "node_v1"),
     ("launcher/v1", "launcher_v1"),
     ("launcher_fragment/v1", "launcher_v1"),
     ("pairing/v1", ""),

@@ -129,6 +129,15 @@ impl Node {
         }
     }
 
+    /// The member (key, spans and value) named `key`, if this is an
+    /// object that has it.
+    pub fn get_member(&self, key: &str) -> Option<&Member> {
+        match &self.value {
+            Value::Object(members) => members.iter().find(|m| m.key == key),
+            _ => None,
+        }
+    }
+
     /// The string value, if this is a string.
     pub fn as_str(&self) -> Option<&str> {
         match &self.value {

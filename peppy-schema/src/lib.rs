@@ -79,7 +79,7 @@ pub use binding::{
 };
 pub use diag::{Code, Diagnostic, Diagnostics, Severity, did_you_mean};
 pub use loc::Loc;
-pub use model::{Dependency, Identity, NodeModel, SlotKind};
+pub use model::{Cardinality, Dependency, Identity, NodeModel, SlotKind, Spelling};
 pub use params::{
     ParamError, ParamErrorKind, ParamField, ParamItem, ParamKind, ParameterSchema, check_leaf,
     describe,
@@ -94,8 +94,8 @@ pub use binding::conformances;
 pub use core_nodes::CoreNode;
 #[cfg(feature = "documents")]
 pub use document::{
-    Document, DocumentKind, Parsed, REPOSITORIES_FILE, RepositoriesDoc, SCHEMAS, Spelling,
-    detect_kind, load_as, load_document, parse_as, parse_document,
+    Document, DocumentKind, Parsed, REPOSITORIES_FILE, RepositoriesDoc, SCHEMAS, detect_kind,
+    load_as, load_document, parse_as, parse_document,
 };
 #[cfg(feature = "documents")]
 pub use entries::{
@@ -112,7 +112,8 @@ pub use launcher::{
 };
 #[cfg(feature = "documents")]
 pub use node::{
-    ConsumedRef, ConsumedTopic, Container, Execution, InterfaceRef, Launch, NodeDoc, TopicSource,
+    ConsumedRef, ConsumedTopic, Container, Execution, FieldRefine, FormatRefine, InterfaceRef,
+    Launch, MemberRef, NodeDoc, PairingSlot, Pin, Refine, RefinedMessage, TopicSource,
 };
 #[cfg(feature = "documents")]
 pub use plan::{BindingPlan, InstancePlan, plan_bindings};

@@ -11,6 +11,81 @@ use serde::{Deserialize, Serialize};
 use crate::loc::Loc;
 use crate::params::ParameterSchema;
 
+/// Which spelling a document is written in: the seeds' (`node_v1`,
+/// `interface_v1`, `launcher_v1`) or today's PeppyOS (`contract/v1`, ...).
+/// Both are read into one model; the spelling decides only what each
+/// document may say and how.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Spelling {
+    /// The seeds' spelling, underscores in `peppy_schema`.
+    #[default]
+    Seeds,
+    /// Today's PeppyOS spelling, `<kind>/v1` in `peppy_schema`.
+    Today,
+}
+
+/// How many producers a slot takes (today's `cardinality`). The seeds'
+/// pinned slot is `one`; their `from_any` slot is `zero_or_more` that also
+/// takes free-form binding keys and, left unbound, any producer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Cardinality {
+    /// Exactly one producer (the default).
+    #[default]
+    One,
+    /// None or one; an empty slot is written `{ vacant: "why" }`.
+    ZeroOrOne,
+    /// At least one.
+    OneOrMore,
+    /// Any number, none included.
+    ZeroOrMore,
+}
+
+impl Cardinality {
+    /// The names, as written in a document.
+    pub const NAMES: &'static [&'static str] =
+        &["one", "zero_or_one", "one_or_more", "zero_or_more"];
+
+    /// Reads a name as written in a document.
+    pub fn parse(s: &str) -> Option<Cardinality> {
+        match s {
+            "one" => Some(Cardinality::One),
+            "zero_or_one" => Some(Cardinality::ZeroOrOne),
+            "one_or_more" => Some(Cardinality::OneOrMore),
+            "zero_or_more" => Some(Cardinality::ZeroOrMore),
+            _ => None,
+        }
+    }
+
+    /// As written in a document.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Cardinality::One => "one",
+            Cardinality::ZeroOrOne => "zero_or_one",
+            Cardinality::OneOrMore => "one_or_more",
+            Cardinality::ZeroOrMore => "zero_or_more",
+        }
+    }
+
+    /// Whether the slot is bound to a single value (`one`, `zero_or_one`),
+    /// as opposed to a list.
+    pub fn is_scalar(self) -> bool {
+        matches!(self, Cardinality::One | Cardinality::ZeroOrOne)
+    }
+
+    /// Whether the slot may stay empty.
+    pub fn admits_empty(self) -> bool {
+        matches!(self, Cardinality::ZeroOrOne | Cardinality::ZeroOrMore)
+    }
+}
+
+impl fmt::Display for Cardinality {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 /// A `name:tag` identity of a node or interface.
 #[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub struct Identity {
@@ -72,8 +147,12 @@ pub struct Dependency {
     pub target: Identity,
     /// The slot's name.
     pub link_id: String,
-    /// Accepts any number of producers (else exactly one, pinned).
+    /// The seeds' `from_any`: any number of producers, free-form binding
+    /// keys, and any producer of the slot's kind while unbound.
     pub from_any: bool,
+    /// How many producers the slot takes (`zero_or_more` for `from_any`).
+    #[serde(default)]
+    pub cardinality: Cardinality,
     /// Interface revision pin (interface slots only).
     pub sha256: Option<String>,
     /// Where the entry is (not carried into a compiled [`NodeModel`]).
@@ -85,6 +164,10 @@ pub struct Dependency {
 /// order) and parameter schema.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct NodeModel {
+    /// The spelling of the document it was read from: it decides the names
+    /// errors are reported under and the generated module paths.
+    #[serde(default)]
+    pub spelling: Spelling,
     /// `name:tag`.
     pub identity: Identity,
     /// The slots.
@@ -115,6 +198,7 @@ impl NodeModel {
     /// The run-time part of a node document.
     pub fn of(doc: &crate::node::NodeDoc) -> NodeModel {
         NodeModel {
+            spelling: doc.spelling,
             identity: doc.identity(),
             dependencies: doc.dependencies.clone(),
             parameters: doc.execution.parameters.clone(),

@@ -61,6 +61,7 @@ pub(super) fn parse_consumed_topics(
             (Some((name, _)), Some(source)) => out.push(ConsumedTopic {
                 name,
                 source,
+                refine: None,
                 loc: r.loc(item.span, &ipath),
             }),
             _ => *ok = false,
@@ -132,6 +133,7 @@ pub(super) fn parse_consumed_refs(
             (Some((name, _)), Some(link_id)) => out.push(ConsumedRef {
                 link_id,
                 name,
+                refine: None,
                 loc: r.loc(item.span, &ipath),
             }),
             _ => *ok = false,

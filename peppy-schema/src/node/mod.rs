@@ -6,19 +6,26 @@
 
 mod consumes;
 mod execution;
+mod refine;
 mod slots;
+mod today;
 
 pub use execution::{Container, Execution, Launch};
+pub use refine::{FieldRefine, FormatRefine, Pin, Refine, RefinedMessage};
+pub(crate) use refine::{action_message, check_refine};
 pub(crate) use slots::read_sha256;
+pub use today::{MemberRef, PairingSlot};
 
 use std::sync::Arc;
 
 use serde::Serialize;
 
-use crate::diag::{Code, Diagnostics};
+use crate::diag::{Code, Diagnostics, list};
+use crate::document::Spelling;
 use crate::entries::{
-    ActionDecl, EntryKind, ServiceDecl, TopicDecl, action_name, parse_action, parse_entry_name,
-    parse_list, parse_service, parse_topic, service_name, topic_name,
+    ActionDecl, EntryKind, ServiceDecl, TopicDecl, action_name, parse_action,
+    parse_contract_action, parse_entry_name, parse_list, parse_service, parse_topic, service_name,
+    topic_name,
 };
 use crate::format::{MessageFormat, parse_format};
 use crate::json::{Node, Value};
@@ -31,6 +38,7 @@ use crate::source::SourceFile;
 use consumes::{parse_consumed_refs, parse_consumed_topics};
 use execution::{parse_execution, parse_legacy_process};
 use slots::{parse_conforms_to, parse_depends_on, read_identity_part};
+use today::{check_today_links, parse_consumed_today, parse_produced, parse_today_manifest};
 
 /// A parsed, validated node document.
 #[derive(Debug, Clone)]
@@ -39,6 +47,8 @@ pub struct NodeDoc {
     pub file: Arc<SourceFile>,
     /// Written in the legacy `schema_version: 1` form.
     pub legacy: bool,
+    /// The seeds' `node_v1` (and legacy) spelling, or today's `node/v1`.
+    pub spelling: Spelling,
     /// `manifest.name`.
     pub name: String,
     /// `manifest.tag`.
@@ -51,8 +61,14 @@ pub struct NodeDoc {
     pub dependencies: Vec<Dependency>,
     /// `execution`.
     pub execution: Execution,
-    /// `interfaces.conforms_to`.
+    /// `interfaces.conforms_to` (seeds) or `manifest.implements` (today).
     pub conforms_to: Vec<InterfaceRef>,
+    /// Today's members provided through a slot (`{ link_id, name }` in
+    /// `emits` / `exposes`); empty in the seeds' spelling, where conforming
+    /// provides every member of the interface implicitly.
+    pub members: Vec<MemberRef>,
+    /// Today's `depends_on.pairings` and `.pairing_observers`.
+    pub pairings: Vec<PairingSlot>,
     /// `interfaces.topics.emits`.
     pub emits: Vec<TopicDecl>,
     /// `interfaces.topics.consumes`.
@@ -67,13 +83,15 @@ pub struct NodeDoc {
     pub consumed_actions: Vec<ConsumedRef>,
 }
 
-/// One `conforms_to` entry.
+/// One `conforms_to` (or today's `implements`) entry.
 #[derive(Debug, Clone)]
 pub struct InterfaceRef {
     /// The interface.
     pub target: Identity,
     /// Revision pin.
     pub sha256: Option<String>,
+    /// Today's `implements` slot name (`None` in the seeds' spelling).
+    pub link_id: Option<String>,
     /// Where the entry is.
     pub loc: Loc,
 }
@@ -85,6 +103,8 @@ pub struct ConsumedTopic {
     pub name: String,
     /// Linked or external.
     pub source: TopicSource,
+    /// Today's pinned lengths (`refine`).
+    pub refine: Option<Refine>,
     /// Where the entry is.
     pub loc: Loc,
 }
@@ -108,6 +128,8 @@ pub struct ConsumedRef {
     pub link_id: String,
     /// Service or action name on the producer.
     pub name: String,
+    /// Today's pinned lengths (`refine`).
+    pub refine: Option<Refine>,
     /// Where the entry is.
     pub loc: Loc,
 }
@@ -127,6 +149,29 @@ impl NodeDoc {
     pub fn conforms_to(&self, interface: &Identity) -> bool {
         self.conforms_to.iter().any(|c| &c.target == interface)
     }
+
+    /// Every consumed entry's `refine`: `(link_id, name, where)`.
+    pub(crate) fn consumed_refines(&self) -> impl Iterator<Item = (&str, &str, &Loc)> {
+        let topics = self
+            .consumed_topics
+            .iter()
+            .filter_map(|t| match (&t.source, &t.refine) {
+                (TopicSource::Linked { link_id }, Some(r)) => {
+                    Some((link_id.as_str(), t.name.as_str(), &r.loc))
+                }
+                _ => None,
+            });
+        let calls = self
+            .consumed_services
+            .iter()
+            .chain(&self.consumed_actions)
+            .filter_map(|c| {
+                c.refine
+                    .as_ref()
+                    .map(|r| (c.link_id.as_str(), c.name.as_str(), &r.loc))
+            });
+        topics.chain(calls)
+    }
 }
 
 const LEGACY_HELP: &str = "legacy `schema_version: 1` spelling";
@@ -138,6 +183,8 @@ pub(crate) fn parse_node(
     diags: &mut Diagnostics,
 ) -> Option<NodeDoc> {
     let mut r = Reader::new(file, diags);
+    let spelling = Spelling::of(root);
+    let today = spelling == Spelling::Today;
     let legacy = root.get("schema_version").is_some() && root.get("peppy_schema").is_none();
     let top_keys: &[&str] = if legacy {
         &["schema_version", "manifest", "process", "interfaces"]
@@ -155,7 +202,7 @@ pub(crate) fn parse_node(
             "write `peppy_schema: \"node_v1\"`",
         );
     }
-    let manifest = parse_manifest(&mut r, &root_obj, legacy, &mut ok);
+    let manifest = parse_manifest(&mut r, &root_obj, legacy, today, &mut ok);
     if manifest.name.is_none() || manifest.tag.is_none() {
         ok = false;
     }
@@ -168,24 +215,35 @@ pub(crate) fn parse_node(
     if execution.is_none() {
         ok = false;
     }
-    let i = parse_interfaces(&mut r, &root_obj, legacy, &mut ok);
-    ok &= check_consumed_links(&mut r, root, legacy, &i);
+    let mut i = if today {
+        parse_today_interfaces(&mut r, &root_obj, &mut ok)
+    } else {
+        parse_interfaces(&mut r, &root_obj, legacy, &mut ok)
+    };
+    if !today {
+        ok &= check_consumed_links(&mut r, root, legacy, &i);
+    }
     // two consumed entries generating the same module
     check_consumed_modules(
         &mut r,
+        spelling,
         &i.consumed_topics,
         &i.consumed_services,
         &i.consumed_actions,
     );
+    if today {
+        i.conforms_to = manifest.implements;
+    }
 
     if !ok || r.diags.has_errors() {
         return None;
     }
     let (name, name_loc) = manifest.name?;
     let (tag, _) = manifest.tag?;
-    Some(NodeDoc {
+    let doc = NodeDoc {
         file: file.clone(),
         legacy,
+        spelling,
         name,
         tag,
         name_loc,
@@ -193,13 +251,22 @@ pub(crate) fn parse_node(
         dependencies: manifest.dependencies,
         execution: execution?,
         conforms_to: i.conforms_to,
+        members: i.members,
+        pairings: manifest.pairings,
         emits: i.emits,
         consumed_topics: i.consumed_topics,
         exposed_services: i.exposed_services,
         consumed_services: i.consumed_services,
         exposed_actions: i.exposed_actions,
         consumed_actions: i.consumed_actions,
-    })
+    };
+    if today {
+        check_today_links(r.diags, &doc);
+        if r.diags.has_errors() {
+            return None;
+        }
+    }
+    Some(doc)
 }
 
 /// What `manifest` holds.
@@ -208,20 +275,34 @@ struct Manifest {
     tag: Option<(String, Loc)>,
     labels: Vec<String>,
     dependencies: Vec<Dependency>,
+    /// Today's `manifest.implements`.
+    implements: Vec<InterfaceRef>,
+    /// Today's pairing slots.
+    pairings: Vec<PairingSlot>,
     /// The legacy form's `manifest.language`.
     legacy_language: Option<String>,
 }
 
 /// `manifest`: identity, labels, `depends_on` (and the legacy `language`).
-fn parse_manifest(r: &mut Reader<'_>, root_obj: &Obj<'_>, legacy: bool, ok: &mut bool) -> Manifest {
+fn parse_manifest(
+    r: &mut Reader<'_>,
+    root_obj: &Obj<'_>,
+    legacy: bool,
+    today: bool,
+    ok: &mut bool,
+) -> Manifest {
     let mut name = None;
     let mut tag = None;
     let mut labels = Vec::new();
     let mut dependencies = Vec::new();
+    let mut implements = Vec::new();
+    let mut pairings = Vec::new();
     let mut legacy_language = None;
     if let Some(m) = r.required(root_obj, "manifest") {
         let keys: &[&str] = if legacy {
             &["name", "tag", "labels", "depends_on", "language"]
+        } else if today {
+            &["name", "tag", "labels", "implements", "depends_on"]
         } else {
             &["name", "tag", "labels", "depends_on"]
         };
@@ -231,7 +312,12 @@ fn parse_manifest(r: &mut Reader<'_>, root_obj: &Obj<'_>, legacy: bool, ok: &mut
             if let Some(l) = mobj.get("labels") {
                 labels = r.string_list(l, "manifest.labels").unwrap_or_default();
             }
-            if let Some(d) = mobj.get("depends_on") {
+            if today {
+                let t = parse_today_manifest(r, &mobj, ok);
+                dependencies = t.dependencies;
+                implements = t.implements;
+                pairings = t.pairings;
+            } else if let Some(d) = mobj.get("depends_on") {
                 match parse_depends_on(r, d, legacy) {
                     Some(deps) => dependencies = deps,
                     None => *ok = false,
@@ -254,6 +340,8 @@ fn parse_manifest(r: &mut Reader<'_>, root_obj: &Obj<'_>, legacy: bool, ok: &mut
         tag,
         labels,
         dependencies,
+        implements,
+        pairings,
         legacy_language,
     }
 }
@@ -262,6 +350,7 @@ fn parse_manifest(r: &mut Reader<'_>, root_obj: &Obj<'_>, legacy: bool, ok: &mut
 #[derive(Default)]
 struct Interfaces {
     conforms_to: Vec<InterfaceRef>,
+    members: Vec<MemberRef>,
     emits: Vec<TopicDecl>,
     consumed_topics: Vec<ConsumedTopic>,
     exposed_services: Vec<ServiceDecl>,
@@ -360,6 +449,7 @@ fn parse_interfaces(
 
     Interfaces {
         conforms_to,
+        members: Vec::new(),
         emits,
         consumed_topics,
         exposed_services,
@@ -367,6 +457,111 @@ fn parse_interfaces(
         exposed_actions,
         consumed_actions,
     }
+}
+
+/// Today's `interfaces`: natives and slot members in `emits` / `exposes`,
+/// `{ link_id, name, refine? }` in `consumes`.
+fn parse_today_interfaces(r: &mut Reader<'_>, root_obj: &Obj<'_>, ok: &mut bool) -> Interfaces {
+    let mut out = Interfaces::default();
+    let Some(i) = root_obj.get("interfaces") else {
+        return out;
+    };
+    let Some(iobj) = r.object(i, "interfaces", &["topics", "services", "actions"]) else {
+        *ok = false;
+        return out;
+    };
+    let mut section =
+        |r: &mut Reader<'_>, key: &str, produced: &str| -> Option<(Option<&Node>, Option<&Node>)> {
+            let n = iobj.get(key)?;
+            match r.object(n, &format!("interfaces.{key}"), &[produced, "consumes"]) {
+                Some(o) => Some((o.get(produced), o.get("consumes"))),
+                None => {
+                    *ok = false;
+                    None
+                }
+            }
+        };
+    let topics = section(r, "topics", "emits");
+    let services = section(r, "services", "exposes");
+    let actions = section(r, "actions", "exposes");
+    if let Some((emits, consumes)) = topics {
+        let path = "interfaces.topics.emits";
+        let (natives, members) = parse_produced(
+            r,
+            emits,
+            path,
+            EntryKind::Topic,
+            parse_topic,
+            topic_name,
+            ok,
+        );
+        out.emits = natives;
+        out.members.extend(members);
+        let consumed = parse_consumed_today(
+            r,
+            consumes,
+            "interfaces.topics.consumes",
+            EntryKind::Topic,
+            ok,
+        );
+        out.consumed_topics = consumed
+            .into_iter()
+            .map(|(c, refine)| ConsumedTopic {
+                name: c.name,
+                source: TopicSource::Linked { link_id: c.link_id },
+                refine,
+                loc: c.loc,
+            })
+            .collect();
+    }
+    let calls = |v: Vec<(ConsumedRef, Option<Refine>)>| -> Vec<ConsumedRef> {
+        v.into_iter()
+            .map(|(c, refine)| ConsumedRef { refine, ..c })
+            .collect()
+    };
+    if let Some((exposes, consumes)) = services {
+        let path = "interfaces.services.exposes";
+        let (natives, members) = parse_produced(
+            r,
+            exposes,
+            path,
+            EntryKind::Service,
+            parse_service,
+            service_name,
+            ok,
+        );
+        out.exposed_services = natives;
+        out.members.extend(members);
+        out.consumed_services = calls(parse_consumed_today(
+            r,
+            consumes,
+            "interfaces.services.consumes",
+            EntryKind::Service,
+            ok,
+        ));
+    }
+    if let Some((exposes, consumes)) = actions {
+        let path = "interfaces.actions.exposes";
+        let (natives, members) = parse_produced(
+            r,
+            exposes,
+            path,
+            EntryKind::Action,
+            parse_contract_action,
+            action_name,
+            ok,
+        );
+        out.exposed_actions = natives;
+        out.members.extend(members);
+        out.consumed_actions = calls(parse_consumed_today(
+            r,
+            consumes,
+            "interfaces.actions.consumes",
+            EntryKind::Action,
+            ok,
+        ));
+    }
+    out
 }
 
 /// Every link_id a consumed entry uses must be declared; `false` if one is not.
@@ -440,32 +635,37 @@ fn written_link_ids(root: &Node, legacy: bool) -> Vec<String> {
 
 fn check_consumed_modules(
     r: &mut Reader<'_>,
+    spelling: Spelling,
     topics: &[ConsumedTopic],
     services: &[ConsumedRef],
     actions: &[ConsumedRef],
 ) {
     let topic_modules = topics.iter().map(|t| {
         let module = match &t.source {
-            TopicSource::Linked { link_id } => consumed_module(Some(link_id), &t.name),
+            TopicSource::Linked { link_id } => linked_module(spelling, link_id, &t.name),
             TopicSource::External(_) => consumed_module(None, &t.name),
         };
         (module, &t.loc)
     });
     check_modules(r, "consumed_topics", topic_modules);
-    check_modules(
-        r,
-        "consumed_services",
-        services.iter().map(consumed_ref_module),
-    );
-    check_modules(
-        r,
-        "consumed_actions",
-        actions.iter().map(consumed_ref_module),
-    );
+    for (category, list) in [
+        ("consumed_services", services),
+        ("consumed_actions", actions),
+    ] {
+        let modules = list
+            .iter()
+            .map(|c| (linked_module(spelling, &c.link_id, &c.name), &c.loc));
+        check_modules(r, category, modules);
+    }
 }
 
-fn consumed_ref_module(c: &ConsumedRef) -> (String, &Loc) {
-    (consumed_module(Some(&c.link_id), &c.name), &c.loc)
+/// The module a consumed entry generates: `<link>_<name>` in the seeds'
+/// spelling, `<link>::<name>` in today's.
+fn linked_module(spelling: Spelling, link_id: &str, name: &str) -> String {
+    match spelling {
+        Spelling::Seeds => consumed_module(Some(link_id), name),
+        Spelling::Today => format!("{}::{}", module_name(link_id), module_name(name)),
+    }
 }
 
 fn check_modules<'a>(

@@ -155,6 +155,12 @@ fn parse_dependency(
         target: Identity::new(name, tag),
         link_id,
         from_any,
+        // The seeds' `from_any` slot takes any number; a pinned one, one.
+        cardinality: if from_any {
+            crate::model::Cardinality::ZeroOrMore
+        } else {
+            crate::model::Cardinality::One
+        },
         sha256,
         loc: r.loc(node.span, path),
     })
@@ -213,6 +219,7 @@ pub(super) fn parse_conforms_to(
         let entry = InterfaceRef {
             target: Identity::new(name, tag),
             sha256,
+            link_id: None,
             loc: r.loc(item.span, &ipath),
         };
         let clash = out.iter().find(|e| {
