@@ -208,6 +208,16 @@ pub(crate) fn render_plan(stack: &StackCheck) -> String {
             };
             let (mode, fill) = match (&slot.binding, &slot.filter) {
                 (SlotBinding::Pinned { producer }, _) => ("pinned", producer.clone()),
+                (
+                    SlotBinding::Set {
+                        vacant: Some(why), ..
+                    },
+                    _,
+                ) => ("vacant", format!("(vacant: {why})")),
+                (SlotBinding::Set { producers, .. }, _) if producers.is_empty() => {
+                    ("linked", "(nothing)".to_string())
+                }
+                (SlotBinding::Set { producers, .. }, _) => ("linked", producers.join(", ")),
                 (SlotBinding::FromAnyBound { .. }, RouteFilter::OnlyFrom(set))
                     if set.is_empty() =>
                 {

@@ -34,6 +34,7 @@ pub(crate) fn slot_producers(
 ) -> Vec<String> {
     match &slot.binding {
         SlotBinding::Pinned { producer } => vec![producer.clone()],
+        SlotBinding::Set { producers, .. } => producers.clone(),
         SlotBinding::FromAnyBound { .. } => match &slot.filter {
             peppy_schema::RouteFilter::OnlyFrom(set) => set.iter().cloned().collect(),
             _ => Vec::new(),

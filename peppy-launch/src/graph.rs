@@ -162,6 +162,7 @@ fn slot_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &m
         };
         match &slot.binding {
             SlotBinding::Pinned { producer } => solid(producer),
+            SlotBinding::Set { producers, .. } => producers.iter().for_each(|p| solid(p)),
             SlotBinding::FromAnyBound { .. } => {
                 if let peppy_schema::RouteFilter::OnlyFrom(set) = &slot.filter {
                     set.iter().for_each(|p| solid(p));

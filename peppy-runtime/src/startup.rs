@@ -437,17 +437,19 @@ fn slots_from_flags(
 ) -> Result<Vec<SlotPlan>> {
     let requests: Vec<BindRequest<'_>> = binds
         .iter()
-        .map(|(key, producer)| BindRequest {
-            key,
-            instance: producer,
-            producer: None,
-        })
+        .map(|(key, producer)| BindRequest::key(key, producer, None))
         .collect();
     engine(doc, instance, &requests)
 }
 
 fn engine(doc: &NodeModel, instance: &str, requests: &[BindRequest<'_>]) -> Result<Vec<SlotPlan>> {
-    let outcome = assign(instance, &doc.identity, &doc.dependencies, requests);
+    let outcome = assign(
+        instance,
+        &doc.identity,
+        doc.spelling,
+        &doc.dependencies,
+        requests,
+    );
     if outcome.errors.is_empty() {
         Ok(outcome.slots)
     } else {

@@ -17,7 +17,7 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 
 use crate::diag::{Code, list};
-use crate::model::{Dependency, Identity, SlotKind};
+use crate::model::{Cardinality, Dependency, Identity, SlotKind, Spelling};
 
 /// What fills one slot.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -35,6 +35,17 @@ pub enum SlotBinding {
     },
     /// A `from_any` slot without bindings: any unclaimed producer of its kind.
     FromAnyUnbound,
+    /// A slot of today's cardinality (`zero_or_one`, `one_or_more`,
+    /// `zero_or_more`): exactly these producers, in link order, fixed for
+    /// the instance's life. Empty: nothing flows in (an empty
+    /// `zero_or_more` slot, or a vacated `zero_or_one` one).
+    Set {
+        /// Producer instances, in link order.
+        producers: Vec<String>,
+        /// Why a `zero_or_one` slot is vacant (`{ vacant: "why" }`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        vacant: Option<String>,
+    },
 }
 
 /// Which producers' messages a consumer keeps for one slot (SPEC 5).
@@ -126,16 +137,58 @@ pub fn conformances(node: &crate::node::NodeDoc) -> Vec<Identity> {
 }
 
 /// One binding handed to the engine: a key (a slot's link_id or a
-/// free-form label) and the producer instance it names.
+/// free-form label) and the producer instance it names, written in one of
+/// the [`BindForm`]s.
 #[derive(Debug, Clone, Copy)]
 pub struct BindRequest<'a> {
     /// The binding key.
     pub key: &'a str,
-    /// The producer instance id.
+    /// The producer instance id (empty for [`BindForm::EmptyList`] and
+    /// [`BindForm::Vacant`]).
     pub instance: &'a str,
     /// The producer's node, when it is known (it always is in a launcher;
     /// on a command line it is not).
     pub producer: Option<Producer<'a>>,
+    /// How the binding is written.
+    pub form: BindForm<'a>,
+}
+
+/// How a binding is written: the grammar decides which slots it may fill.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum BindForm<'a> {
+    /// The seeds' `bindings: { key: "inst" }` or `--bind key@inst`: one
+    /// producer, possibly under a free-form key; repeating a key adds
+    /// producers to a slot that takes several.
+    #[default]
+    Key,
+    /// Today's `links: { slot: "inst" }`: for a slot that takes one.
+    Scalar,
+    /// One item of today's `links: { slot: ["a", "b"] }`: for a slot that
+    /// takes a list.
+    Item,
+    /// Today's `--link slot@inst`, which may repeat for a list slot.
+    Flag,
+    /// Today's `links: { slot: [] }`.
+    EmptyList,
+    /// Today's `links: { slot: { vacant: "why" } }` or `--vacant-link slot=why`.
+    Vacant(&'a str),
+}
+
+impl<'a> BindRequest<'a> {
+    /// A binding in the seeds' grammar ([`BindForm::Key`]).
+    pub fn key(key: &'a str, instance: &'a str, producer: Option<Producer<'a>>) -> Self {
+        BindRequest {
+            key,
+            instance,
+            producer,
+            form: BindForm::Key,
+        }
+    }
+
+    /// Whether it names a producer (not an empty list or a vacancy).
+    fn names_producer(&self) -> bool {
+        !matches!(self.form, BindForm::EmptyList | BindForm::Vacant(_))
+    }
 }
 
 /// Why a binding, or the lack of one, was refused. `Display` is the message
@@ -156,8 +209,10 @@ pub enum BindError {
         wanted: Identity,
     },
     /// A key names an interface slot, and the producer's node does not
-    /// conform to the interface.
+    /// conform to the interface (today: does not implement the contract).
     NotConformed {
+        /// The consumer's spelling (names the error).
+        spelling: Spelling,
         /// The consumer instance.
         consumer: String,
         /// The binding key (the slot's link_id).
@@ -197,8 +252,10 @@ pub enum BindError {
         /// The candidate `from_any` slots: `(link_id, kind, target)`.
         candidates: Vec<(String, SlotKind, Identity)>,
     },
-    /// A pinned slot has no binding.
+    /// A pinned slot (today: a slot of cardinality `one`) has no binding.
     PinnedUnbound {
+        /// The consumer's spelling (names the error).
+        spelling: Spelling,
         /// The consumer instance.
         consumer: String,
         /// The slot's link_id.
@@ -208,8 +265,11 @@ pub enum BindError {
         /// What it wants.
         target: Identity,
     },
-    /// A pinned slot is bound twice.
+    /// A pinned slot (today: one of cardinality `one` or `zero_or_one`) is
+    /// bound twice.
     PinnedTwice {
+        /// The consumer's spelling (names the error).
+        spelling: Spelling,
         /// The consumer instance.
         consumer: String,
         /// The slot's link_id.
@@ -219,6 +279,66 @@ pub enum BindError {
         /// The producer bound again.
         second: String,
     },
+    /// Today's spelling: a link key that names no slot (free-form keys
+    /// are the seeds' `from_any`).
+    UnknownSlot {
+        /// The consumer instance.
+        consumer: String,
+        /// The consumer's node.
+        node: Identity,
+        /// The link key.
+        key: String,
+        /// Every slot's link_id, sorted.
+        declared: Vec<String>,
+    },
+    /// A slot of today's cardinality linked in a shape it does not take.
+    Shape {
+        /// The consumer instance.
+        consumer: String,
+        /// The slot.
+        link_id: String,
+        /// Its cardinality.
+        cardinality: Cardinality,
+        /// What was wrong.
+        problem: ShapeProblem,
+    },
+    /// A slot that may not stay empty as written: unlinked `one` /
+    /// `one_or_more`, a `zero_or_one` left out instead of vacated, or
+    /// `[]` on `one_or_more`.
+    Unfulfilled {
+        /// The consumer instance.
+        consumer: String,
+        /// The slot.
+        link_id: String,
+        /// Node or interface slot.
+        kind: SlotKind,
+        /// What it wants.
+        target: Identity,
+        /// Its cardinality.
+        cardinality: Cardinality,
+        /// Written as an empty list (else left out).
+        empty_list: bool,
+    },
+    /// The same producer twice in one slot.
+    DuplicateProducer {
+        /// The consumer instance.
+        consumer: String,
+        /// The slot.
+        link_id: String,
+        /// The producer.
+        instance: String,
+    },
+}
+
+/// How a link's shape disagrees with its slot's cardinality.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ShapeProblem {
+    /// A list on a slot that takes one producer.
+    ArrayOnScalar,
+    /// A single value on a slot that takes a list.
+    ScalarOnMulti,
+    /// `{ vacant }` on a slot whose cardinality has no vacancy.
+    VacantInvalid,
 }
 
 fn describe(kind: SlotKind, target: &Identity) -> String {
@@ -230,10 +350,33 @@ impl BindError {
     pub fn code(&self) -> Code {
         match self {
             BindError::TargetMismatch { .. } => Code::BindingTargetMismatch,
-            BindError::NotConformed { .. } => Code::BindingInterfaceNotConformed,
+            BindError::NotConformed {
+                spelling: Spelling::Seeds,
+                ..
+            } => Code::BindingInterfaceNotConformed,
+            BindError::NotConformed { .. } => Code::BindingContractNotImplemented,
             BindError::DeadKey { .. } | BindError::AmbiguousKey { .. } => Code::DeadBindingKey,
-            BindError::PinnedUnbound { .. } => Code::PinnedSlotUnbound,
-            BindError::PinnedTwice { .. } => Code::DuplicateBindingKey,
+            BindError::PinnedUnbound {
+                spelling: Spelling::Seeds,
+                ..
+            } => Code::PinnedSlotUnbound,
+            BindError::PinnedUnbound { .. }
+            | BindError::Unfulfilled {
+                empty_list: false, ..
+            } => Code::BindingSlotUnfulfilled,
+            BindError::Unfulfilled { .. } => Code::BindingCardinalityUnmet,
+            BindError::PinnedTwice {
+                spelling: Spelling::Seeds,
+                ..
+            } => Code::DuplicateBindingKey,
+            BindError::PinnedTwice { .. } => Code::BindingSingleSlotMultipleTargets,
+            BindError::UnknownSlot { .. } => Code::LinkUnknownSlot,
+            BindError::Shape { problem, .. } => match problem {
+                ShapeProblem::ArrayOnScalar => Code::BindingArrayOnScalarSlot,
+                ShapeProblem::ScalarOnMulti => Code::BindingScalarOnMultiSlot,
+                ShapeProblem::VacantInvalid => Code::LinkVacantInvalid,
+            },
+            BindError::DuplicateProducer { .. } => Code::DuplicateBoundProducer,
         }
     }
 
@@ -242,20 +385,70 @@ impl BindError {
     pub fn launcher_help(&self, fit: &[String]) -> String {
         match self {
             BindError::PinnedUnbound {
+                spelling,
                 link_id,
                 kind,
                 target,
                 ..
-            } => match fit.first() {
-                None => format!(
-                    "add `bindings: {{ {link_id}: \"<instance_id>\" }}`; no instance in this launcher fills {} yet",
-                    describe(*kind, target)
+            } => {
+                let key = match spelling {
+                    Spelling::Seeds => "bindings",
+                    Spelling::Today => "links",
+                };
+                match fit.first() {
+                    None => format!(
+                        "add `{key}: {{ {link_id}: \"<instance_id>\" }}`; no instance in this launcher fills {} yet",
+                        describe(*kind, target)
+                    ),
+                    Some(first) => format!(
+                        "add `{key}: {{ {link_id}: \"{first}\" }}`; instances that fit: {}",
+                        list(fit.iter().map(String::as_str))
+                    ),
+                }
+            }
+            BindError::Unfulfilled {
+                link_id,
+                cardinality,
+                empty_list,
+                ..
+            } => {
+                let first = fit.first().map_or("<instance_id>", String::as_str);
+                let fits = if fit.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        "; instances that fit: {}",
+                        list(fit.iter().map(String::as_str))
+                    )
+                };
+                match (cardinality, empty_list) {
+                    (Cardinality::ZeroOrOne, _) => format!(
+                        "link it (`links: {{ {link_id}: \"{first}\" }}`), or leave it empty on purpose: `links: {{ {link_id}: {{ vacant: \"<why>\" }} }}`{fits}"
+                    ),
+                    _ => format!(
+                        "link at least one producer: `links: {{ {link_id}: [\"{first}\"] }}`{fits}"
+                    ),
+                }
+            }
+            BindError::Shape {
+                link_id,
+                cardinality,
+                problem,
+                ..
+            } => match problem {
+                ShapeProblem::ArrayOnScalar => format!(
+                    "a `{cardinality}` slot takes one producer: write `{link_id}: \"<instance_id>\"`"
                 ),
-                Some(first) => format!(
-                    "add `bindings: {{ {link_id}: \"{first}\" }}`; instances that fit: {}",
-                    list(fit.iter().map(String::as_str))
+                ShapeProblem::ScalarOnMulti => format!(
+                    "a `{cardinality}` slot takes a list: write `{link_id}: [\"<instance_id>\"]`"
                 ),
+                ShapeProblem::VacantInvalid => {
+                    vacancy_help(*cardinality, "`[]` or leave the slot out")
+                }
             },
+            BindError::UnknownSlot { .. } | BindError::DuplicateProducer { .. } => {
+                self.common_help()
+            }
             BindError::AmbiguousKey { candidates, .. } => format!(
                 "use one of the slots' link_ids as the key: {}",
                 list(candidates.iter().map(|(l, _, _)| l.as_str()))
@@ -267,11 +460,42 @@ impl BindError {
         }
     }
 
-    /// What would fix it, in the words of a command line (`--bind`).
+    /// What would fix it, in the words of a command line (`--bind`, or
+    /// today's `--link` and `--vacant-link`).
     pub fn command_line_help(&self) -> String {
         match self {
-            BindError::PinnedUnbound { link_id, .. } => {
+            BindError::PinnedUnbound {
+                spelling: Spelling::Seeds,
+                link_id,
+                ..
+            } => {
                 format!("pass --bind {link_id}@<producer instance id>")
+            }
+            BindError::PinnedUnbound { link_id, .. } => {
+                format!("pass --link {link_id}@<producer instance id>")
+            }
+            BindError::Unfulfilled {
+                link_id,
+                cardinality: Cardinality::ZeroOrOne,
+                ..
+            } => format!(
+                "pass --link {link_id}@<producer instance id>, or --vacant-link '{link_id}=<why>' to leave it empty on purpose"
+            ),
+            BindError::Unfulfilled { link_id, .. } => {
+                format!(
+                    "pass --link {link_id}@<producer instance id> (repeat it for more producers)"
+                )
+            }
+            BindError::Shape {
+                cardinality,
+                problem: ShapeProblem::VacantInvalid,
+                ..
+            } => vacancy_help(*cardinality, "leave the flag out"),
+            BindError::Shape { link_id, .. } => {
+                format!("pass --link {link_id}@<producer instance id> once per producer")
+            }
+            BindError::UnknownSlot { .. } | BindError::DuplicateProducer { .. } => {
+                self.common_help()
             }
             BindError::AmbiguousKey {
                 instance,
@@ -285,8 +509,15 @@ impl BindError {
                     .collect::<Vec<_>>()
                     .join(" or ")
             ),
-            BindError::PinnedTwice { link_id, .. } => {
+            BindError::PinnedTwice {
+                spelling: Spelling::Seeds,
+                link_id,
+                ..
+            } => {
                 format!("a pinned slot takes one producer; pass --bind {link_id}@... once")
+            }
+            BindError::PinnedTwice { link_id, .. } => {
+                format!("the slot takes one producer; pass --link {link_id}@... once")
             }
             other => other.common_help(),
         }
@@ -295,6 +526,15 @@ impl BindError {
     fn common_help(&self) -> String {
         match self {
             BindError::TargetMismatch { wanted, .. } => format!("bind an instance of `{wanted}`"),
+            BindError::NotConformed {
+                spelling: Spelling::Today,
+                producer_node,
+                wanted,
+                ..
+            } => format!(
+                "link an instance of a node that implements it, or add `implements: [{{ name: \"{}\", tag: \"{}\", link_id: \"...\" }}]` (and its members) to `{producer_node}`",
+                wanted.name, wanted.tag
+            ),
             BindError::NotConformed {
                 producer_node,
                 wanted,
@@ -337,11 +577,39 @@ impl BindError {
                     )
                 }
             }
+            BindError::UnknownSlot { key, declared, .. } => {
+                let names = declared.iter().map(String::as_str);
+                match crate::diag::did_you_mean(key, names.clone()) {
+                    Some(s) => format!("did you mean `{s}`? declared slots: {}", list(names)),
+                    None if declared.is_empty() => {
+                        "the node declares no slots (`manifest.depends_on` is empty); remove the link".to_string()
+                    }
+                    None => format!("declared slots: {}", list(names)),
+                }
+            }
+            BindError::DuplicateProducer { instance, .. } => {
+                format!("list `{instance}` once")
+            }
             // Covered by the front-end specific helps.
             BindError::AmbiguousKey { .. }
             | BindError::PinnedUnbound { .. }
-            | BindError::PinnedTwice { .. } => String::new(),
+            | BindError::PinnedTwice { .. }
+            | BindError::Unfulfilled { .. }
+            | BindError::Shape { .. } => String::new(),
         }
+    }
+}
+
+/// Why a vacancy is refused, by cardinality; `instead` says how an empty
+/// `zero_or_more` slot is written in this front end.
+fn vacancy_help(cardinality: Cardinality, instead: &str) -> String {
+    match cardinality {
+        Cardinality::ZeroOrMore => {
+            format!("a `zero_or_more` slot can simply stay empty: {instead}")
+        }
+        _ => format!(
+            "a `{cardinality}` slot is required; only a `zero_or_one` slot may be vacant (change the node's cardinality if it may run without a producer)"
+        ),
     }
 }
 
@@ -359,6 +627,7 @@ impl fmt::Display for BindError {
                 "binding `{key}` on instance `{consumer}`: `{instance}` deploys node `{producer_node}`, but slot `{key}` expects node `{wanted}`"
             ),
             BindError::NotConformed {
+                spelling: Spelling::Seeds,
                 consumer,
                 key,
                 instance,
@@ -367,6 +636,17 @@ impl fmt::Display for BindError {
             } => write!(
                 f,
                 "binding `{key}` on instance `{consumer}`: `{instance}` deploys `{producer_node}`, which does not conform to interface `{wanted}` required by slot `{key}`"
+            ),
+            BindError::NotConformed {
+                consumer,
+                key,
+                instance,
+                producer_node,
+                wanted,
+                ..
+            } => write!(
+                f,
+                "link `{key}` on instance `{consumer}`: `{instance}` deploys `{producer_node}`, which does not implement contract `{wanted}` required by slot `{key}`"
             ),
             BindError::DeadKey {
                 consumer,
@@ -393,6 +673,7 @@ impl fmt::Display for BindError {
                     .join(", ")
             ),
             BindError::PinnedUnbound {
+                spelling: Spelling::Seeds,
                 consumer,
                 link_id,
                 kind,
@@ -402,7 +683,19 @@ impl fmt::Display for BindError {
                 "instance `{consumer}`: pinned slot `{link_id}` ({}) is unbound",
                 describe(*kind, target)
             ),
+            BindError::PinnedUnbound {
+                consumer,
+                link_id,
+                kind,
+                target,
+                ..
+            } => write!(
+                f,
+                "instance `{consumer}`: slot `{link_id}` ({}, cardinality one) is not linked",
+                describe(*kind, target)
+            ),
             BindError::PinnedTwice {
+                spelling: Spelling::Seeds,
                 consumer,
                 link_id,
                 first,
@@ -410,6 +703,73 @@ impl fmt::Display for BindError {
             } => write!(
                 f,
                 "instance `{consumer}`: pinned slot `{link_id}` is bound to `{first}` and again to `{second}`"
+            ),
+            BindError::PinnedTwice {
+                consumer,
+                link_id,
+                first,
+                second,
+                ..
+            } => write!(
+                f,
+                "instance `{consumer}`: slot `{link_id}` takes one producer and is linked to `{first}` and again to `{second}`"
+            ),
+            BindError::UnknownSlot {
+                consumer,
+                node,
+                key,
+                ..
+            } => write!(
+                f,
+                "link `{key}` on instance `{consumer}` names no slot of `{node}`"
+            ),
+            BindError::Shape {
+                consumer,
+                link_id,
+                cardinality,
+                problem,
+            } => match problem {
+                ShapeProblem::ArrayOnScalar => write!(
+                    f,
+                    "instance `{consumer}`: slot `{link_id}` (cardinality {cardinality}) takes one producer, and is linked to a list"
+                ),
+                ShapeProblem::ScalarOnMulti => write!(
+                    f,
+                    "instance `{consumer}`: slot `{link_id}` (cardinality {cardinality}) takes a list, and is linked to a single instance"
+                ),
+                ShapeProblem::VacantInvalid => write!(
+                    f,
+                    "instance `{consumer}`: slot `{link_id}` (cardinality {cardinality}) cannot be vacant"
+                ),
+            },
+            BindError::Unfulfilled {
+                consumer,
+                link_id,
+                kind,
+                target,
+                cardinality,
+                empty_list,
+            } => {
+                let what = describe(*kind, target);
+                if *empty_list {
+                    write!(
+                        f,
+                        "instance `{consumer}`: slot `{link_id}` ({what}, cardinality {cardinality}) is linked to an empty list"
+                    )
+                } else {
+                    write!(
+                        f,
+                        "instance `{consumer}`: slot `{link_id}` ({what}, cardinality {cardinality}) is not linked"
+                    )
+                }
+            }
+            BindError::DuplicateProducer {
+                consumer,
+                link_id,
+                instance,
+            } => write!(
+                f,
+                "instance `{consumer}`: slot `{link_id}` lists `{instance}` twice"
             ),
         }
     }
@@ -428,31 +788,39 @@ pub struct Assignment {
     pub errors: Vec<(Option<usize>, BindError)>,
 }
 
-/// Fills the slots of `consumer` (an instance of `node`, whose slots are
-/// `dependencies`) from `binds`, in order (SPEC 6.1 rules 2-4):
+/// Fills the slots of `consumer` (an instance of `node`, written in
+/// `spelling`, whose slots are `dependencies`) from `binds`, in order
+/// (SPEC 6.1 rules 2-4, and today's link rules):
 ///
-/// - a key equal to a slot's link_id binds that slot, and the producer must
-///   fit it when its node is known;
-/// - any other key is free-form and joins the first `from_any` slot, in
-///   link_id order, that the producer fits; when the producer's node is not
-///   known, that is the first `from_any` slot if all of them want the same
-///   thing, and an [`BindError::AmbiguousKey`] otherwise;
-/// - every pinned slot must end up bound.
+/// - a key equal to a slot's link_id binds that slot, in a shape its
+///   cardinality takes ([`BindForm`]), and the producer must fit it when
+///   its node is known;
+/// - any other key is free-form in the seeds' grammar and joins the first
+///   `from_any` slot, in link_id order, that the producer fits; when the
+///   producer's node is not known, that is the first `from_any` slot if all
+///   of them want the same thing, and an [`BindError::AmbiguousKey`]
+///   otherwise. In today's grammar (or for a node of today's spelling)
+///   every key must name a slot ([`BindError::UnknownSlot`]);
+/// - every slot ends within its cardinality: a pinned (`one`) slot bound,
+///   a `one_or_more` slot given a producer, a `zero_or_one` slot linked or
+///   vacated on purpose.
 ///
 /// Then each slot gets its routing filter ([`compute_filters`]).
 pub fn assign(
     consumer: &str,
     node: &Identity,
+    spelling: Spelling,
     dependencies: &[Dependency],
     binds: &[BindRequest<'_>],
 ) -> Assignment {
-    let mut pinned: Vec<Option<&str>> = vec![None; dependencies.len()];
-    let mut producers: Vec<Vec<String>> = vec![Vec::new(); dependencies.len()];
-    let mut from_any: Vec<usize> = (0..dependencies.len())
-        .filter(|&i| dependencies[i].from_any)
-        .collect();
+    let n = dependencies.len();
+    let mut pinned: Vec<Option<&str>> = vec![None; n];
+    let mut producers: Vec<Vec<String>> = vec![Vec::new(); n];
+    let mut empty_list = vec![false; n];
+    let mut vacant: Vec<Option<&str>> = vec![None; n];
+    let mut from_any: Vec<usize> = (0..n).filter(|&i| dependencies[i].from_any).collect();
     from_any.sort_by(|&a, &b| dependencies[a].link_id.cmp(&dependencies[b].link_id));
-    // A pinned slot whose own binding was refused is not also reported unbound.
+    // A slot whose own binding was refused is not also reported unbound.
     let mut refused_slots: Vec<usize> = Vec::new();
     let mut errors = Vec::new();
 
@@ -460,17 +828,51 @@ pub fn assign(
         let mut refuse = |e: BindError| errors.push((Some(index), e));
         if let Some(slot) = dependencies.iter().position(|d| d.link_id == b.key) {
             let dep = &dependencies[slot];
+            if !dep.from_any
+                && let Some(problem) = shape_problem(dep.cardinality, b.form)
+            {
+                refuse(BindError::Shape {
+                    consumer: consumer.to_string(),
+                    link_id: dep.link_id.clone(),
+                    cardinality: dep.cardinality,
+                    problem,
+                });
+                refused_slots.push(slot);
+                continue;
+            }
+            match b.form {
+                BindForm::EmptyList => {
+                    empty_list[slot] = true;
+                    continue;
+                }
+                BindForm::Vacant(why) => {
+                    vacant[slot] = Some(why);
+                    continue;
+                }
+                _ => {}
+            }
             if let Some(p) = b.producer
                 && !p.fits(dep.kind, &dep.target)
             {
-                refuse(mismatch(consumer, b, p, dep));
+                refuse(mismatch(spelling, consumer, b, p, dep));
                 refused_slots.push(slot);
                 continue;
             }
             if dep.from_any {
                 producers[slot].push(b.instance.to_string());
+            } else if !dep.cardinality.is_scalar() {
+                if producers[slot].iter().any(|p| p == b.instance) {
+                    refuse(BindError::DuplicateProducer {
+                        consumer: consumer.to_string(),
+                        link_id: dep.link_id.clone(),
+                        instance: b.instance.to_string(),
+                    });
+                } else {
+                    producers[slot].push(b.instance.to_string());
+                }
             } else if let Some(first) = pinned[slot] {
                 refuse(BindError::PinnedTwice {
+                    spelling,
                     consumer: consumer.to_string(),
                     link_id: dep.link_id.clone(),
                     first: first.to_string(),
@@ -479,6 +881,18 @@ pub fn assign(
             } else {
                 pinned[slot] = Some(b.instance);
             }
+            continue;
+        }
+        if b.form != BindForm::Key || spelling == Spelling::Today || !b.names_producer() {
+            let mut declared: Vec<String> =
+                dependencies.iter().map(|d| d.link_id.clone()).collect();
+            declared.sort();
+            refuse(BindError::UnknownSlot {
+                consumer: consumer.to_string(),
+                node: node.clone(),
+                key: b.key.to_string(),
+                declared,
+            });
             continue;
         }
         let chosen = match free_form_slot(consumer, dependencies, &from_any, b) {
@@ -506,6 +920,15 @@ pub fn assign(
 
     let mut slots = Vec::new();
     for (i, dep) in dependencies.iter().enumerate() {
+        let refused = refused_slots.contains(&i);
+        let unfulfilled = |empty_list: bool| BindError::Unfulfilled {
+            consumer: consumer.to_string(),
+            link_id: dep.link_id.clone(),
+            kind: dep.kind,
+            target: dep.target.clone(),
+            cardinality: dep.cardinality,
+            empty_list,
+        };
         let binding = if dep.from_any {
             if producers[i].is_empty() {
                 SlotBinding::FromAnyUnbound
@@ -514,23 +937,57 @@ pub fn assign(
                     producers: std::mem::take(&mut producers[i]),
                 }
             }
-        } else if let Some(p) = pinned[i] {
-            SlotBinding::Pinned {
-                producer: p.to_string(),
+        } else if dep.cardinality == Cardinality::One {
+            match pinned[i] {
+                Some(p) => SlotBinding::Pinned {
+                    producer: p.to_string(),
+                },
+                None => {
+                    if !refused {
+                        errors.push((
+                            None,
+                            BindError::PinnedUnbound {
+                                spelling,
+                                consumer: consumer.to_string(),
+                                link_id: dep.link_id.clone(),
+                                kind: dep.kind,
+                                target: dep.target.clone(),
+                            },
+                        ));
+                    }
+                    continue;
+                }
             }
         } else {
-            if !refused_slots.contains(&i) {
+            let mut set: Vec<String> = pinned[i].map(str::to_string).into_iter().collect();
+            set.append(&mut producers[i]);
+            if vacant[i].is_some() && !set.is_empty() {
                 errors.push((
                     None,
-                    BindError::PinnedUnbound {
+                    BindError::Shape {
                         consumer: consumer.to_string(),
                         link_id: dep.link_id.clone(),
-                        kind: dep.kind,
-                        target: dep.target.clone(),
+                        cardinality: dep.cardinality,
+                        problem: ShapeProblem::VacantInvalid,
                     },
                 ));
+                continue;
             }
-            continue;
+            let missing = match dep.cardinality {
+                Cardinality::ZeroOrOne => set.is_empty() && vacant[i].is_none(),
+                Cardinality::OneOrMore => set.is_empty(),
+                _ => false,
+            };
+            if missing {
+                if !refused {
+                    errors.push((None, unfulfilled(empty_list[i])));
+                }
+                continue;
+            }
+            SlotBinding::Set {
+                producers: set,
+                vacant: vacant[i].map(str::to_string),
+            }
         };
         slots.push(SlotPlan {
             link_id: dep.link_id.clone(),
@@ -542,6 +999,18 @@ pub fn assign(
     }
     compute_filters(&mut slots);
     Assignment { slots, errors }
+}
+
+/// Whether a binding written as `form` fits a slot of `cardinality`.
+fn shape_problem(cardinality: Cardinality, form: BindForm<'_>) -> Option<ShapeProblem> {
+    match (cardinality.is_scalar(), form) {
+        (_, BindForm::Vacant(_)) if cardinality != Cardinality::ZeroOrOne => {
+            Some(ShapeProblem::VacantInvalid)
+        }
+        (true, BindForm::Item | BindForm::EmptyList) => Some(ShapeProblem::ArrayOnScalar),
+        (false, BindForm::Scalar) => Some(ShapeProblem::ScalarOnMulti),
+        _ => None,
+    }
 }
 
 /// The `from_any` slot (index into `dependencies`, `from_any` in link_id
@@ -605,7 +1074,9 @@ pub enum PlanMismatch {
         /// What the node declares (`interface y:v1`).
         declared: String,
     },
-    /// A pinned slot with a `from_any` binding, or the other way round.
+    /// A binding its slot's declaration does not allow: pinned for a
+    /// `from_any` slot or the other way round, or a set of producers its
+    /// cardinality does not take.
     #[error("the plan binds slot `{0}` as {1}, which its declaration does not allow")]
     Binding(String, &'static str),
 }
@@ -646,9 +1117,23 @@ pub fn fit_plan(
                 declared: describe(dep.kind, &dep.target),
             });
         }
-        let pinned = matches!(slot.binding, SlotBinding::Pinned { .. });
-        if pinned == dep.from_any {
-            let what = if pinned { "pinned" } else { "from_any" };
+        let fits = match &slot.binding {
+            SlotBinding::Pinned { .. } => !dep.from_any && dep.cardinality == Cardinality::One,
+            SlotBinding::FromAnyBound { .. } | SlotBinding::FromAnyUnbound => dep.from_any,
+            SlotBinding::Set { producers, vacant } => {
+                !dep.from_any
+                    && dep.cardinality != Cardinality::One
+                    && (!dep.cardinality.is_scalar() || producers.len() <= 1)
+                    && (dep.cardinality != Cardinality::OneOrMore || !producers.is_empty())
+                    && (vacant.is_none() || dep.cardinality == Cardinality::ZeroOrOne)
+            }
+        };
+        if !fits {
+            let what = match &slot.binding {
+                SlotBinding::Pinned { .. } => "pinned",
+                SlotBinding::Set { .. } => "a set of producers",
+                _ => "from_any",
+            };
             return Err(PlanMismatch::Binding(slot.link_id, what));
         }
         ordered.push(slot);
@@ -656,7 +1141,13 @@ pub fn fit_plan(
     Ok(ordered)
 }
 
-fn mismatch(consumer: &str, b: &BindRequest<'_>, p: Producer<'_>, dep: &Dependency) -> BindError {
+fn mismatch(
+    spelling: Spelling,
+    consumer: &str,
+    b: &BindRequest<'_>,
+    p: Producer<'_>,
+    dep: &Dependency,
+) -> BindError {
     let (consumer, key, instance) = (
         consumer.to_string(),
         b.key.to_string(),
@@ -671,6 +1162,7 @@ fn mismatch(consumer: &str, b: &BindRequest<'_>, p: Producer<'_>, dep: &Dependen
             wanted: dep.target.clone(),
         },
         SlotKind::Interface => BindError::NotConformed {
+            spelling,
             consumer,
             key,
             instance,
@@ -717,11 +1209,16 @@ pub fn compute_filters(slots: &mut [SlotPlan]) {
                         .collect(),
                 )
             }
+            // Today's slots take exactly their set: siblings do not matter.
+            SlotBinding::Set { producers, .. } => {
+                RouteFilter::OnlyFrom(producers.iter().cloned().collect())
+            }
             SlotBinding::FromAnyUnbound => {
                 let claimed: BTreeSet<String> = siblings
                     .flat_map(|(_, _, _, b)| match b {
                         SlotBinding::Pinned { producer } => vec![producer.clone()],
-                        SlotBinding::FromAnyBound { producers } => producers.clone(),
+                        SlotBinding::FromAnyBound { producers }
+                        | SlotBinding::Set { producers, .. } => producers.clone(),
                         SlotBinding::FromAnyUnbound => Vec::new(),
                     })
                     .collect();

@@ -236,7 +236,8 @@ fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
         .at(file, n.span)
         .with_key_path("peppy_schema")
         .with_help(format!(
-            "of today's spelling peppy reads `contract/v1` so far{instead} (docs/DOCUMENTS.md)"
+            "of today's spelling peppy reads {} so far{instead} (docs/DOCUMENTS.md)",
+            list(SCHEMAS.iter().copied().filter(|s| s.contains('/')))
         ));
     }
     match (&root.value, root.get("peppy_schema")) {

@@ -74,8 +74,8 @@ mod resolve;
 mod stack;
 
 pub use binding::{
-    Assignment, BindError, BindRequest, PlanMismatch, Producer, RouteFilter, SlotBinding, SlotPlan,
-    assign, compute_filters, fit_plan,
+    Assignment, BindError, BindForm, BindRequest, PlanMismatch, Producer, RouteFilter,
+    ShapeProblem, SlotBinding, SlotPlan, assign, compute_filters, fit_plan,
 };
 pub use diag::{Code, Diagnostic, Diagnostics, Severity, did_you_mean};
 pub use loc::Loc;

@@ -224,7 +224,7 @@ mod tests {
         let json = NodeModel::of(&doc).to_json();
         // The shape hand-written descriptors (the latency bench) rely on.
         assert!(
-            json.starts_with(r#"{"identity":{"name":"pinger","tag":"v1"},"dependencies":[{"kind":"node","target":{"name":"ponger","tag":"v1"},"link_id":"ponger","from_any":false,"sha256":null}],"#),
+            json.starts_with(r#"{"spelling":"seeds","identity":{"name":"pinger","tag":"v1"},"dependencies":[{"kind":"node","target":{"name":"ponger","tag":"v1"},"link_id":"ponger","from_any":false,"cardinality":"one","sha256":null}],"#),
             "{json}"
         );
         let back = NodeModel::from_json(&json).unwrap();

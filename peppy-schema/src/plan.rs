@@ -150,18 +150,21 @@ fn plan_instance(
         .collect();
     let requests: Vec<BindRequest<'_>> = known
         .iter()
-        .map(|(b, (id, conforms))| BindRequest {
-            key: &b.key,
-            instance: &b.target,
-            producer: Some(Producer {
-                node: id,
-                conforms_to: conforms,
-            }),
+        .map(|(b, (id, conforms))| {
+            BindRequest::key(
+                &b.key,
+                &b.target,
+                Some(Producer {
+                    node: id,
+                    conforms_to: conforms,
+                }),
+            )
         })
         .collect();
     let outcome = assign(
         &inst.instance_id,
         &node.identity(),
+        node.spelling,
         &node.dependencies,
         &requests,
     );

@@ -8,10 +8,11 @@ use std::sync::Arc;
 use serde::Serialize;
 
 use crate::diag::{Code, Diagnostic, Diagnostics, list};
-use crate::document::DocumentKind;
+use crate::document::{DocumentKind, Spelling};
 use crate::entries::{ActionDecl, EntryKind, QosProfile, ServiceDecl, TopicDecl};
 use crate::format::MessageFormat;
 use crate::interface::InterfaceDoc;
+use crate::node::RefinedMessage;
 use crate::node::{ConsumedRef, Dependency, Identity, NodeDoc, SlotKind, TopicSource};
 use crate::read::Loc;
 use crate::repos::{Entry, RepoIndex};
@@ -118,6 +119,9 @@ struct Offer {
     topics: Vec<Provided<TopicDecl>>,
     services: Vec<Provided<ServiceDecl>>,
     actions: Vec<Provided<ActionDecl>>,
+    /// What a producer provides only through a contract, hidden from a
+    /// node slot of today's spelling: `(kind, name, implements link_id)`.
+    contract_backed: Vec<(EntryKind, String, String)>,
 }
 
 impl Offer {
@@ -154,11 +158,30 @@ pub fn resolve_node(
             continue;
         };
         files.push(entry.path.clone());
+        if let Some(link_id) = &c.link_id {
+            check_coverage(&node, link_id, c, &entry.doc, &mut diags);
+        }
         provides.extend(interface_offer(&entry.doc, &c.target));
         conformed.push(UsedInterface {
             doc: entry.doc.clone(),
             path: entry.path.clone(),
         });
+    }
+
+    for p in &node.pairings {
+        diags.push(
+            p.loc
+                .error(
+                    Code::PairingsNotSupported,
+                    format!(
+                        "slot `{}` {} pairing `{}`, and peppy does not run pairings yet",
+                        p.link_id,
+                        if p.observer { "observes" } else { "takes part in" },
+                        p.pairing
+                    ),
+                )
+                .with_help("the document is valid (`peppy-launch validate` accepts it); building or launching it waits for pairing support"),
+        );
     }
 
     // What each slot offers.
@@ -184,7 +207,8 @@ pub fn resolve_node(
                     continue;
                 };
                 files.push(entry.path.clone());
-                match producer_offer(&entry.doc, index, dep, &mut files, &mut diags) {
+                let natives_only = node.spelling == Spelling::Today;
+                match producer_offer(&entry.doc, index, dep, natives_only, &mut files, &mut diags) {
                     Some(o) => o,
                     None => continue,
                 }
@@ -228,11 +252,16 @@ pub fn resolve_node(
 /// A declaration's name, for matching consumers to producers.
 trait Named {
     fn name(&self) -> &str;
+    /// The format `refine` names (`None`: the entry has no such message).
+    fn message(&self, which: RefinedMessage) -> Option<Option<MessageFormat>>;
 }
 
 impl Named for TopicDecl {
     fn name(&self) -> &str {
         &self.name
+    }
+    fn message(&self, which: RefinedMessage) -> Option<Option<MessageFormat>> {
+        (which == RefinedMessage::Topic).then(|| self.format.clone())
     }
 }
 
@@ -240,11 +269,33 @@ impl Named for ServiceDecl {
     fn name(&self) -> &str {
         &self.name
     }
+    fn message(&self, which: RefinedMessage) -> Option<Option<MessageFormat>> {
+        match which {
+            RefinedMessage::Request => Some(self.request.clone()),
+            RefinedMessage::Response => Some(self.response.clone()),
+            _ => None,
+        }
+    }
 }
 
 impl Named for ActionDecl {
     fn name(&self) -> &str {
         &self.name
+    }
+    fn message(&self, which: RefinedMessage) -> Option<Option<MessageFormat>> {
+        crate::node::action_message(self, which)
+    }
+}
+
+/// Checks a consumed entry's `refine` against what its producer declares.
+fn check_consumed_refine<T: Named>(
+    refine: Option<&crate::node::Refine>,
+    decl: &T,
+    diags: &mut Diagnostics,
+) {
+    if let Some(refine) = refine {
+        let problems = crate::node::check_refine(refine, |which| decl.message(which));
+        refinement_problems(decl.name(), problems, diags);
     }
 }
 
@@ -266,6 +317,7 @@ fn node_offer(node: &NodeDoc) -> Offer {
         topics: provided(&node.emits, &own),
         services: provided(&node.exposed_services, &own),
         actions: provided(&node.exposed_actions, &own),
+        contract_backed: Vec::new(),
     }
 }
 
@@ -276,6 +328,7 @@ fn interface_offer(doc: &InterfaceDoc, identity: &Identity) -> Offer {
         topics: provided(&doc.topics, &origin),
         services: provided(&doc.services, &origin),
         actions: provided(&doc.actions, &origin),
+        contract_backed: Vec::new(),
     }
 }
 
@@ -319,14 +372,17 @@ fn resolve_topics(
                     continue;
                 };
                 match offer.topics.iter().find(|p| p.decl.name == t.name) {
-                    Some(p) => out.push(ResolvedTopic {
-                        name: t.name.clone(),
-                        slot: Some(slot_of(dep)),
-                        origin: Some(p.origin.clone()),
-                        format: p.decl.format.clone(),
-                        qos: p.decl.qos,
-                        loc: t.loc.clone(),
-                    }),
+                    Some(p) => {
+                        check_consumed_refine(t.refine.as_ref(), &p.decl, diags);
+                        out.push(ResolvedTopic {
+                            name: t.name.clone(),
+                            slot: Some(slot_of(dep)),
+                            origin: Some(p.origin.clone()),
+                            format: p.decl.format.clone(),
+                            qos: p.decl.qos,
+                            loc: t.loc.clone(),
+                        })
+                    }
                     None => diags.push(missing_on_producer(
                         &t.loc,
                         EntryKind::Topic,
@@ -356,27 +412,42 @@ fn resolve_calls<T: Clone + Named>(
             continue;
         };
         match pick(offer).iter().find(|p| p.decl.name() == c.name) {
-            Some(p) => out.push(ResolvedCall {
-                slot: slot_of(dep),
-                decl: p.decl.clone(),
-                origin: p.origin.clone(),
-                loc: c.loc.clone(),
-            }),
+            Some(p) => {
+                check_consumed_refine(c.refine.as_ref(), &p.decl, diags);
+                out.push(ResolvedCall {
+                    slot: slot_of(dep),
+                    decl: p.decl.clone(),
+                    origin: p.origin.clone(),
+                    loc: c.loc.clone(),
+                })
+            }
             None => diags.push(missing_on_producer(&c.loc, kind, &c.name, dep, offer)),
         }
     }
     out
 }
 
-/// A producer node's offer: own entries win a name clash with conformed ones.
+/// A producer node's offer: own entries win a name clash with conformed
+/// ones. A consumer of today's spelling sees only the producer's own
+/// entries through a node slot (`natives_only`): what a contract shapes is
+/// consumed through a contract slot.
 fn producer_offer(
     producer: &NodeDoc,
     index: &RepoIndex,
     dep: &Dependency,
+    natives_only: bool,
     files: &mut Vec<PathBuf>,
     diags: &mut Diagnostics,
 ) -> Option<Offer> {
     let mut offer = node_offer(producer);
+    if natives_only {
+        offer.contract_backed = producer
+            .members
+            .iter()
+            .map(|m| (m.kind, m.name.clone(), m.link_id.clone()))
+            .collect();
+        return Some(offer);
+    }
     for c in &producer.conforms_to {
         // The producer's own pins are checked when the producer is built; here
         // we only need the contract it inherits.
@@ -428,6 +499,21 @@ fn missing_on_producer(
     dep: &Dependency,
     offer: &Offer,
 ) -> Diagnostic {
+    if let Some((_, _, link_id)) = offer
+        .contract_backed
+        .iter()
+        .find(|(k, n, _)| *k == kind && n == name)
+    {
+        return loc
+            .error(
+                Code::ConsumedInterfaceOnlyContractBacked,
+                format!(
+                    "node `{}` provides {kind} `{name}` only through its contract slot `{link_id}`, and a node slot sees only a producer's own entries",
+                    dep.target
+                ),
+            )
+            .with_help("consume it through `depends_on.contracts` (the contract that node implements), and link that slot to the instance");
+    }
     let what = match dep.kind {
         SlotKind::Node => format!("node `{}`", dep.target),
         SlotKind::Interface => format!("interface `{}`", dep.target),
@@ -445,6 +531,120 @@ fn missing_on_producer(
         format!("slot `{}` ({what}) has no {kind} `{name}`", dep.link_id),
     )
     .with_help(help)
+}
+
+/// Today's explicit member list of one `implements` slot against the
+/// contract: each member exactly once, in the section of its kind
+/// (`ContractCoverageMismatch`); then every `refine` of those members
+/// lands on an open array (`RefinementMismatch`).
+fn check_coverage(
+    node: &NodeDoc,
+    link_id: &str,
+    claim: &crate::node::InterfaceRef,
+    contract: &InterfaceDoc,
+    diags: &mut Diagnostics,
+) {
+    let listed: Vec<&crate::node::MemberRef> = node
+        .members
+        .iter()
+        .filter(|m| m.link_id == link_id)
+        .collect();
+    let has = |kind: EntryKind, name: &str| match kind {
+        EntryKind::Topic => contract.topics.iter().any(|t| t.name == name),
+        EntryKind::Service => contract.services.iter().any(|t| t.name == name),
+        EntryKind::Action => contract.actions.iter().any(|t| t.name == name),
+    };
+    let all = [EntryKind::Topic, EntryKind::Service, EntryKind::Action];
+    let mut problems = Vec::new();
+    for kind in all {
+        let names: Vec<&str> = match kind {
+            EntryKind::Topic => contract.topics.iter().map(|t| t.name.as_str()).collect(),
+            EntryKind::Service => contract.services.iter().map(|t| t.name.as_str()).collect(),
+            EntryKind::Action => contract.actions.iter().map(|t| t.name.as_str()).collect(),
+        };
+        let missing: Vec<&str> = names
+            .into_iter()
+            .filter(|n| !listed.iter().any(|m| m.kind == kind && m.name == *n))
+            .collect();
+        if !missing.is_empty() {
+            problems.push(format!("missing {kind}s: {}", list(missing)));
+        }
+    }
+    for m in &listed {
+        if has(m.kind, &m.name) {
+            continue;
+        }
+        let elsewhere = all.iter().find(|k| **k != m.kind && has(**k, &m.name));
+        problems.push(match elsewhere {
+            Some(k) => format!(
+                "wrong kind: `{}` is a {k} of the contract, listed as a {}",
+                m.name, m.kind
+            ),
+            None => format!("unknown {}: `{}`", m.kind, m.name),
+        });
+    }
+    if !problems.is_empty() {
+        diags.push(
+            claim
+                .loc
+                .error(
+                    Code::ContractCoverageMismatch,
+                    format!(
+                        "implements slot `{link_id}` does not list the members of contract `{}`: {}",
+                        claim.target,
+                        problems.join("; ")
+                    ),
+                )
+                .with_help(format!(
+                    "list every member of `{}` once, in the section of its kind, as `{{ link_id: \"{link_id}\", name: \"<member>\" }}`",
+                    claim.target
+                )),
+        );
+        return;
+    }
+    for m in listed {
+        let Some(refine) = &m.refine else { continue };
+        let problems = crate::node::check_refine(refine, |which| {
+            use crate::node::RefinedMessage as R;
+            match (m.kind, which) {
+                (EntryKind::Topic, R::Topic) => contract
+                    .topics
+                    .iter()
+                    .find(|t| t.name == m.name)
+                    .map(|t| t.format.clone()),
+                (EntryKind::Service, R::Request | R::Response) => contract
+                    .services
+                    .iter()
+                    .find(|t| t.name == m.name)
+                    .map(|s| {
+                        if which == R::Request {
+                            s.request.clone()
+                        } else {
+                            s.response.clone()
+                        }
+                    }),
+                (EntryKind::Action, _) => contract
+                    .actions
+                    .iter()
+                    .find(|a| a.name == m.name)
+                    .and_then(|a| crate::node::action_message(a, which)),
+                _ => None,
+            }
+        });
+        refinement_problems(&m.name, problems, diags);
+    }
+}
+
+fn refinement_problems(name: &str, problems: Vec<(Loc, String)>, diags: &mut Diagnostics) {
+    for (loc, what) in problems {
+        diags.push(
+            loc.error(
+                Code::RefinementMismatch,
+                format!("`refine` of `{name}`: {what}"),
+            )
+            .with_help("a pin lands on an array the document leaves open (no `$length`) whose items are scalars"),
+        );
+    }
 }
 
 fn find_node<'i>(

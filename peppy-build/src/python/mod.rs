@@ -271,12 +271,13 @@ fn init(node: &ResolvedNode, document: &str, specs: &Specs) -> String {
         .iter()
         .map(|d| {
             format!(
-                "_s.SlotSpec({}, {}, {}, {}, {})",
+                "_s.SlotSpec({}, {}, {}, {}, {}, {})",
                 py_string(&d.link_id),
                 py_string(d.kind.as_str()),
                 py_string(&d.target.name),
                 py_string(&d.target.tag),
-                if d.from_any { "True" } else { "False" }
+                if d.from_any { "True" } else { "False" },
+                py_string(d.cardinality.as_str())
             )
         })
         .collect();

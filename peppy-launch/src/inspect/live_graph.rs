@@ -156,7 +156,9 @@ fn binding_edges(
     for slot in &consumer.slots {
         let producers: Vec<&String> = match &slot.binding {
             SlotBinding::Pinned { producer } => vec![producer],
-            SlotBinding::FromAnyBound { producers } => producers.iter().collect(),
+            SlotBinding::FromAnyBound { producers } | SlotBinding::Set { producers, .. } => {
+                producers.iter().collect()
+            }
             SlotBinding::FromAnyUnbound => Vec::new(),
         };
         for p in producers {

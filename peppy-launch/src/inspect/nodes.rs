@@ -110,6 +110,14 @@ pub(crate) fn binding_text(binding: &SlotBinding, filter: &RouteFilter) -> Strin
     match (binding, filter) {
         (SlotBinding::Pinned { producer }, _) => format!("pinned to {producer}"),
         (SlotBinding::FromAnyBound { producers }, _) => format!("from {}", producers.join(", ")),
+        (
+            SlotBinding::Set {
+                vacant: Some(why), ..
+            },
+            _,
+        ) => format!("vacant ({why})"),
+        (SlotBinding::Set { producers, .. }, _) if producers.is_empty() => "nothing linked".into(),
+        (SlotBinding::Set { producers, .. }, _) => format!("linked to {}", producers.join(", ")),
         (SlotBinding::FromAnyUnbound, RouteFilter::AnyExcept(ex)) if !ex.is_empty() => {
             let ex: Vec<&str> = ex.iter().map(String::as_str).collect();
             format!("from any, except {}", ex.join(", "))

@@ -577,16 +577,16 @@ pub(super) fn parse_consumed_today(
 }
 
 /// The slot a link_id names, for today's cross-reference rules.
-enum SlotOf<'a> {
+enum SlotOf {
     Implements,
     Node,
     Contract,
     Participant,
-    Observer(&'a PairingSlot),
+    Observer,
     None,
 }
 
-fn slot_of<'a>(doc: &'a NodeDoc, link_id: &str) -> SlotOf<'a> {
+fn slot_of(doc: &NodeDoc, link_id: &str) -> SlotOf {
     if doc
         .conforms_to
         .iter()
@@ -601,7 +601,7 @@ fn slot_of<'a>(doc: &'a NodeDoc, link_id: &str) -> SlotOf<'a> {
         };
     }
     match doc.pairings.iter().find(|p| p.link_id == link_id) {
-        Some(p) if p.observer => SlotOf::Observer(p),
+        Some(p) if p.observer => SlotOf::Observer,
         Some(_) => SlotOf::Participant,
         None => SlotOf::None,
     }
@@ -627,7 +627,7 @@ pub(super) fn check_today_links(diags: &mut Diagnostics, doc: &NodeDoc) {
         let found = match slot_of(doc, &m.link_id) {
             SlotOf::Implements => continue,
             SlotOf::Participant if m.kind == EntryKind::Topic => continue,
-            SlotOf::Observer(_) if m.kind == EntryKind::Topic => {
+            SlotOf::Observer if m.kind == EntryKind::Topic => {
                 diags.push(
                     m.loc
                         .error(
@@ -657,7 +657,7 @@ pub(super) fn check_today_links(diags: &mut Diagnostics, doc: &NodeDoc) {
             SlotOf::Node => "depends_on.nodes",
             SlotOf::Contract => "depends_on.contracts",
             SlotOf::Participant => "depends_on.pairings",
-            SlotOf::Observer(_) => "depends_on.pairing_observers",
+            SlotOf::Observer => "depends_on.pairing_observers",
         };
         diags.push(
             m.loc
@@ -698,7 +698,7 @@ pub(super) fn check_today_links(diags: &mut Diagnostics, doc: &NodeDoc) {
                 )
                 .with_help("a node does not consume what it implements; to relay a contract, also declare it under `depends_on.contracts` with another link_id"),
             ),
-            SlotOf::Participant | SlotOf::Observer(_) if kind != EntryKind::Topic => diags.push(
+            SlotOf::Participant | SlotOf::Observer if kind != EntryKind::Topic => diags.push(
                 loc.error(
                     Code::ConsumedItemReferencesPairingLinkId,
                     format!("consumed {kind} names pairing slot `{link_id}`"),

@@ -15,14 +15,18 @@ from .spec import SlotSpec
 PINNED = "pinned"
 FROM_ANY_BOUND = "from_any_bound"
 FROM_ANY_UNBOUND = "from_any_unbound"
+SET = "set"
 
 
 @dataclass(frozen=True)
 class SlotBinding:
-    """What fills one slot: a pinned producer, listed producers, or none."""
+    """What fills one slot: a pinned producer, listed producers, or none;
+    `set` is a slot of today's cardinality, with exactly its producers
+    (none when it is empty, `vacant` saying why when it was vacated)."""
 
     kind: str
     producers: Tuple[str, ...] = ()
+    vacant: Optional[str] = None
 
     @classmethod
     def pinned(cls, producer: str) -> "SlotBinding":
@@ -35,10 +39,15 @@ class SlotBinding:
         if not isinstance(data, dict):
             raise StartupError(f"binding `{link_id}` must be an object with a `kind`")
         kind = data.get("kind")
-        allowed = {PINNED: {"kind", "producer"}, FROM_ANY_BOUND: {"kind", "producers"}, FROM_ANY_UNBOUND: {"kind"}}
+        allowed = {
+            PINNED: {"kind", "producer"},
+            FROM_ANY_BOUND: {"kind", "producers"},
+            FROM_ANY_UNBOUND: {"kind"},
+            SET: {"kind", "producers", "vacant"},
+        }
         if kind not in allowed:
             raise StartupError(
-                f"binding `{link_id}` has kind {kind!r}; expected pinned, from_any_bound or from_any_unbound"
+                f"binding `{link_id}` has kind {kind!r}; expected pinned, from_any_bound, from_any_unbound or set"
             )
         extra = set(data) - allowed[kind]
         if extra:
@@ -48,11 +57,14 @@ class SlotBinding:
             if not isinstance(producer, str):
                 raise StartupError(f"binding `{link_id}` (pinned) needs a `producer` string")
             return cls.pinned(producer)
-        if kind == FROM_ANY_BOUND:
+        if kind in (FROM_ANY_BOUND, SET):
             producers = data.get("producers")
             if not isinstance(producers, list) or not all(isinstance(p, str) for p in producers):
-                raise StartupError(f"binding `{link_id}` (from_any_bound) needs a `producers` list of strings")
-            return cls(FROM_ANY_BOUND, tuple(producers))
+                raise StartupError(f"binding `{link_id}` ({kind}) needs a `producers` list of strings")
+            vacant = data.get("vacant")
+            if vacant is not None and not isinstance(vacant, str):
+                raise StartupError(f"binding `{link_id}` (set) has a `vacant` that is not a string")
+            return cls(kind, tuple(producers), vacant)
         return cls(FROM_ANY_UNBOUND)
 
     def to_json(self) -> Dict[str, Any]:
@@ -61,6 +73,11 @@ class SlotBinding:
             return {"kind": PINNED, "producer": self.producers[0]}
         if self.kind == FROM_ANY_BOUND:
             return {"kind": FROM_ANY_BOUND, "producers": list(self.producers)}
+        if self.kind == SET:
+            out: Dict[str, Any] = {"kind": SET, "producers": list(self.producers)}
+            if self.vacant is not None:
+                out["vacant"] = self.vacant
+            return out
         return {"kind": FROM_ANY_UNBOUND}
 
 
@@ -196,12 +213,28 @@ def fit_plan(slots: Sequence[SlotPlan], declared: Sequence[SlotSpec]) -> List[Sl
                 f"the plan's slot `{d.link_id}` wants {slot.kind} `{slot.name}:{slot.tag}`, "
                 f"this node's wants {d.kind} `{d.name}:{d.tag}`"
             )
-        pinned = slot.binding.kind == PINNED
-        if pinned == d.from_any:
-            what = "pinned" if pinned else "from_any"
+        if not _binding_fits(slot.binding, d):
+            what = {PINNED: "pinned", SET: "a set of producers"}.get(slot.binding.kind, "from_any")
             raise _mismatch(f"the plan binds slot `{d.link_id}` as {what}, which its declaration does not allow")
         ordered.append(slot)
     return ordered
+
+
+def _binding_fits(binding: SlotBinding, d: SlotSpec) -> bool:
+    """As peppy-schema's `fit_plan`: pinned for a `one` slot, from_any for a
+    from_any slot, a set within its cardinality for today's other slots."""
+    if binding.kind == PINNED:
+        return not d.from_any and d.cardinality == "one"
+    if binding.kind in (FROM_ANY_BOUND, FROM_ANY_UNBOUND):
+        return d.from_any
+    n = len(binding.producers)
+    return (
+        not d.from_any
+        and d.cardinality != "one"
+        and (d.cardinality not in ("one", "zero_or_one") or n <= 1)
+        and (d.cardinality != "one_or_more" or n > 0)
+        and (binding.vacant is None or d.cardinality == "zero_or_one")
+    )
 
 
 def _mismatch(why: str) -> StartupError:

@@ -164,13 +164,16 @@ class ConsumedActionSpec:
 class SlotSpec:
     """One `depends_on` entry: a slot named by its link_id, taking instances
     of node (`kind` "node") or interface (`kind` "interface") `name:tag`;
-    `from_any` slots take any number of producers, others exactly one."""
+    `from_any` slots take any number of producers and free-form keys;
+    others as many as their `cardinality` (`one`, `zero_or_one`,
+    `one_or_more`, `zero_or_more`) says."""
 
     link_id: str
     kind: str
     name: str
     tag: str
     from_any: bool = False
+    cardinality: str = "one"
 
 
 @dataclass(frozen=True)
