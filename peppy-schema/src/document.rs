@@ -11,6 +11,7 @@ use crate::interface::{InterfaceDoc, parse_interface};
 use crate::json::{Node, Value};
 use crate::launcher::{LauncherDoc, parse_launcher};
 use crate::node::{NodeDoc, parse_node};
+use crate::pairing::{PairingDoc, parse_pairing};
 use crate::read::{Reader, index};
 use crate::source::{SourceFile, sha256_hex};
 
@@ -26,6 +27,8 @@ pub enum DocumentKind {
     Launcher,
     /// `peppy_repositories.json5`: a list of repositories.
     Repositories,
+    /// Today's `pairing/v1`: two roles and the topics between them.
+    Pairing,
 }
 
 impl DocumentKind {
@@ -36,22 +39,30 @@ impl DocumentKind {
             DocumentKind::Node => "a node",
             DocumentKind::Launcher => "a launcher",
             DocumentKind::Repositories => "a repositories",
+            DocumentKind::Pairing => "a pairing",
         }
     }
 
-    /// `node`, `interface`, `launcher`, `repositories`.
+    /// `node`, `interface`, `launcher`, `repositories`, `pairing`.
     pub fn as_str(self) -> &'static str {
         match self {
             DocumentKind::Node => "node",
             DocumentKind::Interface => "interface",
             DocumentKind::Launcher => "launcher",
             DocumentKind::Repositories => "repositories",
+            DocumentKind::Pairing => "pairing",
         }
     }
 }
 
 /// The `peppy_schema` values.
-pub const SCHEMAS: &[&str] = &["node_v1", "interface_v1", "launcher_v1", "contract/v1"];
+pub const SCHEMAS: &[&str] = &[
+    "node_v1",
+    "interface_v1",
+    "launcher_v1",
+    "contract/v1",
+    "pairing/v1",
+];
 
 /// Which spelling a document is written in: the seeds' (`node_v1`,
 /// `interface_v1`, `launcher_v1`) or today's PeppyOS (`contract/v1`, ...).
@@ -94,6 +105,8 @@ pub enum Document {
     Launcher(LauncherDoc),
     /// A repositories list.
     Repositories(RepositoriesDoc),
+    /// A pairing.
+    Pairing(PairingDoc),
 }
 
 impl Document {
@@ -104,6 +117,7 @@ impl Document {
             Document::Interface(_) => DocumentKind::Interface,
             Document::Launcher(_) => DocumentKind::Launcher,
             Document::Repositories(_) => DocumentKind::Repositories,
+            Document::Pairing(_) => DocumentKind::Pairing,
         }
     }
 }
@@ -127,6 +141,7 @@ pub fn detect_kind(root: &Node) -> Option<DocumentKind> {
                     "node_v1" => Some(DocumentKind::Node),
                     "interface_v1" | "contract/v1" => Some(DocumentKind::Interface),
                     "launcher_v1" => Some(DocumentKind::Launcher),
+                    "pairing/v1" => Some(DocumentKind::Pairing),
                     _ => None,
                 };
             }
@@ -198,6 +213,9 @@ fn parse_kind(
         DocumentKind::Repositories => {
             parse_repositories(file, root, &mut diags).map(Document::Repositories)
         }
+        DocumentKind::Pairing => {
+            parse_pairing(file, sha256.to_string(), root, &mut diags).map(Document::Pairing)
+        }
     };
     match doc {
         Some(d) if !diags.has_errors() => Ok((d, diags)),
@@ -220,7 +238,6 @@ const NOT_YET_READ: &[(&str, &str)] = &[
     ("node/v1", "node_v1"),
     ("launcher/v1", "launcher_v1"),
     ("launcher_fragment/v1", "launcher_v1"),
-    ("pairing/v1", ""),
     ("repository/v1", ""),
     ("mcp_exposure/v1", ""),
 ];
@@ -243,7 +260,7 @@ fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
         .at(file, n.span)
         .with_key_path("peppy_schema")
         .with_help(format!(
-            "of today's spelling peppy reads `contract/v1` so far{instead} (docs/DOCUMENTS.md)"
+            "of today's spelling peppy reads `contract/v1` and `pairing/v1` so far{instead} (docs/DOCUMENTS.md)"
         ));
     }
     match (&root.value, root.get("peppy_schema")) {
@@ -340,6 +357,26 @@ impl InterfaceDoc {
                 _ => unreachable!("parse_as checked the kind"),
             },
         )
+    }
+}
+
+impl PairingDoc {
+    /// Reads and parses a pairing document.
+    pub fn load(path: &Path) -> Parsed<PairingDoc> {
+        load_as(path, DocumentKind::Pairing).map(|(d, w)| match d {
+            Document::Pairing(p) => (p, w),
+            _ => unreachable!("load_as checked the kind"),
+        })
+    }
+
+    /// Parses a pairing document from text (its sha256 is that of `text`).
+    pub fn parse(path: impl Into<PathBuf>, text: impl Into<String>) -> Parsed<PairingDoc> {
+        let text = text.into();
+        let sha = sha256_hex(text.as_bytes());
+        parse_as(&SourceFile::new(path, text), &sha, DocumentKind::Pairing).map(|(d, w)| match d {
+            Document::Pairing(p) => (p, w),
+            _ => unreachable!("parse_as checked the kind"),
+        })
     }
 }
 
