@@ -93,6 +93,18 @@ codes! {
     InvalidDefault,
     /// A service name the runtime reserves.
     ReservedServiceName,
+    /// A pairing whose `roles` does not list exactly two roles.
+    PairingRoleCount,
+    /// A pairing that lists the same role twice.
+    DuplicateRole,
+    /// A pairing role named `_`, which is reserved as a link key.
+    ReservedRole,
+    /// A pairing topic `emitted_by` a role the pairing does not declare.
+    UnknownRole,
+    /// A pairing without topics: it would carry nothing.
+    EmptyPairing,
+    /// `services` or `actions` in a pairing, which carries topics only.
+    PairingTopicsOnly,
     /// A node, interface or launcher that no repository provides.
     DependencyNotFound,
     /// A dependency was found but its document is invalid.

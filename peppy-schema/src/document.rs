@@ -12,6 +12,7 @@ use crate::json::{Node, Value};
 use crate::launcher::{LauncherDoc, parse_launcher};
 pub(crate) use crate::model::Spelling;
 use crate::node::{NodeDoc, parse_node};
+use crate::pairing::{PairingDoc, parse_pairing};
 use crate::read::{Reader, index};
 use crate::source::{SourceFile, sha256_hex};
 
@@ -27,6 +28,8 @@ pub enum DocumentKind {
     Launcher,
     /// `peppy_repositories.json5`: a list of repositories.
     Repositories,
+    /// Today's `pairing/v1`: two roles and the topics between them.
+    Pairing,
 }
 
 impl DocumentKind {
@@ -37,16 +40,18 @@ impl DocumentKind {
             DocumentKind::Node => "a node",
             DocumentKind::Launcher => "a launcher",
             DocumentKind::Repositories => "a repositories",
+            DocumentKind::Pairing => "a pairing",
         }
     }
 
-    /// `node`, `interface`, `launcher`, `repositories`.
+    /// `node`, `interface`, `launcher`, `repositories`, `pairing`.
     pub fn as_str(self) -> &'static str {
         match self {
             DocumentKind::Node => "node",
             DocumentKind::Interface => "interface",
             DocumentKind::Launcher => "launcher",
             DocumentKind::Repositories => "repositories",
+            DocumentKind::Pairing => "pairing",
         }
     }
 }
@@ -58,6 +63,7 @@ pub const SCHEMAS: &[&str] = &[
     "launcher_v1",
     "node/v1",
     "contract/v1",
+    "pairing/v1",
 ];
 
 impl Spelling {
@@ -88,6 +94,8 @@ pub enum Document {
     Launcher(LauncherDoc),
     /// A repositories list.
     Repositories(RepositoriesDoc),
+    /// A pairing.
+    Pairing(PairingDoc),
 }
 
 impl Document {
@@ -98,6 +106,7 @@ impl Document {
             Document::Interface(_) => DocumentKind::Interface,
             Document::Launcher(_) => DocumentKind::Launcher,
             Document::Repositories(_) => DocumentKind::Repositories,
+            Document::Pairing(_) => DocumentKind::Pairing,
         }
     }
 }
@@ -121,6 +130,7 @@ pub fn detect_kind(root: &Node) -> Option<DocumentKind> {
                     "node_v1" | "node/v1" => Some(DocumentKind::Node),
                     "interface_v1" | "contract/v1" => Some(DocumentKind::Interface),
                     "launcher_v1" => Some(DocumentKind::Launcher),
+                    "pairing/v1" => Some(DocumentKind::Pairing),
                     _ => None,
                 };
             }
@@ -192,6 +202,9 @@ fn parse_kind(
         DocumentKind::Repositories => {
             parse_repositories(file, root, &mut diags).map(Document::Repositories)
         }
+        DocumentKind::Pairing => {
+            parse_pairing(file, sha256.to_string(), root, &mut diags).map(Document::Pairing)
+        }
     };
     match doc {
         Some(d) if !diags.has_errors() => Ok((d, diags)),
@@ -213,7 +226,6 @@ fn parse_kind(
 const NOT_YET_READ: &[(&str, &str)] = &[
     ("launcher/v1", "launcher_v1"),
     ("launcher_fragment/v1", "launcher_v1"),
-    ("pairing/v1", ""),
     ("repository/v1", ""),
     ("mcp_exposure/v1", ""),
 ];
@@ -334,6 +346,26 @@ impl InterfaceDoc {
                 _ => unreachable!("parse_as checked the kind"),
             },
         )
+    }
+}
+
+impl PairingDoc {
+    /// Reads and parses a pairing document.
+    pub fn load(path: &Path) -> Parsed<PairingDoc> {
+        load_as(path, DocumentKind::Pairing).map(|(d, w)| match d {
+            Document::Pairing(p) => (p, w),
+            _ => unreachable!("load_as checked the kind"),
+        })
+    }
+
+    /// Parses a pairing document from text (its sha256 is that of `text`).
+    pub fn parse(path: impl Into<PathBuf>, text: impl Into<String>) -> Parsed<PairingDoc> {
+        let text = text.into();
+        let sha = sha256_hex(text.as_bytes());
+        parse_as(&SourceFile::new(path, text), &sha, DocumentKind::Pairing).map(|(d, w)| match d {
+            Document::Pairing(p) => (p, w),
+            _ => unreachable!("parse_as checked the kind"),
+        })
     }
 }
 

@@ -179,10 +179,20 @@ pub(crate) fn check_unique<'a>(
     }
 }
 
+/// The keys of a topic declaration.
+pub(crate) const TOPIC_KEYS: &[&str] = &["name", "qos_profile", "message_format"];
+
 pub(crate) fn parse_topic(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<TopicDecl> {
-    let obj = r.object(node, path, &["name", "qos_profile", "message_format"])?;
+    let obj = r.object(node, path, TOPIC_KEYS)?;
+    topic_fields(r, &obj)
+}
+
+/// A topic's [`TOPIC_KEYS`] read from an object whose keys the caller has
+/// checked: a pairing's topic is a topic declaration plus `emitted_by`, read
+/// by this one grammar so names, QoS and formats follow the same rules.
+pub(crate) fn topic_fields(r: &mut Reader<'_>, obj: &crate::read::Obj<'_>) -> Option<TopicDecl> {
     let mut ok = true;
-    let name = parse_entry_name(r, &obj, EntryKind::Topic);
+    let name = parse_entry_name(r, obj, EntryKind::Topic);
     let qos = parse_qos(
         r,
         obj.get("qos_profile"),

@@ -49,48 +49,10 @@ pub(crate) fn parse_interface(
     let mut r = Reader::new(file, diags);
     let obj = r.object(root, "", &["peppy_schema", "manifest", "interfaces"])?;
     let mut ok = true;
-    let mut identity = None;
-    let mut labels = Vec::new();
-    if let Some(m) = r.required(&obj, "manifest")
-        && let Some(mobj) = r.object(m, "manifest", &["name", "tag", "labels"])
-    {
-        let name = r.required(&mobj, "name").and_then(|n| {
-            let s = r.string(n, "manifest.name")?;
-            match check_name(&s) {
-                Ok(()) => Some((s, r.loc(n.span, "manifest.name"))),
-                Err(why) => {
-                    r.error(
-                        Code::InvalidName,
-                        n.span,
-                        "manifest.name",
-                        format!("invalid `manifest.name` `{s}`: {why}"),
-                    );
-                    None
-                }
-            }
-        });
-        let tag = r.required(&mobj, "tag").and_then(|t| {
-            let s = r.string(t, "manifest.tag")?;
-            match check_tag(&s, false) {
-                Ok(()) => Some(s),
-                Err(why) => {
-                    r.error(
-                        Code::InvalidTag,
-                        t.span,
-                        "manifest.tag",
-                        format!("invalid `manifest.tag` `{s}`: {why}"),
-                    );
-                    None
-                }
-            }
-        });
-        if let Some(l) = mobj.get("labels") {
-            labels = r.string_list(l, "manifest.labels").unwrap_or_default();
-        }
-        if let (Some(n), Some(t)) = (name, tag) {
-            identity = Some((Identity::new(n.0, t), n.1));
-        }
-    }
+    let (identity, labels) = match r.required(&obj, "manifest") {
+        Some(m) => parse_manifest(&mut r, m),
+        None => (None, Vec::new()),
+    };
     let mut topics = Vec::new();
     let mut services = Vec::new();
     let mut actions = Vec::new();
@@ -143,4 +105,57 @@ pub(crate) fn parse_interface(
         services,
         actions,
     })
+}
+
+/// A `manifest` of the documents that only describe (an interface, a
+/// contract, a pairing): `name` (the name rule), `tag` (the tag rule) and
+/// optional `labels`; anything else, `depends_on` and `implements` included,
+/// is an unknown key. Returns the identity with where its name is, when both
+/// halves are valid, and the labels.
+pub(crate) fn parse_manifest(
+    r: &mut Reader<'_>,
+    m: &Node,
+) -> (Option<(Identity, Loc)>, Vec<String>) {
+    let Some(mobj) = r.object(m, "manifest", &["name", "tag", "labels"]) else {
+        return (None, Vec::new());
+    };
+    let name = r.required(&mobj, "name").and_then(|n| {
+        let s = r.string(n, "manifest.name")?;
+        match check_name(&s) {
+            Ok(()) => Some((s, r.loc(n.span, "manifest.name"))),
+            Err(why) => {
+                r.error(
+                    Code::InvalidName,
+                    n.span,
+                    "manifest.name",
+                    format!("invalid `manifest.name` `{s}`: {why}"),
+                );
+                None
+            }
+        }
+    });
+    let tag = r.required(&mobj, "tag").and_then(|t| {
+        let s = r.string(t, "manifest.tag")?;
+        match check_tag(&s, false) {
+            Ok(()) => Some(s),
+            Err(why) => {
+                r.error(
+                    Code::InvalidTag,
+                    t.span,
+                    "manifest.tag",
+                    format!("invalid `manifest.tag` `{s}`: {why}"),
+                );
+                None
+            }
+        }
+    });
+    let labels = match mobj.get("labels") {
+        Some(l) => r.string_list(l, "manifest.labels").unwrap_or_default(),
+        None => Vec::new(),
+    };
+    let identity = match (name, tag) {
+        (Some((n, loc)), Some(t)) => Some((Identity::new(n, t), loc)),
+        _ => None,
+    };
+    (identity, labels)
 }

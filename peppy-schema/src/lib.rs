@@ -63,6 +63,8 @@ mod launcher;
 #[cfg(feature = "documents")]
 mod node;
 #[cfg(feature = "documents")]
+mod pairing;
+#[cfg(feature = "documents")]
 mod plan;
 #[cfg(feature = "documents")]
 mod read;
@@ -115,6 +117,8 @@ pub use node::{
     ConsumedRef, ConsumedTopic, Container, Execution, FieldRefine, FormatRefine, InterfaceRef,
     Launch, MemberRef, NodeDoc, PairingSlot, Pin, Refine, RefinedMessage, TopicSource,
 };
+#[cfg(feature = "documents")]
+pub use pairing::{PairingDoc, PairingRole, PairingTopic};
 #[cfg(feature = "documents")]
 pub use plan::{BindingPlan, InstancePlan, plan_bindings};
 #[cfg(feature = "documents")]

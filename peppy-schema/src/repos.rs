@@ -12,6 +12,7 @@ use crate::document::{
 };
 use crate::interface::InterfaceDoc;
 use crate::node::{Identity, NodeDoc};
+use crate::pairing::PairingDoc;
 use crate::source::SourceFile;
 
 /// The environment variable listing extra repositories (separated like `PATH`).
@@ -163,6 +164,7 @@ pub struct RepoIndex {
     repositories: Vec<PathBuf>,
     nodes: BTreeMap<Identity, Vec<Entry<NodeDoc>>>,
     interfaces: BTreeMap<Identity, Vec<Entry<InterfaceDoc>>>,
+    pairings: BTreeMap<Identity, Vec<Entry<PairingDoc>>>,
     launchers: BTreeMap<String, Vec<PathBuf>>,
     broken: BTreeMap<(DocumentKind, Identity), Broken>,
     findings: Diagnostics,
@@ -221,7 +223,12 @@ impl RepoIndex {
         let kind = detect_kind(&root);
         match kind {
             Some(DocumentKind::Node) if !is_node_file => return,
-            Some(DocumentKind::Node | DocumentKind::Interface | DocumentKind::Launcher) => {}
+            Some(
+                DocumentKind::Node
+                | DocumentKind::Interface
+                | DocumentKind::Launcher
+                | DocumentKind::Pairing,
+            ) => {}
             _ => return,
         }
         match parse_document(&file, &sha) {
@@ -244,6 +251,18 @@ impl RepoIndex {
                 }
                 entries.push(Entry {
                     doc: Arc::new(i),
+                    path: path.to_path_buf(),
+                    repository: repo.to_path_buf(),
+                });
+            }
+            Ok((Document::Pairing(p), _)) => {
+                let id = p.identity.clone();
+                let entries = self.pairings.entry(id.clone()).or_default();
+                if let Some(first) = entries.first() {
+                    self.findings.push(duplicate(&id, &first.path, path));
+                }
+                entries.push(Entry {
+                    doc: Arc::new(p),
                     path: path.to_path_buf(),
                     repository: repo.to_path_buf(),
                 });
@@ -316,6 +335,11 @@ impl RepoIndex {
     /// The winning interface document for `id`.
     pub fn interface(&self, id: &Identity) -> Option<&Entry<InterfaceDoc>> {
         self.interfaces(id).first()
+    }
+
+    /// The winning pairing document for `id`.
+    pub fn pairing(&self, id: &Identity) -> Option<&Entry<PairingDoc>> {
+        self.pairings.get(id).and_then(|v| v.first())
     }
 
     /// A launcher by file stem.

@@ -1,7 +1,7 @@
 //! Integration tests of peppy-schema, one binary with one module per area:
 //! JSON5 syntax, node rules, the legacy form, message formats, parameters,
-//! launcher rules, repositories, resolution, the binding plan, the shipped
-//! examples and a reviewed snapshot of rendered errors.
+//! launcher rules, pairings, repositories, resolution, the binding plan, the
+//! shipped examples and a reviewed snapshot of rendered errors.
 
 #[path = "schema/support.rs"]
 mod support;
@@ -22,6 +22,8 @@ mod launcher_rules;
 mod legacy;
 #[path = "schema/node_rules.rs"]
 mod node_rules;
+#[path = "schema/pairings.rs"]
+mod pairings;
 #[path = "schema/parameters.rs"]
 mod parameters;
 #[path = "schema/rendering.rs"]

@@ -144,7 +144,7 @@ fn reference_documents_stay_valid() {
         .map(|d| d["kind"].as_str().unwrap())
         .collect();
     kinds.sort();
-    assert_eq!(kinds, ["interface", "launcher", "node"]);
+    assert_eq!(kinds, ["interface", "launcher", "node", "pairing"]);
     assert_eq!(
         v["warnings"], 0,
         "reference documents use current spellings only"
