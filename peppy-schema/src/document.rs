@@ -22,7 +22,7 @@ pub enum DocumentKind {
     Node,
     /// `interface_v1`, or today's `contract/v1` (the same content).
     Interface,
-    /// `launcher_v1`.
+    /// `launcher_v1`, or today's `launcher/v1` (flat launchers only).
     Launcher,
     /// `peppy_repositories.json5`: a list of repositories.
     Repositories,
@@ -51,7 +51,13 @@ impl DocumentKind {
 }
 
 /// The `peppy_schema` values.
-pub const SCHEMAS: &[&str] = &["node_v1", "interface_v1", "launcher_v1", "contract/v1"];
+pub const SCHEMAS: &[&str] = &[
+    "node_v1",
+    "interface_v1",
+    "launcher_v1",
+    "contract/v1",
+    "launcher/v1",
+];
 
 /// Which spelling a document is written in: the seeds' (`node_v1`,
 /// `interface_v1`, `launcher_v1`) or today's PeppyOS (`contract/v1`, ...).
@@ -126,7 +132,7 @@ pub fn detect_kind(root: &Node) -> Option<DocumentKind> {
                 return match s {
                     "node_v1" => Some(DocumentKind::Node),
                     "interface_v1" | "contract/v1" => Some(DocumentKind::Interface),
-                    "launcher_v1" => Some(DocumentKind::Launcher),
+                    "launcher_v1" | "launcher/v1" => Some(DocumentKind::Launcher),
                     _ => None,
                 };
             }
@@ -218,14 +224,17 @@ fn parse_kind(
 /// seeds' kind that says the same today.
 const NOT_YET_READ: &[(&str, &str)] = &[
     ("node/v1", "node_v1"),
-    ("launcher/v1", "launcher_v1"),
-    ("launcher_fragment/v1", "launcher_v1"),
     ("pairing/v1", ""),
     ("repository/v1", ""),
     ("mcp_exposure/v1", ""),
 ];
 
 fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
+    if let Some(n) = root.get("peppy_schema")
+        && n.as_str() == Some(crate::launcher::FRAGMENT_SCHEMA)
+    {
+        return crate::launcher::fragment_refused(file, n);
+    }
     let today = root
         .get("peppy_schema")
         .and_then(Node::as_str)
@@ -243,7 +252,7 @@ fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
         .at(file, n.span)
         .with_key_path("peppy_schema")
         .with_help(format!(
-            "of today's spelling peppy reads `contract/v1` so far{instead} (docs/DOCUMENTS.md)"
+            "of today's spelling peppy reads `contract/v1` and `launcher/v1` so far{instead} (docs/DOCUMENTS.md)"
         ));
     }
     match (&root.value, root.get("peppy_schema")) {
