@@ -52,8 +52,7 @@ const COMPOSITION_KEYS: &[&str] = &["components", "adjustments", "constraints"];
 /// What composition is, for messages.
 const COMPOSITION: &str = "launcher composition (components, fragments, adjustments, constraints)";
 
-/// Longest core node name today's spelling accepts: it becomes a DNS-like
-/// label in PeppyOS's federation.
+/// Longest core node name today's spelling accepts (PeppyOS's limit).
 const MAX_CORE_NODE_NAME: usize = 63;
 
 /// A `launcher_fragment/v1` document, refused: peppy does not compose
