@@ -146,6 +146,20 @@ codes! {
     UnknownCoreNode,
     /// The same core node twice in `core_nodes`.
     DuplicateCoreNode,
+    /// A link target names an instance no deployment declares (today's
+    /// spelling, `launcher/v1`; the seeds' is `UnknownBindingTarget`).
+    UnknownInstanceId,
+    /// The reserved link key `_` (today's spelling).
+    LinkSentinelKey,
+    /// A link target that is not `instance` or `instance/peer_slot`.
+    InvalidLinkTarget,
+    /// The same target twice in one link's list.
+    DuplicateLinkTarget,
+    /// A `{ vacant: "<why>" }` link value without a reason.
+    InvalidVacancy,
+    /// Launcher composition (components, fragments, adjustments,
+    /// constraints), which peppy does not support yet.
+    CompositionNotSupported,
     /// A node slot bound to an instance of another node.
     BindingTargetMismatch,
     /// An interface slot bound to an instance that does not conform.

@@ -24,7 +24,7 @@ pub enum DocumentKind {
     Node,
     /// `interface_v1`, or today's `contract/v1` (the same content).
     Interface,
-    /// `launcher_v1`.
+    /// `launcher_v1`, or today's `launcher/v1` (flat launchers only).
     Launcher,
     /// `peppy_repositories.json5`: a list of repositories.
     Repositories,
@@ -64,6 +64,7 @@ pub const SCHEMAS: &[&str] = &[
     "node/v1",
     "contract/v1",
     "pairing/v1",
+    "launcher/v1",
 ];
 
 impl Spelling {
@@ -129,7 +130,7 @@ pub fn detect_kind(root: &Node) -> Option<DocumentKind> {
                 return match s {
                     "node_v1" | "node/v1" => Some(DocumentKind::Node),
                     "interface_v1" | "contract/v1" => Some(DocumentKind::Interface),
-                    "launcher_v1" => Some(DocumentKind::Launcher),
+                    "launcher_v1" | "launcher/v1" => Some(DocumentKind::Launcher),
                     "pairing/v1" => Some(DocumentKind::Pairing),
                     _ => None,
                 };
@@ -223,14 +224,14 @@ fn parse_kind(
 
 /// Today's PeppyOS document kinds peppy does not read yet, each with the
 /// seeds' kind that says the same today.
-const NOT_YET_READ: &[(&str, &str)] = &[
-    ("launcher/v1", "launcher_v1"),
-    ("launcher_fragment/v1", "launcher_v1"),
-    ("repository/v1", ""),
-    ("mcp_exposure/v1", ""),
-];
+const NOT_YET_READ: &[(&str, &str)] = &[("repository/v1", ""), ("mcp_exposure/v1", "")];
 
 fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
+    if let Some(n) = root.get("peppy_schema")
+        && n.as_str() == Some(crate::launcher::FRAGMENT_SCHEMA)
+    {
+        return crate::launcher::fragment_refused(file, n);
+    }
     let today = root
         .get("peppy_schema")
         .and_then(Node::as_str)

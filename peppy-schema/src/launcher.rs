@@ -1,18 +1,24 @@
-//! Launcher documents (`peppy_schema: "launcher_v1"`): which nodes to run,
-//! how many instances, and how their slots are bound.
+//! Launcher documents: which nodes to run, how many instances, and how
+//! their slots are filled. Two spellings are read into one model: the
+//! seeds' (`peppy_schema: "launcher_v1"`, slots filled by `bindings`) and
+//! today's PeppyOS (`"launcher/v1"`, slots filled by `links`, plus
+//! `framework`). Composition (components, fragments, adjustments,
+//! constraints) is refused for now; see docs/DOCUMENTS.md.
 
+use std::fmt;
 use std::path::PathBuf;
 use std::sync::Arc;
 
 use serde::Serialize;
 
 use crate::core_nodes::CoreNode;
-use crate::diag::{Code, Diagnostics, list};
+use crate::diag::{Code, Diagnostic, Diagnostics, list};
+use crate::document::Spelling;
 use crate::json::{Node, Value};
 use crate::names::{check_link_id, check_name, check_tag};
 use crate::node::{Identity, read_sha256};
-use crate::read::{Loc, Obj, Reader, index};
-use crate::source::SourceFile;
+use crate::read::{Loc, Obj, Reader, display_path, index, join};
+use crate::source::{SourceFile, Span};
 
 /// Loader variables a launcher may not set: they change what code a
 /// process runs rather than how it behaves.
@@ -35,11 +41,42 @@ pub const FORBIDDEN_ENV_VARS: &[&str] = &[
     "GLOBIGNORE",
 ];
 
+/// `peppy_schema` of today's launcher fragments, which peppy refuses with
+/// the rest of composition.
+pub(crate) const FRAGMENT_SCHEMA: &str = "launcher_fragment/v1";
+
+/// Today's top-level keys that make a launcher a family composed from
+/// fragments.
+const COMPOSITION_KEYS: &[&str] = &["components", "adjustments", "constraints"];
+
+/// What composition is, for messages.
+const COMPOSITION: &str = "launcher composition (components, fragments, adjustments, constraints)";
+
+/// Longest core node name today's spelling accepts (PeppyOS's limit).
+const MAX_CORE_NODE_NAME: usize = 63;
+
+/// A `launcher_fragment/v1` document, refused: peppy does not compose
+/// launchers yet.
+pub(crate) fn fragment_refused(file: &Arc<SourceFile>, schema: &Node) -> Diagnostic {
+    Diagnostic::error(
+        Code::CompositionNotSupported,
+        format!("`{FRAGMENT_SCHEMA}` is {COMPOSITION}, which peppy does not support yet"),
+    )
+    .at(file, schema.span)
+    .with_key_path("peppy_schema")
+    .with_help(
+        "a fragment is only read through a launcher's `components`; write its deployments into a flat `launcher/v1` launcher",
+    )
+}
+
 /// A parsed, validated launcher.
 #[derive(Debug, Clone)]
 pub struct LauncherDoc {
     /// The document's text.
     pub file: Arc<SourceFile>,
+    /// How the document is spelled: `launcher_v1` (seeds) or `launcher/v1`
+    /// (today); it decides whether instances say `bindings` or `links`.
+    pub spelling: Spelling,
     /// `core_nodes`: the machines the stack runs on, in order (empty: one
     /// machine, wherever it is launched).
     pub core_nodes: Vec<CoreNode>,
@@ -114,8 +151,15 @@ pub struct Instance {
     pub instance_id: String,
     /// Where `instance_id` is.
     pub id_loc: Loc,
-    /// `bindings`, in document order.
+    /// `bindings` (the seeds' spelling), in document order; empty in a
+    /// `launcher/v1` file.
     pub bindings: Vec<Binding>,
+    /// `links` (today's spelling), in document order; empty in a
+    /// `launcher_v1` file. Only their shape is checked here: whether a key
+    /// names a slot and the value fits it is the plan's business.
+    pub links: Vec<Link>,
+    /// `framework` (today's spelling); all unset in a `launcher_v1` file.
+    pub framework: Framework,
     /// `arguments` as written (checked against the node's parameters when planning).
     pub arguments: Option<Node>,
     /// Where `arguments` is.
@@ -139,6 +183,83 @@ pub struct Binding {
     pub key_loc: Loc,
     /// Where the target is.
     pub target_loc: Loc,
+}
+
+/// Per-instance framework knobs (`framework`, today's spelling): fixed,
+/// owned by the runtime rather than the node's parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct Framework {
+    /// `use_sim_time`: follow simulated time; `None` leaves it to the launch.
+    pub use_sim_time: Option<bool>,
+}
+
+/// One `links` entry (today's spelling): a slot's link_id and what fills it.
+#[derive(Debug, Clone)]
+pub struct Link {
+    /// The slot's link_id as written.
+    pub key: String,
+    /// Where the key is.
+    pub key_loc: Loc,
+    /// What fills the slot.
+    pub value: LinkValue,
+}
+
+/// What a link says about its slot.
+#[derive(Debug, Clone)]
+pub enum LinkValue {
+    /// `"inst"` or `"inst/peer_slot"`: one target.
+    One(LinkTarget),
+    /// `["a", "b"]`: targets in order, no repeats, maybe none; with where
+    /// the list is.
+    Many(Vec<LinkTarget>, Loc),
+    /// `{ vacant: "<why>" }`: deliberately empty.
+    Vacant {
+        /// The reason, trimmed and non-empty.
+        reason: String,
+        /// Where the vacancy is.
+        loc: Loc,
+    },
+}
+
+impl LinkValue {
+    /// The targets, in order (none for a vacancy).
+    pub fn targets(&self) -> &[LinkTarget] {
+        match self {
+            LinkValue::One(t) => std::slice::from_ref(t),
+            LinkValue::Many(ts, _) => ts,
+            LinkValue::Vacant { .. } => &[],
+        }
+    }
+
+    /// Where the value is.
+    pub fn loc(&self) -> &Loc {
+        match self {
+            LinkValue::One(t) => &t.loc,
+            LinkValue::Many(_, loc) | LinkValue::Vacant { loc, .. } => loc,
+        }
+    }
+}
+
+/// One target of a link: an instance, and for a pairing the peer's slot
+/// when the peer has several that fit.
+#[derive(Debug, Clone)]
+pub struct LinkTarget {
+    /// The instance (the part before `/`).
+    pub instance: String,
+    /// The peer's slot (the part after `/`), if written.
+    pub peer_slot: Option<String>,
+    /// Where the target is.
+    pub loc: Loc,
+}
+
+/// As written: `inst` or `inst/peer_slot`.
+impl fmt::Display for LinkTarget {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.peer_slot {
+            Some(p) => write!(f, "{}/{p}", self.instance),
+            None => f.write_str(&self.instance),
+        }
+    }
 }
 
 impl LauncherDoc {
@@ -184,16 +305,33 @@ pub(crate) fn parse_launcher(
     diags: &mut Diagnostics,
     cross_check: bool,
 ) -> Option<LauncherDoc> {
+    let spelling = Spelling::of(root);
+    let today = spelling == Spelling::Today;
     let mut r = Reader::new(file, diags);
-    let obj = r.object(
-        root,
-        "",
-        &["peppy_schema", "core_nodes", "security", "deployments"],
-    )?;
+    let keys: &[&str] = if today {
+        &[
+            "peppy_schema",
+            "core_nodes",
+            "security",
+            "deployments",
+            "components",
+            "adjustments",
+            "constraints",
+        ]
+    } else {
+        &["peppy_schema", "core_nodes", "security", "deployments"]
+    };
+    let obj = r.object(root, "", keys)?;
+    if today && refuse_composition(&mut r, &obj) {
+        return None;
+    }
     let core_nodes = obj
         .get("core_nodes")
         .map(|n| crate::core_nodes::parse_core_nodes(&mut r, n))
         .unwrap_or_default();
+    if today {
+        check_todays_core_node_names(&mut r, &core_nodes);
+    }
     let security = obj.get("security").and_then(|n| {
         r.bool(n, "security")
             .map(|on| (on, r.loc(n.span, "security")))
@@ -210,7 +348,7 @@ pub(crate) fn parse_launcher(
     }
     let mut deployments = Vec::new();
     for (i, item) in items.iter().enumerate() {
-        if let Some(d) = parse_deployment(&mut r, item, &index("deployments", i)) {
+        if let Some(d) = parse_deployment(&mut r, item, &index("deployments", i), spelling) {
             deployments.push(d);
         }
     }
@@ -219,6 +357,7 @@ pub(crate) fn parse_launcher(
     }
     let doc = LauncherDoc {
         file: file.clone(),
+        spelling,
         core_nodes,
         deployments,
         security,
@@ -230,6 +369,58 @@ pub(crate) fn parse_launcher(
         }
     }
     Some(doc)
+}
+
+/// Refuses today's composition keys, one error each; `true` when there was
+/// any. A composed launcher's base is not a launcher on its own (its links
+/// name instances its fragments define), so nothing else is checked: the
+/// one error that matters is not buried under its consequences.
+fn refuse_composition(r: &mut Reader<'_>, obj: &Obj<'_>) -> bool {
+    let mut composed = false;
+    for m in obj
+        .members
+        .iter()
+        .filter(|m| COMPOSITION_KEYS.contains(&m.key.as_str()))
+    {
+        r.error_help(
+            Code::CompositionNotSupported,
+            m.key_span,
+            &m.key,
+            format!(
+                "`{}` is {COMPOSITION}, which peppy does not support yet",
+                m.key
+            ),
+            "write the flat launcher instead, with `deployments` only (what `peppy stack resolve <file> --with ...` prints)",
+        );
+        composed = true;
+    }
+    composed
+}
+
+/// Today's core node names are placeholders wired to machines at launch:
+/// `self` already means the daemon a command is sent to, and a name is at
+/// most 63 characters.
+fn check_todays_core_node_names(r: &mut Reader<'_>, core_nodes: &[crate::core_nodes::CoreNode]) {
+    for c in core_nodes {
+        if c.name == "self" {
+            let d = c
+                .loc
+                .error(Code::InvalidName, "`self` cannot name a core node")
+                .with_help(
+                    "`self` stands for the daemon a command is sent to (`--place link@self`); choose another name",
+                );
+            r.diags.push(d);
+        } else if c.name.chars().count() > MAX_CORE_NODE_NAME {
+            let d = c.loc.error(
+                Code::InvalidName,
+                format!(
+                    "core node name `{}` is longer than {MAX_CORE_NODE_NAME} characters",
+                    c.name
+                ),
+            );
+            r.diags.push(d);
+        }
+    }
 }
 
 /// Rules 7 and 8 of SPEC 6.1, which need the whole launcher: unique
@@ -296,14 +487,46 @@ pub fn stack_rules(doc: &LauncherDoc) -> Diagnostics {
                 );
             }
         }
+        // Today's spelling: the instance part of every target (a peer slot
+        // after `/` is the plan's to check).
+        for link in &inst.links {
+            for t in link.value.targets() {
+                if ids.contains(&t.instance.as_str()) {
+                    continue;
+                }
+                let help = match crate::diag::did_you_mean(&t.instance, ids.iter().copied()) {
+                    Some(s) => format!(
+                        "did you mean `{s}`? instances in this launcher: {}",
+                        list(ids.iter().copied())
+                    ),
+                    None => format!("instances in this launcher: {}", list(ids.iter().copied())),
+                };
+                diags.push(
+                    t.loc
+                        .error(
+                            Code::UnknownInstanceId,
+                            format!(
+                                "link `{}` on instance `{}` names instance `{}`, which no deployment declares",
+                                link.key, inst.instance_id, t.instance
+                            ),
+                        )
+                        .with_help(help),
+                );
+            }
+        }
     }
     diags
 }
 
-fn parse_deployment(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Deployment> {
+fn parse_deployment(
+    r: &mut Reader<'_>,
+    node: &Node,
+    path: &str,
+    spelling: Spelling,
+) -> Option<Deployment> {
     let obj = r.object(node, path, &["source", "instances"])?;
     let source_node = r.required(&obj, "source");
-    let source = source_node.and_then(|s| parse_source(r, s, &obj.path_of("source")));
+    let source = source_node.and_then(|s| parse_source(r, s, &obj.path_of("source"), spelling));
     let mut instances = Vec::new();
     let mut ok = true;
     if let Some(list) = r.required(&obj, "instances") {
@@ -320,7 +543,7 @@ fn parse_deployment(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Deplo
                 ok = false;
             }
             for (i, item) in items.iter().enumerate() {
-                match parse_instance(r, item, &index(&ipath, i)) {
+                match parse_instance(r, item, &index(&ipath, i), spelling) {
                     Some(inst) => instances.push(inst),
                     None => ok = false,
                 }
@@ -336,7 +559,10 @@ fn parse_deployment(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Deplo
     })
 }
 
-fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Source> {
+/// A deployment's source. Today's PeppyOS reads only `{ name, tag }` and
+/// `{ name: "n:t" }`; peppy keeps `local`, git and archive sources in both
+/// spellings (documented extension).
+fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str, spelling: Spelling) -> Option<Source> {
     let obj = r.object(
         node,
         path,
@@ -399,7 +625,7 @@ fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Source> {
                 path: PathBuf::from(p.trim()),
             })
         }
-        "name" => repository_source(r, &obj),
+        "name" => repository_source(r, &obj, spelling),
         "git" => {
             let repo = r
                 .required(&obj, "repo")
@@ -437,8 +663,9 @@ fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Source> {
 }
 
 /// `{ name: "n:t" }` or `{ name: "n", tag: "t" }`: a node found in the
-/// repositories.
-fn repository_source(r: &mut Reader<'_>, obj: &Obj<'_>) -> Option<Source> {
+/// repositories. Today's spelling checks the tag as PeppyOS does (a
+/// letter first, no dots); the seeds' also takes dotted versions.
+fn repository_source(r: &mut Reader<'_>, obj: &Obj<'_>, spelling: Spelling) -> Option<Source> {
     let name_node = obj.get("name")?;
     let name = r.string(name_node, &obj.path_of("name"))?;
     let identity = match (name.split_once(':'), obj.get("tag")) {
@@ -476,7 +703,7 @@ fn repository_source(r: &mut Reader<'_>, obj: &Obj<'_>) -> Option<Source> {
         ok = false;
     }
     // Dotted tags exist in legacy documents; the repository lookup decides.
-    if let Err(why) = check_tag(&identity.tag, true) {
+    if let Err(why) = check_tag(&identity.tag, spelling == Spelling::Seeds) {
         r.error(
             Code::InvalidTag,
             name_node.span,
@@ -488,19 +715,46 @@ fn repository_source(r: &mut Reader<'_>, obj: &Obj<'_>) -> Option<Source> {
     ok.then_some(Source::Repository { identity })
 }
 
-fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instance> {
-    let obj = r.object(
-        node,
-        path,
-        &[
-            "instance_id",
+fn parse_instance(
+    r: &mut Reader<'_>,
+    node: &Node,
+    path: &str,
+    spelling: Spelling,
+) -> Option<Instance> {
+    // `restart` is peppy's extension, accepted in both spellings.
+    let obj = match spelling {
+        Spelling::Seeds => object_except(
+            r,
+            node,
+            path,
+            &[
+                "instance_id",
+                "bindings",
+                "arguments",
+                "env_vars",
+                "restart",
+                "core_node",
+            ],
+            "links",
+            "`links` is today's spelling (`launcher/v1`); a `launcher_v1` file writes `bindings`",
+        ),
+        Spelling::Today => object_except(
+            r,
+            node,
+            path,
+            &[
+                "instance_id",
+                "links",
+                "arguments",
+                "env_vars",
+                "framework",
+                "restart",
+                "core_node",
+            ],
             "bindings",
-            "arguments",
-            "env_vars",
-            "restart",
-            "core_node",
-        ],
-    )?;
+            "`bindings` is the seeds' spelling (`launcher_v1`); write `links`",
+        ),
+    }?;
     let mut ok = true;
     let id = r.required(&obj, "instance_id").and_then(|n| {
         let p = obj.path_of("instance_id");
@@ -518,7 +772,18 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
             }
         }
     });
-    let bindings = parse_bindings(r, &obj, id.as_ref().map(|(i, _)| i.as_str()), &mut ok);
+    let (bindings, links, framework) = match spelling {
+        Spelling::Seeds => (
+            parse_bindings(r, &obj, id.as_ref().map(|(i, _)| i.as_str()), &mut ok),
+            Vec::new(),
+            Framework::default(),
+        ),
+        Spelling::Today => (
+            Vec::new(),
+            parse_links(r, &obj, &mut ok),
+            parse_framework(r, &obj, &mut ok),
+        ),
+    };
     let (arguments, arguments_loc) = match obj.get("arguments") {
         Some(a) => {
             let apath = obj.path_of("arguments");
@@ -538,7 +803,7 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
         }
         None => (None, None),
     };
-    let env_vars = parse_env_vars(r, &obj, &mut ok);
+    let env_vars = parse_env_vars(r, &obj, spelling, &mut ok);
     let restart = parse_restart(r, &obj, &mut ok);
     let core_node = match obj.get("core_node") {
         Some(n) => {
@@ -558,6 +823,8 @@ fn parse_instance(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Instanc
         instance_id,
         id_loc,
         bindings,
+        links,
+        framework,
         arguments,
         arguments_loc,
         env_vars,
@@ -647,8 +914,16 @@ fn parse_bindings(
     bindings
 }
 
-/// `env_vars`, refusing loader and shell start-up variables.
-fn parse_env_vars(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> Vec<(String, String)> {
+/// `env_vars`, refusing loader and shell start-up variables. Today's
+/// spelling also takes PeppyOS's stricter shape: a name is a shell
+/// identifier and a value holds only characters a shell leaves alone (a
+/// container node gets them through a script the shell sources).
+fn parse_env_vars(
+    r: &mut Reader<'_>,
+    obj: &Obj<'_>,
+    spelling: Spelling,
+    ok: &mut bool,
+) -> Vec<(String, String)> {
     let mut env_vars = Vec::new();
     if let Some(e) = obj.get("env_vars") {
         let epath = obj.path_of("env_vars");
@@ -657,7 +932,16 @@ fn parse_env_vars(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> Vec<(Stri
                 for m in members {
                     let kpath = format!("{epath}.{}", m.key);
                     let upper = m.key.to_ascii_uppercase();
-                    if m.key.is_empty() || m.key.contains('=') || m.key.contains('\0') {
+                    if spelling == Spelling::Today && !is_shell_identifier(&m.key) {
+                        r.error_help(
+                            Code::ForbiddenEnvVar,
+                            m.key_span,
+                            &kpath,
+                            format!("environment variable name `{}` is not a shell identifier", m.key),
+                            "a name starts with a letter or `_` and holds only letters, digits and `_`",
+                        );
+                        *ok = false;
+                    } else if m.key.is_empty() || m.key.contains('=') || m.key.contains('\0') {
                         r.error(
                             Code::ForbiddenEnvVar,
                             m.key_span,
@@ -676,6 +960,19 @@ fn parse_env_vars(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> Vec<(Stri
                         *ok = false;
                     }
                     match r.string(&m.value, &kpath) {
+                        Some(v) if spelling == Spelling::Today && !is_shell_safe_value(&v) => {
+                            r.error_help(
+                                Code::ForbiddenEnvVar,
+                                m.value.span,
+                                &kpath,
+                                format!(
+                                    "value of environment variable `{}` holds characters a node cannot receive intact",
+                                    m.key
+                                ),
+                                "a value may hold letters, digits and `_ - . / : , = @ + %` (no whitespace, quotes or shell metacharacters)",
+                            );
+                            *ok = false;
+                        }
                         Some(v) => env_vars.push((m.key.clone(), v)),
                         None => *ok = false,
                     }
@@ -726,4 +1023,244 @@ fn parse_restart(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> RestartPol
             }
         }
     }
+}
+
+/// `[A-Za-z_][A-Za-z0-9_]*`.
+fn is_shell_identifier(name: &str) -> bool {
+    let mut chars = name.chars();
+    chars
+        .next()
+        .is_some_and(|c| c == '_' || c.is_ascii_alphabetic())
+        && chars.all(|c| c == '_' || c.is_ascii_alphanumeric())
+}
+
+/// Letters, digits and `_ - . / : , = @ + %`: what a shell sourcing the
+/// value leaves as written.
+fn is_shell_safe_value(value: &str) -> bool {
+    value.chars().all(|c| {
+        c.is_ascii_alphanumeric()
+            || matches!(c, '_' | '-' | '.' | '/' | ':' | ',' | '=' | '@' | '+' | '%')
+    })
+}
+
+/// An object whose keys must be in `allowed`, where `other` (the other
+/// spelling's name for one of them) is refused with `help` saying so.
+fn object_except<'n>(
+    r: &mut Reader<'_>,
+    node: &'n Node,
+    path: &str,
+    allowed: &[&str],
+    other: &str,
+    help: &str,
+) -> Option<Obj<'n>> {
+    let Value::Object(members) = &node.value else {
+        return r.object(node, path, allowed);
+    };
+    for m in members {
+        if m.key == other {
+            r.error_help(
+                Code::UnknownKey,
+                m.key_span,
+                &join(path, &m.key),
+                format!("unknown key `{}` in `{}`", m.key, display_path(path)),
+                help,
+            );
+        } else if !allowed.contains(&m.key.as_str()) {
+            r.unknown_key(m, path, allowed);
+        }
+    }
+    Some(Obj {
+        node,
+        members,
+        path: path.to_string(),
+    })
+}
+
+/// `framework: { use_sim_time?: bool }` (today's spelling).
+fn parse_framework(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> Framework {
+    let Some(n) = obj.get("framework") else {
+        return Framework::default();
+    };
+    let fpath = obj.path_of("framework");
+    let Some(fobj) = r.object(n, &fpath, &["use_sim_time"]) else {
+        *ok = false;
+        return Framework::default();
+    };
+    if fobj.members.iter().any(|m| m.key != "use_sim_time") {
+        *ok = false;
+    }
+    let use_sim_time = fobj.get("use_sim_time").and_then(|b| {
+        let v = r.bool(b, &fobj.path_of("use_sim_time"));
+        *ok &= v.is_some();
+        v
+    });
+    Framework { use_sim_time }
+}
+
+/// `links` (today's spelling): link_id -> `"inst"`, `"inst/peer_slot"`,
+/// `[targets]` or `{ vacant: "<why>" }`. Only the shape is checked: which
+/// keys and values fit the node's slots is decided when planning.
+fn parse_links(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> Vec<Link> {
+    let mut links = Vec::new();
+    let Some(l) = obj.get("links") else {
+        return links;
+    };
+    let lpath = obj.path_of("links");
+    let Value::Object(members) = &l.value else {
+        r.error(
+            Code::WrongType,
+            l.span,
+            &lpath,
+            format!(
+                "expected an object of `link_id: target` for `{lpath}`, found {}",
+                l.value.kind()
+            ),
+        );
+        *ok = false;
+        return links;
+    };
+    for m in members {
+        let kpath = join(&lpath, &m.key);
+        let key_ok = if m.key == "_" {
+            r.error_help(
+                Code::LinkSentinelKey,
+                m.key_span,
+                &kpath,
+                "link key `_` is reserved",
+                "a link key is the link_id of one of the node's slots",
+            );
+            false
+        } else if let Err(why) = check_link_id(&m.key) {
+            r.error(
+                Code::InvalidName,
+                m.key_span,
+                &kpath,
+                format!("invalid link key `{}`: {why}", m.key),
+            );
+            false
+        } else {
+            true
+        };
+        let value = parse_link_value(r, &m.value, &kpath, &m.key);
+        match value {
+            Some(value) if key_ok => links.push(Link {
+                key: m.key.clone(),
+                key_loc: r.loc(m.key_span, &kpath),
+                value,
+            }),
+            _ => *ok = false,
+        }
+    }
+    links
+}
+
+/// Help for a malformed target.
+const TARGET_HELP: &str = "a target is an instance id (`\"cam\"`) or an instance and its peer's slot (`\"planner/deliberation\"`)";
+
+fn parse_link_value(r: &mut Reader<'_>, node: &Node, path: &str, key: &str) -> Option<LinkValue> {
+    match &node.value {
+        Value::String(s) => link_target(r, s, node.span, path, key).map(LinkValue::One),
+        Value::Array(items) => {
+            let mut targets: Vec<LinkTarget> = Vec::with_capacity(items.len());
+            let mut ok = true;
+            for (i, item) in items.iter().enumerate() {
+                let ipath = index(path, i);
+                let Some(s) = r.string(item, &ipath) else {
+                    ok = false;
+                    continue;
+                };
+                let Some(t) = link_target(r, &s, item.span, &ipath, key) else {
+                    ok = false;
+                    continue;
+                };
+                if let Some(first) = targets
+                    .iter()
+                    .find(|f| f.instance == t.instance && f.peer_slot == t.peer_slot)
+                {
+                    let at = first.loc.file.line_col(first.loc.span.start);
+                    let d = t
+                        .loc
+                        .error(
+                            Code::DuplicateLinkTarget,
+                            format!("link `{key}` lists `{t}` twice"),
+                        )
+                        .with_help(format!(
+                            "`{t}` is already listed at line {}, column {}; a target fills a slot once",
+                            at.line, at.column
+                        ));
+                    r.diags.push(d);
+                    ok = false;
+                    continue;
+                }
+                targets.push(t);
+            }
+            ok.then(|| LinkValue::Many(targets, r.loc(node.span, path)))
+        }
+        Value::Object(_) => {
+            let vobj = r.object(node, path, &["vacant"])?;
+            let reason_node = r.required(&vobj, "vacant")?;
+            let vpath = vobj.path_of("vacant");
+            let reason = r.string(reason_node, &vpath)?;
+            let reason = reason.trim();
+            if reason.is_empty() {
+                r.error_help(
+                    Code::InvalidVacancy,
+                    reason_node.span,
+                    &vpath,
+                    format!("vacancy of link `{key}` gives no reason"),
+                    "say why the slot is empty: `{ vacant: \"no camera on this rig\" }`",
+                );
+                return None;
+            }
+            // Another key was reported as unknown: a vacancy is exactly one key.
+            (vobj.members.len() == 1).then(|| LinkValue::Vacant {
+                reason: reason.to_string(),
+                loc: r.loc(node.span, path),
+            })
+        }
+        other => {
+            r.error(
+                Code::WrongType,
+                node.span,
+                path,
+                format!(
+                    "expected a target (`\"inst\"` or `\"inst/peer_slot\"`), a list of targets, or `{{ vacant: \"<why>\" }}` for `{path}`, found {}",
+                    other.kind()
+                ),
+            );
+            None
+        }
+    }
+}
+
+/// `inst` or `inst/peer_slot`: non-empty, at most one `/`, non-empty halves.
+fn link_target(
+    r: &mut Reader<'_>,
+    s: &str,
+    span: Span,
+    path: &str,
+    key: &str,
+) -> Option<LinkTarget> {
+    let (instance, peer_slot) = match s.split_once('/') {
+        Some((i, p)) => (i, Some(p)),
+        None => (s, None),
+    };
+    let why = if s.trim().is_empty() {
+        Some(format!("link `{key}` has an empty target"))
+    } else if peer_slot.is_some_and(|p| p.contains('/')) {
+        Some(format!("link target `{s}` has more than one `/`"))
+    } else if instance.is_empty() || peer_slot.is_some_and(str::is_empty) {
+        Some(format!("link target `{s}` has an empty side of `/`"))
+    } else {
+        None
+    };
+    if let Some(message) = why {
+        r.error_help(Code::InvalidLinkTarget, span, path, message, TARGET_HELP);
+        return None;
+    }
+    Some(LinkTarget {
+        instance: instance.to_string(),
+        peer_slot: peer_slot.map(str::to_string),
+        loc: r.loc(span, path),
+    })
 }

@@ -109,8 +109,8 @@ pub use format::{CanonicalError, Field, FieldType, MessageFormat};
 pub use interface::InterfaceDoc;
 #[cfg(feature = "documents")]
 pub use launcher::{
-    Binding, Deployment, FORBIDDEN_ENV_VARS, Instance, LauncherDoc, RestartPolicy, Source,
-    stack_rules,
+    Binding, Deployment, FORBIDDEN_ENV_VARS, Framework, Instance, LauncherDoc, Link, LinkTarget,
+    LinkValue, RestartPolicy, Source, stack_rules,
 };
 #[cfg(feature = "documents")]
 pub use node::{

@@ -1,7 +1,8 @@
 //! Integration tests of peppy-schema, one binary with one module per area:
 //! JSON5 syntax, node rules, the legacy form, message formats, parameters,
-//! launcher rules, pairings, repositories, resolution, the binding plan, the
-//! shipped examples and a reviewed snapshot of rendered errors.
+//! launcher rules (both spellings), pairings, repositories, resolution, the
+//! binding plan, the shipped examples and a reviewed snapshot of rendered
+//! errors.
 
 #[path = "schema/support.rs"]
 mod support;
@@ -18,6 +19,8 @@ mod formats;
 mod json5_syntax;
 #[path = "schema/launcher_rules.rs"]
 mod launcher_rules;
+#[path = "schema/launcher_today.rs"]
+mod launcher_today;
 #[path = "schema/legacy.rs"]
 mod legacy;
 #[path = "schema/node_rules.rs"]
