@@ -5,9 +5,10 @@
 
 use serde::Serialize;
 
-use crate::binding::{BindError, BindRequest, Producer, SlotPlan, assign, conformances};
+use crate::binding::{BindError, BindForm, BindRequest, Producer, SlotPlan, assign, conformances};
 use crate::diag::{Code, Diagnostic, Diagnostics};
-use crate::launcher::{Binding, Instance, LauncherDoc, RestartPolicy};
+use crate::launcher::{Instance, LauncherDoc, LinkValue, RestartPolicy};
+use crate::loc::Loc;
 use crate::node::{Dependency, Identity, NodeDoc};
 
 /// One instance, ready to run.
@@ -119,6 +120,110 @@ fn candidates(dep: &Dependency, launcher: &LauncherDoc, nodes: &[Option<&NodeDoc
         .collect()
 }
 
+/// One binding as the launcher writes it, for the engine and for locating
+/// its errors: a seeds' binding or one target (or an empty list, or a
+/// vacancy) of today's links.
+struct Written<'a> {
+    key: &'a str,
+    instance: &'a str,
+    form: BindForm<'a>,
+    key_loc: &'a Loc,
+    value_loc: &'a Loc,
+}
+
+/// The bindings (`launcher_v1`) or links (`launcher/v1`) of an instance, one
+/// [`Written`] per target. Targets no deployment declares were reported by
+/// [`crate::launcher::stack_rules`]; their keys are returned apart, so the
+/// slot they name is not also reported unbound.
+fn written(inst: &Instance) -> Vec<Written<'_>> {
+    let mut out = Vec::new();
+    for b in &inst.bindings {
+        out.push(Written {
+            key: &b.key,
+            instance: &b.target,
+            form: BindForm::Key,
+            key_loc: &b.key_loc,
+            value_loc: &b.target_loc,
+        });
+    }
+    for l in &inst.links {
+        match &l.value {
+            LinkValue::One(t) => out.push(Written {
+                key: &l.key,
+                instance: &t.instance,
+                form: BindForm::Scalar,
+                key_loc: &l.key_loc,
+                value_loc: &t.loc,
+            }),
+            LinkValue::Many(targets, loc) if targets.is_empty() => out.push(Written {
+                key: &l.key,
+                instance: "",
+                form: BindForm::EmptyList,
+                key_loc: &l.key_loc,
+                value_loc: loc,
+            }),
+            LinkValue::Many(targets, _) => out.extend(targets.iter().map(|t| Written {
+                key: &l.key,
+                instance: &t.instance,
+                form: BindForm::Item,
+                key_loc: &l.key_loc,
+                value_loc: &t.loc,
+            })),
+            LinkValue::Vacant { reason, loc } => out.push(Written {
+                key: &l.key,
+                instance: "",
+                form: BindForm::Vacant(reason),
+                key_loc: &l.key_loc,
+                value_loc: loc,
+            }),
+        }
+    }
+    out
+}
+
+/// Links that cannot reach the engine: a key naming a pairing slot (peppy
+/// does not run pairings yet), and a `peer/slot` target on a slot that is
+/// not a pairing's. Returns the keys refused.
+fn refuse_unsupported_links<'a>(
+    inst: &'a Instance,
+    node: &NodeDoc,
+    diags: &mut Diagnostics,
+) -> Vec<&'a str> {
+    let mut refused = Vec::new();
+    for l in &inst.links {
+        if let Some(p) = node.pairings.iter().find(|p| p.link_id == l.key) {
+            diags.push(
+                l.key_loc
+                    .error(
+                        Code::PairingsNotSupported,
+                        format!(
+                            "instance `{}` links pairing slot `{}` (pairing `{}`), and peppy does not run pairings yet",
+                            inst.instance_id, l.key, p.pairing
+                        ),
+                    )
+                    .with_help("this launcher is valid PeppyOS; peppy cannot start it until pairings are supported"),
+            );
+            refused.push(l.key.as_str());
+            continue;
+        }
+        for t in l.value.targets().iter().filter(|t| t.peer_slot.is_some()) {
+            diags.push(
+                t.loc
+                    .error(
+                        Code::UnknownInstanceId,
+                        format!(
+                            "link `{}` on instance `{}` names `{t}`; a producer slot takes a bare instance id (`inst/slot` names a pairing peer's slot)",
+                            l.key, inst.instance_id
+                        ),
+                    )
+                    .with_help(format!("write `\"{}\"`", t.instance)),
+            );
+            refused.push(l.key.as_str());
+        }
+    }
+    refused
+}
+
 /// One instance's slots through the binding engine, its errors located in
 /// the launcher.
 fn plan_instance(
@@ -135,30 +240,33 @@ fn plan_instance(
             .and_then(|(d, _)| nodes[d])
             .map(|n| (n.identity(), conformances(n)))
     };
-    // Unknown targets were reported with the launcher: leave their bindings
-    // out, and do not also report the slot they name as unbound.
-    let known: Vec<(&Binding, (Identity, Vec<Identity>))> = inst
-        .bindings
-        .iter()
-        .filter_map(|b| producer_of(&b.target).map(|p| (b, p)))
-        .collect();
-    let unknown_keys: Vec<&str> = inst
-        .bindings
-        .iter()
-        .filter(|b| producer_of(&b.target).is_none())
-        .map(|b| b.key.as_str())
-        .collect();
+    let mut skipped_keys = refuse_unsupported_links(inst, node, diags);
+    let mut known: Vec<(Written<'_>, Option<(Identity, Vec<Identity>)>)> = Vec::new();
+    for w in written(inst) {
+        if skipped_keys.contains(&w.key) {
+            continue;
+        }
+        if !matches!(w.form, BindForm::EmptyList | BindForm::Vacant(_)) {
+            match producer_of(w.instance) {
+                Some(p) => known.push((w, Some(p))),
+                // Reported with the launcher: leave it out, and do not also
+                // report the slot it names as unbound.
+                None => skipped_keys.push(w.key),
+            }
+            continue;
+        }
+        known.push((w, None));
+    }
     let requests: Vec<BindRequest<'_>> = known
         .iter()
-        .map(|(b, (id, conforms))| {
-            BindRequest::key(
-                &b.key,
-                &b.target,
-                Some(Producer {
-                    node: id,
-                    conforms_to: conforms,
-                }),
-            )
+        .map(|(w, p)| BindRequest {
+            key: w.key,
+            instance: w.instance,
+            producer: p.as_ref().map(|(id, conforms)| Producer {
+                node: id,
+                conforms_to: conforms,
+            }),
+            form: w.form,
         })
         .collect();
     let outcome = assign(
@@ -170,12 +278,20 @@ fn plan_instance(
     );
     for (index, error) in outcome.errors {
         let diagnostic = match (index, &error) {
-            (Some(i), BindError::TargetMismatch { .. } | BindError::NotConformed { .. }) => {
-                known[i].0.target_loc.error(error.code(), error.to_string())
-            }
+            (
+                Some(i),
+                BindError::TargetMismatch { .. }
+                | BindError::NotConformed { .. }
+                | BindError::DuplicateProducer { .. }
+                | BindError::PinnedTwice { .. }
+                | BindError::Shape { .. },
+            ) => known[i].0.value_loc.error(error.code(), error.to_string()),
             (Some(i), _) => known[i].0.key_loc.error(error.code(), error.to_string()),
-            (None, BindError::PinnedUnbound { link_id, .. }) => {
-                if unknown_keys.contains(&link_id.as_str()) {
+            (
+                None,
+                BindError::PinnedUnbound { link_id, .. } | BindError::Unfulfilled { link_id, .. },
+            ) => {
+                if skipped_keys.contains(&link_id.as_str()) {
                     continue;
                 }
                 inst.id_loc.error(error.code(), error.to_string())
@@ -183,10 +299,11 @@ fn plan_instance(
             (None, _) => inst.id_loc.error(error.code(), error.to_string()),
         };
         let fit = match &error {
-            BindError::PinnedUnbound { link_id, .. } => node
-                .dependency(link_id)
-                .map(|d| candidates(d, launcher, nodes))
-                .unwrap_or_default(),
+            BindError::PinnedUnbound { link_id, .. } | BindError::Unfulfilled { link_id, .. } => {
+                node.dependency(link_id)
+                    .map(|d| candidates(d, launcher, nodes))
+                    .unwrap_or_default()
+            }
             _ => Vec::new(),
         };
         diags.push(diagnostic.with_help(error.launcher_help(&fit)));
