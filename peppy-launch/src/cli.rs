@@ -482,6 +482,13 @@ pub(crate) struct RunArgs {
     /// Bind a slot: `--bind left_cam@rs_left` (repeatable).
     #[arg(long = "bind", value_name = "KEY@INSTANCE")]
     pub(crate) bind: Vec<String>,
+    /// Link a slot, today's spelling: `--link camera@cam_1` (repeat it for
+    /// a list slot; every key must name a slot).
+    #[arg(long = "link", value_name = "SLOT@INSTANCE")]
+    pub(crate) link: Vec<String>,
+    /// Leave a `zero_or_one` slot empty on purpose: `--vacant-link 'logger=why'`.
+    #[arg(long = "vacant-link", value_name = "SLOT=WHY")]
+    pub(crate) vacant_link: Vec<String>,
     /// Parameter values, `key=value` (dot-paths for groups).
     #[arg(value_name = "KEY=VALUE")]
     pub(crate) overrides: Vec<String>,

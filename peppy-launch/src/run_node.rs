@@ -92,6 +92,12 @@ pub(crate) fn run(args: &RunArgs) -> Result {
     for b in &args.bind {
         flags.extend(["--bind".into(), b.clone()]);
     }
+    for l in &args.link {
+        flags.extend(["--link".into(), l.clone()]);
+    }
+    for v in &args.vacant_link {
+        flags.extend(["--vacant-link".into(), v.clone()]);
+    }
     if let Some(ns) = &args.namespace {
         flags.extend(["--namespace".into(), ns.clone()]);
     }

@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 
 use clap::Parser;
 use peppy_schema::{
-    BindRequest, NodeModel, ParamKind, ParameterSchema, Primitive, SlotPlan, assign, fit_plan,
+    BindForm, BindRequest, NodeModel, ParamKind, ParameterSchema, Primitive, SlotPlan, assign,
+    fit_plan,
 };
 use serde::{Deserialize, Serialize};
 use serde_json::Value as Json;
@@ -201,6 +202,13 @@ struct Flags {
     /// Bind a slot: `--bind left_cam@rs_left` (repeatable).
     #[arg(long = "bind", value_name = "KEY@INSTANCE")]
     bind: Vec<String>,
+    /// Link a slot to a producer, today's spelling: `--link camera@cam_1`
+    /// (repeat it to give a list slot several producers, in order).
+    #[arg(long = "link", value_name = "SLOT@INSTANCE")]
+    link: Vec<String>,
+    /// Leave a `zero_or_one` slot empty on purpose: `--vacant-link 'logger=not needed on the bench'`.
+    #[arg(long = "vacant-link", value_name = "SLOT=WHY")]
+    vacant_link: Vec<String>,
     /// Parameter values from a JSON file.
     #[arg(long, value_name = "FILE.json")]
     params: Option<PathBuf>,
@@ -284,7 +292,35 @@ fn read_config_file(path: &Path) -> Result<StartupConfig> {
     })
 }
 
-type Binds = Vec<(String, String)>;
+/// One slot flag, in the order given: `--bind` (the seeds' grammar,
+/// free-form keys allowed), `--link` or `--vacant-link` (today's).
+#[derive(Debug, Clone)]
+struct FlagBind {
+    key: String,
+    /// The producer instance, or the vacancy's reason.
+    value: String,
+    kind: FlagKind,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FlagKind {
+    Bind,
+    Link,
+    Vacant,
+}
+
+type Binds = Vec<FlagBind>;
+
+/// `--link KEY@TARGET` / `--vacant-link KEY=WHY`: a key names a slot, so
+/// the characters a link target reserves are refused in it.
+fn link_key(flag: &str, key: &str) -> Result<()> {
+    if key.is_empty() || ["_", "*", "**"].contains(&key) || key.contains(['/', '@']) {
+        return Err(Error::Startup(format!(
+            "invalid {flag} key `{key}`: a slot's link_id, not empty and without `/`, `@`, `*` or `_` alone"
+        )));
+    }
+    Ok(())
+}
 
 fn standalone_config(
     doc: &NodeModel,
@@ -303,7 +339,38 @@ fn standalone_config(
         };
         // A key may repeat: a from_any slot takes several producers, and
         // the binding engine refuses a pinned slot bound twice.
-        binds.push((key.to_string(), instance.to_string()));
+        binds.push(FlagBind {
+            key: key.to_string(),
+            value: instance.to_string(),
+            kind: FlagKind::Bind,
+        });
+    }
+    for l in &flags.link {
+        let Some((key, instance)) = l.split_once('@').filter(|(_, i)| !i.is_empty()) else {
+            return Err(Error::Startup(format!(
+                "invalid --link `{l}`: expected SLOT@INSTANCE, e.g. --link camera@cam_1"
+            )));
+        };
+        link_key("--link", key)?;
+        binds.push(FlagBind {
+            key: key.to_string(),
+            value: instance.to_string(),
+            kind: FlagKind::Link,
+        });
+    }
+    for v in &flags.vacant_link {
+        // The reason may hold `=`: split on the first one only.
+        let Some((key, why)) = v.split_once('=').filter(|(_, w)| !w.trim().is_empty()) else {
+            return Err(Error::Startup(format!(
+                "invalid --vacant-link `{v}`: expected SLOT=WHY with a reason, e.g. --vacant-link 'logger=not on the bench'"
+            )));
+        };
+        link_key("--vacant-link", key)?;
+        binds.push(FlagBind {
+            key: key.to_string(),
+            value: why.trim().to_string(),
+            kind: FlagKind::Vacant,
+        });
     }
     let mut parameters = standalone.parameters.clone().unwrap_or(Json::Null);
     if let Some(file) = &flags.params {
@@ -430,14 +497,20 @@ fn typed_value(schema: &ParameterSchema, path: &str, raw: &str) -> Json {
 /// nodes are not known on a command line, so a free-form key joins the
 /// first `from_any` slot only when every `from_any` slot wants the same
 /// producers; otherwise the flag must name the slot.
-fn slots_from_flags(
-    doc: &NodeModel,
-    instance: &str,
-    binds: &[(String, String)],
-) -> Result<Vec<SlotPlan>> {
+fn slots_from_flags(doc: &NodeModel, instance: &str, binds: &[FlagBind]) -> Result<Vec<SlotPlan>> {
     let requests: Vec<BindRequest<'_>> = binds
         .iter()
-        .map(|(key, producer)| BindRequest::key(key, producer, None))
+        .map(|b| match b.kind {
+            FlagKind::Bind => BindRequest::key(&b.key, &b.value, None),
+            FlagKind::Link => BindRequest {
+                form: BindForm::Flag,
+                ..BindRequest::key(&b.key, &b.value, None)
+            },
+            FlagKind::Vacant => BindRequest {
+                form: BindForm::Vacant(&b.value),
+                ..BindRequest::key(&b.key, "", None)
+            },
+        })
         .collect();
     engine(doc, instance, &requests)
 }
@@ -520,6 +593,151 @@ mod tests {
             s.parameters,
             serde_json::json!({ "fps": 30, "name": "123", "video": { "scale": 2.5 } })
         );
+    }
+
+    /// A `node/v1` consumer with one slot of each cardinality.
+    fn today() -> NodeModel {
+        model(
+            r#"{ peppy_schema: "node/v1",
+                manifest: { name: "mapper", tag: "v1", depends_on: {
+                    contracts: [
+                        { name: "range_scan", tag: "v1", link_id: "scan" },
+                        { name: "range_scan", tag: "v1", link_id: "extra", cardinality: "zero_or_one" },
+                        { name: "range_scan", tag: "v1", link_id: "scans", cardinality: "one_or_more" },
+                    ],
+                    nodes: [{ name: "logger", tag: "v1", link_id: "log", cardinality: "zero_or_more" }] } },
+                execution: { language: "rust", run_cmd: ["x"] } }"#,
+        )
+    }
+
+    fn start(doc: &NodeModel, a: &[&str]) -> Result<StartupConfig> {
+        load(doc, args(a), None, &StandaloneConfig::new())
+    }
+
+    #[test]
+    fn link_flags_fill_todays_slots_in_order() {
+        let s = start(
+            &today(),
+            &[
+                "--link",
+                "scan@lidar_a",
+                "--vacant-link",
+                "extra=bench run: no second lidar",
+                "--link",
+                "scans@lidar_b",
+                "--link",
+                "scans@lidar_a",
+            ],
+        )
+        .unwrap();
+        let slot = |id: &str| s.slots.iter().find(|p| p.link_id == id).unwrap();
+        assert_eq!(
+            slot("scan").binding,
+            SlotBinding::Pinned {
+                producer: "lidar_a".into()
+            }
+        );
+        assert_eq!(
+            slot("extra").binding,
+            SlotBinding::Set {
+                producers: vec![],
+                vacant: Some("bench run: no second lidar".into())
+            }
+        );
+        assert_eq!(
+            slot("scans").binding,
+            SlotBinding::Set {
+                producers: vec!["lidar_b".into(), "lidar_a".into()],
+                vacant: None
+            }
+        );
+        assert_eq!(
+            slot("scans").filter,
+            RouteFilter::OnlyFrom(["lidar_a".to_string(), "lidar_b".to_string()].into())
+        );
+        // zero_or_more left out: an empty set, nothing flows in.
+        assert_eq!(
+            slot("log").binding,
+            SlotBinding::Set {
+                producers: vec![],
+                vacant: None
+            }
+        );
+        assert!(!slot("log").filter.accepts("anyone"));
+    }
+
+    #[test]
+    fn link_flags_refuse_what_todays_rules_refuse() {
+        let text = |a: &[&str]| start(&today(), a).unwrap_err().to_string();
+        // zero_or_one left out, one_or_more unlinked: both named.
+        let e = text(&["--link", "scan@a"]);
+        assert!(
+            e.contains("slot `extra`") && e.contains("is not linked"),
+            "{e}"
+        );
+        assert!(e.contains("--vacant-link 'extra=<why>'"), "{e}");
+        assert!(e.contains("slot `scans`"), "{e}");
+        // A key naming no slot: no free-form keys in today's spelling.
+        let e = text(&[
+            "--link",
+            "scna@a",
+            "--link",
+            "scans@a",
+            "--vacant-link",
+            "extra=x",
+        ]);
+        assert!(
+            e.contains("link `scna`") && e.contains("names no slot"),
+            "{e}"
+        );
+        assert!(e.contains("did you mean `scan`?"), "{e}");
+        // Vacancy only on zero_or_one.
+        let e = text(&[
+            "--vacant-link",
+            "scan=nope",
+            "--link",
+            "scans@a",
+            "--vacant-link",
+            "extra=x",
+        ]);
+        assert!(
+            e.contains("slot `scan` (cardinality one) cannot be vacant"),
+            "{e}"
+        );
+        // One producer, twice.
+        let e = text(&[
+            "--link",
+            "scan@a",
+            "--link",
+            "scan@b",
+            "--link",
+            "scans@a",
+            "--vacant-link",
+            "extra=x",
+        ]);
+        assert!(e.contains("takes one producer"), "{e}");
+        // The same producer twice in a list.
+        let e = text(&[
+            "--link",
+            "scan@a",
+            "--link",
+            "scans@a",
+            "--link",
+            "scans@a",
+            "--vacant-link",
+            "extra=x",
+        ]);
+        assert!(e.contains("lists `a` twice"), "{e}");
+        // Malformed flags.
+        for bad in [
+            ["--link", "_@a"],
+            ["--link", "scan"],
+            ["--vacant-link", "extra="],
+            ["--link", "a/b@c"],
+        ] {
+            let e = text(&bad);
+            assert!(e.starts_with("invalid --"), "{bad:?}: {e}");
+        }
     }
 
     #[test]
