@@ -35,3 +35,5 @@ mod rendering;
 mod repositories;
 #[path = "schema/resolution.rs"]
 mod resolution;
+#[path = "schema/robustness.rs"]
+mod robustness;
