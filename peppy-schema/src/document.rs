@@ -12,6 +12,7 @@ use crate::json::{Node, Value};
 use crate::launcher::{LauncherDoc, parse_launcher};
 use crate::node::{NodeDoc, parse_node};
 use crate::read::{Reader, index};
+use crate::repository_index::{RepositoryIndexDoc, parse_repository_index};
 use crate::source::{SourceFile, sha256_hex};
 
 /// The kinds of peppy documents.
@@ -26,6 +27,9 @@ pub enum DocumentKind {
     Launcher,
     /// `peppy_repositories.json5`: a list of repositories.
     Repositories,
+    /// `repository/v1` (`peppy_repository.json5`): the index of one
+    /// repository.
+    RepositoryIndex,
 }
 
 impl DocumentKind {
@@ -36,22 +40,30 @@ impl DocumentKind {
             DocumentKind::Node => "a node",
             DocumentKind::Launcher => "a launcher",
             DocumentKind::Repositories => "a repositories",
+            DocumentKind::RepositoryIndex => "a repository index",
         }
     }
 
-    /// `node`, `interface`, `launcher`, `repositories`.
+    /// `node`, `interface`, `launcher`, `repositories`, `repository_index`.
     pub fn as_str(self) -> &'static str {
         match self {
             DocumentKind::Node => "node",
             DocumentKind::Interface => "interface",
             DocumentKind::Launcher => "launcher",
             DocumentKind::Repositories => "repositories",
+            DocumentKind::RepositoryIndex => "repository_index",
         }
     }
 }
 
 /// The `peppy_schema` values.
-pub const SCHEMAS: &[&str] = &["node_v1", "interface_v1", "launcher_v1", "contract/v1"];
+pub const SCHEMAS: &[&str] = &[
+    "node_v1",
+    "interface_v1",
+    "launcher_v1",
+    "contract/v1",
+    "repository/v1",
+];
 
 /// Which spelling a document is written in: the seeds' (`node_v1`,
 /// `interface_v1`, `launcher_v1`) or today's PeppyOS (`contract/v1`, ...).
@@ -94,6 +106,8 @@ pub enum Document {
     Launcher(LauncherDoc),
     /// A repositories list.
     Repositories(RepositoriesDoc),
+    /// A repository's index.
+    RepositoryIndex(RepositoryIndexDoc),
 }
 
 impl Document {
@@ -104,6 +118,7 @@ impl Document {
             Document::Interface(_) => DocumentKind::Interface,
             Document::Launcher(_) => DocumentKind::Launcher,
             Document::Repositories(_) => DocumentKind::Repositories,
+            Document::RepositoryIndex(_) => DocumentKind::RepositoryIndex,
         }
     }
 }
@@ -127,6 +142,7 @@ pub fn detect_kind(root: &Node) -> Option<DocumentKind> {
                     "node_v1" => Some(DocumentKind::Node),
                     "interface_v1" | "contract/v1" => Some(DocumentKind::Interface),
                     "launcher_v1" => Some(DocumentKind::Launcher),
+                    "repository/v1" => Some(DocumentKind::RepositoryIndex),
                     _ => None,
                 };
             }
@@ -198,6 +214,9 @@ fn parse_kind(
         DocumentKind::Repositories => {
             parse_repositories(file, root, &mut diags).map(Document::Repositories)
         }
+        DocumentKind::RepositoryIndex => {
+            parse_repository_index(file, root, &mut diags).map(Document::RepositoryIndex)
+        }
     };
     match doc {
         Some(d) if !diags.has_errors() => Ok((d, diags)),
@@ -221,7 +240,6 @@ const NOT_YET_READ: &[(&str, &str)] = &[
     ("launcher/v1", "launcher_v1"),
     ("launcher_fragment/v1", "launcher_v1"),
     ("pairing/v1", ""),
-    ("repository/v1", ""),
     ("mcp_exposure/v1", ""),
 ];
 
@@ -243,7 +261,8 @@ fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
         .at(file, n.span)
         .with_key_path("peppy_schema")
         .with_help(format!(
-            "of today's spelling peppy reads `contract/v1` so far{instead} (docs/DOCUMENTS.md)"
+            "of today's spelling peppy reads {} so far{instead} (docs/DOCUMENTS.md)",
+            list(SCHEMAS.iter().copied().filter(|s| s.contains('/')))
         ));
     }
     match (&root.value, root.get("peppy_schema")) {
