@@ -349,7 +349,7 @@ impl RepoIndex {
             }
             // `mismatch` matched the section to the kind already.
             Ok((other, _)) => self.findings.push(unmatched(&format!(
-                "which is {} document",
+                "which peppy reads as a `{}` document",
                 other.kind().as_str()
             ))),
             Err(diagnostics) => self.add_broken(key, &path, diagnostics),

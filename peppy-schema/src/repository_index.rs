@@ -400,13 +400,16 @@ pub(crate) fn mismatch(key: &IndexKey, root: &Node, file_stem: Option<&str>) -> 
                 "which is a `launcher_fragment/v1` document (fragments are never listed)"
                     .to_string()
             }
-            Some(s) => format!("which is a `{s}` document, not a {}", key.section.noun()),
+            Some(s) => format!(
+                "which is not a {} (its `peppy_schema` is `{s}`)",
+                key.section.noun()
+            ),
             None => "which is not a peppy document (no `peppy_schema`)".to_string(),
         });
     };
     if section != key.section {
         return Some(format!(
-            "which is a `{schema}` document, not a {}",
+            "which is not a {} (its `peppy_schema` is `{schema}`)",
             key.section.noun()
         ));
     }

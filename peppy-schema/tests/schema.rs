@@ -28,5 +28,7 @@ mod parameters;
 mod rendering;
 #[path = "schema/repositories.rs"]
 mod repositories;
+#[path = "schema/repository_index.rs"]
+mod repository_index;
 #[path = "schema/resolution.rs"]
 mod resolution;
