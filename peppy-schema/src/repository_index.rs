@@ -456,18 +456,16 @@ impl DeclaredIndex {
             let mut names: Vec<(String, Out)> = Vec::new();
             for (key, path) in self.entries.iter().filter(|(k, _)| k.section == section) {
                 let leaf = Out::Obj(vec![("path".to_string(), Out::Str(path.clone()))]);
-                let value = match &key.tag {
-                    Some(tag) => Out::Obj(vec![(tag.clone(), leaf)]),
-                    None => leaf,
+                let Some(tag) = &key.tag else {
+                    names.push((key.name.clone(), leaf));
+                    continue;
                 };
                 // Entries come sorted, so one name's tags are adjacent.
-                match (names.last_mut(), value) {
-                    (Some((name, Out::Obj(tags))), Out::Obj(mut more))
-                        if *name == key.name && key.tag.is_some() =>
-                    {
-                        tags.append(&mut more)
-                    }
-                    (_, value) => names.push((key.name.clone(), value)),
+                if !matches!(names.last(), Some((name, _)) if *name == key.name) {
+                    names.push((key.name.clone(), Out::Obj(Vec::new())));
+                }
+                if let Some((_, Out::Obj(tags))) = names.last_mut() {
+                    tags.push((tag.clone(), leaf));
                 }
             }
             if !names.is_empty() {
@@ -628,7 +626,7 @@ pub fn declared_in(dir: &Path) -> Parsed<DeclaredIndex> {
         };
         match declared_key(&file, &root, &schema, section, &path) {
             Ok(key) => claims.entry(key).or_default().push(rel),
-            Err(d) => diags.push(d),
+            Err(d) => diags.push(*d),
         }
     }
     let mut declared = DeclaredIndex::default();
@@ -688,71 +686,90 @@ fn declared_key(
     schema: &str,
     section: IndexSection,
     path: &Path,
-) -> Result<IndexKey, Diagnostic> {
+) -> Result<IndexKey, Box<Diagnostic>> {
     if !section.is_tagged() {
         let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("");
         return match check_name(stem) {
             Ok(()) => Ok(IndexKey::launcher(stem)),
-            Err(why) => Err(Diagnostic::error(
-                Code::InvalidName,
-                format!("launcher file stem `{stem}` cannot be listed: {why}"),
-            )
-            .with_file_path(path)
-            .with_help("a launcher is listed by its file name without `.json5`: rename the file")),
+            Err(why) => fail(
+                Diagnostic::error(
+                    Code::InvalidName,
+                    format!("launcher file stem `{stem}` cannot be listed: {why}"),
+                )
+                .with_file_path(path)
+                .with_help(
+                    "a launcher is listed by its file name without `.json5`: rename the file",
+                ),
+            ),
         };
     }
     let at_root = crate::source::Span::new(root.span.start, root.span.start + 1);
     let Some(manifest) = root.get("manifest") else {
-        return Err(Diagnostic::error(
-            Code::MissingKey,
-            format!("a `{schema}` document without a `manifest` cannot be listed"),
-        )
-        .at(file, at_root));
+        return fail(
+            Diagnostic::error(
+                Code::MissingKey,
+                format!("a `{schema}` document without a `manifest` cannot be listed"),
+            )
+            .at(file, at_root),
+        );
     };
-    let field = |key: &str| -> Result<(&str, &Node), Diagnostic> {
+    let field = |key: &str| -> Result<(&str, &Node), Box<Diagnostic>> {
         match manifest.get(key) {
             Some(n) => match n.as_str() {
                 Some(s) => Ok((s, n)),
-                None => Err(Diagnostic::error(
-                    Code::WrongType,
-                    format!(
-                        "expected a string for `manifest.{key}`, found {}",
-                        n.value.kind()
-                    ),
-                )
-                .at(file, n.span)
-                .with_key_path(format!("manifest.{key}"))),
+                None => fail(
+                    Diagnostic::error(
+                        Code::WrongType,
+                        format!(
+                            "expected a string for `manifest.{key}`, found {}",
+                            n.value.kind()
+                        ),
+                    )
+                    .at(file, n.span)
+                    .with_key_path(format!("manifest.{key}")),
+                ),
             },
-            None => Err(Diagnostic::error(
-                Code::MissingKey,
-                format!("a `{schema}` document without `manifest.{key}` cannot be listed"),
-            )
-            .at(
-                file,
-                crate::source::Span::new(manifest.span.start, manifest.span.start + 1),
-            )
-            .with_key_path("manifest")),
+            None => fail(
+                Diagnostic::error(
+                    Code::MissingKey,
+                    format!("a `{schema}` document without `manifest.{key}` cannot be listed"),
+                )
+                .at(
+                    file,
+                    crate::source::Span::new(manifest.span.start, manifest.span.start + 1),
+                )
+                .with_key_path("manifest"),
+            ),
         }
     };
     let (name, name_node) = field("name")?;
     let (tag, tag_node) = field("tag")?;
     if let Err(why) = check_name(name) {
-        return Err(Diagnostic::error(
-            Code::InvalidName,
-            format!("`manifest.name` `{name}` cannot be listed: {why}"),
-        )
-        .at(file, name_node.span)
-        .with_key_path("manifest.name"));
+        return fail(
+            Diagnostic::error(
+                Code::InvalidName,
+                format!("`manifest.name` `{name}` cannot be listed: {why}"),
+            )
+            .at(file, name_node.span)
+            .with_key_path("manifest.name"),
+        );
     }
     if let Err(why) = check_tag(tag, false) {
-        return Err(Diagnostic::error(
-            Code::InvalidTag,
-            format!("`manifest.tag` `{tag}` cannot be listed: {why}"),
-        )
-        .at(file, tag_node.span)
-        .with_key_path("manifest.tag"));
+        return fail(
+            Diagnostic::error(
+                Code::InvalidTag,
+                format!("`manifest.tag` `{tag}` cannot be listed: {why}"),
+            )
+            .at(file, tag_node.span)
+            .with_key_path("manifest.tag"),
+        );
     }
     Ok(IndexKey::tagged(section, &Identity::new(name, tag)))
+}
+
+/// `Err` of a boxed finding (a [`Diagnostic`] is large).
+fn fail<T>(d: Diagnostic) -> Result<T, Box<Diagnostic>> {
+    Err(Box::new(d))
 }
 
 /// How a committed index differs from what its directory declares.

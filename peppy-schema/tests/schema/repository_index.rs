@@ -613,6 +613,10 @@ fn the_written_index_lists_every_kind_from_raw_trees() {
         r#"{ peppy_schema: "mcp_exposure/v1", manifest: { name: "arm_mcp", tag: "v1" } }"#,
     );
     tree.write("repo/zed/peppy.json5", &node_text("zed-2i", "", "", ""));
+    tree.write(
+        "repo/contracts/rgb_v2.json5",
+        &interface_text("rgb", "v2", ""),
+    );
     tree.write("repo/.hidden.json5", &node_text("hidden_file", "", "", ""));
     tree.write("repo/target/x/peppy.json5", &node_text("built", "", "", ""));
     tree.write("repo/settings.json5", "{ hello: 1 }");
@@ -658,6 +662,9 @@ fn the_written_index_lists_every_kind_from_raw_trees() {
     rgb: {
       v1: {
         path: "contracts/rgb.json5"
+      },
+      v2: {
+        path: "contracts/rgb_v2.json5"
       }
     },
     unlisted_if: {
