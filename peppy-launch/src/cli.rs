@@ -79,6 +79,10 @@ pub(crate) enum Command {
     Ps(PsArgs),
     /// An instance's output, from its launch's run directory.
     Logs(LogsArgs),
+    /// Repositories: `repo index DIR` writes a repository's
+    /// `peppy_repository.json5`, the index through which it is read.
+    #[command(subcommand)]
+    Repo(RepoCommand),
 }
 
 /// Which running stack to look at. Without any of these: the only launch
@@ -130,6 +134,30 @@ pub(crate) struct PlanArgs {
     /// `--listen`, `key=value`.
     #[arg(last = true, value_name = "NODE_ARGS")]
     pub(crate) args: Vec<String>,
+}
+
+#[derive(Debug, Subcommand)]
+pub(crate) enum RepoCommand {
+    /// Write DIR's index, `peppy_repository.json5` (`repository/v1`): every
+    /// node, contract, pairing and MCP exposure under DIR by `name` and
+    /// `tag`, every launcher by file stem (hidden and build directories are
+    /// skipped). With `--check`, write nothing and report every drift of
+    /// the committed index instead.
+    ///
+    /// Exit code 0 when written (or current), 2 when DIR cannot be indexed
+    /// or `--check` finds drift, 1 when the file cannot be written.
+    Index(RepoIndexArgs),
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct RepoIndexArgs {
+    /// The repository's root directory.
+    #[arg(value_name = "DIR", default_value = ".")]
+    pub(crate) dir: PathBuf,
+    /// Write nothing: compare the committed index with what DIR declares
+    /// and report every entry that is unlisted, moved or unmatched.
+    #[arg(long)]
+    pub(crate) check: bool,
 }
 
 #[derive(Debug, Args)]

@@ -17,6 +17,7 @@ mod output;
 mod placement;
 mod presence;
 mod python_sync;
+mod repo_index;
 mod report;
 mod run_node;
 mod runs;
@@ -55,6 +56,7 @@ pub fn run(cli: Cli) -> Result {
         cli::Command::Keys(args) => security::keys::run(&args),
         cli::Command::Ps(args) => runs::ps(&args),
         cli::Command::Logs(args) => runs::logs(&args),
+        cli::Command::Repo(cmd) => repo_index::run(&cmd),
     }
 }
 

@@ -119,6 +119,15 @@ codes! {
     ConflictingDefinition,
     /// The same `name:tag` in two repositories (the first wins).
     DuplicateInRepositories,
+    /// One identity claimed by two files of one repository (`repo index`
+    /// cannot list both).
+    DuplicateIdentity,
+    /// A repository-index `path` that is not canonical: empty, absolute,
+    /// with a backslash, a `.`, `..` or empty segment, or a trailing `/`.
+    NonCanonicalPath,
+    /// A repository-index entry whose file is missing, not a file, of
+    /// another kind, or declares another identity.
+    UnmatchedIndexEntry,
     /// A launcher source that cannot be used.
     InvalidSource,
     /// A launcher source that cannot be had: a git or archive source that

@@ -14,6 +14,7 @@ pub(crate) use crate::model::Spelling;
 use crate::node::{NodeDoc, parse_node};
 use crate::pairing::{PairingDoc, parse_pairing};
 use crate::read::{Reader, index};
+use crate::repository_index::{RepositoryIndexDoc, parse_repository_index};
 use crate::source::{SourceFile, sha256_hex};
 
 /// The kinds of peppy documents.
@@ -30,6 +31,9 @@ pub enum DocumentKind {
     Repositories,
     /// Today's `pairing/v1`: two roles and the topics between them.
     Pairing,
+    /// `repository/v1` (`peppy_repository.json5`): the index of one
+    /// repository.
+    RepositoryIndex,
 }
 
 impl DocumentKind {
@@ -41,10 +45,11 @@ impl DocumentKind {
             DocumentKind::Launcher => "a launcher",
             DocumentKind::Repositories => "a repositories",
             DocumentKind::Pairing => "a pairing",
+            DocumentKind::RepositoryIndex => "a repository index",
         }
     }
 
-    /// `node`, `interface`, `launcher`, `repositories`, `pairing`.
+    /// `node`, `interface`, `launcher`, `repositories`, `pairing`, `repository_index`.
     pub fn as_str(self) -> &'static str {
         match self {
             DocumentKind::Node => "node",
@@ -52,6 +57,7 @@ impl DocumentKind {
             DocumentKind::Launcher => "launcher",
             DocumentKind::Repositories => "repositories",
             DocumentKind::Pairing => "pairing",
+            DocumentKind::RepositoryIndex => "repository_index",
         }
     }
 }
@@ -65,6 +71,7 @@ pub const SCHEMAS: &[&str] = &[
     "contract/v1",
     "pairing/v1",
     "launcher/v1",
+    "repository/v1",
 ];
 
 impl Spelling {
@@ -97,6 +104,8 @@ pub enum Document {
     Repositories(RepositoriesDoc),
     /// A pairing.
     Pairing(PairingDoc),
+    /// A repository's index.
+    RepositoryIndex(RepositoryIndexDoc),
 }
 
 impl Document {
@@ -108,6 +117,7 @@ impl Document {
             Document::Launcher(_) => DocumentKind::Launcher,
             Document::Repositories(_) => DocumentKind::Repositories,
             Document::Pairing(_) => DocumentKind::Pairing,
+            Document::RepositoryIndex(_) => DocumentKind::RepositoryIndex,
         }
     }
 }
@@ -132,6 +142,7 @@ pub fn detect_kind(root: &Node) -> Option<DocumentKind> {
                     "interface_v1" | "contract/v1" => Some(DocumentKind::Interface),
                     "launcher_v1" | "launcher/v1" => Some(DocumentKind::Launcher),
                     "pairing/v1" => Some(DocumentKind::Pairing),
+                    "repository/v1" => Some(DocumentKind::RepositoryIndex),
                     _ => None,
                 };
             }
@@ -206,6 +217,9 @@ fn parse_kind(
         DocumentKind::Pairing => {
             parse_pairing(file, sha256.to_string(), root, &mut diags).map(Document::Pairing)
         }
+        DocumentKind::RepositoryIndex => {
+            parse_repository_index(file, root, &mut diags).map(Document::RepositoryIndex)
+        }
     };
     match doc {
         Some(d) if !diags.has_errors() => Ok((d, diags)),
@@ -224,7 +238,7 @@ fn parse_kind(
 
 /// Today's PeppyOS document kinds peppy does not read yet, each with the
 /// seeds' kind that says the same today.
-const NOT_YET_READ: &[(&str, &str)] = &[("repository/v1", ""), ("mcp_exposure/v1", "")];
+const NOT_YET_READ: &[(&str, &str)] = &[("mcp_exposure/v1", "")];
 
 fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
     if let Some(n) = root.get("peppy_schema")

@@ -71,6 +71,8 @@ mod read;
 #[cfg(feature = "documents")]
 mod repos;
 #[cfg(feature = "documents")]
+mod repository_index;
+#[cfg(feature = "documents")]
 mod resolve;
 #[cfg(feature = "documents")]
 mod stack;
@@ -124,6 +126,11 @@ pub use plan::{BindingPlan, InstancePlan, plan_bindings};
 #[cfg(feature = "documents")]
 pub use repos::{
     Broken, Entry, REPOSITORIES_ENV, RepoIndex, RepositoryList, SKIPPED_DIRS, json5_files,
+};
+#[cfg(feature = "documents")]
+pub use repository_index::{
+    DeclaredIndex, Drift, IndexCheck, IndexKey, IndexSection, Listed, REPOSITORY_INDEX_FILE,
+    REPOSITORY_INDEX_SCHEMA, RepositoryIndexDoc, check_index, check_index_path, declared_in,
 };
 #[cfg(feature = "documents")]
 pub use resolve::{

@@ -1,18 +1,24 @@
 //! Repositories: where nodes, interfaces and launchers are found by
-//! `name:tag`, and the index built by scanning them.
+//! `name:tag`, and the index built by scanning them: through a
+//! repository's `peppy_repository.json5` when it has one, else by walking
+//! it.
 
 use std::collections::BTreeMap;
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::diag::{Code, Diagnostic, Diagnostics};
+use crate::diag::{Code, Diagnostic, Diagnostics, Severity};
 use crate::document::{
     Document, DocumentKind, REPOSITORIES_FILE, RepositoriesDoc, detect_kind, parse_document,
 };
 use crate::interface::InterfaceDoc;
 use crate::node::{Identity, NodeDoc};
 use crate::pairing::PairingDoc;
+use crate::repository_index::{
+    IndexKey, IndexSection, Listed, REPOSITORY_INDEX_FILE, RepositoryIndexDoc, mismatch,
+    peek_identity,
+};
 use crate::source::SourceFile;
 
 /// The environment variable listing extra repositories (separated like `PATH`).
@@ -174,6 +180,15 @@ impl RepoIndex {
     /// Scans `repositories` in order. Problems that do not stop the scan
     /// (duplicates, missing directories, unreadable files) become warnings
     /// in [`findings`](Self::findings).
+    ///
+    /// A repository with a `peppy_repository.json5` is read through it:
+    /// only the files it lists are read, each of which must declare the
+    /// kind and identity it is listed under (else an `UnmatchedIndexEntry`
+    /// warning at the entry). A listed file that does not parse (a kind
+    /// peppy does not read yet, say) is kept as [`broken`](Self::broken)
+    /// under its listed identity, so what depends on it says why. An
+    /// invalid index skips its repository (its errors become warnings).
+    /// Without an index the repository is walked ([`json5_files`]).
     pub fn scan(repositories: &[PathBuf]) -> RepoIndex {
         let mut index = RepoIndex {
             repositories: repositories.to_vec(),
@@ -193,6 +208,11 @@ impl RepoIndex {
                 );
                 continue;
             }
+            let index_file = repo.join(REPOSITORY_INDEX_FILE);
+            if index_file.is_file() {
+                index.scan_indexed(repo, &index_file);
+                continue;
+            }
             for entry in json5_files(repo) {
                 let path = match entry {
                     Ok(p) => p,
@@ -209,6 +229,143 @@ impl RepoIndex {
             }
         }
         index
+    }
+
+    /// Reads the files `index_file` lists.
+    fn scan_indexed(&mut self, repo: &Path, index_file: &Path) {
+        let doc = match RepositoryIndexDoc::load(index_file) {
+            Ok((doc, warnings)) => {
+                self.findings.extend(warnings);
+                doc
+            }
+            Err(errors) => {
+                for mut d in errors {
+                    d.severity = Severity::Warning;
+                    self.findings.push(d);
+                }
+                self.findings.push(
+                    Diagnostic::warning(
+                        Code::DependencyNotFound,
+                        format!(
+                            "repository `{}` is skipped: its `{REPOSITORY_INDEX_FILE}` is invalid",
+                            repo.display()
+                        ),
+                    )
+                    .with_file_path(index_file)
+                    .with_help(format!(
+                        "fix it, or write it again with `peppy-launch repo index {}`",
+                        repo.display()
+                    )),
+                );
+                return;
+            }
+        };
+        for (key, listed) in &doc.entries {
+            self.add_listed(repo, key, listed);
+        }
+    }
+
+    /// Reads one listed file, which must declare what it is listed as.
+    fn add_listed(&mut self, repo: &Path, key: &IndexKey, listed: &Listed) {
+        let path = repo.join(&listed.path);
+        let unmatched = |why: &str| {
+            listed
+                .loc
+                .warning(
+                    Code::UnmatchedIndexEntry,
+                    format!("{key} is listed at `{}`, {why}", listed.path),
+                )
+                .with_help(format!(
+                    "the index is out of date: write it again with `peppy-launch repo index {}`",
+                    repo.display()
+                ))
+        };
+        if !path.is_file() {
+            let why = if path.exists() {
+                "which is not a file"
+            } else {
+                "which does not exist"
+            };
+            self.findings.push(unmatched(why));
+            return;
+        }
+        let (file, sha) = match SourceFile::read(&path) {
+            Ok(v) => v,
+            Err(d) => {
+                self.findings
+                    .push(unmatched(&format!("which cannot be read: {}", d.message)));
+                return;
+            }
+        };
+        let root = match crate::json::parse(&file) {
+            Ok((root, _)) => root,
+            // Not JSON5: what it was meant to be cannot be checked, so it
+            // is taken as listed; whoever reads it says what is wrong.
+            Err(diagnostics) => {
+                if key.section == IndexSection::Launchers {
+                    self.launchers
+                        .entry(key.name.clone())
+                        .or_default()
+                        .push(path);
+                } else {
+                    self.add_broken(key, &path, diagnostics);
+                }
+                return;
+            }
+        };
+        let stem = path.file_stem().and_then(OsStr::to_str);
+        if let Some(why) = mismatch(key, &root, stem) {
+            self.findings.push(unmatched(&why));
+            return;
+        }
+        match key.section {
+            // The path is what a launcher is looked up for; reading it is
+            // its caller's (which reports a kind peppy does not read yet).
+            IndexSection::Launchers => {
+                self.launchers
+                    .entry(key.name.clone())
+                    .or_default()
+                    .push(path);
+                return;
+            }
+            // Nothing in peppy reads these yet.
+            IndexSection::Pairings | IndexSection::McpExposures => return,
+            IndexSection::Nodes | IndexSection::Contracts => {}
+        }
+        match parse_document(&file, &sha) {
+            Ok((Document::Node(n), _)) if key.section == IndexSection::Nodes => {
+                let entry = Entry {
+                    doc: Arc::new(n),
+                    path,
+                    repository: repo.to_path_buf(),
+                };
+                self.insert_node(entry.doc.identity(), entry);
+            }
+            Ok((Document::Interface(i), _)) if key.section == IndexSection::Contracts => {
+                let entry = Entry {
+                    doc: Arc::new(i),
+                    path,
+                    repository: repo.to_path_buf(),
+                };
+                self.insert_interface(entry.doc.identity.clone(), entry);
+            }
+            // `mismatch` matched the section to the kind already.
+            Ok((other, _)) => self.findings.push(unmatched(&format!(
+                "which peppy reads as a `{}` document",
+                other.kind().as_str()
+            ))),
+            Err(diagnostics) => self.add_broken(key, &path, diagnostics),
+        }
+    }
+
+    /// Keeps an invalid listed document under the identity it is listed as.
+    fn add_broken(&mut self, key: &IndexKey, path: &Path, diagnostics: Diagnostics) {
+        if let (Some(kind), Some(id)) = (key.section.document_kind(), key.identity()) {
+            self.broken.entry((kind, id)).or_insert(Broken {
+                path: path.to_path_buf(),
+                diagnostics,
+            });
+        }
     }
 
     fn add_file(&mut self, path: &Path, repo: &Path) {
@@ -245,15 +402,14 @@ impl RepoIndex {
             }
             Ok((Document::Interface(i), _)) => {
                 let id = i.identity.clone();
-                let entries = self.interfaces.entry(id.clone()).or_default();
-                if let Some(first) = entries.first() {
-                    self.findings.push(duplicate(&id, &first.path, path));
-                }
-                entries.push(Entry {
-                    doc: Arc::new(i),
-                    path: path.to_path_buf(),
-                    repository: repo.to_path_buf(),
-                });
+                self.insert_interface(
+                    id,
+                    Entry {
+                        doc: Arc::new(i),
+                        path: path.to_path_buf(),
+                        repository: repo.to_path_buf(),
+                    },
+                );
             }
             Ok((Document::Pairing(p), _)) => {
                 let id = p.identity.clone();
@@ -278,7 +434,7 @@ impl RepoIndex {
                     .or_default()
                     .push(path.to_path_buf());
             }
-            Ok((Document::Repositories(_), _)) => {}
+            Ok((Document::Repositories(_) | Document::RepositoryIndex(_), _)) => {}
             Err(diagnostics) => {
                 if let (Some(kind), Some(id)) = (kind, peek_identity(&root)) {
                     self.broken.entry((kind, id)).or_insert(Broken {
@@ -311,6 +467,14 @@ impl RepoIndex {
 
     fn insert_node(&mut self, id: Identity, entry: Entry<NodeDoc>) {
         let entries = self.nodes.entry(id.clone()).or_default();
+        if let Some(first) = entries.first() {
+            self.findings.push(duplicate(&id, &first.path, &entry.path));
+        }
+        entries.push(entry);
+    }
+
+    fn insert_interface(&mut self, id: Identity, entry: Entry<InterfaceDoc>) {
+        let entries = self.interfaces.entry(id.clone()).or_default();
         if let Some(first) = entries.first() {
             self.findings.push(duplicate(&id, &first.path, &entry.path));
         }
@@ -395,13 +559,4 @@ fn duplicate(id: &Identity, first: &Path, second: &Path) -> Diagnostic {
     )
     .with_file_path(second)
     .with_help("repositories earlier in the list win; remove or rename one of them")
-}
-
-/// `manifest.name` / `manifest.tag` of a document, without validating it.
-fn peek_identity(root: &crate::json::Node) -> Option<Identity> {
-    let m = root.get("manifest")?;
-    Some(Identity::new(
-        m.get("name")?.as_str()?,
-        m.get("tag")?.as_str()?,
-    ))
 }

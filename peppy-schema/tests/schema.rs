@@ -33,6 +33,8 @@ mod parameters;
 mod rendering;
 #[path = "schema/repositories.rs"]
 mod repositories;
+#[path = "schema/repository_index.rs"]
+mod repository_index;
 #[path = "schema/resolution.rs"]
 mod resolution;
 #[path = "schema/robustness.rs"]

@@ -8,6 +8,7 @@ mod netns;
 mod node_deps;
 mod one_engine;
 mod python;
+mod repo_index;
 mod security;
 mod seeds;
 mod sources;
