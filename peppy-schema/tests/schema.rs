@@ -25,6 +25,8 @@ mod launcher_today;
 mod legacy;
 #[path = "schema/node_rules.rs"]
 mod node_rules;
+#[path = "schema/node_today.rs"]
+mod node_today;
 #[path = "schema/pairings.rs"]
 mod pairings;
 #[path = "schema/parameters.rs"]
@@ -35,3 +37,5 @@ mod rendering;
 mod repositories;
 #[path = "schema/resolution.rs"]
 mod resolution;
+#[path = "schema/resolution_today.rs"]
+mod resolution_today;
