@@ -23,6 +23,8 @@ mod launcher_rules;
 mod launcher_today;
 #[path = "schema/legacy.rs"]
 mod legacy;
+#[path = "schema/links_today.rs"]
+mod links_today;
 #[path = "schema/node_rules.rs"]
 mod node_rules;
 #[path = "schema/node_today.rs"]

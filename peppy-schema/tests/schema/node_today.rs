@@ -138,12 +138,7 @@ fn a_node_shaped_like_the_hubs_reads_into_the_model() {
         slots,
         [
             ("safety", SlotKind::Node, Cardinality::One, false),
-            (
-                "camera",
-                SlotKind::Interface,
-                Cardinality::ZeroOrOne,
-                false
-            ),
+            ("camera", SlotKind::Interface, Cardinality::ZeroOrOne, false),
             (
                 "extra_cameras",
                 SlotKind::Interface,
@@ -161,7 +156,9 @@ fn a_node_shaped_like_the_hubs_reads_into_the_model() {
     assert_eq!(node.consumed_services.len(), 1);
     assert!(node.pairings.is_empty());
     // Execution: a container, parameters with their default.
-    assert!(matches!(node.execution.launch(), Launch::Container(c) if c.def_file == "apptainer.def"));
+    assert!(
+        matches!(node.execution.launch(), Launch::Container(c) if c.def_file == "apptainer.def")
+    );
     assert_eq!(
         node.execution
             .parameters
@@ -248,7 +245,11 @@ fn external_consumed_topics_are_refused() {
         &text,
         "message_format",
     );
-    assert!(d.message.contains("external consumed topics"), "{}", d.message);
+    assert!(
+        d.message.contains("external consumed topics"),
+        "{}",
+        d.message
+    );
     assert!(help(d).contains("{ link_id, name }"), "{}", help(d));
 }
 
@@ -391,7 +392,10 @@ fn a_member_is_listed_once_per_section() {
     let errors = node_err(&text);
     let d = only(&errors, Code::DuplicateInterfaceEntry);
     let needle = r#"{ link_id: "arm", name: "get_limits" }"#;
-    assert_eq!(d.key_path.as_deref(), Some("interfaces.services.exposes[1]"));
+    assert_eq!(
+        d.key_path.as_deref(),
+        Some("interfaces.services.exposes[1]")
+    );
     assert_eq!(lc(d), pos_nth(&text, needle, 1));
     assert_eq!(
         d.message,
@@ -654,7 +658,9 @@ fn pairing_link_ids_are_not_link_target_sentinels() {
 fn refined(refine: &str) -> String {
     doc(
         r#"depends_on: { contracts: [{ name: "lidar", tag: "v1", link_id: "lidar" }] },"#,
-        &format!(r#"topics: {{ consumes: [{{ link_id: "lidar", name: "scan", refine: {refine} }}] }},"#),
+        &format!(
+            r#"topics: {{ consumes: [{{ link_id: "lidar", name: "scan", refine: {refine} }}] }},"#
+        ),
     )
 }
 

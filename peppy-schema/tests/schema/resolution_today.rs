@@ -125,8 +125,14 @@ fn an_implementer_provides_the_contract_members() {
             ("joint_states", &Origin::Interface(arm())),
         ]
     );
-    assert_eq!(c.resolved.exposed_services[0].origin, Origin::Interface(arm()));
-    assert_eq!(c.resolved.exposed_actions[0].origin, Origin::Interface(arm()));
+    assert_eq!(
+        c.resolved.exposed_services[0].origin,
+        Origin::Interface(arm())
+    );
+    assert_eq!(
+        c.resolved.exposed_actions[0].origin,
+        Origin::Interface(arm())
+    );
     assert_eq!(c.resolved.conformed.len(), 1);
 }
 
@@ -275,7 +281,8 @@ fn refinements_that_land_resolve() {
     let errors = check_err(&tree, "repo/nodes/pinned");
     let d = only_refinement(&errors);
     assert!(
-        d.message.contains("NotAnArray: `message_format.links[].length`"),
+        d.message
+            .contains("NotAnArray: `message_format.links[].length`"),
         "{}",
         d.message
     );
@@ -325,11 +332,7 @@ fn refinements_that_land_resolve() {
 
 #[track_caller]
 fn only_refinement(errors: &Diagnostics) -> &peppy_schema::Diagnostic {
-    assert_eq!(
-        error_codes(errors),
-        [Code::RefinementMismatch],
-        "{errors}"
-    );
+    assert_eq!(error_codes(errors), [Code::RefinementMismatch], "{errors}");
     one(errors, Code::RefinementMismatch)
 }
 
