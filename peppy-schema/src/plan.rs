@@ -224,6 +224,9 @@ fn refuse_unsupported_links<'a>(
     refused
 }
 
+/// A producer instance's node and the contracts it implements.
+type ProducerNode = (Identity, Vec<Identity>);
+
 /// One instance's slots through the binding engine, its errors located in
 /// the launcher.
 fn plan_instance(
@@ -233,7 +236,7 @@ fn plan_instance(
     nodes: &[Option<&NodeDoc>],
     diags: &mut Diagnostics,
 ) -> Vec<SlotPlan> {
-    let producer_of = |id: &str| -> Option<(Identity, Vec<Identity>)> {
+    let producer_of = |id: &str| -> Option<ProducerNode> {
         launcher
             .instances()
             .find(|(_, i)| i.instance_id == id)
@@ -241,7 +244,7 @@ fn plan_instance(
             .map(|n| (n.identity(), conformances(n)))
     };
     let mut skipped_keys = refuse_unsupported_links(inst, node, diags);
-    let mut known: Vec<(Written<'_>, Option<(Identity, Vec<Identity>)>)> = Vec::new();
+    let mut known: Vec<(Written<'_>, Option<ProducerNode>)> = Vec::new();
     for w in written(inst) {
         if skipped_keys.contains(&w.key) {
             continue;
@@ -294,7 +297,14 @@ fn plan_instance(
                 if skipped_keys.contains(&link_id.as_str()) {
                     continue;
                 }
-                inst.id_loc.error(error.code(), error.to_string())
+                // `[]` on a `one_or_more` slot: the empty list is the error.
+                let empty = known
+                    .iter()
+                    .find(|(w, _)| w.key == link_id && w.form == BindForm::EmptyList);
+                match empty {
+                    Some((w, _)) => w.value_loc.error(error.code(), error.to_string()),
+                    None => inst.id_loc.error(error.code(), error.to_string()),
+                }
             }
             (None, _) => inst.id_loc.error(error.code(), error.to_string()),
         };

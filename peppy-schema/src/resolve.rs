@@ -577,8 +577,11 @@ fn check_coverage(
         let elsewhere = all.iter().find(|k| **k != m.kind && has(**k, &m.name));
         problems.push(match elsewhere {
             Some(k) => format!(
-                "wrong kind: `{}` is a {k} of the contract, listed as a {}",
-                m.name, m.kind
+                "wrong kind: `{}` is {} {k} of the contract, listed as {} {}",
+                m.name,
+                article(*k),
+                article(m.kind),
+                m.kind
             ),
             None => format!("unknown {}: `{}`", m.kind, m.name),
         });
@@ -632,6 +635,14 @@ fn check_coverage(
             }
         });
         refinement_problems(&m.name, problems, diags);
+    }
+}
+
+/// "a topic", "a service", "an action".
+fn article(kind: EntryKind) -> &'static str {
+    match kind {
+        EntryKind::Action => "an",
+        EntryKind::Topic | EntryKind::Service => "a",
     }
 }
 

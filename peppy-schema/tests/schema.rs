@@ -23,8 +23,12 @@ mod launcher_rules;
 mod launcher_today;
 #[path = "schema/legacy.rs"]
 mod legacy;
+#[path = "schema/links_today.rs"]
+mod links_today;
 #[path = "schema/node_rules.rs"]
 mod node_rules;
+#[path = "schema/node_today.rs"]
+mod node_today;
 #[path = "schema/pairings.rs"]
 mod pairings;
 #[path = "schema/parameters.rs"]
@@ -37,5 +41,7 @@ mod repositories;
 mod repository_index;
 #[path = "schema/resolution.rs"]
 mod resolution;
+#[path = "schema/resolution_today.rs"]
+mod resolution_today;
 #[path = "schema/robustness.rs"]
 mod robustness;

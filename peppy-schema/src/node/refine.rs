@@ -255,7 +255,7 @@ fn parse_field_refine(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<Pin
     let p = crate::read::join(path, &m.key);
     match m.key.as_str() {
         "$length" => r
-            .uint(&m.value, &p, u64::from(crate::MAX_FIXED_LENGTH))
+            .uint(&m.value, &p, crate::MAX_FIXED_LENGTH)
             .map(|n| Pin::Length(n as u32)),
         "$items" => parse_format_refine(r, &m.value, &p).map(Pin::Items),
         other => {

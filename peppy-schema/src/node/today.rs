@@ -266,19 +266,23 @@ fn parse_pairing_slot(
             None
         }
     };
-    let link_id = read_link_id(r, &obj, "link_id");
-    if let Some(id) = &link_id
-        && (id.contains(['/', '@']) || ["*", "**", "_"].contains(&id.as_str()))
-        && let Some(n) = obj.get("link_id")
-    {
-        r.error(
-            Code::PairingSentinelLinkId,
-            n.span,
-            &obj.path_of("link_id"),
-            format!("link_id `{id}` is reserved in link targets (`/`, `@`, `*`, `**`, `_`)"),
-        );
-        ok = false;
-    }
+    // The sentinel check reads the raw string first: the general link_id
+    // rule refuses these characters too, and would hide the specific code.
+    let link_id = match obj.get("link_id").map(|n| (n, &n.value)) {
+        Some((n, Value::String(id)))
+            if id.contains(['/', '@']) || ["*", "**", "_"].contains(&id.as_str()) =>
+        {
+            r.error(
+                Code::PairingSentinelLinkId,
+                n.span,
+                &obj.path_of("link_id"),
+                format!("link_id `{id}` is reserved in link targets (`/`, `@`, `*`, `**`, `_`)"),
+            );
+            ok = false;
+            None
+        }
+        _ => read_link_id(r, &obj, "link_id"),
+    };
     let sha256 = read_pin(r, &obj, &mut ok);
     let optional = match obj.get("optional") {
         Some(n) => r.bool(n, &obj.path_of("optional")).unwrap_or_else(|| {
