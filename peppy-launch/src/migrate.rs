@@ -95,10 +95,16 @@ impl<'t> Edits<'t> {
             e += 1;
         }
         skip(&mut e);
+        let comma = bytes[end..e].contains(&b',');
         if line_start && e < bytes.len() && bytes[e] == b'\n' {
             self.replace(s, e + 1, "");
+        } else if comma || line_start {
+            self.replace(start, e, "");
+        } else if s > 0 && bytes[s - 1] == b',' {
+            // The last of an inline list: its separator goes with it.
+            self.replace(s - 1, end, "");
         } else {
-            self.replace(if line_start { start } else { s }, e, "");
+            self.replace(start, end, "");
         }
     }
 
@@ -745,5 +751,227 @@ pub(crate) fn run(args: &MigrateArgs) -> Result {
         Ok(())
     } else {
         Err(LaunchError::Invalid { errors: failed })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, rel: &str, text: &str) -> PathBuf {
+        let p = dir.join(rel);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    fn options() -> RepoOptions {
+        RepoOptions {
+            explicit: Vec::new(),
+            env: Some(Default::default()),
+        }
+    }
+
+    fn migrated(o: Outcome) -> (String, Vec<Note>) {
+        match o {
+            Outcome::Migrated { text, notes } => (text, notes),
+            other => panic!("not migrated: {other:?}"),
+        }
+    }
+
+    /// A repository with a camera contract, two cameras and a consumer
+    /// with a pinned slot and a from_any slot.
+    fn stack(dir: &Path) {
+        write(dir, "peppy_repositories.json5", r#"[{ type: "fs", path: "." }]"#);
+        write(
+            dir,
+            "cam_if.json5",
+            r#"{ peppy_schema: "interface_v1", manifest: { name: "cam", tag: "v1" },
+  interfaces: { topics: [{ name: "frames", message_format: { n: "u32" } }] } }"#,
+        );
+        write(
+            dir,
+            "cam/peppy.json5",
+            r#"{ peppy_schema: "node_v1", manifest: { name: "camera", tag: "v1" },
+  interfaces: { conforms_to: [{ name: "cam", tag: "v1" }] },
+  execution: { language: "rust" } }"#,
+        );
+        write(
+            dir,
+            "viewer/peppy.json5",
+            r#"{ peppy_schema: "node_v1",
+  manifest: { name: "viewer", tag: "v1", depends_on: { interfaces: [
+    { name: "cam", tag: "v1", link_id: "main" },
+    { name: "cam", tag: "v1", link_id: "extra", from_any: true },
+  ] } },
+  interfaces: { topics: { consumes: [
+    { link_id: "main", name: "frames" },
+    { link_id: "extra", name: "frames" },
+  ] } },
+  execution: { language: "rust" } }"#,
+        );
+    }
+
+    #[test]
+    fn a_free_form_key_lands_in_the_from_any_slot_it_filled() {
+        let tmp = tempfile::tempdir().unwrap();
+        stack(tmp.path());
+        let l = write(
+            tmp.path(),
+            "l.json5",
+            r#"{
+  peppy_schema: "launcher_v1",
+  deployments: [
+    { source: { local: "cam" }, instances: [{ instance_id: "a" }, { instance_id: "b" }] },
+    { source: { local: "viewer" }, instances: [
+      { instance_id: "v", bindings: { main: "a", whatever: "b" } },
+    ] },
+  ],
+}"#,
+        );
+        let (text, notes) = migrated(migrate_file(&l, &options()));
+        assert!(
+            text.contains(r#"links: { main: "a", extra: ["b"] }"#),
+            "{text}"
+        );
+        assert_eq!(
+            notes,
+            vec![Note {
+                at: Some((6, 50)),
+                message: "free-form binding key `whatever` has no equivalent: its producer is listed under the from_any slot it filled".into(),
+            }]
+        );
+    }
+
+    #[test]
+    fn an_unbound_from_any_slot_lists_the_producers_it_took() {
+        let tmp = tempfile::tempdir().unwrap();
+        stack(tmp.path());
+        let l = write(
+            tmp.path(),
+            "l.json5",
+            r#"{
+  peppy_schema: "launcher_v1",
+  deployments: [
+    { source: { local: "cam" }, instances: [{ instance_id: "a" }, { instance_id: "b" }, { instance_id: "c" }] },
+    { source: { local: "viewer" }, instances: [
+      { instance_id: "v", bindings: { main: "a" } },
+    ] },
+  ],
+}"#,
+        );
+        let (text, notes) = migrated(migrate_file(&l, &options()));
+        // `a` is claimed by the pinned slot; the seeds' routing gave the
+        // from_any slot every other camera.
+        assert!(
+            text.contains(r#"links: { main: "a", extra: ["b", "c"] }"#),
+            "{text}"
+        );
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert_eq!(notes[0].at, Some((6, 7)));
+        assert!(
+            notes[0].message.starts_with("from_any slot `extra` of `v` is unbound (it takes any producer; today's `zero_or_more` left empty takes none): wrote the producers it takes in this stack, [\"b\", \"c\"]"),
+            "{}",
+            notes[0].message
+        );
+    }
+
+    #[test]
+    fn a_conforming_node_lists_the_contract_members_and_from_any_becomes_a_cardinality() {
+        let tmp = tempfile::tempdir().unwrap();
+        stack(tmp.path());
+        let (text, notes) = migrated(migrate_file(&tmp.path().join("cam/peppy.json5"), &options()));
+        assert!(notes.is_empty(), "{notes:?}");
+        assert!(text.contains(r#"implements: [{ name: "cam", tag: "v1", link_id: "cam" }]"#), "{text}");
+        assert!(text.contains(r#"interfaces: { topics: { emits: [{ link_id: "cam", name: "frames" }] } }"#), "{text}");
+        let (text, notes) = migrated(migrate_file(&tmp.path().join("viewer/peppy.json5"), &options()));
+        assert!(notes.is_empty(), "{notes:?}");
+        assert!(text.contains("depends_on: { contracts: ["), "{text}");
+        assert!(text.contains(r#"link_id: "extra", cardinality: "zero_or_more" }"#), "{text}");
+    }
+
+    #[test]
+    fn a_contract_that_cannot_be_found_is_reported_and_the_rest_migrates() {
+        let file = SourceFile::new(
+            "peppy.json5",
+            r#"{ peppy_schema: "node_v1", manifest: { name: "n", tag: "v1" },
+  interfaces: { conforms_to: [{ name: "gone", tag: "v1", sha256: "ab" }] },
+  execution: { language: "rust" } }"#,
+        );
+        let (root, _) = peppy_schema::json::parse(&file).unwrap();
+        let (text, notes) = migrated(migrate_node(&file, &root, &|_| None));
+        assert!(text.contains(r#"implements: [{ name: "gone", tag: "v1", link_id: "gone", sha256: "ab" }]"#), "{text}");
+        assert!(!text.contains("conforms_to"), "{text}");
+        assert_eq!(notes[0].at, Some((2, 31)));
+        assert!(notes[0].message.starts_with("contract `gone:v1` was not found in the repositories"), "{notes:?}");
+    }
+
+    #[test]
+    fn an_external_topic_is_removed_and_reported() {
+        let file = SourceFile::new(
+            "peppy.json5",
+            "{\n  peppy_schema: \"node_v1\",\n  manifest: { name: \"n\", tag: \"v1\" },\n  interfaces: { topics: { consumes: [\n    // from anyone\n    { name: \"t\", message_format: { x: \"u8\" } },\n  ] } },\n  execution: { language: \"rust\" },\n}\n",
+        );
+        let (root, _) = peppy_schema::json::parse(&file).unwrap();
+        let (text, notes) = migrated(migrate_node(&file, &root, &|_| None));
+        assert!(!text.contains("message_format"), "{text}");
+        assert!(text.contains("// from anyone"), "comments stay: {text}");
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert_eq!(notes[0].at, Some((6, 5)));
+        assert!(notes[0].message.starts_with("external consumed topic `t`"));
+    }
+
+    #[test]
+    fn the_legacy_form_is_spelled_as_its_warnings_ask() {
+        let file = SourceFile::new(
+            "peppy.json5",
+            r#"{
+  schema_version: 1,
+  manifest: {
+    name: "old",
+    tag: "v1",
+    language: "rust",
+    depends_on: { nodes: [{ name: "p", tag: "v1", local_id: "p" }] },
+  },
+  process: {
+    add_cmd: ["cargo", "build"],
+    start_cmd: ["./old"],
+  },
+  interfaces: { topics: { consumes: [{ local_node_id: "p", name: "t" }] } },
+}"#,
+        );
+        let (root, _) = peppy_schema::json::parse(&file).unwrap();
+        let (text, notes) = migrated(migrate_node(&file, &root, &|_| None));
+        assert!(notes.is_empty(), "{notes:?}\n{text}");
+        assert!(text.contains(r#"peppy_schema: "node/v1","#), "{text}");
+        assert!(!text.contains("language: \"rust\",\n    depends_on"), "{text}");
+        assert!(text.contains("execution: {\n    build_cmd: [\"cargo\", \"build\"],\n    run_cmd: [\"./old\"],\n    language: \"rust\",\n  },"), "{text}");
+        assert!(text.contains(r#"link_id: "p" }] }"#), "{text}");
+        assert!(text.contains(r#"{ link_id: "p", name: "t" }"#), "{text}");
+    }
+
+    #[test]
+    fn action_endpoints_lose_what_today_does_not_say() {
+        let file = SourceFile::new(
+            "i.json5",
+            r#"{ peppy_schema: "interface_v1", manifest: { name: "i", tag: "v1" },
+  interfaces: { actions: [{ name: "go",
+    goal_service: { request_message_format: { x: "u8" }, qos_profile: "standard" },
+    result_service: { request_message_format: { y: "u8" }, response_message_format: { z: "u8" } },
+    feedback_topic: { message_format: { p: "f32" } } }] } }"#,
+        );
+        let (root, _) = peppy_schema::json::parse(&file).unwrap();
+        let (text, notes) = migrated(migrate_interface(&file, &root));
+        assert!(text.contains(r#"peppy_schema: "contract/v1""#), "{text}");
+        assert!(text.contains(r#"result_service: { response_message_format: { z: "u8" } }"#), "{text}");
+        let messages: Vec<_> = notes.iter().map(|n| (n.at, n.message.as_str())).collect();
+        assert_eq!(
+            messages,
+            vec![
+                (Some((3, 58)), "`goal_service.qos_profile` has no equivalent in today's spelling: removed"),
+                (Some((4, 23)), "`result_service.request_message_format` has no equivalent in today's spelling: removed"),
+            ],
+            "{text}"
+        );
     }
 }
