@@ -146,10 +146,7 @@ impl<'t> Edits<'t> {
                 let body = if items.len() == 1 && items[0].len() < 60 {
                     format!("{open} {} {close}", items[0])
                 } else {
-                    let inner: String = items
-                        .iter()
-                        .map(|i| format!("\n{indent}  {i},"))
-                        .collect();
+                    let inner: String = items.iter().map(|i| format!("\n{indent}  {i},")).collect();
                     format!("{open}{inner}\n{indent}{close}")
                 };
                 self.replace(container.span.start, container.span.end, body);
@@ -207,8 +204,7 @@ impl<'t> Edits<'t> {
     fn apply(mut self) -> String {
         // Back to front, so earlier offsets stay valid; at one offset an
         // insertion goes before a removal starting there.
-        self.list
-            .sort_by(|a, b| b.0.cmp(&a.0).then(b.1.cmp(&a.1)));
+        self.list.sort_by(|a, b| b.0.cmp(&a.0).then(b.1.cmp(&a.1)));
         let mut out = self.text.to_string();
         for (s, e, with) in self.list {
             out.replace_range(s..e, &with);
@@ -396,7 +392,11 @@ pub(crate) fn migrate_node(
                 e.rename(m, "contracts");
             }
             for d in items(Some(&m.value)) {
-                if let Some(l) = d.get("link_id").or(d.get("local_id")).and_then(Node::as_str) {
+                if let Some(l) = d
+                    .get("link_id")
+                    .or(d.get("local_id"))
+                    .and_then(Node::as_str)
+                {
                     link_ids.insert(l.to_string());
                 }
                 if let Some(f) = d.get_member("from_any") {
@@ -464,10 +464,10 @@ pub(crate) fn migrate_node(
                     .and_then(|i| i.get(section))
                     .and_then(|s| s.get(list));
                 for n in names {
-                    if let Some(native) = items(natives)
-                        .iter()
-                        .find(|x| x.get("link_id").is_none() && x.get("name").and_then(Node::as_str) == Some(n))
-                    {
+                    if let Some(native) = items(natives).iter().find(|x| {
+                        x.get("link_id").is_none()
+                            && x.get("name").and_then(Node::as_str) == Some(n)
+                    }) {
                         ctx.note(
                             Some(native.span.start),
                             format!(
@@ -630,9 +630,8 @@ pub(crate) fn migrate_launcher(
             for slot in &plan.slots {
                 let value = match &slot.binding {
                     SlotBinding::Pinned { producer } => q(producer),
-                    SlotBinding::FromAnyBound { producers } | SlotBinding::Set { producers, .. } => {
-                        list_of(producers)
-                    }
+                    SlotBinding::FromAnyBound { producers }
+                    | SlotBinding::Set { producers, .. } => list_of(producers),
                     SlotBinding::FromAnyUnbound => {
                         let producers = crate::flows::slot_producers(stack, plan, slot);
                         ctx.note(
@@ -668,10 +667,8 @@ pub(crate) fn migrate_launcher(
                 (Some(b), Some(t)) => {
                     let t = if t.len() > 70 || !e.same_line(b.value.span.start, b.value.span.end) {
                         let indent = e.indent_at(b.key_span.start);
-                        let inner: String = links
-                            .iter()
-                            .map(|l| format!("\n{indent}  {l},"))
-                            .collect();
+                        let inner: String =
+                            links.iter().map(|l| format!("\n{indent}  {l},")).collect();
                         format!("links: {{{inner}\n{indent}}}")
                     } else {
                         t
@@ -690,7 +687,11 @@ pub(crate) fn migrate_launcher(
 fn list_of(producers: &[String]) -> String {
     format!(
         "[{}]",
-        producers.iter().map(|p| q(p)).collect::<Vec<_>>().join(", ")
+        producers
+            .iter()
+            .map(|p| q(p))
+            .collect::<Vec<_>>()
+            .join(", ")
     )
 }
 
@@ -782,7 +783,11 @@ mod tests {
     /// A repository with a camera contract, two cameras and a consumer
     /// with a pinned slot and a from_any slot.
     fn stack(dir: &Path) {
-        write(dir, "peppy_repositories.json5", r#"[{ type: "fs", path: "." }]"#);
+        write(
+            dir,
+            "peppy_repositories.json5",
+            r#"[{ type: "fs", path: "." }]"#,
+        );
         write(
             dir,
             "cam_if.json5",
@@ -880,14 +885,31 @@ mod tests {
     fn a_conforming_node_lists_the_contract_members_and_from_any_becomes_a_cardinality() {
         let tmp = tempfile::tempdir().unwrap();
         stack(tmp.path());
-        let (text, notes) = migrated(migrate_file(&tmp.path().join("cam/peppy.json5"), &options()));
+        let (text, notes) = migrated(migrate_file(
+            &tmp.path().join("cam/peppy.json5"),
+            &options(),
+        ));
         assert!(notes.is_empty(), "{notes:?}");
-        assert!(text.contains(r#"implements: [{ name: "cam", tag: "v1", link_id: "cam" }]"#), "{text}");
-        assert!(text.contains(r#"interfaces: { topics: { emits: [{ link_id: "cam", name: "frames" }] } }"#), "{text}");
-        let (text, notes) = migrated(migrate_file(&tmp.path().join("viewer/peppy.json5"), &options()));
+        assert!(
+            text.contains(r#"implements: [{ name: "cam", tag: "v1", link_id: "cam" }]"#),
+            "{text}"
+        );
+        assert!(
+            text.contains(
+                r#"interfaces: { topics: { emits: [{ link_id: "cam", name: "frames" }] } }"#
+            ),
+            "{text}"
+        );
+        let (text, notes) = migrated(migrate_file(
+            &tmp.path().join("viewer/peppy.json5"),
+            &options(),
+        ));
         assert!(notes.is_empty(), "{notes:?}");
         assert!(text.contains("depends_on: { contracts: ["), "{text}");
-        assert!(text.contains(r#"link_id: "extra", cardinality: "zero_or_more" }"#), "{text}");
+        assert!(
+            text.contains(r#"link_id: "extra", cardinality: "zero_or_more" }"#),
+            "{text}"
+        );
     }
 
     #[test]
@@ -900,10 +922,20 @@ mod tests {
         );
         let (root, _) = peppy_schema::json::parse(&file).unwrap();
         let (text, notes) = migrated(migrate_node(&file, &root, &|_| None));
-        assert!(text.contains(r#"implements: [{ name: "gone", tag: "v1", link_id: "gone", sha256: "ab" }]"#), "{text}");
+        assert!(
+            text.contains(
+                r#"implements: [{ name: "gone", tag: "v1", link_id: "gone", sha256: "ab" }]"#
+            ),
+            "{text}"
+        );
         assert!(!text.contains("conforms_to"), "{text}");
         assert_eq!(notes[0].at, Some((2, 31)));
-        assert!(notes[0].message.starts_with("contract `gone:v1` was not found in the repositories"), "{notes:?}");
+        assert!(
+            notes[0]
+                .message
+                .starts_with("contract `gone:v1` was not found in the repositories"),
+            "{notes:?}"
+        );
     }
 
     #[test]
@@ -944,7 +976,10 @@ mod tests {
         let (text, notes) = migrated(migrate_node(&file, &root, &|_| None));
         assert!(notes.is_empty(), "{notes:?}\n{text}");
         assert!(text.contains(r#"peppy_schema: "node/v1","#), "{text}");
-        assert!(!text.contains("language: \"rust\",\n    depends_on"), "{text}");
+        assert!(
+            !text.contains("language: \"rust\",\n    depends_on"),
+            "{text}"
+        );
         assert!(text.contains("execution: {\n    build_cmd: [\"cargo\", \"build\"],\n    run_cmd: [\"./old\"],\n    language: \"rust\",\n  },"), "{text}");
         assert!(text.contains(r#"link_id: "p" }] }"#), "{text}");
         assert!(text.contains(r#"{ link_id: "p", name: "t" }"#), "{text}");
@@ -963,13 +998,22 @@ mod tests {
         let (root, _) = peppy_schema::json::parse(&file).unwrap();
         let (text, notes) = migrated(migrate_interface(&file, &root));
         assert!(text.contains(r#"peppy_schema: "contract/v1""#), "{text}");
-        assert!(text.contains(r#"result_service: { response_message_format: { z: "u8" } }"#), "{text}");
+        assert!(
+            text.contains(r#"result_service: { response_message_format: { z: "u8" } }"#),
+            "{text}"
+        );
         let messages: Vec<_> = notes.iter().map(|n| (n.at, n.message.as_str())).collect();
         assert_eq!(
             messages,
             vec![
-                (Some((3, 58)), "`goal_service.qos_profile` has no equivalent in today's spelling: removed"),
-                (Some((4, 23)), "`result_service.request_message_format` has no equivalent in today's spelling: removed"),
+                (
+                    Some((3, 58)),
+                    "`goal_service.qos_profile` has no equivalent in today's spelling: removed"
+                ),
+                (
+                    Some((4, 23)),
+                    "`result_service.request_message_format` has no equivalent in today's spelling: removed"
+                ),
             ],
             "{text}"
         );

@@ -94,8 +94,9 @@ fn every_example_migrates_to_a_valid_document_and_the_same_plan() {
     let run = peppy_launch(tmp.path(), &argv);
     assert_eq!(run.code, 0, "{}", run.stderr);
     assert!(
-        run.stderr
-            .contains("launchers/multi_camera.json5:27:13: not carried: free-form binding key `any_label`"),
+        run.stderr.contains(
+            "launchers/multi_camera.json5:27:13: not carried: free-form binding key `any_label`"
+        ),
         "{}",
         run.stderr
     );
@@ -120,17 +121,32 @@ fn every_example_migrates_to_a_valid_document_and_the_same_plan() {
             // A version-like tag (`0.1.0`) is not a tag today; renaming it
             // would break every reference, so it is reported, not rewritten.
             Err(d) if doc.starts_with("nodes/gripper") => {
-                assert!(d.iter().any(|d| d.code == peppy_schema::Code::InvalidTag), "{d:?}");
+                assert!(
+                    d.iter().any(|d| d.code == peppy_schema::Code::InvalidTag),
+                    "{d:?}"
+                );
                 assert!(run.stderr.contains("nodes/gripper/peppy.json5: not carried: the migrated text does not validate: invalid `manifest.tag` `0.1.0`"), "{}", run.stderr);
             }
-            Err(d) => panic!("{} does not validate after migration: {d:?}\n{text}", doc.display()),
+            Err(d) => panic!(
+                "{} does not validate after migration: {d:?}\n{text}",
+                doc.display()
+            ),
         }
     }
     // Comments survive.
-    let camera = std::fs::read_to_string(tmp.path().join("nodes/realsense_d405/peppy.json5")).unwrap();
+    let camera =
+        std::fs::read_to_string(tmp.path().join("nodes/realsense_d405/peppy.json5")).unwrap();
     assert!(camera.contains("// Inherits video_stream"), "{camera}");
-    assert!(camera.contains(r#"implements: [{ name: "depth_camera", tag: "v1", link_id: "depth_camera" }]"#), "{camera}");
-    assert!(camera.contains(r#"{ link_id: "depth_camera", name: "video_stream_info" }"#), "{camera}");
+    assert!(
+        camera.contains(
+            r#"implements: [{ name: "depth_camera", tag: "v1", link_id: "depth_camera" }]"#
+        ),
+        "{camera}"
+    );
+    assert!(
+        camera.contains(r#"{ link_id: "depth_camera", name: "video_stream_info" }"#),
+        "{camera}"
+    );
 
     for (l, before) in launchers.iter().zip(before) {
         let Some(before) = before else { continue };
@@ -145,7 +161,13 @@ fn every_example_migrates_to_a_valid_document_and_the_same_plan() {
                     .map(|s| (s.link_id.clone(), producers(&s.binding)))
                     .collect()
             };
-            assert_eq!(slots(a), slots(b), "{} instance {}", l.display(), a.instance_id);
+            assert_eq!(
+                slots(a),
+                slots(b),
+                "{} instance {}",
+                l.display(),
+                a.instance_id
+            );
         }
     }
 }
@@ -158,7 +180,12 @@ fn a_document_of_today_is_left_alone() {
     std::fs::write(&path, text).unwrap();
     let run = peppy_launch(tmp.path(), &["migrate", "--write", "c.json5"]);
     assert_eq!(run.code, 0, "{}", run.stderr);
-    assert!(run.stderr.contains("c.json5: already in today's spelling (interface): left alone"), "{}", run.stderr);
+    assert!(
+        run.stderr
+            .contains("c.json5: already in today's spelling (interface): left alone"),
+        "{}",
+        run.stderr
+    );
     assert_eq!(std::fs::read_to_string(&path).unwrap(), text);
     assert_eq!(run.stdout, "");
 }
