@@ -68,6 +68,11 @@ pub(crate) enum Command {
     /// `peppy.json5` (`up` does it before building). A Rust node generates
     /// its API when it builds, so there is nothing to write for one.
     Sync(SyncArgs),
+    /// Rewrite documents of the seeds' spelling (`node_v1`, `interface_v1`,
+    /// `launcher_v1`) in today's (`node/v1`, `contract/v1`, `launcher/v1`):
+    /// printed on stdout, or in place with `--write`. What today's spelling
+    /// cannot say is reported on stderr, located. Comments are kept.
+    Migrate(MigrateArgs),
     /// Run a bare Zenoh router for core nodes to meet at, where they cannot
     /// reach each other directly (give each launch `--connect` to it); a
     /// stand-in for `zenohd`.
@@ -158,6 +163,20 @@ pub(crate) struct RepoIndexArgs {
     /// and report every entry that is unlisted, moved or unmatched.
     #[arg(long)]
     pub(crate) check: bool,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct MigrateArgs {
+    /// Documents to migrate (a node's directory means its `peppy.json5`).
+    #[arg(value_name = "FILE", required = true)]
+    pub(crate) files: Vec<PathBuf>,
+    /// Rewrite the files in place instead of printing them.
+    #[arg(long)]
+    pub(crate) write: bool,
+    /// An extra repository directory, searched for the contracts nodes
+    /// conform to and the nodes launchers deploy (repeatable).
+    #[arg(long = "repo", value_name = "DIR")]
+    pub(crate) repos: Vec<PathBuf>,
 }
 
 #[derive(Debug, Args)]

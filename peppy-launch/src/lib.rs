@@ -13,6 +13,7 @@ mod executable;
 mod flows;
 mod graph;
 mod inspect;
+mod migrate;
 mod output;
 mod placement;
 mod presence;
@@ -52,6 +53,7 @@ pub fn run(cli: Cli) -> Result {
         cli::Command::Service(cmd) => inspect::service(cmd),
         cli::Command::Action(cmd) => inspect::action(cmd),
         cli::Command::Sync(args) => python_sync::run(&args),
+        cli::Command::Migrate(args) => migrate::run(&args),
         cli::Command::Router(args) => up::router(&args),
         cli::Command::Keys(args) => security::keys::run(&args),
         cli::Command::Ps(args) => runs::ps(&args),

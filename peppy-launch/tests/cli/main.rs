@@ -4,6 +4,7 @@
 mod check;
 mod inspect;
 mod machines;
+mod migrate;
 mod netns;
 mod node_deps;
 mod one_engine;
