@@ -2,8 +2,8 @@
 //! out. Pure: no file system, no environment.
 
 use peppy_schema::{
-    Diagnostics, EntryKind, InterfaceRef, Loc, MessageFormat, Origin, Provided, QosProfile,
-    ResolvedCall, ResolvedNode, ResolvedTopic, ServiceDecl, TopicDecl,
+    Cardinality, Diagnostics, EntryKind, InterfaceRef, Loc, MessageFormat, Origin, Provided,
+    QosProfile, ResolvedCall, ResolvedNode, ResolvedTopic, ServiceDecl, Spelling, TopicDecl,
 };
 use proc_macro2::{Ident, TokenStream};
 use quote::quote;
@@ -90,6 +90,17 @@ const CATEGORIES: &[(&str, &str)] = &[
     ),
 ];
 
+/// The category docs of a `node/v1` node, where entries through a slot
+/// nest under the slot's link_id (PeppyOS's module paths).
+const TODAY_CATEGORIES: &[&str] = &[
+    "Topics this node emits, one module each with `Message` and `emit`: `<topic>` for its own, `<implements link_id>::<member>` for a contract's.",
+    "Topics this node consumes: `<link_id>::<topic>`, with the slot's `bound_producer` / `bound_producers` next to its entries.",
+    "Services this node exposes, one module each with `Request`, `Response` and `handle_next_request`: `<service>` for its own, `<implements link_id>::<member>` for a contract's.",
+    "Services this node calls: `<link_id>::<service>` with `Request`, `Response` and `poll`, and the slot's `bound_producer` / `bound_producers`.",
+    "Actions this node exposes, one module each with `ActionHandle` (`expose`, `handle_goal_next_request`) and `GoalContext`: `<action>` for its own, `<implements link_id>::<member>` for a contract's.",
+    "Actions this node calls: `<link_id>::<action>` with `GoalRequest` and `ActionHandle` (`fire_goal`, `on_next_feedback_message`, `get_result`, `cancel_goal`), and the slot's `bound_producer` / `bound_producers`.",
+];
+
 /// Names the runtime entry points use besides the fields.
 pub(crate) const RESERVED_ARGS: &[&str] = &["node_runner", "message", "SPEC"];
 
@@ -112,6 +123,21 @@ struct Offered {
     loc: Loc,
     origin: Origin,
     body: TokenStream,
+}
+
+/// One consumed entry of a `node/v1` node, as the layout builder sees it.
+struct Consumed {
+    /// The slot (`None` only for an external topic, which today's
+    /// spelling cannot write).
+    link_id: Option<String>,
+    name: String,
+    loc: Loc,
+    /// How a name clash describes it.
+    what: String,
+    doc: String,
+    body: TokenStream,
+    /// Whether the node descriptor lists its `SPEC`.
+    spec: bool,
 }
 
 /// A conformed entry that also gets its flat name.
@@ -158,20 +184,26 @@ impl Gen<'_> {
             exposed_actions,
             consumed_actions,
         ];
-        let modules = CATEGORIES.iter().zip(categories).map(|((name, doc), c)| {
-            let id = ident(name);
-            let items = c.items;
-            let doc = crate::docs::Doc::new(format!(
-                "{doc}\n\nGenerated from node `{identity}` (`{source}`)."
-            ));
-            quote! {
-                #doc
-                #[allow(dead_code)]
-                pub mod #id {
-                    #items
+        let today = self.today();
+        let modules = CATEGORIES
+            .iter()
+            .zip(categories)
+            .enumerate()
+            .map(|(i, ((name, doc), c))| {
+                let doc = if today { TODAY_CATEGORIES[i] } else { doc };
+                let id = ident(name);
+                let items = c.items;
+                let doc = crate::docs::Doc::new(format!(
+                    "{doc}\n\nGenerated from node `{identity}` (`{source}`)."
+                ));
+                quote! {
+                    #doc
+                    #[allow(dead_code)]
+                    pub mod #id {
+                        #items
+                    }
                 }
-            }
-        });
+            });
         let params_doc = crate::docs::Doc::new(format!(
             "The parameters of node `{identity}` (`execution.parameters`), and the node's descriptor."
         ));
@@ -190,6 +222,17 @@ impl Gen<'_> {
             }
             #(#modules)*
         }
+    }
+
+    /// Whether the node is written in today's `node/v1` spelling, whose
+    /// entries through a slot nest under the slot's link_id.
+    fn today(&self) -> bool {
+        self.node.node.spelling == Spelling::Today
+    }
+
+    /// The module-name kind of this node's modules.
+    fn module_kind(&self) -> NameKind {
+        NameKind::module_of(self.node.node.spelling)
     }
 
     fn emitted_topics(&mut self) -> Category {
@@ -238,6 +281,26 @@ impl Gen<'_> {
     }
 
     fn consumed_actions(&mut self) -> Category {
+        if self.today() {
+            let node = self.node;
+            let entries = node
+                .consumed_actions
+                .iter()
+                .map(|a| Consumed {
+                    link_id: Some(a.slot.link_id.clone()),
+                    name: a.decl.name.clone(),
+                    loc: a.loc.clone(),
+                    what: format!(
+                        "consumed action `{}` of slot `{}`",
+                        a.decl.name, a.slot.link_id
+                    ),
+                    doc: call_doc(EntryKind::Action, a),
+                    body: self.consumed_action(a),
+                    spec: false,
+                })
+                .collect();
+            return self.consumed_today(EntryKind::Action, entries);
+        }
         let mut category = Category::default();
         let mut names = Names::default();
         let node = self.node;
@@ -252,14 +315,7 @@ impl Gen<'_> {
             }
             let id = ident(&m);
             let body = self.consumed_action(a);
-            let doc = crate::docs::Doc::new(format!(
-                "Calls action `{}` of {}, through slot `{}` (declared at `{}`; the action is declared at `{}`).",
-                a.decl.name,
-                origin_text(&a.origin),
-                a.slot.link_id,
-                short_location(&a.loc),
-                short_location(&a.decl.loc)
-            ));
+            let doc = crate::docs::Doc::new(call_doc(EntryKind::Action, a));
             category.items.extend(quote! {
                 #doc
                 pub mod #id {
@@ -274,6 +330,9 @@ impl Gen<'_> {
     /// `<interface>::<tag>::<name>`, and also by name when no other entry
     /// of the category takes that name.
     fn provided(&mut self, offered: Vec<Offered>, kind: EntryKind) -> Category {
+        if self.today() {
+            return self.provided_today(offered, kind);
+        }
         let mut category = Category::default();
         let mut names = Names::default();
         let own_modules = self.own_entries(&offered, kind, &mut names, &mut category);
@@ -366,6 +425,163 @@ impl Gen<'_> {
         category
     }
 
+    /// Lays out the provided entries of a `node/v1` node as PeppyOS does:
+    /// own entries by name, a contract's members under the `implements`
+    /// slot's link_id (`<link_id>::<member>`), with no flat aliases. Sibling
+    /// modules that read the same once sanitised are a
+    /// `ModuleNameCollision`.
+    fn provided_today(&mut self, offered: Vec<Offered>, kind: EntryKind) -> Category {
+        let mut category = Category::default();
+        let mut names = Names::default();
+        self.own_entries(&offered, kind, &mut names, &mut category);
+        let node = self.node;
+        for slot in &node.node.conforms_to {
+            // Today's `implements` entries always carry their link_id.
+            let Some(link_id) = &slot.link_id else {
+                continue;
+            };
+            let origin = Origin::Interface(slot.target.clone());
+            let members: Vec<&Offered> = offered.iter().filter(|o| o.origin == origin).collect();
+            if members.is_empty() {
+                continue;
+            }
+            let link_mod = module(link_id);
+            let what = format!("implements slot `{link_id}` (contract `{}`)", slot.target);
+            if !names.claim(
+                NameKind::TodayModule,
+                &link_mod,
+                &what,
+                &slot.loc,
+                &mut self.diags,
+            ) {
+                continue;
+            }
+            let link_ident = ident(&link_mod);
+            let mut entries = Names::default();
+            let mut items = TokenStream::new();
+            for o in members {
+                let m = module(&o.name);
+                let what = format!("{kind} `{}` of implements slot `{link_id}`", o.name);
+                if !entries.claim(NameKind::TodayModule, &m, &what, &o.loc, &mut self.diags) {
+                    continue;
+                }
+                let id = ident(&m);
+                let body = &o.body;
+                let doc = crate::docs::Doc::new(entry_doc(kind, &o.name, &o.origin, &o.loc));
+                items.extend(quote! {
+                    #doc
+                    pub mod #id {
+                        #body
+                    }
+                });
+                category.specs.push(vec![link_ident.clone(), id]);
+            }
+            let doc = crate::docs::Doc::new(format!(
+                "The {kind}s of contract `{}`, which this node implements as slot `{link_id}` (`{}`).",
+                slot.target,
+                short_location(&slot.loc)
+            ));
+            category.items.extend(quote! {
+                #doc
+                pub mod #link_ident {
+                    #items
+                }
+            });
+        }
+        category
+    }
+
+    /// Lays out the consumed entries of one category of a `node/v1` node:
+    /// `<link_id>::<name>`, each slot's module holding its bound-producer
+    /// accessor. Sibling modules that read the same once sanitised are a
+    /// `ModuleNameCollision`.
+    fn consumed_today(&mut self, kind: EntryKind, entries: Vec<Consumed>) -> Category {
+        let mut category = Category::default();
+        let mut links = Names::default();
+        // Slots in the order of their first entry; entries in declaration order.
+        let mut groups: Vec<(Option<String>, Vec<Consumed>)> = Vec::new();
+        for e in entries {
+            match groups.iter_mut().find(|(l, _)| *l == e.link_id) {
+                Some((_, list)) => list.push(e),
+                None => groups.push((e.link_id.clone(), vec![e])),
+            }
+        }
+        let node = self.node;
+        for (link_id, group) in groups {
+            let Some(link_id) = link_id else {
+                // Not written in today's spelling (every consumed entry
+                // names a slot); laid out flat, like the seeds' external topics.
+                for e in group {
+                    let m = module(&e.name);
+                    if !links.claim(NameKind::TodayModule, &m, &e.what, &e.loc, &mut self.diags) {
+                        continue;
+                    }
+                    let id = ident(&m);
+                    let doc = crate::docs::Doc::new(e.doc);
+                    let body = e.body;
+                    category.items.extend(quote! {
+                        #doc
+                        pub mod #id {
+                            #body
+                        }
+                    });
+                    if e.spec {
+                        category.specs.push(vec![id]);
+                    }
+                }
+                continue;
+            };
+            let dependency = node.node.dependency(&link_id);
+            let slot_loc = dependency.map_or_else(|| group[0].loc.clone(), |d| d.loc.clone());
+            let link_mod = module(&link_id);
+            let what = format!("slot `{link_id}`");
+            if !links.claim(
+                NameKind::TodayModule,
+                &link_mod,
+                &what,
+                &slot_loc,
+                &mut self.diags,
+            ) {
+                continue;
+            }
+            let link_ident = ident(&link_mod);
+            let mut names = Names::default();
+            let mut items = slot_accessor(&link_id, dependency.map(|d| d.cardinality));
+            for e in group {
+                let m = module(&e.name);
+                if !names.claim(NameKind::TodayModule, &m, &e.what, &e.loc, &mut self.diags) {
+                    continue;
+                }
+                let id = ident(&m);
+                let doc = crate::docs::Doc::new(e.doc);
+                let body = e.body;
+                items.extend(quote! {
+                    #doc
+                    pub mod #id {
+                        #body
+                    }
+                });
+                if e.spec {
+                    category.specs.push(vec![link_ident.clone(), id]);
+                }
+            }
+            let cardinality = dependency
+                .map(|d| format!(", cardinality `{}`", d.cardinality))
+                .unwrap_or_default();
+            let doc = crate::docs::Doc::new(format!(
+                "The {kind}s this node consumes through slot `{link_id}` (`{}`{cardinality}).",
+                short_location(&slot_loc)
+            ));
+            category.items.extend(quote! {
+                #doc
+                pub mod #link_ident {
+                    #items
+                }
+            });
+        }
+        category
+    }
+
     /// The node's own entries of one category, one module each; returns
     /// their module names.
     fn own_entries(
@@ -382,7 +598,8 @@ impl Gen<'_> {
         {
             let m = module(&o.name);
             let what = format!("{kind} `{}`", o.name);
-            if !names.claim(NameKind::Module, &m, &what, &o.loc, &mut self.diags) {
+            let module_kind = self.module_kind();
+            if !names.claim(module_kind, &m, &what, &o.loc, &mut self.diags) {
                 continue;
             }
             let id = ident(&m);
@@ -401,6 +618,28 @@ impl Gen<'_> {
     }
 
     fn consumed_topics(&mut self) -> Category {
+        if self.today() {
+            let node = self.node;
+            let entries = node
+                .consumed_topics
+                .iter()
+                .map(|t| Consumed {
+                    link_id: t.slot.as_ref().map(|s| s.link_id.clone()),
+                    name: t.name.clone(),
+                    loc: t.loc.clone(),
+                    what: match &t.slot {
+                        Some(slot) => {
+                            format!("consumed topic `{}` of slot `{}`", t.name, slot.link_id)
+                        }
+                        None => format!("external consumed topic `{}`", t.name),
+                    },
+                    doc: consumed_topic_doc(t),
+                    body: self.consumed_topic(t),
+                    spec: true,
+                })
+                .collect();
+            return self.consumed_today(EntryKind::Topic, entries);
+        }
         let mut category = Category::default();
         let mut names = Names::default();
         let node = self.node;
@@ -428,6 +667,26 @@ impl Gen<'_> {
     }
 
     fn consumed_services(&mut self) -> Category {
+        if self.today() {
+            let node = self.node;
+            let entries = node
+                .consumed_services
+                .iter()
+                .map(|s| Consumed {
+                    link_id: Some(s.slot.link_id.clone()),
+                    name: s.decl.name.clone(),
+                    loc: s.loc.clone(),
+                    what: format!(
+                        "consumed service `{}` of slot `{}`",
+                        s.decl.name, s.slot.link_id
+                    ),
+                    doc: call_doc(EntryKind::Service, s),
+                    body: self.consumed_service(s),
+                    spec: false,
+                })
+                .collect();
+            return self.consumed_today(EntryKind::Service, entries);
+        }
         let mut category = Category::default();
         let mut names = Names::default();
         let node = self.node;
@@ -442,14 +701,7 @@ impl Gen<'_> {
             }
             let id = ident(&m);
             let body = self.consumed_service(s);
-            let doc = crate::docs::Doc::new(format!(
-                "Calls service `{}` of {}, through slot `{}` (declared at `{}`; the service is declared at `{}`).",
-                s.decl.name,
-                origin_text(&s.origin),
-                s.slot.link_id,
-                short_location(&s.loc),
-                short_location(&s.decl.loc)
-            ));
+            let doc = crate::docs::Doc::new(call_doc(EntryKind::Service, s));
             category.items.extend(quote! {
                 #doc
                 pub mod #id {
@@ -901,6 +1153,95 @@ fn entry_doc(kind: EntryKind, name: &str, origin: &Origin, loc: &Loc) -> String 
         capitalised(kind),
         short_location(loc)
     )
+}
+
+/// The doc of a consumed service or action module.
+fn call_doc<T: HasDeclLoc>(kind: EntryKind, c: &ResolvedCall<T>) -> String {
+    format!(
+        "Calls {kind} `{}` of {}, through slot `{}` (declared at `{}`; the {kind} is declared at `{}`).",
+        c.decl.name(),
+        origin_text(&c.origin),
+        c.slot.link_id,
+        short_location(&c.loc),
+        short_location(c.decl.decl_loc())
+    )
+}
+
+/// The name and location of a service or action declaration.
+trait HasDeclLoc {
+    fn name(&self) -> &str;
+    fn decl_loc(&self) -> &Loc;
+}
+
+impl HasDeclLoc for ServiceDecl {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn decl_loc(&self) -> &Loc {
+        &self.loc
+    }
+}
+
+impl HasDeclLoc for peppy_schema::ActionDecl {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn decl_loc(&self) -> &Loc {
+        &self.loc
+    }
+}
+
+/// The bound-producer accessor of a `node/v1` slot, by cardinality:
+/// `bound_producer` for `one` (the instance id) and `zero_or_one` (an
+/// `Option`), `bound_producers` (a slice, in link order) for the others.
+fn slot_accessor(link_id: &str, cardinality: Option<Cardinality>) -> TokenStream {
+    let Some(cardinality) = cardinality else {
+        return TokenStream::new();
+    };
+    match cardinality {
+        Cardinality::One => {
+            let doc = crate::docs::Doc::new(format!(
+                "The producer instance bound to slot `{link_id}` (cardinality `one`). The node does not start unless the slot is bound to exactly one producer."
+            ));
+            quote! {
+                #doc
+                pub fn bound_producer(node_runner: &::peppy::codegen::NodeRunner) -> &str {
+                    ::peppy::codegen::bound_producer(node_runner, #link_id).unwrap_or_default()
+                }
+            }
+        }
+        Cardinality::ZeroOrOne => {
+            let doc = crate::docs::Doc::new(format!(
+                "The producer instance bound to slot `{link_id}` (cardinality `zero_or_one`), `None` when the slot is vacant."
+            ));
+            quote! {
+                #doc
+                pub fn bound_producer(
+                    node_runner: &::peppy::codegen::NodeRunner,
+                ) -> ::core::option::Option<&str> {
+                    ::peppy::codegen::bound_producer(node_runner, #link_id)
+                }
+            }
+        }
+        Cardinality::OneOrMore | Cardinality::ZeroOrMore => {
+            let doc = crate::docs::Doc::new(format!(
+                "The producer instances bound to slot `{link_id}` (cardinality `{cardinality}`), in link order, fixed for the instance's life{}.",
+                if cardinality == Cardinality::OneOrMore {
+                    "; never empty"
+                } else {
+                    ""
+                }
+            ));
+            quote! {
+                #doc
+                pub fn bound_producers(
+                    node_runner: &::peppy::codegen::NodeRunner,
+                ) -> &[::std::string::String] {
+                    ::peppy::codegen::bound_producers(node_runner, #link_id)
+                }
+            }
+        }
+    }
 }
 
 fn consumed_topic_doc(t: &ResolvedTopic) -> String {

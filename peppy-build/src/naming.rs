@@ -118,6 +118,19 @@ pub(crate) enum NameKind {
     Type,
     /// A generated module.
     Module,
+    /// A generated module of a `node/v1` node, where PeppyOS names the
+    /// clash `ModuleNameCollision`.
+    TodayModule,
+}
+
+impl NameKind {
+    /// The module kind for a node of `spelling`.
+    pub(crate) fn module_of(spelling: peppy_schema::Spelling) -> NameKind {
+        match spelling {
+            peppy_schema::Spelling::Today => NameKind::TodayModule,
+            _ => NameKind::Module,
+        }
+    }
 }
 
 fn clash(kind: NameKind, name: &str, what: &str, loc: &Loc, first: &Claim) -> Diagnostic {
@@ -138,9 +151,12 @@ fn clash(kind: NameKind, name: &str, what: &str, loc: &Loc, first: &Claim) -> Di
             .with_help(
                 "nested structs are named after their parent and field (`header` -> `MessageHeader`, parameter group `video.encoder` -> `VideoEncoder`, array items `...Item`); rename one of the two",
             ),
-        NameKind::Module => loc
+        NameKind::Module | NameKind::TodayModule => loc
             .error(
-                Code::ConflictingDefinition,
+                match kind {
+                    NameKind::TodayModule => Code::ModuleNameCollision,
+                    _ => Code::ConflictingDefinition,
+                },
                 format!(
                     "module name clash: {what} would be generated as module `{name}`, which {} already uses{where_first}",
                     first.what

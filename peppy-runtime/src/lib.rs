@@ -39,6 +39,7 @@ mod qos;
 mod request;
 mod services;
 mod shm;
+mod slots;
 pub mod spec;
 mod startup;
 mod stop;
@@ -73,6 +74,7 @@ pub mod codegen {
         send_goal,
     };
     pub use crate::services::{Caller, Reply, call, handle_next};
+    pub use crate::slots::{bound_producer, bound_producers};
     pub use crate::spec::*;
     pub use crate::topics::{
         Senders, emit, next_message, next_message_from, next_payload, next_payload_from,

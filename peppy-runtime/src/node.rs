@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
-use peppy_schema::{Identity, NodeModel, SlotKind, SlotPlan};
+use peppy_schema::{Identity, NodeModel, SlotBinding, SlotKind, SlotPlan};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, info, warn};
 use zenoh::bytes::ZBytes;
@@ -798,6 +798,21 @@ impl NodeRunner {
         );
         cache.insert(link_id.to_string(), m.clone());
         Ok(Some(m))
+    }
+
+    /// The producer instances bound to slot `link_id`, in link order: the
+    /// pinned producer, a set's producers, a `from_any` slot's explicit
+    /// ones. Empty for a vacant or empty slot, an unbound `from_any` slot
+    /// (it takes any producer, none named) and a link_id that names no
+    /// slot. Fixed for the instance's life.
+    pub fn bound_producers(&self, link_id: &str) -> &[String] {
+        match self.slot(link_id).map(|s| &s.binding) {
+            Ok(SlotBinding::Pinned { producer }) => std::slice::from_ref(producer),
+            Ok(SlotBinding::Set { producers, .. } | SlotBinding::FromAnyBound { producers }) => {
+                producers
+            }
+            Ok(SlotBinding::FromAnyUnbound) | Err(_) => &[],
+        }
     }
 
     /// The slot named `link_id`.

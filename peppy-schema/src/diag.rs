@@ -190,6 +190,9 @@ codes! {
     InvalidRefine,
     /// `refine` on a native entry (one without a `link_id`).
     RefineWithoutLinkId,
+    /// Two sibling modules generated for a `node/v1` node (entry names,
+    /// link_ids) that read the same once sanitised.
+    ModuleNameCollision,
     /// `refine` on an entry consumed through a `depends_on.nodes` slot.
     RefineOnNodeSlot,
     /// An entry with a `link_id` that also states its shape.

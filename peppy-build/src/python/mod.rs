@@ -15,7 +15,7 @@ mod source;
 use std::path::PathBuf;
 
 use peppy_schema::names::{consumed_module, module};
-use peppy_schema::{Diagnostics, Origin, ResolvedNode};
+use peppy_schema::{Cardinality, Diagnostics, Origin, ResolvedNode, Spelling};
 
 use source::{Source, py_string};
 
@@ -36,7 +36,9 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
         document: document.clone(),
         list: Vec::new(),
         specs: Vec::new(),
+        slot_packages: Vec::new(),
     };
+    let today = node.node.spelling == Spelling::Today;
     let by_instance_default = node.node.legacy;
 
     let mut specs = Specs::default();
@@ -47,11 +49,12 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
         specs.emitted.push(path);
     }
     for t in &node.consumed_topics {
-        let m = consumed_module(t.slot.as_ref().map(|s| s.link_id.as_str()), &t.name);
+        let link_id = t.slot.as_ref().map(|s| s.link_id.as_str());
+        let parts = files.consumed_parts(node, "consumed_topics", link_id, &t.name);
         let by_instance = t.slot.is_none() || by_instance_default;
         let path = files.entry(
             "consumed_topics",
-            &[m],
+            &parts,
             &format!("Topic `{}`, consumed.", t.name),
             |out| modules::consumed_topic(out, t, by_instance),
         );
@@ -64,10 +67,15 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
         specs.services.push(path);
     }
     for c in &node.consumed_services {
-        let m = consumed_module(Some(&c.slot.link_id), &c.decl.name);
+        let parts = files.consumed_parts(
+            node,
+            "consumed_services",
+            Some(&c.slot.link_id),
+            &c.decl.name,
+        );
         let path = files.entry(
             "consumed_services",
-            &[m],
+            &parts,
             &format!(
                 "Service `{}`, called through slot `{}`.",
                 c.decl.name, c.slot.link_id
@@ -83,10 +91,15 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
         specs.actions.push(path);
     }
     for c in &node.consumed_actions {
-        let m = consumed_module(Some(&c.slot.link_id), &c.decl.name);
+        let parts = files.consumed_parts(
+            node,
+            "consumed_actions",
+            Some(&c.slot.link_id),
+            &c.decl.name,
+        );
         let path = files.entry(
             "consumed_actions",
-            &[m],
+            &parts,
             &format!(
                 "Action `{}`, called through slot `{}`.",
                 c.decl.name, c.slot.link_id
@@ -95,7 +108,9 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
         );
         specs.consumed_actions.push(path);
     }
-    files.flat_reexports();
+    if !today {
+        files.flat_reexports();
+    }
     files.packages();
 
     let mut out = Source::default();
@@ -124,6 +139,9 @@ struct Files {
     list: Vec<PythonFile>,
     /// Conformed entries: (category, flat module, nested dotted path).
     specs: Vec<(String, String, String)>,
+    /// The `__init__.py` of each slot package of a `node/v1` node, with
+    /// the slot's bound-producer accessor.
+    slot_packages: Vec<PythonFile>,
 }
 
 impl Files {
@@ -158,9 +176,22 @@ impl Files {
         node: &ResolvedNode,
         body: impl FnOnce(&mut Source),
     ) -> String {
-        let _ = node;
         match origin {
             Origin::Node(_) => self.entry(category, &[module(name)], &format!("`{name}`."), body),
+            // Today's spelling nests a contract's members under the
+            // `implements` slot's link_id, with no flat alias.
+            Origin::Interface(id) if node.node.spelling == Spelling::Today => {
+                let link_id = node
+                    .node
+                    .conforms_to
+                    .iter()
+                    .find(|c| &c.target == id)
+                    .and_then(|c| c.link_id.as_deref())
+                    .unwrap_or(&id.name);
+                let parts = [module(link_id), module(name)];
+                let doc = format!("`{name}` of contract `{id}`, implemented as slot `{link_id}`.");
+                self.entry(category, &parts, &doc, body)
+            }
             Origin::Interface(id) => {
                 let parts = [module(&id.name), module(&id.tag), module(name)];
                 let doc = format!("`{name}` of interface `{id}`.");
@@ -169,6 +200,32 @@ impl Files {
                     .push((category.to_string(), module(name), path.clone()));
                 path
             }
+        }
+    }
+
+    /// The module path (below the category) of a consumed entry: the
+    /// seeds' `<link_id>_<name>`, today's `<link_id>/<name>` (whose slot
+    /// package holds the slot's bound-producer accessor).
+    fn consumed_parts(
+        &mut self,
+        node: &ResolvedNode,
+        category: &str,
+        link_id: Option<&str>,
+        name: &str,
+    ) -> Vec<String> {
+        match link_id {
+            Some(link_id) if node.node.spelling == Spelling::Today => {
+                let init = PathBuf::from(category)
+                    .join(module(link_id))
+                    .join("__init__.py");
+                if !self.slot_packages.iter().any(|(p, _)| *p == init) {
+                    let cardinality = node.node.dependency(link_id).map(|d| d.cardinality);
+                    let text = slot_package(category, link_id, cardinality);
+                    self.slot_packages.push((init, text));
+                }
+                vec![module(link_id), module(name)]
+            }
+            _ => vec![consumed_module(link_id, name)],
         }
     }
 
@@ -230,10 +287,16 @@ impl Files {
                 dirs.push(PathBuf::from(category));
             }
         }
+        let slot_packages = std::mem::take(&mut self.slot_packages);
         for d in dirs {
+            let init = d.join("__init__.py");
+            if slot_packages.iter().any(|(p, _)| *p == init) {
+                continue;
+            }
             let text = format!("\"\"\"Generated by peppy: `{}`.\"\"\"\n", d.display());
-            self.list.push((d.join("__init__.py"), text));
+            self.list.push((init, text));
         }
+        self.list.extend(slot_packages);
     }
 }
 
@@ -328,6 +391,65 @@ fn init(node: &ResolvedNode, document: &str, specs: &Specs) -> String {
     out.blank();
     out.blank();
     out.line("__all__ = [\"DESCRIPTOR\", \"NodeBuilder\", \"NodeRunner\", \"Parameters\", \"QoSProfile\"]");
+    out.finish()
+}
+
+/// The `__init__.py` of a `node/v1` slot's package in a consumed category:
+/// `bound_producer(node_runner)` for `one` (`str`) and `zero_or_one`
+/// (`Optional[str]`), `bound_producers(node_runner)` (a `list`, in link
+/// order) for the others, as PeppyOS offers them.
+fn slot_package(category: &str, link_id: &str, cardinality: Option<Cardinality>) -> String {
+    let mut out = Source::default();
+    out.docstring(&format!(
+        "Generated by peppy: `{category}/{}`, the entries consumed through slot `{link_id}`.",
+        module(link_id)
+    ));
+    out.line("# Generated by peppy; `peppy-launch sync` rewrites it. Do not edit.");
+    out.line("from __future__ import annotations");
+    out.blank();
+    out.line("from typing import List, Optional");
+    out.blank();
+    out.line("from peppy.node import NodeRunner");
+    out.blank();
+    out.blank();
+    let link = py_string(link_id);
+    match cardinality {
+        Some(Cardinality::One) => {
+            out.line("def bound_producer(node_runner: NodeRunner) -> str:");
+            out.indent();
+            out.docstring(&format!(
+                "The producer instance bound to slot `{link_id}` (cardinality `one`)."
+            ));
+            out.line(&format!(
+                "return node_runner.slot({link}).binding.producers[0]"
+            ));
+            out.dedent();
+        }
+        Some(Cardinality::ZeroOrOne) => {
+            out.line("def bound_producer(node_runner: NodeRunner) -> Optional[str]:");
+            out.indent();
+            out.docstring(&format!(
+                "The producer instance bound to slot `{link_id}` (cardinality `zero_or_one`), `None` when vacant."
+            ));
+            out.line(&format!(
+                "producers = node_runner.slot({link}).binding.producers"
+            ));
+            out.line("return producers[0] if producers else None");
+            out.dedent();
+        }
+        Some(c @ (Cardinality::OneOrMore | Cardinality::ZeroOrMore)) => {
+            out.line("def bound_producers(node_runner: NodeRunner) -> List[str]:");
+            out.indent();
+            out.docstring(&format!(
+                "The producer instances bound to slot `{link_id}` (cardinality `{c}`), in link order."
+            ));
+            out.line(&format!(
+                "return list(node_runner.slot({link}).binding.producers)"
+            ));
+            out.dedent();
+        }
+        None => {}
+    }
     out.finish()
 }
 

@@ -8,3 +8,4 @@ mod scale;
 mod snapshots;
 mod support;
 mod sync;
+mod today;

@@ -14,5 +14,6 @@ mod parameters;
 mod seeds;
 mod services;
 mod spawned_action;
+mod today_paths;
 mod topics;
 mod video_reconstruction;
