@@ -14,5 +14,6 @@ mod security;
 mod seeds;
 mod sources;
 mod support;
+mod today;
 mod up;
 mod validate;

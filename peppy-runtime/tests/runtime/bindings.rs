@@ -1,11 +1,12 @@
-//! One binding engine: a node started on its own with `--bind` flags (as
+//! One binding engine: a node started on its own with `--bind` (or
+//! today's `--link` / `--vacant-link`) flags (as
 //! `peppy-launch run` and `peppy-launch plan` start it) gets exactly the
 //! plan `up` gives it from the launcher file (slots, filters, parameters),
 //! for every example launcher.
 
 use std::path::{Path, PathBuf};
 
-use peppy_schema::{NodeModel, RepoOptions, check_launcher};
+use peppy_schema::{LinkValue, NodeModel, RepoOptions, check_launcher};
 
 fn examples() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples")
@@ -49,6 +50,19 @@ fn run_bind_and_up_bind_every_example_launcher_identically() {
             for b in &inst.bindings {
                 args.extend(["--bind".into(), format!("{}@{}", b.key, b.target)]);
             }
+            // Today's links: a flag per target, in order; a vacancy by its reason.
+            for l in &inst.links {
+                match &l.value {
+                    LinkValue::Vacant { reason, .. } => {
+                        args.extend(["--vacant-link".into(), format!("{}={reason}", l.key)]);
+                    }
+                    value => {
+                        for t in value.targets() {
+                            args.extend(["--link".into(), format!("{}@{}", l.key, t.instance)]);
+                        }
+                    }
+                }
+            }
             let from_flags = peppy_runtime::startup_from_flags(&doc, args)
                 .unwrap_or_else(|e| panic!("{}: {}: {e}", launcher.display(), inst.instance_id));
             let at = format!("{}: instance `{}`", launcher.display(), inst.instance_id);
@@ -57,7 +71,9 @@ fn run_bind_and_up_bind_every_example_launcher_identically() {
             compared.push(inst.instance_id.clone());
         }
     }
-    // Every valid example launcher took part, consumers with free-form keys among them.
+    // Every valid example launcher took part, consumers with free-form keys
+    // and today's links (a list and a vacancy) among them.
     assert!(compared.len() >= 12, "{compared:?}");
     assert!(compared.iter().any(|i| i == "mosaic_1"), "{compared:?}");
+    assert!(compared.iter().any(|i| i == "viewer"), "{compared:?}");
 }
