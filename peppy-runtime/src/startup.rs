@@ -691,6 +691,13 @@ mod tests {
             "{e}"
         );
         assert!(e.contains("did you mean `scan`?"), "{e}");
+        // Keys are judged first, and alone: a misspelt key does not also
+        // leave its slot reported unlinked.
+        let e = text(&["--link", "scna@a"]);
+        assert!(
+            e.contains("names no slot") && !e.contains("is not linked"),
+            "{e}"
+        );
         // Vacancy only on zero_or_one.
         let e = text(&[
             "--vacant-link",

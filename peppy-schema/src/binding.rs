@@ -197,6 +197,8 @@ impl<'a> BindRequest<'a> {
 pub enum BindError {
     /// A key names a node slot, and the producer runs another node.
     TargetMismatch {
+        /// The consumer's spelling (words the message).
+        spelling: Spelling,
         /// The consumer instance.
         consumer: String,
         /// The binding key (the slot's link_id).
@@ -525,7 +527,12 @@ impl BindError {
 
     fn common_help(&self) -> String {
         match self {
-            BindError::TargetMismatch { wanted, .. } => format!("bind an instance of `{wanted}`"),
+            BindError::TargetMismatch {
+                spelling: Spelling::Seeds,
+                wanted,
+                ..
+            } => format!("bind an instance of `{wanted}`"),
+            BindError::TargetMismatch { wanted, .. } => format!("link an instance of `{wanted}`"),
             BindError::NotConformed {
                 spelling: Spelling::Today,
                 producer_node,
@@ -617,6 +624,7 @@ impl fmt::Display for BindError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             BindError::TargetMismatch {
+                spelling,
                 consumer,
                 key,
                 instance,
@@ -624,7 +632,11 @@ impl fmt::Display for BindError {
                 wanted,
             } => write!(
                 f,
-                "binding `{key}` on instance `{consumer}`: `{instance}` deploys node `{producer_node}`, but slot `{key}` expects node `{wanted}`"
+                "{} `{key}` on instance `{consumer}`: `{instance}` deploys node `{producer_node}`, but slot `{key}` expects node `{wanted}`",
+                match spelling {
+                    Spelling::Seeds => "binding",
+                    Spelling::Today => "link",
+                }
             ),
             BindError::NotConformed {
                 spelling: Spelling::Seeds,
@@ -918,6 +930,25 @@ pub fn assign(
         }
     }
 
+    // As PeppyOS plans links: keys that name no slot and illegal vacancies
+    // first, and nothing else until they are fixed (a misspelt key would
+    // otherwise also leave its slot "unlinked").
+    if errors.iter().any(|(_, e)| {
+        matches!(
+            e,
+            BindError::UnknownSlot { .. }
+                | BindError::Shape {
+                    problem: ShapeProblem::VacantInvalid,
+                    ..
+                }
+        )
+    }) {
+        return Assignment {
+            slots: Vec::new(),
+            errors,
+        };
+    }
+
     let mut slots = Vec::new();
     for (i, dep) in dependencies.iter().enumerate() {
         let refused = refused_slots.contains(&i);
@@ -1155,6 +1186,7 @@ fn mismatch(
     );
     match dep.kind {
         SlotKind::Node => BindError::TargetMismatch {
+            spelling,
             consumer,
             key,
             instance,

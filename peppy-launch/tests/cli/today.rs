@@ -49,26 +49,32 @@ fn a_todays_stack_runs_with_its_slots_as_linked() {
 
 #[test]
 fn run_takes_link_flags_and_refuses_what_the_links_rules_refuse() {
-    // One node started by hand, through the same engine: a required slot
-    // left out, and a vacancy on a slot that cannot be empty.
-    let run = peppy_launch(
-        &root(),
-        &[
-            "run",
-            "examples/nodes/camera_viewer",
-            "--vacant-link",
-            "cameras=none on the bench",
-        ],
-    );
+    // One node started by hand, through the same engine. Keys and
+    // vacancies are judged first, and alone: a vacancy on a slot that
+    // cannot be empty says only that.
+    let vacant = |args: &[&str]| {
+        let mut all = vec!["run", "examples/nodes/camera_viewer"];
+        all.extend_from_slice(args);
+        peppy_launch(&root(), &all)
+    };
+    let run = vacant(&["--vacant-link", "cameras=none on the bench"]);
     assert_eq!(run.code, 2, "{}", run.stderr);
     assert!(
-        run.stderr
-            .contains("slot `cameras` (cardinality one_or_more) cannot be vacant"),
+        run.stderr.contains(
+            "slot `cameras` (cardinality one_or_more) cannot be vacant (LinkVacantInvalid)"
+        ),
         "{}",
         run.stderr
     );
+    assert!(!run.stderr.contains("`overhead`"), "{}", run.stderr);
+    // Then what is left out: the optional slot must be linked or vacated.
+    let run = vacant(&["--link", "cameras@rs_left"]);
+    assert_eq!(run.code, 2, "{}", run.stderr);
     assert!(
-        run.stderr.contains("slot `overhead`") && run.stderr.contains("is not linked"),
+        run.stderr.contains("slot `overhead`")
+            && run
+                .stderr
+                .contains("is not linked (BindingSlotUnfulfilled)"),
         "{}",
         run.stderr
     );

@@ -401,9 +401,9 @@ fn a_node_slot_takes_that_node() {
     assert_eq!(lc(d), pos_nth(&text, r#""b1""#, 2), "{d}");
     assert_eq!(
         d.message,
-        "binding `leader` on instance `h`: `b1` deploys node `cam_b:v1`, but slot `leader` expects node `cam_a:v1`"
+        "link `leader` on instance `h`: `b1` deploys node `cam_b:v1`, but slot `leader` expects node `cam_a:v1`"
     );
-    assert_eq!(help(d), "bind an instance of `cam_a:v1`");
+    assert_eq!(help(d), "link an instance of `cam_a:v1`");
 }
 
 #[test]
