@@ -10,25 +10,7 @@ use crate::support::{peppy_launch, root};
 
 /// The examples' documents, copied (no sources, no build output).
 fn copy_examples(to: &Path) {
-    fn copy(from: &Path, to: &Path) {
-        for entry in std::fs::read_dir(from).unwrap() {
-            let entry = entry.unwrap();
-            let name = entry.file_name();
-            if name.to_string_lossy().starts_with('.')
-                || ["src", "target", "__pycache__"].iter().any(|n| name == *n)
-            {
-                continue;
-            }
-            let dest = to.join(&name);
-            if entry.file_type().unwrap().is_dir() {
-                std::fs::create_dir_all(&dest).unwrap();
-                copy(&entry.path(), &dest);
-            } else {
-                std::fs::copy(entry.path(), dest).unwrap();
-            }
-        }
-    }
-    copy(&root().join("examples"), to);
+    crate::support::copy_documents(&root().join("examples"), to);
 }
 
 /// The examples' documents, relative to `examples/`.

@@ -9,7 +9,7 @@ use std::process::{Child, Command, Stdio};
 use std::sync::mpsc::{Receiver, channel};
 use std::time::{Duration, Instant};
 
-use crate::support::{peppy_launch, root};
+use crate::support::{copy_documents, peppy_launch, root};
 
 /// Builds of every example node can take a while on a cold machine.
 pub(crate) const BUILD_AND_START: Duration = Duration::from_secs(600);
@@ -385,7 +385,7 @@ fn a_non_conforming_node_is_refused() {
 #[test]
 fn sha256_pins_on_both_sides() {
     let dir = tempfile::tempdir().unwrap();
-    copy_dir(&root().join("examples"), dir.path());
+    copy_documents(&root().join("examples"), dir.path());
     let interface = dir.path().join("interfaces/depth_camera.json5");
     let sha = peppy_schema::sha256_hex(&std::fs::read(&interface).unwrap());
     let pin = |file: &str, from: &str, to: String| {
@@ -426,25 +426,4 @@ fn sha256_pins_on_both_sides() {
         refused.stderr.contains(&sha),
         "the message names the pinned revision"
     );
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let name = entry.file_name();
-        // Documents only: not run directories, Python environments (their
-        // links would not copy), sources or build output.
-        if name.to_string_lossy().starts_with('.')
-            || ["src", "target", "__pycache__"].iter().any(|n| name == *n)
-        {
-            continue;
-        }
-        let dest = to.join(&name);
-        if entry.file_type().unwrap().is_dir() {
-            std::fs::create_dir_all(&dest).unwrap();
-            copy_dir(&entry.path(), &dest);
-        } else {
-            std::fs::copy(entry.path(), dest).unwrap();
-        }
-    }
 }

@@ -295,3 +295,24 @@ pub(crate) fn example_binary(name: &str) -> PathBuf {
         .join("debug")
         .join(name)
 }
+
+/// Copies the documents under `from` into `to`: not run directories, Python
+/// environments (their links would not copy), sources or build output.
+pub(crate) fn copy_documents(from: &Path, to: &Path) {
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let name = entry.file_name();
+        if name.to_string_lossy().starts_with('.')
+            || ["src", "target", "__pycache__"].iter().any(|n| name == *n)
+        {
+            continue;
+        }
+        let dest = to.join(&name);
+        if entry.file_type().unwrap().is_dir() {
+            std::fs::create_dir_all(&dest).unwrap();
+            copy_documents(&entry.path(), &dest);
+        } else {
+            std::fs::copy(entry.path(), dest).unwrap();
+        }
+    }
+}

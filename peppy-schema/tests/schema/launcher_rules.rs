@@ -3,26 +3,9 @@
 
 use std::path::PathBuf;
 
-use peppy_schema::{Code, Diagnostics, Identity, LauncherDoc, RestartPolicy, Source};
+use peppy_schema::{Code, Identity, RestartPolicy, Source};
 
 use crate::support::*;
-
-fn launcher_err(text: &str) -> Diagnostics {
-    match LauncherDoc::parse("stack.json5", text) {
-        Ok(_) => panic!("expected errors:\n{text}"),
-        Err(e) => e,
-    }
-}
-
-fn launcher_ok(text: &str) -> LauncherDoc {
-    match LauncherDoc::parse("stack.json5", text) {
-        Ok((l, w)) => {
-            assert!(w.is_empty(), "{w}");
-            l
-        }
-        Err(e) => panic!("expected a valid launcher, got:\n{e}"),
-    }
-}
 
 #[test]
 fn instance_ids_are_unique_across_deployments() {

@@ -5,28 +5,11 @@
 use std::path::PathBuf;
 
 use peppy_schema::{
-    Code, Diagnostics, Document, DocumentKind, Identity, LauncherDoc, LinkValue, RestartPolicy,
-    Source, SourceFile, Spelling, parse_document,
+    Code, Document, DocumentKind, Identity, LinkValue, RestartPolicy, Source, SourceFile, Spelling,
+    parse_document,
 };
 
 use crate::support::*;
-
-fn launcher_err(text: &str) -> Diagnostics {
-    match LauncherDoc::parse("stack.json5", text) {
-        Ok(_) => panic!("expected errors:\n{text}"),
-        Err(e) => e,
-    }
-}
-
-fn launcher_ok(text: &str) -> LauncherDoc {
-    match LauncherDoc::parse("stack.json5", text) {
-        Ok((l, w)) => {
-            assert!(w.is_empty(), "{w}");
-            l
-        }
-        Err(e) => panic!("expected a valid launcher, got:\n{e}"),
-    }
-}
 
 /// A `launcher/v1` with one deployment of `cam:v1` and the given
 /// instances, plus a second deployment holding `a` and `b` to link to.

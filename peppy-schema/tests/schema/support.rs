@@ -4,7 +4,7 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
 use peppy_schema::{
-    Code, Diagnostic, Diagnostics, NodeDoc, RepoOptions, StackCheck, check_launcher,
+    Code, Diagnostic, Diagnostics, LauncherDoc, NodeDoc, RepoOptions, StackCheck, check_launcher,
 };
 
 /// Parses a node document named `peppy.json5`.
@@ -203,5 +203,24 @@ pub(crate) fn stack_err(path: &Path) -> Diagnostics {
     match check_launcher(path, &options(Vec::new())) {
         Ok(_) => panic!("expected `{}` to fail", path.display()),
         Err(e) => e,
+    }
+}
+
+/// Every finding of a launcher that must be refused.
+pub(crate) fn launcher_err(text: &str) -> Diagnostics {
+    match LauncherDoc::parse("stack.json5", text) {
+        Ok(_) => panic!("expected errors:\n{text}"),
+        Err(e) => e,
+    }
+}
+
+/// A launcher that must be valid, without warnings.
+pub(crate) fn launcher_ok(text: &str) -> LauncherDoc {
+    match LauncherDoc::parse("stack.json5", text) {
+        Ok((l, w)) => {
+            assert!(w.is_empty(), "{w}");
+            l
+        }
+        Err(e) => panic!("expected a valid launcher, got:\n{e}"),
     }
 }
