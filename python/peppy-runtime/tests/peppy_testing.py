@@ -160,6 +160,7 @@ def model_of(descriptor: s.NodeDescriptor, parameters: Optional[Dict[str, Any]] 
                     "target": {"name": x.name, "tag": x.tag},
                     "link_id": x.link_id,
                     "from_any": x.from_any,
+                    "cardinality": "zero_or_more" if x.from_any else x.cardinality,
                     "sha256": None,
                 }
                 for x in descriptor.slots

@@ -84,6 +84,11 @@ LEFT = s.SlotSpec("left_cam", "interface", "depth_camera", "v1", False)
 BACKUP = s.SlotSpec("backup", "interface", "depth_camera", "v1", True)
 ARMS = s.SlotSpec("arms", "node", "robot_arm", "v1", True)
 
+CAMERAS = s.SlotSpec("cameras", "interface", "depth_camera", "v1", False, "one_or_more")
+OVERHEAD = s.SlotSpec("overhead", "interface", "depth_camera", "v1", False, "zero_or_one")
+VIEWER = descriptor("viewer", CAMERAS, OVERHEAD)
+"""Today's cardinalities: a list slot and an optional one."""
+
 RECON = descriptor("recon", LEFT, BACKUP)
 """A pinned slot and a from_any slot: a free-form key joins `backup`."""
 MIXER = descriptor("mixer", LEFT, BACKUP, ARMS)
@@ -183,6 +188,36 @@ class ConfigFileTest(unittest.TestCase):
             self.assertIn(words, str(caught.exception))
             self.assertIn("another peppy.json5", str(caught.exception))
 
+    def test_todays_set_bindings_are_applied_as_they_are(self):
+        slots = [
+            slot(
+                "cameras",
+                {"kind": "set", "producers": ["rs_b", "rs_a"]},
+                {"kind": "only_from", "producers": ["rs_a", "rs_b"]},
+            ),
+            slot(
+                "overhead",
+                {"kind": "set", "producers": [], "vacant": "bench run"},
+                {"kind": "only_from", "producers": []},
+            ),
+        ]
+        st = load(VIEWER, [], self.write(self.config(slots=slots, parameters={})))
+        plans = {p.link_id: p for p in st.slots}
+        self.assertEqual(plans["cameras"].binding.producers, ("rs_b", "rs_a"), "link order kept")
+        self.assertTrue(plans["cameras"].filter.accepts("rs_a"))
+        self.assertFalse(plans["cameras"].filter.accepts("rs_c"))
+        self.assertEqual(plans["overhead"].binding.to_json(), {"kind": "set", "producers": [], "vacant": "bench run"})
+        self.assertFalse(plans["overhead"].filter.accepts("rs_a"), "an empty slot receives nothing")
+        # A set its cardinality does not take: the plan is for other documents.
+        for bad, words in (
+            ({"kind": "set", "producers": []}, "binds slot `cameras` as a set of producers"),
+            ({"kind": "pinned", "producer": "rs_a"}, "binds slot `cameras` as pinned"),
+        ):
+            wrong = [dict(slots[0], binding=bad), slots[1]]
+            with self.assertRaises(StartupError) as caught:
+                load(VIEWER, [], self.write(self.config(slots=wrong, parameters={})))
+            self.assertIn(words, str(caught.exception))
+
     def test_bad_configs_are_refused(self):
         for config, words in (
             (self.config(extra=1), "unknown field `extra`"),
@@ -265,6 +300,25 @@ class FlagsTest(unittest.TestCase):
         self.assertFalse(st.endpoints.multicast_scouting)
         # `name=123` is a string because `name` is declared one.
         self.assertEqual(NodeBuilder(RECON)._parameters(st), Parameters("123", Video(24, 3.0), [0.5, 1.0], True, b"k"))
+
+    def test_todays_link_flags(self):
+        st = load(
+            VIEWER,
+            ["--link", "cameras@rs_b", "--link", "cameras@rs_a", "--vacant-link", "overhead=bench run: none", "name=n"],
+            None,
+        )
+        plans = {p.link_id: p for p in st.slots}
+        self.assertEqual(plans["cameras"].binding.to_json(), {"kind": "set", "producers": ["rs_b", "rs_a"]})
+        self.assertEqual(
+            plans["overhead"].binding.to_json(), {"kind": "set", "producers": [], "vacant": "bench run: none"}
+        )
+        text = self.refused(VIEWER, ["--link", "cameras@rs_a", "name=n"])
+        self.assertIn("slot `overhead`", text)
+        self.assertIn("(BindingSlotUnfulfilled)", text)
+        self.assertIn("--vacant-link 'overhead=<why>'", text)
+        text = self.refused(VIEWER, ["--link", "camras@rs_a", "--vacant-link", "overhead=x", "name=n"])
+        self.assertIn("(LinkUnknownSlot)", text)
+        self.assertIn("did you mean `cameras`?", text)
 
     def test_defaults(self):
         st = load(RECON, ["--bind", "left_cam@x", "name=n"], None)
