@@ -201,10 +201,14 @@ pub(crate) fn render_plan(stack: &StackCheck) -> String {
             .max()
             .unwrap_or(0);
         let mut rows = Vec::new();
+        // Named in the consumer's own spelling: today's calls them contracts.
+        let today = stack.deployments[inst.deployment].resolved.node.spelling
+            == peppy_schema::Spelling::Today;
         for slot in &inst.slots {
-            let kind = match slot.kind {
-                SlotKind::Node => "node",
-                SlotKind::Interface => "interface",
+            let kind = match (slot.kind, today) {
+                (SlotKind::Node, _) => "node",
+                (SlotKind::Interface, false) => "interface",
+                (SlotKind::Interface, true) => "contract",
             };
             let (mode, fill) = match (&slot.binding, &slot.filter) {
                 (SlotBinding::Pinned { producer }, _) => ("pinned", producer.clone()),

@@ -13,6 +13,7 @@ const VIEWER: &str = "examples/launchers/camera_viewer.json5";
 fn check_prints_todays_links_as_planned() {
     let run = peppy_launch(&root(), &["check", VIEWER]);
     assert_eq!(run.code, 0, "{}", run.stderr);
+    // A `node/v1` consumer's slots are named as it names them: contracts.
     for expected in [
         "cameras  <- rs_left, rs_right",
         "overhead <- (vacant: no overhead camera on this bench)",

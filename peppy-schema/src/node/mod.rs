@@ -514,17 +514,11 @@ fn parse_today_interfaces(r: &mut Reader<'_>, root_obj: &Obj<'_>, ok: &mut bool)
             })
             .collect();
     }
-    let calls = |v: Vec<(ConsumedRef, Option<Refine>)>| -> Vec<ConsumedRef> {
-        v.into_iter()
-            .map(|(c, refine)| ConsumedRef { refine, ..c })
-            .collect()
-    };
-    if let Some((exposes, consumes)) = services {
-        let path = "interfaces.services.exposes";
-        let (natives, members) = parse_produced(
+    if let Some(section) = services {
+        let (natives, members, consumed) = calls_section(
             r,
-            exposes,
-            path,
+            section,
+            "services",
             EntryKind::Service,
             parse_service,
             service_name,
@@ -532,20 +526,13 @@ fn parse_today_interfaces(r: &mut Reader<'_>, root_obj: &Obj<'_>, ok: &mut bool)
         );
         out.exposed_services = natives;
         out.members.extend(members);
-        out.consumed_services = calls(parse_consumed_today(
-            r,
-            consumes,
-            "interfaces.services.consumes",
-            EntryKind::Service,
-            ok,
-        ));
+        out.consumed_services = consumed;
     }
-    if let Some((exposes, consumes)) = actions {
-        let path = "interfaces.actions.exposes";
-        let (natives, members) = parse_produced(
+    if let Some(section) = actions {
+        let (natives, members, consumed) = calls_section(
             r,
-            exposes,
-            path,
+            section,
+            "actions",
             EntryKind::Action,
             parse_contract_action,
             action_name,
@@ -553,15 +540,30 @@ fn parse_today_interfaces(r: &mut Reader<'_>, root_obj: &Obj<'_>, ok: &mut bool)
         );
         out.exposed_actions = natives;
         out.members.extend(members);
-        out.consumed_actions = calls(parse_consumed_today(
-            r,
-            consumes,
-            "interfaces.actions.consumes",
-            EntryKind::Action,
-            ok,
-        ));
+        out.consumed_actions = consumed;
     }
     out
+}
+
+/// Today's `services` or `actions` section: what it `exposes` (natives and
+/// slot members) and what it `consumes`.
+fn calls_section<T>(
+    r: &mut Reader<'_>,
+    (exposes, consumes): (Option<&Node>, Option<&Node>),
+    key: &str,
+    kind: EntryKind,
+    native: fn(&mut Reader<'_>, &Node, &str) -> Option<T>,
+    name_of: fn(&T) -> (&str, &Loc),
+    ok: &mut bool,
+) -> (Vec<T>, Vec<MemberRef>, Vec<ConsumedRef>) {
+    let path = format!("interfaces.{key}.exposes");
+    let (natives, members) = parse_produced(r, exposes, &path, kind, native, name_of, ok);
+    let consumed =
+        parse_consumed_today(r, consumes, &format!("interfaces.{key}.consumes"), kind, ok)
+            .into_iter()
+            .map(|(c, refine)| ConsumedRef { refine, ..c })
+            .collect();
+    (natives, members, consumed)
 }
 
 /// Every link_id a consumed entry uses must be declared; `false` if one is not.
