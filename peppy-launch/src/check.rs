@@ -222,6 +222,9 @@ pub(crate) fn render_plan(stack: &StackCheck) -> String {
                     ("linked", "(nothing)".to_string())
                 }
                 (SlotBinding::Set { producers, .. }, _) => ("linked", producers.join(", ")),
+                (SlotBinding::FromAnyBound { producers }, _) if producers.is_empty() => {
+                    ("from_any", "(nothing: linked to [])".to_string())
+                }
                 (SlotBinding::FromAnyBound { .. }, RouteFilter::OnlyFrom(set))
                     if set.is_empty() =>
                 {

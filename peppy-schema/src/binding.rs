@@ -840,13 +840,22 @@ pub fn assign(
         let mut refuse = |e: BindError| errors.push((Some(index), e));
         if let Some(slot) = dependencies.iter().position(|d| d.link_id == b.key) {
             let dep = &dependencies[slot];
-            if !dep.from_any
-                && let Some(problem) = shape_problem(dep.cardinality, b.form)
-            {
+            // The seeds' `from_any` slot takes any number: a list, `[]` or
+            // a flag, and no vacancy (it may simply stay empty).
+            let shape = if dep.from_any {
+                matches!(b.form, BindForm::Vacant(_)).then_some(ShapeProblem::VacantInvalid)
+            } else {
+                shape_problem(dep.cardinality, b.form)
+            };
+            if let Some(problem) = shape {
                 refuse(BindError::Shape {
                     consumer: consumer.to_string(),
                     link_id: dep.link_id.clone(),
-                    cardinality: dep.cardinality,
+                    cardinality: if dep.from_any {
+                        Cardinality::ZeroOrMore
+                    } else {
+                        dep.cardinality
+                    },
                     problem,
                 });
                 refused_slots.push(slot);
@@ -961,7 +970,9 @@ pub fn assign(
             empty_list,
         };
         let binding = if dep.from_any {
-            if producers[i].is_empty() {
+            // Left out, a from_any slot takes any producer; linked to `[]`,
+            // exactly none, as written.
+            if producers[i].is_empty() && !empty_list[i] {
                 SlotBinding::FromAnyUnbound
             } else {
                 SlotBinding::FromAnyBound {

@@ -541,3 +541,58 @@ fn both_spellings_plan_the_same_pinned_slots() {
         ]
     );
 }
+
+/// Today's links on a node of the seeds' spelling: its `from_any` slot
+/// takes a list (exactly those), `[]` (exactly none, never "any"), and no
+/// vacancy; left out, it keeps the seeds' meaning (any producer).
+#[test]
+fn todays_links_on_a_seeds_from_any_slot() {
+    let tree = stack();
+    tree.write(
+        "repo/mosaic/peppy.json5",
+        r#"{ peppy_schema: "node_v1",
+  manifest: { name: "mosaic", tag: "v1", depends_on: { interfaces: [
+    { name: "cam", tag: "v1", link_id: "extras", from_any: true } ] } },
+  interfaces: { topics: { consumes: [{ link_id: "extras", name: "frame" }] } },
+  execution: { language: "python", run_cmd: ["python3", "main.py"] } }"#,
+    );
+    let plan = |links: &str| {
+        let text = format!(
+            r#"{{ peppy_schema: "launcher/v1", deployments: [
+  {{ source: {{ name: "cam_a:v1" }}, instances: [{{ instance_id: "a1" }}, {{ instance_id: "a2" }}] }},
+  {{ source: {{ name: "mosaic:v1" }}, instances: [{{ instance_id: "m", {links} }}] }},
+] }}"#
+        );
+        (tree.write("mosaic.json5", &text), text)
+    };
+    let extras = |links: &str| {
+        let (path, _) = plan(links);
+        let s = stack_ok(&path);
+        let m = s.plan.instance("m").expect("m");
+        let p = slot(m, "extras");
+        (p.binding.clone(), p.filter.clone())
+    };
+    assert_eq!(
+        extras(r#"links: { extras: ["a2", "a1"] }"#),
+        (
+            SlotBinding::FromAnyBound {
+                producers: vec!["a2".into(), "a1".into()]
+            },
+            only_from(&["a1", "a2"])
+        )
+    );
+    let (binding, filter) = extras(r#"links: { extras: [] }"#);
+    assert_eq!(binding, SlotBinding::FromAnyBound { producers: vec![] });
+    assert!(!filter.accepts("a1"), "`[]` is no producer, not any");
+    assert_eq!(extras("links: {}").0, SlotBinding::FromAnyUnbound);
+
+    let (path, text) = plan(r#"links: { extras: { vacant: "off" } }"#);
+    let errors = stack_err(&path);
+    let d = only(&errors, Code::LinkVacantInvalid);
+    assert_eq!(lc(d), pos(&text, r#"{ vacant"#), "{d}");
+    assert_eq!(
+        d.message,
+        "instance `m`: slot `extras` (cardinality zero_or_more) cannot be vacant"
+    );
+    assert!(help(d).contains("can simply stay empty"), "{}", help(d));
+}
