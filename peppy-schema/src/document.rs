@@ -157,15 +157,26 @@ pub type Parsed<T> = Result<(T, Diagnostics), Diagnostics>;
 
 /// Parses a document of any kind from text already loaded.
 pub fn parse_document(file: &Arc<SourceFile>, sha256: &str) -> Parsed<Document> {
-    let (root, mut diags) = crate::json::parse(file)?;
-    let kind = match detect_kind(&root) {
+    let (root, diags) = crate::json::parse(file)?;
+    parse_tree(file, sha256, &root, diags)
+}
+
+/// [`parse_document`] for a caller that already holds `file`'s JSON5 tree
+/// (`root`, with the findings of reading it): the text is not read twice.
+pub(crate) fn parse_tree(
+    file: &Arc<SourceFile>,
+    sha256: &str,
+    root: &Node,
+    mut diags: Diagnostics,
+) -> Parsed<Document> {
+    let kind = match detect_kind(root) {
         Some(k) => k,
         None => {
-            diags.push(unknown_schema(file, &root));
+            diags.push(unknown_schema(file, root));
             return Err(diags);
         }
     };
-    parse_kind(file, sha256, &root, kind, diags)
+    parse_kind(file, sha256, root, kind, diags)
 }
 
 /// Parses `file`, requiring it to be of `kind`.

@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use crate::diag::{Code, Diagnostic, Diagnostics, Severity};
 use crate::document::{
-    Document, DocumentKind, REPOSITORIES_FILE, RepositoriesDoc, detect_kind, parse_document,
+    Document, DocumentKind, REPOSITORIES_FILE, RepositoriesDoc, detect_kind, parse_tree,
 };
 use crate::interface::InterfaceDoc;
 use crate::node::{Identity, NodeDoc};
@@ -297,8 +297,8 @@ impl RepoIndex {
                 return;
             }
         };
-        let root = match crate::json::parse(&file) {
-            Ok((root, _)) => root,
+        let (root, read) = match crate::json::parse(&file) {
+            Ok(parsed) => parsed,
             // Not JSON5: what it was meant to be cannot be checked, so it
             // is taken as listed; whoever reads it says what is wrong.
             Err(diagnostics) => {
@@ -332,7 +332,7 @@ impl RepoIndex {
             IndexSection::Pairings | IndexSection::McpExposures => return,
             IndexSection::Nodes | IndexSection::Contracts => {}
         }
-        match parse_document(&file, &sha) {
+        match parse_tree(&file, &sha, &root, read) {
             Ok((Document::Node(n), _)) if key.section == IndexSection::Nodes => {
                 let entry = Entry {
                     doc: Arc::new(n),
@@ -374,7 +374,7 @@ impl RepoIndex {
             return;
         };
         let is_node_file = path.file_name() == Some(OsStr::new("peppy.json5"));
-        let Ok((root, _)) = crate::json::parse(&file) else {
+        let Ok((root, read)) = crate::json::parse(&file) else {
             return;
         };
         let kind = detect_kind(&root);
@@ -388,7 +388,7 @@ impl RepoIndex {
             ) => {}
             _ => return,
         }
-        match parse_document(&file, &sha) {
+        match parse_tree(&file, &sha, &root, read) {
             Ok((Document::Node(n), _)) => {
                 let id = n.identity();
                 self.insert_node(

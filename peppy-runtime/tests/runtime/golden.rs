@@ -302,3 +302,33 @@ fn every_golden_format_has_its_fingerprint() {
     }
     assert!(no_payload, "the file pins the format with no payload");
 }
+
+/// Whether a node takes a binding for a slot it declares (§8), as the
+/// Python runtime judges it from the same vectors.
+#[test]
+fn golden_plans_fit_as_written() {
+    let vectors = golden();
+    let cases = vectors["plans"].as_array().expect("plans");
+    assert!(cases.len() >= 20, "{} plan vectors", cases.len());
+    for case in cases {
+        let slot: peppy_schema::Dependency = serde_json::from_value(json!({
+            "kind": "interface",
+            "target": { "name": "cam", "tag": "v1" },
+            "link_id": "s",
+            "from_any": case["from_any"],
+            "cardinality": case["cardinality"],
+            "sha256": null,
+        }))
+        .unwrap_or_else(|e| panic!("{case}: {e}"));
+        let plan: peppy_schema::SlotPlan = serde_json::from_value(json!({
+            "link_id": "s",
+            "kind": "interface",
+            "target": { "name": "cam", "tag": "v1" },
+            "binding": case["binding"],
+            "filter": { "kind": "any" },
+        }))
+        .unwrap_or_else(|e| panic!("{case}: {e}"));
+        let fits = peppy_schema::fit_plan(std::slice::from_ref(&slot), vec![plan]).is_ok();
+        assert_eq!(Some(fits), case["fits"].as_bool(), "{case}");
+    }
+}

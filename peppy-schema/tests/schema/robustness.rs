@@ -8,9 +8,7 @@
 use std::sync::Arc;
 
 use peppy_schema::json::{Node, Value, parse};
-use peppy_schema::{
-    Diagnostics, Document, LauncherDoc, NodeDoc, SourceFile, parse_document, plan_bindings,
-};
+use peppy_schema::{Diagnostics, Document, NodeDoc, SourceFile, parse_document, plan_bindings};
 use proptest::prelude::*;
 
 /// One document of each kind and spelling, shaped like the files people
@@ -280,7 +278,6 @@ fn plan(text: &str) {
         }
     };
     located_inside(&diags, text);
-    let _: &LauncherDoc = &launcher;
 }
 
 fn node(text: &str) -> NodeDoc {

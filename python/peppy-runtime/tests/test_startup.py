@@ -20,7 +20,9 @@ from peppy import StartupError
 from peppy import spec as s
 from peppy.node import NodeBuilder
 from peppy.params import array, group, leaf
+from peppy.routing import fit_plan, slot_from_json
 from peppy.startup import PEPPY_LAUNCH_ENV, load, peppy_launch
+import golden
 from peppy_testing import model_of
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -250,6 +252,26 @@ def launcher_program() -> str:
             f"set {PEPPY_LAUNCH_ENV} or put peppy-launch on PATH"
         )
     return program
+
+
+class GoldenPlansTest(unittest.TestCase):
+    def test_golden_plans_fit_as_written(self):
+        """Whether a node takes a binding for a slot it declares: the
+        vectors peppy_schema::fit_plan is checked against too."""
+        cases = golden.load()["plans"]
+        self.assertGreaterEqual(len(cases), 20)
+        for case in cases:
+            declared = s.SlotSpec("s", "interface", "cam", "v1", case["from_any"], case["cardinality"])
+            planned = slot_from_json(
+                slot("s", case["binding"], {"kind": "any"}, name="cam"),
+            )
+            with self.subTest(case=case):
+                try:
+                    fit_plan([planned], [declared])
+                    fits = True
+                except StartupError:
+                    fits = False
+                self.assertEqual(fits, case["fits"])
 
 
 class FlagsTest(unittest.TestCase):
