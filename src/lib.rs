@@ -61,8 +61,9 @@
 pub use peppy_macros::node;
 pub use peppy_runtime as runtime;
 pub use peppy_runtime::{
-    CancellationToken, Error, NodeBuilder, NodeRunner, Payload, QoSProfile, Result, SharedMemory,
-    StandaloneConfig,
+    CancellationToken, Error, NodeBuilder, NodeRunner, NonEmptyProducers, OutgoingMessage,
+    Payload, ProducerRef, QoSProfile, Result, SharedMemory, StandaloneConfig, Subscription,
+    TopicPublisher,
 };
 
 /// Declares `pub mod peppygen` holding the code `peppy_build::sync()` wrote
@@ -113,6 +114,34 @@ pub mod codegen {
         /// Rejects the goal; the caller sees `reason`.
         pub fn reject(reason: impl Into<String>) -> Self {
             Self::new(false, Some(reason.into()))
+        }
+    }
+
+    /// An action server's decision on a goal in today's API:
+    /// `GoalDecision::accept()` or `GoalDecision::reject(reason)`. On the
+    /// wire it is the same goal response as [`GoalResponse`].
+    #[derive(Debug, Clone, PartialEq, Eq)]
+    pub enum GoalDecision {
+        /// Accept the goal: it is handed to the server to work on.
+        Accept,
+        /// Reject the goal; the caller sees `reason`.
+        Reject {
+            /// Why the goal was rejected.
+            reason: String,
+        },
+    }
+
+    impl GoalDecision {
+        /// Accepts the goal.
+        pub fn accept() -> Self {
+            GoalDecision::Accept
+        }
+
+        /// Rejects the goal; the caller sees `reason`.
+        pub fn reject(reason: impl Into<String>) -> Self {
+            GoalDecision::Reject {
+                reason: reason.into(),
+            }
         }
     }
 

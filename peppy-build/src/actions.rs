@@ -67,6 +67,7 @@ impl Gen<'_> {
         let mut fixed = vec![
             "GoalRequest",
             "GoalResponse",
+            "GoalDecision",
             "ActionHandle",
             "GoalContext",
             result_type.as_str(),
@@ -138,11 +139,40 @@ impl Gen<'_> {
                 " (the action takes no goal data)"
             }
         ));
+        // Today's spelling decides with `GoalDecision` and hands the decider
+        // the request by value; the seeds' with `GoalResponse` by reference.
+        let (decision_use, decider_bound, decide, accepted, rejected) = if self.today() {
+            (
+                quote! {
+                    #[doc = " The server's decision on a goal: `GoalDecision::accept()` or `GoalDecision::reject(reason)`."]
+                    pub use ::peppy::codegen::GoalDecision;
+                },
+                quote!(::core::ops::FnMut(GoalRequest) -> ::peppy::codegen::Result<GoalDecision>),
+                quote!(decider(::core::clone::Clone::clone(&request))),
+                quote!(GoalDecision::Accept),
+                quote!(GoalDecision::Reject { reason }),
+            )
+        } else {
+            (
+                quote! {
+                    #[doc = " The server's decision on a goal: `GoalResponse::accept()` or `GoalResponse::reject(reason)`."]
+                    pub use ::peppy::codegen::GoalResponse;
+                },
+                quote!(::core::ops::Fn(&GoalRequest) -> ::peppy::codegen::Result<GoalResponse>),
+                quote!(decider(&request)),
+                quote!(GoalResponse { accepted: true, .. }),
+                quote!(GoalResponse { error_message, .. }),
+            )
+        };
+        let reason = if self.today() {
+            quote!(reason)
+        } else {
+            quote!(error_message.unwrap_or_default())
+        };
         quote! {
             #types
 
-            #[doc = " The server's decision on a goal: `GoalResponse::accept()` or `GoalResponse::reject(reason)`."]
-            pub use ::peppy::codegen::GoalResponse;
+            #decision_use
 
             #goal_doc
             #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
@@ -179,10 +209,10 @@ impl Gen<'_> {
                 #[doc = " Waits for the next goal and lets `decider` accept or reject it. Rejected goals (and goals `decider` fails on, with its error as the reason) are answered and skipped; an accepted goal is returned to be worked on. `None` once the node stops: at once if it was waiting, after a short pause if called on an already stopped node, so a loop that ignores the result parks instead of spinning."]
                 pub async fn handle_goal_next_request<F>(
                     &mut self,
-                    decider: F,
+                    #[allow(unused_mut)] mut decider: F,
                 ) -> ::peppy::codegen::Result<::core::option::Option<GoalContext>>
                 where
-                    F: ::core::ops::Fn(&GoalRequest) -> ::peppy::codegen::Result<GoalResponse>,
+                    F: #decider_bound,
                 {
                     loop {
                         let incoming = match self.server.next::<#data_type>().await {
@@ -197,13 +227,13 @@ impl Gen<'_> {
                             core_node: incoming.caller.core_node.clone(),
                             #data_init
                         };
-                        match decider(&request) {
-                            ::core::result::Result::Ok(GoalResponse { accepted: true, .. }) => {
+                        match #decide {
+                            ::core::result::Result::Ok(#accepted) => {
                                 let inner = incoming.accept()?;
                                 return ::core::result::Result::Ok(::core::option::Option::Some(GoalContext { inner, request }));
                             }
-                            ::core::result::Result::Ok(GoalResponse { error_message, .. }) => {
-                                incoming.reject(error_message.unwrap_or_default())?;
+                            ::core::result::Result::Ok(#rejected) => {
+                                incoming.reject(#reason)?;
                             }
                             ::core::result::Result::Err(e) => {
                                 incoming.reject(::std::string::ToString::to_string(&e))?;
@@ -328,13 +358,51 @@ impl Gen<'_> {
         let goal_format = format_spec(decl.goal.as_ref());
         let feedback_format = format_spec(decl.feedback.as_ref().map(|f| &f.format));
         let result_format = format_spec(decl.result.as_ref());
+        let (response_use, handle_doc, handle_fields, fire_doc, target_param, send, decision) = if self.today() {
+            (
+                quote!(),
+                quote!(#[doc = " A goal sent to the action's server. `accepted` says whether it was accepted (and `reason` why not)."]),
+                quote! {
+                    #[doc = " Whether the server accepted the goal."]
+                    pub accepted: bool,
+                    #[doc = " The server's reason when it rejected the goal."]
+                    pub reason: ::core::option::Option<::std::string::String>,
+                },
+                quote!(#[doc = " Sends a goal to `target`, one of the producers bound to the action's slot (`bound_producer` / `bound_producers`), and waits at most `timeout` for the decision; returns after a rejection too (check `accepted`). `TargetNotBound` for any other target, before anything is sent. The feedback stream is subscribed before the goal is sent, so no feedback is missed. `feedback_qos` is accepted for compatibility: feedback travels with the server's declared QoS."]),
+                quote!(target: &::peppy::codegen::ProducerRef,),
+                quote!(::peppy::codegen::send_goal_to(node_runner, &SPEC, target, timeout, #goal_ref)),
+                quote! {
+                    let accepted = inner.accepted;
+                    let reason = inner.error_message.clone();
+                    ::core::result::Result::Ok(ActionHandle { inner, accepted, reason })
+                },
+            )
+        } else {
+            (
+                quote! {
+                    #[doc = " The server's decision on the goal: `accepted`, and `error_message` when rejected."]
+                    pub use ::peppy::codegen::GoalResponse as GoalResponseData;
+                },
+                quote!(#[doc = " A goal sent to the action's server. `data.accepted` says whether it was accepted (and `data.error_message` why not)."]),
+                quote! {
+                    #[doc = " The server's decision."]
+                    pub data: GoalResponseData,
+                },
+                quote!(#[doc = " Sends a goal through the slot (straight to a pinned producer, else to the first the slot accepts) and waits at most `timeout` for the decision; returns after a rejection too (check `data.accepted`). The feedback stream is subscribed before the goal is sent, so no feedback is missed. `feedback_qos` is accepted for compatibility: feedback travels with the server's declared QoS."]),
+                quote!(),
+                quote!(::peppy::codegen::send_goal(node_runner, &SPEC, timeout, #goal_ref)),
+                quote! {
+                    let data = GoalResponseData::new(inner.accepted, inner.error_message.clone());
+                    ::core::result::Result::Ok(ActionHandle { inner, data })
+                },
+            )
+        };
         quote! {
             #types
 
             #constructor
 
-            #[doc = " The server's decision on the goal: `accepted`, and `error_message` when rejected."]
-            pub use ::peppy::codegen::GoalResponse as GoalResponseData;
+            #response_use
 
             #[doc = " The answer to a cancel request."]
             pub use ::peppy::codegen::CancelState;
@@ -373,26 +441,25 @@ impl Gen<'_> {
                 result: #result_format,
             };
 
-            #[doc = " A goal sent to the action's server. `data.accepted` says whether it was accepted (and `data.error_message` why not)."]
+            #handle_doc
             #[derive(::core::fmt::Debug)]
             pub struct ActionHandle {
                 inner: ::peppy::codegen::GoalClient,
-                #[doc = " The server's decision."]
-                pub data: GoalResponseData,
+                #handle_fields
             }
 
             impl ActionHandle {
-                #[doc = " Sends a goal through the slot (straight to a pinned producer, else to the first the slot accepts) and waits at most `timeout` for the decision; returns after a rejection too (check `data.accepted`). The feedback stream is subscribed before the goal is sent, so no feedback is missed. `feedback_qos` is accepted for compatibility: feedback travels with the server's declared QoS."]
+                #fire_doc
                 pub async fn fire_goal(
                     node_runner: &::peppy::codegen::NodeRunner,
+                    #target_param
                     timeout: ::core::time::Duration,
                     #goal_param
                     feedback_qos: ::peppy::codegen::QoSProfile,
                 ) -> ::peppy::codegen::Result<Self> {
                     let _ = feedback_qos;
-                    let inner = ::peppy::codegen::send_goal(node_runner, &SPEC, timeout, #goal_ref).await?;
-                    let data = GoalResponseData::new(inner.accepted, inner.error_message.clone());
-                    ::core::result::Result::Ok(ActionHandle { inner, data })
+                    let inner = #send.await?;
+                    #decision
                 }
 
                 #[doc = " The goal's id."]

@@ -24,8 +24,20 @@ use crate::types::{Structs, args, format_spec, many_args_allow, snake_allow};
 /// one module name, or two nested structs with one type name. Each is a
 /// located diagnostic, like the schema's own.
 pub fn generate(node: &ResolvedNode) -> Result<TokenStream, Diagnostics> {
+    generate_as(node, None)
+}
+
+/// [`generate`], naming the document `document_path` in the generated
+/// descriptor instead of its path on this machine: the `.peppy/libs`
+/// crate of a node names it relative to the node, so the crate is the same
+/// wherever the node is checked out.
+pub(crate) fn generate_as(
+    node: &ResolvedNode,
+    document_path: Option<&str>,
+) -> Result<TokenStream, Diagnostics> {
     let mut g = Gen {
         node,
+        document_path: document_path.map(str::to_string),
         diags: Diagnostics::new(),
     };
     let tokens = g.tree();
@@ -45,7 +57,7 @@ pub fn stub() -> TokenStream {
         quote!(pub mod #id {})
     });
     quote! {
-        pub use ::peppy::codegen::{Error, NodeRunner, QoSProfile, Result, StandaloneConfig};
+        pub use ::peppy::codegen::{Error, NodeRunner, ProducerRef, QoSProfile, Result, StandaloneConfig};
         pub type NodeBuilder<P = self::parameters::Parameters> = ::peppy::codegen::NodeBuilder<P>;
         pub use self::parameters::Parameters;
         pub mod parameters {
@@ -106,6 +118,8 @@ pub(crate) const RESERVED_ARGS: &[&str] = &["node_runner", "message", "SPEC"];
 
 pub(crate) struct Gen<'a> {
     pub(crate) node: &'a ResolvedNode,
+    /// How the descriptor names the document (default: its path here).
+    pub(crate) document_path: Option<String>,
     pub(crate) diags: Diagnostics,
 }
 
@@ -165,7 +179,10 @@ impl Gen<'_> {
                 .collect()
         };
         let descriptor = params::Descriptor {
-            document_path: self.node.node.file.path().display().to_string(),
+            document_path: self
+                .document_path
+                .clone()
+                .unwrap_or_else(|| self.node.node.file.path().display().to_string()),
             model: peppy_schema::NodeModel::of(&self.node.node).to_json(),
             emitted_topics: spec_refs("emitted_topics", &emitted),
             consumed_topics: spec_refs("consumed_topics", &consumed_topics),
@@ -209,7 +226,7 @@ impl Gen<'_> {
         ));
         quote! {
             #[doc = " Re-exported from peppy, so node code needs only `peppygen`."]
-            pub use ::peppy::codegen::{Error, NodeRunner, QoSProfile, Result, StandaloneConfig};
+            pub use ::peppy::codegen::{Error, NodeRunner, ProducerRef, QoSProfile, Result, StandaloneConfig};
             #[doc = " Builds and runs this node: `NodeBuilder::new().run(|params: Parameters, runner| async move { Ok(()) })`."]
             #[allow(dead_code)]
             pub type NodeBuilder<P = self::parameters::Parameters> = ::peppy::codegen::NodeBuilder<P>;
@@ -226,7 +243,7 @@ impl Gen<'_> {
 
     /// Whether the node is written in today's `node/v1` spelling, whose
     /// entries through a slot nest under the slot's link_id.
-    fn today(&self) -> bool {
+    pub(crate) fn today(&self) -> bool {
         self.node.node.spelling == Spelling::Today
     }
 
@@ -555,9 +572,11 @@ impl Gen<'_> {
                 let id = ident(&m);
                 let doc = crate::docs::Doc::new(e.doc);
                 let body = e.body;
+                let accessor = entry_accessor(dependency.map(|d| d.cardinality));
                 items.extend(quote! {
                     #doc
                     pub mod #id {
+                        #accessor
                         #body
                     }
                 });
@@ -758,6 +777,20 @@ impl Gen<'_> {
                 ::peppy::codegen::emit(node_runner, &SPEC, &Message { #(#inits),* })
             }
 
+            #[doc = " Builds one message of this topic from its fields, in declaration order, for a publisher of `declare_publisher` to send. It is encoded when published."]
+            #allow_snake
+            #allow_many
+            pub fn build_message(#(#params),*) -> ::peppy::codegen::Result<::peppy::codegen::OutgoingMessage> {
+                ::core::result::Result::Ok(::peppy::codegen::OutgoingMessage::new(&SPEC, Message { #(#inits),* }))
+            }
+
+            #[doc = " Declares a publisher of this topic: declare it once, then `publisher.publish(build_message(..)?)` per message. It holds the node, so it can move into a spawned task."]
+            pub async fn declare_publisher(
+                node_runner: &::peppy::codegen::NodeRunner,
+            ) -> ::peppy::codegen::Result<::peppy::codegen::TopicPublisher> {
+                ::peppy::codegen::declare_publisher(node_runner, &SPEC).await
+            }
+
             #[doc = " Sends messages of this topic of at least `threshold` bytes through shared memory to readers on this host (`None`: never), overriding the node's threshold (default 4 KiB; `PEPPY_SHM` or `NodeBuilder::shared_memory`)."]
             pub fn set_shm_threshold(
                 node_runner: &::peppy::codegen::NodeRunner,
@@ -806,6 +839,16 @@ impl Gen<'_> {
                 qos: #qos,
                 format: #format,
             };
+
+            #[doc = " A held subscription to this topic: `next()` yields `(producer, message)`, `None` once the node stops."]
+            pub type Subscription = ::peppy::codegen::Subscription<Message>;
+
+            #[doc = " Subscribes to this topic: call it once, then loop on `Subscription::next`. Messages are queued from node start-up, so none is lost before the first call or between two."]
+            pub async fn subscribe(
+                node_runner: &::peppy::codegen::NodeRunner,
+            ) -> ::peppy::codegen::Result<Subscription> {
+                ::peppy::codegen::subscribe(node_runner, &SPEC).await
+            }
 
             #reads
         }
@@ -1078,9 +1121,25 @@ impl Gen<'_> {
         let owner = owner(&s.origin, false);
         let request_format = format_spec(decl.request.as_ref());
         let response_format = format_spec(decl.response.as_ref());
-        let poll_doc = crate::docs::Doc::new(format!(
-            "Calls `{name}` through slot `{link_id}` and waits at most `timeout` for the response: straight to the bound producer when the slot is pinned, else to the first producer the slot accepts. Fails with `ServiceUnreachable` (nobody answered), `ServiceTimeout` (accepted, no reply in time) or `ServiceError` (the handler failed)."
-        ));
+        let errors = "Fails with `ServiceUnreachable` (nobody answered), `ServiceTimeout` (accepted, no reply in time) or `ServiceError` (the handler failed).";
+        let (poll_doc, target_param, call) = if self.today() {
+            (
+                format!(
+                    "Calls `{name}` on `target`, one of the producers bound to slot `{link_id}` (`bound_producer` / `bound_producers`), and waits at most `timeout` for the response. `TargetNotBound` for any other target, before anything is sent. {errors}"
+                ),
+                quote!(target: &::peppy::codegen::ProducerRef,),
+                quote!(::peppy::codegen::call_to(node_runner, &SPEC, target, timeout, #request_ref)),
+            )
+        } else {
+            (
+                format!(
+                    "Calls `{name}` through slot `{link_id}` and waits at most `timeout` for the response: straight to the bound producer when the slot is pinned, else to the first producer the slot accepts. {errors}"
+                ),
+                quote!(),
+                quote!(::peppy::codegen::call(node_runner, &SPEC, timeout, #request_ref)),
+            )
+        };
+        let poll_doc = crate::docs::Doc::new(poll_doc);
         quote! {
             #types
 
@@ -1108,11 +1167,11 @@ impl Gen<'_> {
             #poll_doc
             pub async fn poll(
                 node_runner: &::peppy::codegen::NodeRunner,
+                #target_param
                 timeout: ::core::time::Duration,
                 #request_param
             ) -> ::peppy::codegen::Result<Response> {
-                let reply: ::peppy::codegen::Reply<#data_type> =
-                    ::peppy::codegen::call(node_runner, &SPEC, timeout, #request_ref).await?;
+                let reply: ::peppy::codegen::Reply<#data_type> = #call.await?;
                 ::core::result::Result::Ok(Response {
                     instance_id: reply.instance_id,
                     core_node: reply.core_node,
@@ -1205,8 +1264,8 @@ fn slot_accessor(link_id: &str, cardinality: Option<Cardinality>) -> TokenStream
             ));
             quote! {
                 #doc
-                pub fn bound_producer(node_runner: &::peppy::codegen::NodeRunner) -> &str {
-                    ::peppy::codegen::bound_producer(node_runner, #link_id).unwrap_or_default()
+                pub fn bound_producer(node_runner: &::peppy::codegen::NodeRunner) -> &::peppy::codegen::ProducerRef {
+                    ::peppy::codegen::sole_bound_producer(node_runner, #link_id)
                 }
             }
         }
@@ -1218,29 +1277,54 @@ fn slot_accessor(link_id: &str, cardinality: Option<Cardinality>) -> TokenStream
                 #doc
                 pub fn bound_producer(
                     node_runner: &::peppy::codegen::NodeRunner,
-                ) -> ::core::option::Option<&str> {
-                    ::peppy::codegen::bound_producer(node_runner, #link_id)
+                ) -> ::core::option::Option<&::peppy::codegen::ProducerRef> {
+                    ::peppy::codegen::optional_bound_producer(node_runner, #link_id)
                 }
             }
         }
-        Cardinality::OneOrMore | Cardinality::ZeroOrMore => {
+        Cardinality::OneOrMore => {
             let doc = crate::docs::Doc::new(format!(
-                "The producer instances bound to slot `{link_id}` (cardinality `{cardinality}`), in link order, fixed for the instance's life{}.",
-                if cardinality == Cardinality::OneOrMore {
-                    "; never empty"
-                } else {
-                    ""
-                }
+                "The producer instances bound to slot `{link_id}` (cardinality `one_or_more`), in link order, fixed for the instance's life; never empty, so `first()` needs no `Option`."
             ));
             quote! {
                 #doc
                 pub fn bound_producers(
                     node_runner: &::peppy::codegen::NodeRunner,
-                ) -> &[::std::string::String] {
+                ) -> ::peppy::codegen::NonEmptyProducers<'_> {
+                    ::peppy::codegen::non_empty_bound_producers(node_runner, #link_id)
+                }
+            }
+        }
+        Cardinality::ZeroOrMore => {
+            let doc = crate::docs::Doc::new(format!(
+                "The producer instances bound to slot `{link_id}` (cardinality `zero_or_more`), in link order, fixed for the instance's life; possibly empty."
+            ));
+            quote! {
+                #doc
+                pub fn bound_producers(
+                    node_runner: &::peppy::codegen::NodeRunner,
+                ) -> &[::peppy::codegen::ProducerRef] {
                     ::peppy::codegen::bound_producers(node_runner, #link_id)
                 }
             }
         }
+    }
+}
+
+/// The slot's accessor, repeated in each entry module of the slot
+/// (`consumed_actions::<slot>::<action>::bound_producer`), where today's
+/// code reaches for it.
+fn entry_accessor(cardinality: Option<Cardinality>) -> TokenStream {
+    match cardinality {
+        None => TokenStream::new(),
+        Some(Cardinality::One | Cardinality::ZeroOrOne) => quote! {
+            #[doc = " The slot's bound producer (see the slot's module)."]
+            pub use super::bound_producer;
+        },
+        Some(Cardinality::OneOrMore | Cardinality::ZeroOrMore) => quote! {
+            #[doc = " The slot's bound producers (see the slot's module)."]
+            pub use super::bound_producers;
+        },
     }
 }
 

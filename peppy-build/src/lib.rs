@@ -86,6 +86,7 @@ mod actions;
 mod config;
 mod docs;
 mod generate;
+mod libs;
 #[doc(hidden)]
 pub mod macro_support;
 mod naming;
@@ -97,4 +98,5 @@ pub use config::{
     Config, Error, GENERATED_HEADER, Generated, OUTPUT_FILE, Synced, pretty, render, sync, try_sync,
 };
 pub use generate::{generate, stub};
+pub use libs::{LIBS_DIR, LibFile, rust_libs};
 pub use python::{PythonFile, python_package};

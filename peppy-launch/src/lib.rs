@@ -22,6 +22,7 @@ mod repo_index;
 mod report;
 mod run_node;
 mod runs;
+mod rust_libs;
 mod security;
 mod sources;
 mod supervise;

@@ -26,6 +26,17 @@ pub(crate) fn run(args: &SyncArgs) -> Result {
         }
     })?;
     let node = &check.resolved;
+    if crate::rust_libs::wants_libs(node, file.parent().unwrap_or(Path::new("."))) {
+        let dir = file.parent().unwrap_or(Path::new("."));
+        let changed = crate::rust_libs::write_libs(node, dir)?;
+        println!(
+            "{}: {} ({} file(s) changed)",
+            node.node.identity(),
+            dir.join(peppy_build::LIBS_DIR).display(),
+            changed
+        );
+        return Ok(());
+    }
     if !is_python(node) {
         println!(
             "{} is a {} node: its API is generated when it builds (peppy_build::sync() or #[peppy::node]); nothing to write",
@@ -59,6 +70,9 @@ pub enum PackageError {
         /// How many errors were reported.
         errors: usize,
     },
+    /// The generator failed for another reason than the documents.
+    #[error("{0}")]
+    Generate(String),
     /// A file or directory of the package could not be written or removed.
     #[error("cannot {action} {}: {source}", path.display())]
     Io {

@@ -114,6 +114,8 @@ pub(crate) fn run(args: &RunArgs) -> Result {
     if crate::python_sync::is_python(&check.resolved) {
         // The generated package follows the documents before every start.
         crate::python_sync::write_package(&check.resolved, &dir)?;
+    } else if crate::rust_libs::wants_libs(&check.resolved, &dir) {
+        crate::rust_libs::write_libs(&check.resolved, &dir)?;
     }
     let runtime = crate::tokio_runtime(None)?;
     runtime.block_on(async move {

@@ -335,6 +335,14 @@ async fn prepare_all(
                     source,
                 }
             })?;
+        } else if crate::rust_libs::wants_libs(&d.resolved, &d.dir) {
+            // So do the `.peppy/libs` crates, before cargo builds them.
+            crate::rust_libs::write_libs(&d.resolved, &d.dir).map_err(|source| {
+                ExecutableError::Package {
+                    node: identity.to_string(),
+                    source,
+                }
+            })?;
         }
         let argv = executable::prepare(
             &identity.to_string(),

@@ -66,6 +66,27 @@ pub enum Error {
     /// The transport failed.
     #[error("zenoh: {0}")]
     Transport(String),
+    /// A service or action was called on a producer its slot is not bound
+    /// to (today's API takes the target explicitly: one of the slot's
+    /// `bound_producer(s)`).
+    #[error("`{target}` is not bound to slot `{slot}`{}", bound_list(.bound))]
+    TargetNotBound {
+        /// The slot called through.
+        slot: String,
+        /// The producer asked for.
+        target: String,
+        /// The producers the slot is bound to.
+        bound: Vec<String>,
+    },
+    /// A message built for one topic was handed to another topic's
+    /// publisher.
+    #[error("a message of topic `{message}` cannot be published on topic `{publisher}`")]
+    WrongTopic {
+        /// The publisher's topic.
+        publisher: String,
+        /// The topic the message was built for.
+        message: String,
+    },
     /// The node's own setup code failed.
     #[error("{0}")]
     User(String),
@@ -76,6 +97,14 @@ fn for_instance(instance: &Option<String>) -> String {
         .as_ref()
         .map(|i| format!(" on `{i}`"))
         .unwrap_or_default()
+}
+
+fn bound_list(bound: &[String]) -> String {
+    if bound.is_empty() {
+        " (it is bound to no producer)".to_string()
+    } else {
+        format!(" (it is bound to {})", bound.join(", "))
+    }
 }
 
 fn bindings_list(errors: &[BindError]) -> String {

@@ -34,7 +34,9 @@ mod error;
 mod intake;
 mod members;
 mod node;
+mod producer_ref;
 mod producers;
+mod publisher;
 mod qos;
 mod request;
 mod services;
@@ -43,6 +45,7 @@ mod slots;
 pub mod spec;
 mod startup;
 mod stop;
+mod subscription;
 mod target;
 pub mod threads;
 pub mod tool;
@@ -54,6 +57,9 @@ pub use actions::{
     Outcome,
 };
 pub use error::{Error, Result};
+pub use producer_ref::{NonEmptyProducers, ProducerRef};
+pub use publisher::{OutgoingMessage, TopicPublisher};
+pub use subscription::Subscription;
 pub use node::{NodeBuilder, NodeRunner};
 pub use peppy_schema::QosProfile as QoSProfile;
 pub use services::{Caller, Reply};
@@ -71,10 +77,16 @@ pub mod codegen {
     pub use crate::__peppy_codec as codec;
     pub use crate::actions::{
         CancelState, GoalClient, GoalContext, GoalServer, IncomingGoal, Outcome, next_goal,
-        send_goal,
+        send_goal, send_goal_to,
     };
-    pub use crate::services::{Caller, Reply, call, handle_next};
-    pub use crate::slots::{bound_producer, bound_producers};
+    pub use crate::producer_ref::{NonEmptyProducers, ProducerRef};
+    pub use crate::publisher::{OutgoingMessage, TopicPublisher, declare_publisher};
+    pub use crate::services::{Caller, Reply, call, call_to, handle_next};
+    pub use crate::slots::{
+        bound_producer, bound_producers, non_empty_bound_producers, optional_bound_producer,
+        sole_bound_producer,
+    };
+    pub use crate::subscription::{Subscription, subscribe};
     pub use crate::spec::*;
     pub use crate::topics::{
         Senders, emit, next_message, next_message_from, next_payload, next_payload_from,

@@ -24,6 +24,7 @@ use crate::describe::{
 };
 use crate::error::{Error, Result};
 use crate::members::Members;
+use crate::producer_ref::ProducerRef;
 use crate::producers::Declarer;
 use crate::qos;
 use crate::request::RequestKeys;
@@ -258,6 +259,11 @@ pub struct NodeRunner {
     /// Started with the first exposed service or action.
     acker: Option<Acker>,
     request_keys: RequestKeys,
+    /// Each slot's bound producers as today's API hands them out.
+    bound: HashMap<String, Vec<ProducerRef>>,
+    /// This runner, for what today's API hands out that outlives a borrow
+    /// of it (a declared publisher, a held subscription).
+    me: std::sync::OnceLock<std::sync::Weak<NodeRunner>>,
 }
 
 #[derive(Default)]
@@ -314,6 +320,7 @@ impl NodeRunner {
             core_node: startup.core_node.clone(),
             namespace: startup.namespace.clone(),
             token: CancellationToken::new(),
+            bound: bound_refs(&startup.slots, &startup.core_node),
             slots: startup.slots,
             publishers: ByAddress::default(),
             inboxes: ByAddress::default(),
@@ -323,6 +330,7 @@ impl NodeRunner {
             shm: Shm::new(shared_memory),
             acker: None,
             request_keys: RequestKeys::default(),
+            me: std::sync::OnceLock::new(),
         };
         let mut entities = Entities::default();
         let started_at_ms = describe::now_ms();
@@ -351,7 +359,9 @@ impl NodeRunner {
             namespace = %runner.namespace,
             "node up"
         );
-        Ok(Arc::new(runner))
+        let runner = Arc::new(runner);
+        let _ = runner.me.set(Arc::downgrade(&runner));
+        Ok(runner)
     }
 
     /// One publisher per emitted topic, declared up front, and the key
@@ -815,6 +825,20 @@ impl NodeRunner {
         }
     }
 
+    /// The producers bound to slot `link_id` as [`ProducerRef`]s, in link
+    /// order (see [`NodeRunner::bound_producers`]).
+    pub fn bound_producer_refs(&self, link_id: &str) -> &[ProducerRef] {
+        self.bound.get(link_id).map_or(&[], Vec::as_slice)
+    }
+
+    /// This runner as an `Arc`, for what outlives a borrow of it.
+    pub(crate) fn arc(&self) -> Result<Arc<NodeRunner>> {
+        self.me
+            .get()
+            .and_then(std::sync::Weak::upgrade)
+            .ok_or(Error::ShuttingDown)
+    }
+
     /// The slot named `link_id`.
     pub fn slot(&self, link_id: &str) -> Result<&SlotPlan> {
         self.slots
@@ -896,6 +920,29 @@ impl NodeRunner {
             warn!("closing the zenoh session: {e}");
         }
     }
+}
+
+/// Every slot's bound producers as [`ProducerRef`]s. The plan names
+/// producers by instance id, unique in a stack; they are placed on this
+/// launch's core node unless the launcher says otherwise.
+fn bound_refs(slots: &[SlotPlan], core_node: &str) -> HashMap<String, Vec<ProducerRef>> {
+    slots
+        .iter()
+        .map(|slot| {
+            let producers = match &slot.binding {
+                SlotBinding::Pinned { producer } => std::slice::from_ref(producer),
+                SlotBinding::Set { producers, .. } | SlotBinding::FromAnyBound { producers } => {
+                    producers.as_slice()
+                }
+                SlotBinding::FromAnyUnbound => &[],
+            };
+            let refs = producers
+                .iter()
+                .map(|p| ProducerRef::new(core_node, p.as_str()))
+                .collect();
+            (slot.link_id.clone(), refs)
+        })
+        .collect()
 }
 
 /// An emitted topic's publisher, and whether Zenoh knows a subscriber

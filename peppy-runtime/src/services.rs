@@ -13,6 +13,7 @@ use crate::acks::{Acker, Held};
 use crate::error::{Error, Result};
 use crate::intake;
 use crate::node::NodeRunner;
+use crate::producer_ref::ProducerRef;
 use crate::request::Request;
 use crate::spec::{ConsumedServiceSpec, ServiceSpec};
 use crate::stop;
@@ -160,6 +161,34 @@ where
         let entry = entry(spec);
         let target = target::choose(runner, &entry, deadline).await?;
         request_to(runner, spec, &entry, &target, deadline, payload).await
+    }
+}
+
+/// Calls a consumed service on one producer bound to its slot, as today's
+/// API does (`poll(&runner, target, timeout, request)`): a target the slot
+/// is not bound to fails with [`Error::TargetNotBound`] before anything is
+/// sent.
+pub fn call_to<'a, Req, Resp>(
+    runner: &'a NodeRunner,
+    spec: &'static ConsumedServiceSpec,
+    target: &ProducerRef,
+    timeout: Duration,
+    request: &Req,
+) -> impl Future<Output = Result<Reply<Resp>>> + Send + use<'a, Req, Resp>
+where
+    Req: Encode + ?Sized,
+    Resp: Decode + Send + 'a,
+{
+    let payload = to_bytes(request);
+    let checked = crate::slots::check_target(runner, spec.link_id, target)
+        .map(|()| target.instance_id.clone());
+    async move {
+        let instance = checked?;
+        if runner.cancellation_token().is_cancelled() {
+            return Err(stop::refused().await);
+        }
+        let deadline = Instant::now() + timeout;
+        request_to(runner, spec, &entry(spec), &instance, deadline, payload).await
     }
 }
 

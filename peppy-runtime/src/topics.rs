@@ -420,6 +420,28 @@ pub async fn next_message_from<M: Decode>(
     }
 }
 
+/// The next message of a consumed topic with the producer that sent it,
+/// for today's held subscriptions. Messages that do not decode are dropped
+/// with a warning.
+pub(crate) async fn next_from_producer<M: Decode>(
+    runner: &NodeRunner,
+    spec: &'static ConsumedTopicSpec,
+) -> Result<(crate::ProducerRef, M)> {
+    loop {
+        let delivery = next_delivery(runner, spec, Senders::default()).await?;
+        match from_bytes::<M>(&delivery.payload.to_bytes()) {
+            Ok(m) => {
+                let producer =
+                    crate::ProducerRef::new(&*delivery.producer.core, &*delivery.producer.instance);
+                return Ok((producer, m));
+            }
+            Err(e) => {
+                warn!(topic = spec.name, producer = %delivery.producer.instance, error = %e, "dropping a message that does not decode")
+            }
+        }
+    }
+}
+
 /// Like [`next_message`], without decoding: `(producer instance id, the
 /// message's bytes as they arrived)`.
 pub async fn next_payload(

@@ -74,7 +74,32 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
     goal: &G,
 ) -> impl Future<Output = Result<GoalClient>> + Send + use<'a, G> {
     let body = to_bytes(goal);
-    async move {
+    goal_through(runner, spec, None, timeout, body)
+}
+
+/// [`send_goal`] to one producer bound to the action's slot, as today's API
+/// does (`fire_goal(&runner, target, ...)`): a target the slot is not bound
+/// to fails with [`Error::TargetNotBound`] before anything is sent.
+pub fn send_goal_to<'a, G: Encode + ?Sized>(
+    runner: &'a NodeRunner,
+    spec: &'static ConsumedActionSpec,
+    target: &crate::ProducerRef,
+    timeout: Duration,
+    goal: &G,
+) -> impl Future<Output = Result<GoalClient>> + Send + use<'a, G> {
+    let body = to_bytes(goal);
+    let checked = crate::slots::check_target(runner, spec.link_id, target)
+        .map(|()| target.instance_id.clone());
+    async move { goal_through(runner, spec, Some(checked?), timeout, body).await }
+}
+
+async fn goal_through(
+    runner: &NodeRunner,
+    spec: &'static ConsumedActionSpec,
+    server: Option<String>,
+    timeout: Duration,
+    body: Vec<u8>,
+) -> Result<GoalClient> {
         if runner.cancellation_token().is_cancelled() {
             return Err(stop::refused().await);
         }
@@ -89,7 +114,10 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
             fingerprint: spec.goal.fingerprint,
             describe: format!("{} (action goal)", spec.name).into(),
         };
-        let target = target::choose(runner, &entry, deadline).await?;
+        let target = match server {
+            Some(server) => server,
+            None => target::choose(runner, &entry, deadline).await?,
+        };
         let base = entry.base(runner, Some(&target));
         let opened = open_goal(GoalOpening {
             session: runner.session(),
@@ -118,7 +146,6 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
             &opened.instance_id,
         );
         Ok(GoalClient { base_key, ..opened })
-    }
 }
 
 /// Everything needed to send one goal to one server.

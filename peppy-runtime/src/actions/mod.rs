@@ -16,7 +16,7 @@ use std::time::Duration;
 pub(crate) mod client;
 mod server;
 
-pub use client::{GoalClient, send_goal};
+pub use client::{GoalClient, send_goal, send_goal_to};
 pub use server::{GoalContext, GoalServer, IncomingGoal, next_goal};
 pub(crate) use server::{PendingGoal, Registry, goal_intake, server_base_key};
 
