@@ -27,6 +27,15 @@ fn walk(items: &[syn::Item], prefix: &str, out: &mut Vec<String>) {
                 }
             }
             syn::Item::Fn(f) => out.push(format!("{prefix}{}()", f.sig.ident)),
+            syn::Item::Use(u) => {
+                let mut tree = &u.tree;
+                while let syn::UseTree::Path(p) = tree {
+                    tree = &p.tree;
+                }
+                if let syn::UseTree::Name(n) = tree {
+                    out.push(format!("{prefix}{}", n.ident));
+                }
+            }
             _ => {}
         }
     }
@@ -85,10 +94,35 @@ fn a_consumer_nests_by_slot_with_typed_bound_producers() {
         .unwrap();
     let text = peppy_build::pretty(&generated.tokens).unwrap();
     assert!(
-        text.contains("pub fn bound_producer(node_runner: &::peppy::codegen::NodeRunner) -> &str"),
+        text.contains(") -> &::peppy::codegen::ProducerRef {"),
         "{text}"
     );
-    assert!(text.contains(") -> &[::std::string::String] {"), "{text}");
+    // spare_hands is `zero_or_more`: a possibly empty slice.
+    assert!(
+        text.contains(") -> &[::peppy::codegen::ProducerRef] {"),
+        "{text}"
+    );
+    // Every entry module of a slot repeats its accessor, where today's
+    // code reaches for it, and today's calls name their target.
+    for p in [
+        "consumed_topics::main_hand::joint_state::bound_producer",
+        "consumed_topics::main_hand::joint_state::subscribe()",
+        "consumed_actions::main_hand::grasp::bound_producer",
+        "consumed_services::main_hand::set_force::bound_producer",
+    ] {
+        assert!(has(&paths, p), "{p} missing from {paths:#?}");
+    }
+    assert!(
+        text.contains("target: &::peppy::codegen::ProducerRef,"),
+        "{text}"
+    );
+    // A node/v1 server decides with `GoalDecision`, the seeds' `GoalResponse` is not offered.
+    let server = config(&fixtures().join("gripper_driver"))
+        .generate()
+        .unwrap();
+    let server = peppy_build::pretty(&server.tokens).unwrap();
+    assert!(server.contains("pub use ::peppy::codegen::GoalDecision;"), "{server}");
+    assert!(!server.contains("GoalResponse"), "{server}");
 }
 
 /// Writes a `node/v1` document next to the fixture repository and returns

@@ -1,6 +1,7 @@
-//! `camera_viewer`: a node in today's spelling (`node/v1`). Its module
-//! paths nest consumed entries under their slot (`consumed_topics::cameras::
-//! video_stream`), and each slot says what the launcher linked to it.
+//! `camera_viewer`: a node in today's spelling (`node/v1`) and today's node
+//! API. Its module paths nest consumed entries under their slot
+//! (`consumed_topics::cameras::video_stream`), each slot says what the
+//! launcher linked to it, and frames arrive through held subscriptions.
 
 #[peppy::node("peppy.json5")]
 mod peppygen {}
@@ -13,22 +14,23 @@ use peppygen::{NodeBuilder, Parameters, Result};
 
 fn main() -> Result<()> {
     NodeBuilder::new().run(|_params: Parameters, runner| async move {
-        println!(
-            "cameras: linked to {}",
-            cameras::bound_producers(&runner).join(", ")
-        );
+        let linked: Vec<String> = cameras::bound_producers(&runner)
+            .iter()
+            .map(ToString::to_string)
+            .collect();
+        println!("cameras: linked to {}", linked.join(", "));
         match overhead::bound_producer(&runner) {
             Some(camera) => println!("overhead: linked to {camera}"),
             None => println!("overhead: vacant"),
         }
-        let watch = runner.clone();
+        // Subscribed before setup returns: nothing sent from now on is missed.
+        let mut frames_in = cameras::video_stream::subscribe(&runner).await?;
+        let mut overhead_in = overhead::video_stream::subscribe(&runner).await?;
         tokio::spawn(async move {
             let mut frames: BTreeMap<String, u64> = BTreeMap::new();
             let mut last = Instant::now();
-            while let Ok((camera, frame)) =
-                cameras::video_stream::on_next_message_received(&watch, None).await
-            {
-                let count = frames.entry(camera.clone()).or_insert(0);
+            while let Ok(Some((camera, frame))) = frames_in.next().await {
+                let count = frames.entry(camera.to_string()).or_insert(0);
                 if *count == 0 {
                     println!(
                         "cameras: first frame from {camera} ({}x{})",
@@ -44,9 +46,7 @@ fn main() -> Result<()> {
             }
         });
         tokio::spawn(async move {
-            while let Ok((camera, frame)) =
-                overhead::video_stream::on_next_message_received(&runner, None).await
-            {
+            while let Ok(Some((camera, frame))) = overhead_in.next().await {
                 println!("overhead: frame {} from {camera}", frame.header.frame_id);
             }
         });
