@@ -61,9 +61,8 @@
 pub use peppy_macros::node;
 pub use peppy_runtime as runtime;
 pub use peppy_runtime::{
-    CancellationToken, Error, NodeBuilder, NodeRunner, NonEmptyProducers, OutgoingMessage,
-    Payload, ProducerRef, QoSProfile, Result, SharedMemory, StandaloneConfig, Subscription,
-    TopicPublisher,
+    CancellationToken, Error, NodeBuilder, NodeRunner, NonEmptyProducers, OutgoingMessage, Payload,
+    ProducerRef, QoSProfile, Result, SharedMemory, StandaloneConfig, Subscription, TopicPublisher,
 };
 
 /// Declares `pub mod peppygen` holding the code `peppy_build::sync()` wrote

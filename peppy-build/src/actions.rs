@@ -358,45 +358,46 @@ impl Gen<'_> {
         let goal_format = format_spec(decl.goal.as_ref());
         let feedback_format = format_spec(decl.feedback.as_ref().map(|f| &f.format));
         let result_format = format_spec(decl.result.as_ref());
-        let (response_use, handle_doc, handle_fields, fire_doc, target_param, send, decision) = if self.today() {
-            (
-                quote!(),
-                quote!(#[doc = " A goal sent to the action's server. `accepted` says whether it was accepted (and `reason` why not)."]),
-                quote! {
-                    #[doc = " Whether the server accepted the goal."]
-                    pub accepted: bool,
-                    #[doc = " The server's reason when it rejected the goal."]
-                    pub reason: ::core::option::Option<::std::string::String>,
-                },
-                quote!(#[doc = " Sends a goal to `target`, one of the producers bound to the action's slot (`bound_producer` / `bound_producers`), and waits at most `timeout` for the decision; returns after a rejection too (check `accepted`). `TargetNotBound` for any other target, before anything is sent. The feedback stream is subscribed before the goal is sent, so no feedback is missed. `feedback_qos` is accepted for compatibility: feedback travels with the server's declared QoS."]),
-                quote!(target: &::peppy::codegen::ProducerRef,),
-                quote!(::peppy::codegen::send_goal_to(node_runner, &SPEC, target, timeout, #goal_ref)),
-                quote! {
-                    let accepted = inner.accepted;
-                    let reason = inner.error_message.clone();
-                    ::core::result::Result::Ok(ActionHandle { inner, accepted, reason })
-                },
-            )
-        } else {
-            (
-                quote! {
-                    #[doc = " The server's decision on the goal: `accepted`, and `error_message` when rejected."]
-                    pub use ::peppy::codegen::GoalResponse as GoalResponseData;
-                },
-                quote!(#[doc = " A goal sent to the action's server. `data.accepted` says whether it was accepted (and `data.error_message` why not)."]),
-                quote! {
-                    #[doc = " The server's decision."]
-                    pub data: GoalResponseData,
-                },
-                quote!(#[doc = " Sends a goal through the slot (straight to a pinned producer, else to the first the slot accepts) and waits at most `timeout` for the decision; returns after a rejection too (check `data.accepted`). The feedback stream is subscribed before the goal is sent, so no feedback is missed. `feedback_qos` is accepted for compatibility: feedback travels with the server's declared QoS."]),
-                quote!(),
-                quote!(::peppy::codegen::send_goal(node_runner, &SPEC, timeout, #goal_ref)),
-                quote! {
-                    let data = GoalResponseData::new(inner.accepted, inner.error_message.clone());
-                    ::core::result::Result::Ok(ActionHandle { inner, data })
-                },
-            )
-        };
+        let (response_use, handle_doc, handle_fields, fire_doc, target_param, send, decision) =
+            if self.today() {
+                (
+                    quote!(),
+                    quote!(#[doc = " A goal sent to the action's server. `accepted` says whether it was accepted (and `reason` why not)."]),
+                    quote! {
+                        #[doc = " Whether the server accepted the goal."]
+                        pub accepted: bool,
+                        #[doc = " The server's reason when it rejected the goal."]
+                        pub reason: ::core::option::Option<::std::string::String>,
+                    },
+                    quote!(#[doc = " Sends a goal to `target`, one of the producers bound to the action's slot (`bound_producer` / `bound_producers`), and waits at most `timeout` for the decision; returns after a rejection too (check `accepted`). `TargetNotBound` for any other target, before anything is sent. The feedback stream is subscribed before the goal is sent, so no feedback is missed. `feedback_qos` is accepted for compatibility: feedback travels with the server's declared QoS."]),
+                    quote!(target: &::peppy::codegen::ProducerRef,),
+                    quote!(::peppy::codegen::send_goal_to(node_runner, &SPEC, target, timeout, #goal_ref)),
+                    quote! {
+                        let accepted = inner.accepted;
+                        let reason = inner.error_message.clone();
+                        ::core::result::Result::Ok(ActionHandle { inner, accepted, reason })
+                    },
+                )
+            } else {
+                (
+                    quote! {
+                        #[doc = " The server's decision on the goal: `accepted`, and `error_message` when rejected."]
+                        pub use ::peppy::codegen::GoalResponse as GoalResponseData;
+                    },
+                    quote!(#[doc = " A goal sent to the action's server. `data.accepted` says whether it was accepted (and `data.error_message` why not)."]),
+                    quote! {
+                        #[doc = " The server's decision."]
+                        pub data: GoalResponseData,
+                    },
+                    quote!(#[doc = " Sends a goal through the slot (straight to a pinned producer, else to the first the slot accepts) and waits at most `timeout` for the decision; returns after a rejection too (check `data.accepted`). The feedback stream is subscribed before the goal is sent, so no feedback is missed. `feedback_qos` is accepted for compatibility: feedback travels with the server's declared QoS."]),
+                    quote!(),
+                    quote!(::peppy::codegen::send_goal(node_runner, &SPEC, timeout, #goal_ref)),
+                    quote! {
+                        let data = GoalResponseData::new(inner.accepted, inner.error_message.clone());
+                        ::core::result::Result::Ok(ActionHandle { inner, data })
+                    },
+                )
+            };
         quote! {
             #types
 

@@ -42,12 +42,10 @@ pub(crate) fn write_libs(node: &ResolvedNode, dir: &Path) -> Result<usize, Packa
     let libs = dir.join(peppy_build::LIBS_DIR);
     let crate_dir = libs.join("peppygen");
     let peppy = spelled_from(&absolute(&crate_dir), &absolute(&peppy_source()));
-    let document = node
-        .node
-        .file
-        .path()
-        .file_name()
-        .map_or_else(|| "peppy.json5".to_string(), |n| n.to_string_lossy().into_owned());
+    let document = node.node.file.path().file_name().map_or_else(
+        || "peppy.json5".to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
     let files = peppy_build::rust_libs(node, &peppy, &document).map_err(|e| match e {
         peppy_build::Error::Schema { diagnostics, .. } => {
             crate::report::print_human(&diagnostics);
@@ -127,7 +125,10 @@ mod tests {
             "../../../../../.."
         );
         assert_eq!(
-            spelled_from(Path::new("/hub/arm/.peppy/libs/peppygen"), Path::new("/src/peppy")),
+            spelled_from(
+                Path::new("/hub/arm/.peppy/libs/peppygen"),
+                Path::new("/src/peppy")
+            ),
             "/src/peppy"
         );
     }

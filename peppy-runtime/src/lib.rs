@@ -57,17 +57,17 @@ pub use actions::{
     Outcome,
 };
 pub use error::{Error, Result};
-pub use producer_ref::{NonEmptyProducers, ProducerRef};
-pub use publisher::{OutgoingMessage, TopicPublisher};
-pub use subscription::Subscription;
 pub use node::{NodeBuilder, NodeRunner};
 pub use peppy_schema::QosProfile as QoSProfile;
+pub use producer_ref::{NonEmptyProducers, ProducerRef};
+pub use publisher::{OutgoingMessage, TopicPublisher};
 pub use services::{Caller, Reply};
 pub use shm::{SHM_ENV, SharedMemory};
 pub use startup::{
     DEFAULT_NAMESPACE, Endpoints, Login, RUNTIME_CONFIG_ENV, STANDALONE_CORE, StandaloneConfig,
     StartupConfig, startup_from_flags,
 };
+pub use subscription::Subscription;
 pub use tokio_util::sync::CancellationToken;
 pub use topics::{Payload, Senders};
 
@@ -86,8 +86,8 @@ pub mod codegen {
         bound_producer, bound_producers, non_empty_bound_producers, optional_bound_producer,
         sole_bound_producer,
     };
-    pub use crate::subscription::{Subscription, subscribe};
     pub use crate::spec::*;
+    pub use crate::subscription::{Subscription, subscribe};
     pub use crate::topics::{
         Senders, emit, next_message, next_message_from, next_payload, next_payload_from,
     };

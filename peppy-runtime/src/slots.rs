@@ -19,7 +19,11 @@ pub fn bound_producers<'a>(runner: &'a NodeRunner, link_id: &str) -> &'a [Produc
 
 /// Whether `target` is one of the producers bound to `link_id`: today's
 /// calls go to an explicit target, checked before anything is sent.
-pub(crate) fn check_target(runner: &NodeRunner, link_id: &str, target: &ProducerRef) -> crate::Result<()> {
+pub(crate) fn check_target(
+    runner: &NodeRunner,
+    link_id: &str,
+    target: &ProducerRef,
+) -> crate::Result<()> {
     let bound = runner.bound_producer_refs(link_id);
     if !target.instance_id.is_empty() && bound.iter().any(|p| p.instance_id == target.instance_id) {
         return Ok(());

@@ -121,7 +121,10 @@ fn a_consumer_nests_by_slot_with_typed_bound_producers() {
         .generate()
         .unwrap();
     let server = peppy_build::pretty(&server.tokens).unwrap();
-    assert!(server.contains("pub use ::peppy::codegen::GoalDecision;"), "{server}");
+    assert!(
+        server.contains("pub use ::peppy::codegen::GoalDecision;"),
+        "{server}"
+    );
     assert!(!server.contains("GoalResponse"), "{server}");
 }
 

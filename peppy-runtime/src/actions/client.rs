@@ -100,52 +100,52 @@ async fn goal_through(
     timeout: Duration,
     body: Vec<u8>,
 ) -> Result<GoalClient> {
-        if runner.cancellation_token().is_cancelled() {
-            return Err(stop::refused().await);
-        }
-        let deadline = Instant::now() + timeout;
-        let owner = spec.owner.resolve(runner.node_name(), runner.node_tag());
-        let entry = target::Entry {
-            link_id: spec.link_id,
-            owner: spec.owner,
-            channel: Channel::Action,
-            name: spec.name,
-            part: Some(ActionPart::Goal),
-            fingerprint: spec.goal.fingerprint,
-            describe: format!("{} (action goal)", spec.name).into(),
-        };
-        let target = match server {
-            Some(server) => server,
-            None => target::choose(runner, &entry, deadline).await?,
-        };
-        let base = entry.base(runner, Some(&target));
-        let opened = open_goal(GoalOpening {
-            session: runner.session(),
-            stop: runner.cancellation_token(),
-            action: spec.name,
-            describe: &entry.describe,
-            selector: entry.selector(runner, Some(&target)),
-            keys: Some(runner.request_keys()),
-            feedback_base: base,
-            header: target::header(runner, QueryKind::Request, spec.goal.fingerprint),
-            server: &target,
-            remote: target != runner.instance_id(),
-            goal: (spec.goal.fingerprint, spec.goal.canonical),
-            feedback_fingerprint: spec.feedback.fingerprint,
-            result: (spec.result.fingerprint, spec.result.canonical),
-            body,
-            deadline,
-        })
-        .await?;
-        let base_key = entry_key(
-            runner.namespace(),
-            Channel::Action,
-            &owner.expect("consumed actions have an owner"),
-            spec.name,
-            &opened.core_node,
-            &opened.instance_id,
-        );
-        Ok(GoalClient { base_key, ..opened })
+    if runner.cancellation_token().is_cancelled() {
+        return Err(stop::refused().await);
+    }
+    let deadline = Instant::now() + timeout;
+    let owner = spec.owner.resolve(runner.node_name(), runner.node_tag());
+    let entry = target::Entry {
+        link_id: spec.link_id,
+        owner: spec.owner,
+        channel: Channel::Action,
+        name: spec.name,
+        part: Some(ActionPart::Goal),
+        fingerprint: spec.goal.fingerprint,
+        describe: format!("{} (action goal)", spec.name).into(),
+    };
+    let target = match server {
+        Some(server) => server,
+        None => target::choose(runner, &entry, deadline).await?,
+    };
+    let base = entry.base(runner, Some(&target));
+    let opened = open_goal(GoalOpening {
+        session: runner.session(),
+        stop: runner.cancellation_token(),
+        action: spec.name,
+        describe: &entry.describe,
+        selector: entry.selector(runner, Some(&target)),
+        keys: Some(runner.request_keys()),
+        feedback_base: base,
+        header: target::header(runner, QueryKind::Request, spec.goal.fingerprint),
+        server: &target,
+        remote: target != runner.instance_id(),
+        goal: (spec.goal.fingerprint, spec.goal.canonical),
+        feedback_fingerprint: spec.feedback.fingerprint,
+        result: (spec.result.fingerprint, spec.result.canonical),
+        body,
+        deadline,
+    })
+    .await?;
+    let base_key = entry_key(
+        runner.namespace(),
+        Channel::Action,
+        &owner.expect("consumed actions have an owner"),
+        spec.name,
+        &opened.core_node,
+        &opened.instance_id,
+    );
+    Ok(GoalClient { base_key, ..opened })
 }
 
 /// Everything needed to send one goal to one server.

@@ -56,7 +56,8 @@ async fn plan(runner: &planner::NodeRunner) -> planner::Result<()> {
     // Each entry module repeats its slot's accessor.
     let main = planner::consumed_services::main_hand::set_force::bound_producer(runner);
     let _ = planner::consumed_actions::spare_hands::bound_producers(runner);
-    let mut subscription = planner::consumed_topics::main_hand::joint_state::subscribe(runner).await?;
+    let mut subscription =
+        planner::consumed_topics::main_hand::joint_state::subscribe(runner).await?;
     if let Some((producer, message)) = subscription.next().await? {
         let _: (&str, f64) = (&producer.instance_id, message.position);
     }

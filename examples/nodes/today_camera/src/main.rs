@@ -58,7 +58,10 @@ async fn stream(
         )?;
         publisher.publish(message).await?;
         if n == 0 {
-            println!("today_camera: first frame ({}x{})", params.width, params.height);
+            println!(
+                "today_camera: first frame ({}x{})",
+                params.width, params.height
+            );
         }
         sent.fetch_add(1, Ordering::Relaxed);
     }
