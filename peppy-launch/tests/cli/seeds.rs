@@ -146,7 +146,12 @@ impl Launch {
     /// Ctrl-C; returns the exit code. No instance may need SIGKILL: the
     /// ZED's service loop ignores every error (`loop { let _ = ... }`) and
     /// must still stop on SIGINT.
-    pub(crate) fn stop(mut self) -> i32 {
+    pub(crate) fn stop(self) -> i32 {
+        self.stop_seen().0
+    }
+
+    /// [`Launch::stop`], also giving every line seen, the stop's included.
+    pub(crate) fn stop_seen(mut self) -> (i32, Vec<String>) {
         assert!(
             Command::new("kill")
                 .args(["-INT", &self.child.id().to_string()])
@@ -174,7 +179,7 @@ impl Launch {
             "an instance had to be killed:\n{}",
             self.seen.join("\n")
         );
-        code
+        (code, std::mem::take(&mut self.seen))
     }
 }
 
