@@ -65,7 +65,9 @@ pub(crate) enum Command {
     #[command(subcommand)]
     Action(ActionCommand),
     /// Write a Python node's generated `peppygen` package beside its
-    /// `peppy.json5` (`up` does it before building). A Rust node generates
+    /// `peppy.json5`, or the `.peppy/libs/peppygen` and
+    /// `.peppy/libs/peppylib` projects when its pyproject.toml takes them
+    /// from there (`up` does it before building). A Rust node generates
     /// its API when it builds, so there is nothing to write for one.
     Sync(SyncArgs),
     /// Rewrite documents of the seeds' spelling (`node_v1`, `interface_v1`,
