@@ -18,13 +18,13 @@ import struct
 import subprocess
 import sys
 import tempfile
-import textwrap
 import time
 import unittest
 from typing import Any, Dict, List, Optional
 
 import peppy_testing as t
-from peppy import ClockNotReady, ProducerRef, StartupError
+
+from peppy import ClockNotReady, ProducerRef, ShuttingDown, StartupError
 from peppy import clock as peppy_clock
 from peppy.keys import clock_sync_key, clock_tick_key
 from peppy.startup import SHUTDOWN_GRACE_ENV, peppy_launch
@@ -65,7 +65,9 @@ def package(node: str) -> Any:
         return sys.modules[name]
     assert _generated is not None
     path = os.path.join(_generated, node, "peppygen")
-    spec = importlib.util.spec_from_file_location(name, os.path.join(path, "__init__.py"), submodule_search_locations=[path])
+    spec = importlib.util.spec_from_file_location(
+        name, os.path.join(path, "__init__.py"), submodule_search_locations=[path]
+    )
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
@@ -133,7 +135,9 @@ class TopicTest(TodayTest):
         producer, first = await asyncio.wait_for(sub.next(), t.WAIT)
         self.assertEqual(producer, ProducerRef("lab", "cam_a"))
         self.assertEqual((producer.core_node, producer.instance_id), ("lab", "cam_a"))
-        self.assertEqual(first, frames_in.Message(header=frames_in.MessageHeader(stamp=1.5, frame_id=0), data=b"\x00\xff"))
+        self.assertEqual(
+            first, frames_in.Message(header=frames_in.MessageHeader(stamp=1.5, frame_id=0), data=b"\x00\xff")
+        )
         seen = []
         async for producer, message in sub:
             seen.append((producer.instance_id, message.header.frame_id, message.data))
@@ -235,11 +239,15 @@ class ActionTest(TodayTest):
         # A rejected goal is answered and skipped: the server waits on.
         worker = asyncio.ensure_future(serve_one(cancel_expected=False))
         target = move_c.bound_producer(viewer)
-        far = await move_c.ActionHandle.fire_goal(viewer, target, move_c.GoalRequest(distance=50.0), t.WAIT, t.QoSProfile.Standard)
+        far = await move_c.ActionHandle.fire_goal(
+            viewer, target, move_c.GoalRequest(distance=50.0), t.WAIT, t.QoSProfile.Standard
+        )
         self.assertFalse(far.accepted)
         self.assertEqual(far.reason, "50.0 m is too far")
         self.assertFalse(worker.done())
-        goal = await move_c.ActionHandle.fire_goal(viewer, target, move_c.GoalRequest(distance=3.0), t.WAIT, t.QoSProfile.Reliable)
+        goal = await move_c.ActionHandle.fire_goal(
+            viewer, target, move_c.GoalRequest(distance=3.0), t.WAIT, t.QoSProfile.Reliable
+        )
         self.assertTrue(goal.accepted)
         self.assertIsNone(goal.reason)
         progress = [(await asyncio.wait_for(goal.on_next_feedback_message(), t.WAIT)).progress for _ in range(2)]
@@ -255,7 +263,9 @@ class ActionTest(TodayTest):
         self.assertEqual(decided, [("viewer_1", "lab", 50.0), ("viewer_1", "lab", 3.0)])
 
         worker = asyncio.ensure_future(serve_one(cancel_expected=True))
-        goal = await move_c.ActionHandle.fire_goal(viewer, target, move_c.GoalRequest(distance=3.0), t.WAIT, t.QoSProfile.Standard)
+        goal = await move_c.ActionHandle.fire_goal(
+            viewer, target, move_c.GoalRequest(distance=3.0), t.WAIT, t.QoSProfile.Standard
+        )
         self.assertTrue(goal.accepted)
         self.assertEqual((await goal.cancel_goal(t.WAIT)).state, move_c.CancelState.SIGNALLED)
         await asyncio.wait_for(worker, t.WAIT)
@@ -263,7 +273,9 @@ class ActionTest(TodayTest):
         self.assertEqual((result.status, result.data.travelled), (move_c.ResultStatus.CANCELLED, 1.0))
 
         with self.assertRaises(ValueError):
-            await move_c.ActionHandle.fire_goal(viewer, ProducerRef("lab", "cam_z"), move_c.GoalRequest(distance=1.0), 1.0)
+            await move_c.ActionHandle.fire_goal(
+                viewer, ProducerRef("lab", "cam_z"), move_c.GoalRequest(distance=1.0), 1.0
+            )
         # The server's wait ends with None once its node stops.
         waiting = asyncio.ensure_future(action.handle_goal_next_request(decide))
         cam.cancellation_token().cancel()
@@ -297,11 +309,18 @@ class ShutdownTest(TodayTest):
         with self.assertLogs("peppy", "ERROR") as logs:
             await asyncio.wait_for(cam.shutdown(), t.WAIT)
         self.assertEqual(order, ["broken", "last_words", "first (token cancelled: True)"])
-        self.assertTrue(any("shutdown hook `ShutdownTest.test_hooks_run_last_first_with_messaging_still_up.<locals>.broken` failed" in r for r in logs.output), logs.output)
+        self.assertTrue(
+            any(
+                "shutdown hook `ShutdownTest.test_hooks_run_last_first_with_messaging_still_up.<locals>.broken` failed"
+                in r
+                for r in logs.output
+            ),
+            logs.output,
+        )
         producer, message = await asyncio.wait_for(sub.next(), t.WAIT)
         self.assertEqual((producer.instance_id, message.header.frame_id), ("cam_a", 99))
         # Once messaging is closed, publishing is refused.
-        with self.assertRaises(Exception):
+        with self.assertRaises(ShuttingDown):
             await publisher.publish(frames.build_message(frames.MessageHeader(stamp=1.0, frame_id=1), b""))
 
     async def test_a_hook_overrunning_the_grace_window_is_cut_off_and_the_rest_skipped(self):

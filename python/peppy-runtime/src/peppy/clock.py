@@ -19,7 +19,6 @@ dropped, with one warning per subscription.
 
 from __future__ import annotations
 
-import asyncio
 import logging
 import struct
 import threading

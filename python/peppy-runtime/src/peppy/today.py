@@ -151,9 +151,7 @@ async def fire_goal_at(
     return await fire_goal(runner, spec, timeout, request, feedback_qos, target=instance)
 
 
-async def next_accepted_goal(
-    server: GoalServer, decide: Callable[[str, str, Any], Any]
-) -> Optional[GoalContext]:
+async def next_accepted_goal(server: GoalServer, decide: Callable[[str, str, Any], Any]) -> Optional[GoalContext]:
     """The next goal `decide` accepts; rejected goals are answered and
     skipped. `decide(instance_id, core_node, goal)` returns an object with
     `accepted` and `reason` (or an awaitable of one). None once the node
@@ -164,7 +162,9 @@ async def next_accepted_goal(
         if inspect.isawaitable(answer):
             answer = await answer
         if not hasattr(answer, "accepted"):
-            raise TypeError(f"a goal decider returns GoalDecision.accept() or GoalDecision.reject(reason), got {answer!r}")
+            raise TypeError(
+                f"a goal decider returns GoalDecision.accept() or GoalDecision.reject(reason), got {answer!r}"
+            )
         return bool(answer.accepted), getattr(answer, "reason", None)
 
     while True:
