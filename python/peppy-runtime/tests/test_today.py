@@ -361,6 +361,37 @@ class ShutdownTest(TodayTest):
         self.assertFalse(cam.use_sim_time())
 
 
+class StandaloneTest(TodayTest):
+    async def standalone(self, node: str, config: Any, args: List[str], grace: Optional[float] = None) -> Any:
+        gen = package(node)
+        builder = gen.NodeBuilder().with_runtime_config(None).standalone(config)
+        builder.with_args(["--listen", f"tcp/127.0.0.1:{t.free_port()}", "--namespace", self.namespace, *args])
+        if grace is not None:
+            builder.shutdown_grace(grace)
+        runner = await asyncio.wait_for(builder.start(), t.WAIT)
+        self.runners.append(runner)
+        return runner
+
+    async def test_a_standalone_config_gives_defaults_the_command_line_overrides(self):
+        gen = package("tviewer")
+        config = gen.StandaloneConfig().with_instance_id("solo").with_bound_producer("camera", "lab", "cam_x")
+        solo = await self.standalone("tviewer", config, [], grace=1.5)
+        self.assertEqual(solo.instance_id, "solo")
+        self.assertEqual(entry("tviewer", "consumed_topics.camera.frames").bound_producer(solo).instance_id, "cam_x")
+        self.assertEqual(solo.shutdown_grace, 1.5)
+        self.assertFalse(solo.use_sim_time())
+        config = gen.StandaloneConfig().with_instance_id("solo").with_bound_producer("camera", "lab", "cam_x")
+        other = await self.standalone(
+            "tviewer", config, ["--instance-id", "solo_2", "--link", "camera@cam_y", "--use-sim-time"]
+        )
+        self.assertEqual(other.instance_id, "solo_2")
+        self.assertEqual(other.bound_producers("camera"), [ProducerRef(other.core_node, "cam_y")])
+        self.assertTrue(other.use_sim_time())
+        self.assertEqual(other.shutdown_grace, 5.0)
+        sim = await self.standalone("tcam", package("tcam").StandaloneConfig().with_use_sim_time(True), [])
+        self.assertTrue(sim.use_sim_time())
+
+
 NODE_SCRIPT = """
 import asyncio, sys
 sys.path[:0] = [{src!r}, {gen!r}]

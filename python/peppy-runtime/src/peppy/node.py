@@ -120,9 +120,11 @@ class NodeBuilder:
                 startup.use_sim_time = True
             elif wanted is False:
                 startup.use_sim_time = False
-        startup.shutdown_grace_secs = (
-            grace_from_env() or startup.shutdown_grace_secs or self._grace or DEFAULT_SHUTDOWN_GRACE
-        )
+        # The environment, then the launcher's config, then the code; a
+        # standalone plan carries only a default, so the code goes first there.
+        planned = startup.shutdown_grace_secs
+        chosen = (planned or self._grace) if config_file else (self._grace or planned)
+        startup.shutdown_grace_secs = grace_from_env() or chosen or DEFAULT_SHUTDOWN_GRACE
         parameters = self._parameters(startup)
         config = startup.endpoints.zenoh_config()
         loop = asyncio.get_running_loop()
