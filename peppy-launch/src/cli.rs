@@ -64,9 +64,12 @@ pub(crate) enum Command {
     /// Actions of a running stack: list, send-goal.
     #[command(subcommand)]
     Action(ActionCommand),
-    /// Write a Python node's generated `peppygen` package beside its
-    /// `peppy.json5` (`up` does it before building). A Rust node generates
-    /// its API when it builds, so there is nothing to write for one.
+    /// Write a node's generated API where its build takes it from (`up`
+    /// and `run` do it before building): the `.peppy/libs/peppygen` and
+    /// `.peppy/libs/peppylib` crates or projects when its Cargo.toml or
+    /// pyproject.toml takes them from there, else a Python node's
+    /// `peppygen` package beside its `peppy.json5`. A Rust node using
+    /// build.rs or `#[peppy::node]` generates its API when it builds.
     Sync(SyncArgs),
     /// Rewrite documents of the seeds' spelling (`node_v1`, `interface_v1`,
     /// `launcher_v1`) in today's (`node/v1`, `contract/v1`, `launcher/v1`):

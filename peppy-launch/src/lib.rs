@@ -34,7 +34,7 @@ pub use error::{InspectError, LaunchError, Result, SetupError, UsageError, exit}
 pub use executable::{ExecutableError, FindError};
 pub use inspect::SelectError;
 pub use placement::PlacementError;
-pub use python_sync::{PackageError, UV_VERSION, UvError, uv};
+pub use python_sync::{PackageError, RUNTIME_ENV, UV_VERSION, UvError, runtime_dir, uv};
 pub use run_node::LocateError;
 pub use runs::LogsError;
 pub use security::keys::KeysError;

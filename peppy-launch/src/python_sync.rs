@@ -1,6 +1,15 @@
 //! `peppy-launch sync PATH`: writes a Python node's generated `peppygen`
-//! package next to its `peppy.json5` (`up` runs it before every build), and
-//! finds `uv` for Python nodes' build and run commands.
+//! package (`up` and `run` do it before every build), and finds `uv` for
+//! Python nodes' build and run commands.
+//!
+//! Two layouts. By default the package is `peppygen/` next to
+//! `peppy.json5`, and the node's project lists it among its packages. A
+//! node whose `pyproject.toml` takes `peppygen` from `.peppy/libs/peppygen`
+//! (a `[tool.uv.sources]` path, as today's PeppyOS nodes do) gets two small
+//! projects there instead: `.peppy/libs/peppygen` (the generated package)
+//! and `.peppy/libs/peppylib` (`peppylib`, today's name for the `peppy`
+//! runtime: a thin package re-exporting it). Both depend on the runtime
+//! project `python/peppy-runtime` by path (see [`runtime_dir`]).
 
 use std::path::{Path, PathBuf};
 
@@ -12,6 +21,13 @@ use crate::report;
 
 /// The generated package's directory name, beside `peppy.json5`.
 pub(crate) const PACKAGE: &str = "peppygen";
+
+/// Where the `.peppy/libs` layout puts its projects, below the node's directory.
+pub(crate) const LIBS: &str = ".peppy/libs";
+
+/// Names the runtime project (`python/peppy-runtime`) the `.peppy/libs`
+/// projects depend on, instead of the one this `peppy-launch` was built from.
+pub const RUNTIME_ENV: &str = "PEPPY_PYTHON_RUNTIME";
 
 pub(crate) fn run(args: &SyncArgs) -> Result {
     let options = RepoOptions {
@@ -47,10 +63,15 @@ pub(crate) fn run(args: &SyncArgs) -> Result {
     }
     let dir = file.parent().unwrap_or(Path::new("."));
     let changed = write_package(node, dir)?;
+    let written = if uses_libs(dir) {
+        dir.join(LIBS)
+    } else {
+        dir.join(PACKAGE)
+    };
     println!(
         "{}: {} ({} file(s) changed)",
         node.node.identity(),
-        dir.join(PACKAGE).display(),
+        written.display(),
         changed
     );
     Ok(())
@@ -73,6 +94,16 @@ pub enum PackageError {
     /// The generator failed for another reason than the documents.
     #[error("{0}")]
     Generate(String),
+    /// The `peppy` runtime project the `.peppy/libs` projects depend on
+    /// is not where it was looked for.
+    #[error(
+        "the peppy Python runtime is not at {}: set {RUNTIME_ENV} to the `python/peppy-runtime` directory of a peppy checkout",
+        path.display()
+    )]
+    Runtime {
+        /// Where it was looked for.
+        path: PathBuf,
+    },
     /// A file or directory of the package could not be written or removed.
     #[error("cannot {action} {}: {source}", path.display())]
     Io {
@@ -85,9 +116,11 @@ pub enum PackageError {
     },
 }
 
-/// Writes `dir/peppygen` for `node`: files whose text changed, and removes
-/// generated files the documents no longer produce. Returns how many files
-/// it wrote or removed.
+/// Writes the generated package of `node`, whose documents are in `dir`:
+/// `dir/peppygen`, or the `.peppy/libs` projects when the node's
+/// `pyproject.toml` asks for them ([`uses_libs`]). Only files whose text
+/// changed are written, and generated files the documents no longer
+/// produce are removed. Returns how many files it wrote or removed.
 pub(crate) fn write_package(
     node: &ResolvedNode,
     dir: &Path,
@@ -98,7 +131,46 @@ pub(crate) fn write_package(
             errors: diags.error_count(),
         }
     })?;
-    let root = dir.join(PACKAGE);
+    if !uses_libs(dir) {
+        return write_tree(&dir.join(PACKAGE), &files, true);
+    }
+    let runtime = runtime_dir()?;
+    let libs = dir.join(LIBS);
+    let identity = node.node.identity().to_string();
+    let mut changed = write_tree(&libs.join(PACKAGE).join(PACKAGE), &files, true)?;
+    let project = libs_project(
+        PACKAGE,
+        &format!("The generated API of peppy node `{identity}`"),
+        &runtime,
+        Some(&files),
+    );
+    changed += write_tree(
+        &libs.join(PACKAGE),
+        &[("pyproject.toml".into(), project)],
+        false,
+    )?;
+    let lib = libs.join(PEPPYLIB);
+    changed += write_tree(&lib.join(PEPPYLIB), &peppylib_files(), true)?;
+    let project = libs_project(
+        PEPPYLIB,
+        "peppylib: the peppy runtime under the name today's node code imports",
+        &runtime,
+        None,
+    );
+    changed += write_tree(&lib, &[("pyproject.toml".into(), project)], false)?;
+    Ok(changed)
+}
+
+/// The thin runtime package's name in the `.peppy/libs` layout.
+const PEPPYLIB: &str = "peppylib";
+
+/// Writes `files` below `root` where their text changed; with `prune`,
+/// removes the other `.py` files below it. Returns how many it touched.
+fn write_tree(
+    root: &Path,
+    files: &[(PathBuf, String)],
+    prune: bool,
+) -> std::result::Result<usize, PackageError> {
     let io = |action: &'static str, path: &Path, source: std::io::Error| PackageError::Io {
         action,
         path: path.to_path_buf(),
@@ -106,7 +178,7 @@ pub(crate) fn write_package(
     };
     let mut changed = 0;
     let mut wanted = Vec::new();
-    for (relative, text) in &files {
+    for (relative, text) in files {
         let path = root.join(relative);
         wanted.push(path.clone());
         if std::fs::read_to_string(&path).is_ok_and(|old| old == *text) {
@@ -118,13 +190,136 @@ pub(crate) fn write_package(
         std::fs::write(&path, text).map_err(|e| io("write", &path, e))?;
         changed += 1;
     }
-    for stale in python_files(&root) {
-        if !wanted.contains(&stale) {
-            std::fs::remove_file(&stale).map_err(|e| io("remove", &stale, e))?;
-            changed += 1;
+    if prune {
+        for stale in python_files(root) {
+            if !wanted.contains(&stale) {
+                std::fs::remove_file(&stale).map_err(|e| io("remove", &stale, e))?;
+                changed += 1;
+            }
         }
     }
     Ok(changed)
+}
+
+/// Whether the node in `dir` takes `peppygen` from `.peppy/libs/peppygen`:
+/// its `pyproject.toml` names that path (a `[tool.uv.sources]` entry).
+pub(crate) fn uses_libs(dir: &Path) -> bool {
+    let Ok(text) = std::fs::read_to_string(dir.join("pyproject.toml")) else {
+        return false;
+    };
+    let wanted = format!("{LIBS}/{PACKAGE}");
+    text.lines()
+        .map(|l| l.split('#').next().unwrap_or_default())
+        .any(|l| {
+            [
+                format!("\"{wanted}\""),
+                format!("'{wanted}'"),
+                format!("\"./{wanted}\""),
+                format!("'./{wanted}'"),
+            ]
+            .iter()
+            .any(|quoted| l.contains(quoted.as_str()))
+        })
+}
+
+/// The `peppy` runtime project (`python/peppy-runtime`) the `.peppy/libs`
+/// projects depend on: [`RUNTIME_ENV`] when set, else the one in the
+/// source tree this `peppy-launch` was built from (its path is compiled
+/// in), which must still be there.
+pub fn runtime_dir() -> std::result::Result<PathBuf, PackageError> {
+    let path = match std::env::var_os(RUNTIME_ENV).filter(|v| !v.is_empty()) {
+        Some(dir) => PathBuf::from(dir),
+        None => Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("..")
+            .join("python")
+            .join("peppy-runtime"),
+    };
+    match std::fs::canonicalize(&path) {
+        Ok(p) if p.join("pyproject.toml").is_file() => Ok(p),
+        _ => Err(PackageError::Runtime { path }),
+    }
+}
+
+/// A `file://` URL of an absolute path, for a PEP 508 direct reference.
+fn file_url(path: &Path) -> String {
+    let mut url = String::from("file://");
+    for b in path.to_string_lossy().bytes() {
+        match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'/' | b'-' | b'_' | b'.' | b'~' => {
+                url.push(b as char)
+            }
+            other => url.push_str(&format!("%{other:02X}")),
+        }
+    }
+    url
+}
+
+/// The `pyproject.toml` of one `.peppy/libs` project. `files` (the
+/// generated package) are hashed into it, so that any change of them
+/// changes this file too: uv reinstalls a path dependency when its
+/// `pyproject.toml` changes, and with `cache-keys` when any of its files do.
+fn libs_project(
+    name: &str,
+    description: &str,
+    runtime: &Path,
+    files: Option<&[(PathBuf, String)]>,
+) -> String {
+    let mut text = String::from(
+        "# Generated by `peppy-launch sync` (also run by `up` and `run`); rewritten when it changes. Do not edit.\n",
+    );
+    if let Some(files) = files {
+        let mut all = String::new();
+        for (path, body) in files {
+            all.push_str(&format!("{}\n{}\n{body}\n", path.display(), body.len()));
+        }
+        let hash = peppy_schema::sha256_hex(all.as_bytes());
+        text.push_str(&format!("# generated code: sha256 {}\n", &hash[..16]));
+    }
+    let dependency = format!("peppy-runtime @ {}", file_url(runtime));
+    text.push_str(&format!(
+        "[project]\n\
+         name = \"{name}\"\n\
+         version = \"0.1.0\"\n\
+         description = \"{description}\"\n\
+         requires-python = \">=3.9\"\n\
+         dependencies = [\"{dependency}\"]\n\
+         \n\
+         [build-system]\n\
+         requires = [\"hatchling\"]\n\
+         build-backend = \"hatchling.build\"\n\
+         \n\
+         [tool.hatch.metadata]\n\
+         allow-direct-references = true\n\
+         \n\
+         [tool.hatch.build.targets.wheel]\n\
+         packages = [\"{name}\"]\n\
+         \n\
+         [tool.uv]\n\
+         cache-keys = [{{ file = \"pyproject.toml\" }}, {{ file = \"{name}/**/*.py\" }}]\n"
+    ));
+    text
+}
+
+/// The `peppylib` package: today's name for the `peppy` runtime, and its
+/// clock module. It holds no runtime of its own.
+fn peppylib_files() -> Vec<(PathBuf, String)> {
+    let init = "\"\"\"peppylib: the `peppy` runtime (python/peppy-runtime) under the name today's\n\
+node code imports (`from peppylib import CancellationToken`, `peppylib.clock`).\n\
+Everything here is the runtime's own.\"\"\"\n\
+# Generated by `peppy-launch sync`. Do not edit.\n\
+from peppy import *  # noqa: F401,F403\n\
+from peppy import __all__ as _all\n\
+from peppy import clock  # noqa: F401\n\
+\n\
+__all__ = list(_all)\n";
+    let clock = "\"\"\"The stack clock: `peppy.clock` under today's name.\"\"\"\n\
+# Generated by `peppy-launch sync`. Do not edit.\n\
+from peppy.clock import *  # noqa: F401,F403\n\
+from peppy.clock import __all__  # noqa: F401\n";
+    vec![
+        (PathBuf::from("__init__.py"), init.to_string()),
+        (PathBuf::from("clock.py"), clock.to_string()),
+    ]
 }
 
 /// Every `.py` file below `root` (caches left alone).

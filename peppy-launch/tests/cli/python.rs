@@ -259,3 +259,189 @@ fn seed_000_python_consumer_keys_frames_by_producer() {
     });
     assert_eq!(launch.stop(), 0);
 }
+
+/// A Python node in today's API and layout (`examples/nodes/py_today_camera`:
+/// `node/v1`, `.peppy/libs`, `uv sync --no-editable`, run from its own
+/// `.venv`) under `up`: the Rust viewer hears its frames, which the stack
+/// clock stamps, and its shutdown hook runs on Ctrl-C before it exits 0.
+#[test]
+fn a_python_node_in_todays_api_and_layout_runs_under_up() {
+    let mut launch = Launch::up("examples/launchers/py_today_camera.json5", &[]);
+    launch.expect("with the viewer hearing py_cam", BUILD_AND_START, |l| {
+        l.starts_with("[viewer]") && l.contains("first frame from py_cam")
+    });
+    let stamped = launch.expect("with a stamped frame", Duration::from_secs(30), |l| {
+        l.starts_with("[py_cam] frame ") && l.contains(" stamped ")
+    });
+    let ns: u64 = stamped
+        .split_whitespace()
+        .rev()
+        .nth(1)
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("a stamp in ns: {stamped}"));
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_nanos() as u64;
+    assert!(
+        now.abs_diff(ns) < 60_000_000_000,
+        "{ns} is the wall clock ({now})"
+    );
+    let (code, seen) = launch.stop_seen();
+    assert_eq!(code, 0, "{}", seen.join("\n"));
+    assert!(
+        seen.iter()
+            .any(|l| l.starts_with("[py_cam] py_today_camera: stopping after")),
+        "the shutdown hook ran:\n{}",
+        seen.join("\n")
+    );
+    assert!(
+        seen.iter().any(|l| l == "peppy-launch: `py_cam` stopped"),
+        "{}",
+        seen.join("\n")
+    );
+}
+
+/// Every file below `dir`, with its modification time.
+fn mtimes(dir: &std::path::Path) -> Vec<(std::path::PathBuf, std::time::SystemTime)> {
+    let mut out: Vec<_> = walkdir::WalkDir::new(dir)
+        .into_iter()
+        .map(Result::unwrap)
+        .filter(|e| e.file_type().is_file())
+        .map(|e| {
+            (
+                e.path().to_path_buf(),
+                e.metadata().unwrap().modified().unwrap(),
+            )
+        })
+        .collect();
+    out.sort();
+    out
+}
+
+/// The installed copy of `relative` (below site-packages) in `node`'s `.venv`.
+fn installed(node: &std::path::Path, relative: &str) -> String {
+    let lib = node.join(".venv/lib");
+    let python = std::fs::read_dir(&lib)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| {
+            p.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with("python")
+        })
+        .expect("a python directory in .venv/lib");
+    std::fs::read_to_string(python.join("site-packages").join(relative)).unwrap()
+}
+
+/// `sync` on a node whose pyproject.toml takes `peppygen` and `peppylib`
+/// from `.peppy/libs`: two projects there (nothing beside peppy.json5), a
+/// second `sync` touches no file, `uv sync --no-editable` installs them
+/// (`peppylib` re-exporting the one `peppy` runtime), and a change of the
+/// documents reaches the installed package at the next `uv sync`.
+#[test]
+fn sync_writes_the_libs_projects_and_uv_reinstalls_what_changed() {
+    let dir = tempfile::tempdir().unwrap();
+    let node = dir.path().join("cam");
+    let example = root().join("examples/nodes/py_today_camera");
+    std::fs::create_dir_all(node.join("src/py_today_camera")).unwrap();
+    for file in [
+        "peppy.json5",
+        "pyproject.toml",
+        "src/py_today_camera/__init__.py",
+        "src/py_today_camera/__main__.py",
+    ] {
+        std::fs::copy(example.join(file), node.join(file)).unwrap();
+    }
+    let repo = root().join("examples");
+    let sync = || {
+        let run = crate::support::peppy_launch(
+            dir.path(),
+            &[
+                "sync",
+                node.to_str().unwrap(),
+                "--repo",
+                repo.to_str().unwrap(),
+            ],
+        );
+        assert_eq!(run.code, 0, "{}", run.stderr);
+        run.stdout
+    };
+    let first = sync();
+    assert!(
+        first.contains(".peppy/libs (") && !first.contains("(0 file(s)"),
+        "{first}"
+    );
+    assert!(
+        !node.join("peppygen").exists(),
+        "nothing beside peppy.json5"
+    );
+    let libs = node.join(".peppy/libs");
+    for file in [
+        "peppygen/pyproject.toml",
+        "peppygen/peppygen/__init__.py",
+        "peppygen/peppygen/clock.py",
+        "peppygen/peppygen/emitted_topics/camera/video_stream.py",
+        "peppylib/pyproject.toml",
+        "peppylib/peppylib/__init__.py",
+        "peppylib/peppylib/clock.py",
+    ] {
+        assert!(libs.join(file).is_file(), "{file}");
+    }
+    let project = std::fs::read_to_string(libs.join("peppygen/pyproject.toml")).unwrap();
+    let runtime = std::fs::canonicalize(root().join("python/peppy-runtime")).unwrap();
+    assert!(
+        project.contains(&format!("\"peppy-runtime @ file://{}\"", runtime.display())),
+        "{project}"
+    );
+    let before = mtimes(&libs);
+    let second = sync();
+    assert!(second.contains("(0 file(s) changed)"), "{second}");
+    assert_eq!(mtimes(&libs), before, "a second sync rewrites nothing");
+
+    let uv_sync = || {
+        let out = Command::new(uv())
+            .args(["sync", "--no-editable"])
+            .current_dir(&node)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    uv_sync();
+    let probe = Command::new(node.join(".venv/bin/python"))
+        .args([
+            "-c",
+            "import peppy, peppylib, peppygen\n\
+             assert peppylib.clock is peppy.clock and peppylib.CancellationToken is peppy.CancellationToken\n\
+             print(peppylib.clock.synchronize.__module__, peppygen.DESCRIPTOR.name)",
+        ])
+        .current_dir(&node)
+        .output()
+        .unwrap();
+    assert_eq!(
+        String::from_utf8_lossy(&probe.stdout).trim(),
+        "peppy.clock py_today_camera",
+        "{}",
+        String::from_utf8_lossy(&probe.stderr)
+    );
+    assert!(!installed(&node, "peppygen/parameters.py").contains("gain"));
+
+    let doc = std::fs::read_to_string(node.join("peppy.json5")).unwrap();
+    let doc = doc.replace(
+        "frames_per_second: { $type: \"u8\", $default: 15 },",
+        "frames_per_second: { $type: \"u8\", $default: 15 },\n      gain: { $type: \"u8\", $default: 1 },",
+    );
+    std::fs::write(node.join("peppy.json5"), doc).unwrap();
+    let third = sync();
+    assert!(!third.contains("(0 file(s)"), "{third}");
+    uv_sync();
+    assert!(
+        installed(&node, "peppygen/parameters.py").contains("gain"),
+        "the regenerated package was reinstalled"
+    );
+}

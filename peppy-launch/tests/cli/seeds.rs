@@ -143,20 +143,15 @@ impl Launch {
         out
     }
 
-    /// [`stop`](Self::stop), also returning every line seen.
-    pub(crate) fn stop_seen(mut self) -> (i32, Vec<String>) {
-        let code = self.stop_inner();
-        (code, std::mem::take(&mut self.seen))
-    }
-
     /// Ctrl-C; returns the exit code. No instance may need SIGKILL: the
     /// ZED's service loop ignores every error (`loop { let _ = ... }`) and
     /// must still stop on SIGINT.
-    pub(crate) fn stop(mut self) -> i32 {
-        self.stop_inner()
+    pub(crate) fn stop(self) -> i32 {
+        self.stop_seen().0
     }
 
-    fn stop_inner(&mut self) -> i32 {
+    /// [`Launch::stop`], also giving every line seen, the stop's included.
+    pub(crate) fn stop_seen(mut self) -> (i32, Vec<String>) {
         assert!(
             Command::new("kill")
                 .args(["-INT", &self.child.id().to_string()])
@@ -184,7 +179,7 @@ impl Launch {
             "an instance had to be killed:\n{}",
             self.seen.join("\n")
         );
-        code
+        (code, std::mem::take(&mut self.seen))
     }
 }
 

@@ -6,8 +6,11 @@ generated `peppygen` package (`NodeBuilder().run(setup)`); the modules
 here are what that package calls.
 """
 
+from . import clock
 from .action_states import CancelState, ResultOutcome, ResultStatus
+from .cancellation import CancellationToken
 from .errors import (
+    ClockNotReady,
     FeedbackEnded,
     PeppyError,
     ServiceError,
@@ -15,18 +18,25 @@ from .errors import (
     ServiceUnreachable,
     ShuttingDown,
     StartupError,
+    TargetNotBound,
     Undeclared,
+    WrongTopic,
 )
 from .node import NodeBuilder, NodeRunner
+from .producer import ProducerRef
 from .spec import QoSProfile
+from .standalone import StandaloneConfig
 from .timestamps import Time
 
 __all__ = [
     "CancelState",
+    "CancellationToken",
+    "ClockNotReady",
     "FeedbackEnded",
     "NodeBuilder",
     "NodeRunner",
     "PeppyError",
+    "ProducerRef",
     "QoSProfile",
     "ResultOutcome",
     "ResultStatus",
@@ -34,7 +44,11 @@ __all__ = [
     "ServiceTimeout",
     "ServiceUnreachable",
     "ShuttingDown",
+    "StandaloneConfig",
     "StartupError",
+    "TargetNotBound",
     "Time",
     "Undeclared",
+    "WrongTopic",
+    "clock",
 ]

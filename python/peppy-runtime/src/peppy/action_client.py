@@ -94,7 +94,7 @@ class GoalClient:
         """The next feedback message; `FeedbackEnded` once the goal is
         terminal and every feedback message was read. Raises
         `ShuttingDown` once this node stops."""
-        if self._runner.is_stopping():
+        if self._runner.refuses_calls():
             raise await refused()
         while not self._ended:
             item = await self._feedback.get()
@@ -152,20 +152,23 @@ async def fire_goal(
     timeout: float,
     goal: Any,
     feedback_qos: Optional[QoSProfile] = None,
+    target: Optional[str] = None,
 ) -> GoalClient:
     """Sends a goal through the action's slot and waits for the server's
     decision (`.accepted`, `.error_message`). The feedback stream is
     subscribed before the goal is sent, so none is missed; `feedback_qos`
-    sets its queue (drop profiles keep the newest, others everything)."""
+    sets its queue (drop profiles keep the newest, others everything).
+    `target` (an instance id the caller checked is bound to the slot)
+    names the server; without it the slot chooses."""
     body = spec.goal.encode(goal)
-    if runner.is_stopping():
+    if runner.refuses_calls():
         raise await refused()
     loop = runner.loop
     deadline = loop.time() + timeout
     entry = Entry(
         spec.link_id, spec.owner, ACTION, spec.name, "goal", spec.goal.fingerprint, f"{spec.name} (action goal)"
     )
-    server = await choose(runner, entry, deadline)
+    server = target if target is not None else await choose(runner, entry, deadline)
     goal_id = new_goal_id()
     keep = feedback_qos.keep_newest if isinstance(feedback_qos, QoSProfile) else None
     feedback = Mailbox(loop, maxlen=keep)

@@ -49,7 +49,7 @@ async def declare_all(runner: NodeRunner, retention: float) -> None:
     consumes = await _subscribe(runner)
     for spec in d.exposed_services:
         key = runner._own_key(SERVICE, spec.owner, spec.name)
-        mailbox = runner._mailbox()
+        mailbox = runner._mailbox(intake=True)
         runner._declared.append(session.declare_queryable(key, ServiceIntake(spec, key, mailbox), complete=True))
         runner._services[spec] = (mailbox, key)
     for spec in d.exposed_actions:
@@ -128,7 +128,7 @@ async def _subscribe(runner: NodeRunner) -> List[Dict[str, Any]]:
         members_of = slot if members is not None else None
         routes.append(consumed_topic(spec, runner.node_name, runner.node_tag, selector, route_filter, members_of))
         inbox = Inbox(runner.loop, spec)
-        runner._track_mailbox(inbox.mailbox)
+        runner._track_mailbox(inbox.mailbox, intake=True)
         intake = Intake(spec, route_filter, members, inbox, lambda *a: _mismatch(runner, *a), declarer)
         runner._declared.append(runner.session.declare_subscriber(selector, intake))
         runner._inboxes[spec] = inbox
@@ -173,7 +173,7 @@ def _serve_action(runner: NodeRunner, spec: ActionSpec, retention: float) -> Non
     sweep that expires kept results."""
     base = runner._own_key(ACTION, spec.owner, spec.name)
     registry = Registry(spec, base, runner.session, retention)
-    mailbox = runner._mailbox()
+    mailbox = runner._mailbox(intake=True)
     goal_key = action_part_key(base, "goal")
     for key, callback in (
         (goal_key, GoalIntake(spec, goal_key, mailbox)),

@@ -13,8 +13,8 @@ def _on(instance: Optional[str]) -> str:
     return f" on `{instance}`" if instance else ""
 
 
-class ServiceUnreachable(PeppyError):
-    """No server of the service (or action) answered."""
+class ServiceUnreachable(PeppyError, ConnectionError):
+    """No server of the service (or action) answered (a `ConnectionError`)."""
 
     def __init__(self, service: str, instance: Optional[str] = None) -> None:
         self.service = service
@@ -23,7 +23,7 @@ class ServiceUnreachable(PeppyError):
 
 
 class ServiceTimeout(PeppyError, TimeoutError):
-    """A server accepted the request (it acked) but did not answer in time."""
+    """A server accepted the request (it acked) but did not answer in time (a `TimeoutError`)."""
 
     def __init__(self, service: str, instance: Optional[str] = None) -> None:
         self.service = service
@@ -31,8 +31,8 @@ class ServiceTimeout(PeppyError, TimeoutError):
         super().__init__(f"service `{service}`{_on(instance)} accepted the request but did not reply in time")
 
 
-class ServiceError(PeppyError):
-    """The server answered with an error: its handler failed, or the formats differ."""
+class ServiceError(PeppyError, RuntimeError):
+    """The server answered with an error: its handler failed, or the formats differ (a `RuntimeError`)."""
 
     def __init__(self, service: str, instance: str, reason: str) -> None:
         self.service = service
@@ -52,8 +52,8 @@ class StartupError(PeppyError):
     """Start-up inputs are missing or invalid (flags, runtime config, bindings, parameters)."""
 
 
-class FeedbackEnded(PeppyError):
-    """A goal's feedback stream has ended: the goal is terminal."""
+class FeedbackEnded(PeppyError, RuntimeError):
+    """A goal's feedback stream has ended: the goal is terminal (a `RuntimeError`)."""
 
     def __init__(self, action: str) -> None:
         self.action = action
@@ -66,3 +66,34 @@ class Undeclared(PeppyError):
     def __init__(self, what: str) -> None:
         self.what = what
         super().__init__(f"`{what}` is not declared by this node")
+
+
+class TargetNotBound(PeppyError, ValueError):
+    """A service or action was called on a producer its slot is not bound
+    to (a `ValueError`): today's API names the target, one of the slot's
+    `bound_producer(s)`."""
+
+    def __init__(self, slot: str, target: str, bound: "list[str]") -> None:
+        self.slot = slot
+        self.target = target
+        self.bound = list(bound)
+        where = f" (it is bound to {', '.join(bound)})" if bound else " (it is bound to no producer)"
+        super().__init__(f"`{target}` is not bound to slot `{slot}`{where}")
+
+
+class WrongTopic(PeppyError, ValueError):
+    """A message built for one topic was handed to another topic's publisher."""
+
+    def __init__(self, publisher: str, message: str) -> None:
+        self.publisher = publisher
+        self.message = message
+        super().__init__(f"a message of topic `{message}` cannot be published on topic `{publisher}`")
+
+
+class ClockNotReady(PeppyError, RuntimeError):
+    """The stack clock has no time to give yet (a `RuntimeError`): `init`
+    was not called, or, following sim time, no sim tick has arrived (or the
+    launcher has seen none, for `synchronize`)."""
+
+    def __init__(self, why: str = "the clock is not ready") -> None:
+        super().__init__(why)

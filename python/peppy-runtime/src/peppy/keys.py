@@ -79,6 +79,21 @@ def describe_key(ns: str, core: str, instance: str) -> str:
     return f"peppy/{ns}/describe/{core}/{instance}"
 
 
+CLOCK_WALL = "wall"
+CLOCK_SIM = "sim"
+
+
+def clock_tick_key(ns: str, source: str) -> str:
+    """`peppy/<ns>/clock/tick/<wall|sim>`: where a launch publishes its wall
+    ticks, or a simulator its sim ticks (8 bytes, u64 LE ns)."""
+    return f"peppy/{ns}/clock/tick/{source}"
+
+
+def clock_sync_key(ns: str) -> str:
+    """`peppy/<ns>/clock/sync`: the launcher's clock synchronization queryable."""
+    return f"peppy/{ns}/clock/sync"
+
+
 def parse_liveliness_key(key: str) -> Optional[Tuple[str, str]]:
     """`(core, instance)` of a liveliness token's key."""
     parts = key.split("/")

@@ -17,9 +17,13 @@ from .declare import declare_all
 from .errors import PeppyError, StartupError
 from .runner import NodeRunner
 from .spec import NodeDescriptor
-from .startup import Startup, config_file_from_env, load
+from .standalone import StandaloneConfig
+from .startup import DEFAULT_SHUTDOWN_GRACE, Startup, config_file_from_env, grace_from_env, grace_secs, load
 
-__all__ = ["NodeBuilder", "NodeRunner"]
+__all__ = ["NodeBuilder", "NodeRunner", "StandaloneConfig"]
+
+USE_SIM_TIME_FLAG = "--use-sim-time"
+"""The command-line flag a standalone node follows sim time with."""
 
 log = logging.getLogger("peppy")
 
@@ -33,13 +37,17 @@ class NodeBuilder:
     """Builds and runs a node: reads its start-up inputs, opens one Zenoh
     session, declares every publisher, subscription and service up front,
     runs the node's setup code, then keeps the node up until SIGINT or
-    SIGTERM (or `NodeRunner.stop()`)."""
+    SIGTERM (or `NodeRunner.stop()`, or its cancellation token cancelled).
+    Stopping cancels the token, runs the shutdown hooks, closes messaging,
+    then cancels the node's tasks."""
 
     def __init__(self, descriptor: NodeDescriptor) -> None:
         self._descriptor = descriptor
         self._args: Optional[List[str]] = None
         self._runtime_config: Any = _UNSET
         self._retention = DEFAULT_RESULT_RETENTION
+        self._standalone: Optional[StandaloneConfig] = None
+        self._grace: Optional[float] = None
 
     def with_args(self, args: Iterable[str]) -> "NodeBuilder":
         """Uses these command-line arguments (without the program name) instead of `sys.argv[1:]`."""
@@ -49,6 +57,18 @@ class NodeBuilder:
     def with_runtime_config(self, path: Optional[str]) -> "NodeBuilder":
         """Uses this runtime-config file (or none) instead of `PEPPY_RUNTIME_CONFIG`."""
         self._runtime_config = path
+        return self
+
+    def standalone(self, config: StandaloneConfig) -> "NodeBuilder":
+        """Defaults for a start without a launcher (each replaced by its
+        command-line flag); a launcher's runtime config wins."""
+        self._standalone = config
+        return self
+
+    def shutdown_grace(self, seconds: float) -> "NodeBuilder":
+        """The window shutdown hooks run in when the runtime config does not
+        set one (default 5 s); `PEPPY_SHUTDOWN_GRACE_SECS` overrides both."""
+        self._grace = grace_secs(seconds, "NodeBuilder.shutdown_grace")
         return self
 
     def action_result_retention(self, seconds: float) -> "NodeBuilder":
@@ -79,8 +99,32 @@ class NodeBuilder:
         import zenoh
 
         config_file = config_file_from_env() if self._runtime_config is _UNSET else self._runtime_config
-        args = sys.argv[1:] if self._args is None else self._args
-        startup = load(self._descriptor, args, config_file)
+        args = list(sys.argv[1:] if self._args is None else self._args)
+        sim_flag = USE_SIM_TIME_FLAG in args
+        args = [a for a in args if a != USE_SIM_TIME_FLAG]
+        standalone = self._standalone if not config_file else None
+        if standalone is not None:
+            args += standalone.flags(args)
+        try:
+            startup = load(self._descriptor, args, config_file)
+        finally:
+            for path in standalone.written if standalone is not None else ():
+                try:
+                    os.remove(path)
+                except OSError:
+                    pass
+        if not config_file:
+            # A standalone start: the flag, else the code, says.
+            wanted = standalone.use_sim_time if standalone is not None else None
+            if sim_flag or wanted:
+                startup.use_sim_time = True
+            elif wanted is False:
+                startup.use_sim_time = False
+        # The environment, then the launcher's config, then the code; a
+        # standalone plan carries only a default, so the code goes first there.
+        planned = startup.shutdown_grace_secs
+        chosen = (planned or self._grace) if config_file else (self._grace or planned)
+        startup.shutdown_grace_secs = grace_from_env() or chosen or DEFAULT_SHUTDOWN_GRACE
         parameters = self._parameters(startup)
         config = startup.endpoints.zenoh_config()
         loop = asyncio.get_running_loop()
@@ -111,8 +155,10 @@ class NodeBuilder:
 
     def run(self, setup: Setup) -> None:
         """Runs the node to completion. `setup(params, node_runner)` runs
-        once (an `async def` returning the tasks it started, or None); a
-        setup that fails is printed and the process exits non-zero."""
+        once (a function or an `async def`, returning the tasks it started,
+        or None); a setup that fails is printed and the process exits 1
+        after the node's shutdown. A stop by signal or token exits 0; a
+        second signal while stopping exits at once with 128 + its number."""
         _init_logging()
         try:
             asyncio.run(self._run(setup))
@@ -132,7 +178,7 @@ class NodeBuilder:
         installed = []
         for sig, why in ((signal.SIGINT, "interrupted"), (signal.SIGTERM, "terminated")):
             try:
-                loop.add_signal_handler(sig, _stop_on, runner, why)
+                loop.add_signal_handler(sig, _on_signal, runner, why, int(sig))
                 installed.append(sig)
             except (NotImplementedError, RuntimeError, ValueError):
                 pass
@@ -153,9 +199,13 @@ class NodeBuilder:
             orphan_watch.cancel()
             if not stop_wait.done():
                 stop_wait.cancel()
-            for sig in installed:
-                loop.remove_signal_handler(sig)
-            await runner.shutdown()
+            try:
+                # The signal handlers stay while the hooks run: a second
+                # signal ends the process at once.
+                await runner.shutdown()
+            finally:
+                for sig in installed:
+                    loop.remove_signal_handler(sig)
 
 
 async def _stop_when_orphaned(runner: NodeRunner) -> None:
@@ -172,6 +222,18 @@ async def _stop_when_orphaned(runner: NodeRunner) -> None:
         if os.getppid() != parent:
             _stop_on(runner, "the process that started this node is gone")
             return
+
+
+def _on_signal(runner: NodeRunner, why: str, signo: int) -> None:
+    if runner.is_stopping():
+        log.warning("%s again while stopping; exiting now", why)
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except Exception:
+                pass
+        os._exit(128 + signo)
+    _stop_on(runner, why)
 
 
 def _stop_on(runner: NodeRunner, why: str) -> None:

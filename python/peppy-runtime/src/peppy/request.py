@@ -48,7 +48,7 @@ class Request:
         """Sends the request and waits for the answer."""
         import zenoh
 
-        if runner.is_stopping():
+        if runner.refuses_calls():
             raise await refused()
         loop = runner.loop
         budget = max(self.deadline - loop.time(), 0.001)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import inspect
 import logging
-from typing import Any, Awaitable, Callable, Tuple, Union
+from typing import Any, Awaitable, Callable, Optional, Tuple, Union
 
 from .attachment import QueryKind, ReplyStatus
 from .bridge import Mailbox
@@ -81,21 +81,25 @@ def _entry(spec: ConsumedServiceSpec) -> Entry:
     return Entry(spec.link_id, spec.owner, SERVICE, spec.name, None, spec.request.fingerprint, spec.name)
 
 
-async def call(runner: Any, spec: ConsumedServiceSpec, timeout: float, request: Any) -> Tuple[str, str, Any]:
+async def call(
+    runner: Any, spec: ConsumedServiceSpec, timeout: float, request: Any, target: Optional[str] = None
+) -> Tuple[str, str, Any]:
     """Calls a consumed service through its slot: `(server instance id,
     server core node, response)`.
 
     Pinned slots (and from_any slots bound to one producer) go straight to
     their producer; others go to the first server the slot accepts.
-    Raises `ServiceError` (the handler's text), `ServiceTimeout` (acked,
-    no answer in `timeout` seconds) or `ServiceUnreachable`.
+    `target` (an instance id the caller checked is bound to the slot)
+    names the server instead. Raises `ServiceError` (the handler's text),
+    `ServiceTimeout` (acked, no answer in `timeout` seconds) or
+    `ServiceUnreachable`.
     """
     payload = spec.request.encode(request)
-    if runner.is_stopping():
+    if runner.refuses_calls():
         raise await refused()
     deadline = runner.loop.time() + timeout
     entry = _entry(spec)
-    server = await choose(runner, entry, deadline)
+    server = target if target is not None else await choose(runner, entry, deadline)
     answer = await Request(
         key=entry.selector(runner, server),
         header=header(runner, QueryKind.REQUEST, spec.request.fingerprint),

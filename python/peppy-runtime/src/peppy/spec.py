@@ -61,6 +61,11 @@ class QoSProfile(enum.Enum):
     STANDARD = "standard"
     RELIABLE = "reliable"
     CRITICAL = "critical"
+    # Today's API spells them so (`QoSProfile.Standard`): the same members.
+    SensorData = "sensor_data"
+    Standard = "standard"
+    Reliable = "reliable"
+    Critical = "critical"
 
     @property
     def congestion_control(self) -> Any:

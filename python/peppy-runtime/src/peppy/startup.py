@@ -19,6 +19,10 @@ from .routing import SlotPlan, fit_plan, slot_from_json
 from .spec import NodeDescriptor
 
 RUNTIME_CONFIG_ENV = "PEPPY_RUNTIME_CONFIG"
+SHUTDOWN_GRACE_ENV = "PEPPY_SHUTDOWN_GRACE_SECS"
+"""Overrides the shutdown grace window (seconds) of the plan and of the code."""
+DEFAULT_SHUTDOWN_GRACE = 5.0
+"""How long shutdown hooks have, together, when nothing says otherwise (seconds)."""
 PEPPY_LAUNCH_ENV = "PEPPY_LAUNCH"
 """The `peppy-launch` program a node started by hand asks for its plan
 (else `peppy-launch` on `PATH`)."""
@@ -85,6 +89,11 @@ class Startup:
     endpoints: Endpoints
     slots: List[SlotPlan]
     parameters: Any
+    use_sim_time: bool = False
+    """Whether the node follows the stack's sim time (`peppy.clock`)."""
+    shutdown_grace_secs: Optional[float] = None
+    """The one window every shutdown hook runs in (seconds, > 0); None when
+    the plan does not say (the node's own choice, else 5 s)."""
 
 
 def _reject_unknown(data: Dict[str, Any], allowed: Sequence[str], where: str) -> None:
@@ -138,7 +147,37 @@ def read_config_file(path: str, descriptor: NodeDescriptor) -> Startup:
     return plan_from_text(text, f"invalid runtime config `{path}` ({RUNTIME_CONFIG_ENV})", descriptor)
 
 
-_PLAN_FIELDS = ("instance_id", "core_node", "namespace", "slots", "parameters", "zenoh")
+_PLAN_FIELDS = (
+    "instance_id",
+    "core_node",
+    "namespace",
+    "slots",
+    "parameters",
+    "zenoh",
+    "use_sim_time",
+    "shutdown_grace_secs",
+)
+
+
+def grace_secs(value: Any, where: str) -> float:
+    """A shutdown grace window: a number of seconds above 0."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 or value != value:
+        raise StartupError(f"{where}: `shutdown_grace_secs` must be a number of seconds above 0, got {value!r}")
+    if value == float("inf"):
+        raise StartupError(f"{where}: `shutdown_grace_secs` must be finite")
+    return float(value)
+
+
+def grace_from_env() -> Optional[float]:
+    """`PEPPY_SHUTDOWN_GRACE_SECS`, when set."""
+    text = os.environ.get(SHUTDOWN_GRACE_ENV)
+    if text is None or text.strip() == "":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise StartupError(f"{SHUTDOWN_GRACE_ENV}: `shutdown_grace_secs` must be a number, got {text!r}") from None
+    return grace_secs(value, SHUTDOWN_GRACE_ENV)
 
 
 def plan_from_text(text: str, where: str, descriptor: NodeDescriptor) -> Startup:
@@ -157,6 +196,10 @@ def plan_from_text(text: str, where: str, descriptor: NodeDescriptor) -> Startup
     if not isinstance(slots, list):
         raise StartupError(f"{where}: `slots` must be a list")
     parameters = data.get("parameters")
+    use_sim_time = data.get("use_sim_time", False)
+    if not isinstance(use_sim_time, bool):
+        raise StartupError(f"{where}: `use_sim_time` must be true or false")
+    grace = data.get("shutdown_grace_secs")
     return Startup(
         instance_id=data["instance_id"],
         core_node=data["core_node"],
@@ -164,6 +207,8 @@ def plan_from_text(text: str, where: str, descriptor: NodeDescriptor) -> Startup
         endpoints=endpoints_from_json(data.get("zenoh", {}), where),
         slots=fit_plan([slot_from_json(s) for s in slots], descriptor.slots),
         parameters={} if parameters is None else parameters,
+        use_sim_time=use_sim_time,
+        shutdown_grace_secs=None if grace is None else grace_secs(grace, where),
     )
 
 

@@ -1,0 +1,302 @@
+"""The stack clock (docs/WIRE.md, "Clock"): one time for every node of a
+launch, wall or simulated.
+
+Each launch publishes its OS clock ten times a second on
+`peppy/<ns>/clock/tick/wall` and answers synchronization queries on
+`peppy/<ns>/clock/sync`; a simulator publishes its time on
+`peppy/<ns>/clock/tick/sim` (`publish_sim_time`). A node follows one of
+the two, fixed at start-up (`node_runner.use_sim_time()`: the instance's
+`framework.use_sim_time`, or `--use-sim-time`):
+
+- wall time: `now_ns()` is this host's OS clock (ns since the Unix
+  epoch); `synchronize` measures how far it is from the launcher's;
+- sim time: `now_ns()` is the latest sim tick this node has received, and
+  `ClockNotReady` (a `RuntimeError`) until the first arrives.
+
+Every payload is u64 little-endian nanoseconds. One of the wrong length is
+dropped, with one warning per subscription.
+"""
+
+from __future__ import annotations
+
+import logging
+import struct
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Optional, Tuple
+
+from .bridge import END, TIMED_OUT, Mailbox
+from .errors import ClockNotReady, ServiceUnreachable, ShuttingDown
+from .keys import CLOCK_SIM, CLOCK_WALL, clock_sync_key, clock_tick_key
+
+log = logging.getLogger("peppy")
+
+DEFAULT_SYNC_TIMEOUT = 10.0
+"""How long `synchronize` waits for the launcher's answer by default (seconds)."""
+
+_U64 = struct.Struct("<Q")
+_QUERY_LEN = 9
+_REPLY = struct.Struct("<QQQ")
+_I64_MIN, _I64_MAX = -(1 << 63), (1 << 63) - 1
+_U64_MAX = (1 << 64) - 1
+
+
+def os_now_ns() -> int:
+    """This host's OS clock, ns since the Unix epoch."""
+    return max(time.time_ns(), 0)
+
+
+def decode_time(data: bytes) -> Optional[int]:
+    """A tick's time, if `data` is one: exactly 8 bytes."""
+    return _U64.unpack(data)[0] if len(data) == 8 else None
+
+
+def encode_time(ns: int) -> bytes:
+    """`ns` as a tick payload."""
+    if not 0 <= ns <= _U64_MAX:
+        raise ValueError(f"a clock time is a u64 of nanoseconds, got {ns}")
+    return _U64.pack(ns)
+
+
+class _Latest:
+    """The latest tick seen, written on Zenoh's threads."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.value: Optional[int] = None
+
+    def set(self, t: int) -> None:
+        with self._lock:
+            self.value = t
+
+    def get(self) -> Optional[int]:
+        with self._lock:
+            return self.value
+
+
+class _TickIntake:
+    """A tick subscription's callback: well-formed ticks go on, others are
+    dropped with one warning."""
+
+    def __init__(self, key: str, sink: Any) -> None:
+        self.key = key
+        self.sink = sink
+        self.warned = False
+
+    def __call__(self, sample: Any) -> None:
+        t = decode_time(sample.payload.to_bytes())
+        if t is None:
+            if not self.warned:
+                self.warned = True
+                log.warning("dropping clock ticks on `%s` that are not 8 bytes (u64 little-endian ns)", self.key)
+            return
+        self.sink(t)
+
+
+@dataclass
+class _Binding:
+    node: Tuple[str, str]
+    sim: Optional[_Latest]
+
+
+_bound: Optional[_Binding] = None
+
+
+def _node_of(runner: Any) -> Tuple[str, str]:
+    return (runner.core_node, runner.instance_id)
+
+
+async def init(runner: Any) -> None:
+    """Binds `now_ns` to this node's clock: following sim time, subscribes
+    to the stack's sim ticks and keeps the latest; following wall time,
+    nothing to set up. Idempotent for one node; another node (another
+    runner in this process) takes the clock over."""
+    global _bound
+    node = _node_of(runner)
+    if _bound is not None and _bound.node == node:
+        return
+    sim: Optional[_Latest] = None
+    if runner.use_sim_time():
+        sim = _Latest()
+        key = clock_tick_key(runner.namespace, CLOCK_SIM)
+        # Lives as long as the node's session.
+        runner._declared.append(runner.session.declare_subscriber(key, _TickIntake(key, sim.set)))
+    _bound = _Binding(node, sim)
+
+
+def now_ns() -> int:
+    """The stack time now, in ns: the OS clock following wall time, the
+    latest sim tick following sim time. `ClockNotReady` (a `RuntimeError`)
+    before `init`, and following sim time until the first tick arrives."""
+    b = _bound
+    if b is None:
+        raise ClockNotReady("the clock is not ready: call `await clock.init(node_runner)` first")
+    if b.sim is None:
+        return os_now_ns()
+    t = b.sim.get()
+    if t is None:
+        raise ClockNotReady("the clock is not ready: no sim tick has arrived yet")
+    return t
+
+
+def _client_now(runner: Any) -> int:
+    if not runner.use_sim_time():
+        return os_now_ns()
+    b = _bound
+    if b is not None and b.node == _node_of(runner) and b.sim is not None:
+        return b.sim.get() or 0
+    return 0
+
+
+async def publish_sim_time(runner: Any, ns: int) -> None:
+    """Publishes `ns` as the stack's simulated time
+    (`peppy/<ns>/clock/tick/sim`): what a simulator calls at each step."""
+    payload = encode_time(ns)
+    if runner.session_closed:
+        raise ShuttingDown()
+    runner.session.put(clock_tick_key(runner.namespace, CLOCK_SIM), payload)
+
+
+@dataclass(frozen=True)
+class ClockResponse:
+    """The launcher's answer to a sync query: t0 echoed, t1 (received), t2 (sent)."""
+
+    client_send_time: int
+    server_recv_time: int
+    server_send_time: int
+
+
+@dataclass(frozen=True)
+class ClockSync:
+    """How far this node's clock is from the launcher's (`offset_ns`: add it
+    to this node's clock), the query's round trip, and the raw answer."""
+
+    offset_ns: int
+    round_trip_delay_ns: int
+    raw: ClockResponse
+
+
+def clock_sync(raw: ClockResponse, t3: int) -> ClockSync:
+    """NTP's offset and delay, `t3` being when the answer arrived (by the
+    client's clock); saturated to i64 / u64, the delay never negative."""
+    t0, t1, t2 = raw.client_send_time, raw.server_recv_time, raw.server_send_time
+    offset = ((t1 - t0) + (t2 - t3)) // 2
+    delay = (t3 - t0) - (t2 - t1)
+    return ClockSync(
+        offset_ns=min(max(offset, _I64_MIN), _I64_MAX),
+        round_trip_delay_ns=min(max(delay, 0), _U64_MAX),
+        raw=raw,
+    )
+
+
+async def synchronize(runner: Any, response_timeout_secs: Optional[float] = None) -> ClockSync:
+    """Asks the launcher for its clock: a query on `clock/sync` carrying
+    this node's time and mode (t0, wall or sim); the first answer counts.
+    Following sim time, the launcher answers with its latest sim tick, or
+    refuses when it has seen none (`ClockNotReady`). No answer within
+    `response_timeout_secs` (default 10 s): `ServiceUnreachable` (a
+    `ConnectionError`)."""
+    import zenoh
+
+    if runner.refuses_calls():
+        raise ShuttingDown()
+    timeout = DEFAULT_SYNC_TIMEOUT if response_timeout_secs is None else float(response_timeout_secs)
+    loop = runner.loop
+    key = clock_sync_key(runner.namespace)
+    t0 = _client_now(runner)
+    query = _U64.pack(t0) + bytes([1 if runner.use_sim_time() else 0])
+    replies = Mailbox(loop)
+    runner._track_mailbox(replies)
+
+    def on_reply(reply: Any) -> None:
+        if reply.ok is not None:
+            replies.put((True, reply.ok.payload.to_bytes()))
+        else:
+            replies.put((False, reply.err.payload.to_bytes()))
+
+    runner.session.get(
+        key,
+        zenoh.handlers.Callback(on_reply, lambda: replies.put(END)),
+        target=zenoh.QueryTarget.ALL,
+        consolidation=zenoh.ConsolidationMode.NONE,
+        timeout=max(timeout, 0.001),
+        payload=query,
+    )
+    deadline = loop.time() + timeout + 0.25
+    try:
+        while True:
+            item = await replies.get(deadline)
+            if item is END or item is TIMED_OUT:
+                break
+            t3 = _client_now(runner)
+            ok, payload = item
+            if not ok:
+                why = payload.decode("utf-8", "replace")
+                # Zenoh reports the query's own timeout as an error reply.
+                if why == "Timeout":
+                    break
+                raise ClockNotReady(f"the launcher cannot synchronize: {why}")
+            if len(payload) != _REPLY.size:
+                log.debug("dropping a clock sync reply of %d bytes (expected 24)", len(payload))
+                continue
+            return clock_sync(ClockResponse(*_REPLY.unpack(payload)), t3)
+    finally:
+        replies.close()
+    raise ServiceUnreachable("clock sync")
+
+
+@dataclass(frozen=True)
+class ClockTick:
+    """One tick: the stack time it carries, ns."""
+
+    time: int
+
+
+class ClockSubscription:
+    """The ticks of this node's mode (the launcher's wall ticks, or sim
+    ticks): `await sub.on_next_tick()`, None once the node stops."""
+
+    def __init__(self, runner: Any, key: str) -> None:
+        self._runner = runner
+        self._mailbox = Mailbox(runner.loop, maxlen=64)
+        runner._track_mailbox(self._mailbox, intake=True)
+        self._subscriber = runner.session.declare_subscriber(key, _TickIntake(key, self._mailbox.put))
+        runner._declared.append(self._subscriber)
+
+    async def on_next_tick(self) -> Optional[ClockTick]:
+        """The next tick; None once the node stops."""
+        if self._runner.is_stopping():
+            return None
+        try:
+            return ClockTick(await self._mailbox.get())
+        except ShuttingDown:
+            return None
+
+    def close(self) -> None:
+        """Stops receiving ticks."""
+        try:
+            self._subscriber.undeclare()
+        except Exception:
+            pass
+
+
+async def subscribe(runner: Any) -> ClockSubscription:
+    """Follows the ticks of this node's mode (wall ticks, about ten a
+    second, from the launcher; or sim ticks)."""
+    source = CLOCK_SIM if runner.use_sim_time() else CLOCK_WALL
+    return ClockSubscription(runner, clock_tick_key(runner.namespace, source))
+
+
+__all__ = [
+    "ClockResponse",
+    "ClockSubscription",
+    "ClockSync",
+    "ClockTick",
+    "DEFAULT_SYNC_TIMEOUT",
+    "init",
+    "now_ns",
+    "publish_sim_time",
+    "subscribe",
+    "synchronize",
+]
