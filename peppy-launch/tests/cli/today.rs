@@ -153,28 +153,31 @@ fn walk(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
     out
 }
 
-/// Today's node code and the seeds' in one stack: the Rust camera in
-/// today's API and layout and the seeds' RealSense both feed the viewer's
-/// held subscription; Ctrl-C runs the camera's shutdown hook and every node
-/// stops cleanly.
+/// Today's node code and the seeds' in one stack: the Rust and the Python
+/// camera in today's API and layout and the seeds' RealSense all feed the
+/// viewer's held subscription; Ctrl-C runs the cameras' shutdown hooks and
+/// every node stops cleanly.
 #[test]
 fn todays_node_code_runs_beside_the_seeds() {
     let mut launch = Launch::up("examples/launchers/today_stack.json5", &[]);
     launch.expect("from today's camera", BUILD_AND_START, |l| {
         l.starts_with("[today_cam]") && l.contains("today_camera: first frame (96x72)")
     });
-    for camera in ["today_cam (96x72)", "rs_left (160x120)"] {
+    for camera in ["today_cam (96x72)", "py_cam (64x48)", "rs_left (160x120)"] {
         launch.expect("with a first frame", Duration::from_secs(30), |l| {
             l.starts_with("[viewer]") && l.contains(&format!("cameras: first frame from {camera}"))
         });
     }
-    let code = launch.stop_seen();
-    assert_eq!(code.0, 0, "{}", code.1.join("\n"));
-    assert!(
-        code.1
-            .iter()
-            .any(|l| l.starts_with("[today_cam]") && l.contains("today_camera: stopping after")),
-        "the shutdown hook did not run:\n{}",
-        code.1.join("\n")
-    );
+    let (code, seen) = launch.stop_seen();
+    assert_eq!(code, 0, "{}", seen.join("\n"));
+    for (instance, hook) in [
+        ("[today_cam]", "today_camera: stopping after"),
+        ("[py_cam]", "py_today_camera: stopping after"),
+    ] {
+        assert!(
+            seen.iter().any(|l| l.starts_with(instance) && l.contains(hook)),
+            "the shutdown hook of {instance} did not run:\n{}",
+            seen.join("\n")
+        );
+    }
 }
