@@ -197,6 +197,8 @@ async fn a_pinned_call_follows_its_server_into_another_launch() {
             connect: vec![hub.endpoint.clone()],
             ..Default::default()
         },
+        use_sim_time: false,
+        shutdown_grace_secs: None,
     };
     std::fs::write(&config, serde_json::to_string(&startup).expect("json")).expect("written");
     let (_, second) = tokio::time::timeout(
