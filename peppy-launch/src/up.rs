@@ -394,6 +394,12 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     .await?;
     let _presence =
         announce_core_node(&router, &stack, args, &share, &links, &namespace, &out).await;
+    // The stack clock: wall ticks and sync answers for this namespace
+    // while the launch runs (docs/WIRE.md, "Clock").
+    let _clock = peppy_runtime::clock::serve(&router, &namespace)
+        .await
+        .map_err(|e| out.note(&format!("the stack clock is not served: {e}")))
+        .ok();
     let instances = Instances {
         namespace: &namespace,
         connect: links.node_endpoints(),
@@ -650,8 +656,14 @@ impl Instances<'_> {
                     .ok_or_else(|| StartError::NoProgram {
                         instance: inst.instance_id.clone(),
                     })?;
+                let use_sim_time = stack
+                    .launcher
+                    .instances()
+                    .find(|(_, i)| i.instance_id == inst.instance_id)
+                    .and_then(|(_, i)| i.framework.use_sim_time)
+                    .unwrap_or(false);
                 Ok(Planned {
-                    config: self.config(inst, core_node),
+                    config: self.config(inst, core_node, use_sim_time),
                     node: node.to_string(),
                     dir: deployment.dir.clone(),
                     argv,
@@ -663,7 +675,12 @@ impl Instances<'_> {
     }
 
     /// One instance's runtime config: the launcher's decisions for it.
-    fn config(&self, inst: &peppy_schema::InstancePlan, core_node: &str) -> StartupConfig {
+    fn config(
+        &self,
+        inst: &peppy_schema::InstancePlan,
+        core_node: &str,
+        use_sim_time: bool,
+    ) -> StartupConfig {
         let login = self
             .secured
             .and_then(|s| s.secrets.instances.get(&inst.instance_id).cloned());
@@ -683,6 +700,10 @@ impl Instances<'_> {
                 multicast_scouting: false,
                 login,
             },
+            use_sim_time,
+            // The node's own (its code's, else 5 s): `start_instance`
+            // waits for that window, whatever it is, before escalating.
+            shutdown_grace_secs: None,
         }
     }
 }
@@ -834,6 +855,9 @@ fn start_instance(
         path: config_path.clone(),
         source,
     })?;
+    // Never SIGTERM a node while its shutdown hooks may still run: the
+    // node would take it as a second signal and exit at once.
+    let grace = grace.max(hooks_window(&p.config, &p.env) + HOOKS_MARGIN);
     let mut env = p.env;
     env.push((
         peppy_runtime::RUNTIME_CONFIG_ENV.to_string(),
@@ -859,6 +883,28 @@ fn start_instance(
     ));
     let supervisor = supervise::supervise(spec, child, pumps, grace, signals.clone(), out.clone());
     Ok((id, tokio::spawn(supervisor)))
+}
+
+/// What a stopping node is given beyond its hooks' window, to close
+/// messaging and exit.
+pub(crate) const HOOKS_MARGIN: Duration = Duration::from_secs(2);
+
+/// The window a node's shutdown hooks may take, as the node will read it:
+/// `PEPPY_SHUTDOWN_GRACE_SECS` (the instance's `env_vars`, else this
+/// process's environment, which the node inherits), else its runtime
+/// config's, else 5 s. A value the node would refuse counts as 5 s: such
+/// a node does not start.
+pub(crate) fn hooks_window(config: &StartupConfig, env: &[(String, String)]) -> Duration {
+    let set = env
+        .iter()
+        .rev()
+        .find(|(k, _)| k == peppy_runtime::SHUTDOWN_GRACE_ENV)
+        .map(|(_, v)| v.clone())
+        .or_else(|| std::env::var(peppy_runtime::SHUTDOWN_GRACE_ENV).ok())
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .or(config.shutdown_grace_secs);
+    set.filter(|s| s.is_finite() && *s > 0.0 && *s <= 3600.0)
+        .map_or(peppy_runtime::DEFAULT_SHUTDOWN_GRACE, Duration::from_secs_f64)
 }
 
 async fn wait_for_interrupt() {
