@@ -904,7 +904,10 @@ pub(crate) fn hooks_window(config: &StartupConfig, env: &[(String, String)]) -> 
         .and_then(|v| v.trim().parse::<f64>().ok())
         .or(config.shutdown_grace_secs);
     set.filter(|s| s.is_finite() && *s > 0.0 && *s <= 3600.0)
-        .map_or(peppy_runtime::DEFAULT_SHUTDOWN_GRACE, Duration::from_secs_f64)
+        .map_or(
+            peppy_runtime::DEFAULT_SHUTDOWN_GRACE,
+            Duration::from_secs_f64,
+        )
 }
 
 async fn wait_for_interrupt() {

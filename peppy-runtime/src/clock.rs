@@ -161,7 +161,10 @@ fn client_now(runner: &NodeRunner) -> u64 {
     }
     let node = node_of(runner);
     match &*BOUND.lock().unwrap_or_else(|p| p.into_inner()) {
-        Some(Binding { node: n, sim: Some(l) }) if *n == node => l.get().unwrap_or(0),
+        Some(Binding {
+            node: n,
+            sim: Some(l),
+        }) if *n == node => l.get().unwrap_or(0),
         _ => 0,
     }
 }
@@ -454,7 +457,11 @@ pub async fn serve(session: &zenoh::Session, namespace: &str) -> Result<ClockSer
         every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         loop {
             every.tick().await;
-            if publisher.put(os_now_ns().to_le_bytes().to_vec()).await.is_err() {
+            if publisher
+                .put(os_now_ns().to_le_bytes().to_vec())
+                .await
+                .is_err()
+            {
                 // The session is closed: the launch is over.
                 break;
             }

@@ -4,10 +4,10 @@
 use std::collections::HashMap;
 use std::future::Future;
 use std::marker::PhantomData;
-use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::panic::Location;
+use std::path::PathBuf;
 use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -924,7 +924,9 @@ impl NodeRunner {
         let at = Location::caller();
         let mut hooks = self.hooks.lock().unwrap_or_else(|p| p.into_inner());
         if hooks.closed {
-            warn!("shutdown hook registered at {at} comes too late: the node's hooks have already run; it will not run");
+            warn!(
+                "shutdown hook registered at {at} comes too late: the node's hooks have already run; it will not run"
+            );
             return;
         }
         hooks.registered.push(Hook {
@@ -961,9 +963,15 @@ impl NodeRunner {
                         .map(|s| s.to_string())
                         .or_else(|| panic.downcast_ref::<String>().cloned())
                         .unwrap_or_else(|| "(no message)".into());
-                    error!("shutdown hook registered at {} panicked: {why}; skipped", hook.at);
+                    error!(
+                        "shutdown hook registered at {} panicked: {why}; skipped",
+                        hook.at
+                    );
                 }
-                Ok(Err(e)) => warn!("shutdown hook registered at {} did not finish: {e}", hook.at),
+                Ok(Err(e)) => warn!(
+                    "shutdown hook registered at {} did not finish: {e}",
+                    hook.at
+                ),
                 Err(_) => {
                     abort.abort();
                     warn!(

@@ -85,7 +85,10 @@ fn grace_window(secs: f64, what: &str) -> Result<Duration> {
 
 /// The shutdown grace window of a node: `PEPPY_SHUTDOWN_GRACE_SECS`, else
 /// the runtime config's `shutdown_grace_secs`, else the builder's, else 5 s.
-pub(crate) fn shutdown_grace(config: &StartupConfig, builder: Option<Duration>) -> Result<Duration> {
+pub(crate) fn shutdown_grace(
+    config: &StartupConfig,
+    builder: Option<Duration>,
+) -> Result<Duration> {
     if let Some(raw) = std::env::var_os(SHUTDOWN_GRACE_ENV) {
         let raw = raw.to_string_lossy();
         let what = format!("{SHUTDOWN_GRACE_ENV} `{raw}`");
@@ -994,8 +997,13 @@ mod tests {
         // leaves them at their defaults (nothing new is written for them).
         let old = serde_json::to_value(&base).unwrap();
         assert!(old.get("use_sim_time").is_none() && old.get("shutdown_grace_secs").is_none());
-        let s = load(&doc(), args(&[]), Some(plan_file(&dir, &base)), &StandaloneConfig::new())
-            .unwrap();
+        let s = load(
+            &doc(),
+            args(&[]),
+            Some(plan_file(&dir, &base)),
+            &StandaloneConfig::new(),
+        )
+        .unwrap();
         assert!(!s.use_sim_time);
         assert_eq!(shutdown_grace(&s, None).unwrap(), DEFAULT_SHUTDOWN_GRACE);
         assert_eq!(
@@ -1007,8 +1015,13 @@ mod tests {
             shutdown_grace_secs: Some(1.5),
             ..base.clone()
         };
-        let s = load(&doc(), args(&[]), Some(plan_file(&dir, &set)), &StandaloneConfig::new())
-            .unwrap();
+        let s = load(
+            &doc(),
+            args(&[]),
+            Some(plan_file(&dir, &set)),
+            &StandaloneConfig::new(),
+        )
+        .unwrap();
         assert!(s.use_sim_time);
         // The plan's window wins over the code's.
         assert_eq!(
@@ -1020,18 +1033,35 @@ mod tests {
                 shutdown_grace_secs: Some(bad),
                 ..base.clone()
             };
-            let e = load(&doc(), args(&[]), Some(plan_file(&dir, &cfg)), &StandaloneConfig::new())
-                .unwrap_err()
-                .to_string();
+            let e = load(
+                &doc(),
+                args(&[]),
+                Some(plan_file(&dir, &cfg)),
+                &StandaloneConfig::new(),
+            )
+            .unwrap_err()
+            .to_string();
             assert!(e.contains("`shutdown_grace_secs`"), "{e}");
         }
         // Standalone: the flag or the code's fallback.
         let cmd = ["--bind", "left_cam@a", "name=x"];
         let flagged: Vec<&str> = cmd.iter().copied().chain(["--use-sim-time"]).collect();
-        assert!(load(&doc(), args(&flagged), None, &StandaloneConfig::new()).unwrap().use_sim_time);
+        assert!(
+            load(&doc(), args(&flagged), None, &StandaloneConfig::new())
+                .unwrap()
+                .use_sim_time
+        );
         let fallback = StandaloneConfig::new().with_use_sim_time(true);
-        assert!(load(&doc(), args(&cmd), None, &fallback).unwrap().use_sim_time);
-        assert!(!load(&doc(), args(&cmd), None, &StandaloneConfig::new()).unwrap().use_sim_time);
+        assert!(
+            load(&doc(), args(&cmd), None, &fallback)
+                .unwrap()
+                .use_sim_time
+        );
+        assert!(
+            !load(&doc(), args(&cmd), None, &StandaloneConfig::new())
+                .unwrap()
+                .use_sim_time
+        );
     }
 
     #[test]

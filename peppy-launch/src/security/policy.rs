@@ -728,9 +728,18 @@ mod tests {
         let rules = acl["rules"].as_array().unwrap();
         let rule = |id: &str| rules.iter().find(|r| r["id"] == id).unwrap();
         let keys = |id: &str| rule(id)["key_exprs"].clone();
-        assert_eq!(keys("any.clock"), serde_json::json!(["peppy/lab/clock/tick/*"]));
-        assert_eq!(keys("any.clock.ask"), serde_json::json!(["peppy/lab/clock/sync"]));
-        assert_eq!(keys("any.clock.sim"), serde_json::json!(["peppy/lab/clock/tick/sim"]));
+        assert_eq!(
+            keys("any.clock"),
+            serde_json::json!(["peppy/lab/clock/tick/*"])
+        );
+        assert_eq!(
+            keys("any.clock.ask"),
+            serde_json::json!(["peppy/lab/clock/sync"])
+        );
+        assert_eq!(
+            keys("any.clock.sim"),
+            serde_json::json!(["peppy/lab/clock/tick/sim"])
+        );
         assert_eq!(rule("any.clock.in")["flows"], serde_json::json!(["egress"]));
         for policy in acl["policies"].as_array().unwrap() {
             if policy["id"] == "operator" {
@@ -758,9 +767,11 @@ mod tests {
                 continue;
             }
             let publishes_wall = messages.contains(&"put".into())
-                && exprs.iter().any(|k| *k == wall || k.ends_with("/clock/tick/*"));
-            let answers_sync = messages.contains(&"reply".into())
-                && exprs.iter().any(|k| k.contains("/clock/"));
+                && exprs
+                    .iter()
+                    .any(|k| *k == wall || k.ends_with("/clock/tick/*"));
+            let answers_sync =
+                messages.contains(&"reply".into()) && exprs.iter().any(|k| k.contains("/clock/"));
             assert!(!publishes_wall && !answers_sync, "{r}");
         }
     }
