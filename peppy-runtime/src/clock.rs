@@ -115,11 +115,14 @@ fn node_of(runner: &NodeRunner) -> (String, String) {
 pub async fn init(runner: &NodeRunner) -> Result<()> {
     let _making = BINDING.lock().await;
     let node = node_of(runner);
-    let bound = BOUND.lock().unwrap_or_else(|p| p.into_inner());
-    if bound.as_ref().is_some_and(|b| b.node == node) {
+    let already = BOUND
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .as_ref()
+        .is_some_and(|b| b.node == node);
+    if already {
         return Ok(());
     }
-    drop(bound);
     let sim = if runner.use_sim_time() {
         let latest = Arc::new(Latest::default());
         let (seen, warned) = (latest.clone(), AtomicBool::new(false));
