@@ -173,6 +173,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             argv,
             env: Vec::new(),
             restart: peppy_schema::RestartPolicy::No,
+            has_hooks: crate::up::has_hooks(&doc.execution.language),
             config,
         };
         run_instances(vec![Ok(planned)], &run_dir, args.grace, out).await

@@ -669,6 +669,7 @@ impl Instances<'_> {
                     argv,
                     env: inst.env_vars.clone(),
                     restart: inst.restart,
+                    has_hooks: has_hooks(&deployment.resolved.node.execution.language),
                 })
             })
             .collect()
@@ -742,6 +743,17 @@ pub(crate) struct Planned {
     pub(crate) argv: Vec<String>,
     pub(crate) env: Vec<(String, String)>,
     pub(crate) restart: peppy_schema::RestartPolicy,
+    /// Whether the node runs on a peppy runtime (Rust or Python), whose
+    /// shutdown hooks get their window before SIGTERM.
+    pub(crate) has_hooks: bool,
+}
+
+/// Whether a node of `language` runs on a peppy runtime, with shutdown
+/// hooks; a shell node's `run_cmd` is anything.
+pub(crate) fn has_hooks(language: &str) -> bool {
+    ["rust", "python"]
+        .iter()
+        .any(|l| language.eq_ignore_ascii_case(l))
 }
 
 /// Why one instance could not be started (the launch then stops the
@@ -857,7 +869,11 @@ fn start_instance(
     })?;
     // Never SIGTERM a node while its shutdown hooks may still run: the
     // node would take it as a second signal and exit at once.
-    let grace = grace.max(hooks_window(&p.config, &p.env) + HOOKS_MARGIN);
+    let grace = if p.has_hooks {
+        grace.max(hooks_window(&p.config, &p.env) + HOOKS_MARGIN)
+    } else {
+        grace
+    };
     let mut env = p.env;
     env.push((
         peppy_runtime::RUNTIME_CONFIG_ENV.to_string(),
@@ -935,5 +951,43 @@ async fn next_signal(s: Option<&mut tokio::signal::unix::Signal>) {
             s.recv().await;
         }
         None => std::future::pending::<()>().await,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_hooks_window_is_the_one_the_node_will_read() {
+        let config = |grace: Option<f64>| StartupConfig {
+            instance_id: "a".into(),
+            core_node: "c".into(),
+            namespace: "n".into(),
+            slots: Vec::new(),
+            parameters: serde_json::Value::Null,
+            zenoh: Endpoints::default(),
+            use_sim_time: false,
+            shutdown_grace_secs: grace,
+        };
+        let env = |v: &str| vec![(peppy_runtime::SHUTDOWN_GRACE_ENV.to_string(), v.to_string())];
+        if std::env::var_os(peppy_runtime::SHUTDOWN_GRACE_ENV).is_none() {
+            assert_eq!(hooks_window(&config(None), &[]), Duration::from_secs(5));
+            assert_eq!(
+                hooks_window(&config(Some(1.5)), &[]),
+                Duration::from_millis(1500)
+            );
+        }
+        // The instance's env_vars win, as they do in the node.
+        assert_eq!(
+            hooks_window(&config(Some(1.5)), &env("12")),
+            Duration::from_secs(12)
+        );
+        // A value the node refuses: it does not start, 5 s is as good as any.
+        assert_eq!(
+            hooks_window(&config(None), &env("-3")),
+            Duration::from_secs(5)
+        );
+        assert!(has_hooks("rust") && has_hooks("Python") && !has_hooks("shell"));
     }
 }
