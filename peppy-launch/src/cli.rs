@@ -555,6 +555,10 @@ pub(crate) struct RunArgs {
     /// Skip the node's build command.
     #[arg(long)]
     pub(crate) no_build: bool,
+    /// Follow simulated time: the node's clock gives the latest sim tick
+    /// published in its namespace (`peppy/<ns>/clock/tick/sim`).
+    #[arg(long)]
+    pub(crate) use_sim_time: bool,
     /// Seconds between SIGINT and SIGTERM when stopping; never less than a
     /// node's shutdown-hook window plus 2 s (7 s for the default window).
     #[arg(long, value_name = "SECONDS", default_value = "5", value_parser = parse_grace)]

@@ -101,6 +101,9 @@ pub(crate) fn run(args: &RunArgs) -> Result {
     if let Some(ns) = &args.namespace {
         flags.extend(["--namespace".into(), ns.clone()]);
     }
+    if args.use_sim_time {
+        flags.push("--use-sim-time".into());
+    }
     flags.extend(args.overrides.iter().cloned());
     let mut config = peppy_runtime::startup_from_flags(&NodeModel::of(doc), flags)?;
     config.core_node = format!("run-{:x}", std::process::id());
