@@ -371,7 +371,8 @@ pub struct NodeRunner {
 
 /// A shutdown hook and where it was registered (its name in the logs).
 struct Hook {
-    at: &'static Location<'static>,
+    /// `file:line`.
+    at: String,
     run: Pin<Box<dyn Future<Output = ()> + Send>>,
 }
 
@@ -921,7 +922,8 @@ impl NodeRunner {
     where
         F: Future<Output = ()> + Send + 'static,
     {
-        let at = Location::caller();
+        let caller = Location::caller();
+        let at = format!("{}:{}", caller.file(), caller.line());
         let mut hooks = self.hooks.lock().unwrap_or_else(|p| p.into_inner());
         if hooks.closed {
             warn!(
@@ -938,6 +940,10 @@ impl NodeRunner {
     /// Runs the shutdown hooks, last registered first, within one grace
     /// window.
     async fn run_hooks(&self) {
+        /// How long the last hook's messages get to leave before messaging
+        /// closes: Zenoh holds a batch up to its batching time limit (1 ms by
+        /// default) and may send the link's close ahead of it.
+        const SETTLE: Duration = Duration::from_millis(10);
         let hooks = {
             let mut hooks = self.hooks.lock().unwrap_or_else(|p| p.into_inner());
             hooks.closed = true;
@@ -989,6 +995,7 @@ impl NodeRunner {
                 }
             }
         }
+        tokio::time::sleep(SETTLE).await;
     }
 
     /// The keys this node's requests go to, declared once each.

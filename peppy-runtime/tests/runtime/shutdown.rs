@@ -450,6 +450,20 @@ fn a_node_process_runs_its_hooks_on_sigterm_and_exits_0() {
         .unwrap_or_else(|| panic!("{text}"));
     assert!(skipped.contains(this_file), "{skipped}");
     assert_ne!(overran, skipped, "two hooks, two lines");
+    // `file:line`, no column.
+    let named = |l: &str| {
+        l.split(this_file)
+            .nth(1)
+            .map(|rest| rest.split(' ').next().map(str::to_string))
+    };
+    for line in [overran, skipped] {
+        let at = named(line).flatten().unwrap_or_default();
+        assert!(
+            at.strip_prefix(':')
+                .is_some_and(|n| n.parse::<u32>().is_ok()),
+            "{line}"
+        );
+    }
     // The goodbye went out while the node was stopping.
     let n = rt
         .block_on(async { tokio::time::timeout(WAIT, byes.recv()).await })
