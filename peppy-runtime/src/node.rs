@@ -1134,22 +1134,26 @@ impl NodeRunner {
         *stopped = true;
     }
 
-    /// Undeclares every subscription and service and closes the session.
+    /// Undeclares every subscription and the liveliness token, and closes
+    /// the session (which ends the rest).
     async fn close_messaging(&self) {
         let entities =
             std::mem::take(&mut *self.entities.lock().unwrap_or_else(|p| p.into_inner()));
         for s in entities.subscribers {
             let _ = s.undeclare().await;
         }
-        for q in entities.queryables {
-            let _ = q.undeclare().await;
-        }
+        // The queryables go with the session: one declares each emitted
+        // key (WIRE.md §1), and its undeclaration, sent ahead of data,
+        // could overtake the last messages the shutdown hooks emitted,
+        // which the router could then no longer name.
+        let queryables = entities.queryables;
         if let Some(token) = entities.liveliness {
             let _ = token.undeclare().await;
         }
         if let Err(e) = self.session.close().await {
             warn!("closing the zenoh session: {e}");
         }
+        drop(queryables);
     }
 }
 
