@@ -178,7 +178,8 @@ impl<P: NodeParameters> NodeBuilder<P> {
                             Ok(())
                         }
                         Err(e) => {
-                            tracing::error!("setup failed: {e}; shutting down");
+                            // The error itself is logged once `run` ends.
+                            info!("setup failed; shutting down");
                             Err(e)
                         }
                     },
