@@ -60,6 +60,7 @@
 #[cfg(feature = "macros")]
 pub use peppy_macros::node;
 pub use peppy_runtime as runtime;
+pub use peppy_runtime::clock;
 pub use peppy_runtime::{
     CancellationToken, Error, NodeBuilder, NodeRunner, NonEmptyProducers, OutgoingMessage, Payload,
     ProducerRef, QoSProfile, Result, SharedMemory, StandaloneConfig, Subscription, TopicPublisher,

@@ -477,7 +477,8 @@ pub(crate) struct UpArgs {
     /// host's launch (repeatable).
     #[arg(long, value_name = "ENDPOINT")]
     pub(crate) connect: Vec<String>,
-    /// Seconds between SIGINT and SIGTERM when stopping.
+    /// Seconds between SIGINT and SIGTERM when stopping; never less than a
+    /// node's shutdown-hook window plus 2 s (7 s for the default window).
     #[arg(long, value_name = "SECONDS", default_value = "5", value_parser = parse_grace)]
     pub(crate) grace: Duration,
     /// For a launcher with `core_nodes`: start this machine's share (its
@@ -557,7 +558,12 @@ pub(crate) struct RunArgs {
     /// Skip the node's build command.
     #[arg(long)]
     pub(crate) no_build: bool,
-    /// Seconds between SIGINT and SIGTERM when stopping.
+    /// Follow simulated time: the node's clock gives the latest sim tick
+    /// published in its namespace (`peppy/<ns>/clock/tick/sim`).
+    #[arg(long)]
+    pub(crate) use_sim_time: bool,
+    /// Seconds between SIGINT and SIGTERM when stopping; never less than a
+    /// node's shutdown-hook window plus 2 s (7 s for the default window).
     #[arg(long, value_name = "SECONDS", default_value = "5", value_parser = parse_grace)]
     pub(crate) grace: Duration,
 }

@@ -101,6 +101,9 @@ pub(crate) fn run(args: &RunArgs) -> Result {
     if let Some(ns) = &args.namespace {
         flags.extend(["--namespace".into(), ns.clone()]);
     }
+    if args.use_sim_time {
+        flags.push("--use-sim-time".into());
+    }
     flags.extend(args.overrides.iter().cloned());
     let mut config = peppy_runtime::startup_from_flags(&NodeModel::of(doc), flags)?;
     config.core_node = format!("run-{:x}", std::process::id());
@@ -175,6 +178,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             argv,
             env: Vec::new(),
             restart: peppy_schema::RestartPolicy::No,
+            has_hooks: crate::up::has_hooks(&doc.execution.language),
             config,
         };
         run_instances(vec![Ok(planned)], &run_dir, args.grace, out).await

@@ -2,8 +2,10 @@
 //! signal, restarted per its policy, and stopped in escalating steps.
 //!
 //! Stop sequence (SPEC 6.4): SIGINT to every instance's group, wait up to
-//! the grace period, SIGTERM, wait 5 s, SIGKILL. A second Ctrl-C kills at
-//! once. Every wait has a deadline.
+//! the grace period, SIGTERM, wait 5 s, SIGKILL. The grace period is at
+//! least the node's shutdown-hook window plus a margin (`up`'s
+//! `start_instance`), since a node takes a second signal during its hooks
+//! as "exit now". A second Ctrl-C kills at once. Every wait has a deadline.
 
 use std::path::PathBuf;
 use std::process::{ExitStatus, Stdio};

@@ -402,6 +402,12 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     .await?;
     let _presence =
         announce_core_node(&router, &stack, args, &share, &links, &namespace, &out).await;
+    // The stack clock: wall ticks and sync answers for this namespace
+    // while the launch runs (docs/WIRE.md, "Clock").
+    let _clock = peppy_runtime::clock::serve(&router, &namespace)
+        .await
+        .map_err(|e| out.note(&format!("the stack clock is not served: {e}")))
+        .ok();
     let instances = Instances {
         namespace: &namespace,
         connect: links.node_endpoints(),
@@ -658,20 +664,32 @@ impl Instances<'_> {
                     .ok_or_else(|| StartError::NoProgram {
                         instance: inst.instance_id.clone(),
                     })?;
+                let use_sim_time = stack
+                    .launcher
+                    .instances()
+                    .find(|(_, i)| i.instance_id == inst.instance_id)
+                    .and_then(|(_, i)| i.framework.use_sim_time)
+                    .unwrap_or(false);
                 Ok(Planned {
-                    config: self.config(inst, core_node),
+                    config: self.config(inst, core_node, use_sim_time),
                     node: node.to_string(),
                     dir: deployment.dir.clone(),
                     argv,
                     env: inst.env_vars.clone(),
                     restart: inst.restart,
+                    has_hooks: has_hooks(&deployment.resolved.node.execution.language),
                 })
             })
             .collect()
     }
 
     /// One instance's runtime config: the launcher's decisions for it.
-    fn config(&self, inst: &peppy_schema::InstancePlan, core_node: &str) -> StartupConfig {
+    fn config(
+        &self,
+        inst: &peppy_schema::InstancePlan,
+        core_node: &str,
+        use_sim_time: bool,
+    ) -> StartupConfig {
         let login = self
             .secured
             .and_then(|s| s.secrets.instances.get(&inst.instance_id).cloned());
@@ -691,6 +709,10 @@ impl Instances<'_> {
                 multicast_scouting: false,
                 login,
             },
+            use_sim_time,
+            // The node's own (its code's, else 5 s): `start_instance`
+            // waits for that window, whatever it is, before escalating.
+            shutdown_grace_secs: None,
         }
     }
 }
@@ -729,6 +751,17 @@ pub(crate) struct Planned {
     pub(crate) argv: Vec<String>,
     pub(crate) env: Vec<(String, String)>,
     pub(crate) restart: peppy_schema::RestartPolicy,
+    /// Whether the node runs on a peppy runtime (Rust or Python), whose
+    /// shutdown hooks get their window before SIGTERM.
+    pub(crate) has_hooks: bool,
+}
+
+/// Whether a node of `language` runs on a peppy runtime, with shutdown
+/// hooks; a shell node's `run_cmd` is anything.
+pub(crate) fn has_hooks(language: &str) -> bool {
+    ["rust", "python"]
+        .iter()
+        .any(|l| language.eq_ignore_ascii_case(l))
 }
 
 /// Why one instance could not be started (the launch then stops the
@@ -842,6 +875,13 @@ fn start_instance(
         path: config_path.clone(),
         source,
     })?;
+    // Never SIGTERM a node while its shutdown hooks may still run: the
+    // node would take it as a second signal and exit at once.
+    let grace = if p.has_hooks {
+        grace.max(hooks_window(&p.config, &p.env) + HOOKS_MARGIN)
+    } else {
+        grace
+    };
     let mut env = p.env;
     env.push((
         peppy_runtime::RUNTIME_CONFIG_ENV.to_string(),
@@ -869,6 +909,31 @@ fn start_instance(
     Ok((id, tokio::spawn(supervisor)))
 }
 
+/// What a stopping node is given beyond its hooks' window, to close
+/// messaging and exit.
+pub(crate) const HOOKS_MARGIN: Duration = Duration::from_secs(2);
+
+/// The window a node's shutdown hooks may take, as the node will read it:
+/// `PEPPY_SHUTDOWN_GRACE_SECS` (the instance's `env_vars`, else this
+/// process's environment, which the node inherits), else its runtime
+/// config's, else 5 s. A value the node would refuse counts as 5 s: such
+/// a node does not start.
+pub(crate) fn hooks_window(config: &StartupConfig, env: &[(String, String)]) -> Duration {
+    let set = env
+        .iter()
+        .rev()
+        .find(|(k, _)| k == peppy_runtime::SHUTDOWN_GRACE_ENV)
+        .map(|(_, v)| v.clone())
+        .or_else(|| std::env::var(peppy_runtime::SHUTDOWN_GRACE_ENV).ok())
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .or(config.shutdown_grace_secs);
+    set.filter(|s| s.is_finite() && *s > 0.0 && *s <= 3600.0)
+        .map_or(
+            peppy_runtime::DEFAULT_SHUTDOWN_GRACE,
+            Duration::from_secs_f64,
+        )
+}
+
 async fn wait_for_interrupt() {
     interrupts_from_now().await
 }
@@ -894,5 +959,43 @@ async fn next_signal(s: Option<&mut tokio::signal::unix::Signal>) {
             s.recv().await;
         }
         None => std::future::pending::<()>().await,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_hooks_window_is_the_one_the_node_will_read() {
+        let config = |grace: Option<f64>| StartupConfig {
+            instance_id: "a".into(),
+            core_node: "c".into(),
+            namespace: "n".into(),
+            slots: Vec::new(),
+            parameters: serde_json::Value::Null,
+            zenoh: Endpoints::default(),
+            use_sim_time: false,
+            shutdown_grace_secs: grace,
+        };
+        let env = |v: &str| vec![(peppy_runtime::SHUTDOWN_GRACE_ENV.to_string(), v.to_string())];
+        if std::env::var_os(peppy_runtime::SHUTDOWN_GRACE_ENV).is_none() {
+            assert_eq!(hooks_window(&config(None), &[]), Duration::from_secs(5));
+            assert_eq!(
+                hooks_window(&config(Some(1.5)), &[]),
+                Duration::from_millis(1500)
+            );
+        }
+        // The instance's env_vars win, as they do in the node.
+        assert_eq!(
+            hooks_window(&config(Some(1.5)), &env("12")),
+            Duration::from_secs(12)
+        );
+        // A value the node refuses: it does not start, 5 s is as good as any.
+        assert_eq!(
+            hooks_window(&config(None), &env("-3")),
+            Duration::from_secs(5)
+        );
+        assert!(has_hooks("rust") && has_hooks("Python") && !has_hooks("shell"));
     }
 }

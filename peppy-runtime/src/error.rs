@@ -90,6 +90,18 @@ pub enum Error {
     /// The node's own setup code failed.
     #[error("{0}")]
     User(String),
+    /// The stack clock has no time to give yet: [`clock::init`] was not
+    /// called, or, following simulated time, no sim tick has arrived.
+    ///
+    /// [`clock::init`]: crate::clock::init
+    #[error(
+        "the stack clock is not ready: clock::init has not run for this node, or (following simulated time) no sim tick has arrived yet"
+    )]
+    ClockNotReady,
+    /// An error of the node's own code, kept as it is (its text is shown;
+    /// `source()` returns it).
+    #[error("{0}")]
+    Node(#[source] Box<dyn std::error::Error + Send + Sync>),
 }
 
 fn for_instance(instance: &Option<String>) -> String {

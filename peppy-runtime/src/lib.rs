@@ -19,16 +19,23 @@
 //! `--params FILE.json`, `--namespace NS`, `--connect` / `--listen ENDPOINT`
 //! and `key=value` parameter overrides.
 //!
-//! Once the node stops, waiting calls return [`Error::ShuttingDown`] at
-//! once, and a call made on an already stopped node returns it after a
-//! short pause, so loops that ignore it park instead of spinning (see
-//! docs/RUNNING.md, "Stopping").
+//! A stop cancels [`NodeRunner::cancellation_token`] first, then runs the
+//! node's shutdown hooks ([`NodeRunner::on_shutdown`]) within one grace
+//! window while messaging is still up, then closes messaging. Once the
+//! token fires, waits for incoming messages, requests and goals return
+//! [`Error::ShuttingDown`] at once; outgoing calls work until messaging
+//! closes. A call refused that way returns the error after a short pause,
+//! so loops that ignore it park instead of spinning (see docs/RUNNING.md,
+//! "Stopping").
+//!
+//! The stack clock (wall or simulated time) is in [`clock`].
 //!
 //! The wire format (key expressions, attachments, payload encoding) is in
 //! [`wire`] and docs/WIRE.md.
 
 mod acks;
 mod actions;
+pub mod clock;
 pub mod describe;
 mod error;
 mod intake;
@@ -64,8 +71,8 @@ pub use publisher::{OutgoingMessage, TopicPublisher};
 pub use services::{Caller, Reply};
 pub use shm::{SHM_ENV, SharedMemory};
 pub use startup::{
-    DEFAULT_NAMESPACE, Endpoints, Login, RUNTIME_CONFIG_ENV, STANDALONE_CORE, StandaloneConfig,
-    StartupConfig, startup_from_flags,
+    DEFAULT_NAMESPACE, DEFAULT_SHUTDOWN_GRACE, Endpoints, Login, RUNTIME_CONFIG_ENV,
+    SHUTDOWN_GRACE_ENV, STANDALONE_CORE, StandaloneConfig, StartupConfig, startup_from_flags,
 };
 pub use subscription::Subscription;
 pub use tokio_util::sync::CancellationToken;

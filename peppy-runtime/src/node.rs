@@ -4,13 +4,16 @@
 use std::collections::HashMap;
 use std::future::Future;
 use std::marker::PhantomData;
+use std::panic::Location;
 use std::path::PathBuf;
+use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use peppy_schema::{Identity, NodeModel, SlotBinding, SlotKind, SlotPlan};
 use tokio_util::sync::CancellationToken;
-use tracing::{debug, info, warn};
+use tracing::{debug, error, info, warn};
 use zenoh::bytes::ZBytes;
 use zenoh::key_expr::KeyExpr;
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -56,6 +59,7 @@ pub struct NodeBuilder<P> {
     runtime_config: Option<Option<PathBuf>>,
     retention: std::time::Duration,
     shared_memory: SharedMemory,
+    shutdown_grace: Option<Duration>,
     _parameters: PhantomData<fn() -> P>,
 }
 
@@ -74,6 +78,7 @@ impl<P: NodeParameters> NodeBuilder<P> {
             runtime_config: None,
             retention: DEFAULT_RESULT_RETENTION,
             shared_memory: SharedMemory::default(),
+            shutdown_grace: None,
             _parameters: PhantomData,
         }
     }
@@ -111,6 +116,16 @@ impl<P: NodeParameters> NodeBuilder<P> {
         self
     }
 
+    /// How long the node's shutdown hooks ([`NodeRunner::on_shutdown`]) may
+    /// take, all together (default 5 s). The launcher's runtime config
+    /// (`shutdown_grace_secs`) takes precedence when it sets one, and
+    /// `PEPPY_SHUTDOWN_GRACE_SECS` in the environment over both. The window
+    /// must be longer than zero.
+    pub fn shutdown_grace(mut self, grace: Duration) -> Self {
+        self.shutdown_grace = Some(grace);
+        self
+    }
+
     /// Runs the node to completion on its own multi-threaded tokio runtime.
     /// `setup` runs once; spawn long-running work from it. Call it first
     /// thing in `main`, before the program starts threads of its own: then
@@ -118,11 +133,19 @@ impl<P: NodeParameters> NodeBuilder<P> {
     /// ([`threads::share_zenoh_threads`](crate::threads::share_zenoh_threads));
     /// with other threads already running, Zenoh keeps its default one.
     ///
-    /// A stop (Ctrl-C, SIGTERM, the cancellation token) is prompt whatever
-    /// the node's tasks do: a `setup` still running is dropped, the node
-    /// shuts down, then its spawned tasks are dropped at their next
-    /// `.await`; tasks that do not yield and blocking tasks are waited for at
-    /// most 250 ms before `run` returns.
+    /// Every stop (Ctrl-C, SIGTERM, the cancellation token, `setup`
+    /// returning an error) goes the same way: a `setup` still running is
+    /// dropped; the cancellation token fires; the shutdown hooks run, last
+    /// registered first, within one grace window, with messaging still up
+    /// ([`NodeRunner::shutdown`]); messaging closes; then the spawned tasks
+    /// are dropped at their next `.await`, and tasks that do not yield and
+    /// blocking tasks are waited for at most 250 ms before `run` returns.
+    /// A second SIGINT or SIGTERM while the hooks run ends the process at
+    /// once, with exit status 128 + the signal's number.
+    ///
+    /// Returns `Ok(())` after a stop by signal or token (so `main` exits
+    /// 0), and the error when start-up or `setup` failed (`main` then
+    /// exits 1).
     pub fn run<F, Fut>(self, setup: F) -> Result<()>
     where
         F: FnOnce(P, Arc<NodeRunner>) -> Fut,
@@ -143,19 +166,34 @@ impl<P: NodeParameters> NodeBuilder<P> {
             .map_err(|e| Error::Startup(format!("cannot start the tokio runtime: {e}")))?;
         let result = runtime.block_on(async move {
             let (params, runner) = self.start().await?;
-            let stop = wait_for_stop(&runner);
-            tokio::pin!(stop);
-            let outcome = tokio::select! {
-                r = setup(params, runner.clone()) => match r {
-                    Ok(()) => {
-                        stop.await;
-                        Ok(())
-                    }
-                    Err(e) => Err(e),
-                },
-                () = &mut stop => Ok(()),
+            // Listened to from here on: a signal is never lost between
+            // setup and the wait, and a second one is seen during the hooks.
+            let mut signals = Signals::listen();
+            let outcome = {
+                let stop = wait_for_stop(&runner, &mut signals);
+                tokio::pin!(stop);
+                tokio::select! {
+                    r = setup(params, runner.clone()) => match r {
+                        Ok(()) => {
+                            stop.await;
+                            Ok(())
+                        }
+                        Err(e) => {
+                            // The error itself is logged once `run` ends.
+                            info!("setup failed; shutting down");
+                            Err(e)
+                        }
+                    },
+                    () = &mut stop => Ok(()),
+                }
             };
-            runner.shutdown().await;
+            tokio::select! {
+                () = runner.shutdown() => {}
+                signo = signals.second() => {
+                    tracing::error!("signal {signo} again while stopping: exiting at once");
+                    std::process::exit(128 + signo);
+                }
+            }
             outcome
         });
         // Dropping the runtime would wait for every task, forever for one
@@ -193,8 +231,16 @@ impl<P: NodeParameters> NodeBuilder<P> {
                 .map_err(Error::Startup)?
                 .unwrap_or(self.shared_memory),
         );
-        let runner =
-            NodeRunner::open(&doc, descriptor, startup, self.retention, shared_memory).await?;
+        let grace = startup::shutdown_grace(&startup, self.shutdown_grace)?;
+        let runner = NodeRunner::open(
+            &doc,
+            descriptor,
+            startup,
+            self.retention,
+            shared_memory,
+            grace,
+        )
+        .await?;
         Ok((params, runner))
     }
 }
@@ -212,21 +258,77 @@ fn init_logging() {
         .try_init();
 }
 
-async fn wait_for_stop(runner: &NodeRunner) {
+/// SIGINT and SIGTERM, and how many have arrived.
+struct Signals {
     #[cfg(unix)]
-    let terminate = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
+    interrupt: Option<tokio::signal::unix::Signal>,
+    #[cfg(unix)]
+    terminate: Option<tokio::signal::unix::Signal>,
+    seen: u32,
+}
+
+impl Signals {
+    fn listen() -> Signals {
+        #[cfg(unix)]
+        {
+            use tokio::signal::unix::{SignalKind, signal};
+            Signals {
+                interrupt: signal(SignalKind::interrupt()).ok(),
+                terminate: signal(SignalKind::terminate()).ok(),
+                seen: 0,
             }
-            Err(_) => std::future::pending::<()>().await,
         }
-    };
-    #[cfg(not(unix))]
-    let terminate = std::future::pending::<()>();
+        #[cfg(not(unix))]
+        Signals { seen: 0 }
+    }
+
+    /// The next SIGINT or SIGTERM: its number.
+    async fn next(&mut self) -> i32 {
+        #[cfg(unix)]
+        {
+            async fn recv(s: Option<&mut tokio::signal::unix::Signal>) {
+                match s {
+                    Some(s) => {
+                        s.recv().await;
+                    }
+                    None => std::future::pending().await,
+                }
+            }
+            let signo = tokio::select! {
+                () = recv(self.interrupt.as_mut()) => 2,
+                () = recv(self.terminate.as_mut()) => 15,
+            };
+            self.seen += 1;
+            signo
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = tokio::signal::ctrl_c().await;
+            self.seen += 1;
+            2
+        }
+    }
+
+    /// A signal that asks again: the second one overall (a stop by token
+    /// or by a failed setup takes two, the first only confirming it).
+    async fn second(&mut self) -> i32 {
+        loop {
+            let signo = self.next().await;
+            if self.seen >= 2 {
+                return signo;
+            }
+            info!("signal {signo} while stopping: send it again to exit at once");
+        }
+    }
+}
+
+async fn wait_for_stop(runner: &NodeRunner, signals: &mut Signals) {
     tokio::select! {
-        _ = tokio::signal::ctrl_c() => info!("interrupted; shutting down"),
-        () = terminate => info!("terminated; shutting down"),
+        signo = signals.next() => if signo == 2 {
+            info!("interrupted; shutting down");
+        } else {
+            info!("terminated; shutting down");
+        },
         () = runner.cancellation_token().cancelled() => info!("cancelled; shutting down"),
     }
 }
@@ -264,6 +366,28 @@ pub struct NodeRunner {
     /// This runner, for what today's API hands out that outlives a borrow
     /// of it (a declared publisher, a held subscription).
     me: std::sync::OnceLock<std::sync::Weak<NodeRunner>>,
+    /// Fires when messaging closes, after the shutdown hooks: outgoing
+    /// calls keep working until then.
+    messaging: CancellationToken,
+    hooks: Mutex<Hooks>,
+    grace: Duration,
+    use_sim_time: bool,
+    /// Held by the one stop sequence; `true` once it has run.
+    stopped: tokio::sync::Mutex<bool>,
+}
+
+/// A shutdown hook and where it was registered (its name in the logs).
+struct Hook {
+    /// `file:line`.
+    at: String,
+    run: Pin<Box<dyn Future<Output = ()> + Send>>,
+}
+
+#[derive(Default)]
+struct Hooks {
+    registered: Vec<Hook>,
+    /// Set when the hooks start running: a hook registered later is too late.
+    closed: bool,
 }
 
 #[derive(Default)]
@@ -295,6 +419,7 @@ impl NodeRunner {
         startup: StartupConfig,
         retention: std::time::Duration,
         shared_memory: SharedMemory,
+        grace: Duration,
     ) -> Result<Arc<NodeRunner>> {
         let mut config = startup.zenoh.zenoh_config()?;
         // Off: no shared memory at all, as on another host. On: the
@@ -331,6 +456,11 @@ impl NodeRunner {
             acker: None,
             request_keys: RequestKeys::default(),
             me: std::sync::OnceLock::new(),
+            messaging: CancellationToken::new(),
+            hooks: Mutex::new(Hooks::default()),
+            grace,
+            use_sim_time: startup.use_sim_time,
+            stopped: tokio::sync::Mutex::new(false),
         };
         let mut entities = Entities::default();
         let started_at_ms = describe::now_ms();
@@ -763,8 +893,120 @@ impl NodeRunner {
     }
 
     /// Fires when the node stops; spawned tasks watch it to end cleanly.
+    /// Cancelling it stops the node ([`NodeRunner::shutdown`]'s sequence,
+    /// run by [`NodeBuilder::run`]).
     pub fn cancellation_token(&self) -> &CancellationToken {
         &self.token
+    }
+
+    /// Fires when messaging closes, once the shutdown hooks are done: what
+    /// outgoing calls watch, so a hook can still call services.
+    pub(crate) fn messaging_stop(&self) -> &CancellationToken {
+        &self.messaging
+    }
+
+    /// Whether this node follows simulated time (`framework.use_sim_time`,
+    /// `--use-sim-time`): see [`crate::clock`].
+    pub fn use_sim_time(&self) -> bool {
+        self.use_sim_time
+    }
+
+    /// How long the shutdown hooks may take, all together.
+    pub fn shutdown_grace(&self) -> Duration {
+        self.grace
+    }
+
+    /// Runs `hook` when the node stops: after the cancellation token fires
+    /// and before messaging closes, so the hook can still emit and call
+    /// services (to park an arm, flush a log, say goodbye). Hooks run one
+    /// at a time, the last registered first, all within one grace window
+    /// ([`NodeBuilder::shutdown_grace`], 5 s by default). A hook that
+    /// panics is logged and skipped; one still running when the window
+    /// ends is cut off (dropped at its next `.await`), and the hooks not
+    /// yet run are skipped. The logs name each hook by where it was
+    /// registered (`src/main.rs:42`).
+    ///
+    /// A hook registered once the hooks have started running is not run
+    /// (a warning says so).
+    #[track_caller]
+    pub fn on_shutdown<F>(&self, hook: F)
+    where
+        F: Future<Output = ()> + Send + 'static,
+    {
+        let caller = Location::caller();
+        let at = format!("{}:{}", caller.file(), caller.line());
+        let mut hooks = self.hooks.lock().unwrap_or_else(|p| p.into_inner());
+        if hooks.closed {
+            warn!(
+                "shutdown hook registered at {at} comes too late: the node's hooks have already run; it will not run"
+            );
+            return;
+        }
+        hooks.registered.push(Hook {
+            at,
+            run: Box::pin(hook),
+        });
+    }
+
+    /// Runs the shutdown hooks, last registered first, within one grace
+    /// window.
+    async fn run_hooks(&self) {
+        /// How long the last hook's messages get to leave before messaging
+        /// closes: Zenoh holds a batch up to its batching time limit (1 ms by
+        /// default) and may send the link's close ahead of it.
+        const SETTLE: Duration = Duration::from_millis(10);
+        let hooks = {
+            let mut hooks = self.hooks.lock().unwrap_or_else(|p| p.into_inner());
+            hooks.closed = true;
+            std::mem::take(&mut hooks.registered)
+        };
+        if hooks.is_empty() {
+            return;
+        }
+        let window = self.grace;
+        let deadline = tokio::time::Instant::now() + window;
+        let mut pending = hooks.into_iter().rev();
+        while let Some(hook) = pending.next() {
+            // On a task of its own: a panic is caught there, and the
+            // window's end drops it wherever it is waiting.
+            let task = tokio::spawn(hook.run);
+            let abort = task.abort_handle();
+            match tokio::time::timeout_at(deadline, task).await {
+                Ok(Ok(())) => debug!("shutdown hook registered at {} done", hook.at),
+                Ok(Err(e)) if e.is_panic() => {
+                    let panic = e.into_panic();
+                    let why = panic
+                        .downcast_ref::<&str>()
+                        .map(|s| s.to_string())
+                        .or_else(|| panic.downcast_ref::<String>().cloned())
+                        .unwrap_or_else(|| "(no message)".into());
+                    error!(
+                        "shutdown hook registered at {} panicked: {why}; skipped",
+                        hook.at
+                    );
+                }
+                Ok(Err(e)) => warn!(
+                    "shutdown hook registered at {} did not finish: {e}",
+                    hook.at
+                ),
+                Err(_) => {
+                    abort.abort();
+                    warn!(
+                        "shutdown hook registered at {} overran the {} s grace window; cut off",
+                        hook.at,
+                        window.as_secs_f64()
+                    );
+                    for skipped in pending.by_ref() {
+                        warn!(
+                            "shutdown hook registered at {} skipped: the {} s grace window is spent",
+                            skipped.at,
+                            window.as_secs_f64()
+                        );
+                    }
+                }
+            }
+        }
+        tokio::time::sleep(SETTLE).await;
     }
 
     /// The keys this node's requests go to, declared once each.
@@ -901,24 +1143,42 @@ impl NodeRunner {
             .ok_or_else(|| Error::Undeclared(format!("exposed action `{}`", spec.name)))
     }
 
-    /// Stops the node: cancels the token, undeclares every subscription and
-    /// service, and closes the session. Idempotent.
+    /// Stops the node: cancels the token, runs the shutdown hooks
+    /// ([`NodeRunner::on_shutdown`]) within the grace window, then
+    /// undeclares every subscription and service and closes the session.
+    /// Idempotent: a second call waits for the first to finish.
     pub async fn shutdown(&self) {
+        let mut stopped = self.stopped.lock().await;
+        if *stopped {
+            return;
+        }
         self.token.cancel();
+        self.run_hooks().await;
+        self.messaging.cancel();
+        self.close_messaging().await;
+        *stopped = true;
+    }
+
+    /// Undeclares every subscription and the liveliness token, and closes
+    /// the session (which ends the rest).
+    async fn close_messaging(&self) {
         let entities =
             std::mem::take(&mut *self.entities.lock().unwrap_or_else(|p| p.into_inner()));
         for s in entities.subscribers {
             let _ = s.undeclare().await;
         }
-        for q in entities.queryables {
-            let _ = q.undeclare().await;
-        }
+        // The queryables go with the session: one declares each emitted
+        // key (WIRE.md §1), and its undeclaration, sent ahead of data,
+        // could overtake the last messages the shutdown hooks emitted,
+        // which the router could then no longer name.
+        let queryables = entities.queryables;
         if let Some(token) = entities.liveliness {
             let _ = token.undeclare().await;
         }
         if let Err(e) = self.session.close().await {
             warn!("closing the zenoh session: {e}");
         }
+        drop(queryables);
     }
 }
 

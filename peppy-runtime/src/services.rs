@@ -138,10 +138,11 @@ pub struct Reply<T> {
 /// else to the first server the slot's filter accepts. The request is
 /// encoded before the returned future first runs.
 ///
-/// A call waiting for its reply when the node stops returns
-/// [`Error::ShuttingDown`] at once; a call made on an already stopped node
-/// returns it after a short pause, so a loop that ignores the error does
-/// not spin.
+/// Calls work until the node's messaging closes, so a shutdown hook
+/// ([`NodeRunner::on_shutdown`]) can still make them. A call waiting for
+/// its reply when messaging closes returns [`Error::ShuttingDown`] at once;
+/// a call made after that returns it after a short pause, so a loop that
+/// ignores the error does not spin.
 pub fn call<'a, Req, Resp>(
     runner: &'a NodeRunner,
     spec: &'static ConsumedServiceSpec,
@@ -154,7 +155,8 @@ where
 {
     let payload = to_bytes(request);
     async move {
-        if runner.cancellation_token().is_cancelled() {
+        // Messaging, not the token: a shutdown hook may still call.
+        if runner.messaging_stop().is_cancelled() {
             return Err(stop::refused().await);
         }
         let deadline = Instant::now() + timeout;
@@ -184,7 +186,7 @@ where
         .map(|()| target.instance_id.clone());
     async move {
         let instance = checked?;
-        if runner.cancellation_token().is_cancelled() {
+        if runner.messaging_stop().is_cancelled() {
             return Err(stop::refused().await);
         }
         let deadline = Instant::now() + timeout;
@@ -214,7 +216,7 @@ async fn request_to<Resp: Decode>(
 ) -> Result<Reply<Resp>> {
     let answer = Request {
         session: runner.session(),
-        stop: runner.cancellation_token(),
+        stop: runner.messaging_stop(),
         key: entry.selector(runner, Some(instance)),
         keys: Some(runner.request_keys()),
         header: target::header(runner, QueryKind::Request, spec.request.fingerprint),

@@ -4,6 +4,7 @@
 
 use std::hash::{BuildHasher, Hasher};
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use clap::Parser;
 use peppy_schema::{
@@ -48,6 +49,63 @@ pub struct StartupConfig {
     /// How to reach the other nodes.
     #[serde(default)]
     pub zenoh: Endpoints,
+    /// Whether the node follows simulated time (the stack's sim ticks)
+    /// rather than the OS clock: the instance's `framework.use_sim_time`,
+    /// or `--use-sim-time` standalone (see [`crate::clock`]).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub use_sim_time: bool,
+    /// Seconds the node's shutdown hooks may take, all of them together
+    /// (above 0). Absent: [`NodeBuilder::shutdown_grace`], else 5 s.
+    /// `PEPPY_SHUTDOWN_GRACE_SECS` in the environment overrides both.
+    ///
+    /// [`NodeBuilder::shutdown_grace`]: crate::NodeBuilder::shutdown_grace
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shutdown_grace_secs: Option<f64>,
+}
+
+/// The environment variable that overrides a node's shutdown grace window
+/// (seconds, above 0), whatever its runtime config or code say.
+pub const SHUTDOWN_GRACE_ENV: &str = "PEPPY_SHUTDOWN_GRACE_SECS";
+
+/// The shutdown grace window of a node that sets none.
+pub const DEFAULT_SHUTDOWN_GRACE: Duration = Duration::from_secs(5);
+
+/// `secs` as a grace window: a finite number of seconds above 0 (and
+/// below a year, so the deadline fits any clock). `what` names where the
+/// value came from, for the error.
+fn grace_window(secs: f64, what: &str) -> Result<Duration> {
+    if secs.is_finite() && secs > 0.0 && secs < 3.2e7 {
+        Ok(Duration::from_secs_f64(secs))
+    } else {
+        Err(Error::Startup(format!(
+            "invalid {what}: {secs} is not a number of seconds above 0"
+        )))
+    }
+}
+
+/// The shutdown grace window of a node: `PEPPY_SHUTDOWN_GRACE_SECS`, else
+/// the runtime config's `shutdown_grace_secs`, else the builder's, else 5 s.
+pub(crate) fn shutdown_grace(
+    config: &StartupConfig,
+    builder: Option<Duration>,
+) -> Result<Duration> {
+    if let Some(raw) = std::env::var_os(SHUTDOWN_GRACE_ENV) {
+        let raw = raw.to_string_lossy();
+        let what = format!("{SHUTDOWN_GRACE_ENV} `{raw}`");
+        let secs: f64 = raw
+            .trim()
+            .parse()
+            .map_err(|_| Error::Startup(format!("invalid {what}: not a number of seconds")))?;
+        return grace_window(secs, &what);
+    }
+    match (config.shutdown_grace_secs, builder) {
+        (Some(secs), _) => grace_window(secs, "runtime config: `shutdown_grace_secs`"),
+        (None, Some(grace)) if grace.is_zero() => Err(Error::Startup(
+            "invalid NodeBuilder::shutdown_grace: the window must be longer than 0".into(),
+        )),
+        (None, Some(grace)) => Ok(grace),
+        (None, None) => Ok(DEFAULT_SHUTDOWN_GRACE),
+    }
 }
 
 /// Zenoh connection settings.
@@ -153,6 +211,7 @@ pub struct StandaloneConfig {
     pub(crate) instance_id: Option<String>,
     pub(crate) namespace: Option<String>,
     pub(crate) endpoints: Option<Endpoints>,
+    pub(crate) use_sim_time: bool,
 }
 
 impl StandaloneConfig {
@@ -190,6 +249,13 @@ impl StandaloneConfig {
         self.endpoints = Some(endpoints);
         self
     }
+
+    /// Follow simulated time (as `--use-sim-time` does): the stack clock
+    /// gives the latest sim tick instead of the OS clock.
+    pub fn with_use_sim_time(mut self, use_sim_time: bool) -> Self {
+        self.use_sim_time = use_sim_time;
+        self
+    }
 }
 
 /// Flags of a standalone run.
@@ -221,6 +287,10 @@ struct Flags {
     /// A Zenoh endpoint to listen on (repeatable).
     #[arg(long, value_name = "ENDPOINT")]
     listen: Vec<String>,
+    /// Follow simulated time: the stack clock gives the latest sim tick
+    /// (`peppy/<ns>/clock/tick/sim`) instead of the OS clock.
+    #[arg(long)]
+    use_sim_time: bool,
     /// Parameter overrides, `key=value`, dot-paths for groups (`video.fps=30`).
     #[arg(value_name = "KEY=VALUE")]
     overrides: Vec<String>,
@@ -241,6 +311,9 @@ pub(crate) fn load(
             standalone_config(doc, flags, standalone)?
         }
     };
+    if let Some(secs) = config.shutdown_grace_secs {
+        grace_window(secs, "runtime config: `shutdown_grace_secs`")?;
+    }
     for (what, value) in [
         ("instance id", &config.instance_id),
         ("core node", &config.core_node),
@@ -427,6 +500,8 @@ fn standalone_config(
         slots: Vec::new(),
         parameters,
         zenoh: endpoints,
+        use_sim_time: flags.use_sim_time || standalone.use_sim_time,
+        shutdown_grace_secs: None,
     };
     Ok((config, Some(binds)))
 }
@@ -869,6 +944,8 @@ mod tests {
                 connect: vec!["tcp/127.0.0.1:7447".into()],
                 ..Endpoints::default()
             },
+            use_sim_time: false,
+            shutdown_grace_secs: None,
         }
     }
 
@@ -902,6 +979,89 @@ mod tests {
         assert_eq!(s.instance_id, "recon_1");
         assert_eq!(s.zenoh, cfg.zenoh);
         assert_eq!(s.parameters, cfg.parameters);
+    }
+
+    #[test]
+    fn clock_and_grace_settings_come_from_the_plan_or_the_command_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let left = slot(
+            "left_cam",
+            SlotBinding::Pinned {
+                producer: "rs_left".into(),
+            },
+            RouteFilter::Pin("rs_left".into()),
+        );
+        let backup = slot("backup", SlotBinding::FromAnyUnbound, RouteFilter::Any);
+        let base = launcher_config(vec![left, backup]);
+        // A plan written before the two fields existed still reads, and
+        // leaves them at their defaults (nothing new is written for them).
+        let old = serde_json::to_value(&base).unwrap();
+        assert!(old.get("use_sim_time").is_none() && old.get("shutdown_grace_secs").is_none());
+        let s = load(
+            &doc(),
+            args(&[]),
+            Some(plan_file(&dir, &base)),
+            &StandaloneConfig::new(),
+        )
+        .unwrap();
+        assert!(!s.use_sim_time);
+        assert_eq!(shutdown_grace(&s, None).unwrap(), DEFAULT_SHUTDOWN_GRACE);
+        assert_eq!(
+            shutdown_grace(&s, Some(Duration::from_secs(9))).unwrap(),
+            Duration::from_secs(9)
+        );
+        let set = StartupConfig {
+            use_sim_time: true,
+            shutdown_grace_secs: Some(1.5),
+            ..base.clone()
+        };
+        let s = load(
+            &doc(),
+            args(&[]),
+            Some(plan_file(&dir, &set)),
+            &StandaloneConfig::new(),
+        )
+        .unwrap();
+        assert!(s.use_sim_time);
+        // The plan's window wins over the code's.
+        assert_eq!(
+            shutdown_grace(&s, Some(Duration::from_secs(9))).unwrap(),
+            Duration::from_millis(1500)
+        );
+        for bad in [0.0, -1.0] {
+            let cfg = StartupConfig {
+                shutdown_grace_secs: Some(bad),
+                ..base.clone()
+            };
+            let e = load(
+                &doc(),
+                args(&[]),
+                Some(plan_file(&dir, &cfg)),
+                &StandaloneConfig::new(),
+            )
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains("`shutdown_grace_secs`"), "{e}");
+        }
+        // Standalone: the flag or the code's fallback.
+        let cmd = ["--bind", "left_cam@a", "name=x"];
+        let flagged: Vec<&str> = cmd.iter().copied().chain(["--use-sim-time"]).collect();
+        assert!(
+            load(&doc(), args(&flagged), None, &StandaloneConfig::new())
+                .unwrap()
+                .use_sim_time
+        );
+        let fallback = StandaloneConfig::new().with_use_sim_time(true);
+        assert!(
+            load(&doc(), args(&cmd), None, &fallback)
+                .unwrap()
+                .use_sim_time
+        );
+        assert!(
+            !load(&doc(), args(&cmd), None, &StandaloneConfig::new())
+                .unwrap()
+                .use_sim_time
+        );
     }
 
     #[test]

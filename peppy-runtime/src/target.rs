@@ -120,7 +120,7 @@ pub(crate) async fn choose(
                 Ok(r) => r,
                 Err(_) => break,
             },
-            () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
+            () = runner.messaging_stop().cancelled() => return Err(Error::ShuttingDown),
         };
         let Ok(sample) = reply.result() else { continue };
         let Some(sender) = parse_entry_key(sample.key_expr().as_str()) else {

@@ -99,6 +99,7 @@ impl ToolCaller {
         open_goal(GoalOpening {
             session: &self.session,
             stop: &self.stop,
+            messaging: &self.stop,
             action: &action.name,
             describe: &describe,
             selector: action_part_key(&action.key, crate::wire::keys::ActionPart::Goal),

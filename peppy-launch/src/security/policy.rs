@@ -7,8 +7,9 @@
 use std::collections::BTreeSet;
 
 use peppy_runtime::wire::keys::{
-    ActionPart, Channel, EntrySelector, Owner, Space, action_part_key, action_parts_selector,
-    describe_key, entry_key, entry_selector, feedback_selector, format_selector, liveliness_key,
+    ActionPart, Channel, ClockSource, EntrySelector, Owner, Space, action_part_key,
+    action_parts_selector, clock_sync_key, clock_tick_key, clock_tick_selector, describe_key,
+    entry_key, entry_selector, feedback_selector, format_selector, liveliness_key,
     namespace_prefix, namespace_selector, space_selector,
 };
 use peppy_schema::{InstancePlan, Origin, StackCheck};
@@ -343,6 +344,41 @@ impl Policy {
                 &["reply"],
                 &[format_selector(ns, None)],
             ),
+            // The stack clock: every instance follows the ticks and asks
+            // the launch's clock; any instance may be the simulator and
+            // publish sim ticks. Wall ticks and sync answers come from the
+            // launch itself (its router), which no instance may stand in
+            // for: no instance publishes wall ticks or answers sync.
+            rule(
+                "any.clock",
+                "ingress",
+                &["declare_subscriber"],
+                &[clock_tick_selector(ns)],
+            ),
+            rule(
+                "any.clock.ask",
+                "ingress",
+                &["query"],
+                &[clock_sync_key(ns)],
+            ),
+            rule(
+                "any.clock.sim",
+                "ingress",
+                &["put"],
+                &[clock_tick_key(ns, ClockSource::Sim)],
+            ),
+            rule(
+                "any.clock.in",
+                "egress",
+                &["put"],
+                &[clock_tick_selector(ns)],
+            ),
+            rule(
+                "any.clock.answers",
+                "egress",
+                &["reply"],
+                &[clock_sync_key(ns)],
+            ),
             rule(
                 "any.declarations",
                 "egress",
@@ -371,6 +407,11 @@ impl Policy {
                 "any.live.in".to_string(),
                 "any.format".to_string(),
                 "any.format.in".to_string(),
+                "any.clock".to_string(),
+                "any.clock.ask".to_string(),
+                "any.clock.sim".to_string(),
+                "any.clock.in".to_string(),
+                "any.clock.answers".to_string(),
                 "any.declarations".to_string(),
             ];
             let mut add = |suffix: &str, flow: &str, messages: &[&str], keys: Vec<String>| {
@@ -677,6 +718,62 @@ mod tests {
                 && r["messages"].as_array().unwrap().contains(&"reply".into())
                 && r["id"] != "everything"
         }));
+    }
+
+    /// Every instance follows the clock, asks it and may publish sim
+    /// time; none may publish wall ticks or answer sync (the launch does).
+    #[test]
+    fn every_instance_reads_the_clock_and_only_the_launch_serves_it() {
+        let acl = arm_loop().access_control(&[]);
+        let rules = acl["rules"].as_array().unwrap();
+        let rule = |id: &str| rules.iter().find(|r| r["id"] == id).unwrap();
+        let keys = |id: &str| rule(id)["key_exprs"].clone();
+        assert_eq!(
+            keys("any.clock"),
+            serde_json::json!(["peppy/lab/clock/tick/*"])
+        );
+        assert_eq!(
+            keys("any.clock.ask"),
+            serde_json::json!(["peppy/lab/clock/sync"])
+        );
+        assert_eq!(
+            keys("any.clock.sim"),
+            serde_json::json!(["peppy/lab/clock/tick/sim"])
+        );
+        assert_eq!(rule("any.clock.in")["flows"], serde_json::json!(["egress"]));
+        for policy in acl["policies"].as_array().unwrap() {
+            if policy["id"] == "operator" {
+                continue;
+            }
+            let granted = policy["rules"].as_array().unwrap();
+            assert!(granted.contains(&"any.clock".into()), "{policy}");
+            assert!(granted.contains(&"any.clock.sim".into()), "{policy}");
+        }
+        // No instance rule lets anything in on the wall tick or a sync
+        // answer.
+        let wall = "peppy/lab/clock/tick/wall";
+        for r in rules
+            .iter()
+            .filter(|r| r["flows"] != serde_json::json!(["egress"]))
+        {
+            let messages = r["messages"].as_array().unwrap();
+            let exprs: Vec<&str> = r["key_exprs"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter_map(|k| k.as_str())
+                .collect();
+            if r["id"] == "everything" || r["id"] == "links" {
+                continue;
+            }
+            let publishes_wall = messages.contains(&"put".into())
+                && exprs
+                    .iter()
+                    .any(|k| *k == wall || k.ends_with("/clock/tick/*"));
+            let answers_sync =
+                messages.contains(&"reply".into()) && exprs.iter().any(|k| k.contains("/clock/"));
+            assert!(!publishes_wall && !answers_sync, "{r}");
+        }
     }
 
     #[test]

@@ -2,6 +2,7 @@
 //! exit codes and output as users see them.
 
 mod check;
+mod clock;
 mod inspect;
 mod machines;
 mod migrate;

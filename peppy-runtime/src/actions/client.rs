@@ -31,6 +31,9 @@ pub struct GoalClient {
     feedback: flume::Receiver<Option<Vec<u8>>>,
     _subscriber: zenoh::pubsub::Subscriber<()>,
     stop: CancellationToken,
+    /// Fires when the node's messaging closes, after its shutdown hooks:
+    /// asking for the result or a cancel works until then.
+    messaging: CancellationToken,
     /// Whether the server accepted the goal.
     pub accepted: bool,
     /// The server's reason when it rejected the goal.
@@ -100,7 +103,9 @@ async fn goal_through(
     timeout: Duration,
     body: Vec<u8>,
 ) -> Result<GoalClient> {
-    if runner.cancellation_token().is_cancelled() {
+    // Outgoing: allowed until messaging closes, so a shutdown hook can
+    // still send a goal.
+    if runner.messaging_stop().is_cancelled() {
         return Err(stop::refused().await);
     }
     let deadline = Instant::now() + timeout;
@@ -122,6 +127,7 @@ async fn goal_through(
     let opened = open_goal(GoalOpening {
         session: runner.session(),
         stop: runner.cancellation_token(),
+        messaging: runner.messaging_stop(),
         action: spec.name,
         describe: &entry.describe,
         selector: entry.selector(runner, Some(&target)),
@@ -152,6 +158,8 @@ async fn goal_through(
 pub(crate) struct GoalOpening<'a> {
     pub(crate) session: &'a zenoh::Session,
     pub(crate) stop: &'a CancellationToken,
+    /// Ends outgoing requests: the node's messaging closing.
+    pub(crate) messaging: &'a CancellationToken,
     /// The action's name, for errors.
     pub(crate) action: &'a str,
     /// How the goal reads in errors.
@@ -207,7 +215,7 @@ pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
     payload.extend_from_slice(&o.body);
     let answer = Request {
         session: o.session,
-        stop: o.stop,
+        stop: o.messaging,
         key: o.selector,
         keys: o.keys,
         header: o.header,
@@ -239,6 +247,7 @@ pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
         feedback: rx,
         _subscriber: subscriber,
         stop: o.stop.clone(),
+        messaging: o.messaging.clone(),
         accepted,
         error_message,
         instance_id: answer.instance,
@@ -286,7 +295,7 @@ impl GoalClient {
         let describe = format!("{} (action {})", self.action, part.as_str());
         let answer = Request {
             session: &self.session,
-            stop: &self.stop,
+            stop: &self.messaging,
             key: action_part_key(&self.base_key, part),
             keys: None,
             header: QueryHeader {
@@ -311,8 +320,8 @@ impl GoalClient {
     }
 
     /// Waits (up to `timeout`) until the goal is terminal and returns how it
-    /// ended. Once this node stops it returns [`Error::ShuttingDown`], as
-    /// [`next_feedback`](Self::next_feedback) does.
+    /// ended. It works until the node's messaging closes (shutdown hooks may
+    /// ask), then returns [`Error::ShuttingDown`].
     pub async fn result<R: Decode>(&self, timeout: Duration) -> Result<Outcome<R>> {
         let body = self.ask(ActionPart::Result, timeout).await?;
         let decode = |bytes: &[u8]| {
@@ -334,8 +343,9 @@ impl GoalClient {
         }
     }
 
-    /// Asks the server to cancel the goal. Once this node stops it returns
-    /// [`Error::ShuttingDown`], as [`next_feedback`](Self::next_feedback) does.
+    /// Asks the server to cancel the goal. It works until the node's
+    /// messaging closes (a shutdown hook cancelling what the node started is
+    /// the usual case), then returns [`Error::ShuttingDown`].
     pub async fn cancel(&self, timeout: Duration) -> Result<CancelState> {
         let body = self.ask(ActionPart::Cancel, timeout).await?;
         Ok(match body.first() {

@@ -16,6 +16,8 @@
 //! peppy/<ns>/format/<fingerprint as 16 hex>/<instance>
 //! peppy/<ns>/describe/<core>/<instance>
 //! peppy/<ns>/core/<core>/<launch>
+//! peppy/<ns>/clock/tick/<wall|sim>
+//! peppy/<ns>/clock/sync
 //! ```
 //!
 //! `<kind>` is `node` for a node's own declarations and `interface` for
@@ -91,11 +93,13 @@ pub enum Space {
     Describe,
     /// Launches' core node tokens.
     Core,
+    /// The stack clock: ticks and synchronization (docs/WIRE.md, "Clock").
+    Clock,
 }
 
 impl Space {
     /// The segment: `topic`, `service`, `action`, `live`, `format`,
-    /// `describe` or `core`.
+    /// `describe`, `core` or `clock`.
     pub fn as_str(self) -> &'static str {
         match self {
             Space::Topic => "topic",
@@ -105,6 +109,7 @@ impl Space {
             Space::Format => "format",
             Space::Describe => "describe",
             Space::Core => "core",
+            Space::Clock => "clock",
         }
     }
 }
@@ -379,6 +384,59 @@ pub fn parse_core_key(key: &str) -> Option<(&str, &str)> {
     let rest = rest.strip_prefix("core/")?;
     let (core, launch) = rest.split_once('/')?;
     (is_segment(core) && is_segment(launch)).then_some((core, launch))
+}
+
+/// Which time a clock tick carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ClockSource {
+    /// The launcher's OS clock (ns since the Unix epoch).
+    Wall,
+    /// A simulator's time.
+    Sim,
+}
+
+impl ClockSource {
+    /// `wall` or `sim`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ClockSource::Wall => "wall",
+            ClockSource::Sim => "sim",
+        }
+    }
+
+    /// The byte a sync query names it with: 0 wall, 1 sim.
+    pub fn as_byte(self) -> u8 {
+        match self {
+            ClockSource::Wall => 0,
+            ClockSource::Sim => 1,
+        }
+    }
+
+    /// The source a sync query's byte names, if any.
+    pub fn from_byte(b: u8) -> Option<ClockSource> {
+        match b {
+            0 => Some(ClockSource::Wall),
+            1 => Some(ClockSource::Sim),
+            _ => None,
+        }
+    }
+}
+
+/// `peppy/<ns>/clock/tick/<wall|sim>`: where the launcher (wall) or a
+/// simulator (sim) publishes the time, 8 bytes of u64 little-endian ns.
+pub fn clock_tick_key(ns: &str, source: ClockSource) -> String {
+    key(ns, Space::Clock, &["tick", source.as_str()])
+}
+
+/// `peppy/<ns>/clock/tick/*`: both tick keys.
+pub fn clock_tick_selector(ns: &str) -> String {
+    key(ns, Space::Clock, &["tick", "*"])
+}
+
+/// `peppy/<ns>/clock/sync`: where each launch answers clock
+/// synchronization queries.
+pub fn clock_sync_key(ns: &str) -> String {
+    key(ns, Space::Clock, &["sync"])
 }
 
 /// The tokens of every instance in `ns`.

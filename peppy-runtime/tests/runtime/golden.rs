@@ -89,6 +89,7 @@ fn space(name: &str) -> Space {
         Space::Format,
         Space::Describe,
         Space::Core,
+        Space::Clock,
     ]
     .into_iter()
     .find(|s| s.as_str() == name)

@@ -5,9 +5,11 @@
 
 mod actions;
 mod bindings;
+mod clock;
 mod golden;
 mod process;
 mod routing;
 mod services;
+mod shutdown;
 mod support;
 mod topics;

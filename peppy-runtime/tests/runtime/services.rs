@@ -197,6 +197,8 @@ async fn a_pinned_call_follows_its_server_into_another_launch() {
             connect: vec![hub.endpoint.clone()],
             ..Default::default()
         },
+        use_sim_time: false,
+        shutdown_grace_secs: None,
     };
     std::fs::write(&config, serde_json::to_string(&startup).expect("json")).expect("written");
     let (_, second) = tokio::time::timeout(
@@ -432,4 +434,34 @@ async fn a_node_slot_on_an_inherited_service_calls_only_its_node() {
     for r in [&caller, &zed, &rs] {
         r.shutdown().await;
     }
+}
+
+/// A shutdown hook still calls services: the token has fired, messaging
+/// has not closed. Once it has, a call is refused.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_shutdown_hook_can_still_call_a_service() {
+    let hub = hub().await;
+    let ns = namespace("svc-hook");
+    let (_, recon) = start_recon(&hub, &ns, "recon").await;
+    let (_, left) = start::<Camera>(&hub, &ns, "rs_left", &[]).await;
+    serve_info(left.clone(), 640);
+    // Reachable before the stop.
+    call_until_up(async || {
+        call::<(), [u32; 2]>(&recon, &LEFT_INFO, Duration::from_secs(2), &()).await
+    })
+    .await;
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    let r = recon.clone();
+    recon.on_shutdown(async move {
+        let stopping = r.cancellation_token().is_cancelled();
+        let answer = call::<(), [u32; 2]>(&r, &LEFT_INFO, WAIT, &()).await;
+        let _ = tx.send((stopping, answer.map(|a| a.data)));
+    });
+    tokio::time::timeout(WAIT, recon.shutdown()).await.unwrap();
+    let (stopping, answer) = rx.await.unwrap();
+    assert!(stopping);
+    assert_eq!(answer.unwrap(), [640, 480]);
+    let refused = call::<(), [u32; 2]>(&recon, &LEFT_INFO, WAIT, &()).await;
+    assert!(matches!(refused, Err(Error::ShuttingDown)), "{refused:?}");
+    left.shutdown().await;
 }
