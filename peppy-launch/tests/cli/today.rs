@@ -108,21 +108,23 @@ fn sync_writes_nothing_twice_and_cargo_rebuilds_nothing() {
     // Built once (cargo test built it already, or this does), a build after
     // sync finds every unit fresh.
     crate::support::cargo(&["build", "--quiet", "-p", "today_camera"]);
-    let out = crate::support::cargo(&[
-        "build",
-        "-p",
-        "today_camera",
-        "--message-format=json",
-    ]);
+    let out = crate::support::cargo(&["build", "-p", "today_camera", "--message-format=json"]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     let units: Vec<&str> = stdout
         .lines()
         .filter(|l| l.contains("\"reason\":\"compiler-artifact\""))
-        .filter(|l| ["peppygen", "peppylib", "today_camera"].iter().any(|c| l.contains(&format!("\"name\":\"{c}\""))))
+        .filter(|l| {
+            ["peppygen", "peppylib", "today_camera"]
+                .iter()
+                .any(|c| l.contains(&format!("\"name\":\"{c}\"")))
+        })
         .collect();
     assert_eq!(units.len(), 3, "{stdout}");
     for unit in units {
-        assert!(unit.contains("\"fresh\":true"), "rebuilt after sync: {unit}");
+        assert!(
+            unit.contains("\"fresh\":true"),
+            "rebuilt after sync: {unit}"
+        );
     }
 }
 
@@ -175,7 +177,8 @@ fn todays_node_code_runs_beside_the_seeds() {
         ("[py_cam]", "py_today_camera: stopping after"),
     ] {
         assert!(
-            seen.iter().any(|l| l.starts_with(instance) && l.contains(hook)),
+            seen.iter()
+                .any(|l| l.starts_with(instance) && l.contains(hook)),
             "the shutdown hook of {instance} did not run:\n{}",
             seen.join("\n")
         );
