@@ -71,12 +71,24 @@ pub fn rust_libs(
         indent(CLOCK_RS)
     );
     let peppy = toml_string(peppy);
-    let manifest = |name: &str, what: &str, extra: &str| {
+    // Each node's `peppygen` differs, yet sits at the same path relative to
+    // its node; cargo names a path crate's build by that relative path, so
+    // nodes built into one shared target directory would take each other's
+    // generated crate as up to date. The node in the version's build
+    // metadata tells them apart.
+    let generated_version = format!(
+        "0.1.0+{}",
+        format!("{}-{}", identity.name, identity.tag)
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+            .collect::<String>()
+    );
+    let manifest = |name: &str, version: &str, what: &str, extra: &str| {
         format!(
             "{HEADER}\n\
              [package]\n\
              name = \"{name}\"\n\
-             version = \"0.1.0\"\n\
+             version = \"{version}\"\n\
              edition = \"2021\"\n\
              publish = false\n\
              description = \"{what}\"\n\n\
@@ -96,6 +108,7 @@ pub fn rust_libs(
             path: PathBuf::from("peppygen/Cargo.toml"),
             text: manifest(
                 "peppygen",
+                &generated_version,
                 &format!("The generated API of node {identity}"),
                 "",
             ),
@@ -110,7 +123,12 @@ pub fn rust_libs(
         },
         LibFile {
             path: PathBuf::from("peppylib/Cargo.toml"),
-            text: manifest("peppylib", "The peppy runtime under today's names", ""),
+            text: manifest(
+                "peppylib",
+                "0.1.0",
+                "The peppy runtime under today's names",
+                "",
+            ),
         },
         LibFile {
             path: PathBuf::from("peppylib/src/lib.rs"),

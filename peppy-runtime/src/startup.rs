@@ -212,6 +212,10 @@ pub struct StandaloneConfig {
     pub(crate) namespace: Option<String>,
     pub(crate) endpoints: Option<Endpoints>,
     pub(crate) use_sim_time: bool,
+    /// `(link_id, instance)`, in order: as `--link` flags.
+    pub(crate) links: Vec<(String, String)>,
+    /// Slots left vacant: as `--vacant-link` flags.
+    pub(crate) vacant: Vec<String>,
 }
 
 impl StandaloneConfig {
@@ -254,6 +258,45 @@ impl StandaloneConfig {
     /// gives the latest sim tick instead of the OS clock.
     pub fn with_use_sim_time(mut self, use_sim_time: bool) -> Self {
         self.use_sim_time = use_sim_time;
+        self
+    }
+
+    /// Connects to the Zenoh endpoint `tcp/<host>:<port>` (as `--connect`
+    /// does), with no multicast scouting.
+    pub fn with_messaging(mut self, host: impl AsRef<str>, port: u16) -> Self {
+        let host = host.as_ref();
+        // An IPv6 address goes in brackets in an endpoint.
+        let host = if host.contains(':') && !host.starts_with('[') {
+            format!("[{host}]")
+        } else {
+            host.to_string()
+        };
+        self.endpoints = Some(Endpoints {
+            connect: vec![format!("tcp/{host}:{port}")],
+            ..Endpoints::default()
+        });
+        self
+    }
+
+    /// Links slot `link_id` to producer `instance_id` (as `--link
+    /// link_id@instance_id` does; repeat it for a list slot, in order).
+    /// Instance ids name producers in a stack: `core_node` is not needed to
+    /// reach one. Used when the command line links no slot.
+    pub fn with_bound_producer(
+        mut self,
+        link_id: impl Into<String>,
+        core_node: impl Into<String>,
+        instance_id: impl Into<String>,
+    ) -> Self {
+        let _ = core_node.into();
+        self.links.push((link_id.into(), instance_id.into()));
+        self
+    }
+
+    /// Leaves the `zero_or_one` slot `link_id` empty on purpose (as
+    /// `--vacant-link` does). Used when the command line links no slot.
+    pub fn with_vacant_producer_slot(mut self, link_id: impl Into<String>) -> Self {
+        self.vacant.push(link_id.into());
         self
     }
 }
@@ -444,6 +487,23 @@ fn standalone_config(
             value: why.trim().to_string(),
             kind: FlagKind::Vacant,
         });
+    }
+    // The code's links stand in for a command line that links nothing.
+    if binds.is_empty() {
+        for (key, instance) in &standalone.links {
+            binds.push(FlagBind {
+                key: key.clone(),
+                value: instance.clone(),
+                kind: FlagKind::Link,
+            });
+        }
+        for key in &standalone.vacant {
+            binds.push(FlagBind {
+                key: key.clone(),
+                value: "left vacant by the node's StandaloneConfig".to_string(),
+                kind: FlagKind::Vacant,
+            });
+        }
     }
     let mut parameters = standalone.parameters.clone().unwrap_or(Json::Null);
     if let Some(file) = &flags.params {
@@ -687,6 +747,77 @@ mod tests {
 
     fn start(doc: &NodeModel, a: &[&str]) -> Result<StartupConfig> {
         load(doc, args(a), None, &StandaloneConfig::new())
+    }
+
+    #[test]
+    fn standalone_links_stand_in_for_a_command_line_that_links_nothing() {
+        let code = StandaloneConfig::new()
+            .with_bound_producer("scan", "lab", "lidar_a")
+            .with_vacant_producer_slot("extra")
+            .with_bound_producer("scans", "lab", "lidar_b")
+            .with_messaging("192.0.2.7", 7447);
+        let s = load(&today(), args(&[]), None, &code).unwrap();
+        let slot = |id: &str| {
+            s.slots
+                .iter()
+                .find(|p| p.link_id == id)
+                .unwrap()
+                .binding
+                .clone()
+        };
+        assert_eq!(
+            slot("scan"),
+            SlotBinding::Pinned {
+                producer: "lidar_a".into()
+            }
+        );
+        assert!(
+            matches!(slot("extra"), SlotBinding::Set { producers, vacant: Some(_) } if producers.is_empty())
+        );
+        assert_eq!(
+            slot("scans"),
+            SlotBinding::Set {
+                producers: vec!["lidar_b".into()],
+                vacant: None
+            }
+        );
+        assert_eq!(s.zenoh.connect, vec!["tcp/192.0.2.7:7447".to_string()]);
+        assert!(!s.zenoh.multicast_scouting);
+        // A command line that links anything replaces the code's links whole.
+        let s = load(
+            &today(),
+            args(&[
+                "--link",
+                "scan@lidar_c",
+                "--vacant-link",
+                "extra=x",
+                "--link",
+                "scans@lidar_c",
+            ]),
+            None,
+            &code,
+        )
+        .unwrap();
+        let slot = |id: &str| {
+            s.slots
+                .iter()
+                .find(|p| p.link_id == id)
+                .unwrap()
+                .binding
+                .clone()
+        };
+        assert_eq!(
+            slot("scan"),
+            SlotBinding::Pinned {
+                producer: "lidar_c".into()
+            }
+        );
+        // And the code's links go through the same rules as flags.
+        let wrong = StandaloneConfig::new().with_vacant_producer_slot("scan");
+        let e = load(&today(), args(&[]), None, &wrong)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("LinkVacantInvalid"), "{e}");
     }
 
     #[test]
