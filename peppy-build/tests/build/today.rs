@@ -195,3 +195,52 @@ fn sibling_modules_that_sanitise_alike_are_a_module_name_collision() {
         "{message}"
     );
 }
+
+/// The `.peppy/libs` crates of a node: the generated items, the clock, and
+/// the runtime under today's names; nothing of this machine in them but the
+/// peppy path given; each node's `peppygen` named apart (nodes built into
+/// one target directory must not take each other's).
+#[test]
+fn the_libs_crates_of_two_nodes_differ_only_where_they_must() {
+    let libs = |fixture: &str| {
+        let generated = config(&fixtures().join(fixture)).generate().unwrap();
+        peppy_build::rust_libs(&generated.check.resolved, "../../../peppy", "peppy.json5").unwrap()
+    };
+    let (driver, planner) = (libs("gripper_driver"), libs("grasp_planner"));
+    let file = |files: &[peppy_build::LibFile], path: &str| {
+        files
+            .iter()
+            .find(|f| f.path == std::path::Path::new(path))
+            .unwrap_or_else(|| panic!("no {path}"))
+            .text
+            .clone()
+    };
+    let manifest = file(&driver, "peppygen/Cargo.toml");
+    assert!(
+        manifest.contains("version = \"0.1.0+gripper-driver-v1\""),
+        "{manifest}"
+    );
+    assert!(
+        manifest.contains("peppy = { path = \"../../../peppy\", default-features = false }"),
+        "{manifest}"
+    );
+    assert!(manifest.contains("testing = []"), "{manifest}");
+    assert!(file(&planner, "peppygen/Cargo.toml").contains("0.1.0+grasp-planner-v1"));
+    assert_eq!(
+        file(&driver, "peppylib/src/lib.rs"),
+        file(&planner, "peppylib/src/lib.rs")
+    );
+    let lib = file(&driver, "peppygen/src/lib.rs");
+    assert!(lib.starts_with("// @generated"), "{lib}");
+    assert!(
+        lib.contains("include!(\"api.rs\");")
+            && lib.contains("pub use ::peppy::clock::{init, now_ns};"),
+        "{lib}"
+    );
+    let api = file(&driver, "peppygen/src/api.rs");
+    assert!(api.contains("document_path: \"peppy.json5\""), "{api}");
+    assert!(
+        !api.contains(&fixtures().display().to_string()),
+        "a path of this machine in:\n{api}"
+    );
+}
