@@ -61,10 +61,25 @@ impl Ended {
 /// Stop requests shared by every instance.
 #[derive(Clone, Default)]
 pub(crate) struct StopSignals {
-    /// First Ctrl-C: stop gracefully; no more restarts.
+    /// The launch is stopping: no more restarts.
+    pub(crate) stopping: CancellationToken,
+    /// This instance's turn to stop, gracefully (its consumers have
+    /// stopped already).
     pub(crate) stop: CancellationToken,
     /// Second Ctrl-C: kill now.
     pub(crate) kill: CancellationToken,
+}
+
+impl StopSignals {
+    /// One instance's signals within the launch's: its own turn to stop,
+    /// the launch's stopping and killing.
+    pub(crate) fn instance(&self) -> StopSignals {
+        StopSignals {
+            stopping: self.stopping.clone(),
+            stop: CancellationToken::new(),
+            kill: self.kill.clone(),
+        }
+    }
 }
 
 fn describe(status: ExitStatus) -> String {
@@ -214,7 +229,7 @@ pub(crate) async fn supervise(
             RestartPolicy::OnFailure => !ok,
             RestartPolicy::No => false,
         };
-        if !restart || signals.stop.is_cancelled() {
+        if !restart || signals.stop.is_cancelled() || signals.stopping.is_cancelled() {
             return if ok {
                 out.note(&format!("`{}` {what}", spec.id));
                 Ended::Finished
@@ -248,6 +263,7 @@ pub(crate) async fn supervise(
         tokio::select! {
             () = tokio::time::sleep(backoff) => {}
             () = signals.stop.cancelled() => return if ok { Ended::Finished } else { Ended::Failed(what) },
+            () = signals.stopping.cancelled() => return if ok { Ended::Finished } else { Ended::Failed(what) },
         }
         match spawn(&spec, &out) {
             Ok((c, p)) => {

@@ -806,20 +806,35 @@ pub(crate) async fn run_instances(
     let signals = StopSignals::default();
     let ctrl_c = tokio::spawn(stop_on_interrupts(signals.clone(), out.clone()));
     let mut running = Vec::new();
+    let mut order = Vec::new();
     let mut start_failure = None;
     for p in planned {
-        let started = p.and_then(|p| start_instance(p, run_dir, grace, &signals, &out));
+        let started = p.and_then(|p| {
+            let takes_from = producers_of(&p.config);
+            let own = signals.instance();
+            let stop = own.stop.clone();
+            start_instance(p, run_dir, grace, &own, &out).map(|(id, finished, task)| {
+                order.push(Stopping {
+                    id: id.clone(),
+                    takes_from,
+                    stop,
+                    finished,
+                });
+                (id, task)
+            })
+        });
         match started {
             Ok(instance) => running.push(instance),
             Err(why) => {
                 out.note(&why.to_string());
                 out.note("stopping the instances already started");
-                signals.stop.cancel();
+                signals.stopping.cancel();
                 start_failure = Some(why);
                 break;
             }
         }
     }
+    let in_order = tokio::spawn(stop_in_order(signals.stopping.clone(), order));
     let mut failed = start_failure.is_some();
     for (id, task) in running {
         match task.await {
@@ -836,6 +851,7 @@ pub(crate) async fn run_instances(
         }
     }
     ctrl_c.abort();
+    in_order.abort();
     if failed {
         out.note("done: an instance failed");
         Err(LaunchError::InstanceFailed)
@@ -845,25 +861,95 @@ pub(crate) async fn run_instances(
     }
 }
 
-/// A first Ctrl-C (or SIGTERM) stops every instance, a second kills them.
+/// One started instance, as the launch stops it.
+struct Stopping {
+    id: String,
+    /// The instances its slots take from.
+    takes_from: Vec<String>,
+    /// Its turn to stop.
+    stop: tokio_util::sync::CancellationToken,
+    /// Fired when its supervisor has returned.
+    finished: tokio_util::sync::CancellationToken,
+}
+
+/// The producers an instance's slots are bound to.
+fn producers_of(config: &StartupConfig) -> Vec<String> {
+    use peppy_schema::SlotBinding;
+    config
+        .slots
+        .iter()
+        .flat_map(|slot| match &slot.binding {
+            SlotBinding::Pinned { producer } => vec![producer.clone()],
+            SlotBinding::Set { producers, .. } | SlotBinding::FromAnyBound { producers } => {
+                producers.clone()
+            }
+            SlotBinding::FromAnyUnbound => Vec::new(),
+        })
+        .collect()
+}
+
+/// Once the launch stops, stops its instances in waves: first those no
+/// running instance takes from, and once they have ended, the producers
+/// they took from. A controller's shutdown hooks can then still reach the
+/// arm it drives (to cancel a goal, to send a last command), as it would
+/// on a robot stopped by hand. Instances that take from each other stop
+/// together.
+async fn stop_in_order(stopping: tokio_util::sync::CancellationToken, mut left: Vec<Stopping>) {
+    stopping.cancelled().await;
+    loop {
+        left.retain(|i| !i.finished.is_cancelled());
+        if left.is_empty() {
+            return;
+        }
+        let taken_from: std::collections::HashSet<&str> = left
+            .iter()
+            .flat_map(|i| i.takes_from.iter().map(String::as_str))
+            .collect();
+        let mut wave: Vec<&Stopping> = left
+            .iter()
+            .filter(|i| !taken_from.contains(i.id.as_str()))
+            .collect();
+        if wave.is_empty() {
+            // What is left takes from itself in a circle.
+            wave = left.iter().collect();
+        }
+        for i in &wave {
+            i.stop.cancel();
+        }
+        for i in wave {
+            i.finished.cancelled().await;
+        }
+    }
+}
+
+/// A first Ctrl-C (or SIGTERM) stops the instances (consumers first), a
+/// second kills them.
 async fn stop_on_interrupts(signals: StopSignals, out: Arc<Output>) {
     wait_for_interrupt().await;
     out.note("stopping (press Ctrl-C again to kill at once)");
-    signals.stop.cancel();
+    signals.stopping.cancel();
     wait_for_interrupt().await;
     out.note("killing every instance");
     signals.kill.cancel();
 }
 
 /// Writes an instance's runtime config, starts it and hands it to its
-/// supervisor: the instance's id and its supervising task.
+/// supervisor: the instance's id, a token fired when its supervisor
+/// returns, and its supervising task.
 fn start_instance(
     p: Planned,
     run_dir: &Path,
     grace: Duration,
     signals: &StopSignals,
     out: &Arc<Output>,
-) -> Result<(String, tokio::task::JoinHandle<Ended>), StartError> {
+) -> Result<
+    (
+        String,
+        tokio_util::sync::CancellationToken,
+        tokio::task::JoinHandle<Ended>,
+    ),
+    StartError,
+> {
     let id = p.config.instance_id.clone();
     let config_path = run_dir.join(format!("{id}.json"));
     // It may hold the instance's password: readable by this user only.
@@ -906,7 +992,14 @@ fn start_instance(
         child.id().unwrap_or(0)
     ));
     let supervisor = supervise::supervise(spec, child, pumps, grace, signals.clone(), out.clone());
-    Ok((id, tokio::spawn(supervisor)))
+    let finished = tokio_util::sync::CancellationToken::new();
+    let done = finished.clone();
+    let task = tokio::spawn(async move {
+        let ended = supervisor.await;
+        done.cancel();
+        ended
+    });
+    Ok((id, finished, task))
 }
 
 /// What a stopping node is given beyond its hooks' window, to close
@@ -965,6 +1058,83 @@ async fn next_signal(s: Option<&mut tokio::signal::unix::Signal>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn instance(id: &str, takes_from: &[&str]) -> Stopping {
+        Stopping {
+            id: id.to_string(),
+            takes_from: takes_from.iter().map(|s| s.to_string()).collect(),
+            stop: tokio_util::sync::CancellationToken::new(),
+            finished: tokio_util::sync::CancellationToken::new(),
+        }
+    }
+
+    /// Consumers stop first; a producer's turn comes once every running
+    /// instance that takes from it has ended; a circle stops together.
+    #[tokio::test]
+    async fn a_launch_stops_consumers_before_their_producers() {
+        let brain = instance("brain", &["controller", "camera"]);
+        let controller = instance("controller", &["left_arm", "right_arm"]);
+        let (left, right, camera) = (
+            instance("left_arm", &[]),
+            instance("right_arm", &[]),
+            instance("camera", &[]),
+        );
+        let a = instance("a", &["b"]);
+        let b = instance("b", &["a"]);
+        let tokens = |i: &Stopping| (i.stop.clone(), i.finished.clone());
+        let (brain_stop, brain_done) = tokens(&brain);
+        let (controller_stop, controller_done) = tokens(&controller);
+        let (left_stop, left_done) = tokens(&left);
+        let (right_stop, right_done) = tokens(&right);
+        let (camera_stop, camera_done) = tokens(&camera);
+        let (a_stop, a_done) = tokens(&a);
+        let (b_stop, b_done) = tokens(&b);
+        // The right arm has ended already (crashed): it is not waited for.
+        right_done.cancel();
+        let stopping = tokio_util::sync::CancellationToken::new();
+        let task = tokio::spawn(stop_in_order(
+            stopping.clone(),
+            vec![left, brain, right, camera, controller, a, b],
+        ));
+        let settle = || tokio::time::sleep(Duration::from_millis(50));
+        settle().await;
+        assert!(
+            !brain_stop.is_cancelled(),
+            "nothing stops before the launch does"
+        );
+        stopping.cancel();
+        settle().await;
+        // Wave 1: the brain, which nothing takes from. The circle (each of
+        // `a` and `b` takes from the other) waits until nothing else is left.
+        assert!(brain_stop.is_cancelled());
+        assert!(!a_stop.is_cancelled());
+        assert!(!controller_stop.is_cancelled() && !camera_stop.is_cancelled());
+        assert!(!left_stop.is_cancelled());
+        brain_done.cancel();
+        settle().await;
+        assert!(controller_stop.is_cancelled() && camera_stop.is_cancelled());
+        assert!(
+            !left_stop.is_cancelled(),
+            "the arm outlives its controller's stop"
+        );
+        controller_done.cancel();
+        camera_done.cancel();
+        settle().await;
+        assert!(left_stop.is_cancelled());
+        assert!(
+            !right_stop.is_cancelled(),
+            "an ended instance is not stopped again"
+        );
+        left_done.cancel();
+        settle().await;
+        assert!(a_stop.is_cancelled() && b_stop.is_cancelled());
+        a_done.cancel();
+        b_done.cancel();
+        tokio::time::timeout(Duration::from_secs(5), task)
+            .await
+            .expect("the stop ends once every instance has")
+            .unwrap();
+    }
 
     #[test]
     fn the_hooks_window_is_the_one_the_node_will_read() {

@@ -268,42 +268,77 @@ pub async fn synchronize(runner: &NodeRunner, timeout: Option<Duration>) -> Resu
         ClockSource::Wall
     };
     let key = clock_sync_key(runner.namespace());
+    let deadline = tokio::time::Instant::now() + timeout.unwrap_or(DEFAULT_SYNC_TIMEOUT);
+    loop {
+        let left = deadline.saturating_duration_since(tokio::time::Instant::now());
+        if let Some(sync) = ask_clock(runner, &key, source, left).await? {
+            return Ok(sync);
+        }
+        // Nobody answered. A query that reaches no queryable ends at once,
+        // and a node just started may not have heard of the launcher's
+        // yet: ask again until the timeout is spent.
+        let left = deadline.saturating_duration_since(tokio::time::Instant::now());
+        if left.is_zero() {
+            return Err(Error::ServiceUnreachable {
+                service: "clock sync".into(),
+                instance: None,
+            });
+        }
+        tokio::select! {
+            () = tokio::time::sleep(left.min(SYNC_RETRY)) => {}
+            () = runner.messaging_stop().cancelled() => return Err(Error::ShuttingDown),
+        }
+    }
+}
+
+/// How long `synchronize` waits before asking again when nobody answered.
+const SYNC_RETRY: Duration = Duration::from_millis(50);
+
+/// One `clock/sync` query: the first answer, or `None` when none came
+/// within `timeout`.
+async fn ask_clock(
+    runner: &NodeRunner,
+    key: &str,
+    source: ClockSource,
+    timeout: Duration,
+) -> Result<Option<ClockSync>> {
     let t0 = client_now(runner);
     let mut query = t0.to_le_bytes().to_vec();
     query.push(source.as_byte());
     let replies = runner
         .session()
-        .get(&key)
+        .get(key)
         .payload(query)
         .target(QueryTarget::All)
         .consolidation(ConsolidationMode::None)
-        .timeout(timeout.unwrap_or(DEFAULT_SYNC_TIMEOUT))
+        .timeout(timeout.max(Duration::from_millis(1)))
         .await?;
     loop {
         let reply = tokio::select! {
             r = replies.recv_async() => match r {
                 Ok(r) => r,
-                Err(_) => break,
+                Err(_) => return Ok(None),
             },
             () = runner.messaging_stop().cancelled() => return Err(Error::ShuttingDown),
         };
         let t3 = client_now(runner);
         match reply.result() {
             Ok(sample) => match ClockResponse::decode(&sample.payload().to_bytes()) {
-                Some(r) => return Ok(r.sync(t3)),
+                Some(r) => return Ok(Some(r.sync(t3))),
                 None => debug!(key, "dropping a clock sync reply that is not 24 bytes"),
             },
             Err(e) => {
                 let why = e.payload().try_to_string().unwrap_or_default().into_owned();
+                // Zenoh ends a query whose time is up with an error reply
+                // of its own, not from the launcher.
+                if why == "Timeout" {
+                    return Ok(None);
+                }
                 debug!(key, reason = %why, "the launcher refused to synchronize");
                 return Err(Error::ClockNotReady);
             }
         }
     }
-    Err(Error::ServiceUnreachable {
-        service: "clock sync".into(),
-        instance: None,
-    })
 }
 
 /// One tick of the node's clock.

@@ -19,6 +19,7 @@ dropped, with one warning per subscription.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import struct
 import threading
@@ -197,11 +198,35 @@ async def synchronize(runner: Any, response_timeout_secs: Optional[float] = None
     refuses when it has seen none (`ClockNotReady`). No answer within
     `response_timeout_secs` (default 10 s): `ServiceUnreachable` (a
     `ConnectionError`)."""
-    import zenoh
-
     if runner.refuses_calls():
         raise ShuttingDown()
     timeout = DEFAULT_SYNC_TIMEOUT if response_timeout_secs is None else float(response_timeout_secs)
+    loop = runner.loop
+    deadline = loop.time() + timeout
+    while True:
+        sync = await _ask_clock(runner, max(deadline - loop.time(), 0.001))
+        if sync is not None:
+            return sync
+        # Nobody answered. A query that reaches no queryable ends at once,
+        # and a node just started may not have heard of the launcher's yet:
+        # ask again until the timeout is spent.
+        left = deadline - loop.time()
+        if left <= 0:
+            raise ServiceUnreachable("clock sync")
+        await asyncio.sleep(min(left, _SYNC_RETRY))
+        if runner.refuses_calls():
+            raise ShuttingDown()
+
+
+#: How long `synchronize` waits before asking again when nobody answered.
+_SYNC_RETRY = 0.05
+
+
+async def _ask_clock(runner: Any, timeout: float) -> Optional[ClockSync]:
+    """One `clock/sync` query: the first answer, or None when none came
+    within `timeout`."""
+    import zenoh
+
     loop = runner.loop
     key = clock_sync_key(runner.namespace)
     t0 = _client_now(runner)
@@ -228,14 +253,14 @@ async def synchronize(runner: Any, response_timeout_secs: Optional[float] = None
         while True:
             item = await replies.get(deadline)
             if item is END or item is TIMED_OUT:
-                break
+                return None
             t3 = _client_now(runner)
             ok, payload = item
             if not ok:
                 why = payload.decode("utf-8", "replace")
                 # Zenoh reports the query's own timeout as an error reply.
                 if why == "Timeout":
-                    break
+                    return None
                 raise ClockNotReady(f"the launcher cannot synchronize: {why}")
             if len(payload) != _REPLY.size:
                 log.debug("dropping a clock sync reply of %d bytes (expected 24)", len(payload))
@@ -243,7 +268,6 @@ async def synchronize(runner: Any, response_timeout_secs: Optional[float] = None
             return clock_sync(ClockResponse(*_REPLY.unpack(payload)), t3)
     finally:
         replies.close()
-    raise ServiceUnreachable("clock sync")
 
 
 @dataclass(frozen=True)
