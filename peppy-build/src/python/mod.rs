@@ -46,11 +46,7 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
     let mut specs = Specs::default();
     for p in &node.emitted_topics {
         let path = files.provided("emitted_topics", &p.decl.name, &p.origin, node, |out| {
-            if today {
-                today::emitted_topic(out, p)
-            } else {
-                modules::emitted_topic(out, p)
-            }
+            modules::emitted_topic(out, p, today)
         });
         specs.emitted.push(path);
     }
@@ -62,13 +58,7 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
             "consumed_topics",
             &parts,
             &format!("Topic `{}`, consumed.", t.name),
-            |out| {
-                if today {
-                    today::consumed_topic(out, node, t)
-                } else {
-                    modules::consumed_topic(out, t, by_instance)
-                }
-            },
+            |out| modules::consumed_topic(out, node, t, by_instance),
         );
         specs.consumed.push(path);
     }
@@ -92,23 +82,13 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
                 "Service `{}`, called through slot `{}`.",
                 c.decl.name, c.slot.link_id
             ),
-            |out| {
-                if today {
-                    today::consumed_service(out, node, c)
-                } else {
-                    modules::consumed_service(out, c)
-                }
-            },
+            |out| modules::consumed_service(out, node, c),
         );
         specs.consumed_services.push(path);
     }
     for p in &node.exposed_actions {
         let path = files.provided("exposed_actions", &p.decl.name, &p.origin, node, |out| {
-            if today {
-                today::exposed_action(out, p)
-            } else {
-                modules::exposed_action(out, p)
-            }
+            modules::exposed_action(out, p, today)
         });
         specs.actions.push(path);
     }
@@ -126,13 +106,7 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
                 "Action `{}`, called through slot `{}`.",
                 c.decl.name, c.slot.link_id
             ),
-            |out| {
-                if today {
-                    today::consumed_action(out, node, c)
-                } else {
-                    modules::consumed_action(out, c)
-                }
-            },
+            |out| modules::consumed_action(out, node, c),
         );
         specs.consumed_actions.push(path);
     }

@@ -1,13 +1,17 @@
 //! One Python module per entry, with the same names and call shapes as the
 //! Rust API (`emit`, `on_next_message_received`, `handle_next_request`,
-//! `poll`, `ActionHandle`), on the `peppy` runtime package.
+//! `poll`, `ActionHandle`), on the `peppy` runtime package. One function
+//! per entry kind writes both the seeds' API and today's (`node/v1`),
+//! branching only where their shapes differ; today's own blocks are in
+//! [`super::today`].
 
 use peppy_schema::names::type_prefix;
 use peppy_schema::{ActionDecl, Origin, Provided, QosProfile, ResolvedCall, ResolvedTopic};
-use peppy_schema::{ServiceDecl, TopicDecl};
+use peppy_schema::{ResolvedNode, ServiceDecl, Spelling, TopicDecl};
 
 use super::messages::{fields_of, message};
 use super::source::{Source, py_string};
+use super::today;
 
 /// The lines every generated module starts with.
 pub(super) fn header(out: &mut Source, doc: &str, document: &str, today: bool) {
@@ -66,92 +70,6 @@ pub(super) fn params(
     let mut all: Vec<String> = fixed.iter().map(|s| s.to_string()).collect();
     all.extend(names);
     (all.join(", "), inits.join(", "))
-}
-
-pub(super) fn emitted_topic(out: &mut Source, p: &Provided<TopicDecl>) {
-    let d = &p.decl;
-    let format = message(
-        out,
-        "Message",
-        "Message",
-        d.format.as_ref(),
-        &format!("A message of topic `{}`.", d.name),
-    );
-    out.line(&format!(
-        "SPEC = _s.TopicSpec({}, {}, {}, {format})",
-        owner(Some(&p.origin), true),
-        py_string(&d.name),
-        qos(d.qos)
-    ));
-    out.line("\"\"\"What the runtime knows about this topic.\"\"\"");
-    out.blank();
-    out.blank();
-    let (ps, inits) = params(
-        &["node_runner: NodeRunner"],
-        "Message",
-        fields_of(d.format.as_ref()),
-    );
-    out.line(&format!("async def emit({ps}) -> None:"));
-    out.indent();
-    out.docstring(&format!(
-        "Publishes one message on `{}`, the fields in declaration order.",
-        d.name
-    ));
-    out.line(&format!(
-        "await _topics.emit(node_runner, SPEC, Message({inits}))"
-    ));
-    out.dedent();
-}
-
-pub(super) fn consumed_topic(out: &mut Source, t: &ResolvedTopic, by_instance: bool) {
-    let format = message(
-        out,
-        "Message",
-        "Message",
-        t.format.as_ref(),
-        &format!("A message of topic `{}`.", t.name),
-    );
-    let link = t
-        .slot
-        .as_ref()
-        .map_or("None".to_string(), |s| py_string(&s.link_id));
-    out.line(&format!(
-        "SPEC = _s.ConsumedTopicSpec({link}, {}, {}, {}, {format})",
-        owner(t.origin.as_ref(), false),
-        py_string(&t.name),
-        qos(t.qos)
-    ));
-    out.line("\"\"\"What the runtime knows about this topic.\"\"\"");
-    out.blank();
-    out.blank();
-    let (extra, pass) = if by_instance {
-        (
-            ", from_instance_id: Optional[str] = None",
-            "from_instance_id",
-        )
-    } else {
-        ("", "None")
-    };
-    out.line("async def on_next_message_received(");
-    out.line(&format!(
-        "    node_runner: NodeRunner, from_core_node: Optional[str] = None{extra}"
-    ));
-    out.line(") -> Tuple[str, Message]:");
-    out.indent();
-    let mut doc = String::from(
-        "Waits for the next message: `(producer instance id, message)`.\n\n\
-         Messages are queued from node start-up, so none is lost between calls.\n\
-         `from_core_node` keeps only messages from instances started by that launch",
-    );
-    if by_instance {
-        doc.push_str(", `from_instance_id` only those of that producer instance");
-    }
-    doc.push_str(".\nRaises `peppy.ShuttingDown` once the node stops.\n");
-    out.docstring(&doc);
-    out.line(&format!(
-        "return await _topics.next_message(node_runner, SPEC, from_core_node, {pass})"
-    ));
-    out.dedent();
 }
 
 /// `@dataclass class <name>: instance_id, core_node, data: <data>`: a
@@ -224,7 +142,164 @@ pub(super) fn exposed_service(out: &mut Source, p: &Provided<ServiceDecl>) {
     out.dedent();
 }
 
-pub(super) fn consumed_service(out: &mut Source, c: &ResolvedCall<ServiceDecl>) {
+/// Names of an action's message types, as the Rust API has them.
+pub(super) struct ActionTypes {
+    pub(super) feedback: String,
+    pub(super) result: String,
+}
+
+pub(super) fn action_types(name: &str) -> ActionTypes {
+    let camel = type_prefix(name);
+    ActionTypes {
+        feedback: format!("{camel}Feedback"),
+        result: format!("{camel}Result"),
+    }
+}
+
+/// Whether `node` is in today's spelling, so gets today's API.
+fn is_today(node: &ResolvedNode) -> bool {
+    node.node.spelling == Spelling::Today
+}
+
+pub(super) fn emitted_topic(out: &mut Source, p: &Provided<TopicDecl>, today: bool) {
+    let d = &p.decl;
+    let format = message(
+        out,
+        "Message",
+        "Message",
+        d.format.as_ref(),
+        &format!("A message of topic `{}`.", d.name),
+    );
+    out.line(&format!(
+        "SPEC = _s.TopicSpec({}, {}, {}, {format})",
+        owner(Some(&p.origin), true),
+        py_string(&d.name),
+        qos(d.qos)
+    ));
+    out.line("\"\"\"What the runtime knows about this topic.\"\"\"");
+    if today {
+        out.line(&format!("TOPIC_NAME = {}", py_string(&d.name)));
+        out.line(&format!("QOS = {}", qos(d.qos)));
+    }
+    out.blank();
+    out.blank();
+    // Today's API builds the message for a held publisher; the seeds'
+    // publishes it in one call.
+    let fixed: &[&str] = if today {
+        &[]
+    } else {
+        &["node_runner: NodeRunner"]
+    };
+    let (ps, inits) = params(fixed, "Message", fields_of(d.format.as_ref()));
+    let (def, doc, body) = if today {
+        (
+            format!("def build_message({ps}) -> bytes:"),
+            format!(
+                "One message of `{}`, the fields in declaration order, encoded for `publisher.publish`.",
+                d.name
+            ),
+            format!("return _today.build_message(SPEC, Message({inits}))"),
+        )
+    } else {
+        (
+            format!("async def emit({ps}) -> None:"),
+            format!(
+                "Publishes one message on `{}`, the fields in declaration order.",
+                d.name
+            ),
+            format!("await _topics.emit(node_runner, SPEC, Message({inits}))"),
+        )
+    };
+    out.line(&def);
+    out.indent();
+    out.docstring(&doc);
+    out.line(&body);
+    out.dedent();
+    if today {
+        out.blank();
+        out.blank();
+        today::declare_publisher(out, &d.name);
+    }
+}
+
+pub(super) fn consumed_topic(
+    out: &mut Source,
+    node: &ResolvedNode,
+    t: &ResolvedTopic,
+    by_instance: bool,
+) {
+    let today = is_today(node);
+    let format = message(
+        out,
+        "Message",
+        "Message",
+        t.format.as_ref(),
+        &format!("A message of topic `{}`.", t.name),
+    );
+    let link = t
+        .slot
+        .as_ref()
+        .map_or("None".to_string(), |s| py_string(&s.link_id));
+    out.line(&format!(
+        "SPEC = _s.ConsumedTopicSpec({link}, {}, {}, {}, {format})",
+        owner(t.origin.as_ref(), false),
+        py_string(&t.name),
+        qos(t.qos)
+    ));
+    out.line("\"\"\"What the runtime knows about this topic.\"\"\"");
+    if today {
+        out.line(&format!("TOPIC_NAME = {}", py_string(&t.name)));
+    }
+    out.blank();
+    out.blank();
+    if today {
+        if let Some(slot) = &t.slot {
+            today::slot_accessor(out, node, &slot.link_id);
+        }
+        today::subscription(out, &t.name);
+    } else {
+        next_message_received(out, by_instance);
+    }
+}
+
+/// The seeds' `on_next_message_received`: one call waits for one message.
+fn next_message_received(out: &mut Source, by_instance: bool) {
+    let (extra, pass) = if by_instance {
+        (
+            ", from_instance_id: Optional[str] = None",
+            "from_instance_id",
+        )
+    } else {
+        ("", "None")
+    };
+    out.line("async def on_next_message_received(");
+    out.line(&format!(
+        "    node_runner: NodeRunner, from_core_node: Optional[str] = None{extra}"
+    ));
+    out.line(") -> Tuple[str, Message]:");
+    out.indent();
+    let mut doc = String::from(
+        "Waits for the next message: `(producer instance id, message)`.\n\n\
+         Messages are queued from node start-up, so none is lost between calls.\n\
+         `from_core_node` keeps only messages from instances started by that launch",
+    );
+    if by_instance {
+        doc.push_str(", `from_instance_id` only those of that producer instance");
+    }
+    doc.push_str(".\nRaises `peppy.ShuttingDown` once the node stops.\n");
+    out.docstring(&doc);
+    out.line(&format!(
+        "return await _topics.next_message(node_runner, SPEC, from_core_node, {pass})"
+    ));
+    out.dedent();
+}
+
+pub(super) fn consumed_service(
+    out: &mut Source,
+    node: &ResolvedNode,
+    c: &ResolvedCall<ServiceDecl>,
+) {
+    let today = is_today(node);
     let d = &c.decl;
     let prefix = type_prefix(&d.name);
     let request = message(
@@ -253,44 +328,120 @@ pub(super) fn consumed_service(out: &mut Source, c: &ResolvedCall<ServiceDecl>) 
         owner(Some(&c.origin), false),
         py_string(&d.name)
     ));
+    if today {
+        out.line(&format!("SERVICE_NAME = {}", py_string(&d.name)));
+        out.line(&format!("LINK_ID = {}", py_string(&c.slot.link_id)));
+    }
     out.blank();
     out.blank();
+    if today {
+        today::slot_accessor(out, node, &c.slot.link_id);
+    }
     let (arg, value) = if d.request.is_some() {
         (", request: Request", "request")
     } else {
         ("", "Request()")
     };
-    out.line(&format!(
-        "async def poll(node_runner: NodeRunner, timeout: float{arg}) -> Response:"
-    ));
+    // Today's call is aimed at one bound producer, the timeout last.
+    let (def, doc, call) = if today {
+        (
+            format!(
+                "async def poll(node_runner: NodeRunner, target: ProducerRef{arg}, timeout: float) -> Response:"
+            ),
+            format!(
+                "Calls `{}` on `target`, a producer bound to slot `{}`; `timeout` in seconds.\n\
+                 Raises `ValueError` (target not bound), `ConnectionError` (no server answered),\n\
+                 `TimeoutError` (acked, no answer in time) or `RuntimeError` (the handler's error).",
+                d.name, c.slot.link_id
+            ),
+            format!(
+                "instance_id, core_node, data = await _today.poll(node_runner, SPEC, target, {value}, timeout)"
+            ),
+        )
+    } else {
+        (
+            format!("async def poll(node_runner: NodeRunner, timeout: float{arg}) -> Response:"),
+            format!(
+                "Calls `{}` through slot `{}`; `timeout` in seconds. Raises\n\
+                 `peppy.ServiceError`, `ServiceTimeout` or `ServiceUnreachable`.",
+                d.name, c.slot.link_id
+            ),
+            format!(
+                "instance_id, core_node, data = await _services.call(node_runner, SPEC, timeout, {value})"
+            ),
+        )
+    };
+    out.line(&def);
     out.indent();
-    out.docstring(&format!(
-        "Calls `{}` through slot `{}`; `timeout` in seconds. Raises\n\
-         `peppy.ServiceError`, `ServiceTimeout` or `ServiceUnreachable`.",
-        d.name, c.slot.link_id
-    ));
-    out.line(&format!(
-        "instance_id, core_node, data = await _services.call(node_runner, SPEC, timeout, {value})"
-    ));
+    out.docstring(&doc);
+    out.line(&call);
     out.line("return Response(instance_id, core_node, data)");
     out.dedent();
 }
 
-/// Names of an action's message types, as the Rust API has them.
-pub(super) struct ActionTypes {
-    pub(super) feedback: String,
-    pub(super) result: String,
+/// The parts of an exposed action's module that differ between the seeds'
+/// API and today's; the rest of the module is the same text.
+pub(super) struct GoalServerShape {
+    /// The class the decider returns.
+    pub(super) decision: &'static str,
+    /// `GoalContext`'s docstring, `__init__` and `request`.
+    pub(super) context_head: &'static str,
+    /// `GoalContext.cancel_signal`.
+    pub(super) cancel_signal: &'static str,
+    /// `ActionHandle`'s docstring after "Serves action `<name>`: ".
+    pub(super) handle_doc: &'static str,
+    /// `ActionHandle.expose`'s `def`, sync or async.
+    pub(super) expose_def: &'static str,
+    /// `handle_goal_next_request` up to the line that wraps its `inner`.
+    pub(super) next_goal: &'static str,
 }
 
-pub(super) fn action_types(name: &str) -> ActionTypes {
-    let camel = type_prefix(name);
-    ActionTypes {
-        feedback: format!("{camel}Feedback"),
-        result: format!("{camel}Result"),
-    }
-}
+/// The seeds' exposed action: the decider returns a `GoalResponse`, and a
+/// rejected goal ends `handle_goal_next_request` with None.
+const SEEDS_GOAL_SERVER: GoalServerShape = GoalServerShape {
+    decision: r#"class GoalResponse:
+    """The decider's answer: `GoalResponse.accept()` or `GoalResponse.reject(reason)`."""
 
-pub(super) fn exposed_action(out: &mut Source, p: &Provided<ActionDecl>) {
+    def __init__(self, accepted: bool, error_message: Optional[str] = None) -> None:
+        self.accepted = accepted
+        self.error_message = error_message
+
+    @classmethod
+    def accept(cls) -> "GoalResponse":
+        return cls(True)
+
+    @classmethod
+    def reject(cls, reason: str) -> "GoalResponse":
+        return cls(False, reason)"#,
+    context_head: r#"    """An accepted goal: read its request, publish feedback, watch for a cancel, complete it."""
+
+    def __init__(self, inner: Any) -> None:
+        self._inner = inner
+
+    def request(self) -> GoalRequest:
+        return GoalRequest(self._inner.instance_id, self._inner.core_node, self._inner.goal)"#,
+    cancel_signal: r#"    @property
+    def cancel_signal(self) -> Any:
+        """An `asyncio.Event` set when the caller cancels."""
+        return self._inner.cancel_signal"#,
+    handle_doc: "`ActionHandle.expose(node_runner)`, then `handle_goal_next_request`.",
+    expose_def: "def",
+    next_goal: r#"    async def handle_goal_next_request(
+        self, decider: Callable[[GoalRequest], Any]
+    ) -> Optional[GoalContext]:
+        """Waits for the next goal; `decider` returns a `GoalResponse` (or an awaitable of one).
+        Returns the accepted goal's context, or None when the goal was rejected."""
+
+        async def decide(instance_id: str, core_node: str, goal: GoalRequestData) -> Tuple[bool, Optional[str]]:
+            answer = decider(GoalRequest(instance_id, core_node, goal))
+            if inspect.isawaitable(answer):
+                answer = await answer
+            return answer.accepted, answer.error_message
+
+        inner = await self._server.next_goal(decide)"#,
+};
+
+pub(super) fn exposed_action(out: &mut Source, p: &Provided<ActionDecl>, today: bool) {
     let d = &p.decl;
     let t = action_types(&d.name);
     let goal = message(
@@ -320,6 +471,9 @@ pub(super) fn exposed_action(out: &mut Source, p: &Provided<ActionDecl>) {
         owner(Some(&p.origin), true),
         py_string(&d.name)
     ));
+    if today {
+        out.line(&format!("ACTION_NAME = {}", py_string(&d.name)));
+    }
     out.line(&format!("FEEDBACK_QOS = {}", qos(fb_qos)));
     out.blank();
     out.blank();
@@ -329,6 +483,11 @@ pub(super) fn exposed_action(out: &mut Source, p: &Provided<ActionDecl>) {
         fields_of(d.feedback.as_ref().map(|f| &f.format)),
     );
     let (res_params, res_inits) = params(&["self"], &t.result, fields_of(d.result.as_ref()));
+    let shape = if today {
+        &today::GOAL_SERVER
+    } else {
+        &SEEDS_GOAL_SERVER
+    };
     out.line(&format!(
         r#"@dataclass
 class GoalRequest:
@@ -338,38 +497,16 @@ class GoalRequest:
     data: GoalRequestData
 
 
-class GoalResponse:
-    """The decider's answer: `GoalResponse.accept()` or `GoalResponse.reject(reason)`."""
-
-    def __init__(self, accepted: bool, error_message: Optional[str] = None) -> None:
-        self.accepted = accepted
-        self.error_message = error_message
-
-    @classmethod
-    def accept(cls) -> "GoalResponse":
-        return cls(True)
-
-    @classmethod
-    def reject(cls, reason: str) -> "GoalResponse":
-        return cls(False, reason)
+{decision}
 
 
 class GoalContext:
-    """An accepted goal: read its request, publish feedback, watch for a cancel, complete it."""
-
-    def __init__(self, inner: Any) -> None:
-        self._inner = inner
-
-    def request(self) -> GoalRequest:
-        return GoalRequest(self._inner.instance_id, self._inner.core_node, self._inner.goal)
+{context_head}
 
     def goal_id(self) -> str:
         return self._inner.goal_id
 
-    @property
-    def cancel_signal(self) -> Any:
-        """An `asyncio.Event` set when the caller cancels."""
-        return self._inner.cancel_signal
+{cancel_signal}
 
     def is_cancelled(self) -> bool:
         return self._inner.is_cancelled()
@@ -385,36 +522,31 @@ class GoalContext:
 
 
 class ActionHandle:
-    """Serves action `{name}`: `ActionHandle.expose(node_runner)`, then `handle_goal_next_request`."""
+    """Serves action `{name}`: {handle_doc}"""
 
     def __init__(self, server: Any) -> None:
         self._server = server
 
     @classmethod
-    def expose(cls, node_runner: NodeRunner) -> "ActionHandle":
+    {expose_def} expose(cls, node_runner: NodeRunner) -> "ActionHandle":
         return cls(_actions.GoalServer(node_runner, SPEC))
 
-    async def handle_goal_next_request(
-        self, decider: Callable[[GoalRequest], Any]
-    ) -> Optional[GoalContext]:
-        """Waits for the next goal; `decider` returns a `GoalResponse` (or an awaitable of one).
-        Returns the accepted goal's context, or None when the goal was rejected."""
-
-        async def decide(instance_id: str, core_node: str, goal: GoalRequestData) -> Tuple[bool, Optional[str]]:
-            answer = decider(GoalRequest(instance_id, core_node, goal))
-            if inspect.isawaitable(answer):
-                answer = await answer
-            return answer.accepted, answer.error_message
-
-        inner = await self._server.next_goal(decide)
+{next_goal}
         return None if inner is None else GoalContext(inner)"#,
+        decision = shape.decision,
+        context_head = shape.context_head,
+        cancel_signal = shape.cancel_signal,
+        handle_doc = shape.handle_doc,
+        expose_def = shape.expose_def,
+        next_goal = shape.next_goal,
         feedback_type = t.feedback,
         result_type = t.result,
         name = d.name,
     ));
 }
 
-pub(super) fn consumed_action(out: &mut Source, c: &ResolvedCall<ActionDecl>) {
+pub(super) fn consumed_action(out: &mut Source, node: &ResolvedNode, c: &ResolvedCall<ActionDecl>) {
+    let today = is_today(node);
     let d = &c.decl;
     let t = action_types(&d.name);
     let goal = message(
@@ -444,13 +576,34 @@ pub(super) fn consumed_action(out: &mut Source, c: &ResolvedCall<ActionDecl>) {
         owner(Some(&c.origin), false),
         py_string(&d.name)
     ));
+    if today {
+        out.line(&format!("TARGET_ACTION_NAME = {}", py_string(&d.name)));
+        out.line(&format!("LINK_ID = {}", py_string(&c.slot.link_id)));
+        out.line("ResultStatus = _actions.ResultStatus");
+        out.line("CancelState = _actions.CancelState");
+    }
     out.blank();
     out.blank();
-    let (goal_arg, goal_value) = if d.goal.is_some() {
-        (", request: GoalRequest", "request")
+    if today {
+        today::slot_accessor(out, node, &c.slot.link_id);
+    }
+    let goal_value = if d.goal.is_some() {
+        "request"
     } else {
-        ("", "GoalRequest()")
+        "GoalRequest()"
     };
+    if today {
+        today::goal_client(out, c, goal_value);
+    } else {
+        goal_client(out, c, goal_value);
+    }
+}
+
+/// The seeds' goal client: results and cancels wrap their outcome with the
+/// server's identity, and a module-level `fire_goal` keeps the original
+/// argument order.
+fn goal_client(out: &mut Source, c: &ResolvedCall<ActionDecl>, goal_value: &str) {
+    let d = &c.decl;
     out.line(&format!(
         r#"@dataclass
 class GoalResponseData:
@@ -516,13 +669,13 @@ class ActionHandle:
 
 
 async def fire_goal(
-    node_runner: NodeRunner{original_goal_arg}, timeout: float, qos: QoSProfile = QoSProfile.STANDARD
+    node_runner: NodeRunner{goal_arg}, timeout: float, qos: QoSProfile = QoSProfile.STANDARD
 ) -> ActionHandle:
     """`ActionHandle.fire_goal` in the original Python argument order (the goal before the timeout)."""
     return await ActionHandle.fire_goal(node_runner, timeout{original_goal_pass}, qos)"#,
         name = d.name,
         link = c.slot.link_id,
-        original_goal_arg = if d.goal.is_some() { ", request: GoalRequest" } else { "" },
+        goal_arg = if d.goal.is_some() { ", request: GoalRequest" } else { "" },
         original_goal_pass = if d.goal.is_some() { ", request" } else { "" },
     ));
 }

@@ -1,15 +1,14 @@
-//! Today's Python node API, for `node/v1` documents: built messages and
-//! held publishers, held subscriptions yielding `(ProducerRef, Message)`,
-//! calls and goals aimed at a bound producer, `GoalDecision`, and the
-//! slot's `bound_producer(s)` in every consumed module, on the `peppy`
-//! runtime's `peppy.today`. Message types and `SPEC`s are the seeds'.
+//! The parts of today's Python node API, for `node/v1` documents, that
+//! have no seeds' counterpart: held publishers, held subscriptions
+//! yielding `(ProducerRef, Message)`, goals aimed at a bound producer,
+//! `GoalDecision`, and the slot's `bound_producer(s)` in every consumed
+//! module, on the `peppy` runtime's `peppy.today`. Each entry's module is
+//! written by one function in [`super::modules`], for both APIs; it calls
+//! these where today's shape differs.
 
-use peppy_schema::names::type_prefix;
-use peppy_schema::{ActionDecl, Cardinality, Provided, QosProfile, ResolvedCall, ResolvedTopic};
-use peppy_schema::{ResolvedNode, ServiceDecl, TopicDecl};
+use peppy_schema::{ActionDecl, Cardinality, ResolvedCall, ResolvedNode};
 
-use super::messages::{fields_of, message};
-use super::modules::{action_types, owner, params, qos, with_identity};
+use super::modules::GoalServerShape;
 use super::source::{Source, py_string};
 
 /// The imports today's modules add to the common header.
@@ -54,7 +53,9 @@ pub(super) fn accessor(out: &mut Source, link_id: &str, cardinality: Option<Card
     }
 }
 
-fn slot_accessor(out: &mut Source, node: &ResolvedNode, link_id: &str) {
+/// The slot's accessor in a module consumed through it (as in the slot's
+/// package), when the node declares the slot.
+pub(super) fn slot_accessor(out: &mut Source, node: &ResolvedNode, link_id: &str) {
     let cardinality = node.node.dependency(link_id).map(|d| d.cardinality);
     if cardinality.is_some() {
         accessor(out, link_id, cardinality);
@@ -63,74 +64,19 @@ fn slot_accessor(out: &mut Source, node: &ResolvedNode, link_id: &str) {
     }
 }
 
-pub(super) fn emitted_topic(out: &mut Source, p: &Provided<TopicDecl>) {
-    let d = &p.decl;
-    let format = message(
-        out,
-        "Message",
-        "Message",
-        d.format.as_ref(),
-        &format!("A message of topic `{}`.", d.name),
-    );
-    out.line(&format!(
-        "SPEC = _s.TopicSpec({}, {}, {}, {format})",
-        owner(Some(&p.origin), true),
-        py_string(&d.name),
-        qos(d.qos)
-    ));
-    out.line("\"\"\"What the runtime knows about this topic.\"\"\"");
-    out.line(&format!("TOPIC_NAME = {}", py_string(&d.name)));
-    out.line(&format!("QOS = {}", qos(d.qos)));
-    out.blank();
-    out.blank();
-    let (ps, inits) = params(&[], "Message", fields_of(d.format.as_ref()));
-    out.line(&format!("def build_message({ps}) -> bytes:"));
-    out.indent();
-    out.docstring(&format!(
-        "One message of `{}`, the fields in declaration order, encoded for `publisher.publish`.",
-        d.name
-    ));
-    out.line(&format!(
-        "return _today.build_message(SPEC, Message({inits}))"
-    ));
-    out.dedent();
-    out.blank();
-    out.blank();
+/// `declare_publisher`: the held publisher of topic `name`.
+pub(super) fn declare_publisher(out: &mut Source, name: &str) {
     out.line("async def declare_publisher(node_runner: NodeRunner) -> _today.Publisher:");
     out.indent();
     out.docstring(&format!(
-        "The publisher of `{}`: `await publisher.publish(build_message(...))`.",
-        d.name
+        "The publisher of `{name}`: `await publisher.publish(build_message(...))`."
     ));
     out.line("return await _today.declare_publisher(node_runner, SPEC)");
     out.dedent();
 }
 
-pub(super) fn consumed_topic(out: &mut Source, node: &ResolvedNode, t: &ResolvedTopic) {
-    let format = message(
-        out,
-        "Message",
-        "Message",
-        t.format.as_ref(),
-        &format!("A message of topic `{}`.", t.name),
-    );
-    let link = t
-        .slot
-        .as_ref()
-        .map_or("None".to_string(), |s| py_string(&s.link_id));
-    out.line(&format!(
-        "SPEC = _s.ConsumedTopicSpec({link}, {}, {}, {}, {format})",
-        owner(t.origin.as_ref(), false),
-        py_string(&t.name),
-        qos(t.qos)
-    ));
-    out.line("\"\"\"What the runtime knows about this topic.\"\"\"");
-    out.line(&format!("TOPIC_NAME = {}", py_string(&t.name)));
-    out.blank();
-    out.blank();
-    if let Some(slot) = &t.slot {
-        slot_accessor(out, node, &slot.link_id);
-    }
+/// `Subscription` and `subscribe`: topic `name`, held.
+pub(super) fn subscription(out: &mut Source, name: &str) {
     out.line(&format!(
         r#"class Subscription(_today.Subscription):
     """Topic `{name}`, held: messages are queued from the node's start, so
@@ -143,121 +89,14 @@ pub(super) fn consumed_topic(out: &mut Source, node: &ResolvedNode, t: &Resolved
 
 async def subscribe(node_runner: NodeRunner) -> Subscription:
     """Holds topic `{name}` (subscribed when the node started)."""
-    return Subscription(node_runner, SPEC)"#,
-        name = t.name
+    return Subscription(node_runner, SPEC)"#
     ));
 }
 
-pub(super) fn consumed_service(
-    out: &mut Source,
-    node: &ResolvedNode,
-    c: &ResolvedCall<ServiceDecl>,
-) {
-    let d = &c.decl;
-    let prefix = type_prefix(&d.name);
-    let request = message(
-        out,
-        "Request",
-        &prefix,
-        d.request.as_ref(),
-        &format!("A request of service `{}`.", d.name),
-    );
-    let response = message(
-        out,
-        "ResponseData",
-        "ResponseData",
-        d.response.as_ref(),
-        &format!("The response data of service `{}`.", d.name),
-    );
-    with_identity(
-        out,
-        "Response",
-        "A response, with the server's identity.",
-        "ResponseData",
-    );
-    out.line(&format!(
-        "SPEC = _s.ConsumedServiceSpec({}, {}, {}, {request}, {response})",
-        py_string(&c.slot.link_id),
-        owner(Some(&c.origin), false),
-        py_string(&d.name)
-    ));
-    out.line(&format!("SERVICE_NAME = {}", py_string(&d.name)));
-    out.line(&format!("LINK_ID = {}", py_string(&c.slot.link_id)));
-    out.blank();
-    out.blank();
-    slot_accessor(out, node, &c.slot.link_id);
-    let (arg, value) = if d.request.is_some() {
-        (", request: Request", "request")
-    } else {
-        ("", "Request()")
-    };
-    out.line(&format!(
-        "async def poll(node_runner: NodeRunner, target: ProducerRef{arg}, timeout: float) -> Response:"
-    ));
-    out.indent();
-    out.docstring(&format!(
-        "Calls `{}` on `target`, a producer bound to slot `{}`; `timeout` in seconds.\n\
-         Raises `ValueError` (target not bound), `ConnectionError` (no server answered),\n\
-         `TimeoutError` (acked, no answer in time) or `RuntimeError` (the handler's error).",
-        d.name, c.slot.link_id
-    ));
-    out.line(&format!(
-        "instance_id, core_node, data = await _today.poll(node_runner, SPEC, target, {value}, timeout)"
-    ));
-    out.line("return Response(instance_id, core_node, data)");
-    out.dedent();
-}
-
-pub(super) fn exposed_action(out: &mut Source, p: &Provided<ActionDecl>) {
-    let d = &p.decl;
-    let t = action_types(&d.name);
-    let goal = message(
-        out,
-        "GoalRequestData",
-        "Goal",
-        d.goal.as_ref(),
-        &format!("The goal data of action `{}`.", d.name),
-    );
-    let feedback = message(
-        out,
-        &t.feedback,
-        &t.feedback,
-        d.feedback.as_ref().map(|f| &f.format),
-        &format!("A feedback message of action `{}`.", d.name),
-    );
-    let result = message(
-        out,
-        &t.result,
-        &t.result,
-        d.result.as_ref(),
-        &format!("The result of action `{}`.", d.name),
-    );
-    let fb_qos = d.feedback.as_ref().map_or(QosProfile::Standard, |f| f.qos);
-    out.line(&format!(
-        "SPEC = _s.ActionSpec({}, {}, {goal}, {feedback}, {result})",
-        owner(Some(&p.origin), true),
-        py_string(&d.name)
-    ));
-    out.line(&format!("ACTION_NAME = {}", py_string(&d.name)));
-    out.line(&format!("FEEDBACK_QOS = {}", qos(fb_qos)));
-    out.blank();
-    out.blank();
-    let (fb_params, fb_inits) = params(
-        &["self"],
-        &t.feedback,
-        fields_of(d.feedback.as_ref().map(|f| &f.format)),
-    );
-    let (res_params, res_inits) = params(&["self"], &t.result, fields_of(d.result.as_ref()));
-    out.line(&format!(
-        r#"@dataclass
-class GoalRequest:
-    """A goal, with the caller's identity."""
-    instance_id: str
-    core_node: str
-    data: GoalRequestData
-
-
-class GoalDecision:
+/// Today's exposed action: the decider returns a `GoalDecision`, rejected
+/// goals are skipped, and `cancel_signal` is awaited.
+pub(super) const GOAL_SERVER: GoalServerShape = GoalServerShape {
+    decision: r#"class GoalDecision:
     """What the decider returns: `GoalDecision.accept()` or `GoalDecision.reject(reason)`."""
 
     def __init__(self, accepted: bool, reason: Optional[str] = None, response: Any = None) -> None:
@@ -266,7 +105,7 @@ class GoalDecision:
         self.response = response
 
     def __repr__(self) -> str:
-        return f"GoalDecision(accepted={{self.accepted}}, reason={{self.reason!r}})"
+        return f"GoalDecision(accepted={self.accepted}, reason={self.reason!r})"
 
     @classmethod
     def accept(cls, response: Any = None) -> "GoalDecision":
@@ -274,11 +113,8 @@ class GoalDecision:
 
     @classmethod
     def reject(cls, reason: Optional[str] = None, response: Any = None) -> "GoalDecision":
-        return cls(False, reason, response)
-
-
-class GoalContext:
-    """An accepted goal: read its request, publish feedback, watch for a cancel,
+        return cls(False, reason, response)"#,
+    context_head: r#"    """An accepted goal: read its request, publish feedback, watch for a cancel,
     then `complete` or `complete_cancelled` it (a goal left unfinished is
     reported abandoned to its caller)."""
 
@@ -287,40 +123,14 @@ class GoalContext:
         self._request = GoalRequest(inner.instance_id, inner.core_node, inner.goal)
 
     def request(self) -> GoalRequest:
-        return self._request
-
-    def goal_id(self) -> str:
-        return self._inner.goal_id
-
-    async def cancel_signal(self) -> None:
+        return self._request"#,
+    cancel_signal: r#"    async def cancel_signal(self) -> None:
         """Returns once the caller asks to cancel the goal."""
-        await self._inner.cancel_signal.wait()
-
-    def is_cancelled(self) -> bool:
-        return self._inner.is_cancelled()
-
-    async def publish_feedback({fb_params}) -> None:
-        await self._inner.publish_feedback({feedback_type}({fb_inits}))
-
-    async def complete({res_params}) -> None:
-        await self._inner.complete({result_type}({res_inits}))
-
-    async def complete_cancelled({res_params}) -> None:
-        await self._inner.complete_cancelled({result_type}({res_inits}))
-
-
-class ActionHandle:
-    """Serves action `{name}`: `await ActionHandle.expose(node_runner)`, then
-    `await handle.handle_goal_next_request(decide)` for each goal."""
-
-    def __init__(self, server: Any) -> None:
-        self._server = server
-
-    @classmethod
-    async def expose(cls, node_runner: NodeRunner) -> "ActionHandle":
-        return cls(_actions.GoalServer(node_runner, SPEC))
-
-    async def handle_goal_next_request(self, decide: Callable[[GoalRequest], Any]) -> Optional[GoalContext]:
+        await self._inner.cancel_signal.wait()"#,
+    handle_doc: "`await ActionHandle.expose(node_runner)`, then
+    `await handle.handle_goal_next_request(decide)` for each goal.",
+    expose_def: "async def",
+    next_goal: r#"    async def handle_goal_next_request(self, decide: Callable[[GoalRequest], Any]) -> Optional[GoalContext]:
         """Waits for the next goal `decide` accepts (`decide` returns a
         `GoalDecision`, or an awaitable of one): rejected goals are answered
         and skipped, and one `decide` raises on is rejected with its text.
@@ -329,56 +139,13 @@ class ActionHandle:
         def decision(instance_id: str, core_node: str, data: GoalRequestData) -> Any:
             return decide(GoalRequest(instance_id, core_node, data))
 
-        inner = await _today.next_accepted_goal(self._server, decision)
-        return None if inner is None else GoalContext(inner)"#,
-        feedback_type = t.feedback,
-        result_type = t.result,
-        name = d.name,
-    ));
-}
+        inner = await _today.next_accepted_goal(self._server, decision)"#,
+};
 
-pub(super) fn consumed_action(out: &mut Source, node: &ResolvedNode, c: &ResolvedCall<ActionDecl>) {
+/// Today's goal client: a goal aimed at a bound producer, with the
+/// decision's `accepted` and `reason` on the handle.
+pub(super) fn goal_client(out: &mut Source, c: &ResolvedCall<ActionDecl>, goal_value: &str) {
     let d = &c.decl;
-    let t = action_types(&d.name);
-    let goal = message(
-        out,
-        "GoalRequest",
-        "Goal",
-        d.goal.as_ref(),
-        &format!("A goal of action `{}`.", d.name),
-    );
-    let feedback = message(
-        out,
-        "FeedbackMessage",
-        &t.feedback,
-        d.feedback.as_ref().map(|f| &f.format),
-        &format!("A feedback message of action `{}`.", d.name),
-    );
-    let result = message(
-        out,
-        "ResultResponseData",
-        &t.result,
-        d.result.as_ref(),
-        &format!("The result of action `{}`.", d.name),
-    );
-    out.line(&format!(
-        "SPEC = _s.ConsumedActionSpec({}, {}, {}, {goal}, {feedback}, {result})",
-        py_string(&c.slot.link_id),
-        owner(Some(&c.origin), false),
-        py_string(&d.name)
-    ));
-    out.line(&format!("TARGET_ACTION_NAME = {}", py_string(&d.name)));
-    out.line(&format!("LINK_ID = {}", py_string(&c.slot.link_id)));
-    out.line("ResultStatus = _actions.ResultStatus");
-    out.line("CancelState = _actions.CancelState");
-    out.blank();
-    out.blank();
-    slot_accessor(out, node, &c.slot.link_id);
-    let (goal_arg, goal_value) = if d.goal.is_some() {
-        ("\n        request: GoalRequest,", "request")
-    } else {
-        ("", "GoalRequest()")
-    };
     out.line(&format!(
         r#"@dataclass
 class ResultResponse:
@@ -446,6 +213,7 @@ class ActionHandle:
         return CancelResponse(self.core_node, self.instance_id, state)"#,
         name = d.name,
         link = c.slot.link_id,
+        goal_arg = if d.goal.is_some() { "\n        request: GoalRequest," } else { "" },
         goal_doc = if d.goal.is_some() { " request," } else { "" },
     ));
 }
