@@ -78,11 +78,11 @@ pub fn stub() -> TokenStream {
 const CATEGORIES: &[(&str, &str)] = &[
     (
         "emitted_topics",
-        "Topics this node emits, one module each with `Message` and `emit`.",
+        "Topics this node emits, one module each with `Message` and `emit` (and `declare_publisher` with `build_message`).",
     ),
     (
         "consumed_topics",
-        "Topics this node consumes, one module each with `Message` and `on_next_message_received`: `<link_id>_<topic>` through a slot, `<topic>` for an external topic.",
+        "Topics this node consumes, one module each with `Message`, `subscribe` and `on_next_message_received`: `<link_id>_<topic>` through a slot, `<topic>` for an external topic.",
     ),
     (
         "exposed_services",
@@ -105,8 +105,8 @@ const CATEGORIES: &[(&str, &str)] = &[
 /// The category docs of a `node/v1` node, where entries through a slot
 /// nest under the slot's link_id (PeppyOS's module paths).
 const TODAY_CATEGORIES: &[&str] = &[
-    "Topics this node emits, one module each with `Message` and `emit`: `<topic>` for its own, `<implements link_id>::<member>` for a contract's.",
-    "Topics this node consumes: `<link_id>::<topic>`, with the slot's `bound_producer` / `bound_producers` next to its entries.",
+    "Topics this node emits, one module each with `Message`, `declare_publisher` and `build_message` (and `emit`): `<topic>` for its own, `<implements link_id>::<member>` for a contract's.",
+    "Topics this node consumes: `<link_id>::<topic>` with `Message` and `subscribe`, and the slot's `bound_producer` / `bound_producers` next to its entries and in each of them.",
     "Services this node exposes, one module each with `Request`, `Response` and `handle_next_request`: `<service>` for its own, `<implements link_id>::<member>` for a contract's.",
     "Services this node calls: `<link_id>::<service>` with `Request`, `Response` and `poll`, and the slot's `bound_producer` / `bound_producers`.",
     "Actions this node exposes, one module each with `ActionHandle` (`expose`, `handle_goal_next_request`) and `GoalContext`: `<action>` for its own, `<implements link_id>::<member>` for a contract's.",

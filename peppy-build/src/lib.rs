@@ -81,6 +81,13 @@
 //! `<interface>::<tag>::<name>` and, when no other entry has that name, under
 //! their own name too. Generated code reaches the runtime only through
 //! `::peppy::codegen`, by absolute paths.
+//!
+//! Today's node API is generated beside the seeds' (`declare_publisher` and
+//! `build_message`, `subscribe`); where the two name one thing differently,
+//! a `node/v1` document gets today's form (`poll` and `fire_goal` to an
+//! explicit target, `GoalDecision`) and nests its entries under slot and
+//! `implements` link_ids. [`rust_libs`] writes the same items as the
+//! `.peppy/libs` crates today's node crates depend on (docs/MOVING.md).
 
 mod actions;
 mod config;

@@ -46,7 +46,7 @@ pub mod parameters {
         }
     }
 }
-/// Topics this node emits, one module each with `Message` and `emit`: `<topic>` for its own, `<implements link_id>::<member>` for a contract's.
+/// Topics this node emits, one module each with `Message`, `declare_publisher` and `build_message` (and `emit`): `<topic>` for its own, `<implements link_id>::<member>` for a contract's.
 ///
 /// Generated from node `today_camera:v1` (`peppy.json5:8:11`).
 #[allow(dead_code)]
@@ -152,7 +152,7 @@ pub mod emitted_topics {
         }
     }
 }
-/// Topics this node consumes: `<link_id>::<topic>`, with the slot's `bound_producer` / `bound_producers` next to its entries.
+/// Topics this node consumes: `<link_id>::<topic>` with `Message` and `subscribe`, and the slot's `bound_producer` / `bound_producers` next to its entries and in each of them.
 ///
 /// Generated from node `today_camera:v1` (`peppy.json5:8:11`).
 #[allow(dead_code)]
