@@ -143,6 +143,15 @@ fn build(function: &str, a: &Value) -> String {
         "namespace_prefix" => keys::namespace_prefix(s("ns")),
         "namespace_selector" => keys::namespace_selector(s("ns")),
         "space_selector" => keys::space_selector(s("ns"), space(s("space"))),
+        "clock_tick_key" => keys::clock_tick_key(
+            s("ns"),
+            [keys::ClockSource::Wall, keys::ClockSource::Sim]
+                .into_iter()
+                .find(|c| c.as_str() == s("source"))
+                .unwrap_or_else(|| panic!("clock source {a}")),
+        ),
+        "clock_tick_selector" => keys::clock_tick_selector(s("ns")),
+        "clock_sync_key" => keys::clock_sync_key(s("ns")),
         other => panic!("wire::keys has no `{other}`"),
     }
 }

@@ -90,6 +90,8 @@ BUILD = {
     "liveliness_key": lambda v: k.liveliness_key(v["ns"], v["core"], v["instance"], v["node"], v["tag"]),
     "liveliness_selector": lambda v: k.liveliness_selector(v["ns"], v["node"], v["tag"]),
     "describe_key": lambda v: k.describe_key(v["ns"], v["core"], v["instance"]),
+    "clock_tick_key": lambda v: k.clock_tick_key(v["ns"], v["source"]),
+    "clock_sync_key": lambda v: k.clock_sync_key(v["ns"]),
 }
 
 
@@ -120,6 +122,7 @@ NOT_IN_THIS_RUNTIME = {
     "namespace_prefix",
     "namespace_selector",
     "space_selector",
+    "clock_tick_selector",
 }
 
 
