@@ -83,7 +83,7 @@ pub fn rust_libs(
             .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
             .collect::<String>()
     );
-    let manifest = |name: &str, version: &str, what: &str, extra: &str| {
+    let manifest = |name: &str, version: &str, what: &str| {
         format!(
             "{HEADER}\n\
              [package]\n\
@@ -96,7 +96,7 @@ pub fn rust_libs(
              path = \"src/lib.rs\"\n\n\
              [dependencies]\n\
              peppy = {{ path = {peppy}, default-features = false }}\n\
-             {extra}\n\
+             \n\
              [features]\n\
              # Today's node crates ask for it in their dev-dependencies; the test\n\
              # surfaces it will unlock are not generated yet.\n\
@@ -110,7 +110,6 @@ pub fn rust_libs(
                 "peppygen",
                 &generated_version,
                 &format!("The generated API of node {identity}"),
-                "",
             ),
         },
         LibFile {
@@ -123,12 +122,7 @@ pub fn rust_libs(
         },
         LibFile {
             path: PathBuf::from("peppylib/Cargo.toml"),
-            text: manifest(
-                "peppylib",
-                "0.1.0",
-                "The peppy runtime under today's names",
-                "",
-            ),
+            text: manifest("peppylib", "0.1.0", "The peppy runtime under today's names"),
         },
         LibFile {
             path: PathBuf::from("peppylib/src/lib.rs"),

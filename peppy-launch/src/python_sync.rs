@@ -166,7 +166,8 @@ const PEPPYLIB: &str = "peppylib";
 
 /// Writes `files` below `root` where their text changed; with `prune`,
 /// removes the other `.py` files below it. Returns how many it touched.
-fn write_tree(
+/// A Rust node's `.peppy/libs` crates are written by it too.
+pub(crate) fn write_tree(
     root: &Path,
     files: &[(PathBuf, String)],
     prune: bool,

@@ -55,24 +55,8 @@ pub(crate) fn write_libs(node: &ResolvedNode, dir: &Path) -> Result<usize, Packa
         }
         other => PackageError::Generate(other.to_string()),
     })?;
-    let io = |action: &'static str, path: &Path, source: std::io::Error| PackageError::Io {
-        action,
-        path: path.to_path_buf(),
-        source,
-    };
-    let mut changed = 0;
-    for file in &files {
-        let path = libs.join(&file.path);
-        if std::fs::read_to_string(&path).is_ok_and(|old| old == file.text) {
-            continue;
-        }
-        if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent).map_err(|e| io("create", parent, e))?;
-        }
-        std::fs::write(&path, &file.text).map_err(|e| io("write", &path, e))?;
-        changed += 1;
-    }
-    Ok(changed)
+    let files: Vec<(PathBuf, String)> = files.into_iter().map(|f| (f.path, f.text)).collect();
+    crate::python_sync::write_tree(&libs, &files, false)
 }
 
 fn absolute(path: &Path) -> PathBuf {

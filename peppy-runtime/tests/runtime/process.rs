@@ -215,26 +215,7 @@ fn stop_child_with(signal: &str, entry: &str) -> Duration {
         }
     }
     // The child is visible on the network.
-    let live = space_selector(&ns, Space::Live);
-    rt.block_on(async {
-        tokio::time::timeout(WAIT, async {
-            loop {
-                let replies = hub
-                    .session
-                    .liveliness()
-                    .get(&live)
-                    .timeout(Duration::from_secs(1))
-                    .await
-                    .unwrap();
-                if replies.recv_async().await.is_ok() {
-                    break;
-                }
-                tokio::time::sleep(Duration::from_millis(50)).await;
-            }
-        })
-        .await
-        .expect("the child's liveliness token appears");
-    });
+    rt.block_on(hub.sees_a_node(&ns));
     let status = Command::new("kill")
         .args([&format!("-{signal}"), &child.id().to_string()])
         .status()
@@ -263,6 +244,7 @@ fn stop_child_with(signal: &str, entry: &str) -> Duration {
         "{lines:?}"
     );
     // Its token is withdrawn.
+    let live = space_selector(&ns, Space::Live);
     rt.block_on(async {
         let replies = hub
             .session

@@ -10,7 +10,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use peppy_runtime::codegen::{FormatSpec, OwnerSpec, QosProfile, TopicSpec, emit};
-use peppy_runtime::wire::keys::{Channel, Owner, Space, entry_key, space_selector};
+use peppy_runtime::wire::keys::{Channel, Owner, entry_key};
 use peppy_runtime::{Error, NodeBuilder};
 
 use crate::support::{WAIT, hub, namespace, start, start_configured};
@@ -360,27 +360,8 @@ impl Child {
         };
         let line = child.until("CHILD SETUP DONE");
         assert!(line.contains(&format!("grace={grace}s")), "{line}");
-        // The child is visible on the network, so it knows the watcher too.
-        let live = space_selector(ns, Space::Live);
-        rt.block_on(async {
-            tokio::time::timeout(WAIT, async {
-                loop {
-                    let replies = hub
-                        .session
-                        .liveliness()
-                        .get(&live)
-                        .timeout(Duration::from_secs(1))
-                        .await
-                        .unwrap();
-                    if replies.recv_async().await.is_ok() {
-                        break;
-                    }
-                    tokio::time::sleep(Duration::from_millis(50)).await;
-                }
-            })
-            .await
-            .expect("the child's liveliness token appears");
-        });
+        // The child is visible on the network.
+        rt.block_on(hub.sees_a_node(ns));
         child
     }
 

@@ -33,6 +33,32 @@ pub(crate) async fn hub() -> Hub {
     Hub { session, endpoint }
 }
 
+impl Hub {
+    /// Waits (bounded) until a liveliness token of namespace `ns` is seen
+    /// through this router: a node started elsewhere is on the network.
+    pub(crate) async fn sees_a_node(&self, ns: &str) {
+        let live =
+            peppy_runtime::wire::keys::space_selector(ns, peppy_runtime::wire::keys::Space::Live);
+        tokio::time::timeout(WAIT, async {
+            loop {
+                let replies = self
+                    .session
+                    .liveliness()
+                    .get(&live)
+                    .timeout(Duration::from_secs(1))
+                    .await
+                    .unwrap();
+                if replies.recv_async().await.is_ok() {
+                    break;
+                }
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+        })
+        .await
+        .expect("the child's liveliness token appears");
+    }
+}
+
 static COUNTER: AtomicU32 = AtomicU32::new(0);
 
 /// A namespace no other test uses.
