@@ -21,7 +21,7 @@
 //! A payload of the wrong length is dropped, with one warning per
 //! subscription.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
@@ -153,6 +153,20 @@ pub fn now_ns() -> Result<u64> {
         None => Err(Error::ClockNotReady),
         Some(Binding { sim: None, .. }) => Ok(os_now_ns()),
         Some(Binding { sim: Some(l), .. }) => l.get().ok_or(Error::ClockNotReady),
+    }
+}
+
+/// The latest sim tick the clock bound to `runner` has seen: `None` when
+/// the process's clock is not bound to that node following sim time (a
+/// test harness's tick waits on this).
+pub(crate) fn sim_time_seen_by(runner: &NodeRunner) -> Option<Option<u64>> {
+    let node = node_of(runner);
+    match &*BOUND.lock().unwrap_or_else(|p| p.into_inner()) {
+        Some(Binding {
+            node: n,
+            sim: Some(l),
+        }) if *n == node => Some(l.get()),
+        _ => None,
     }
 }
 
@@ -429,7 +443,13 @@ impl Drop for ClockServer {
 }
 
 /// What a sync query gets: the reply's payload, or the refusal's reason.
-fn answer_sync(query: &[u8], received: u64, sim: &Latest, ns: &str) -> Result<Vec<u8>, String> {
+fn answer_sync(
+    query: &[u8],
+    received: u64,
+    sim: &Latest,
+    ns: &str,
+    offset: i64,
+) -> Result<Vec<u8>, String> {
     let Some(source) = (query.len() == QUERY_LEN)
         .then(|| ClockSource::from_byte(query[8]))
         .flatten()
@@ -441,7 +461,7 @@ fn answer_sync(query: &[u8], received: u64, sim: &Latest, ns: &str) -> Result<Ve
     };
     let t0 = decode_time(&query[..8]).unwrap_or_default();
     let (t1, t2) = match source {
-        ClockSource::Wall => (received, os_now_ns()),
+        ClockSource::Wall => (shifted(received, offset), shifted(os_now_ns(), offset)),
         ClockSource::Sim => match sim.get() {
             Some(t) => (t, t),
             None => {
@@ -464,6 +484,21 @@ fn answer_sync(query: &[u8], received: u64, sim: &Latest, ns: &str) -> Result<Ve
 /// router): a wall tick every 100 ms, answers on `clock/sync`, and the
 /// latest sim tick followed for sim-time answers. Needs a tokio runtime.
 pub async fn serve(session: &zenoh::Session, namespace: &str) -> Result<ClockServer> {
+    serve_with(session, namespace, Arc::new(AtomicI64::new(0))).await
+}
+
+/// `t` moved by `offset` ns, saturating.
+fn shifted(t: u64, offset: i64) -> u64 {
+    t.saturating_add_signed(offset)
+}
+
+/// [`serve`] with the wall clock it gives moved by `offset` ns (read at
+/// each answer and tick): a test harness's clock skew.
+pub(crate) async fn serve_with(
+    session: &zenoh::Session,
+    namespace: &str,
+    offset: Arc<AtomicI64>,
+) -> Result<ClockServer> {
     let sim = Arc::new(Latest::default());
     let (seen, warned) = (sim.clone(), AtomicBool::new(false));
     let sim_sub = session
@@ -475,13 +510,14 @@ pub async fn serve(session: &zenoh::Session, namespace: &str) -> Result<ClockSer
         })
         .await?;
     let sync_key = clock_sync_key(namespace);
-    let (reply_key, ns) = (sync_key.clone(), namespace.to_string());
+    let (reply_key, ns, skew) = (sync_key.clone(), namespace.to_string(), offset.clone());
     let sync = session
         .declare_queryable(sync_key)
         .callback(move |q| {
             let received = os_now_ns();
             let payload = q.payload().map(|p| p.to_bytes()).unwrap_or_default();
-            let _ = match answer_sync(&payload, received, &sim, &ns) {
+            let skew = skew.load(Ordering::Relaxed);
+            let _ = match answer_sync(&payload, received, &sim, &ns, skew) {
                 Ok(reply) => q.reply(reply_key.as_str(), reply).wait(),
                 Err(why) => q.reply_err(why).wait(),
             };
@@ -496,7 +532,11 @@ pub async fn serve(session: &zenoh::Session, namespace: &str) -> Result<ClockSer
         loop {
             every.tick().await;
             if publisher
-                .put(os_now_ns().to_le_bytes().to_vec())
+                .put(
+                    shifted(os_now_ns(), offset.load(Ordering::Relaxed))
+                        .to_le_bytes()
+                        .to_vec(),
+                )
                 .await
                 .is_err()
             {
@@ -552,18 +592,18 @@ mod tests {
         let sim = Latest::default();
         let mut q = 7u64.to_le_bytes().to_vec();
         q.push(0);
-        let wall = ClockResponse::decode(&answer_sync(&q, 40, &sim, "lab").unwrap()).unwrap();
+        let wall = ClockResponse::decode(&answer_sync(&q, 40, &sim, "lab", 0).unwrap()).unwrap();
         assert_eq!((wall.client_send_time, wall.server_recv_time), (7, 40));
         assert!(wall.server_send_time > 40);
         q[8] = 1;
-        let e = answer_sync(&q, 40, &sim, "lab").unwrap_err();
+        let e = answer_sync(&q, 40, &sim, "lab", 0).unwrap_err();
         assert!(e.contains("peppy/lab/clock/tick/sim"), "{e}");
         sim.set(5_000);
-        let r = ClockResponse::decode(&answer_sync(&q, 40, &sim, "lab").unwrap()).unwrap();
+        let r = ClockResponse::decode(&answer_sync(&q, 40, &sim, "lab", 0).unwrap()).unwrap();
         assert_eq!((r.server_recv_time, r.server_send_time), (5_000, 5_000));
         q[8] = 2;
-        assert!(answer_sync(&q, 40, &sim, "lab").is_err());
-        assert!(answer_sync(&q[..8], 40, &sim, "lab").is_err());
+        assert!(answer_sync(&q, 40, &sim, "lab", 0).is_err());
+        assert!(answer_sync(&q[..8], 40, &sim, "lab", 0).is_err());
         assert_eq!(decode_time(&[1, 0, 0, 0, 0, 0, 0, 0]), Some(1));
         assert_eq!(decode_time(&[1, 0, 0]), None);
     }

@@ -98,6 +98,11 @@ pub enum Error {
         "the stack clock is not ready: clock::init has not run for this node, or (following simulated time) no sim tick has arrived yet"
     )]
     ClockNotReady,
+    /// A test harness's wait that ran out of time (naming what it waited
+    /// for), or the node under test failing while the test waited
+    /// ([`crate::testing`]).
+    #[error("{0}")]
+    Testing(String),
     /// An error of the node's own code, kept as it is (its text is shown;
     /// `source()` returns it).
     #[error("{0}")]

@@ -54,6 +54,7 @@ mod startup;
 mod stop;
 mod subscription;
 mod target;
+pub mod testing;
 pub mod threads;
 pub mod tool;
 mod topics;

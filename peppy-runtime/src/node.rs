@@ -413,7 +413,7 @@ impl std::fmt::Debug for NodeRunner {
 }
 
 impl NodeRunner {
-    async fn open(
+    pub(crate) async fn open(
         doc: &NodeModel,
         descriptor: &'static NodeDescriptor,
         startup: StartupConfig,

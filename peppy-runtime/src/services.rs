@@ -122,6 +122,64 @@ where
         .map_err(Error::from)
 }
 
+/// A request taken off an exposed service's queue, to be answered later
+/// (the test mocks' pull-style serving): the caller, the request's bytes,
+/// and the reply handle.
+pub(crate) async fn take_request(
+    runner: &NodeRunner,
+    spec: &'static ServiceSpec,
+) -> Result<(Caller, Vec<u8>, Answer)> {
+    let (inbox, key) = runner.service_inbox(spec)?;
+    let pending = tokio::select! {
+        p = inbox.rx.recv_async() => p.map_err(|_| Error::ShuttingDown)?,
+        () = runner.cancellation_token().cancelled() => return Err(Error::ShuttingDown),
+    };
+    let Pending { query, header } = pending;
+    let caller = Caller {
+        instance_id: header.instance,
+        core_node: header.core,
+    };
+    let payload = query
+        .payload()
+        .map(|p| p.to_bytes().into_owned())
+        .unwrap_or_default();
+    let answer = Answer {
+        query,
+        key: key.clone(),
+        fingerprint: spec.response.fingerprint,
+    };
+    Ok((caller, payload, answer))
+}
+
+/// The reply handle of a request taken with [`take_request`]. Held, the
+/// request stays acknowledged, so its caller keeps waiting for the answer.
+pub(crate) struct Answer {
+    query: Held,
+    key: zenoh::key_expr::KeyExpr<'static>,
+    fingerprint: u64,
+}
+
+impl Answer {
+    /// Answers with an encoded response.
+    pub(crate) async fn respond(self, body: Vec<u8>) -> Result<()> {
+        self.send(ReplyStatus::Ok, body).await
+    }
+
+    /// Answers with an error the caller sees as [`Error::ServiceError`].
+    pub(crate) async fn fail(self, reason: &str) -> Result<()> {
+        self.send(ReplyStatus::HandlerError, reason.as_bytes().to_vec())
+            .await
+    }
+
+    async fn send(self, status: ReplyStatus, body: Vec<u8>) -> Result<()> {
+        self.query
+            .reply(self.key, body)
+            .attachment(attachment::reply(status, self.fingerprint))
+            .await
+            .map_err(Error::from)
+    }
+}
+
 /// A service response with the server's identity.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Reply<T> {

@@ -313,6 +313,26 @@ impl<G> IncomingGoal<G> {
         &self.pending.goal_id
     }
 
+    /// The goal's data apart from the goal: the test mocks hand a goal's
+    /// request out as a field and keep the decision for later.
+    pub(crate) fn into_parts(self) -> (IncomingGoal<()>, G) {
+        let IncomingGoal {
+            pending,
+            registry,
+            caller,
+            data,
+        } = self;
+        (
+            IncomingGoal {
+                pending,
+                registry,
+                caller,
+                data: (),
+            },
+            data,
+        )
+    }
+
     /// Accepts the goal: it is registered before the caller hears back, so
     /// an immediate cancel or result request finds it.
     pub fn accept(self) -> Result<GoalContext> {

@@ -1,0 +1,680 @@
+//! Mock producers: each plays one producer of one of the node's slots over
+//! the real wire. A mock is a node of its own (its own session, liveliness
+//! token, publishers, queryables and action engine), built from the
+//! slot's consumed entries turned around: what the slot consumes, the mock
+//! emits; what the slot calls, the mock serves, under the same keys a real
+//! producer uses.
+
+use std::collections::{HashMap, VecDeque};
+use std::marker::PhantomData;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use peppy_schema::{Identity, NodeModel, ParameterSchema, Spelling};
+use tokio::task::JoinHandle;
+use tracing::warn;
+
+use super::watch::Watch;
+use crate::actions::{DEFAULT_RESULT_RETENTION, GoalContext, GoalServer, IncomingGoal};
+use crate::error::{Error, Result};
+use crate::node::NodeRunner;
+use crate::producer_ref::ProducerRef;
+use crate::services::{Answer, take_request};
+use crate::spec::{
+    ActionSpec, ConsumedActionSpec, ConsumedServiceSpec, ConsumedTopicSpec, NodeDescriptor,
+    ServiceSpec, TopicSpec,
+};
+use crate::startup::{self, StandaloneConfig};
+use crate::wire::codec::{Decode, Encode, from_bytes, to_bytes};
+
+/// How long a mock's first publish waits for the node's subscription.
+pub const SUBSCRIBER_WAIT: Duration = Duration::from_secs(10);
+
+/// One slot of the node under test as generated code describes it: its
+/// consumed entries, which its mocks serve.
+#[derive(Debug)]
+pub struct SlotSpec {
+    /// The slot's link_id.
+    pub link_id: &'static str,
+    /// The topics the node consumes through it.
+    pub topics: &'static [&'static ConsumedTopicSpec],
+    /// The services the node calls through it.
+    pub services: &'static [&'static ConsumedServiceSpec],
+    /// The actions the node calls through it.
+    pub actions: &'static [&'static ConsumedActionSpec],
+}
+
+/// A mock's node description: the slot's entries turned around, and which
+/// served spec answers for which consumed one.
+struct Turned {
+    descriptor: &'static NodeDescriptor,
+    topics: HashMap<usize, &'static TopicSpec>,
+    services: HashMap<usize, &'static ServiceSpec>,
+    actions: HashMap<usize, &'static ActionSpec>,
+}
+
+fn address<T>(r: &'static T) -> usize {
+    std::ptr::from_ref(r) as usize
+}
+
+/// Turned slots are built once per slot and process: a test binary starts
+/// the same mocks many times.
+static TURNED: Mutex<Vec<(usize, &'static Turned)>> = Mutex::new(Vec::new());
+
+fn turned(slot: &'static SlotSpec) -> &'static Turned {
+    let mut all = TURNED.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some((_, t)) = all.iter().find(|(a, _)| *a == address(slot)) {
+        return t;
+    }
+    // Leaked once per slot: the runtime keeps `&'static` specs.
+    let topics: Vec<(usize, &'static TopicSpec)> = slot
+        .topics
+        .iter()
+        .map(|c| {
+            let served: &'static TopicSpec = Box::leak(Box::new(TopicSpec {
+                owner: c.owner,
+                name: c.name,
+                qos: c.qos,
+                format: c.format,
+            }));
+            (address(*c), served)
+        })
+        .collect();
+    let services: Vec<(usize, &'static ServiceSpec)> = slot
+        .services
+        .iter()
+        .map(|c| {
+            let served: &'static ServiceSpec = Box::leak(Box::new(ServiceSpec {
+                owner: c.owner,
+                name: c.name,
+                request: c.request,
+                response: c.response,
+            }));
+            (address(*c), served)
+        })
+        .collect();
+    let actions: Vec<(usize, &'static ActionSpec)> = slot
+        .actions
+        .iter()
+        .map(|c| {
+            let served: &'static ActionSpec = Box::leak(Box::new(ActionSpec {
+                owner: c.owner,
+                name: c.name,
+                goal: c.goal,
+                feedback: c.feedback,
+                result: c.result,
+            }));
+            (address(*c), served)
+        })
+        .collect();
+    let descriptor: &'static NodeDescriptor = Box::leak(Box::new(NodeDescriptor {
+        model: "",
+        document_path: "(a test mock)",
+        emitted_topics: Box::leak(topics.iter().map(|(_, s)| *s).collect()),
+        consumed_topics: &[],
+        exposed_services: Box::leak(services.iter().map(|(_, s)| *s).collect()),
+        exposed_actions: Box::leak(actions.iter().map(|(_, s)| *s).collect()),
+    }));
+    let t: &'static Turned = Box::leak(Box::new(Turned {
+        descriptor,
+        topics: topics.into_iter().collect(),
+        services: services.into_iter().collect(),
+        actions: actions.into_iter().collect(),
+    }));
+    all.push((address(slot), t));
+    t
+}
+
+/// One mock producer of one slot: a node of its own on the harness's
+/// router. Its typed members come from [`MockProducer::topic`],
+/// [`MockProducer::service`] and [`MockProducer::action`].
+pub struct MockProducer {
+    runner: Arc<NodeRunner>,
+    slot: &'static SlotSpec,
+    turned: &'static Turned,
+    watch: Watch,
+    pumps: Mutex<Vec<JoinHandle<()>>>,
+}
+
+impl std::fmt::Debug for MockProducer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MockProducer")
+            .field("slot", &self.slot.link_id)
+            .field("instance_id", &self.runner.instance_id())
+            .finish_non_exhaustive()
+    }
+}
+
+impl MockProducer {
+    /// Starts a mock of `slot` as instance `instance_id`, a node of
+    /// identity `identity`, connected to the router on `port`.
+    pub(crate) async fn start(
+        slot: &'static SlotSpec,
+        identity: Identity,
+        instance_id: &str,
+        port: u16,
+        watch: Watch,
+    ) -> Result<MockProducer> {
+        let turned = turned(slot);
+        let doc = NodeModel {
+            spelling: Spelling::Seeds,
+            identity,
+            dependencies: Vec::new(),
+            parameters: ParameterSchema::default(),
+        };
+        let standalone = StandaloneConfig::new()
+            .with_instance_id(instance_id)
+            .with_messaging("127.0.0.1", port);
+        let config = startup::load(&doc, vec!["peppy-mock".into()], None, &standalone)?;
+        let runner = NodeRunner::open(
+            &doc,
+            turned.descriptor,
+            config,
+            DEFAULT_RESULT_RETENTION,
+            crate::shm::usable(crate::SharedMemory::default()),
+            crate::DEFAULT_SHUTDOWN_GRACE,
+        )
+        .await?;
+        Ok(MockProducer {
+            runner,
+            slot,
+            turned,
+            watch,
+            pumps: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// The slot this mock fills.
+    pub fn link_id(&self) -> &'static str {
+        self.slot.link_id
+    }
+
+    /// The mock's instance id (`mock-<link_id>`, `mock-<link_id>-<n>`).
+    pub fn instance_id(&self) -> &str {
+        self.runner.instance_id()
+    }
+
+    /// The mock as the node sees it among its slot's bound producers.
+    pub fn producer_ref(&self) -> ProducerRef {
+        ProducerRef::new(self.runner.core_node(), self.runner.instance_id())
+    }
+
+    /// The mock's own runner (its session, its identity).
+    pub fn runner(&self) -> &Arc<NodeRunner> {
+        &self.runner
+    }
+
+    /// The publisher of consumed topic `spec` of this slot.
+    ///
+    /// # Panics
+    ///
+    /// When `spec` is not a topic of this slot: generated code asks only
+    /// for the slot's own entries.
+    pub fn topic<M: Encode + ?Sized>(&self, spec: &'static ConsumedTopicSpec) -> TopicMock<M> {
+        let served = self.turned.topics[&address(spec)];
+        TopicMock {
+            runner: self.runner.clone(),
+            spec: served,
+            matched: AtomicBool::new(false),
+            watch: self.watch.clone(),
+            _message: PhantomData,
+        }
+    }
+
+    /// The server of consumed service `spec` of this slot. Requests are
+    /// taken off the wire from now on: each is kept for
+    /// [`ServiceMock::captured`], answered with the next scripted response
+    /// ([`ServiceMock::enqueue_response`]) or parked for
+    /// [`ServiceMock::next_request`].
+    ///
+    /// # Panics
+    ///
+    /// When `spec` is not a service of this slot.
+    pub fn service<Req: Decode, Resp: Encode>(
+        &self,
+        spec: &'static ConsumedServiceSpec,
+    ) -> ServiceMock<Req, Resp> {
+        let served = self.turned.services[&address(spec)];
+        let state = Arc::new(ServiceState::default());
+        let (tx, parked) = flume::unbounded();
+        let pump = tokio::spawn(pump(self.runner.clone(), served, state.clone(), tx));
+        self.pumps
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push(pump);
+        ServiceMock {
+            name: served.name,
+            state,
+            parked,
+            watch: self.watch.clone(),
+            _types: PhantomData,
+        }
+    }
+
+    /// The server of consumed action `spec` of this slot.
+    ///
+    /// # Panics
+    ///
+    /// When `spec` is not an action of this slot.
+    pub fn action<G: Decode, F: Encode + ?Sized, R: Encode + ?Sized>(
+        &self,
+        spec: &'static ConsumedActionSpec,
+    ) -> ActionMock<G, F, R> {
+        let served = self.turned.actions[&address(spec)];
+        let server =
+            GoalServer::new(&self.runner, served).expect("a mock serves every action of its slot");
+        ActionMock {
+            name: served.name,
+            server,
+            watch: self.watch.clone(),
+            _types: PhantomData,
+            _sends: PhantomData,
+        }
+    }
+
+    /// Stops the mock as a producer process dying would: its session
+    /// closes with every declaration and its liveliness token, so the node
+    /// sees the producer gone. A stopped mock stays stopped.
+    pub async fn stop(&self) {
+        for p in self
+            .pumps
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .drain(..)
+        {
+            p.abort();
+        }
+        self.runner.shutdown().await;
+    }
+}
+
+impl Drop for MockProducer {
+    fn drop(&mut self) {
+        for p in self
+            .pumps
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .drain(..)
+        {
+            p.abort();
+        }
+    }
+}
+
+/// A mock's publisher of one topic the node consumes.
+pub struct TopicMock<M: ?Sized> {
+    runner: Arc<NodeRunner>,
+    spec: &'static TopicSpec,
+    matched: AtomicBool,
+    watch: Watch,
+    _message: PhantomData<fn(&M)>,
+}
+
+impl<M: ?Sized> std::fmt::Debug for TopicMock<M> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TopicMock")
+            .field("topic", &self.spec.name)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<M: Encode + ?Sized> TopicMock<M> {
+    /// Publishes one message to the node. The first call waits (up to
+    /// 10 s) until the node's subscription is known, so the first message
+    /// is never lost to a start-up race; a node that never subscribes is
+    /// an error naming the topic.
+    pub async fn publish(&self, message: &M) -> Result<()> {
+        if !self.matched.load(Ordering::Acquire)
+            && !self.wait_for_subscriber(SUBSCRIBER_WAIT).await?
+        {
+            return Err(Error::Testing(format!(
+                "topic `{}`: the node under test has no subscription to it after {} s (does it consume the topic through this slot?)",
+                self.spec.name,
+                SUBSCRIBER_WAIT.as_secs()
+            )));
+        }
+        crate::topics::emit(&self.runner, self.spec, message).await
+    }
+
+    /// Waits up to `timeout` until the node's subscription to the topic is
+    /// known here; whether it is.
+    pub async fn wait_for_subscriber(&self, timeout: Duration) -> Result<bool> {
+        let known = self
+            .watch
+            .unbounded(async { Ok(readers_known(&self.runner, self.spec, timeout).await) });
+        let known = known.await?;
+        if known {
+            self.matched.store(true, Ordering::Release);
+        }
+        Ok(known)
+    }
+
+    /// The topic's name.
+    pub fn topic(&self) -> &'static str {
+        self.spec.name
+    }
+}
+
+/// Waits up to `timeout` until `runner`'s publisher of `spec` knows a
+/// subscriber. Zenoh reports matching as a status flag; a short poll of it
+/// is the barrier.
+pub(crate) async fn readers_known(
+    runner: &NodeRunner,
+    spec: &'static TopicSpec,
+    timeout: Duration,
+) -> bool {
+    let deadline = tokio::time::Instant::now() + timeout;
+    loop {
+        if runner.outlet(spec).is_some_and(|o| o.readers_known()) {
+            return true;
+        }
+        if tokio::time::Instant::now() >= deadline {
+            return false;
+        }
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+}
+
+#[derive(Default)]
+struct ServiceState {
+    captured: Mutex<Vec<Vec<u8>>>,
+    scripted: Mutex<VecDeque<Vec<u8>>>,
+}
+
+/// Takes every request of one mocked service off the wire: kept, then
+/// answered from the script or parked.
+async fn pump(
+    runner: Arc<NodeRunner>,
+    spec: &'static ServiceSpec,
+    state: Arc<ServiceState>,
+    parked: flume::Sender<(Vec<u8>, Answer)>,
+) {
+    loop {
+        let (_caller, body, answer) = match take_request(&runner, spec).await {
+            Ok(taken) => taken,
+            Err(_) => return,
+        };
+        state
+            .captured
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push(body.clone());
+        let scripted = state
+            .scripted
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .pop_front();
+        match scripted {
+            Some(response) => {
+                if let Err(e) = answer.respond(response).await {
+                    warn!(
+                        service = spec.name,
+                        "a scripted mock response was not sent: {e}"
+                    );
+                }
+            }
+            None => {
+                if parked.send((body, answer)).is_err() {
+                    return;
+                }
+            }
+        }
+    }
+}
+
+/// A mock's server of one service the node calls.
+pub struct ServiceMock<Req, Resp> {
+    name: &'static str,
+    state: Arc<ServiceState>,
+    parked: flume::Receiver<(Vec<u8>, Answer)>,
+    watch: Watch,
+    _types: PhantomData<fn(Resp) -> Req>,
+}
+
+impl<Req, Resp> std::fmt::Debug for ServiceMock<Req, Resp> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ServiceMock")
+            .field("service", &self.name)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<Req: Decode, Resp: Encode> ServiceMock<Req, Resp> {
+    /// Waits up to `timeout` for the node's next request not answered by
+    /// the script, and returns it with the responder that answers it.
+    pub async fn next_request(&self, timeout: Duration) -> Result<(Req, Responder<Resp>)> {
+        let what = format!("a request of service `{}` from the node", self.name);
+        let (body, answer) = self
+            .watch
+            .bound(&what, timeout, async {
+                self.parked
+                    .recv_async()
+                    .await
+                    .map_err(|_| Error::ShuttingDown)
+            })
+            .await?;
+        let request = from_bytes::<Req>(&body).map_err(|source| Error::Decode {
+            what: format!("request of `{}`", self.name),
+            source,
+        })?;
+        Ok((
+            request,
+            Responder {
+                answer,
+                _response: PhantomData,
+            },
+        ))
+    }
+
+    /// Queues a response: the node's next request not yet answered gets
+    /// it, in order (scripted answers go before parking).
+    pub fn enqueue_response(&self, response: Resp) -> Result<()> {
+        self.state
+            .scripted
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push_back(to_bytes(&response));
+        Ok(())
+    }
+
+    /// Every request received so far, scripted and parked alike, in
+    /// arrival order.
+    pub fn captured(&self) -> Result<Vec<Req>> {
+        self.state
+            .captured
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .iter()
+            .map(|b| {
+                from_bytes::<Req>(b).map_err(|source| Error::Decode {
+                    what: format!("request of `{}`", self.name),
+                    source,
+                })
+            })
+            .collect()
+    }
+
+    /// The service's name.
+    pub fn service(&self) -> &'static str {
+        self.name
+    }
+}
+
+impl<Req, Resp> Drop for ServiceMock<Req, Resp> {
+    fn drop(&mut self) {
+        // A request the test never answered, or a script the node never
+        // used, is a test that checked less than it reads.
+        let parked = self.parked.len();
+        let unused = self
+            .state
+            .scripted
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .len();
+        if parked > 0 || unused > 0 {
+            warn!(
+                service = self.name,
+                unanswered_requests = parked,
+                unused_scripted_responses = unused,
+                "mock service torn down with requests nobody answered or responses nobody asked for"
+            );
+        }
+    }
+}
+
+/// Answers one request a [`ServiceMock`] handed out.
+pub struct Responder<Resp> {
+    answer: Answer,
+    _response: PhantomData<fn(Resp)>,
+}
+
+impl<Resp> std::fmt::Debug for Responder<Resp> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Responder").finish_non_exhaustive()
+    }
+}
+
+impl<Resp: Encode> Responder<Resp> {
+    /// Answers with `response`.
+    pub async fn respond(self, response: Resp) -> Result<()> {
+        self.answer.respond(to_bytes(&response)).await
+    }
+
+    /// Answers with an error: the node's call fails with
+    /// [`Error::ServiceError`] carrying `reason`.
+    pub async fn respond_error(self, reason: impl AsRef<str>) -> Result<()> {
+        self.answer.fail(reason.as_ref()).await
+    }
+}
+
+/// What a goal's server sends: feedback `F` and result `R`.
+type Sends<F, R> = PhantomData<(fn(&F), fn(&R))>;
+
+/// A mock's server of one action the node calls.
+pub struct ActionMock<G, F: ?Sized, R: ?Sized> {
+    name: &'static str,
+    server: GoalServer,
+    watch: Watch,
+    _types: PhantomData<fn() -> G>,
+    _sends: Sends<F, R>,
+}
+
+impl<G, F: ?Sized, R: ?Sized> std::fmt::Debug for ActionMock<G, F, R> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ActionMock")
+            .field("action", &self.name)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<G: Decode, F: Encode + ?Sized, R: Encode + ?Sized> ActionMock<G, F, R> {
+    /// Waits up to `timeout` for the node's next goal.
+    pub async fn next_goal(&self, timeout: Duration) -> Result<PendingGoal<G, F, R>> {
+        let what = format!("a goal of action `{}` from the node", self.name);
+        let incoming: IncomingGoal<G> = self
+            .watch
+            .bound(&what, timeout, self.server.next::<G>())
+            .await?;
+        let (incoming, request) = incoming.into_parts();
+        Ok(PendingGoal {
+            request,
+            incoming,
+            _types: PhantomData,
+        })
+    }
+
+    /// The action's name.
+    pub fn action(&self) -> &'static str {
+        self.name
+    }
+}
+
+/// A goal the node sent, not yet accepted or rejected.
+pub struct PendingGoal<G, F: ?Sized, R: ?Sized> {
+    /// The goal's request.
+    pub request: G,
+    incoming: IncomingGoal<()>,
+    _types: Sends<F, R>,
+}
+
+impl<G: std::fmt::Debug, F: ?Sized, R: ?Sized> std::fmt::Debug for PendingGoal<G, F, R> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PendingGoal")
+            .field("goal_id", &self.incoming.goal_id())
+            .field("request", &self.request)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<G, F: Encode + ?Sized, R: Encode + ?Sized> PendingGoal<G, F, R> {
+    /// The goal's id.
+    pub fn goal_id(&self) -> &str {
+        self.incoming.goal_id()
+    }
+
+    /// Who sent it (the node under test).
+    pub fn caller(&self) -> &crate::Caller {
+        &self.incoming.caller
+    }
+
+    /// Accepts the goal; the node's `fire_goal` returns accepted.
+    pub async fn accept(self) -> Result<ActiveGoal<F, R>> {
+        let context = self.incoming.accept()?;
+        Ok(ActiveGoal {
+            context,
+            _types: PhantomData,
+        })
+    }
+
+    /// Rejects the goal with `reason`, which the node sees.
+    pub async fn reject(self, reason: impl Into<String>) -> Result<()> {
+        self.incoming.reject(reason)
+    }
+}
+
+/// An accepted goal the test plays the server of.
+pub struct ActiveGoal<F: ?Sized, R: ?Sized> {
+    context: GoalContext,
+    _types: Sends<F, R>,
+}
+
+impl<F: ?Sized, R: ?Sized> std::fmt::Debug for ActiveGoal<F, R> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ActiveGoal")
+            .field("goal_id", &self.context.goal_id())
+            .finish_non_exhaustive()
+    }
+}
+
+impl<F: Encode + ?Sized, R: Encode + ?Sized> ActiveGoal<F, R> {
+    /// The goal's id.
+    pub fn goal_id(&self) -> &str {
+        self.context.goal_id()
+    }
+
+    /// Sends one feedback message to the node.
+    pub async fn publish_feedback(&self, feedback: &F) -> Result<()> {
+        self.context.publish_feedback(feedback).await
+    }
+
+    /// Finishes the goal with `result`.
+    pub async fn complete(self, result: &R) -> Result<()> {
+        self.context.complete(result)
+    }
+
+    /// Finishes the goal as cancelled, with a (partial) `result`.
+    pub async fn complete_cancelled(self, result: &R) -> Result<()> {
+        self.context.complete_cancelled(result)
+    }
+
+    /// Resolves when the node asks to cancel the goal.
+    pub async fn cancel_signal(&self) {
+        self.context.cancel_signal().await;
+    }
+
+    /// Whether the node asked to cancel the goal.
+    pub fn is_cancelled(&self) -> bool {
+        self.context.is_cancelled()
+    }
+}
