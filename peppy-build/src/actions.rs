@@ -12,13 +12,13 @@ use crate::types::{Structs, args, format_spec, many_args_allow, snake_allow};
 
 /// The nested-type prefixes of an action's formats (SPEC 4): `Goal`,
 /// `<Action>Feedback`, `<Action>Result`.
-struct Prefixes {
-    goal: String,
-    feedback: String,
-    result: String,
+pub(crate) struct Prefixes {
+    pub(crate) goal: String,
+    pub(crate) feedback: String,
+    pub(crate) result: String,
 }
 
-fn prefixes(action: &str) -> Prefixes {
+pub(crate) fn prefixes(action: &str) -> Prefixes {
     let camel = type_prefix(action);
     Prefixes {
         goal: "Goal".to_string(),

@@ -10,6 +10,7 @@ use quote::quote;
 
 use crate::naming::{NameKind, Names, consumed_module, ident, module, short_location, type_prefix};
 use crate::params;
+use crate::testing::{Layout, TestGate};
 use crate::types::{Structs, args, format_spec, many_args_allow, snake_allow};
 
 /// Generates the items of a node's `peppygen` module: the module tree of
@@ -24,7 +25,7 @@ use crate::types::{Structs, args, format_spec, many_args_allow, snake_allow};
 /// one module name, or two nested structs with one type name. Each is a
 /// located diagnostic, like the schema's own.
 pub fn generate(node: &ResolvedNode) -> Result<TokenStream, Diagnostics> {
-    generate_as(node, None)
+    generate_as(node, None, TestGate::CfgTest)
 }
 
 /// [`generate`], naming the document `document_path` in the generated
@@ -34,11 +35,13 @@ pub fn generate(node: &ResolvedNode) -> Result<TokenStream, Diagnostics> {
 pub(crate) fn generate_as(
     node: &ResolvedNode,
     document_path: Option<&str>,
+    gate: TestGate,
 ) -> Result<TokenStream, Diagnostics> {
     let mut g = Gen {
         node,
         document_path: document_path.map(str::to_string),
         diags: Diagnostics::new(),
+        gate,
     };
     let tokens = g.tree();
     if g.diags.has_errors() {
@@ -121,18 +124,25 @@ pub(crate) struct Gen<'a> {
     /// How the descriptor names the document (default: its path here).
     pub(crate) document_path: Option<String>,
     pub(crate) diags: Diagnostics,
+    /// What compiles the test surfaces in.
+    pub(crate) gate: TestGate,
 }
 
 /// One generated category module: its items and the paths (below the
 /// category) of the `SPEC` statics the node descriptor lists.
 #[derive(Default)]
-struct Category {
+pub(crate) struct Category {
     items: TokenStream,
     specs: Vec<Vec<Ident>>,
+    /// Every entry module: the entry's index in the node's list of its
+    /// category, and its path below the category (test surfaces name them).
+    pub(crate) modules: Vec<(usize, Vec<Ident>)>,
 }
 
 /// One provided entry, as the module-tree builder sees it.
 struct Offered {
+    /// Its index in the node's list of its category.
+    index: usize,
     name: String,
     loc: Loc,
     origin: Origin,
@@ -141,6 +151,8 @@ struct Offered {
 
 /// One consumed entry of a `node/v1` node, as the layout builder sees it.
 struct Consumed {
+    /// Its index in the node's list of its category.
+    index: usize,
     /// The slot (`None` only for an external topic, which today's
     /// spelling cannot write).
     link_id: Option<String>,
@@ -191,6 +203,16 @@ impl Gen<'_> {
         };
         let parameters = params::parameters(self.node, &descriptor, &mut self.diags);
 
+        let layout = Layout {
+            emitted_topics: emitted.modules.clone(),
+            consumed_topics: consumed_topics.modules.clone(),
+            exposed_services: exposed.modules.clone(),
+            consumed_services: consumed_services.modules.clone(),
+            exposed_actions: exposed_actions.modules.clone(),
+            consumed_actions: consumed_actions.modules.clone(),
+        };
+        let test_surfaces = self.test_surfaces(&layout, self.gate);
+
         let source = short_location(&self.node.node.name_loc);
         let identity = self.node.node.identity();
         let categories = [
@@ -238,6 +260,7 @@ impl Gen<'_> {
                 #parameters
             }
             #(#modules)*
+            #test_surfaces
         }
     }
 
@@ -257,7 +280,9 @@ impl Gen<'_> {
         let offered: Vec<Offered> = node
             .emitted_topics
             .iter()
-            .map(|p| Offered {
+            .enumerate()
+            .map(|(index, p)| Offered {
+                index,
                 name: p.decl.name.clone(),
                 loc: p.decl.loc.clone(),
                 origin: p.origin.clone(),
@@ -272,7 +297,9 @@ impl Gen<'_> {
         let offered: Vec<Offered> = node
             .exposed_services
             .iter()
-            .map(|p| Offered {
+            .enumerate()
+            .map(|(index, p)| Offered {
+                index,
                 name: p.decl.name.clone(),
                 loc: p.decl.loc.clone(),
                 origin: p.origin.clone(),
@@ -287,7 +314,9 @@ impl Gen<'_> {
         let offered: Vec<Offered> = node
             .exposed_actions
             .iter()
-            .map(|p| Offered {
+            .enumerate()
+            .map(|(index, p)| Offered {
+                index,
                 name: p.decl.name.clone(),
                 loc: p.decl.loc.clone(),
                 origin: p.origin.clone(),
@@ -303,7 +332,9 @@ impl Gen<'_> {
             let entries = node
                 .consumed_actions
                 .iter()
-                .map(|a| Consumed {
+                .enumerate()
+                .map(|(index, a)| Consumed {
+                    index,
                     link_id: Some(a.slot.link_id.clone()),
                     name: a.decl.name.clone(),
                     loc: a.loc.clone(),
@@ -321,7 +352,7 @@ impl Gen<'_> {
         let mut category = Category::default();
         let mut names = Names::default();
         let node = self.node;
-        for a in &node.consumed_actions {
+        for (index, a) in node.consumed_actions.iter().enumerate() {
             let m = consumed_module(Some(&a.slot.link_id), &a.decl.name);
             let what = format!(
                 "consumed action `{}` of slot `{}`",
@@ -331,6 +362,7 @@ impl Gen<'_> {
                 continue;
             }
             let id = ident(&m);
+            category.modules.push((index, vec![id.clone()]));
             let body = self.consumed_action(a);
             let doc = crate::docs::Doc::new(call_doc(EntryKind::Action, a));
             category.items.extend(quote! {
@@ -404,6 +436,7 @@ impl Gen<'_> {
                     });
                     let path = vec![iface_id.clone(), tag_id.clone(), id];
                     category.specs.push(path.clone());
+                    category.modules.push((o.index, path.clone()));
                     let unambiguous = !own_modules.contains(&m)
                         && conformed_modules.iter().filter(|c| **c == m).count() == 1
                         && !iface_modules.contains(&m);
@@ -491,6 +524,9 @@ impl Gen<'_> {
                         #body
                     }
                 });
+                category
+                    .modules
+                    .push((o.index, vec![link_ident.clone(), id.clone()]));
                 category.specs.push(vec![link_ident.clone(), id]);
             }
             let doc = crate::docs::Doc::new(format!(
@@ -542,6 +578,7 @@ impl Gen<'_> {
                             #body
                         }
                     });
+                    category.modules.push((e.index, vec![id.clone()]));
                     if e.spec {
                         category.specs.push(vec![id]);
                     }
@@ -580,6 +617,9 @@ impl Gen<'_> {
                         #body
                     }
                 });
+                category
+                    .modules
+                    .push((e.index, vec![link_ident.clone(), id.clone()]));
                 if e.spec {
                     category.specs.push(vec![link_ident.clone(), id]);
                 }
@@ -630,6 +670,7 @@ impl Gen<'_> {
                     #body
                 }
             });
+            category.modules.push((o.index, vec![id.clone()]));
             category.specs.push(vec![id]);
             own_modules.push(m);
         }
@@ -642,7 +683,9 @@ impl Gen<'_> {
             let entries = node
                 .consumed_topics
                 .iter()
-                .map(|t| Consumed {
+                .enumerate()
+                .map(|(index, t)| Consumed {
+                    index,
                     link_id: t.slot.as_ref().map(|s| s.link_id.clone()),
                     name: t.name.clone(),
                     loc: t.loc.clone(),
@@ -662,7 +705,7 @@ impl Gen<'_> {
         let mut category = Category::default();
         let mut names = Names::default();
         let node = self.node;
-        for t in &node.consumed_topics {
+        for (index, t) in node.consumed_topics.iter().enumerate() {
             let m = consumed_module(t.slot.as_ref().map(|s| s.link_id.as_str()), &t.name);
             let what = match &t.slot {
                 Some(slot) => format!("consumed topic `{}` of slot `{}`", t.name, slot.link_id),
@@ -672,6 +715,7 @@ impl Gen<'_> {
                 continue;
             }
             let id = ident(&m);
+            category.modules.push((index, vec![id.clone()]));
             let body = self.consumed_topic(t);
             let doc = crate::docs::Doc::new(consumed_topic_doc(t));
             category.items.extend(quote! {
@@ -691,7 +735,9 @@ impl Gen<'_> {
             let entries = node
                 .consumed_services
                 .iter()
-                .map(|s| Consumed {
+                .enumerate()
+                .map(|(index, s)| Consumed {
+                    index,
                     link_id: Some(s.slot.link_id.clone()),
                     name: s.decl.name.clone(),
                     loc: s.loc.clone(),
@@ -709,7 +755,7 @@ impl Gen<'_> {
         let mut category = Category::default();
         let mut names = Names::default();
         let node = self.node;
-        for s in &node.consumed_services {
+        for (index, s) in node.consumed_services.iter().enumerate() {
             let m = consumed_module(Some(&s.slot.link_id), &s.decl.name);
             let what = format!(
                 "consumed service `{}` of slot `{}`",
@@ -719,6 +765,7 @@ impl Gen<'_> {
                 continue;
             }
             let id = ident(&m);
+            category.modules.push((index, vec![id.clone()]));
             let body = self.consumed_service(s);
             let doc = crate::docs::Doc::new(call_doc(EntryKind::Service, s));
             category.items.extend(quote! {

@@ -99,6 +99,7 @@ pub mod macro_support;
 mod naming;
 mod params;
 mod python;
+mod testing;
 mod types;
 
 pub use config::{

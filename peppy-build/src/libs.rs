@@ -48,12 +48,11 @@ pub fn rust_libs(
     document_path: &str,
 ) -> Result<Vec<LibFile>, Error> {
     let tokens =
-        crate::generate::generate_as(node, Some(document_path)).map_err(|diagnostics| {
-            Error::Schema {
+        crate::generate::generate_as(node, Some(document_path), crate::testing::TestGate::Feature)
+            .map_err(|diagnostics| Error::Schema {
                 manifest: node.node.file.path().to_path_buf(),
                 diagnostics,
-            }
-        })?;
+            })?;
     let items = crate::config::pretty(&tokens)?;
     let identity = node.node.identity();
     // The items go in a file of their own, included: rustfmt formats

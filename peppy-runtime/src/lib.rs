@@ -103,4 +103,6 @@ pub mod codegen {
     pub use crate::wire::struct_codec::min_size_of;
     pub use peppy_schema::QosProfile;
     pub use serde;
+    pub use serde_json;
+    pub use zenoh;
 }

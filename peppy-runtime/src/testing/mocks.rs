@@ -23,13 +23,21 @@ use crate::producer_ref::ProducerRef;
 use crate::services::{Answer, take_request};
 use crate::spec::{
     ActionSpec, ConsumedActionSpec, ConsumedServiceSpec, ConsumedTopicSpec, NodeDescriptor,
-    ServiceSpec, TopicSpec,
+    OwnerSpec, ServiceSpec, TopicSpec,
 };
 use crate::startup::{self, StandaloneConfig};
 use crate::wire::codec::{Decode, Encode, from_bytes, to_bytes};
 
 /// How long a mock's first publish waits for the node's subscription.
 pub const SUBSCRIBER_WAIT: Duration = Duration::from_secs(10);
+
+/// The identity of the mock that publishes the node's external consumed
+/// topics (those of no slot, heard from any producer).
+pub(crate) const EXTERNAL_NAME: &str = "mock_external";
+/// Its tag.
+pub(crate) const EXTERNAL_TAG: &str = "v1";
+/// Its instance id, and its key in [`super::MockSet`].
+pub const EXTERNAL_INSTANCE: &str = "mock-external";
 
 /// One slot of the node under test as generated code describes it: its
 /// consumed entries, which its mocks serve.
@@ -73,7 +81,15 @@ fn turned(slot: &'static SlotSpec) -> &'static Turned {
         .iter()
         .map(|c| {
             let served: &'static TopicSpec = Box::leak(Box::new(TopicSpec {
-                owner: c.owner,
+                // An external topic is anyone's: the mock emits it as
+                // itself.
+                owner: match c.owner {
+                    OwnerSpec::Any => OwnerSpec::Node {
+                        name: EXTERNAL_NAME,
+                        tag: EXTERNAL_TAG,
+                    },
+                    owner => owner,
+                },
                 name: c.name,
                 qos: c.qos,
                 format: c.format,

@@ -43,11 +43,12 @@ use peppy_schema::{Cardinality, Identity, NodeModel, SlotKind};
 use serde_json::Value as Json;
 use tokio::task::JoinHandle;
 
+pub use crate::actions::{CancelState, Outcome};
 pub use clock::TestClock;
 pub use fixture::{GoalHandle, Tap};
 pub use mocks::{
-    ActionMock, ActiveGoal, MockProducer, PendingGoal, Responder, SUBSCRIBER_WAIT, ServiceMock,
-    SlotSpec, TopicMock,
+    ActionMock, ActiveGoal, EXTERNAL_INSTANCE, MockProducer, PendingGoal, Responder,
+    SUBSCRIBER_WAIT, ServiceMock, SlotSpec, TopicMock,
 };
 
 use crate::actions::send_goal;
@@ -132,7 +133,7 @@ pub struct Harness {
     setup: Option<JoinHandle<()>>,
     state: Arc<SetupState>,
     watch: Watch,
-    clock: TestClock,
+    clock: Arc<TestClock>,
     router: router::PrivateRouter,
     _clock_use: ClockUse,
 }
@@ -192,7 +193,9 @@ async fn reachable(session: &zenoh::Session, key: &str, what: &str) -> Result<()
 
 impl Harness {
     /// Starts the node of `P` with `setup` against mocks of its slots
-    /// (`slots`: the consumed entries of each, from generated code).
+    /// (`slots`: the consumed entries of each, from generated code; the
+    /// one whose link_id is empty lists the node's external consumed
+    /// topics, published by one mock of its own, `mock-external`).
     /// Returns once every barrier passed and `setup` is spawned; a setup
     /// that fails makes [`Harness::shutdown`] return its error.
     pub async fn start<P, F, Fut>(
@@ -274,6 +277,14 @@ impl Harness {
                 );
             }
             mocks.by_slot.insert(dep.link_id.clone(), started);
+        }
+
+        if let Some(external) = slots.iter().find(|s| s.link_id.is_empty()) {
+            let identity = Identity::new(mocks::EXTERNAL_NAME, mocks::EXTERNAL_TAG);
+            let mock =
+                MockProducer::start(external, identity, EXTERNAL_INSTANCE, port, watch.clone())
+                    .await?;
+            mocks.by_slot.insert(String::new(), vec![mock]);
         }
 
         let turned = fixture::turned(descriptor, &model.identity);
@@ -359,7 +370,7 @@ impl Harness {
                 setup: Some(setup),
                 state,
                 watch,
-                clock,
+                clock: Arc::new(clock),
                 router,
                 _clock_use: clock_use,
             },
@@ -394,7 +405,7 @@ impl Harness {
     }
 
     /// The clock the harness serves the node.
-    pub fn clock(&self) -> &TestClock {
+    pub fn clock(&self) -> &Arc<TestClock> {
         &self.clock
     }
 
