@@ -256,3 +256,193 @@ pub mod exposed_actions {}
 /// Generated from node `today_camera:v1` (`peppy.json5:8:11`).
 #[allow(dead_code)]
 pub mod consumed_actions {}
+/// Typed mock producers, one module per slot (`mock::deps::<link_id>`): what the node consumes, published; what it calls, served. Built by `fixtures::harness::Harness::start`. Test builds only.
+#[cfg(feature = "testing")]
+#[allow(dead_code, unused_imports)]
+pub mod mock {
+    /// Every slot's mock(s): `mocks.deps.<link_id>`.
+    #[derive(Debug)]
+    pub struct Mocks {
+        /// By slot.
+        pub deps: Deps,
+    }
+    /// The mocks of the node's slots, by link_id: one `Mock` for a `one` slot, an `Option` for `zero_or_one`, a `Vec` for list slots.
+    #[derive(Debug)]
+    pub struct Deps {}
+    impl Mocks {
+        pub(crate) fn from_set(
+            mut set: ::peppy::testing::MockSet,
+        ) -> ::peppy::codegen::Result<Mocks> {
+            let _ = &mut set;
+            ::core::result::Result::Ok(Mocks { deps: Deps {} })
+        }
+    }
+    /// Every slot's consumed entries, for the harness.
+    pub(crate) static SLOTS: &[&::peppy::testing::SlotSpec] = &[];
+    /// One module per slot.
+    pub mod deps {}
+}
+/// The test harness (`fixtures::harness::Harness`) and typed callers of what the node serves (`fixtures::exposed_services`, `fixtures::exposed_actions`). Test builds only.
+#[cfg(feature = "testing")]
+#[allow(dead_code, unused_imports)]
+pub mod fixtures {
+    /// The harness: the node in-process against its mocks.
+    pub mod harness {
+        /// How `Harness::start_with` starts the node; `Config::default()` is what `Harness::start` uses.
+        #[derive(Debug, Clone)]
+        pub struct Config {
+            /// The parameters; `None` takes the defaults of the node's document, as a launch does.
+            pub parameters: ::core::option::Option<super::super::parameters::Parameters>,
+            /// The node's instance id; `None` makes one (`test-<pid>-<n>`).
+            pub instance_id: ::core::option::Option<::std::string::String>,
+            /// Serve simulated time: no time exists until the test calls `harness.clock.tick`.
+            pub use_sim_time: bool,
+        }
+        impl ::core::default::Default for Config {
+            fn default() -> Config {
+                Config {
+                    parameters: ::core::option::Option::None,
+                    instance_id: ::core::option::Option::None,
+                    use_sim_time: false,
+                }
+            }
+        }
+        /// Every topic the node emits, tapped before it started.
+        #[derive(Debug)]
+        pub struct Emitted {
+            /// Every message the node emits on topic `video_stream`, in order.
+            pub camera_video_stream: ::peppy::testing::Tap<
+                super::super::emitted_topics::camera::video_stream::Message,
+            >,
+        }
+        /// The node running in-process against its mocks (see `peppy::testing`). End a test with `harness.shutdown().await`: it runs the node's shutdown hooks and returns setup's error.
+        #[derive(Debug)]
+        pub struct Harness {
+            /// What the node emits.
+            pub emitted: Emitted,
+            /// The clock the harness serves the node.
+            pub clock: ::std::sync::Arc<::peppy::testing::TestClock>,
+            inner: ::peppy::testing::Harness,
+        }
+        impl Harness {
+            /// Starts the node with `setup` (what `NodeBuilder::run` takes), its parameters' defaults and one mock per slot; returns once the mocks and taps are reachable and `setup` is spawned.
+            pub async fn start<F, Fut>(
+                setup: F,
+            ) -> ::peppy::codegen::Result<(Harness, super::super::mock::Mocks)>
+            where
+                F: ::core::ops::FnOnce(
+                    super::super::parameters::Parameters,
+                    ::std::sync::Arc<::peppy::codegen::NodeRunner>,
+                ) -> Fut,
+                Fut: ::core::future::Future<Output = ::peppy::codegen::Result<()>>
+                    + ::core::marker::Send + 'static,
+            {
+                Harness::start_with(Config::default(), setup).await
+            }
+            /// `start` with a configuration: parameters, instance id, sim time, mocks per slot.
+            pub async fn start_with<F, Fut>(
+                config: Config,
+                setup: F,
+            ) -> ::peppy::codegen::Result<(Harness, super::super::mock::Mocks)>
+            where
+                F: ::core::ops::FnOnce(
+                    super::super::parameters::Parameters,
+                    ::std::sync::Arc<::peppy::codegen::NodeRunner>,
+                ) -> Fut,
+                Fut: ::core::future::Future<Output = ::peppy::codegen::Result<()>>
+                    + ::core::marker::Send + 'static,
+            {
+                #[allow(unused_mut)]
+                let mut slots = ::std::vec::Vec::new();
+                let parameters = match &config.parameters {
+                    ::core::option::Option::Some(p) => {
+                        ::core::option::Option::Some(
+                            ::peppy::codegen::serde_json::to_value(p)
+                                .map_err(|e| {
+                                    ::peppy::codegen::Error::Testing(
+                                        ::std::format!("the parameters do not serialize: {e}"),
+                                    )
+                                })?,
+                        )
+                    }
+                    ::core::option::Option::None => ::core::option::Option::None,
+                };
+                let (inner, set) = ::peppy::testing::Harness::start::<
+                    super::super::parameters::Parameters,
+                    F,
+                    Fut,
+                >(
+                        super::super::mock::SLOTS,
+                        ::peppy::testing::HarnessConfig {
+                            parameters,
+                            instance_id: config.instance_id.clone(),
+                            use_sim_time: config.use_sim_time,
+                            slots,
+                        },
+                        setup,
+                    )
+                    .await?;
+                let mocks = super::super::mock::Mocks::from_set(set)?;
+                let emitted = Emitted {
+                    camera_video_stream: inner
+                        .tap(&super::super::emitted_topics::camera::video_stream::SPEC)?,
+                };
+                let clock = inner.clock().clone();
+                ::core::result::Result::Ok((Harness { emitted, clock, inner }, mocks))
+            }
+            /// Stops the node (its token, its shutdown hooks, its messaging), then the harness; setup's error, or its panic as an error.
+            pub async fn shutdown(self) -> ::peppy::codegen::Result<()> {
+                self.inner.shutdown().await
+            }
+            /// The node's runner, in-process.
+            pub fn node_runner(
+                &self,
+            ) -> &::std::sync::Arc<::peppy::codegen::NodeRunner> {
+                self.inner.node_runner()
+            }
+            /// The harness's own session (its taps' and calls').
+            pub fn session(&self) -> &::peppy::codegen::zenoh::Session {
+                self.inner.session()
+            }
+            /// The node's instance id.
+            pub fn instance_id(&self) -> &str {
+                self.inner.instance_id()
+            }
+            /// The node as its consumers see it.
+            pub fn node_producer_ref(&self) -> ::peppy::codegen::ProducerRef {
+                self.inner.node_producer_ref()
+            }
+            /// Whether `setup` has returned `Ok`.
+            pub fn setup_finished(&self) -> bool {
+                self.inner.setup_finished()
+            }
+            /// The untyped harness.
+            pub fn inner(&self) -> &::peppy::testing::Harness {
+                &self.inner
+            }
+        }
+    }
+    /// The node's emitted topics' types.
+    pub mod emitted_topics {
+        pub use super::super::emitted_topics::*;
+    }
+    /// Callers of the services the node exposes: `poll(&harness, [&request,] timeout)`.
+    pub mod exposed_services {
+        /// `camera`, as the node's own module tree names it.
+        pub mod camera {
+            /// `video_stream_info`, as the node's own module tree names it.
+            pub mod video_stream_info {
+                pub use super::super::super::super::exposed_services::camera::video_stream_info::*;
+                /// Calls the node's service `video_stream_info` once, as a consumer would, waiting at most `timeout`.
+                pub async fn poll(
+                    harness: &super::super::super::super::fixtures::harness::Harness,
+                    timeout: ::std::time::Duration,
+                ) -> ::peppy::codegen::Result<Response> {
+                    harness.inner().poll(&SPEC, &(), timeout).await
+                }
+            }
+        }
+    }
+    /// Callers of the actions the node exposes: `send_goal(&harness, [&request,] qos, timeout)`.
+    pub mod exposed_actions {}
+}
