@@ -8,6 +8,7 @@
 
 mod actions;
 mod api;
+mod harness;
 mod nodes;
 mod params;
 mod python;
