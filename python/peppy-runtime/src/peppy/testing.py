@@ -481,16 +481,22 @@ class SlotMock:
         self._services: List[ServiceMock[Any, Any]] = []
         self._actions: List[ActionMock] = []
         d = runner.descriptor
+        # A generated Mock names its members (entry name -> attribute).
+        members: Dict[str, str] = getattr(type(self), "MEMBERS", {})
+
+        def attr(name: str) -> str:
+            return members.get(name) or _attr(name)
+
         for spec in d.emitted_topics:
-            setattr(self, _attr(spec.name), TopicMock(self, spec))
+            setattr(self, attr(spec.name), TopicMock(self, spec))
         for s in d.exposed_services:
             service: ServiceMock[Any, Any] = ServiceMock(self, s)
             self._services.append(service)
-            setattr(self, _attr(s.name), service)
+            setattr(self, attr(s.name), service)
         for a in d.exposed_actions:
             action = ActionMock(self, a)
             self._actions.append(action)
-            setattr(self, _attr(a.name), action)
+            setattr(self, attr(a.name), action)
         self._stopped = False
 
     def __repr__(self) -> str:
