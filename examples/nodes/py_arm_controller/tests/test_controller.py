@@ -5,14 +5,16 @@ import pytest
 
 from peppygen.consumed_actions import robot_arm_move_arm as move_arm
 from peppygen.consumed_topics import robot_arm_joint_states as joint_states
+from peppygen.fixtures import harness
 
 from py_arm_controller import setup
 
 WAIT = 10.0
+PARAMETERS = {"step": 0.25, "max_velocity": 2.0}
 
 
 async def test_homes_the_arm_then_steps_the_first_joint():
-    async with harness_start() as h:
+    async with harness.start(setup, parameters=PARAMETERS) as h:
         arm = h.mocks.deps.robot_arm
         pending = await arm.move_arm.next_goal(WAIT)
         assert pending.request.target_positions == [0.5, 0.0, 0.0]
@@ -30,7 +32,7 @@ async def test_homes_the_arm_then_steps_the_first_joint():
 
 
 async def test_a_rejected_homing_still_follows_joint_states():
-    async with harness_start() as h:
+    async with harness.start(setup, parameters=PARAMETERS) as h:
         arm = h.mocks.deps.robot_arm
         await (await arm.move_arm.next_goal(WAIT)).reject("busy")
         await arm.joint_states.publish(
@@ -40,8 +42,3 @@ async def test_a_rejected_homing_still_follows_joint_states():
         # At the end of its sweep the first joint turns around.
         assert command.target_positions == pytest.approx([0.75, 0.0, 0.0])
 
-
-def harness_start():
-    from peppygen.fixtures import harness
-
-    return harness.start(setup, parameters={"step": 0.25, "max_velocity": 2.0})
