@@ -88,6 +88,15 @@ class HarnessTests(unittest.IsolatedAsyncioTestCase):
             self.assertTrue(h.instance_id.startswith("test-"))
             self.assertEqual(await testing.poll_service(h, DOUBLE_SERVED, AddRequest(21, 0), WAIT), AddResponse(42))
 
+    async def test_two_harnesses_run_at_once_without_sharing_anything(self) -> None:
+        async def one(label: str) -> Reading:
+            async with testing.start(RELAY, relay_setup) as h:
+                await h.mocks.deps.cam.readings.publish(Reading(1, label))
+                return await h.emitted.echo.next(WAIT)
+
+        a, b = await asyncio.gather(one("a"), one("b"))
+        self.assertEqual((a.label, b.label), ("a", "b"))
+
     async def test_a_message_in_another_format_is_dropped_not_delivered(self) -> None:
         async with testing.start(RELAY, relay_setup) as h:
             cam = h.mocks.deps.cam
