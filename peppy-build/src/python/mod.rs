@@ -11,6 +11,7 @@ mod messages;
 mod modules;
 mod params;
 mod source;
+mod testing;
 mod today;
 
 use std::path::PathBuf;
@@ -44,10 +45,14 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
     let by_instance_default = node.node.legacy;
 
     let mut specs = Specs::default();
+    let mut surface = testing::Surface::default();
     for p in &node.emitted_topics {
         let path = files.provided("emitted_topics", &p.decl.name, &p.origin, node, |out| {
             modules::emitted_topic(out, p, today)
         });
+        surface
+            .emitted
+            .push((tap_name(node, &p.decl.name, &p.origin), path.clone()));
         specs.emitted.push(path);
     }
     for t in &node.consumed_topics {
@@ -60,12 +65,23 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
             &format!("Topic `{}`, consumed.", t.name),
             |out| modules::consumed_topic(out, node, t, by_instance),
         );
+        if let Some(slot) = &t.slot {
+            surface.consumed.push((
+                slot.link_id.clone(),
+                t.name.clone(),
+                path.clone(),
+                testing::Kind::Topic,
+            ));
+        }
         specs.consumed.push(path);
     }
     for p in &node.exposed_services {
         let path = files.provided("exposed_services", &p.decl.name, &p.origin, node, |out| {
             modules::exposed_service(out, p)
         });
+        surface
+            .services
+            .push((path.clone(), p.decl.request.is_some()));
         specs.services.push(path);
     }
     for c in &node.consumed_services {
@@ -84,12 +100,19 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
             ),
             |out| modules::consumed_service(out, node, c),
         );
+        surface.consumed.push((
+            c.slot.link_id.clone(),
+            c.decl.name.clone(),
+            path.clone(),
+            testing::Kind::Service,
+        ));
         specs.consumed_services.push(path);
     }
     for p in &node.exposed_actions {
         let path = files.provided("exposed_actions", &p.decl.name, &p.origin, node, |out| {
             modules::exposed_action(out, p, today)
         });
+        surface.actions.push((path.clone(), p.decl.goal.is_some()));
         specs.actions.push(path);
     }
     for c in &node.consumed_actions {
@@ -108,12 +131,20 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
             ),
             |out| modules::consumed_action(out, node, c),
         );
+        surface.consumed.push((
+            c.slot.link_id.clone(),
+            c.decl.name.clone(),
+            path.clone(),
+            testing::Kind::Action,
+        ));
         specs.consumed_actions.push(path);
     }
     if !today {
         files.flat_reexports();
     }
     files.packages();
+    // After `packages`: the test surfaces write their own `__init__.py`s.
+    files.list.extend(testing::files(node, &surface));
 
     let mut out = Source::default();
     params::parameters(&mut out, &node.node.execution.parameters.fields, &identity);
@@ -467,6 +498,26 @@ fn clock_module() -> String {
     out.blank();
     out.line("__all__ = [\"init\", \"now_ns\"]");
     out.finish()
+}
+
+/// The name of an emitted topic's tap (`h.emitted.<name>`): its own name,
+/// or `<link_id>_<name>` (today's spelling) / `<interface>_<name>` (the
+/// seeds') for a contract's topic, as the Rust harness names them.
+fn tap_name(node: &ResolvedNode, name: &str, origin: &Origin) -> String {
+    match origin {
+        Origin::Node(_) => module(name),
+        Origin::Interface(id) => {
+            let link = node
+                .node
+                .conforms_to
+                .iter()
+                .find(|c| &c.target == id)
+                .and_then(|c| c.link_id.as_deref())
+                .filter(|_| node.node.spelling == Spelling::Today)
+                .unwrap_or(&id.name);
+            module(&format!("{}_{}", module(link), module(name)))
+        }
+    }
 }
 
 /// A private alias for a module's `SPEC` in `__init__.py`.

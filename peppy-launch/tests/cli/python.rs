@@ -445,3 +445,54 @@ fn sync_writes_the_libs_projects_and_uv_reinstalls_what_changed() {
         "the regenerated package was reinstalled"
     );
 }
+
+/// Every Python example's own tests: `sync` writes its `peppygen` (with
+/// the `mock` and `fixtures` packages), then pytest (the project's `dev`
+/// group) boots the node's setup through the generated harness.
+#[test]
+fn python_examples_pass_their_harness_tests() {
+    let repo = root().join("examples");
+    for example in ["py_arm_controller", "py_depth_camera", "py_today_camera"] {
+        let node = repo.join("nodes").join(example);
+        let run = crate::support::peppy_launch(
+            &root(),
+            &[
+                "sync",
+                node.to_str().unwrap(),
+                "--repo",
+                repo.to_str().unwrap(),
+            ],
+        );
+        assert_eq!(run.code, 0, "sync {example}: {}", run.stderr);
+        let child = Command::new(uv())
+            .args([
+                "run",
+                "--group",
+                "dev",
+                "pytest",
+                "-q",
+                "-p",
+                "no:cacheprovider",
+            ])
+            .current_dir(&node)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let out = crate::support::wait_bounded(
+            child,
+            crate::support::COMMAND_BOUND,
+            &format!("pytest of {example}"),
+        );
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{example}'s tests failed:\n{stdout}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            stdout.contains(" passed") && !stdout.contains(" failed"),
+            "{example}: {stdout}"
+        );
+    }
+}

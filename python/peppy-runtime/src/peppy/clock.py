@@ -25,7 +25,7 @@ import struct
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Optional, Tuple
+from typing import Any, List, Optional, Tuple
 
 from .bridge import END, TIMED_OUT, Mailbox
 from .errors import ClockNotReady, ServiceUnreachable, ShuttingDown
@@ -66,14 +66,38 @@ class _Latest:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self.value: Optional[int] = None
+        self._waiters: List[Tuple[int, asyncio.AbstractEventLoop, "asyncio.Future[None]"]] = []
 
     def set(self, t: int) -> None:
         with self._lock:
             self.value = t
+            reached = [w for w in self._waiters if w[0] == t]
+            self._waiters = [w for w in self._waiters if w[0] != t]
+        for _, loop, fut in reached:
+            try:
+                loop.call_soon_threadsafe(_resolve, fut)
+            except RuntimeError:
+                pass
 
     def get(self) -> Optional[int]:
         with self._lock:
             return self.value
+
+    def reached(self, t: int) -> "asyncio.Future[None]":
+        """A future done once the latest tick is `t` (at once if it is now)."""
+        loop = asyncio.get_running_loop()
+        fut: "asyncio.Future[None]" = loop.create_future()
+        with self._lock:
+            if self.value == t:
+                fut.set_result(None)
+            else:
+                self._waiters.append((t, loop, fut))
+        return fut
+
+
+def _resolve(fut: "asyncio.Future[None]") -> None:
+    if not fut.done():
+        fut.set_result(None)
 
 
 class _TickIntake:
@@ -106,6 +130,15 @@ _bound: Optional[_Binding] = None
 
 def _node_of(runner: Any) -> Tuple[str, str]:
     return (runner.core_node, runner.instance_id)
+
+
+def sim_time_of(runner: Any) -> Optional[_Latest]:
+    """The sim time `now_ns` reads for `runner`'s node, once `init` bound
+    it there in sim mode; None otherwise (a test clock waits on it)."""
+    b = _bound
+    if b is None or b.node != _node_of(runner):
+        return None
+    return b.sim
 
 
 async def init(runner: Any) -> None:
@@ -312,8 +345,103 @@ async def subscribe(runner: Any) -> ClockSubscription:
     return ClockSubscription(runner, clock_tick_key(runner.namespace, source))
 
 
+WALL_TICK_PERIOD = 0.1
+"""How often a clock server publishes wall ticks (seconds)."""
+
+
+def answer_sync(query: bytes, received: int, sim: Optional[int], ns: str, offset_ns: int = 0) -> Tuple[bool, bytes]:
+    """A clock server's answer to one sync query: `(True, reply)` or
+    `(False, why)`. Wall queries get this host's clock (skewed by
+    `offset_ns`), sim queries the latest sim tick (`sim`), refused while
+    there is none."""
+    if len(query) != _QUERY_LEN or query[8] not in (0, 1):
+        why = (
+            "a clock sync query is 9 bytes (t0 as u64 little-endian, then 0 for wall or 1 for sim); "
+            f"got {len(query)} bytes"
+        )
+        return False, why.encode("utf-8")
+    t0 = _U64.unpack(query[:8])[0]
+    if query[8] == 0:
+
+        def skew(t: int) -> int:
+            return min(max(t + offset_ns, 0), _U64_MAX)
+
+        t1, t2 = skew(received), skew(os_now_ns())
+    else:
+        if sim is None:
+            return False, f"no sim tick has been published on {clock_tick_key(ns, CLOCK_SIM)} yet".encode("utf-8")
+        t1 = t2 = sim
+    return True, _REPLY.pack(t0, t1, t2)
+
+
+class ClockServer:
+    """A launch's clock, served in this process on `session` for namespace
+    `ns` (what the launcher serves, for a test harness): answers on
+    `clock/sync`, wall ticks ten times a second, and the latest sim tick
+    followed for sim answers. `offset_ns` skews the wall answers and ticks;
+    `set_sim_time` makes a time the sim answers' at once. Close it with `close()`."""
+
+    def __init__(self, session: Any, ns: str) -> None:
+        self.namespace = ns
+        self.offset_ns = 0
+        self.sim = _Latest()
+        self._session = session
+        self._declared: List[Any] = []
+        sync_key = clock_sync_key(ns)
+
+        def on_query(query: Any) -> None:
+            received = os_now_ns()
+            payload = b"" if query.payload is None else query.payload.to_bytes()
+            ok, body = answer_sync(payload, received, self.sim.get(), ns, self.offset_ns)
+            try:
+                if ok:
+                    query.reply(sync_key, body)
+                else:
+                    query.reply_err(body)
+            except Exception as e:
+                log.debug("clock sync reply failed: %s", e)
+            finally:
+                try:
+                    query.drop()
+                except Exception:
+                    pass
+
+        sim_key = clock_tick_key(ns, CLOCK_SIM)
+        self._declared.append(session.declare_subscriber(sim_key, _TickIntake(sim_key, self.sim.set)))
+        self._declared.append(session.declare_queryable(sync_key, on_query))
+        self._wall = session.declare_publisher(clock_tick_key(ns, CLOCK_WALL))
+        self._declared.append(self._wall)
+        self._ticker: Optional["asyncio.Task[None]"] = asyncio.get_running_loop().create_task(self._tick_wall())
+
+    def set_sim_time(self, ns: int) -> None:
+        """Makes `ns` the sim time sync answers give, before any tick carrying it arrives."""
+        encode_time(ns)
+        self.sim.set(ns)
+
+    async def _tick_wall(self) -> None:
+        while True:
+            try:
+                self._wall.put(encode_time(min(max(os_now_ns() + self.offset_ns, 0), _U64_MAX)))
+            except Exception:
+                return  # the session closed
+            await asyncio.sleep(WALL_TICK_PERIOD)
+
+    def close(self) -> None:
+        """Stops serving (the session stays open)."""
+        if self._ticker is not None:
+            self._ticker.cancel()
+            self._ticker = None
+        for entity in reversed(self._declared):
+            try:
+                entity.undeclare()
+            except Exception:
+                pass
+        self._declared.clear()
+
+
 __all__ = [
     "ClockResponse",
+    "ClockServer",
     "ClockSubscription",
     "ClockSync",
     "ClockTick",
