@@ -212,6 +212,7 @@ pub struct StandaloneConfig {
     pub(crate) namespace: Option<String>,
     pub(crate) endpoints: Option<Endpoints>,
     pub(crate) use_sim_time: bool,
+    pub(crate) core_node: Option<String>,
     /// `(link_id, instance)`, in order: as `--link` flags.
     pub(crate) links: Vec<(String, String)>,
     /// Slots left vacant: as `--vacant-link` flags.
@@ -251,6 +252,14 @@ impl StandaloneConfig {
     /// Zenoh endpoints to use when `--listen` / `--connect` are not given.
     pub fn with_endpoints(mut self, endpoints: Endpoints) -> Self {
         self.endpoints = Some(endpoints);
+        self
+    }
+
+    /// The core node the instance says it belongs to (default
+    /// `standalone`); the test harness runs its node and mocks as
+    /// `standalone-core`.
+    pub fn with_core_node(mut self, core_node: impl Into<String>) -> Self {
+        self.core_node = Some(core_node.into());
         self
     }
 
@@ -552,7 +561,10 @@ fn standalone_config(
             .instance_id
             .or_else(|| standalone.instance_id.clone())
             .unwrap_or_else(|| readable_id(&doc.identity.name)),
-        core_node: STANDALONE_CORE.to_string(),
+        core_node: standalone
+            .core_node
+            .clone()
+            .unwrap_or_else(|| STANDALONE_CORE.to_string()),
         namespace: flags
             .namespace
             .or_else(|| standalone.namespace.clone())

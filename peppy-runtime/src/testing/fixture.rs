@@ -12,6 +12,7 @@ use peppy_schema::{
     Cardinality, Dependency, Identity, NodeModel, ParameterSchema, SlotKind, Spelling,
 };
 
+use super::HARNESS_CORE;
 use super::watch::Watch;
 use crate::actions::{CancelState, DEFAULT_RESULT_RETENTION, GoalClient, Outcome};
 use crate::error::{Error, Result};
@@ -149,7 +150,8 @@ pub(crate) async fn open(
     let standalone = StandaloneConfig::new()
         .with_instance_id(instance_id)
         .with_messaging("127.0.0.1", port)
-        .with_bound_producer(SUBJECT, crate::STANDALONE_CORE, subject);
+        .with_core_node(HARNESS_CORE)
+        .with_bound_producer(SUBJECT, HARNESS_CORE, subject);
     let config = startup::load(&doc, vec!["peppy-harness".into()], None, &standalone)?;
     NodeRunner::open(
         &doc,

@@ -15,6 +15,7 @@ use peppy_schema::{Identity, NodeModel, ParameterSchema, Spelling};
 use tokio::task::JoinHandle;
 use tracing::warn;
 
+use super::HARNESS_CORE;
 use super::watch::Watch;
 use crate::actions::{DEFAULT_RESULT_RETENTION, GoalContext, GoalServer, IncomingGoal};
 use crate::error::{Error, Result};
@@ -181,7 +182,8 @@ impl MockProducer {
         };
         let standalone = StandaloneConfig::new()
             .with_instance_id(instance_id)
-            .with_messaging("127.0.0.1", port);
+            .with_messaging("127.0.0.1", port)
+            .with_core_node(HARNESS_CORE);
         let config = startup::load(&doc, vec!["peppy-mock".into()], None, &standalone)?;
         let runner = NodeRunner::open(
             &doc,

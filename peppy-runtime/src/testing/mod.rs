@@ -56,10 +56,14 @@ use crate::error::{Error, Result};
 use crate::node::{NodeBuilder, NodeRunner};
 use crate::producer_ref::ProducerRef;
 use crate::spec::{ActionSpec, NodeParameters, ServiceSpec, TopicSpec};
-use crate::startup::{STANDALONE_CORE, StandaloneConfig};
+use crate::startup::StandaloneConfig;
 use crate::wire::codec::{Decode, Encode};
 use crate::wire::keys::describe_key;
 use watch::Watch;
+
+/// The core node of everything a harness runs: the node, its mocks and
+/// its fixture (as a standalone run is `standalone`).
+pub const HARNESS_CORE: &str = "standalone-core";
 
 /// How long each start-up barrier may take.
 const BARRIER: Duration = Duration::from_secs(10);
@@ -237,6 +241,7 @@ impl Harness {
         let mut standalone = StandaloneConfig::new()
             .with_instance_id(instance_id.clone())
             .with_messaging("127.0.0.1", port)
+            .with_core_node(HARNESS_CORE)
             .with_use_sim_time(config.use_sim_time);
         if let Some(p) = &config.parameters {
             standalone = standalone.with_parameters_json(p.clone());
@@ -267,11 +272,8 @@ impl Harness {
             };
             let mut started = Vec::new();
             for id in ids {
-                standalone = standalone.with_bound_producer(
-                    dep.link_id.clone(),
-                    STANDALONE_CORE,
-                    id.clone(),
-                );
+                standalone =
+                    standalone.with_bound_producer(dep.link_id.clone(), HARNESS_CORE, id.clone());
                 started.push(
                     MockProducer::start(slot, identity.clone(), &id, port, watch.clone()).await?,
                 );
@@ -320,14 +322,14 @@ impl Harness {
             }
         }
         for producer in mocks.by_slot.values().flatten() {
-            let key = describe_key(namespace, STANDALONE_CORE, producer.instance_id());
+            let key = describe_key(namespace, HARNESS_CORE, producer.instance_id());
             let what = format!(
                 "mock `{}` to be reachable from the node",
                 producer.instance_id()
             );
             reachable(node.session(), &key, &what).await?;
         }
-        let key = describe_key(namespace, STANDALONE_CORE, &instance_id);
+        let key = describe_key(namespace, HARNESS_CORE, &instance_id);
         reachable(
             fixture.session(),
             &key,
