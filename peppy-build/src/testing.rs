@@ -74,13 +74,13 @@ impl Gen<'_> {
         quote! {
             #[doc = " Typed mock producers, one module per slot (`mock::deps::<link_id>`): what the node consumes, published; what it calls, served. Built by `fixtures::harness::Harness::start`. Test builds only."]
             #gate
-            #[allow(dead_code, unused_imports)]
+            #[allow(dead_code, unused_imports, unreachable_pub)]
             pub mod mock {
                 #mock
             }
             #[doc = " The test harness (`fixtures::harness::Harness`) and typed callers of what the node serves (`fixtures::exposed_services`, `fixtures::exposed_actions`). Test builds only."]
             #gate
-            #[allow(dead_code, unused_imports)]
+            #[allow(dead_code, unused_imports, unreachable_pub)]
             pub mod fixtures {
                 #fixtures
             }
@@ -520,6 +520,8 @@ impl Gen<'_> {
                     #config_fields
                 }
 
+                // Derivable only for a node whose slots take no settings.
+                #[allow(clippy::derivable_impls)]
                 impl ::core::default::Default for Config {
                     fn default() -> Config {
                         Config {

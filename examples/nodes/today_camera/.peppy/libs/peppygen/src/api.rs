@@ -258,7 +258,7 @@ pub mod exposed_actions {}
 pub mod consumed_actions {}
 /// Typed mock producers, one module per slot (`mock::deps::<link_id>`): what the node consumes, published; what it calls, served. Built by `fixtures::harness::Harness::start`. Test builds only.
 #[cfg(feature = "testing")]
-#[allow(dead_code, unused_imports)]
+#[allow(dead_code, unused_imports, unreachable_pub)]
 pub mod mock {
     /// Every slot's mock(s): `mocks.deps.<link_id>`.
     #[derive(Debug)]
@@ -284,7 +284,7 @@ pub mod mock {
 }
 /// The test harness (`fixtures::harness::Harness`) and typed callers of what the node serves (`fixtures::exposed_services`, `fixtures::exposed_actions`). Test builds only.
 #[cfg(feature = "testing")]
-#[allow(dead_code, unused_imports)]
+#[allow(dead_code, unused_imports, unreachable_pub)]
 pub mod fixtures {
     /// The harness: the node in-process against its mocks.
     pub mod harness {
@@ -298,6 +298,7 @@ pub mod fixtures {
             /// Serve simulated time: no time exists until the test calls `harness.clock.tick`.
             pub use_sim_time: bool,
         }
+        #[allow(clippy::derivable_impls)]
         impl ::core::default::Default for Config {
             fn default() -> Config {
                 Config {
