@@ -8,7 +8,7 @@ use std::time::{Duration, SystemTime};
 
 use peppy::{NodeRunner, Result};
 
-use crate::nodes::{shapes, shapes_client};
+use crate::nodes::{shapes, shapes_client, video_reconstruction};
 use crate::roundtrip::Samples;
 
 const TIMEOUT: Duration = Duration::from_secs(10);
@@ -306,5 +306,82 @@ async fn the_test_clock_skews_wall_time_and_drives_sim_time() -> Result<()> {
     assert_eq!(peppy::clock::now_ns()?, 1_000_000_000);
     harness.clock.tick(2_500_000_000).await?;
     assert_eq!(peppy::clock::now_ns()?, 2_500_000_000);
+    harness.shutdown().await
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn each_slot_gets_the_mocks_its_cardinality_and_config_ask_for() -> Result<()> {
+    use video_reconstruction::consumed_topics::backup_cams_video_stream;
+    use video_reconstruction::fixtures::harness::{Config, Harness};
+    let frames = Arc::new(Mutex::new(Vec::new()));
+    let heard = frames.clone();
+    let setup = move |_p: video_reconstruction::Parameters, runner: Arc<NodeRunner>| async move {
+        tokio::spawn(async move {
+            while let Ok((from, m)) =
+                backup_cams_video_stream::on_next_message_received(&runner, None).await
+            {
+                heard.lock().unwrap().push((from, m.frame));
+            }
+        });
+        Ok(())
+    };
+    let config = Config {
+        backup_cams_instances: 3,
+        ..Config::default()
+    };
+    let (harness, mocks) = Harness::start_with(config, setup).await?;
+    // One mock for each single slot, three for the list slot, named in order.
+    assert_eq!(mocks.deps.left_cam.instance_id(), "mock-left_cam");
+    assert_eq!(mocks.deps.front.instance_id(), "mock-front");
+    let ids: Vec<&str> = mocks
+        .deps
+        .backup_cams
+        .iter()
+        .map(|m| m.instance_id())
+        .collect();
+    assert_eq!(
+        ids,
+        [
+            "mock-backup_cams-0",
+            "mock-backup_cams-1",
+            "mock-backup_cams-2"
+        ]
+    );
+    assert_eq!(harness.node_runner().bound_producers("backup_cams"), ids);
+    assert_eq!(
+        harness.node_runner().bound_producer_refs("left_cam"),
+        [mocks.deps.left_cam.producer_ref()]
+    );
+    for (n, mock) in mocks.deps.backup_cams.iter().enumerate() {
+        let message = backup_cams_video_stream::Message {
+            header: backup_cams_video_stream::MessageHeader {
+                stamp: SystemTime::UNIX_EPOCH,
+                frame_id: n as u32,
+            },
+            encoding: "mono8".into(),
+            width: 1,
+            height: 1,
+            frame: vec![n as u8],
+        };
+        mock.video_stream.publish(&message).await?;
+    }
+    let deadline = tokio::time::Instant::now() + TIMEOUT;
+    while frames.lock().unwrap().len() < 3 && tokio::time::Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let mut got = frames.lock().unwrap().clone();
+    got.sort();
+    let want: Vec<(String, Vec<u8>)> = (0..3u8)
+        .map(|n| (format!("mock-backup_cams-{n}"), vec![n]))
+        .collect();
+    assert_eq!(got, want, "each mock's frame, from that mock");
+    harness.shutdown().await?;
+
+    let wrong = Config {
+        backup_cams_instance_ids: Some(vec!["cam_a".into()]),
+        ..Config::default()
+    };
+    let (harness, mocks) = Harness::start_with(wrong, |_p, _r| async { Ok(()) }).await?;
+    assert_eq!(mocks.deps.backup_cams[0].instance_id(), "cam_a");
     harness.shutdown().await
 }
