@@ -306,6 +306,9 @@ async fn the_test_clock_skews_wall_time_and_drives_sim_time() -> Result<()> {
     assert_eq!(peppy::clock::now_ns()?, 1_000_000_000);
     harness.clock.tick(2_500_000_000).await?;
     assert_eq!(peppy::clock::now_ns()?, 2_500_000_000);
+    harness.clock.advance(500_000_000).await?;
+    assert_eq!(peppy::clock::now_ns()?, 3_000_000_000);
+    assert_eq!(harness.clock.sim_now_ns(), 3_000_000_000);
     harness.shutdown().await
 }
 

@@ -1,7 +1,7 @@
 //! The clock a harness serves its node, driven by the test.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicI64, Ordering};
+use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
 use std::time::Duration;
 
 use crate::clock::ClockServer;
@@ -22,6 +22,8 @@ pub struct TestClock {
     namespace: String,
     sim: bool,
     offset: Arc<AtomicI64>,
+    /// The last sim time ticked.
+    now: AtomicU64,
     node: std::sync::Weak<NodeRunner>,
     _server: ClockServer,
 }
@@ -48,6 +50,7 @@ impl TestClock {
             namespace: namespace.to_string(),
             sim,
             offset,
+            now: AtomicU64::new(0),
             node: std::sync::Weak::new(),
             _server: server,
         })
@@ -76,6 +79,18 @@ impl TestClock {
         Ok(())
     }
 
+    /// Moves simulated time `delta_ns` past the last tick (from 0), as
+    /// [`TestClock::tick`] does.
+    pub async fn advance(&self, delta_ns: u64) -> Result<()> {
+        let to = self.now.load(Ordering::Relaxed).saturating_add(delta_ns);
+        self.tick(to).await
+    }
+
+    /// The last sim time ticked (0 before the first).
+    pub fn sim_now_ns(&self) -> u64 {
+        self.now.load(Ordering::Relaxed)
+    }
+
     /// Publishes `time_ns` as the stack's simulated time and returns once
     /// the node's clock reads it, so the next `clock::now_ns()` on the node
     /// gives `time_ns`. An error on a wall-time clock, and when the node
@@ -100,6 +115,7 @@ impl TestClock {
                 .upgrade()
                 .and_then(|node| crate::clock::sim_time_seen_by(&node));
             if seen == Some(Some(time_ns)) {
+                self.now.store(time_ns, Ordering::Relaxed);
                 return Ok(());
             }
             if tokio::time::Instant::now() >= deadline {
