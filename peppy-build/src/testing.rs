@@ -511,7 +511,9 @@ impl Gen<'_> {
         let emitted_types = if layout.emitted_topics.is_empty() {
             TokenStream::new()
         } else {
-            quote!(pub use super::super::emitted_topics::*;)
+            quote!(
+                pub use super::super::emitted_topics::*;
+            )
         };
         let services = self.fixture_calls(layout, EntryKind::Service);
         let actions = self.fixture_calls(layout, EntryKind::Action);
@@ -531,6 +533,8 @@ impl Gen<'_> {
                     #config_fields
                 }
 
+                // Derivable only when every slot's default is zero or false.
+                #[allow(clippy::derivable_impls)]
                 impl ::core::default::Default for Config {
                     fn default() -> Config {
                         Config {

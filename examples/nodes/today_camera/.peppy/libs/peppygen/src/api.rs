@@ -298,6 +298,7 @@ pub mod fixtures {
             /// Serve simulated time: no time exists until the test calls `harness.clock.tick`.
             pub use_sim_time: bool,
         }
+        #[allow(clippy::derivable_impls)]
         impl ::core::default::Default for Config {
             fn default() -> Config {
                 Config {
