@@ -137,6 +137,9 @@ pub(crate) struct Category {
     /// Every entry module: the entry's index in the node's list of its
     /// category, and its path below the category (test surfaces name them).
     pub(crate) modules: Vec<(usize, Vec<Ident>)>,
+    /// The conformed entries also re-exported under their own name: their
+    /// full paths below the category.
+    pub(crate) flat: Vec<Vec<Ident>>,
 }
 
 /// One provided entry, as the module-tree builder sees it.
@@ -210,6 +213,8 @@ impl Gen<'_> {
             consumed_services: consumed_services.modules.clone(),
             exposed_actions: exposed_actions.modules.clone(),
             consumed_actions: consumed_actions.modules.clone(),
+            exposed_services_flat: exposed.flat.clone(),
+            exposed_actions_flat: exposed_actions.flat.clone(),
         };
         let test_surfaces = self.test_surfaces(&layout, self.gate);
 
@@ -471,6 +476,7 @@ impl Gen<'_> {
                 }
             });
         }
+        category.flat = flat.iter().map(|f| f.path.clone()).collect();
         category.items.extend(flat_reexports(kind, flat));
         category
     }

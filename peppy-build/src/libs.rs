@@ -97,8 +97,8 @@ pub fn rust_libs(
              peppy = {{ path = {peppy}, default-features = false }}\n\
              \n\
              [features]\n\
-             # Today's node crates ask for it in their dev-dependencies; the test\n\
-             # surfaces it will unlock are not generated yet.\n\
+             # The test surfaces (`mock`, `fixtures`): a node crate asks for it in\n\
+             # its dev-dependencies.\n\
              testing = []\n"
         )
     };

@@ -40,6 +40,11 @@ pub(crate) struct Layout {
     pub(crate) consumed_services: Vec<(usize, Vec<Ident>)>,
     pub(crate) exposed_actions: Vec<(usize, Vec<Ident>)>,
     pub(crate) consumed_actions: Vec<(usize, Vec<Ident>)>,
+    /// The exposed services re-exported under their own name too (a seeds'
+    /// node's conformed entries), by full path below the category.
+    pub(crate) exposed_services_flat: Vec<Vec<Ident>>,
+    /// The same for the exposed actions.
+    pub(crate) exposed_actions_flat: Vec<Vec<Ident>>,
 }
 
 /// `super::` `depth` times: the generated root from a module that deep.
@@ -502,6 +507,14 @@ impl Gen<'_> {
             }
         }
 
+        // A glob of an empty module is an unreachable `pub` item to rustc.
+        let emitted_types = if layout.emitted_topics.is_empty() {
+            TokenStream::new()
+        } else {
+            quote!(
+                pub use super::super::emitted_topics::*;
+            )
+        };
         let services = self.fixture_calls(layout, EntryKind::Service);
         let actions = self.fixture_calls(layout, EntryKind::Action);
         let up = root(2);
@@ -520,7 +533,7 @@ impl Gen<'_> {
                     #config_fields
                 }
 
-                // Derivable only for a node whose slots take no settings.
+                // Derivable only when every slot's default is zero or false.
                 #[allow(clippy::derivable_impls)]
                 impl ::core::default::Default for Config {
                     fn default() -> Config {
@@ -632,7 +645,7 @@ impl Gen<'_> {
 
             #[doc = " The node's emitted topics' types."]
             pub mod emitted_topics {
-                pub use super::super::emitted_topics::*;
+                #emitted_types
             }
 
             #[doc = " Callers of the services the node exposes: `poll(&harness, [&request,] timeout)`."]
@@ -733,7 +746,19 @@ impl Gen<'_> {
                 }
             }
         }
-        nest(&leaves)
+        // The node's tree names a conformed entry by its own name as well
+        // (`exposed_services::video_stream_info`): so do its callers.
+        let flat = match kind {
+            EntryKind::Service => &layout.exposed_services_flat,
+            _ => &layout.exposed_actions_flat,
+        };
+        let mut out = nest(&leaves);
+        for path in flat {
+            out.extend(quote! {
+                pub use self::#(#path)::*;
+            });
+        }
+        out
     }
 }
 
