@@ -3,7 +3,6 @@
 //! test and which consumes everything it emits, calls everything it
 //! serves. A test's taps, polls and goals go the way a real consumer's do.
 
-use std::collections::HashMap;
 use std::marker::PhantomData;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -13,6 +12,7 @@ use peppy_schema::{
 };
 
 use super::HARNESS_CORE;
+use super::turned;
 use super::watch::Watch;
 use crate::actions::{CancelState, DEFAULT_RESULT_RETENTION, GoalClient, Outcome};
 use crate::error::{Error, Result};
@@ -31,16 +31,7 @@ pub(crate) const SUBJECT: &str = "subject";
 const FIXTURE_NAME: &str = "peppy_test_harness";
 
 /// The node under test's served entries turned around.
-pub(crate) struct Turned {
-    descriptor: &'static NodeDescriptor,
-    topics: HashMap<usize, &'static ConsumedTopicSpec>,
-    services: HashMap<usize, &'static ConsumedServiceSpec>,
-    actions: HashMap<usize, &'static ConsumedActionSpec>,
-}
-
-fn address<T>(r: &'static T) -> usize {
-    std::ptr::from_ref(r) as usize
-}
+pub(crate) type Turned = turned::Turned<ConsumedTopicSpec, ConsumedServiceSpec, ConsumedActionSpec>;
 
 static TURNED: Mutex<Vec<(usize, &'static Turned)>> = Mutex::new(Vec::new());
 
@@ -55,73 +46,48 @@ fn owner_of(owner: OwnerSpec, node: &'static Identity) -> OwnerSpec {
     }
 }
 
-/// Built once per node descriptor and process, leaked: the runtime keeps
-/// `&'static` specs.
+/// The fixture's description for `node` (of identity `identity`).
 pub(crate) fn turned(node: &'static NodeDescriptor, identity: &Identity) -> &'static Turned {
-    let mut all = TURNED.lock().unwrap_or_else(|p| p.into_inner());
-    if let Some((_, t)) = all.iter().find(|(a, _)| *a == address(node)) {
-        return t;
-    }
-    let identity: &'static Identity = Box::leak(Box::new(identity.clone()));
-    let topics: Vec<(usize, &'static ConsumedTopicSpec)> = node
-        .emitted_topics
-        .iter()
-        .map(|t: &&'static TopicSpec| {
-            let c: &'static ConsumedTopicSpec = Box::leak(Box::new(ConsumedTopicSpec {
-                link_id: Some(SUBJECT),
-                owner: owner_of(t.owner, identity),
-                name: t.name,
-                qos: t.qos,
-                format: t.format,
-            }));
-            (address(*t), c)
-        })
-        .collect();
-    let services: Vec<(usize, &'static ConsumedServiceSpec)> = node
-        .exposed_services
-        .iter()
-        .map(|s: &&'static ServiceSpec| {
-            let c: &'static ConsumedServiceSpec = Box::leak(Box::new(ConsumedServiceSpec {
+    turned::once(&TURNED, turned::address(node), || {
+        let identity: &'static Identity = Box::leak(Box::new(identity.clone()));
+        let topics = turned::Side::of(node.emitted_topics, |t: &TopicSpec| ConsumedTopicSpec {
+            link_id: Some(SUBJECT),
+            owner: owner_of(t.owner, identity),
+            name: t.name,
+            qos: t.qos,
+            format: t.format,
+        });
+        let services = turned::Side::of(node.exposed_services, |s: &ServiceSpec| {
+            ConsumedServiceSpec {
                 link_id: SUBJECT,
                 owner: owner_of(s.owner, identity),
                 name: s.name,
                 request: s.request,
                 response: s.response,
-            }));
-            (address(*s), c)
-        })
-        .collect();
-    let actions: Vec<(usize, &'static ConsumedActionSpec)> = node
-        .exposed_actions
-        .iter()
-        .map(|a: &&'static ActionSpec| {
-            let c: &'static ConsumedActionSpec = Box::leak(Box::new(ConsumedActionSpec {
-                link_id: SUBJECT,
-                owner: owner_of(a.owner, identity),
-                name: a.name,
-                goal: a.goal,
-                feedback: a.feedback,
-                result: a.result,
-            }));
-            (address(*a), c)
-        })
-        .collect();
-    let descriptor: &'static NodeDescriptor = Box::leak(Box::new(NodeDescriptor {
-        model: "",
-        document_path: "(the test harness)",
-        emitted_topics: &[],
-        consumed_topics: Box::leak(topics.iter().map(|(_, c)| *c).collect()),
-        exposed_services: &[],
-        exposed_actions: &[],
-    }));
-    let t: &'static Turned = Box::leak(Box::new(Turned {
-        descriptor,
-        topics: topics.into_iter().collect(),
-        services: services.into_iter().collect(),
-        actions: actions.into_iter().collect(),
-    }));
-    all.push((address(node), t));
-    t
+            }
+        });
+        let actions = turned::Side::of(node.exposed_actions, |a: &ActionSpec| ConsumedActionSpec {
+            link_id: SUBJECT,
+            owner: owner_of(a.owner, identity),
+            name: a.name,
+            goal: a.goal,
+            feedback: a.feedback,
+            result: a.result,
+        });
+        Turned {
+            descriptor: Box::leak(Box::new(NodeDescriptor {
+                model: "",
+                document_path: "(the test harness)",
+                emitted_topics: &[],
+                consumed_topics: topics.list,
+                exposed_services: &[],
+                exposed_actions: &[],
+            })),
+            topics,
+            services,
+            actions,
+        }
+    })
 }
 
 /// Opens the fixture: a node consuming `turned`'s topics from instance
@@ -164,30 +130,26 @@ pub(crate) async fn open(
     .await
 }
 
-impl Turned {
-    pub(crate) fn topic(&self, spec: &'static TopicSpec) -> Result<&'static ConsumedTopicSpec> {
-        self.topics
-            .get(&address(spec))
-            .copied()
-            .ok_or_else(|| Error::Undeclared(format!("emitted topic `{}`", spec.name)))
-    }
+/// What the node serves, as the fixture calls it.
+pub(crate) fn topic(t: &Turned, spec: &'static TopicSpec) -> Result<&'static ConsumedTopicSpec> {
+    t.topics
+        .get(spec)
+        .ok_or_else(|| Error::Undeclared(format!("emitted topic `{}`", spec.name)))
+}
 
-    pub(crate) fn service(
-        &self,
-        spec: &'static ServiceSpec,
-    ) -> Result<&'static ConsumedServiceSpec> {
-        self.services
-            .get(&address(spec))
-            .copied()
-            .ok_or_else(|| Error::Undeclared(format!("exposed service `{}`", spec.name)))
-    }
+pub(crate) fn service(
+    t: &Turned,
+    spec: &'static ServiceSpec,
+) -> Result<&'static ConsumedServiceSpec> {
+    t.services
+        .get(spec)
+        .ok_or_else(|| Error::Undeclared(format!("exposed service `{}`", spec.name)))
+}
 
-    pub(crate) fn action(&self, spec: &'static ActionSpec) -> Result<&'static ConsumedActionSpec> {
-        self.actions
-            .get(&address(spec))
-            .copied()
-            .ok_or_else(|| Error::Undeclared(format!("exposed action `{}`", spec.name)))
-    }
+pub(crate) fn action(t: &Turned, spec: &'static ActionSpec) -> Result<&'static ConsumedActionSpec> {
+    t.actions
+        .get(spec)
+        .ok_or_else(|| Error::Undeclared(format!("exposed action `{}`", spec.name)))
 }
 
 /// The harness's subscription to one topic the node emits, open since

@@ -5,7 +5,7 @@
 //! emits; what the slot calls, the mock serves, under the same keys a real
 //! producer uses.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
 use std::marker::PhantomData;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -16,6 +16,7 @@ use tokio::task::JoinHandle;
 use tracing::warn;
 
 use super::HARNESS_CORE;
+use super::turned;
 use super::watch::Watch;
 use crate::actions::{DEFAULT_RESULT_RETENTION, GoalContext, GoalServer, IncomingGoal};
 use crate::error::{Error, Result};
@@ -54,93 +55,53 @@ pub struct SlotSpec {
     pub actions: &'static [&'static ConsumedActionSpec],
 }
 
-/// A mock's node description: the slot's entries turned around, and which
-/// served spec answers for which consumed one.
-struct Turned {
-    descriptor: &'static NodeDescriptor,
-    topics: HashMap<usize, &'static TopicSpec>,
-    services: HashMap<usize, &'static ServiceSpec>,
-    actions: HashMap<usize, &'static ActionSpec>,
-}
+/// A mock's node description: the slot's entries turned around.
+type Turned = turned::Turned<TopicSpec, ServiceSpec, ActionSpec>;
 
-fn address<T>(r: &'static T) -> usize {
-    std::ptr::from_ref(r) as usize
-}
-
-/// Turned slots are built once per slot and process: a test binary starts
-/// the same mocks many times.
 static TURNED: Mutex<Vec<(usize, &'static Turned)>> = Mutex::new(Vec::new());
 
 fn turned(slot: &'static SlotSpec) -> &'static Turned {
-    let mut all = TURNED.lock().unwrap_or_else(|p| p.into_inner());
-    if let Some((_, t)) = all.iter().find(|(a, _)| *a == address(slot)) {
-        return t;
-    }
-    // Leaked once per slot: the runtime keeps `&'static` specs.
-    let topics: Vec<(usize, &'static TopicSpec)> = slot
-        .topics
-        .iter()
-        .map(|c| {
-            let served: &'static TopicSpec = Box::leak(Box::new(TopicSpec {
-                // An external topic is anyone's: the mock emits it as
-                // itself.
-                owner: match c.owner {
-                    OwnerSpec::Any => OwnerSpec::Node {
-                        name: EXTERNAL_NAME,
-                        tag: EXTERNAL_TAG,
-                    },
-                    owner => owner,
+    turned::once(&TURNED, turned::address(slot), || {
+        let topics = turned::Side::of(slot.topics, |c| TopicSpec {
+            // An external topic is anyone's: the mock emits it as itself.
+            owner: match c.owner {
+                OwnerSpec::Any => OwnerSpec::Node {
+                    name: EXTERNAL_NAME,
+                    tag: EXTERNAL_TAG,
                 },
-                name: c.name,
-                qos: c.qos,
-                format: c.format,
-            }));
-            (address(*c), served)
-        })
-        .collect();
-    let services: Vec<(usize, &'static ServiceSpec)> = slot
-        .services
-        .iter()
-        .map(|c| {
-            let served: &'static ServiceSpec = Box::leak(Box::new(ServiceSpec {
-                owner: c.owner,
-                name: c.name,
-                request: c.request,
-                response: c.response,
-            }));
-            (address(*c), served)
-        })
-        .collect();
-    let actions: Vec<(usize, &'static ActionSpec)> = slot
-        .actions
-        .iter()
-        .map(|c| {
-            let served: &'static ActionSpec = Box::leak(Box::new(ActionSpec {
-                owner: c.owner,
-                name: c.name,
-                goal: c.goal,
-                feedback: c.feedback,
-                result: c.result,
-            }));
-            (address(*c), served)
-        })
-        .collect();
-    let descriptor: &'static NodeDescriptor = Box::leak(Box::new(NodeDescriptor {
-        model: "",
-        document_path: "(a test mock)",
-        emitted_topics: Box::leak(topics.iter().map(|(_, s)| *s).collect()),
-        consumed_topics: &[],
-        exposed_services: Box::leak(services.iter().map(|(_, s)| *s).collect()),
-        exposed_actions: Box::leak(actions.iter().map(|(_, s)| *s).collect()),
-    }));
-    let t: &'static Turned = Box::leak(Box::new(Turned {
-        descriptor,
-        topics: topics.into_iter().collect(),
-        services: services.into_iter().collect(),
-        actions: actions.into_iter().collect(),
-    }));
-    all.push((address(slot), t));
-    t
+                owner => owner,
+            },
+            name: c.name,
+            qos: c.qos,
+            format: c.format,
+        });
+        let services = turned::Side::of(slot.services, |c| ServiceSpec {
+            owner: c.owner,
+            name: c.name,
+            request: c.request,
+            response: c.response,
+        });
+        let actions = turned::Side::of(slot.actions, |c| ActionSpec {
+            owner: c.owner,
+            name: c.name,
+            goal: c.goal,
+            feedback: c.feedback,
+            result: c.result,
+        });
+        Turned {
+            descriptor: Box::leak(Box::new(NodeDescriptor {
+                model: "",
+                document_path: "(a test mock)",
+                emitted_topics: topics.list,
+                consumed_topics: &[],
+                exposed_services: services.list,
+                exposed_actions: actions.list,
+            })),
+            topics,
+            services,
+            actions,
+        }
+    })
 }
 
 /// One mock producer of one slot: a node of its own on the harness's
@@ -230,7 +191,7 @@ impl MockProducer {
     /// When `spec` is not a topic of this slot: generated code asks only
     /// for the slot's own entries.
     pub fn topic<M: Encode + ?Sized>(&self, spec: &'static ConsumedTopicSpec) -> TopicMock<M> {
-        let served = self.turned.topics[&address(spec)];
+        let served = self.turned.topics.get(spec).expect("a topic of this slot");
         TopicMock {
             runner: self.runner.clone(),
             spec: served,
@@ -253,7 +214,11 @@ impl MockProducer {
         &self,
         spec: &'static ConsumedServiceSpec,
     ) -> ServiceMock<Req, Resp> {
-        let served = self.turned.services[&address(spec)];
+        let served = self
+            .turned
+            .services
+            .get(spec)
+            .expect("a service of this slot");
         let state = Arc::new(ServiceState::default());
         let (tx, parked) = flume::unbounded();
         let pump = tokio::spawn(pump(self.runner.clone(), served, state.clone(), tx));
@@ -279,7 +244,11 @@ impl MockProducer {
         &self,
         spec: &'static ConsumedActionSpec,
     ) -> ActionMock<G, F, R> {
-        let served = self.turned.actions[&address(spec)];
+        let served = self
+            .turned
+            .actions
+            .get(spec)
+            .expect("an action of this slot");
         let server =
             GoalServer::new(&self.runner, served).expect("a mock serves every action of its slot");
         ActionMock {

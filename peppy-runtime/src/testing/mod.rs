@@ -32,6 +32,7 @@ mod clock;
 mod fixture;
 mod mocks;
 mod router;
+mod turned;
 mod watch;
 
 use std::collections::HashMap;
@@ -419,7 +420,7 @@ impl Harness {
     /// The harness's tap of emitted topic `spec` (one per topic: taps of
     /// one topic share its queue).
     pub fn tap<M: Decode>(&self, spec: &'static TopicSpec) -> Result<Tap<M>> {
-        let consumed = self.turned.topic(spec)?;
+        let consumed = fixture::topic(self.turned, spec)?;
         Ok(Tap::new(self.fixture.clone(), consumed, self.watch.clone()))
     }
 
@@ -430,7 +431,7 @@ impl Harness {
         request: &Req,
         timeout: Duration,
     ) -> Result<Resp> {
-        let consumed = self.turned.service(spec)?;
+        let consumed = fixture::service(self.turned, spec)?;
         self.watch
             .unbounded(fixture::poll(&self.fixture, consumed, request, timeout))
             .await
@@ -444,7 +445,7 @@ impl Harness {
         goal: &G,
         timeout: Duration,
     ) -> Result<GoalHandle<F, R>> {
-        let consumed = self.turned.action(spec)?;
+        let consumed = fixture::action(self.turned, spec)?;
         let client = self
             .watch
             .unbounded(send_goal(&self.fixture, consumed, timeout, goal))
