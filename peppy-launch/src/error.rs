@@ -11,8 +11,8 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use crate::executable::ExecutableError;
-use crate::inspect::SelectError;
 use crate::find_launcher::LauncherLookupError;
+use crate::inspect::SelectError;
 use crate::placement::{PlaceError, PlacementError};
 use crate::python_sync::PackageError;
 use crate::run_node::LocateError;

@@ -21,7 +21,9 @@ pub(crate) const SELF: &str = "self";
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum PlaceError {
     /// Not `LINK@CORE_NODE`.
-    #[error("--place {arg}: {why}; write `--place LINK@CORE_NODE`, e.g. `--place robot_onboard@self`")]
+    #[error(
+        "--place {arg}: {why}; write `--place LINK@CORE_NODE`, e.g. `--place robot_onboard@self`"
+    )]
     Grammar {
         /// The argument as given.
         arg: String,
@@ -29,7 +31,9 @@ pub enum PlaceError {
         why: String,
     },
     /// `--place` for a launcher that declares no `core_nodes`.
-    #[error("--place {arg}: {launcher} declares no core_nodes, so there is nothing to place; it runs whole on one machine")]
+    #[error(
+        "--place {arg}: {launcher} declares no core_nodes, so there is nothing to place; it runs whole on one machine"
+    )]
     NoCoreNodes {
         /// The argument as given.
         arg: String,
@@ -51,7 +55,9 @@ pub enum PlaceError {
         declared: Vec<String>,
     },
     /// One core node placed by two arguments.
-    #[error("--place {second}: core node `{link}` is already placed by --place {first}; place each core node once")]
+    #[error(
+        "--place {second}: core node `{link}` is already placed by --place {first}; place each core node once"
+    )]
     PlacedTwice {
         /// The core node.
         link: String,
@@ -80,7 +86,9 @@ pub enum PlaceError {
         why: String,
     },
     /// `@self`, and this machine's name is unknown or unusable.
-    #[error("this machine's host name {host} cannot name a core node ({why}); name it with `up --core-node NAME`, or place on machines by name instead of `@self`")]
+    #[error(
+        "this machine's host name {host} cannot name a core node ({why}); name it with `up --core-node NAME`, or place on machines by name instead of `@self`"
+    )]
     HostName {
         /// The host name, quoted, or `(unknown)`.
         host: String,
@@ -149,11 +157,7 @@ pub(crate) fn read_places(
     args: &[String],
     this_machine: &mut dyn FnMut() -> Result<String, PlaceError>,
 ) -> Result<Placement, PlaceError> {
-    let declared: Vec<String> = launcher
-        .core_nodes
-        .iter()
-        .map(|c| c.name.clone())
-        .collect();
+    let declared: Vec<String> = launcher.core_nodes.iter().map(|c| c.name.clone()).collect();
     let file = launcher.file.path().display().to_string();
     let mut placement = Placement::default();
     let mut given: Vec<&String> = Vec::new();
@@ -244,12 +248,14 @@ pub(crate) fn place(
 /// host name.
 pub(crate) fn up_machine(args: &UpArgs) -> Result<String, PlaceError> {
     match &args.core_node {
-        Some(name) => check_machine(name)
-            .map(|()| name.clone())
-            .map_err(|why| PlaceError::BadCoreNode {
-                name: name.clone(),
-                why,
-            }),
+        Some(name) => {
+            check_machine(name)
+                .map(|()| name.clone())
+                .map_err(|why| PlaceError::BadCoreNode {
+                    name: name.clone(),
+                    why,
+                })
+        }
         None => host_core_node(),
     }
 }
@@ -408,6 +414,47 @@ mod tests {
         local: bool,
     ) -> Result<Share, PlacementError> {
         share_of(l, placed.iter().copied(), core, local, &[], &[])
+    }
+
+    fn places(l: &LauncherDoc, args: &[&str]) -> Result<Placement, PlaceError> {
+        let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        let mut asked = 0;
+        let got = read_places(l, &args, &mut || {
+            asked += 1;
+            Ok("bench".into())
+        });
+        assert!(asked <= 1, "this machine's name is asked for once at most");
+        got
+    }
+
+    #[test]
+    fn places_split_at_the_first_at_and_self_is_this_machine() {
+        let l = launcher(r#"core_nodes: ["robot", "desk"],"#);
+        let p = places(&l, &["robot@self", "desk@atlas"]).unwrap();
+        assert_eq!(
+            p.places,
+            [
+                ("robot".to_string(), "bench".to_string()),
+                ("desk".to_string(), "atlas".to_string())
+            ]
+        );
+        assert!(places(&l, &[]).unwrap().places.is_empty());
+        assert!(matches!(
+            places(&l, &["robot@a@b", "desk@c"]),
+            Err(PlaceError::BadMachine { machine, .. }) if machine == "a@b"
+        ));
+        assert!(matches!(
+            places(&l, &["desk@c"]),
+            Err(PlaceError::Unplaced { unplaced, .. }) if unplaced[0].0 == "robot"
+        ));
+        assert!(matches!(
+            places(&l, &["rbot@c"]),
+            Err(PlaceError::UnknownLink { suggestion: Some(s), .. }) if s == "robot"
+        ));
+        assert!(matches!(
+            places(&launcher(""), &["robot@c"]),
+            Err(PlaceError::NoCoreNodes { .. })
+        ));
     }
 
     #[test]

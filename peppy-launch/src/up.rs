@@ -61,7 +61,11 @@ pub(crate) fn run(args: &UpArgs) -> Outcome {
 /// `--place` applied: the stack's core nodes become the machines, and one
 /// of them must be this launch's.
 fn place(stack: StackCheck, args: &UpArgs) -> Result<StackCheck, LaunchError> {
-    let Some(here) = args.core_node.clone().filter(|_| !args.placing.place.is_empty()) else {
+    let Some(here) = args
+        .core_node
+        .clone()
+        .filter(|_| !args.placing.place.is_empty())
+    else {
         return Ok(stack);
     };
     let stack = placement::place(stack, &args.placing.place, &mut || Ok(here.clone()))?;

@@ -242,10 +242,7 @@ impl crate::launcher::LauncherDoc {
                         }
                     }
                 }
-                None => core_nodes.push(CoreNode {
-                    name,
-                    ..c.clone()
-                }),
+                None => core_nodes.push(CoreNode { name, ..c.clone() }),
             }
         }
         let mut placed = self.clone();

@@ -125,7 +125,8 @@ pub use pairing::{PairingDoc, PairingRole, PairingTopic};
 pub use plan::{BindingPlan, InstancePlan, plan_bindings};
 #[cfg(feature = "documents")]
 pub use repos::{
-    Broken, Entry, LauncherLookup, REPOSITORIES_ENV, RepoIndex, RepositoryList, SKIPPED_DIRS, json5_files,
+    Broken, Entry, LauncherLookup, REPOSITORIES_ENV, RepoIndex, RepositoryList, SKIPPED_DIRS,
+    json5_files,
 };
 #[cfg(feature = "documents")]
 pub use repository_index::{
