@@ -60,6 +60,15 @@ pub(crate) fn run(args: &CheckArgs) -> Result {
         env: None,
     };
     let result = check_launcher_with(&args.launcher, &options, &crate::sources::Fetcher::new());
+    // `--place`: show the stack on its machines.
+    let result = match result {
+        Ok(stack) => Ok(crate::placement::place(
+            stack,
+            &args.placing.place,
+            &mut crate::placement::host_core_node,
+        )?),
+        Err(d) => Err(d),
+    };
     let (diags, stack) = match &result {
         Ok(stack) => (stack.warnings.clone(), Some(stack)),
         Err(d) => (d.clone(), None),

@@ -382,12 +382,16 @@ pub(crate) struct RouterArgs {
 
 #[derive(Debug, Args)]
 pub(crate) struct KeysArgs {
-    /// The launcher file (with `core_nodes`).
+    /// The launcher (with `core_nodes`): its file, or its name in the
+    /// repositories.
     #[arg(value_name = "LAUNCHER")]
     pub(crate) launcher: PathBuf,
     /// Replace existing keys (every machine then needs the new copy).
     #[arg(long)]
     pub(crate) rotate: bool,
+    // Placement (`--place`): the keys are the machines'.
+    #[command(flatten)]
+    pub(crate) placing: PlaceArgs,
 }
 
 #[derive(Debug, Args)]
@@ -435,7 +439,8 @@ pub(crate) struct ValidateArgs {
 
 #[derive(Debug, Args)]
 pub(crate) struct CheckArgs {
-    /// The launcher file.
+    /// The launcher: its file, or its name (file stem) in the
+    /// repositories.
     #[arg(value_name = "LAUNCHER")]
     pub(crate) launcher: PathBuf,
     /// An extra repository directory, searched before PEPPY_REPOSITORIES and
@@ -453,11 +458,15 @@ pub(crate) struct CheckArgs {
     /// derives).
     #[arg(long, value_name = "NS")]
     pub(crate) namespace: Option<String>,
+    // Placement (`--place`).
+    #[command(flatten)]
+    pub(crate) placing: PlaceArgs,
 }
 
-#[derive(Debug, Args)]
+#[derive(Debug, Clone, Args)]
 pub(crate) struct UpArgs {
-    /// The launcher file.
+    /// The launcher: its file, or its name (file stem) in the
+    /// repositories.
     #[arg(value_name = "LAUNCHER")]
     pub(crate) launcher: PathBuf,
     /// An extra repository directory (repeatable).
@@ -483,24 +492,29 @@ pub(crate) struct UpArgs {
     pub(crate) grace: Duration,
     /// For a launcher with `core_nodes`: start this machine's share (its
     /// instances and its router, linked to the others as the launcher or
-    /// `--listen` / `--connect` say).
+    /// `--listen` / `--connect` say). With `--place`, the name of this
+    /// machine (what `@self` means; default: its host name).
     #[arg(long, value_name = "NAME", conflicts_with = "local")]
     pub(crate) core_node: Option<String>,
     /// For a launcher with `core_nodes`: start every machine's share here,
     /// each instance still named by its core node (for development).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "place")]
     pub(crate) local: bool,
     /// Run without security even where it would be on (a router reachable
     /// beyond loopback): any process that reaches the router can then read
     /// and write every topic of the stack.
     #[arg(long)]
     pub(crate) insecure: bool,
+    // Placement (`--place`).
+    #[command(flatten)]
+    pub(crate) placing: PlaceArgs,
 }
 
 #[derive(Debug, Args)]
 pub(crate) struct GraphArgs {
-    /// The launcher file (with `--live`: the stack started from it; give
-    /// none to look at the only running launch).
+    /// The launcher: its file, or its name in the repositories (with
+    /// `--live`: the stack started from it; give none to look at the only
+    /// running launch).
     #[arg(value_name = "LAUNCHER", required_unless_present = "live")]
     pub(crate) file: Option<PathBuf>,
     /// Draw the running stack instead: the instances that answer and the
@@ -520,6 +534,9 @@ pub(crate) struct GraphArgs {
     /// `.dot`/`.gv`.
     #[arg(long, short = 'o', value_name = "FILE")]
     pub(crate) output: Option<PathBuf>,
+    // Placement (`--place`).
+    #[command(flatten)]
+    pub(crate) placing: PlaceArgs,
 }
 
 #[derive(Debug, Args)]
@@ -566,6 +583,21 @@ pub(crate) struct RunArgs {
     /// node's shutdown-hook window plus 2 s (7 s for the default window).
     #[arg(long, value_name = "SECONDS", default_value = "5", value_parser = parse_grace)]
     pub(crate) grace: Duration,
+}
+
+/// Placement and finding launchers: where a launcher's core nodes run
+/// (`--place`), shared by `up`, `check`, `graph` and `keys`. A LAUNCHER
+/// argument that is no path is a launcher's name, looked up in the
+/// repositories (`peppy_repository.json5`'s `launchers`, or their files).
+#[derive(Debug, Clone, Default, Args)]
+pub(crate) struct PlaceArgs {
+    /// Run the launcher's core node (placeholder) LINK on the machine
+    /// CORE_NODE, which then names its instances' keys (repeatable; every
+    /// core node placed exactly once; several may share a machine).
+    /// `LINK@self` is this machine: `up --core-node NAME`, else its host
+    /// name. `up` starts what is placed on this machine.
+    #[arg(long = "place", value_name = "LINK@CORE_NODE")]
+    pub(crate) place: Vec<String>,
 }
 
 /// The longest grace period accepted: an hour is already longer than any

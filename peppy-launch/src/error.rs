@@ -11,8 +11,9 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use crate::executable::ExecutableError;
+use crate::find_launcher::LauncherLookupError;
 use crate::inspect::SelectError;
-use crate::placement::PlacementError;
+use crate::placement::{PlaceError, PlacementError};
 use crate::python_sync::PackageError;
 use crate::run_node::LocateError;
 use crate::runs::LogsError;
@@ -84,6 +85,8 @@ macro_rules! launch_error_from {
 launch_error_from!(
     LocateError => Usage,
     PlacementError => Usage,
+    PlaceError => Usage,
+    LauncherLookupError => Usage,
     LogsError => Usage,
     SelectError => Usage,
     KeysError => Setup,
@@ -112,6 +115,12 @@ pub enum UsageError {
     /// `up`'s `--core-node` / `--local` do not fit the launcher.
     #[error(transparent)]
     Placement(#[from] PlacementError),
+    /// `--place` does not fit the launcher or is not understood.
+    #[error(transparent)]
+    Place(#[from] PlaceError),
+    /// A launcher named on the command line is not found.
+    #[error(transparent)]
+    LauncherLookup(#[from] LauncherLookupError),
     /// `logs` cannot tell which launch or instance it should read.
     #[error(transparent)]
     Logs(#[from] LogsError),

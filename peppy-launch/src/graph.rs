@@ -38,6 +38,12 @@ pub(crate) fn run(args: &GraphArgs) -> Result {
             }
         },
     )?;
+    // `--place`: one frame per machine.
+    let stack = crate::placement::place(
+        stack,
+        &args.placing.place,
+        &mut crate::placement::host_core_node,
+    )?;
     show(args.output.as_deref(), format, &drawing(&stack))
 }
 

@@ -10,6 +10,7 @@ mod cli;
 mod drawing;
 mod error;
 mod executable;
+mod find_launcher;
 mod flows;
 mod graph;
 mod inspect;
@@ -32,8 +33,9 @@ mod validate;
 pub use cli::Cli;
 pub use error::{InspectError, LaunchError, Result, SetupError, UsageError, exit};
 pub use executable::{ExecutableError, FindError};
+pub use find_launcher::LauncherLookupError;
 pub use inspect::SelectError;
-pub use placement::PlacementError;
+pub use placement::{PlaceError, PlacementError};
 pub use python_sync::{PackageError, RUNTIME_ENV, UV_VERSION, UvError, runtime_dir, uv};
 pub use run_node::LocateError;
 pub use runs::LogsError;
@@ -44,9 +46,20 @@ pub use up::RouterError;
 pub fn run(cli: Cli) -> Result {
     match cli.command {
         cli::Command::Validate(args) => validate::run(&args),
-        cli::Command::Check(args) => check::run(&args),
-        cli::Command::Up(args) => up::run(&args),
-        cli::Command::Graph(args) => graph::run(&args),
+        cli::Command::Check(mut args) => {
+            args.launcher = find_launcher::locate(&args.launcher, &args.repos)?;
+            check::run(&args)
+        }
+        cli::Command::Up(mut args) => {
+            args.launcher = find_launcher::locate(&args.launcher, &args.repos)?;
+            up::run(&args)
+        }
+        cli::Command::Graph(mut args) => {
+            if let Some(file) = &args.file {
+                args.file = Some(find_launcher::locate(file, &args.repos)?);
+            }
+            graph::run(&args)
+        }
         cli::Command::Run(args) => run_node::run(&args),
         cli::Command::Plan(args) => run_node::plan(&args),
         cli::Command::Node(cmd) => inspect::node(cmd),
@@ -56,7 +69,10 @@ pub fn run(cli: Cli) -> Result {
         cli::Command::Sync(args) => python_sync::run(&args),
         cli::Command::Migrate(args) => migrate::run(&args),
         cli::Command::Router(args) => up::router(&args),
-        cli::Command::Keys(args) => security::keys::run(&args),
+        cli::Command::Keys(mut args) => {
+            args.launcher = find_launcher::locate(&args.launcher, &[])?;
+            security::keys::run(&args)
+        }
         cli::Command::Ps(args) => runs::ps(&args),
         cli::Command::Logs(args) => runs::logs(&args),
         cli::Command::Repo(cmd) => repo_index::run(&cmd),

@@ -5,9 +5,260 @@
 //! instance carries its core node's name, which is what `from_core_node`
 //! filters on.
 
-use peppy_schema::{LauncherDoc, StackCheck};
+//!
+//! `--place LINK@CORE_NODE` binds the launcher's core nodes (today's
+//! placeholders) to machines first ([`place`]): the machines become the
+//! stack's core nodes, and everything after sees only them.
+
+use peppy_schema::{LauncherDoc, Placement, StackCheck, did_you_mean};
 
 use crate::cli::UpArgs;
+
+/// The target of `--place LINK@self`: the machine running the command.
+pub(crate) const SELF: &str = "self";
+
+/// Why `--place` does not fit the launcher or is not understood.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PlaceError {
+    /// Not `LINK@CORE_NODE`.
+    #[error(
+        "--place {arg}: {why}; write `--place LINK@CORE_NODE`, e.g. `--place robot_onboard@self`"
+    )]
+    Grammar {
+        /// The argument as given.
+        arg: String,
+        /// What is wrong with it.
+        why: String,
+    },
+    /// `--place` for a launcher that declares no `core_nodes`.
+    #[error(
+        "--place {arg}: {launcher} declares no core_nodes, so there is nothing to place; it runs whole on one machine"
+    )]
+    NoCoreNodes {
+        /// The argument as given.
+        arg: String,
+        /// The launcher file.
+        launcher: String,
+    },
+    /// `--place` names a core node the launcher does not declare.
+    #[error("--place {arg}: {launcher} declares no core node `{link}`{}; its core nodes are {}", suggestion.as_ref().map(|s| format!(" (did you mean `{s}`?)")).unwrap_or_default(), declared.join(", "))]
+    UnknownLink {
+        /// The argument as given.
+        arg: String,
+        /// The core node named.
+        link: String,
+        /// The closest declared name, if one is close.
+        suggestion: Option<String>,
+        /// The launcher file.
+        launcher: String,
+        /// Its core nodes.
+        declared: Vec<String>,
+    },
+    /// One core node placed by two arguments.
+    #[error(
+        "--place {second}: core node `{link}` is already placed by --place {first}; place each core node once"
+    )]
+    PlacedTwice {
+        /// The core node.
+        link: String,
+        /// The first argument placing it.
+        first: String,
+        /// The second.
+        second: String,
+    },
+    /// Some core nodes placed, others not.
+    #[error("{} not placed: with --place, every core node of the launcher is placed ({}), e.g. `--place {}@self`", unplaced.iter().map(|(l, at)| format!("core node `{l}` (declared at {at})")).collect::<Vec<_>>().join(", "), declared.join(", "), unplaced[0].0)]
+    Unplaced {
+        /// Each core node not placed, with where it is declared
+        /// (`file:line:column`).
+        unplaced: Vec<(String, String)>,
+        /// Every core node of the launcher.
+        declared: Vec<String>,
+    },
+    /// A machine name that cannot name a core node.
+    #[error("--place {arg}: `{machine}` cannot name a core node: {why}")]
+    BadMachine {
+        /// The argument as given.
+        arg: String,
+        /// The machine named.
+        machine: String,
+        /// Why not.
+        why: String,
+    },
+    /// `@self`, and this machine's name is unknown or unusable.
+    #[error(
+        "this machine's host name {host} cannot name a core node ({why}); name it with `up --core-node NAME`, or place on machines by name instead of `@self`"
+    )]
+    HostName {
+        /// The host name, quoted, or `(unknown)`.
+        host: String,
+        /// Why it cannot be used.
+        why: String,
+    },
+    /// `up --core-node NAME --place ...` with a NAME no machine can have.
+    #[error("--core-node {name}: `{name}` cannot name a machine: {why}")]
+    BadCoreNode {
+        /// The name given.
+        name: String,
+        /// Why not.
+        why: String,
+    },
+    /// `up --place` that places nothing on this machine.
+    #[error("nothing is placed on this machine, `{core}`: the machines are {}; place a core node `@self`, or give `--core-node` one of the machines", machines.join(", "))]
+    NothingHere {
+        /// This machine's name.
+        core: String,
+        /// The machines the placement names.
+        machines: Vec<String>,
+    },
+}
+
+/// Whether `name` may name a machine: a core node name of today's rules
+/// (a name of at most 63 characters) that is not `self`.
+fn check_machine(name: &str) -> Result<(), String> {
+    peppy_schema::names::check_name(name)?;
+    if name.chars().count() > 63 {
+        return Err("longer than 63 characters".into());
+    }
+    if name == SELF {
+        return Err("`self` stands for this machine".into());
+    }
+    Ok(())
+}
+
+/// This machine's name: its host name up to the first dot.
+pub(crate) fn host_core_node() -> Result<String, PlaceError> {
+    let mut buf = [0u8; 256];
+    // SAFETY: the buffer is valid for its whole length, and gethostname
+    // writes at most that many bytes.
+    let rc = unsafe { libc::gethostname(buf.as_mut_ptr().cast(), buf.len()) };
+    if rc != 0 {
+        return Err(PlaceError::HostName {
+            host: "(unknown)".into(),
+            why: std::io::Error::last_os_error().to_string(),
+        });
+    }
+    let end = buf.iter().position(|&b| b == 0).unwrap_or(buf.len());
+    let host = String::from_utf8_lossy(&buf[..end]).into_owned();
+    let name = host.split('.').next().unwrap_or_default().to_string();
+    check_machine(&name).map_err(|why| PlaceError::HostName {
+        host: format!("`{host}`"),
+        why,
+    })?;
+    Ok(name)
+}
+
+/// Reads the `--place` arguments against the launcher: each
+/// `LINK@CORE_NODE` split at its first `@`, `self` replaced by
+/// `this_machine()` (asked only then), every declared core node placed
+/// exactly once.
+pub(crate) fn read_places(
+    launcher: &LauncherDoc,
+    args: &[String],
+    this_machine: &mut dyn FnMut() -> Result<String, PlaceError>,
+) -> Result<Placement, PlaceError> {
+    let declared: Vec<String> = launcher.core_nodes.iter().map(|c| c.name.clone()).collect();
+    let file = launcher.file.path().display().to_string();
+    let mut placement = Placement::default();
+    let mut given: Vec<&String> = Vec::new();
+    for arg in args {
+        let grammar = |why: &str| PlaceError::Grammar {
+            arg: arg.clone(),
+            why: why.to_string(),
+        };
+        let Some((link, machine)) = arg.split_once('@') else {
+            return Err(grammar("no `@` between the core node and the machine"));
+        };
+        if link.is_empty() {
+            return Err(grammar("the core node before `@` is empty"));
+        }
+        if machine.is_empty() {
+            return Err(grammar("the machine after `@` is empty"));
+        }
+        if declared.is_empty() {
+            return Err(PlaceError::NoCoreNodes {
+                arg: arg.clone(),
+                launcher: file,
+            });
+        }
+        if !declared.iter().any(|d| d == link) {
+            return Err(PlaceError::UnknownLink {
+                arg: arg.clone(),
+                link: link.to_string(),
+                suggestion: did_you_mean(link, declared.iter().map(String::as_str))
+                    .map(str::to_string),
+                launcher: file,
+                declared,
+            });
+        }
+        if let Some(i) = placement.places.iter().position(|(l, _)| l == link) {
+            return Err(PlaceError::PlacedTwice {
+                link: link.to_string(),
+                first: given[i].clone(),
+                second: arg.clone(),
+            });
+        }
+        let machine = if machine == SELF {
+            this_machine()?
+        } else {
+            check_machine(machine).map_err(|why| PlaceError::BadMachine {
+                arg: arg.clone(),
+                machine: machine.to_string(),
+                why,
+            })?;
+            machine.to_string()
+        };
+        placement.places.push((link.to_string(), machine));
+        given.push(arg);
+    }
+    let unplaced: Vec<(String, String)> = launcher
+        .core_nodes
+        .iter()
+        .filter(|c| placement.machine_of(&c.name).is_none())
+        .map(|c| {
+            let lc = c.loc.file.line_col(c.loc.span.start);
+            (
+                c.name.clone(),
+                format!("{}:{}:{}", c.loc.file.path().display(), lc.line, lc.column),
+            )
+        })
+        .collect();
+    if !placement.places.is_empty() && !unplaced.is_empty() {
+        return Err(PlaceError::Unplaced { unplaced, declared });
+    }
+    Ok(placement)
+}
+
+/// A checked stack with `--place` applied: its core nodes are the machines
+/// from here on. Without `--place`, the stack as it is (each core node a
+/// machine of its own name).
+pub(crate) fn place(
+    stack: StackCheck,
+    args: &[String],
+    this_machine: &mut dyn FnMut() -> Result<String, PlaceError>,
+) -> Result<StackCheck, PlaceError> {
+    if args.is_empty() {
+        return Ok(stack);
+    }
+    let placement = read_places(&stack.launcher, args, this_machine)?;
+    Ok(stack.placed(&placement))
+}
+
+/// `up`'s name for this machine under `--place`: `--core-node`, else the
+/// host name.
+pub(crate) fn up_machine(args: &UpArgs) -> Result<String, PlaceError> {
+    match &args.core_node {
+        Some(name) => {
+            check_machine(name)
+                .map(|()| name.clone())
+                .map_err(|why| PlaceError::BadCoreNode {
+                    name: name.clone(),
+                    why,
+                })
+        }
+        None => host_core_node(),
+    }
+}
 
 /// Why `up`'s `--core-node` / `--local` do not fit the launcher.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -163,6 +414,47 @@ mod tests {
         local: bool,
     ) -> Result<Share, PlacementError> {
         share_of(l, placed.iter().copied(), core, local, &[], &[])
+    }
+
+    fn places(l: &LauncherDoc, args: &[&str]) -> Result<Placement, PlaceError> {
+        let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        let mut asked = 0;
+        let got = read_places(l, &args, &mut || {
+            asked += 1;
+            Ok("bench".into())
+        });
+        assert!(asked <= 1, "this machine's name is asked for once at most");
+        got
+    }
+
+    #[test]
+    fn places_split_at_the_first_at_and_self_is_this_machine() {
+        let l = launcher(r#"core_nodes: ["robot", "desk"],"#);
+        let p = places(&l, &["robot@self", "desk@atlas"]).unwrap();
+        assert_eq!(
+            p.places,
+            [
+                ("robot".to_string(), "bench".to_string()),
+                ("desk".to_string(), "atlas".to_string())
+            ]
+        );
+        assert!(places(&l, &[]).unwrap().places.is_empty());
+        assert!(matches!(
+            places(&l, &["robot@a@b", "desk@c"]),
+            Err(PlaceError::BadMachine { machine, .. }) if machine == "a@b"
+        ));
+        assert!(matches!(
+            places(&l, &["desk@c"]),
+            Err(PlaceError::Unplaced { unplaced, .. }) if unplaced[0].0 == "robot"
+        ));
+        assert!(matches!(
+            places(&l, &["rbot@c"]),
+            Err(PlaceError::UnknownLink { suggestion: Some(s), .. }) if s == "robot"
+        ));
+        assert!(matches!(
+            places(&launcher(""), &["robot@c"]),
+            Err(PlaceError::NoCoreNodes { .. })
+        ));
     }
 
     #[test]

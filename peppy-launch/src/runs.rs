@@ -352,6 +352,9 @@ pub enum LogsError {
 /// the running launch that has the instance.
 fn launch_with(args: &crate::cli::LogsArgs) -> Result<LaunchRecord, LogsError> {
     if let Some(l) = &args.launcher {
+        // `-l NAME`: the launcher of that name in the repositories, when
+        // it can be found; else the name is reported as never run.
+        let l = &crate::find_launcher::locate(l, &[]).unwrap_or_else(|_| l.clone());
         return latest_run_of(l).ok_or_else(|| LogsError::NoRecordedRun {
             launcher: l.clone(),
         });

@@ -20,6 +20,18 @@ use crate::runs::{self, LaunchRecord};
 use crate::supervise::{self, Ended, InstanceSpec, StopSignals};
 
 pub(crate) fn run(args: &UpArgs) -> Outcome {
+    // Under `--place`, this launch is the machine `@self` names, and it
+    // starts what is placed there.
+    let placed_args;
+    let args = if args.placing.place.is_empty() {
+        args
+    } else {
+        placed_args = UpArgs {
+            core_node: Some(placement::up_machine(args)?),
+            ..args.clone()
+        };
+        &placed_args
+    };
     let options = RepoOptions {
         explicit: args.repos.clone(),
         env: None,
@@ -41,8 +53,35 @@ pub(crate) fn run(args: &UpArgs) -> Outcome {
     if !stack.warnings.is_empty() {
         report::print_human(&stack.warnings);
     }
+    let stack = place(stack, args)?;
     let runtime = crate::tokio_runtime(None)?;
     runtime.block_on(launch(stack, args))
+}
+
+/// `--place` applied: the stack's core nodes become the machines, and one
+/// of them must be this launch's.
+fn place(stack: StackCheck, args: &UpArgs) -> Result<StackCheck, LaunchError> {
+    let Some(here) = args
+        .core_node
+        .clone()
+        .filter(|_| !args.placing.place.is_empty())
+    else {
+        return Ok(stack);
+    };
+    let stack = placement::place(stack, &args.placing.place, &mut || Ok(here.clone()))?;
+    if stack.launcher.core_node(&here).is_none() {
+        return Err(placement::PlaceError::NothingHere {
+            core: here,
+            machines: stack
+                .launcher
+                .core_nodes
+                .iter()
+                .map(|c| c.name.clone())
+                .collect(),
+        }
+        .into());
+    }
+    Ok(stack)
 }
 
 /// The namespace of a launch: the launcher's file stem plus a short hash of

@@ -193,9 +193,122 @@ pub(crate) fn check_placement(
     );
 }
 
+/// Where each of a launcher's core nodes runs, as `--place LINK@MACHINE`
+/// says: the launcher's core node names (today's placeholders) each bound
+/// to a machine, several possibly to one.
+///
+/// Placing renames: the machines become the core nodes, so an instance's
+/// `<core>` key segment, what `from_core_node` filters on, the security
+/// policy and the per-core-node keys all name the machine it runs on, and
+/// the placeholders sharing a machine share its one router.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Placement {
+    /// `(placeholder, machine)`, in the order given.
+    pub places: Vec<(String, String)>,
+}
+
+impl Placement {
+    /// The machine `placeholder` is placed on.
+    pub fn machine_of(&self, placeholder: &str) -> Option<&str> {
+        self.places
+            .iter()
+            .find(|(p, _)| p == placeholder)
+            .map(|(_, m)| m.as_str())
+    }
+}
+
+impl crate::launcher::LauncherDoc {
+    /// This launcher with its core nodes replaced by the machines
+    /// `placement` puts them on. Each machine comes once, in the order its
+    /// first placeholder is declared (so an instance without `core_node`
+    /// still runs where the first placeholder is), with the `listen` and
+    /// `connect` endpoints of all its placeholders, located at the first.
+    /// A placeholder `placement` does not name keeps its own name.
+    pub fn placed(&self, placement: &Placement) -> crate::launcher::LauncherDoc {
+        let machine = |name: &str| placement.machine_of(name).unwrap_or(name).to_string();
+        let mut core_nodes: Vec<CoreNode> = Vec::new();
+        for c in &self.core_nodes {
+            let name = machine(&c.name);
+            match core_nodes.iter_mut().find(|m| m.name == name) {
+                Some(m) => {
+                    for e in &c.listen {
+                        if !m.listen.contains(e) {
+                            m.listen.push(e.clone());
+                        }
+                    }
+                    for e in &c.connect {
+                        if !m.connect.contains(e) {
+                            m.connect.push(e.clone());
+                        }
+                    }
+                }
+                None => core_nodes.push(CoreNode { name, ..c.clone() }),
+            }
+        }
+        let mut placed = self.clone();
+        placed.core_nodes = core_nodes;
+        for d in &mut placed.deployments {
+            for inst in &mut d.instances {
+                if let Some((name, _)) = &mut inst.core_node {
+                    *name = machine(name);
+                }
+            }
+        }
+        placed
+    }
+}
+
+impl crate::stack::StackCheck {
+    /// This checked stack with its core nodes placed on machines
+    /// ([`LauncherDoc::placed`](crate::launcher::LauncherDoc::placed)):
+    /// the launcher and every planned instance's core node. The bindings
+    /// need nothing else: they name instances, wherever those run.
+    pub fn placed(mut self, placement: &Placement) -> crate::stack::StackCheck {
+        self.launcher = self.launcher.placed(placement);
+        for inst in &mut self.plan.instances {
+            if let Some(name) = &mut inst.core_node
+                && let Some(m) = placement.machine_of(name)
+            {
+                *name = m.to_string();
+            }
+        }
+        self
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn placing_renames_core_nodes_and_merges_those_sharing_a_machine() {
+        let text = r#"{ peppy_schema: "launcher_v1",
+            core_nodes: { arm: { listen: ["tcp/0.0.0.0:7447"] }, cam: { connect: ["tcp/192.0.2.1:7447"] }, gpu: {} },
+            deployments: [{ source: { name: "cam:v1" }, instances: [
+                { instance_id: "a", core_node: "cam" }, { instance_id: "b" },
+                { instance_id: "c", core_node: "gpu" } ] }] }"#;
+        let doc = crate::launcher::LauncherDoc::parse("stack.json5", text)
+            .unwrap()
+            .0;
+        let placement = Placement {
+            places: vec![
+                ("cam".into(), "robot7".into()),
+                ("arm".into(), "robot7".into()),
+                ("gpu".into(), "atlas".into()),
+            ],
+        };
+        let placed = doc.placed(&placement);
+        let names: Vec<&str> = placed.core_nodes.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(names, ["robot7", "atlas"]);
+        assert_eq!(placed.core_nodes[0].listen, ["tcp/0.0.0.0:7447"]);
+        assert_eq!(placed.core_nodes[0].connect, ["tcp/192.0.2.1:7447"]);
+        let cores: Vec<Option<&str>> = placed
+            .instances()
+            .map(|(_, i)| placed.core_node_of(i.core_node.as_ref().map(|(n, _)| n.as_str())))
+            .collect();
+        assert_eq!(cores, [Some("robot7"), Some("robot7"), Some("atlas")]);
+        assert!(crate::launcher::stack_rules(&placed).is_empty());
+    }
 
     #[test]
     fn endpoints_look_like_zenoh_endpoints() {

@@ -95,7 +95,7 @@ pub use source::{LineCol, MAX_DOCUMENT_BYTES, SourceFile, Span};
 #[cfg(feature = "documents")]
 pub use binding::conformances;
 #[cfg(feature = "documents")]
-pub use core_nodes::CoreNode;
+pub use core_nodes::{CoreNode, Placement};
 #[cfg(feature = "documents")]
 pub use document::{
     Document, DocumentKind, Parsed, REPOSITORIES_FILE, RepositoriesDoc, SCHEMAS, detect_kind,
@@ -125,7 +125,8 @@ pub use pairing::{PairingDoc, PairingRole, PairingTopic};
 pub use plan::{BindingPlan, InstancePlan, plan_bindings};
 #[cfg(feature = "documents")]
 pub use repos::{
-    Broken, Entry, REPOSITORIES_ENV, RepoIndex, RepositoryList, SKIPPED_DIRS, json5_files,
+    Broken, Entry, LauncherLookup, REPOSITORIES_ENV, RepoIndex, RepositoryList, SKIPPED_DIRS,
+    json5_files,
 };
 #[cfg(feature = "documents")]
 pub use repository_index::{

@@ -172,6 +172,8 @@ pub struct RepoIndex {
     interfaces: BTreeMap<Identity, Vec<Entry<InterfaceDoc>>>,
     pairings: BTreeMap<Identity, Vec<Entry<PairingDoc>>>,
     launchers: BTreeMap<String, Vec<PathBuf>>,
+    /// Launchers an index lists at a path that is no file.
+    missing_launchers: BTreeMap<String, Vec<PathBuf>>,
     broken: BTreeMap<(DocumentKind, Identity), Broken>,
     findings: Diagnostics,
 }
@@ -287,6 +289,12 @@ impl RepoIndex {
                 "which does not exist"
             };
             self.findings.push(unmatched(why));
+            if key.section == IndexSection::Launchers {
+                self.missing_launchers
+                    .entry(key.name.clone())
+                    .or_default()
+                    .push(path);
+            }
             return;
         }
         let (file, sha) = match SourceFile::read(&path) {
@@ -435,6 +443,19 @@ impl RepoIndex {
                     .push(path.to_path_buf());
             }
             Ok((Document::Repositories(_) | Document::RepositoryIndex(_), _)) => {}
+            // A launcher is found by its file name, valid or not: whoever
+            // asks for it by name is told what is wrong with it.
+            Err(_) if kind == Some(DocumentKind::Launcher) => {
+                let stem = path
+                    .file_stem()
+                    .and_then(OsStr::to_str)
+                    .unwrap_or_default()
+                    .to_string();
+                self.launchers
+                    .entry(stem)
+                    .or_default()
+                    .push(path.to_path_buf());
+            }
             Err(diagnostics) => {
                 if let (Some(kind), Some(id)) = (kind, peek_identity(&root)) {
                     self.broken.entry((kind, id)).or_insert(Broken {
@@ -514,6 +535,43 @@ impl RepoIndex {
             .map(PathBuf::as_path)
     }
 
+    /// Every launcher file with this stem, in repository order: more than
+    /// one is ambiguous (see [`find_launcher`](Self::find_launcher)).
+    pub fn launchers_named(&self, stem: &str) -> &[PathBuf] {
+        self.launchers.get(stem).map_or(&[], Vec::as_slice)
+    }
+
+    /// The stem of every launcher found, in name order.
+    pub fn launcher_names(&self) -> impl Iterator<Item = &str> {
+        self.launchers.keys().map(String::as_str)
+    }
+
+    /// The launcher a bare name means: the one file of that stem in the
+    /// repositories. Launchers have no tag and no priority order, so a
+    /// name two files answer to is ambiguous rather than won by the first
+    /// repository.
+    pub fn find_launcher(&self, name: &str) -> Result<&Path, LauncherLookup> {
+        match self.launchers_named(name) {
+            [one] => Ok(one),
+            [] => match self.missing_launchers.get(name) {
+                Some(listed) => Err(LauncherLookup::Missing {
+                    name: name.to_string(),
+                    listed: listed.clone(),
+                }),
+                None => Err(LauncherLookup::NotFound {
+                    name: name.to_string(),
+                    suggestion: crate::diag::did_you_mean(name, self.launcher_names())
+                        .map(str::to_string),
+                    searched: self.searched(),
+                }),
+            },
+            many => Err(LauncherLookup::Ambiguous {
+                name: name.to_string(),
+                paths: many.to_vec(),
+            }),
+        }
+    }
+
     /// An invalid document that claims `id`.
     pub fn broken(&self, kind: DocumentKind, id: &Identity) -> Option<&Broken> {
         self.broken.get(&(kind, id.clone()))
@@ -546,6 +604,37 @@ impl RepoIndex {
             .collect();
         format!("searched {}", list.join(", "))
     }
+}
+
+/// Why a launcher name found no one launcher in the repositories.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum LauncherLookup {
+    /// No repository has a launcher of that name.
+    #[error("no repository provides launcher `{name}`{}; {searched}", suggestion.as_ref().map(|s| format!(" (did you mean `{s}`?)")).unwrap_or_default())]
+    NotFound {
+        /// The name given.
+        name: String,
+        /// The closest launcher name found, if one is close.
+        suggestion: Option<String>,
+        /// Where it was looked for.
+        searched: String,
+    },
+    /// Several files answer to the name.
+    #[error("launcher `{name}` is ambiguous: {} answer to it; give the path of the one you mean", paths.iter().map(|p| format!("`{}`", p.display())).collect::<Vec<_>>().join(" and "))]
+    Ambiguous {
+        /// The name given.
+        name: String,
+        /// Every file of that stem, in repository order.
+        paths: Vec<PathBuf>,
+    },
+    /// A repository's index lists the launcher at a path that is no file.
+    #[error("launcher `{name}` is listed at {}, which does not exist; write the repository's index again with `peppy-launch repo index`", listed.iter().map(|p| format!("`{}`", p.display())).collect::<Vec<_>>().join(" and "))]
+    Missing {
+        /// The name given.
+        name: String,
+        /// Where the indexes list it.
+        listed: Vec<PathBuf>,
+    },
 }
 
 fn duplicate(id: &Identity, first: &Path, second: &Path) -> Diagnostic {

@@ -323,6 +323,14 @@ pub(crate) struct Reach {
 
 /// Decides which stack the command looks at (see [`StackArgs`]).
 pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach> {
+    // `-l NAME`: the launcher of that name in the repositories.
+    let mut named = args.clone();
+    named.launcher = args
+        .launcher
+        .as_deref()
+        .map(|l| crate::find_launcher::locate(l, &[]))
+        .transpose()?;
+    let args = &named;
     let canonical = args
         .launcher
         .as_ref()

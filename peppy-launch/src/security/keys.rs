@@ -122,6 +122,17 @@ pub(crate) fn run(args: &crate::cli::KeysArgs) -> crate::error::Result {
         }
         .into());
     }
+    // `--place`: the keys are the machines', as `up --place` asks for them.
+    let launcher = if args.placing.place.is_empty() {
+        launcher
+    } else {
+        let placement = crate::placement::read_places(
+            &launcher,
+            &args.placing.place,
+            &mut crate::placement::host_core_node,
+        )?;
+        launcher.placed(&placement)
+    };
     let dir = dir_for(&launcher);
     let names: Vec<&str> = launcher
         .core_nodes

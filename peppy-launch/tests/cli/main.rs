@@ -9,6 +9,7 @@ mod migrate;
 mod netns;
 mod node_deps;
 mod one_engine;
+mod placement;
 mod python;
 mod repo_index;
 mod security;

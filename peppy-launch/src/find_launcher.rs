@@ -1,0 +1,57 @@
+//! A launcher named on the command line: a path, or a bare name (its file
+//! stem) found through the repositories, the way `run` finds a node by
+//! `name:tag`: `--repo` directories first, then `PEPPY_REPOSITORIES`, then
+//! the nearest `peppy_repositories.json5` above the working directory. A
+//! repository with a `peppy_repository.json5` is read through its
+//! `launchers` section, one without by its files.
+
+use std::path::{Path, PathBuf};
+
+use peppy_schema::{Diagnostics, LauncherLookup, RepoIndex, RepositoryList};
+
+/// Why a LAUNCHER argument names no launcher.
+#[derive(Debug, thiserror::Error)]
+pub enum LauncherLookupError {
+    /// The repositories list cannot be read.
+    #[error("cannot look launcher `{name}` up: the repositories list is invalid")]
+    Repositories {
+        /// The name given.
+        name: String,
+        /// What is wrong with the list.
+        diagnostics: Diagnostics,
+    },
+    /// No single launcher answers to the name.
+    #[error(transparent)]
+    Lookup(#[from] LauncherLookup),
+}
+
+/// Whether `arg` is a launcher's name rather than a path: it is no file or
+/// directory, and it is a bare name (no `/`, no `.json5`).
+pub(crate) fn is_name(arg: &Path) -> bool {
+    !arg.exists()
+        && arg
+            .to_str()
+            .is_some_and(|s| peppy_schema::names::check_name(s).is_ok())
+}
+
+/// The launcher file `arg` means: `arg` itself when it is a path (a
+/// missing file is its reader's to report), else the one launcher of that
+/// name in the repositories.
+pub(crate) fn locate(arg: &Path, repos: &[PathBuf]) -> Result<PathBuf, LauncherLookupError> {
+    if !is_name(arg) {
+        return Ok(arg.to_path_buf());
+    }
+    let name = arg.to_string_lossy().into_owned();
+    let cwd = std::env::current_dir().unwrap_or_default();
+    let env = std::env::var_os(peppy_schema::REPOSITORIES_ENV);
+    let list = RepositoryList::discover(repos, env.as_deref(), &cwd).map_err(|diagnostics| {
+        crate::report::print_human(&diagnostics);
+        LauncherLookupError::Repositories {
+            name: name.clone(),
+            diagnostics,
+        }
+    })?;
+    let index = RepoIndex::scan(&list.paths);
+    let found = index.find_launcher(&name).map(Path::to_path_buf);
+    Ok(found?)
+}
