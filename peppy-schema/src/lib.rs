@@ -47,6 +47,8 @@ mod source;
 // The documents: parsing, resolution, launchers and repositories (the
 // `documents` feature, on by default; node binaries go without it).
 #[cfg(feature = "documents")]
+mod compose;
+#[cfg(feature = "documents")]
 mod core_nodes;
 #[cfg(feature = "documents")]
 mod document;
@@ -94,6 +96,12 @@ pub use source::{LineCol, MAX_DOCUMENT_BYTES, SourceFile, Span};
 
 #[cfg(feature = "documents")]
 pub use binding::conformances;
+#[cfg(feature = "documents")]
+pub use compose::{
+    Adjustment, AppliedChange, Axis, AxisOption, Choice, ChoiceSource, Composition,
+    CompositionCheck, Constraint, MAX_SELECTIONS, Pair, ResolveReport, Resolved, Selection,
+    SelectionVerdict, SkippedAdjustment, resolve_launcher,
+};
 #[cfg(feature = "documents")]
 pub use core_nodes::CoreNode;
 #[cfg(feature = "documents")]
