@@ -20,6 +20,7 @@ mod presence;
 mod python_sync;
 mod repo_index;
 mod report;
+mod resolve;
 mod run_node;
 mod runs;
 mod rust_libs;
@@ -46,6 +47,7 @@ pub fn run(cli: Cli) -> Result {
         cli::Command::Validate(args) => validate::run(&args),
         cli::Command::Check(args) => check::run(&args),
         cli::Command::Up(args) => up::run(&args),
+        cli::Command::Resolve(args) => resolve::run(&args),
         cli::Command::Graph(args) => graph::run(&args),
         cli::Command::Run(args) => run_node::run(&args),
         cli::Command::Plan(args) => run_node::plan(&args),

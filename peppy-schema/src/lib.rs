@@ -150,5 +150,6 @@ pub use source::sha256_hex;
 #[cfg(feature = "documents")]
 pub use stack::{
     DeployedNode, FetchError, FetchSource, NoFetch, NodeCheck, RepoOptions, StackCheck,
-    check_launcher, check_launcher_with, check_node, node_file,
+    check_launcher, check_launcher_selection, check_launcher_with, check_node, check_resolved,
+    node_file,
 };
