@@ -181,6 +181,8 @@ pub(super) fn select(c: &Composition, words: &[String]) -> Result<Selection, Dia
                 option: None,
                 source: ChoiceSource::Unfilled,
             },
+            // A word that failed may have meant this axis: say only that.
+            (None, None) if diags.has_errors() => continue,
             (None, None) => {
                 diags.push(
                     a.loc
