@@ -91,11 +91,25 @@ fn the_worked_example_composes_with_its_report() {
         .instances()
         .map(|(_, i)| i.instance_id.as_str())
         .collect();
-    assert_eq!(ids, ["mapper_inst", "front_lidar", "rear_lidar", "log_inst"]);
+    assert_eq!(
+        ids,
+        ["mapper_inst", "front_lidar", "rear_lidar", "log_inst"]
+    );
     assert!(stack_rules(&r.launcher).is_empty());
     let mapper = &r.launcher.deployments[0].instances[0];
-    let scans: Vec<String> = mapper.links[1].value.targets().iter().map(|t| t.to_string()).collect();
-    assert_eq!((mapper.links[1].key.as_str(), scans), ("scans", vec!["front_lidar".to_string(), "rear_lidar".to_string()]));
+    let scans: Vec<String> = mapper.links[1]
+        .value
+        .targets()
+        .iter()
+        .map(|t| t.to_string())
+        .collect();
+    assert_eq!(
+        (mapper.links[1].key.as_str(), scans),
+        (
+            "scans",
+            vec!["front_lidar".to_string(), "rear_lidar".to_string()]
+        )
+    );
     assert!(r.text.contains("max_range_m: 30"), "{}", r.text);
 
     // The printed flat launcher is a flat launcher, and resolves to itself.
@@ -136,10 +150,26 @@ fn with_words_are_checked_and_located_at_components() {
     let path = mapping(&tree, MAPPING);
     let cases: &[(&[&str], Code, &str)] = &[
         (&["simm"], Code::UnknownSelection, "did you mean `sim`?"),
-        (&["sensr=sim"], Code::UnknownSelection, "did you mean `sensor`?"),
-        (&["sensor=hww"], Code::UnknownSelection, "did you mean `sensor=hw`?"),
-        (&["sim", "sensor=hw"], Code::ConflictingSelection, "one option"),
-        (&["sim,,on"], Code::UnknownSelection, "choices: sensor: hw, sim; logging (optional): on"),
+        (
+            &["sensr=sim"],
+            Code::UnknownSelection,
+            "did you mean `sensor`?",
+        ),
+        (
+            &["sensor=hww"],
+            Code::UnknownSelection,
+            "did you mean `sensor=hw`?",
+        ),
+        (
+            &["sim", "sensor=hw"],
+            Code::ConflictingSelection,
+            "one option",
+        ),
+        (
+            &["sim,,on"],
+            Code::UnknownSelection,
+            "choices: sensor: hw, sim; logging (optional): on",
+        ),
     ];
     for (with, code, help_has) in cases {
         let e = resolve_err(&path, with);
@@ -197,7 +227,12 @@ fn constraints_refuse_with_their_reason_where_they_are_written() {
     let verdicts = c.selections();
     let listed: Vec<(String, Option<usize>)> = verdicts
         .iter()
-        .map(|v| (v.selection.with_words(), v.refused_by.as_ref().map(|(i, _)| *i)))
+        .map(|v| {
+            (
+                v.selection.with_words(),
+                v.refused_by.as_ref().map(|(i, _)| *i),
+            )
+        })
         .collect();
     assert_eq!(
         listed,
@@ -222,8 +257,17 @@ fn constraints_refuse_with_their_reason_where_they_are_written() {
     );
     let p = tree.write("f.json5", &text);
     let e = resolve_err(&p, &["robot=sim,cameras=usb"]);
-    assert_eq!(one(&e, Code::ConstraintForbidden).message, "this launcher forbids robot=sim and cameras=usb, which this selection (robot=sim  cameras=usb) has: never both");
-    assert!(Composition::load(&p).expect("loads").check().problems.is_empty());
+    assert_eq!(
+        one(&e, Code::ConstraintForbidden).message,
+        "this launcher forbids robot=sim and cameras=usb, which this selection (robot=sim  cameras=usb) has: never both"
+    );
+    assert!(
+        Composition::load(&p)
+            .expect("loads")
+            .check()
+            .problems
+            .is_empty()
+    );
 }
 
 #[test]
@@ -234,7 +278,10 @@ fn index_checks_find_unreachable_options_and_a_refused_default() {
     let found = Composition::load(&p).expect("loads").check();
     let d = one(&found.problems, Code::DefaultSelectionRefused);
     assert!(d.message.contains("no real robot today"), "{d}");
-    let unreachable: Vec<&str> = all(&found.problems, Code::OptionUnreachable).iter().map(|d| d.message.as_str()).collect();
+    let unreachable: Vec<&str> = all(&found.problems, Code::OptionUnreachable)
+        .iter()
+        .map(|d| d.message.as_str())
+        .collect();
     assert_eq!(
         unreachable,
         [
@@ -245,7 +292,11 @@ fn index_checks_find_unreachable_options_and_a_refused_default() {
 
     // Ten axes of two options: 1024 selections, over the ceiling.
     let axes: Vec<String> = (0..10)
-        .map(|i| format!("{{ name: \"a{i}\", default: \"x{i}\", options: {{ x{i}: {{}}, y{i}: {{}} }} }}"))
+        .map(|i| {
+            format!(
+                "{{ name: \"a{i}\", default: \"x{i}\", options: {{ x{i}: {{}}, y{i}: {{}} }} }}"
+            )
+        })
         .collect();
     let text = format!(
         "{{ peppy_schema: \"launcher/v1\", components: [{}], deployments: [{{ source: {{ name: \"n:v1\" }}, instances: [{{ instance_id: \"i\" }}] }}] }}",
@@ -261,7 +312,10 @@ fn index_checks_find_unreachable_options_and_a_refused_default() {
 fn fragment_paths_files_and_contents_are_checked() {
     let tree = Tree::new();
     tree.write("frag/ok.json5", r#"{ peppy_schema: "launcher_fragment/v1", deployments: [{ source: { name: "n:v1" }, instances: [{ instance_id: "i" }] }] }"#);
-    tree.write("frag/node.json5", r#"{ peppy_schema: "launcher/v1", deployments: [] }"#);
+    tree.write(
+        "frag/node.json5",
+        r#"{ peppy_schema: "launcher/v1", deployments: [] }"#,
+    );
     let bad_inside = r#"{ peppy_schema: "launcher_fragment/v1",
   deployments: [{ source: { name: "n:v1" }, instances: [{ instance_id: "i", bogus: 1 }] }] }"#;
     tree.write("frag/bad.json5", bad_inside);
@@ -287,12 +341,21 @@ fn fragment_paths_files_and_contents_are_checked() {
     let p = tree.write("l.json5", text);
     let e = Composition::load(&p).expect_err("bad fragment");
     let d = one(&e, Code::UnknownKey);
-    assert!(d.file_path().expect("located").ends_with("frag/bad.json5"), "{d}");
+    assert!(
+        d.file_path().expect("located").ends_with("frag/bad.json5"),
+        "{d}"
+    );
     at(d, bad_inside, "bogus");
     // One file shared by two options is read once; both options compose.
     let text = "{ peppy_schema: \"launcher/v1\", components: [{ name: \"a\", default: \"x\", options: { x: \"frag/ok.json5\", y: [\"frag/ok.json5\"] } }] }";
     let p = tree.write("l.json5", text);
-    assert!(Composition::load(&p).expect("loads").check().problems.is_empty());
+    assert!(
+        Composition::load(&p)
+            .expect("loads")
+            .check()
+            .problems
+            .is_empty()
+    );
 }
 
 #[cfg(unix)]
@@ -311,21 +374,38 @@ fn a_symlink_may_not_lead_a_fragment_outside() {
 
 /// A launcher with two fragment files selected together, and `extra`
 /// spliced into the base.
-fn adjusted(tree: &Tree, one_adj: &str, two_adj: &str, extra: &str) -> (std::path::PathBuf, String) {
-    tree.write("one.json5", &format!(r#"{{ peppy_schema: "launcher_fragment/v1",
+fn adjusted(
+    tree: &Tree,
+    one_adj: &str,
+    two_adj: &str,
+    extra: &str,
+) -> (std::path::PathBuf, String) {
+    tree.write(
+        "one.json5",
+        &format!(
+            r#"{{ peppy_schema: "launcher_fragment/v1",
   deployments: [{{ source: {{ name: "a:v1" }}, instances: [{{ instance_id: "a1" }}] }}],
-  adjustments: [{one_adj}] }}"#));
-    tree.write("two.json5", &format!(r#"{{ peppy_schema: "launcher_fragment/v1",
+  adjustments: [{one_adj}] }}"#
+        ),
+    );
+    tree.write(
+        "two.json5",
+        &format!(
+            r#"{{ peppy_schema: "launcher_fragment/v1",
   deployments: [{{ source: {{ name: "b:v1" }}, instances: [{{ instance_id: "b1" }}] }}],
-  adjustments: [{two_adj}] }}"#));
-    let text = format!(r#"{{ peppy_schema: "launcher/v1",
+  adjustments: [{two_adj}] }}"#
+        ),
+    );
+    let text = format!(
+        r#"{{ peppy_schema: "launcher/v1",
   components: [
     {{ name: "p", default: "one", provides: ["a1"], options: {{ one: "one.json5" }} }},
     {{ name: "q", default: "two", options: {{ two: "two.json5" }} }},
   ],
   {extra}
   deployments: [{{ source: {{ name: "base:v1" }}, instances: [{{ instance_id: "hub", arguments: {{ rate: 1 }}, links: {{ solo: "a1", vac: {{ vacant: "none" }}, many: ["a1"] }} }}] }}],
-}}"#);
+}}"#
+    );
     (tree.write("adj.json5", &text), text)
 }
 
@@ -333,49 +413,109 @@ fn adjusted(tree: &Tree, one_adj: &str, two_adj: &str, extra: &str) -> (std::pat
 fn adjustments_conflict_target_nothing_or_break_links_with_located_errors() {
     let tree = Tree::new();
     // Two fragments writing one argument.
-    let (p, _) = adjusted(&tree, r#"{ target: "hub", set_arguments: { rate: 2 } }"#, r#"{ target: "hub", set_arguments: { rate: 3 } }"#, "");
+    let (p, _) = adjusted(
+        &tree,
+        r#"{ target: "hub", set_arguments: { rate: 2 } }"#,
+        r#"{ target: "hub", set_arguments: { rate: 3 } }"#,
+        "",
+    );
     let e = resolve_err(&p, &[]);
     let d = one(&e, Code::AdjustmentsConflict);
-    assert!(d.file_path().expect("located").ends_with("two.json5"), "{d}");
-    assert_eq!(d.message, "one.json5 and two.json5 both write `hub.arguments.rate`");
+    assert!(
+        d.file_path().expect("located").ends_with("two.json5"),
+        "{d}"
+    );
+    assert_eq!(
+        d.message,
+        "one.json5 and two.json5 both write `hub.arguments.rate`"
+    );
     // The base overrides fragments without conflict.
-    let (p, _) = adjusted(&tree, r#"{ target: "hub", set_arguments: { rate: 2 } }"#, "", r#"adjustments: [{ target: "hub", set_arguments: { rate: 4 } }],"#);
+    let (p, _) = adjusted(
+        &tree,
+        r#"{ target: "hub", set_arguments: { rate: 2 } }"#,
+        "",
+        r#"adjustments: [{ target: "hub", set_arguments: { rate: 4 } }],"#,
+    );
     let r = resolve_launcher(&p, &[]).expect("base wins");
-    assert!(r.report.lines().contains(&"  hub.arguments.rate: 2 -> 4  (adj.json5 (base))".to_string()), "{:?}", r.report.lines());
+    assert!(
+        r.report
+            .lines()
+            .contains(&"  hub.arguments.rate: 2 -> 4  (adj.json5 (base))".to_string()),
+        "{:?}",
+        r.report.lines()
+    );
     // One fragment appending to a slot it also replaces.
-    let (p, _) = adjusted(&tree, r#"{ target: "hub", add_links: { many: ["b1"] } }, { target: "hub", unset_links: ["many"] }"#, "", "");
+    let (p, _) = adjusted(
+        &tree,
+        r#"{ target: "hub", add_links: { many: ["b1"] } }, { target: "hub", unset_links: ["many"] }"#,
+        "",
+        "",
+    );
     assert_eq!(codes(&resolve_err(&p, &[])), [Code::AdjustmentsConflict]);
     // Appending to a single target or a vacancy, or a target twice.
-    for (slot, code) in [("solo", Code::AddLinksOnNonArray), ("vac", Code::AddLinksOnNonArray), ("many", Code::AddLinksDuplicateTarget)] {
-        let (p, _) = adjusted(&tree, &format!(r#"{{ target: "hub", add_links: {{ {slot}: ["a1"] }} }}"#), "", "");
+    for (slot, code) in [
+        ("solo", Code::AddLinksOnNonArray),
+        ("vac", Code::AddLinksOnNonArray),
+        ("many", Code::AddLinksDuplicateTarget),
+    ] {
+        let (p, _) = adjusted(
+            &tree,
+            &format!(r#"{{ target: "hub", add_links: {{ {slot}: ["a1"] }} }}"#),
+            "",
+            "",
+        );
         let e = resolve_err(&p, &[]);
         let d = one(&e, code);
-        assert!(d.file_path().expect("located").ends_with("one.json5"), "{d}");
+        assert!(
+            d.file_path().expect("located").ends_with("one.json5"),
+            "{d}"
+        );
     }
     // A target nobody defines, with a did-you-mean, at the adjustment.
-    let (p, text) = adjusted(&tree, "", "", r#"adjustments: [{ target: "hubb", set_arguments: { rate: 4 } }],"#);
+    let (p, text) = adjusted(
+        &tree,
+        "",
+        "",
+        r#"adjustments: [{ target: "hubb", set_arguments: { rate: 4 } }],"#,
+    );
     let e = Composition::load(&p).expect_err("dead target");
     let d = one(&e, Code::TargetDefinedNowhere);
     at(d, &text, "{ target: \"hubb\"");
     assert!(help(d).starts_with("did you mean `hub`?"), "{d}");
     // A guard naming an axis that does not exist.
-    let (p, text) = adjusted(&tree, "", "", r#"adjustments: [{ target: "hub", when: { pp: "one" }, set_arguments: { rate: 4 } }],"#);
+    let (p, text) = adjusted(
+        &tree,
+        "",
+        "",
+        r#"adjustments: [{ target: "hub", when: { pp: "one" }, set_arguments: { rate: 4 } }],"#,
+    );
     let e = Composition::load(&p).expect_err("unknown axis");
     let d = one(&e, Code::UnknownSelection);
     at(d, &text, "pp: \"one\"");
     assert!(help(d).starts_with("did you mean `p`?"), "{d}");
     // An option that does not define what its axis provides.
     let (p, _) = adjusted(&tree, "", "", "");
-    let text = std::fs::read_to_string(&p).expect("read").replace("provides: [\"a1\"]", "provides: [\"a1\", \"a2\"]");
+    let text = std::fs::read_to_string(&p)
+        .expect("read")
+        .replace("provides: [\"a1\"]", "provides: [\"a1\", \"a2\"]");
     let p = tree.write("adj.json5", &text);
     let e = Composition::load(&p).expect_err("provides");
     at(one(&e, Code::ProvidesUnmet), &text, "one: \"one.json5\"");
     // Two origins defining one instance.
-    let text = text.replace("provides: [\"a1\", \"a2\"]", "provides: []").replace("instance_id: \"hub\"", "instance_id: \"b1\"").replace("links: { solo: \"a1\", vac: { vacant: \"none\" }, many: [\"a1\"] }", "");
+    let text = text
+        .replace("provides: [\"a1\", \"a2\"]", "provides: []")
+        .replace("instance_id: \"hub\"", "instance_id: \"b1\"")
+        .replace(
+            "links: { solo: \"a1\", vac: { vacant: \"none\" }, many: [\"a1\"] }",
+            "",
+        );
     let p = tree.write("adj.json5", &text);
     let e = resolve_err(&p, &[]);
     let d = one(&e, Code::DuplicateInstanceId);
-    assert_eq!(d.message, "instance `b1` is defined by both adj.json5 (base) and two.json5");
+    assert_eq!(
+        d.message,
+        "instance `b1` is defined by both adj.json5 (base) and two.json5"
+    );
 }
 
 /// A generated composed launcher: axes of options (inline fragments),

@@ -259,7 +259,13 @@ fn a_composed_launcher_without_its_fragments_names_the_missing_one() {
     let bare = r#"{ peppy_schema: "launcher/v1", components: [] }"#;
     let errors = launcher_err(bare);
     assert_eq!(codes(&errors), [Code::InvalidValue], "{errors}");
-    assert_at(one(&errors, Code::InvalidValue), Code::InvalidValue, "components", bare, "[]");
+    assert_at(
+        one(&errors, Code::InvalidValue),
+        Code::InvalidValue,
+        "components",
+        bare,
+        "[]",
+    );
 }
 
 #[test]
@@ -273,7 +279,13 @@ fn a_fragment_is_not_a_document_on_its_own() {
         .expect_err("a fragment is read through a launcher");
     assert_eq!(codes(&errors), [Code::WrongDocumentKind], "{errors}");
     let d = one(&errors, Code::WrongDocumentKind);
-    assert_at(d, Code::WrongDocumentKind, "peppy_schema", text, "\"launcher_fragment/v1\"");
+    assert_at(
+        d,
+        Code::WrongDocumentKind,
+        "peppy_schema",
+        text,
+        "\"launcher_fragment/v1\"",
+    );
     assert!(help(d).contains("`components`"), "{d}");
     // Asked for as a launcher, the same error.
     let errors = launcher_err(text);
