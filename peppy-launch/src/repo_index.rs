@@ -125,7 +125,21 @@ fn composition_checks(dir: &Path, declared: &DeclaredIndex) -> Result {
         if key.section != IndexSection::Launchers {
             continue;
         }
-        match Composition::load(&dir.join(path)) {
+        // Only composed launchers: a flat one's own validity is `validate`'s
+        // and `check`'s business, not the index's.
+        let file = dir.join(path);
+        let has_keys = peppy_schema::SourceFile::read(&file)
+            .ok()
+            .and_then(|(f, _)| peppy_schema::json::parse(&f).ok())
+            .is_some_and(|(root, _)| {
+                ["components", "adjustments", "constraints"]
+                    .iter()
+                    .any(|k| root.get(k).is_some())
+            });
+        if !has_keys {
+            continue;
+        }
+        match Composition::load(&file) {
             Ok(c) if c.is_composed() => {
                 let found = c.check();
                 composed += 1;

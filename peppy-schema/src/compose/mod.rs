@@ -344,7 +344,7 @@ impl Composition {
 
     /// The first constraint `selection` violates, as its located error.
     pub fn judge(&self, selection: &Selection) -> Result<(), Diagnostics> {
-        select::judge(self, selection).map_err(Diagnostics::from)
+        select::judge(self, selection)
     }
 
     /// Every selection the axes allow (each optional axis also unfilled),

@@ -392,10 +392,7 @@ fn read_part(
             }
             let rel = fragment_path(r, p, node.span, path)?;
             let full = loader.base_dir.join(&rel);
-            let Some(file) = read_fragment_file(r, &full, p, node.span, path, &loader.base_dir)
-            else {
-                return None;
-            };
+            let file = read_fragment_file(r, &full, p, node.span, path, &loader.base_dir)?;
             let mut fdiags = Diagnostics::new();
             let frag = {
                 let (root, jd) = match crate::json::parse(&file) {

@@ -1,7 +1,7 @@
 //! `--with` words to a selection, and the constraints that judge it.
 
 use super::{Choice, ChoiceSource, Composition, Constraint, Pair, Selection};
-use crate::diag::{Code, Diagnostic, Diagnostics, did_you_mean, list};
+use crate::diag::{Code, Diagnostics, did_you_mean, list};
 
 /// The axes and options, for messages: `robot: real, mujoco; recorder: ...`.
 fn menu(c: &Composition) -> String {
@@ -208,7 +208,7 @@ pub(super) fn select(c: &Composition, words: &[String]) -> Result<Selection, Dia
         return Err(diags);
     }
     let selection = Selection { choices };
-    judge(c, &selection).map_err(Diagnostics::from)?;
+    judge(c, &selection)?;
     Ok(selection)
 }
 
@@ -263,7 +263,7 @@ pub(super) fn first_violated(c: &Composition, selection: &Selection) -> Option<u
         .position(|k| violation(k, selection).is_some())
 }
 
-pub(super) fn judge(c: &Composition, selection: &Selection) -> Result<(), Diagnostic> {
+pub(super) fn judge(c: &Composition, selection: &Selection) -> Result<(), Diagnostics> {
     let Some(i) = first_violated(c, selection) else {
         return Ok(());
     };
@@ -271,8 +271,9 @@ pub(super) fn judge(c: &Composition, selection: &Selection) -> Result<(), Diagno
     let Some((code, message)) = violation(k, selection) else {
         return Ok(());
     };
-    Err(k
-        .loc
+    Err(Diagnostics::from(
+        k.loc
         .error(code, format!("{message}: {}", k.reason.trim()))
-        .with_help("the launcher's constraints refuse this selection; choose other options with `--with` (`resolve --list` shows every selection)"))
+        .with_help("the launcher's constraints refuse this selection; choose other options with `--with` (`resolve --list` shows every selection)"),
+    ))
 }
