@@ -139,7 +139,13 @@ fn all_selections(args: &CheckArgs, options: &RepoOptions) -> Result {
     })?;
     let fetcher = crate::sources::Fetcher::new();
     let (mut valid, mut refused, mut invalid, mut errors) = (0, 0, 0, 0);
-    for verdict in composition.selections() {
+    let verdicts = composition.selections().map_err(|diags| {
+        report::print_human(&diags);
+        LaunchError::Invalid {
+            errors: diags.error_count(),
+        }
+    })?;
+    for verdict in verdicts {
         let words = verdict.selection.with_words();
         let shown = if composition.is_composed() {
             format!("--with {words}")

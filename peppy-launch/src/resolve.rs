@@ -44,7 +44,7 @@ pub(crate) fn run(args: &ResolveArgs) -> Result {
 /// Every selection, one per line as `--with` words; refused ones say which
 /// constraint refuses them and why.
 fn list(composition: &Composition) -> Result {
-    let verdicts = composition.selections();
+    let verdicts = composition.selections().map_err(invalid)?;
     let refused = verdicts.iter().filter(|v| v.refused_by.is_some()).count();
     for v in &verdicts {
         let words = if composition.is_composed() {

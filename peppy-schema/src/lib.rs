@@ -99,8 +99,8 @@ pub use binding::conformances;
 #[cfg(feature = "documents")]
 pub use compose::{
     Adjustment, AppliedChange, Axis, AxisOption, Choice, ChoiceSource, Composition,
-    CompositionCheck, Constraint, MAX_SELECTIONS, Pair, ResolveReport, Resolved, Selection,
-    SelectionVerdict, SkippedAdjustment, resolve_launcher,
+    CompositionCheck, Constraint, MAX_LISTED_SELECTIONS, MAX_SELECTIONS, Pair, ResolveReport,
+    Resolved, Selection, SelectionVerdict, SkippedAdjustment, resolve_launcher,
 };
 #[cfg(feature = "documents")]
 pub use core_nodes::CoreNode;

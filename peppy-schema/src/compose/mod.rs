@@ -34,6 +34,9 @@ pub use space::{CompositionCheck, SelectionVerdict};
 /// stops checking every one of them (and says so).
 pub const MAX_SELECTIONS: usize = 512;
 
+/// Selections [`Composition::selections`] lists at most.
+pub const MAX_LISTED_SELECTIONS: usize = 65_536;
+
 /// A launcher file read for composition: a flat launcher (either spelling),
 /// or a composed `launcher/v1` with every fragment of every option loaded.
 #[derive(Debug, Clone)]
@@ -348,9 +351,11 @@ impl Composition {
     }
 
     /// Every selection the axes allow (each optional axis also unfilled),
-    /// in order, with the constraint that refuses it, if any.
-    pub fn selections(&self) -> Vec<SelectionVerdict> {
-        space::enumerate(self)
+    /// in order, with the constraint that refuses it, if any; a space of
+    /// more than [`MAX_LISTED_SELECTIONS`] is refused (`TooManySelections`)
+    /// rather than built.
+    pub fn selections(&self) -> Result<Vec<SelectionVerdict>, Diagnostics> {
+        space::listed(self)
     }
 
     /// The flat launcher of `selection` (a flat launcher: itself).

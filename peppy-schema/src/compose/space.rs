@@ -3,7 +3,7 @@
 //! --check` holds a composed launcher to.
 
 use super::select::{first_violated, violation};
-use super::{Choice, ChoiceSource, Composition, MAX_SELECTIONS, Selection};
+use super::{Choice, ChoiceSource, Composition, MAX_LISTED_SELECTIONS, MAX_SELECTIONS, Selection};
 use crate::diag::{Code, Diagnostics};
 
 /// One selection of the space, and whether the constraints allow it.
@@ -34,7 +34,22 @@ fn count(c: &Composition) -> usize {
         .fold(1usize, usize::saturating_mul)
 }
 
-pub(super) fn enumerate(c: &Composition) -> Vec<SelectionVerdict> {
+pub(super) fn listed(c: &Composition) -> Result<Vec<SelectionVerdict>, Diagnostics> {
+    let n = count(c);
+    if n > MAX_LISTED_SELECTIONS {
+        return Err(c
+            .components_loc
+            .error(
+                Code::TooManySelections,
+                format!("`components` allow {n} selections, more than the {MAX_LISTED_SELECTIONS} listed"),
+            )
+            .with_help("select with `--with` instead")
+            .into());
+    }
+    Ok(enumerate(c))
+}
+
+fn enumerate(c: &Composition) -> Vec<SelectionVerdict> {
     if c.flat.is_some() {
         return vec![SelectionVerdict {
             selection: Selection::default(),

@@ -224,7 +224,7 @@ fn constraints_refuse_with_their_reason_where_they_are_written() {
         "selecting cameras=usb requires robot=real, which this selection (robot=sim  cameras=usb) does not satisfy: the cameras film the real rig"
     );
     let c = Composition::load(&p).expect("loads");
-    let verdicts = c.selections();
+    let verdicts = c.selections().expect("few");
     let listed: Vec<(String, Option<usize>)> = verdicts
         .iter()
         .map(|v| {
@@ -306,6 +306,25 @@ fn index_checks_find_unreachable_options_and_a_refused_default() {
     let found = Composition::load(&p).expect("loads").check();
     assert_eq!(found.selections, 1024);
     assert_eq!(codes(&found.problems), [Code::TooManySelections]);
+
+    // Seventeen: 131072 selections, more than are ever listed.
+    let axes: Vec<String> = (0..17)
+        .map(|i| {
+            format!(
+                "{{ name: \"a{i}\", default: \"x{i}\", options: {{ x{i}: {{}}, y{i}: {{}} }} }}"
+            )
+        })
+        .collect();
+    let text = text.replacen(
+        &text[text.find('[').unwrap()..text.find("], deployments").unwrap() + 1],
+        &format!("[{}]", axes.join(",")),
+        1,
+    );
+    let p = tree.write("huge.json5", &text);
+    let c = Composition::load(&p).expect("loads");
+    let e = c.selections().expect_err("too many to list");
+    assert_eq!(codes(&e), [Code::TooManySelections]);
+    assert_eq!(c.check().selections, 131_072);
 }
 
 #[test]
@@ -590,7 +609,7 @@ proptest! {
             Err(e) => prop_assert!(located(&e), "{e}"),
             Ok(c) => {
                 let _ = c.check();
-                for v in c.selections() {
+                for v in c.selections().expect("few") {
                     match c.resolve(&v.selection) {
                         Err(e) => prop_assert!(v.refused_by.is_some() || located(&e), "{e}"),
                         Ok(r) => {
