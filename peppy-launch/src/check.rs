@@ -4,7 +4,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use peppy_schema::{
-    Diagnostics, RepoOptions, RouteFilter, SlotBinding, SlotKind, StackCheck, check_launcher_with,
+    Composition, Diagnostics, RepoOptions, RouteFilter, SlotBinding, SlotKind, StackCheck,
+    check_launcher_selection, check_resolved,
 };
 use serde::Serialize;
 
@@ -16,6 +17,9 @@ use crate::report::{self, JsonDiagnostic};
 struct JsonReport<'a> {
     valid: bool,
     launcher: String,
+    /// The selection checked (`axis=option` echo), for a composed launcher.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    selection: Option<String>,
     repositories: Vec<String>,
     diagnostics: Vec<JsonDiagnostic>,
     /// The machines, when the launcher places instances on several.
@@ -59,7 +63,15 @@ pub(crate) fn run(args: &CheckArgs) -> Result {
         explicit: args.repos.clone(),
         env: None,
     };
-    let result = check_launcher_with(&args.launcher, &options, &crate::sources::Fetcher::new());
+    if args.all_selections {
+        return all_selections(args, &options);
+    }
+    let result = check_launcher_selection(
+        &args.launcher,
+        &args.with,
+        &options,
+        &crate::sources::Fetcher::new(),
+    );
     // `--place`: show the stack on its machines.
     let result = match result {
         Ok(stack) => Ok(crate::placement::place(
@@ -77,6 +89,7 @@ pub(crate) fn run(args: &CheckArgs) -> Result {
         Format::Json => report::print_json(&JsonReport {
             valid: stack.is_some(),
             launcher: args.launcher.display().to_string(),
+            selection: stack.and_then(|s| s.selection.as_ref().map(ToString::to_string)),
             repositories: stack
                 .map(|s| {
                     s.repositories
@@ -123,6 +136,66 @@ pub(crate) fn run(args: &CheckArgs) -> Result {
     }
 }
 
+/// `check --all-selections`: every selection of the launcher, each resolved
+/// and checked like `check --with` would; refused ones are listed with
+/// the constraint that refuses them.
+fn all_selections(args: &CheckArgs, options: &RepoOptions) -> Result {
+    let composition = Composition::load(&args.launcher).map_err(|diags| {
+        report::print_human(&diags);
+        LaunchError::Invalid {
+            errors: diags.error_count(),
+        }
+    })?;
+    let fetcher = crate::sources::Fetcher::new();
+    let (mut valid, mut refused, mut invalid, mut errors) = (0, 0, 0, 0);
+    let verdicts = composition.selections().map_err(|diags| {
+        report::print_human(&diags);
+        LaunchError::Invalid {
+            errors: diags.error_count(),
+        }
+    })?;
+    for verdict in verdicts {
+        let words = verdict.selection.with_words();
+        let shown = if composition.is_composed() {
+            format!("--with {words}")
+        } else {
+            "(flat launcher)".to_string()
+        };
+        if let Some((i, reason)) = &verdict.refused_by {
+            println!("refused  {shown}: constraint {} says: {reason}", i + 1);
+            refused += 1;
+            continue;
+        }
+        match composition
+            .resolve(&verdict.selection)
+            .and_then(|r| check_resolved(r, options, &fetcher))
+        {
+            Ok(stack) => {
+                println!(
+                    "valid    {shown} ({})",
+                    report::count(stack.launcher.instances().count(), "instance")
+                );
+                valid += 1;
+            }
+            Err(diags) => {
+                println!("invalid  {shown}");
+                report::print_human(&diags);
+                invalid += 1;
+                errors += diags.error_count();
+            }
+        }
+    }
+    println!(
+        "{} selections: {valid} valid, {refused} refused by constraints, {invalid} invalid",
+        valid + refused + invalid
+    );
+    if invalid == 0 {
+        Ok(())
+    } else {
+        Err(LaunchError::Invalid { errors })
+    }
+}
+
 fn summary(diags: &Diagnostics) {
     let errors = diags.error_count();
     eprintln!(
@@ -145,6 +218,9 @@ fn relative(p: &Path) -> String {
 pub(crate) fn render_plan(stack: &StackCheck) -> String {
     let mut out = String::new();
     let _ = writeln!(out, "launcher: {}", relative(stack.launcher.file.path()));
+    if let Some(selection) = &stack.selection {
+        let _ = writeln!(out, "components: {selection}");
+    }
     let repos: Vec<String> = stack.repositories.iter().map(|p| relative(p)).collect();
     let _ = writeln!(
         out,

@@ -47,6 +47,14 @@ pub(crate) enum Command {
     /// for its plan, so every node binds through one engine, e.g.
     /// `peppy-launch plan examples/nodes/video_reconstruction -- --bind left_cam@rs_left`.
     Plan(PlanArgs),
+    /// Print the flat launcher a selection of a composed launcher gives
+    /// (valid input for `check` and `up`) on stdout, and on stderr which
+    /// options were chosen, what each adjustment did and which constraints
+    /// were checked, e.g. `peppy-launch resolve openarm_v2.json5 --with
+    /// mujoco,web_commander`. `--list` prints every selection instead.
+    ///
+    /// Exit code 0 when it resolves, 2 otherwise.
+    Resolve(ResolveArgs),
     /// Draw the stack: instances, bindings, dashed `(any)` edges for
     /// unbound from_any slots, dotted edges for external topics; `--live`
     /// draws the running stack with measured rates. DOT on stdout, or
@@ -443,6 +451,14 @@ pub(crate) struct CheckArgs {
     /// repositories.
     #[arg(value_name = "LAUNCHER")]
     pub(crate) launcher: PathBuf,
+    /// Choose options of a composed launcher's axes: `option` or
+    /// `axis=option`, comma-separated, repeatable (`--with mujoco,cameras=sim_cameras`).
+    #[arg(long = "with", value_name = "OPTIONS")]
+    pub(crate) with: Vec<String>,
+    /// Check every selection the launcher's constraints allow, one after
+    /// another (those they refuse are listed with their reason).
+    #[arg(long, conflicts_with = "with")]
+    pub(crate) all_selections: bool,
     /// An extra repository directory, searched before PEPPY_REPOSITORIES and
     /// the nearest peppy_repositories.json5 (repeatable).
     #[arg(long = "repo", value_name = "DIR")]
@@ -469,6 +485,10 @@ pub(crate) struct UpArgs {
     /// repositories.
     #[arg(value_name = "LAUNCHER")]
     pub(crate) launcher: PathBuf,
+    /// Choose options of a composed launcher's axes: `option` or
+    /// `axis=option`, comma-separated, repeatable (`--with mujoco,cameras=sim_cameras`).
+    #[arg(long = "with", value_name = "OPTIONS")]
+    pub(crate) with: Vec<String>,
     /// An extra repository directory (repeatable).
     #[arg(long = "repo", value_name = "DIR")]
     pub(crate) repos: Vec<PathBuf>,
@@ -511,12 +531,35 @@ pub(crate) struct UpArgs {
 }
 
 #[derive(Debug, Args)]
+pub(crate) struct ResolveArgs {
+    /// The launcher: its file, or its name in the repositories (with
+    /// `--repo`, or the repositories file).
+    #[arg(value_name = "LAUNCHER")]
+    pub(crate) launcher: PathBuf,
+    /// A repository to find a launcher named by name in (repeatable).
+    #[arg(long = "repo", value_name = "DIR")]
+    pub(crate) repos: Vec<PathBuf>,
+    /// Choose options of a composed launcher's axes: `option` or
+    /// `axis=option`, comma-separated, repeatable (`--with mujoco,cameras=sim_cameras`).
+    #[arg(long = "with", value_name = "OPTIONS")]
+    pub(crate) with: Vec<String>,
+    /// Print every selection the launcher's axes allow, one per line as
+    /// `--with` words, and which constraint refuses each refused one.
+    #[arg(long, conflicts_with = "with")]
+    pub(crate) list: bool,
+}
+
+#[derive(Debug, Args)]
 pub(crate) struct GraphArgs {
     /// The launcher: its file, or its name in the repositories (with
     /// `--live`: the stack started from it; give none to look at the only
     /// running launch).
     #[arg(value_name = "LAUNCHER", required_unless_present = "live")]
     pub(crate) file: Option<PathBuf>,
+    /// Choose options of a composed launcher's axes: `option` or
+    /// `axis=option`, comma-separated, repeatable (`--with mujoco,cameras=sim_cameras`).
+    #[arg(long = "with", value_name = "OPTIONS")]
+    pub(crate) with: Vec<String>,
     /// Draw the running stack instead: the instances that answer and the
     /// message flows measured while sampling.
     #[arg(long)]

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use peppy_schema::{RepoOptions, SlotBinding, StackCheck, check_launcher_with};
+use peppy_schema::{RepoOptions, SlotBinding, StackCheck, check_launcher_selection};
 
 use crate::cli::GraphArgs;
 use crate::drawing::{self, DrawEdge, DrawNode, Drawing, EdgeStyle, NodeState};
@@ -30,14 +30,22 @@ pub(crate) fn run(args: &GraphArgs) -> Result {
         explicit: args.repos.clone(),
         env: None,
     };
-    let stack = check_launcher_with(launcher, &options, &crate::sources::Fetcher::new()).map_err(
-        |diags| {
-            report::print_human(&diags);
-            LaunchError::Invalid {
-                errors: diags.error_count(),
-            }
-        },
-    )?;
+    let stack = check_launcher_selection(
+        launcher,
+        &args.with,
+        &options,
+        &crate::sources::Fetcher::new(),
+    )
+    .map_err(|diags| {
+        report::print_human(&diags);
+        LaunchError::Invalid {
+            errors: diags.error_count(),
+        }
+    })?;
+    // DOT stays alone on stdout; the selection drawn is said beside it.
+    if let Some(selection) = &stack.selection {
+        eprintln!("components: {selection}");
+    }
     // `--place`: one frame per machine.
     let stack = crate::placement::place(
         stack,

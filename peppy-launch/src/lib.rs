@@ -21,6 +21,7 @@ mod presence;
 mod python_sync;
 mod repo_index;
 mod report;
+mod resolve;
 mod run_node;
 mod runs;
 mod rust_libs;
@@ -59,6 +60,10 @@ pub fn run(cli: Cli) -> Result {
                 args.file = Some(find_launcher::locate(file, &args.repos)?);
             }
             graph::run(&args)
+        }
+        cli::Command::Resolve(mut args) => {
+            args.launcher = find_launcher::locate(&args.launcher, &args.repos)?;
+            resolve::run(&args)
         }
         cli::Command::Run(args) => run_node::run(&args),
         cli::Command::Plan(args) => run_node::plan(&args),

@@ -7,7 +7,8 @@ use std::io::Write as _;
 use std::path::Path;
 
 use peppy_schema::{
-    DeclaredIndex, Diagnostics, IndexSection, REPOSITORY_INDEX_FILE, check_index, declared_in,
+    Composition, DeclaredIndex, Diagnostics, IndexSection, REPOSITORY_INDEX_FILE, check_index,
+    declared_in,
 };
 
 use crate::cli::{RepoCommand, RepoIndexArgs};
@@ -81,6 +82,7 @@ fn check(dir: &Path) -> Result {
         report::print_human(&warnings);
     }
     let path = dir.join(REPOSITORY_INDEX_FILE);
+    composition_checks(dir, &found.declared)?;
     if found.is_current() {
         println!(
             "{}: up to date ({})",
@@ -110,6 +112,54 @@ fn check(dir: &Path) -> Result {
     Err(LaunchError::Invalid {
         errors: found.drifts.len().max(1),
     })
+}
+
+/// Holds every composed launcher the repository declares to the checks of
+/// [`Composition::check`]: fragments load, the default selection is legal,
+/// every legal selection composes, every constraint refuses something,
+/// every option is reachable, at most 512 selections.
+fn composition_checks(dir: &Path, declared: &DeclaredIndex) -> Result {
+    let mut problems = Diagnostics::new();
+    let (mut composed, mut selections, mut refused) = (0, 0, 0);
+    for (key, path) in &declared.entries {
+        if key.section != IndexSection::Launchers {
+            continue;
+        }
+        // Only composed launchers: a flat one's own validity is `validate`'s
+        // and `check`'s business, not the index's.
+        let file = dir.join(path);
+        let has_keys = peppy_schema::SourceFile::read(&file)
+            .ok()
+            .and_then(|(f, _)| peppy_schema::json::parse(&f).ok())
+            .is_some_and(|(root, _)| {
+                ["components", "adjustments", "constraints"]
+                    .iter()
+                    .any(|k| root.get(k).is_some())
+            });
+        if !has_keys {
+            continue;
+        }
+        match Composition::load(&file) {
+            Ok(c) if c.is_composed() => {
+                let found = c.check();
+                composed += 1;
+                selections += found.selections;
+                refused += found.refused;
+                problems.extend(found.problems);
+            }
+            Ok(_) => {}
+            Err(e) => problems.extend(e),
+        }
+    }
+    if problems.has_errors() {
+        return Err(invalid(problems));
+    }
+    if composed > 0 {
+        println!(
+            "composed launchers: {composed}, {selections} selections ({refused} refused by their constraints), each checked"
+        );
+    }
+    Ok(())
 }
 
 /// `21 nodes, 1 launcher`, or `nothing listed`.

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use peppy_runtime::{Endpoints, StartupConfig};
-use peppy_schema::{Identity, RepoOptions, StackCheck, check_launcher_with};
+use peppy_schema::{Identity, RepoOptions, StackCheck, check_launcher_selection};
 
 use crate::cli::UpArgs;
 use crate::error::{LaunchError, SetupError, UsageError};
@@ -36,8 +36,12 @@ pub(crate) fn run(args: &UpArgs) -> Outcome {
         explicit: args.repos.clone(),
         env: None,
     };
-    let stack = match check_launcher_with(&args.launcher, &options, &crate::sources::Fetcher::new())
-    {
+    let stack = match check_launcher_selection(
+        &args.launcher,
+        &args.with,
+        &options,
+        &crate::sources::Fetcher::new(),
+    ) {
         Ok(stack) => stack,
         Err(diags) => {
             report::print_human(&diags);
@@ -52,6 +56,9 @@ pub(crate) fn run(args: &UpArgs) -> Outcome {
     };
     if !stack.warnings.is_empty() {
         report::print_human(&stack.warnings);
+    }
+    if let Some(selection) = &stack.selection {
+        eprintln!("components: {selection}");
     }
     let stack = place(stack, args)?;
     let runtime = crate::tokio_runtime(None)?;

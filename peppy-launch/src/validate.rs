@@ -162,6 +162,10 @@ fn check_file(path: &Path, explicit: bool) -> Option<Checked> {
         && !is_peppy_named(path)
         && let Ok((root, _)) = peppy_schema::json::parse(&file)
     {
+        // A fragment is checked through the launchers that compose it.
+        if root.get("peppy_schema").and_then(|n| n.as_str()) == Some("launcher_fragment/v1") {
+            return None;
+        }
         let claims = root.get("peppy_schema").is_some() || root.get("schema_version").is_some();
         if detect_kind(&root).is_none() && !claims {
             return None;

@@ -166,9 +166,51 @@ codes! {
     DuplicateLinkTarget,
     /// A `{ vacant: "<why>" }` link value without a reason.
     InvalidVacancy,
-    /// Launcher composition (components, fragments, adjustments,
-    /// constraints), which peppy does not support yet.
-    CompositionNotSupported,
+    // Composed launchers (`components`, fragments, adjustments,
+    // constraints), named as PeppyOS names them where it does.
+    /// `--with` given for a launcher without `components`.
+    WithOnFlatLauncher,
+    /// A `--with` word, `default` or map naming no axis or option.
+    UnknownSelection,
+    /// A bare `--with` option word that several axes have.
+    AmbiguousSelection,
+    /// Two options selected for one axis.
+    ConflictingSelection,
+    /// A required axis with no default that nothing selects.
+    UnresolvedAxis,
+    /// A selection a constraint's `requires` does not allow.
+    ConstraintUnsatisfied,
+    /// A selection a constraint's `forbids` refuses.
+    ConstraintForbidden,
+    /// A fragment path that is absolute, not plain, or leads outside the
+    /// launcher's directory.
+    FragmentPath,
+    /// A fragment file that does not exist or cannot be read.
+    FragmentUnreadable,
+    /// A fragment file that does not parse or is not a `launcher_fragment/v1`.
+    FragmentInvalid,
+    /// An option that does not define an instance its axis `provides`.
+    ProvidesUnmet,
+    /// An adjustment whose target neither the base nor any option defines.
+    TargetDefinedNowhere,
+    /// Two fragments writing the same argument or link (or one fragment
+    /// appending to a slot it also replaces).
+    AdjustmentsConflict,
+    /// `add_links` on a slot holding one target or a vacancy.
+    AddLinksOnNonArray,
+    /// `add_links` adding a target the slot already lists.
+    AddLinksDuplicateTarget,
+    /// Two axes with one name.
+    DuplicateAxis,
+    /// The default selection is refused by a constraint (`repo index --check`).
+    DefaultSelectionRefused,
+    /// More selections than are checked one by one (`repo index --check`).
+    TooManySelections,
+    /// A constraint that refuses no selection (`repo index --check`).
+    ConstraintRefusesNothing,
+    /// An option (or an optional axis unfilled) in no legal selection
+    /// (`repo index --check`).
+    OptionUnreachable,
     /// A node slot bound to an instance of another node.
     BindingTargetMismatch,
     /// An interface slot bound to an instance that does not conform.

@@ -415,23 +415,6 @@ impl LauncherDoc {
     }
 }
 
-/// Reads a launcher without rules 7 and 8 (see `stack_rules`), so that the
-/// binding plan can report them together with every other binding error.
-pub(crate) fn load_launcher_for_plan(path: &Path) -> Parsed<LauncherDoc> {
-    let (file, _) = SourceFile::read(path).map_err(|d| Diagnostics::from(*d))?;
-    let (root, mut diags) = crate::json::parse(&file)?;
-    match detect_kind(&root) {
-        Some(DocumentKind::Launcher) => match parse_launcher(&file, &root, &mut diags, false) {
-            Some(doc) if !diags.has_errors() => Ok((doc, diags)),
-            _ => Err(diags),
-        },
-        // Not a launcher: let the common path report the kind.
-        _ => Err(parse_as(&file, "", DocumentKind::Launcher)
-            .err()
-            .unwrap_or_default()),
-    }
-}
-
 impl RepositoriesDoc {
     /// Reads and parses a `peppy_repositories.json5`.
     pub fn load(path: &Path) -> Parsed<RepositoriesDoc> {

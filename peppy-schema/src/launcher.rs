@@ -2,8 +2,9 @@
 //! their slots are filled. Two spellings are read into one model: the
 //! seeds' (`peppy_schema: "launcher_v1"`, slots filled by `bindings`) and
 //! today's PeppyOS (`"launcher/v1"`, slots filled by `links`, plus
-//! `framework`). Composition (components, fragments, adjustments,
-//! constraints) is refused for now; see docs/DOCUMENTS.md.
+//! `framework`). A composed launcher (components, fragments, adjustments,
+//! constraints) is read through `crate::compose`: parsed on its own, it
+//! is the flat launcher of its default selection.
 
 use std::fmt;
 use std::path::PathBuf;
@@ -41,31 +42,23 @@ pub const FORBIDDEN_ENV_VARS: &[&str] = &[
     "GLOBIGNORE",
 ];
 
-/// `peppy_schema` of today's launcher fragments, which peppy refuses with
-/// the rest of composition.
+/// `peppy_schema` of today's launcher fragments.
 pub(crate) const FRAGMENT_SCHEMA: &str = "launcher_fragment/v1";
-
-/// Today's top-level keys that make a launcher a family composed from
-/// fragments.
-const COMPOSITION_KEYS: &[&str] = &["components", "adjustments", "constraints"];
-
-/// What composition is, for messages.
-const COMPOSITION: &str = "launcher composition (components, fragments, adjustments, constraints)";
 
 /// Longest core node name today's spelling accepts (PeppyOS's limit).
 const MAX_CORE_NODE_NAME: usize = 63;
 
-/// A `launcher_fragment/v1` document, refused: peppy does not compose
-/// launchers yet.
+/// A `launcher_fragment/v1` document read on its own: it is only a part of
+/// the launchers whose `components` name it.
 pub(crate) fn fragment_refused(file: &Arc<SourceFile>, schema: &Node) -> Diagnostic {
     Diagnostic::error(
-        Code::CompositionNotSupported,
-        format!("`{FRAGMENT_SCHEMA}` is {COMPOSITION}, which peppy does not support yet"),
+        Code::WrongDocumentKind,
+        format!("`{FRAGMENT_SCHEMA}` is a launcher fragment, not a document on its own"),
     )
     .at(file, schema.span)
     .with_key_path("peppy_schema")
     .with_help(
-        "a fragment is only read through a launcher's `components`; write its deployments into a flat `launcher/v1` launcher",
+        "a fragment is read through the `components` of a `launcher/v1` launcher; check or resolve that launcher",
     )
 }
 
@@ -321,10 +314,10 @@ pub(crate) fn parse_launcher(
     } else {
         &["peppy_schema", "core_nodes", "security", "deployments"]
     };
-    let obj = r.object(root, "", keys)?;
-    if today && refuse_composition(&mut r, &obj) {
-        return None;
+    if today && crate::compose::is_composed(root) {
+        return crate::compose::default_flat(file, r.diags, cross_check);
     }
+    let obj = r.object(root, "", keys)?;
     let core_nodes = obj
         .get("core_nodes")
         .map(|n| crate::core_nodes::parse_core_nodes(&mut r, n))
@@ -369,32 +362,6 @@ pub(crate) fn parse_launcher(
         }
     }
     Some(doc)
-}
-
-/// Refuses today's composition keys, one error each; `true` when there was
-/// any. A composed launcher's base is not a launcher on its own (its links
-/// name instances its fragments define), so nothing else is checked: the
-/// one error that matters is not buried under its consequences.
-fn refuse_composition(r: &mut Reader<'_>, obj: &Obj<'_>) -> bool {
-    let mut composed = false;
-    for m in obj
-        .members
-        .iter()
-        .filter(|m| COMPOSITION_KEYS.contains(&m.key.as_str()))
-    {
-        r.error_help(
-            Code::CompositionNotSupported,
-            m.key_span,
-            &m.key,
-            format!(
-                "`{}` is {COMPOSITION}, which peppy does not support yet",
-                m.key
-            ),
-            "write the flat launcher instead, with `deployments` only (what `peppy stack resolve <file> --with ...` prints)",
-        );
-        composed = true;
-    }
-    composed
 }
 
 /// Today's core node names are placeholders wired to machines at launch:
@@ -518,7 +485,7 @@ pub fn stack_rules(doc: &LauncherDoc) -> Diagnostics {
     diags
 }
 
-fn parse_deployment(
+pub(crate) fn parse_deployment(
     r: &mut Reader<'_>,
     node: &Node,
     path: &str,
@@ -1157,7 +1124,12 @@ fn parse_links(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> Vec<Link> {
 /// Help for a malformed target.
 const TARGET_HELP: &str = "a target is an instance id (`\"cam\"`) or an instance and its peer's slot (`\"planner/deliberation\"`)";
 
-fn parse_link_value(r: &mut Reader<'_>, node: &Node, path: &str, key: &str) -> Option<LinkValue> {
+pub(crate) fn parse_link_value(
+    r: &mut Reader<'_>,
+    node: &Node,
+    path: &str,
+    key: &str,
+) -> Option<LinkValue> {
     match &node.value {
         Value::String(s) => link_target(r, s, node.span, path, key).map(LinkValue::One),
         Value::Array(items) => {

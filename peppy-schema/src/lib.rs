@@ -47,6 +47,8 @@ mod source;
 // The documents: parsing, resolution, launchers and repositories (the
 // `documents` feature, on by default; node binaries go without it).
 #[cfg(feature = "documents")]
+mod compose;
+#[cfg(feature = "documents")]
 mod core_nodes;
 #[cfg(feature = "documents")]
 mod document;
@@ -94,6 +96,12 @@ pub use source::{LineCol, MAX_DOCUMENT_BYTES, SourceFile, Span};
 
 #[cfg(feature = "documents")]
 pub use binding::conformances;
+#[cfg(feature = "documents")]
+pub use compose::{
+    Adjustment, AppliedChange, Axis, AxisOption, Choice, ChoiceSource, Composition,
+    CompositionCheck, Constraint, MAX_LISTED_SELECTIONS, MAX_SELECTIONS, Pair, ResolveReport,
+    Resolved, Selection, SelectionVerdict, SkippedAdjustment, resolve_launcher,
+};
 #[cfg(feature = "documents")]
 pub use core_nodes::{CoreNode, Placement};
 #[cfg(feature = "documents")]
@@ -143,5 +151,6 @@ pub use source::sha256_hex;
 #[cfg(feature = "documents")]
 pub use stack::{
     DeployedNode, FetchError, FetchSource, NoFetch, NodeCheck, RepoOptions, StackCheck,
-    check_launcher, check_launcher_with, check_node, node_file,
+    check_launcher, check_launcher_selection, check_launcher_with, check_node, check_resolved,
+    node_file,
 };

@@ -5,6 +5,7 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use crate::compose::{Resolved, Selection};
 use crate::diag::{Code, Diagnostics};
 use crate::launcher::{Deployment, LauncherDoc, Source};
 use crate::node::{Launch, NodeDoc};
@@ -81,8 +82,10 @@ pub struct DeployedNode {
 /// every binding planned.
 #[derive(Debug, Clone)]
 pub struct StackCheck {
-    /// The launcher.
+    /// The launcher (a composed one: the flat launcher of `selection`).
     pub launcher: LauncherDoc,
+    /// The selection checked, for a composed launcher.
+    pub selection: Option<Selection>,
     /// `deployments[i]` is the node of `launcher.deployments[i]`.
     pub deployments: Vec<DeployedNode>,
     /// The binding plan.
@@ -133,12 +136,40 @@ pub fn check_launcher(path: &Path, options: &RepoOptions) -> Result<StackCheck, 
 
 /// [`check_launcher`], with `fetcher` bringing remote sources' nodes to
 /// local directories first; from there they are checked like `local` ones.
+/// A composed launcher is checked for its default selection.
 pub fn check_launcher_with(
     path: &Path,
     options: &RepoOptions,
     fetcher: &dyn FetchSource,
 ) -> Result<StackCheck, Diagnostics> {
-    let (launcher, mut diags) = crate::document::load_launcher_for_plan(path)?;
+    check_launcher_selection(path, &[], options, fetcher)
+}
+
+/// [`check_launcher_with`] for the selection `with` words give (`option`
+/// or `axis=option`, comma-separated): the launcher is resolved by
+/// [`resolve_launcher`](crate::resolve_launcher), then checked.
+pub fn check_launcher_selection(
+    path: &Path,
+    with: &[String],
+    options: &RepoOptions,
+    fetcher: &dyn FetchSource,
+) -> Result<StackCheck, Diagnostics> {
+    check_resolved(
+        crate::compose::resolve_launcher(path, with)?,
+        options,
+        fetcher,
+    )
+}
+
+/// Checks a launcher already resolved for one selection (what
+/// `check --all-selections` does for each).
+pub fn check_resolved(
+    resolved: Resolved,
+    options: &RepoOptions,
+    fetcher: &dyn FetchSource,
+) -> Result<StackCheck, Diagnostics> {
+    let selection = resolved.report.selection.clone();
+    let (launcher, mut diags) = (resolved.launcher, resolved.warnings);
     let base = absolute(&launcher.base_dir());
     let mut repositories =
         RepositoryList::discover(&options.explicit, options.env_value().as_deref(), &base)?;
@@ -263,6 +294,7 @@ pub fn check_launcher_with(
     }
     Ok(StackCheck {
         launcher,
+        selection,
         deployments: deployments
             .into_iter()
             .map(|d| d.expect("no errors means every node resolved"))

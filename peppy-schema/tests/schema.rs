@@ -9,6 +9,8 @@ mod support;
 
 #[path = "schema/binding_plan.rs"]
 mod binding_plan;
+#[path = "schema/composition.rs"]
+mod composition;
 #[path = "schema/contracts.rs"]
 mod contracts;
 #[path = "schema/examples.rs"]

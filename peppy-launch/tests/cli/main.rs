@@ -3,6 +3,7 @@
 
 mod check;
 mod clock;
+mod composed;
 mod inspect;
 mod machines;
 mod migrate;

@@ -1,6 +1,7 @@
 //! Today's `launcher/v1` launchers (current_peppyos.md §5.1-§5.3, §3
 //! "Vacancy"): read into the launcher model with `links` instead of
-//! `bindings`, parse-time rules only; composition refused.
+//! `bindings`, parse-time rules only; a composed launcher reads as its
+//! default selection (composition itself: composition.rs).
 
 use std::path::PathBuf;
 
@@ -223,11 +224,12 @@ fn placement_pairing_targets_lists_vacancies_and_framework_read() {
     assert_eq!(planner.framework.use_sim_time, None);
 }
 
-/// Shaped like the hub's `openarm/openarm_v2.json5`: a family of launchers
-/// whose base links to instances only its fragments define. Only the
-/// composition errors come out, one per key, and nothing they cause.
+/// Shaped like the hub's `openarm/openarm_v2.json5`: a family whose base
+/// links to instances only its fragments define. Parsed from text with no
+/// fragment files beside it, the one error is the missing fragment, where
+/// the option names it; nothing it causes.
 #[test]
-fn a_composed_launcher_gives_only_the_composition_errors() {
+fn a_composed_launcher_without_its_fragments_names_the_missing_one() {
     let text = r#"{
   peppy_schema: "launcher/v1",
   components: [
@@ -235,7 +237,7 @@ fn a_composed_launcher_gives_only_the_composition_errors() {
       options: { real: { deployments: [{ source: { name: "openarm_arm", tag: "v1" }, instances: [{ instance_id: "left_arm_inst" }] }] },
                  mujoco: ["fragments/sim_relays.json5"] } },
   ],
-  constraints: [{ when: { robot: "mujoco" }, forbids: [{ robot: "real" }], reason: "x" }],
+  constraints: [{ forbids: [{ robot: "mujoco" }], reason: "x" }],
   adjustments: [{ target: "backbone_inst", set_arguments: { hardware_version: "v2" } }],
   deployments: [
     { source: { name: "openarm_backbone", tag: "v1" }, instances: [
@@ -244,79 +246,50 @@ fn a_composed_launcher_gives_only_the_composition_errors() {
   ],
 }"#;
     let errors = launcher_err(text);
-    assert_eq!(
-        codes(&errors),
-        [
-            Code::CompositionNotSupported,
-            Code::CompositionNotSupported,
-            Code::CompositionNotSupported
-        ],
-        "{errors}"
+    assert_eq!(codes(&errors), [Code::FragmentUnreadable], "{errors}");
+    assert_at(
+        one(&errors, Code::FragmentUnreadable),
+        Code::FragmentUnreadable,
+        "components[0].options.mujoco[0]",
+        text,
+        "\"fragments/sim_relays.json5\"",
     );
-    let found = all(&errors, Code::CompositionNotSupported);
-    for (d, key_name) in found
-        .iter()
-        .zip(["components", "constraints", "adjustments"])
-    {
-        assert_at(
-            d,
-            Code::CompositionNotSupported,
-            key_name,
-            text,
-            &format!("{key_name}:"),
-        );
-        assert_eq!(
-            d.message,
-            format!(
-                "`{key_name}` is launcher composition (components, fragments, adjustments, constraints), which peppy does not support yet"
-            )
-        );
-        assert!(
-            help(d).starts_with("write the flat launcher instead"),
-            "{d}"
-        );
-    }
 
-    // No `deployments` at all is fine for a family (PeppyOS defaults it):
-    // still only the one error.
+    // A family needs an axis.
     let bare = r#"{ peppy_schema: "launcher/v1", components: [] }"#;
     let errors = launcher_err(bare);
-    assert_eq!(codes(&errors), [Code::CompositionNotSupported], "{errors}");
+    assert_eq!(codes(&errors), [Code::InvalidValue], "{errors}");
     assert_at(
-        one(&errors, Code::CompositionNotSupported),
-        Code::CompositionNotSupported,
+        one(&errors, Code::InvalidValue),
+        Code::InvalidValue,
         "components",
         bare,
-        "components",
+        "[]",
     );
 }
 
 #[test]
-fn fragments_are_refused_as_composition() {
+fn a_fragment_is_not_a_document_on_its_own() {
     let text = r#"{
   peppy_schema: "launcher_fragment/v1",
   deployments: [{ source: { name: "zed_camera", tag: "v1" }, instances: [{ instance_id: "chest" }] }],
   adjustments: [{ target: "recorder_inst", add_links: { rgbd_cameras: ["chest"] } }],
 }"#;
     let errors = parse_document(&SourceFile::new("cameras.json5", text), "")
-        .expect_err("fragments are not read");
-    assert_eq!(codes(&errors), [Code::CompositionNotSupported], "{errors}");
-    let d = one(&errors, Code::CompositionNotSupported);
+        .expect_err("a fragment is read through a launcher");
+    assert_eq!(codes(&errors), [Code::WrongDocumentKind], "{errors}");
+    let d = one(&errors, Code::WrongDocumentKind);
     assert_at(
         d,
-        Code::CompositionNotSupported,
+        Code::WrongDocumentKind,
         "peppy_schema",
         text,
         "\"launcher_fragment/v1\"",
     );
-    assert_eq!(
-        d.message,
-        "`launcher_fragment/v1` is launcher composition (components, fragments, adjustments, constraints), which peppy does not support yet"
-    );
-    assert!(help(d).contains("flat `launcher/v1`"), "{d}");
+    assert!(help(d).contains("`components`"), "{d}");
     // Asked for as a launcher, the same error.
     let errors = launcher_err(text);
-    assert_eq!(codes(&errors), [Code::CompositionNotSupported], "{errors}");
+    assert_eq!(codes(&errors), [Code::WrongDocumentKind], "{errors}");
 }
 
 /// Each spelling refuses the other's way of filling slots, and says which
