@@ -243,3 +243,50 @@ fn every_selection_is_checked_and_the_index_holds_the_composition_checks() {
     assert_eq!(run.code, 2, "{}", run.stdout);
     assert!(run.stderr.contains("(OptionUnreachable)"), "{}", run.stderr);
 }
+
+/// The composed example, launched for two of its selections: the slots are
+/// filled as each selection says.
+#[test]
+fn the_camera_rig_example_runs_as_each_selection_says() {
+    use crate::seeds::{BUILD_AND_START, Launch};
+    use std::time::Duration;
+    const RIG: &str = "examples/launchers/camera_rig.json5";
+
+    // The default: the RealSense alone, the overhead slot vacant.
+    let mut launch = Launch::up(RIG, &[]);
+    launch.expect("naming the viewer's camera", BUILD_AND_START, |l| {
+        l.starts_with("[viewer]") && l.contains("cameras: linked to front_cam")
+    });
+    launch.expect(
+        "with the overhead slot vacant",
+        Duration::from_secs(30),
+        |l| l.starts_with("[viewer]") && l.contains("overhead: vacant"),
+    );
+    launch.expect(
+        "with the RealSense's frames",
+        Duration::from_secs(30),
+        |l| {
+            l.starts_with("[viewer]") && l.contains("cameras: first frame from front_cam (160x120)")
+        },
+    );
+    assert!(
+        !launch.seen.iter().any(|l| l.starts_with("[mosaic]")),
+        "no inspector unless chosen"
+    );
+    drop(launch);
+
+    // The simulator with the mosaic: the fragment's adjustment links the
+    // overhead camera to the viewer, the base's adds it to the mosaic.
+    let mut launch = Launch::up(RIG, &["--with", "sim,mosaic"]);
+    launch.expect("naming the selection", BUILD_AND_START, |l| {
+        l.contains("components: camera=sim  inspector=mosaic")
+    });
+    launch.expect("with the overhead camera linked", BUILD_AND_START, |l| {
+        l.starts_with("[viewer]") && l.contains("overhead: linked to overhead_cam")
+    });
+    for camera in ["front_cam", "overhead_cam"] {
+        launch.expect("with the mosaic tiling it", Duration::from_secs(30), |l| {
+            l.starts_with("[mosaic]") && l.contains(&format!("extras: first frame from {camera}"))
+        });
+    }
+}
