@@ -431,31 +431,11 @@ impl RepoIndex {
                     repository: repo.to_path_buf(),
                 });
             }
-            Ok((Document::Launcher(_), _)) => {
-                let stem = path
-                    .file_stem()
-                    .and_then(OsStr::to_str)
-                    .unwrap_or_default()
-                    .to_string();
-                self.launchers
-                    .entry(stem)
-                    .or_default()
-                    .push(path.to_path_buf());
-            }
+            Ok((Document::Launcher(_), _)) => self.add_launcher(path),
             Ok((Document::Repositories(_) | Document::RepositoryIndex(_), _)) => {}
             // A launcher is found by its file name, valid or not: whoever
             // asks for it by name is told what is wrong with it.
-            Err(_) if kind == Some(DocumentKind::Launcher) => {
-                let stem = path
-                    .file_stem()
-                    .and_then(OsStr::to_str)
-                    .unwrap_or_default()
-                    .to_string();
-                self.launchers
-                    .entry(stem)
-                    .or_default()
-                    .push(path.to_path_buf());
-            }
+            Err(_) if kind == Some(DocumentKind::Launcher) => self.add_launcher(path),
             Err(diagnostics) => {
                 if let (Some(kind), Some(id)) = (kind, peek_identity(&root)) {
                     self.broken.entry((kind, id)).or_insert(Broken {
@@ -465,6 +445,19 @@ impl RepoIndex {
                 }
             }
         }
+    }
+
+    /// Lists a launcher file under its stem (launchers have no tag).
+    fn add_launcher(&mut self, path: &Path) {
+        let stem = path
+            .file_stem()
+            .and_then(OsStr::to_str)
+            .unwrap_or_default()
+            .to_string();
+        self.launchers
+            .entry(stem)
+            .or_default()
+            .push(path.to_path_buf());
     }
 
     /// Adds a node ahead of everything scanned (a launcher's deployed nodes

@@ -244,15 +244,7 @@ fn a_dropped_link_between_two_hosts_heals_by_itself() {
     let st_b = workstation_state.path();
     let launcher = "examples/launchers/two_machines.json5";
     stack_keys(st, launcher);
-    assert!(
-        std::process::Command::new("cp")
-            .args(["-rp"])
-            .arg(st.join("stacks"))
-            .arg(st_b)
-            .status()
-            .unwrap()
-            .success()
-    );
+    copy_stack_keys(st, st_b);
     let robot_at = format!("tcp/{}:7447", crate::netns::HOST_A);
     let mut robot = Launch::up_in(
         &hosts.on(&hosts.a),
@@ -563,4 +555,18 @@ fn the_arm_loop_across_two_hosts_through_a_router() {
     );
     assert_eq!(workstation.stop(), 0);
     assert_eq!(robot.stop(), 0);
+}
+
+/// Copies the stacks' keys of one host's state directory to another's, as
+/// a user copies them between machines.
+pub(crate) fn copy_stack_keys(from: &std::path::Path, to: &std::path::Path) {
+    assert!(
+        std::process::Command::new("cp")
+            .args(["-rp"])
+            .arg(from.join("stacks"))
+            .arg(to)
+            .status()
+            .unwrap()
+            .success()
+    );
 }

@@ -436,15 +436,7 @@ fn placed_core_nodes_link_two_hosts_secured() {
     );
     let desk_state = tempfile::tempdir().unwrap();
     let st_b = desk_state.path();
-    assert!(
-        std::process::Command::new("cp")
-            .args(["-rp"])
-            .arg(st.join("stacks"))
-            .arg(st_b)
-            .status()
-            .unwrap()
-            .success()
-    );
+    crate::machines::copy_stack_keys(st, st_b);
     let rig_at = format!("tcp/{}:7447", crate::netns::HOST_A);
     let mut rig = Launch::up_in(
         &hosts.on(&hosts.a),

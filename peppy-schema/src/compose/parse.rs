@@ -633,14 +633,7 @@ fn read_adjustments(r: &mut Reader<'_>, node: &Node, path: &str, origin: &str) -
             let p = obj.path_of("set_links");
             for m in members_of(r, n, &p) {
                 let kpath = join(&p, &m.key);
-                if let Err(why) = check_link_id(&m.key) {
-                    r.error(
-                        Code::InvalidName,
-                        m.key_span,
-                        &kpath,
-                        format!("invalid link key `{}`: {why}", m.key),
-                    );
-                }
+                link_key(r, m, &kpath);
                 parse_link_value(r, &m.value, &kpath, &m.key);
                 set_links.push((m.key.clone(), m.value.clone()));
             }
@@ -651,14 +644,7 @@ fn read_adjustments(r: &mut Reader<'_>, node: &Node, path: &str, origin: &str) -
             let p = obj.path_of("add_links");
             for m in members_of(r, n, &p) {
                 let kpath = join(&p, &m.key);
-                if let Err(why) = check_link_id(&m.key) {
-                    r.error(
-                        Code::InvalidName,
-                        m.key_span,
-                        &kpath,
-                        format!("invalid link key `{}`: {why}", m.key),
-                    );
-                }
+                link_key(r, m, &kpath);
                 match &m.value.value {
                     Value::Array(items) if !items.is_empty() => {
                         // The link grammar checks each target and repeats.
@@ -1016,5 +1002,17 @@ impl Composition {
             .iter()
             .flat_map(|f| f.adjustments.iter())
             .chain(self.adjustments.iter())
+    }
+}
+
+/// Checks a slot key of `set_links` / `add_links`.
+fn link_key(r: &mut Reader<'_>, m: &crate::json::Member, path: &str) {
+    if let Err(why) = check_link_id(&m.key) {
+        r.error(
+            Code::InvalidName,
+            m.key_span,
+            path,
+            format!("invalid link key `{}`: {why}", m.key),
+        );
     }
 }
