@@ -138,7 +138,7 @@ class HarnessTests(unittest.IsolatedAsyncioTestCase):
             self.assertEqual([r.a for r in add.captured()], [1, 2, 3])
             # `caller` never serves its `double`: the call names it when it times out.
             with self.assertRaises(TimeoutError) as e:
-                await testing.poll_service(h, DOUBLE_SERVED, AddRequest(21, 0), 0.5)
+                await testing.poll_service(h, DOUBLE_SERVED, AddRequest(21, 0), 2.0)
             self.assertIn("double", str(e.exception))
 
     async def test_a_setup_that_raises_fails_through_shutdown_and_pending_waits(self) -> None:
@@ -173,8 +173,11 @@ class HarnessTests(unittest.IsolatedAsyncioTestCase):
             active = await pending.accept()
             await active.publish_feedback(MOVE_FEEDBACK.cls(0.5))
             await active.complete(MoveResult(2.0))
-            while len(results) < 2:
-                await asyncio.sleep(0.01)
+            async def both() -> None:
+                while len(results) < 2:
+                    await asyncio.sleep(0.01)
+
+            await asyncio.wait_for(both(), WAIT)
             self.assertEqual(results[1], (ResultStatus.COMPLETED, MoveResult(2.0)))
 
         async with testing.start(MOVER, lambda p, n: None, cam_vacant=True) as h:
