@@ -194,7 +194,7 @@ fn harness(
          (or `h = await harness.start(setup)`, then `await h.shutdown()`) boots the node's\n\
          `setup` in this process against a mock producer per slot (`h.mocks.deps.<link_id>`),\n\
          over a private Zenoh router, with taps on every topic it emits (`h.emitted.<topic>`).\n\n\
-         Options: `parameters=` (a `Parameters` or a dict over the schema's defaults),\n\
+         Options: `parameters=` (a `Parameters` or a dict; defaults and checks by `peppy-launch plan`),\n\
          `instance_id=`, `use_sim_time=`, `node_dir=`, and per slot `<link_id>_instances=N`,\n\
          `<link_id>_instance_ids=[...]` (slots of several producers), `<link_id>_vacant=True`\n\
          (a `zero_or_one` slot)."
@@ -202,7 +202,6 @@ fn harness(
     out.line(HEADER);
     out.line("from __future__ import annotations");
     out.blank();
-    out.line("import json as _json");
     out.line("from typing import Any, Callable, Optional");
     out.blank();
     out.line("from peppy import testing as _testing");
@@ -230,27 +229,6 @@ fn harness(
         .collect();
     out.line(&format!("EMITTED = {{{}}}", taps.join(", ")));
     out.line("\"\"\"Each tap's name (`h.emitted.<name>`) and the topic it taps.\"\"\"");
-    let (defaults, missing) = match node
-        .node
-        .execution
-        .parameters
-        .resolve(&serde_json::Value::Null)
-    {
-        Ok(v) => (v.to_string(), String::new()),
-        Err(errors) => (
-            "null".to_string(),
-            errors
-                .iter()
-                .map(|e| e.to_string())
-                .collect::<Vec<_>>()
-                .join("; "),
-        ),
-    };
-    out.line(&format!(
-        "DEFAULT_PARAMETERS = _json.loads({})",
-        py_string(&defaults)
-    ));
-    out.line("\"\"\"The schema's defaults (None when a parameter has none).\"\"\"");
     out.blank();
     out.blank();
     out.line(
@@ -262,21 +240,11 @@ fn harness(
     out.docstring(&format!(
         "Boots `setup` of node `{identity}` under a harness (see the module's doc)."
     ));
-    if !missing.is_empty() {
-        out.line("if parameters is None:");
-        out.line(&format!(
-            "    raise ValueError({})",
-            py_string(&format!(
-                "node `{identity}` has parameters without a default ({missing}): pass `parameters=`"
-            ))
-        ));
-    }
     out.line("return _testing.start(");
     out.line("    DESCRIPTOR,");
     out.line("    setup,");
     out.line("    mocks=MOCKS,");
     out.line("    emitted=EMITTED,");
-    out.line("    default_parameters=DEFAULT_PARAMETERS,");
     out.line("    parameters=parameters,");
     out.line("    instance_id=instance_id,");
     out.line("    use_sim_time=use_sim_time,");

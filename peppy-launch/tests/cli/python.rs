@@ -475,6 +475,8 @@ fn python_examples_pass_their_harness_tests() {
                 "no:cacheprovider",
             ])
             .current_dir(&node)
+            // The harness asks `peppy-launch plan` for the node's plan.
+            .env("PEPPY_LAUNCH", env!("CARGO_BIN_EXE_peppy-launch"))
             .stdout(std::process::Stdio::piped())
             .stderr(std::process::Stdio::piped())
             .spawn()

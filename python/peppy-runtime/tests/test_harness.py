@@ -5,6 +5,7 @@ generated code writes them."""
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import logging
 import unittest
 from typing import Any, List
@@ -25,6 +26,7 @@ from peppy_testing import (
     MoveResult,
     Reading,
     Wide,
+    model_of,
 )
 
 from peppy import ResultStatus, clock, testing
@@ -56,6 +58,9 @@ MOVER = s.NodeDescriptor(
     slots=(s.SlotSpec("cam", "node", "camera", "v1", False, "zero_or_one"),),
     consumed_actions=(MOVE_CALLED,),
 )
+# The harness asks `peppy-launch plan` for each node's plan, from its model.
+RELAY = dataclasses.replace(RELAY, model=model_of(RELAY))
+MOVER = dataclasses.replace(MOVER, model=model_of(MOVER))
 
 
 async def relay_setup(params: Any, node_runner: Any) -> List[Any]:

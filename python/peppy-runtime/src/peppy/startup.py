@@ -217,11 +217,12 @@ def peppy_launch() -> Optional[str]:
     return os.environ.get(PEPPY_LAUNCH_ENV) or shutil.which("peppy-launch")
 
 
-def from_flags(args: Sequence[str], descriptor: NodeDescriptor) -> Startup:
-    """The plan a standalone command line gives: `peppy-launch plan` runs
-    the node's flags (`--instance-id`, `--bind`, `--params`, `key=value`,
-    ...) through the engine a launch uses, so a Python node started by hand
-    binds exactly as a Rust one does."""
+def plan_text_from_flags(args: Sequence[str], descriptor: NodeDescriptor) -> str:
+    """The plan (JSON text) a standalone command line gives: `peppy-launch
+    plan` runs the node's flags (`--instance-id`, `--link`, `--params`,
+    `key=value`, ...) through the engine a launch uses, so a Python node
+    started by hand (or by the test harness) binds and checks its
+    parameters exactly as a Rust one does."""
     if descriptor.model is None:
         raise StartupError(
             f"node `{descriptor.name}:{descriptor.tag}` has no model to plan with; "
@@ -247,7 +248,14 @@ def from_flags(args: Sequence[str], descriptor: NodeDescriptor) -> Startup:
     if done.returncode != 0:
         message = done.stderr.strip()
         raise StartupError(message.removeprefix("peppy-launch: ") or f"`{program} plan` failed")
-    return plan_from_text(done.stdout, f"`{program} plan` answered", descriptor)
+    return done.stdout
+
+
+def from_flags(args: Sequence[str], descriptor: NodeDescriptor) -> Startup:
+    """The plan a standalone command line gives (`plan_text_from_flags`),
+    applied to this node."""
+    text = plan_text_from_flags(args, descriptor)
+    return plan_from_text(text, "`peppy-launch plan` answered", descriptor)
 
 
 def load(descriptor: NodeDescriptor, args: Sequence[str], config_file: Optional[str]) -> Startup:

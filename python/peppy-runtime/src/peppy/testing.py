@@ -40,7 +40,7 @@ from .intake import finish, reply
 from .keys import ACTION, SERVICE, action_part_key, clock_sync_key, clock_tick_key, entry_key
 from .node import NodeBuilder, _call_setup
 from .producer import ProducerRef
-from .routing import FROM_ANY_BOUND, SET, RouteFilter, SlotBinding, SlotPlan
+from .routing import RouteFilter, SlotBinding, SlotPlan
 from .runner import NodeRunner
 from .services import call
 from .spec import (
@@ -55,7 +55,7 @@ from .spec import (
     SlotSpec,
     TopicSpec,
 )
-from .startup import Endpoints, Startup
+from .startup import Endpoints, Startup, plan_text_from_flags
 from .today import Subscription
 
 log = logging.getLogger("peppy")
@@ -852,7 +852,6 @@ def start(
     *,
     mocks: Optional[Dict[str, type]] = None,
     emitted: Optional[Dict[str, TopicSpec]] = None,
-    default_parameters: Optional[Dict[str, Any]] = None,
     parameters: Any = None,
     instance_id: Optional[str] = None,
     use_sim_time: bool = False,
@@ -863,8 +862,10 @@ def start(
 
     `mocks` maps a slot's link_id to its generated `Mock` class (default
     `SlotMock`), `emitted` a tap's name to the emitted topic it taps (default:
-    each topic's name), `default_parameters` are the schema's defaults
-    (`parameters`, a `Parameters` or a dict, is laid over them). Per slot:
+    each topic's name). `parameters` (a `Parameters` or a dict) are
+    checked, and completed with the document's defaults, by `peppy-launch
+    plan`, which also binds each slot to its mocks (it must be on `PATH`
+    or in `PEPPY_LAUNCH`). Per slot:
     `<link_id>_instances=N` and `<link_id>_instance_ids=[...]` (slots of
     several producers), `<link_id>_vacant=True` (a `zero_or_one` slot).
     `node_dir` is where relative paths of the node resolve (the working
@@ -875,7 +876,6 @@ def start(
             setup,
             mocks or {},
             emitted,
-            default_parameters or {},
             parameters,
             instance_id,
             use_sim_time,
@@ -914,22 +914,31 @@ def _instances(slot: SlotSpec, options: Dict[str, Any]) -> Tuple[List[str], bool
     return ids, False
 
 
-def _slot_plan(slot: SlotSpec, ids: List[str], vacant: bool) -> Dict[str, Any]:
-    if slot.from_any:
-        binding = SlotBinding(FROM_ANY_BOUND, tuple(ids))
-        route = RouteFilter("only_from", frozenset(ids))
-    elif slot.cardinality == "one":
-        binding = SlotBinding.pinned(ids[0])
-        route = RouteFilter("pin", frozenset(ids))
-    else:
-        binding = SlotBinding(SET, tuple(ids), "left vacant by the test harness" if vacant else None)
-        route = RouteFilter("only_from", frozenset(ids))
-    return SlotPlan(slot.link_id, slot.kind, slot.name, slot.tag, binding, route).to_json()
+def _plan_flags(
+    descriptor: NodeDescriptor,
+    instance_id: str,
+    wanted: Sequence[Tuple[SlotSpec, List[str], bool]],
+    parameters_file: Optional[str],
+) -> List[str]:
+    """The standalone command line that binds each slot to its mocks (or
+    leaves it vacant): `peppy-launch plan` turns it into the node's plan,
+    so the binding engine and the parameter checker decide, as for any
+    node started by hand."""
+    flags = ["--instance-id", instance_id]
+    for slot, ids, vacant in wanted:
+        if vacant:
+            flags += ["--vacant-link", f"{slot.link_id}=left vacant by the test harness"]
+        flags += [a for i in ids for a in ("--link", f"{slot.link_id}@{i}")]
+    if parameters_file is not None:
+        flags += ["--params", parameters_file]
+    return flags
 
 
-def _parameters_json(defaults: Dict[str, Any], given: Any) -> Dict[str, Any]:
+def _parameters_given(given: Any) -> Optional[Dict[str, Any]]:
+    """The parameters a test gives, as JSON values (a `Parameters` or a
+    dict; `None`: the document's defaults)."""
     if given is None:
-        return json.loads(json.dumps(defaults))
+        return None
     if dataclasses.is_dataclass(given) and not isinstance(given, type):
         given = dataclasses.asdict(given)
     if not isinstance(given, dict):
@@ -944,15 +953,7 @@ def _parameters_json(defaults: Dict[str, Any], given: Any) -> Dict[str, Any]:
             return [plain(x) for x in v]
         return v
 
-    def merge(base: Any, over: Any) -> Any:
-        if isinstance(base, dict) and isinstance(over, dict):
-            out = dict(base)
-            for k, v in over.items():
-                out[k] = merge(base.get(k), v)
-            return out
-        return plain(over)
-
-    return merge(json.loads(json.dumps(defaults)), given)
+    return plain(given)
 
 
 async def _start(
@@ -960,7 +961,6 @@ async def _start(
     setup: Callable[[Any, NodeRunner], Any],
     mock_classes: Dict[str, type],
     emitted: Optional[Dict[str, TopicSpec]],
-    defaults: Dict[str, Any],
     parameters: Any,
     instance_id: Optional[str],
     use_sim_time: bool,
@@ -968,12 +968,11 @@ async def _start(
     options: Dict[str, Any],
 ) -> Harness:
     options = dict(options)
-    plans = []
-    wanted: List[Tuple[SlotSpec, List[str]]] = []
+    chosen: List[Tuple[SlotSpec, List[str], bool]] = []
     for slot in descriptor.slots:
         ids, vacant = _instances(slot, options)
-        plans.append(_slot_plan(slot, ids, vacant))
-        wanted.append((slot, ids))
+        chosen.append((slot, ids, vacant))
+    wanted = [(slot, ids) for slot, ids, _ in chosen]
     if options:
         allowed = sorted(
             f"{s.link_id}_{k}" for s in descriptor.slots for k in ("instances", "instance_ids", "vacant")
@@ -1022,15 +1021,26 @@ async def _start(
                 made.append(mock)
             many = slot.from_any or slot.cardinality in ("one_or_more", "zero_or_more")
             setattr(h.mocks.deps, _attr(slot.link_id), made if many else (made[0] if made else None))
-        plan = {
-            "instance_id": h.instance_id,
-            "core_node": NODE_CORE,
-            "namespace": NAMESPACE,
-            "slots": plans,
-            "parameters": _parameters_json(defaults, parameters),
-            "zenoh": {"mode": "client", "connect": [h.router_endpoint], "multicast_scouting": False},
-            "use_sim_time": bool(use_sim_time),
-        }
+        given = _parameters_given(parameters)
+        params_file = None
+        if given is not None:
+            with tempfile.NamedTemporaryFile("w", suffix=".json", prefix="peppy-params-", delete=False) as f:
+                json.dump(given, f)
+                params_file = f.name
+        try:
+            flags = _plan_flags(descriptor, h.instance_id, chosen, params_file)
+            plan_text = await asyncio.get_running_loop().run_in_executor(
+                None, plan_text_from_flags, flags, descriptor
+            )
+        finally:
+            if params_file is not None:
+                os.remove(params_file)
+        # The engine's plan, placed on the harness: its identity, its router.
+        plan = json.loads(plan_text)
+        plan["core_node"] = NODE_CORE
+        plan["namespace"] = NAMESPACE
+        plan["zenoh"] = {"mode": "client", "connect": [h.router_endpoint], "multicast_scouting": False}
+        plan["use_sim_time"] = bool(use_sim_time)
         with tempfile.NamedTemporaryFile("w", suffix=".json", prefix="peppy-harness-", delete=False) as f:
             json.dump(plan, f)
             path = f.name
