@@ -55,7 +55,7 @@ pub(super) fn files(node: &ResolvedNode, surface: &Surface) -> Vec<PythonFile> {
     }
     out.push((
         "fixtures/harness.py".into(),
-        harness(node, &identity, &mocks, surface),
+        harness(&identity, &mocks, surface),
     ));
     for (tap, path) in &surface.emitted {
         let file = fixture_path(path);
@@ -182,12 +182,7 @@ fn import_module(prefix: &str, path: &str, alias: &str) -> String {
     }
 }
 
-fn harness(
-    node: &ResolvedNode,
-    identity: &str,
-    mocks: &[(String, String)],
-    surface: &Surface,
-) -> String {
+fn harness(identity: &str, mocks: &[(String, String)], surface: &Surface) -> String {
     let mut out = Source::default();
     out.docstring(&format!(
         "The test harness of node `{identity}`: `async with harness.start(setup) as h:`\n\
