@@ -744,6 +744,7 @@ impl Instances<'_> {
             core_node: core_node.to_string(),
             namespace: self.namespace.to_string(),
             slots: inst.slots.clone(),
+            pairs: inst.pairs.clone(),
             parameters: inst.parameters.clone(),
             // Secured, every instance is a client of the router, which
             // checks everything it sends and receives; a peer would link to
@@ -1189,6 +1190,7 @@ mod tests {
             core_node: "c".into(),
             namespace: "n".into(),
             slots: Vec::new(),
+            pairs: Vec::new(),
             parameters: serde_json::Value::Null,
             zenoh: Endpoints::default(),
             use_sim_time: false,

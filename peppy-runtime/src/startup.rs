@@ -8,8 +8,8 @@ use std::time::Duration;
 
 use clap::Parser;
 use peppy_schema::{
-    BindForm, BindRequest, NodeModel, ParamKind, ParameterSchema, Primitive, SlotPlan, assign,
-    fit_plan,
+    BindForm, BindRequest, NodeModel, PairEnd, PairPlan, ParamKind, ParameterSchema, Primitive,
+    SlotPlan, assign, fit_pair_plans, fit_plan,
 };
 use serde::{Deserialize, Serialize};
 use serde_json::Value as Json;
@@ -43,6 +43,11 @@ pub struct StartupConfig {
     /// filter its consumers apply.
     #[serde(default)]
     pub slots: Vec<SlotPlan>,
+    /// Every pairing slot of the node, in order: the peer a participant
+    /// is linked with, the sources an observer watches
+    /// (docs/PAIRINGS.md).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pairs: Vec<PairPlan>,
     /// Parameter values, checked and with every default filled in.
     #[serde(default)]
     pub parameters: Json,
@@ -375,6 +380,24 @@ pub(crate) fn load(
             return Err(Error::Startup(format!("invalid {what} `{value}`: {why}")));
         }
     }
+    let (binds_given, pair_plans) = match binds_given {
+        Some(binds) => {
+            let (pairs, rest) = pairs_from_flags(doc, binds)?;
+            (Some(rest), pairs)
+        }
+        None => (None, std::mem::take(&mut config.pairs)),
+    };
+    config.pairs = fit_pair_plans(&doc.pairings, pair_plans).map_err(|e| {
+        Error::Startup(format!(
+            "{e} (`{}`){}",
+            doc.identity,
+            if binds_given.is_some() {
+                ""
+            } else {
+                "; was this binary built from another peppy.json5 than the launcher read?"
+            }
+        ))
+    })?;
     let slots = match binds_given {
         Some(binds) => slots_from_flags(doc, &config.instance_id, &binds)?,
         None => fit_plan(&doc.dependencies, std::mem::take(&mut config.slots)).map_err(|e| {
@@ -570,6 +593,7 @@ fn standalone_config(
             .or_else(|| standalone.namespace.clone())
             .unwrap_or_else(|| DEFAULT_NAMESPACE.to_string()),
         slots: Vec::new(),
+        pairs: Vec::new(),
         parameters,
         zenoh: endpoints,
         use_sim_time: flags.use_sim_time || standalone.use_sim_time,
@@ -638,6 +662,59 @@ fn typed_value(schema: &ParameterSchema, path: &str, raw: &str) -> Json {
         }
         None => Json::String(raw.into()),
     }
+}
+
+/// `--link` / `--vacant-link` flags naming a pairing slot, as that slot's
+/// plan (`SLOT@PEER` or `SLOT@PEER/PEER_SLOT`, repeated for an observer's
+/// sources); the other flags are left for the binding engine.
+fn pairs_from_flags(doc: &NodeModel, binds: Binds) -> Result<(Vec<PairPlan>, Binds)> {
+    let mut plans: Vec<PairPlan> = Vec::new();
+    let mut rest = Vec::new();
+    for b in binds {
+        let Some(slot) = doc.pairing(&b.key) else {
+            rest.push(b);
+            continue;
+        };
+        if b.kind == FlagKind::Bind {
+            return Err(Error::Startup(format!(
+                "--bind `{}@{}` names pairing slot `{}`: pair it with --link {}@{}",
+                b.key, b.value, slot.link_id, b.key, b.value
+            )));
+        }
+        let i = match plans.iter().position(|p| p.link_id == b.key) {
+            Some(i) => i,
+            None => {
+                plans.push(PairPlan {
+                    link_id: b.key.clone(),
+                    peers: Vec::new(),
+                    vacant: None,
+                });
+                plans.len() - 1
+            }
+        };
+        match b.kind {
+            FlagKind::Vacant => plans[i].vacant = Some(b.value),
+            _ => {
+                let end = PairEnd::parse(&b.value).ok_or_else(|| {
+                    Error::Startup(format!(
+                        "invalid --link `{}@{}`: a pairing slot takes PEER or PEER/PEER_SLOT",
+                        b.key, b.value
+                    ))
+                })?;
+                plans[i].peers.push(end);
+            }
+        }
+    }
+    if let Some(p) = plans
+        .iter()
+        .find(|p| p.vacant.is_some() && !p.peers.is_empty())
+    {
+        return Err(Error::Startup(format!(
+            "pairing slot `{}` is both linked and left vacant",
+            p.link_id
+        )));
+    }
+    Ok((plans, rest))
 }
 
 /// Slots from `--bind` flags, through the binding engine. The producers'
@@ -1082,6 +1159,7 @@ mod tests {
             core_node: "lab-1".into(),
             namespace: "lab".into(),
             slots,
+            pairs: Vec::new(),
             parameters: serde_json::json!({ "fps": 30, "name": "n", "video": { "scale": 1.0 } }),
             zenoh: Endpoints {
                 connect: vec!["tcp/127.0.0.1:7447".into()],

@@ -39,6 +39,7 @@ mod diag;
 mod loc;
 mod model;
 pub mod names;
+mod pairs;
 mod params;
 mod primitive;
 mod qos;
@@ -85,7 +86,8 @@ pub use binding::{
 };
 pub use diag::{Code, Diagnostic, Diagnostics, Severity, did_you_mean};
 pub use loc::Loc;
-pub use model::{Cardinality, Dependency, Identity, NodeModel, SlotKind, Spelling};
+pub use model::{Cardinality, Dependency, Identity, NodeModel, PairingSlot, SlotKind, Spelling};
+pub use pairs::{PairEnd, PairPlan, PairPlanError, check_pair_plan, fit_pair_plans};
 pub use params::{
     ParamError, ParamErrorKind, ParamField, ParamItem, ParamKind, ParameterSchema, check_leaf,
     describe,
@@ -125,7 +127,7 @@ pub use launcher::{
 #[cfg(feature = "documents")]
 pub use node::{
     ConsumedRef, ConsumedTopic, Container, Execution, FieldRefine, FormatRefine, InterfaceRef,
-    Launch, MemberRef, NodeDoc, PairingSlot, Pin, Refine, RefinedMessage, TopicSource,
+    Launch, MemberRef, NodeDoc, Pin, Refine, RefinedMessage, TopicSource,
 };
 #[cfg(feature = "documents")]
 pub use pairing::{PairingDoc, PairingRole, PairingTopic};

@@ -160,6 +160,52 @@ pub struct Dependency {
     pub loc: Loc,
 }
 
+/// A `depends_on.pairings` (participant) or `depends_on.pairing_observers`
+/// slot: one exclusive peer playing the counterpart role (participant), or
+/// the sources playing `role` that the node watches (observer).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct PairingSlot {
+    /// The slot's link_id.
+    pub link_id: String,
+    /// The pairing document.
+    pub pairing: Identity,
+    /// The role this node plays (participant) or watches (observer).
+    pub role: String,
+    /// The pairing's other role, filled in when the slot is resolved
+    /// against its pairing document (empty before): a participant's peer
+    /// plays it, and an observer's sources are paired with instances
+    /// playing it.
+    #[serde(default)]
+    pub counterpart: String,
+    /// Whether it observes rather than takes part.
+    #[serde(default)]
+    pub observer: bool,
+    /// Pairing revision pin.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sha256: Option<String>,
+    /// A participant slot that may stay vacant.
+    #[serde(default)]
+    pub optional: bool,
+    /// An observer slot's cardinality (`one` for participants).
+    #[serde(default)]
+    pub cardinality: Cardinality,
+    /// Where the entry is (not carried into a compiled [`NodeModel`]).
+    #[serde(skip)]
+    pub loc: Loc,
+}
+
+impl PairingSlot {
+    /// Whether the slot may end with nobody in it: an optional participant,
+    /// or an observer whose cardinality admits none.
+    pub fn admits_empty(&self) -> bool {
+        if self.observer {
+            self.cardinality.admits_empty()
+        } else {
+            self.optional
+        }
+    }
+}
+
 /// A node as the runtime needs it: identity, slots (`depends_on`, in
 /// order) and parameter schema.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -174,12 +220,20 @@ pub struct NodeModel {
     pub dependencies: Vec<Dependency>,
     /// `execution.parameters`.
     pub parameters: ParameterSchema,
+    /// Today's pairing slots, participants and observers, in order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pairings: Vec<PairingSlot>,
 }
 
 impl NodeModel {
     /// The slot named `link_id`.
     pub fn dependency(&self, link_id: &str) -> Option<&Dependency> {
         self.dependencies.iter().find(|d| d.link_id == link_id)
+    }
+
+    /// The pairing slot named `link_id`.
+    pub fn pairing(&self, link_id: &str) -> Option<&PairingSlot> {
+        self.pairings.iter().find(|p| p.link_id == link_id)
     }
 
     /// The model as compact JSON, for embedding in a node binary.
@@ -202,6 +256,7 @@ impl NodeModel {
             identity: doc.identity(),
             dependencies: doc.dependencies.clone(),
             parameters: doc.execution.parameters.clone(),
+            pairings: doc.pairings.clone(),
         }
     }
 }

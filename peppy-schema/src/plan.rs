@@ -10,6 +10,7 @@ use crate::diag::{Code, Diagnostic, Diagnostics};
 use crate::launcher::{Instance, LauncherDoc, LinkValue, RestartPolicy};
 use crate::loc::Loc;
 use crate::node::{Dependency, Identity, NodeDoc};
+use crate::pairs::PairPlan;
 
 /// One instance, ready to run.
 #[derive(Debug, Clone, Serialize)]
@@ -22,6 +23,9 @@ pub struct InstancePlan {
     pub node: Identity,
     /// Its slots, in `depends_on` order.
     pub slots: Vec<SlotPlan>,
+    /// Its pairing slots, in order: each participant's peer, each
+    /// observer's sources.
+    pub pairs: Vec<PairPlan>,
     /// Parameters with defaults filled in.
     pub parameters: serde_json::Value,
     /// `env_vars`.
@@ -90,6 +94,7 @@ pub fn plan_bindings(
             deployment: d,
             node: node.identity(),
             slots,
+            pairs: Vec::new(),
             parameters,
             env_vars: inst.env_vars.clone(),
             restart: inst.restart,

@@ -112,6 +112,7 @@ pub(crate) async fn open(
             loc: Default::default(),
         }],
         parameters: ParameterSchema::default(),
+        pairings: Vec::new(),
     };
     let standalone = StandaloneConfig::new()
         .with_instance_id(instance_id)

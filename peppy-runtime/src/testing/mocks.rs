@@ -140,6 +140,7 @@ impl MockProducer {
             identity,
             dependencies: Vec::new(),
             parameters: ParameterSchema::default(),
+            pairings: Vec::new(),
         };
         let standalone = StandaloneConfig::new()
             .with_instance_id(instance_id)

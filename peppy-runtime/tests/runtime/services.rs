@@ -192,6 +192,7 @@ async fn a_pinned_call_follows_its_server_into_another_launch() {
         core_node: "lab-2".into(),
         namespace: ns.clone(),
         slots: Vec::new(),
+        pairs: Vec::new(),
         parameters: serde_json::json!({}),
         zenoh: peppy_runtime::Endpoints {
             connect: vec![hub.endpoint.clone()],

@@ -10,11 +10,12 @@ mod refine;
 mod slots;
 mod today;
 
+pub(crate) use crate::model::PairingSlot;
 pub use execution::{Container, Execution, Launch};
 pub use refine::{FieldRefine, FormatRefine, Pin, Refine, RefinedMessage};
 pub(crate) use refine::{action_message, check_refine};
 pub(crate) use slots::read_sha256;
-pub use today::{MemberRef, PairingSlot};
+pub use today::MemberRef;
 
 use std::sync::Arc;
 

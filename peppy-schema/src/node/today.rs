@@ -26,28 +26,6 @@ pub struct MemberRef {
     pub loc: Loc,
 }
 
-/// A `depends_on.pairings` (participant) or `depends_on.pairing_observers`
-/// slot. Read and checked; peppy does not run pairings yet.
-#[derive(Debug, Clone)]
-pub struct PairingSlot {
-    /// The slot's link_id.
-    pub link_id: String,
-    /// The pairing document.
-    pub pairing: Identity,
-    /// The role this node plays (participant) or watches (observer).
-    pub role: String,
-    /// Whether it observes rather than takes part.
-    pub observer: bool,
-    /// Pairing revision pin.
-    pub sha256: Option<String>,
-    /// A participant slot that may stay vacant.
-    pub optional: bool,
-    /// An observer slot's cardinality (`one` for participants).
-    pub cardinality: Cardinality,
-    /// Where the entry is.
-    pub loc: Loc,
-}
-
 /// What today's `manifest` adds to the seeds' one.
 #[derive(Default)]
 pub(super) struct TodayManifest {
@@ -297,6 +275,7 @@ fn parse_pairing_slot(
         link_id,
         pairing: Identity::new(name, tag),
         role,
+        counterpart: String::new(),
         observer,
         sha256,
         optional,
