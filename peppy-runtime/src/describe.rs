@@ -42,6 +42,59 @@ pub struct InstanceInfo {
     pub services: Vec<ServedService>,
     /// Actions it serves.
     pub actions: Vec<ServedAction>,
+    /// Its pairing slots, participants and observers, with their state
+    /// when the description was asked for.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pairings: Vec<PairingSlotInfo>,
+}
+
+/// A pairing slot and its state (docs/PAIRINGS.md).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PairingSlotInfo {
+    /// The slot's `link_id`.
+    pub link_id: String,
+    /// The pairing document.
+    pub pairing: Identity,
+    /// The role the slot plays (a participant) or watches (an observer).
+    pub role: String,
+    /// Whether it observes rather than takes part.
+    pub observer: bool,
+    /// A participant: the slot it claims, `instance/link_id` (or only the
+    /// instance while its slot is being looked up); `None` while it
+    /// claims nobody.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub claiming: Option<String>,
+    /// A participant: its peer while paired.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub peer: Option<PeerEndInfo>,
+    /// An observer: its sources, in link order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sources: Vec<SourceInfo>,
+}
+
+/// The other end of a pair.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PeerEndInfo {
+    /// The peer's core node.
+    pub core_node: String,
+    /// The peer instance.
+    pub instance_id: String,
+    /// The peer's pairing slot.
+    pub link_id: String,
+}
+
+/// A source an observer slot watches.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SourceInfo {
+    /// Its core node (this node's until its presence was seen).
+    pub core_node: String,
+    /// The source instance.
+    pub instance_id: String,
+    /// Its pairing slot, once known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub link_id: Option<String>,
+    /// Whether its presence token is up.
+    pub live: bool,
 }
 
 /// A slot and what fills it.
@@ -343,6 +396,7 @@ mod tests {
                 key: "peppy/lab/service/node/arm/v1/home/c/arm_1".into(),
             }],
             actions: Vec::new(),
+            pairings: Vec::new(),
         }
     }
 

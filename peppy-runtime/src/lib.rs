@@ -41,6 +41,7 @@ mod error;
 mod intake;
 mod members;
 mod node;
+mod pairing;
 mod producer_ref;
 mod producers;
 mod publisher;
@@ -66,6 +67,9 @@ pub use actions::{
 };
 pub use error::{Error, Result};
 pub use node::{NodeBuilder, NodeRunner};
+pub use pairing::{
+    ObservedSource, ObservedSubscription, PairedPublisher, PairedSubscription, PeerInfo,
+};
 pub use peppy_schema::QosProfile as QoSProfile;
 pub use producer_ref::{NonEmptyProducers, ProducerRef};
 pub use publisher::{OutgoingMessage, TopicPublisher};
@@ -86,6 +90,11 @@ pub mod codegen {
     pub use crate::actions::{
         CancelState, GoalClient, GoalContext, GoalServer, IncomingGoal, Outcome, next_goal,
         send_goal, send_goal_to,
+    };
+    pub use crate::pairing::{
+        ObservedSource, ObservedSubscription, PairedPublisher, PairedSubscription, PeerInfo,
+        declare_paired_publisher, observed_source, observed_sources, paired, subscribe_observed,
+        subscribe_paired, wait_paired,
     };
     pub use crate::producer_ref::{NonEmptyProducers, ProducerRef};
     pub use crate::publisher::{OutgoingMessage, TopicPublisher, declare_publisher};

@@ -27,6 +27,7 @@ use crate::describe::{
 };
 use crate::error::{Error, Result};
 use crate::members::Members;
+use crate::pairing::{self, Pairings};
 use crate::producer_ref::ProducerRef;
 use crate::producers::Declarer;
 use crate::qos;
@@ -374,6 +375,8 @@ pub struct NodeRunner {
     use_sim_time: bool,
     /// Held by the one stop sequence; `true` once it has run.
     stopped: tokio::sync::Mutex<bool>,
+    /// The pairing slots and their pairs.
+    pairings: Pairings,
 }
 
 /// A shutdown hook and where it was registered (its name in the logs).
@@ -416,7 +419,7 @@ impl NodeRunner {
     pub(crate) async fn open(
         doc: &NodeModel,
         descriptor: &'static NodeDescriptor,
-        startup: StartupConfig,
+        mut startup: StartupConfig,
         retention: std::time::Duration,
         shared_memory: SharedMemory,
         grace: Duration,
@@ -437,6 +440,7 @@ impl NodeRunner {
             .insert_json5(key, value)
             .map_err(|e| Error::Startup(format!("invalid shared-memory setting `{key}`: {e}")))?;
         let session = zenoh::open(config).await?;
+        let pair_plans = std::mem::take(&mut startup.pairs);
         let mut runner = NodeRunner {
             session,
             node_name: doc.identity.name.clone(),
@@ -461,6 +465,7 @@ impl NodeRunner {
             grace,
             use_sim_time: startup.use_sim_time,
             stopped: tokio::sync::Mutex::new(false),
+            pairings: Pairings::default(),
         };
         let mut entities = Entities::default();
         let started_at_ms = describe::now_ms();
@@ -471,8 +476,6 @@ impl NodeRunner {
         runner
             .serve_actions(descriptor, retention, &mut entities)
             .await?;
-        let info = runner.describe(descriptor, consumes, started_at_ms);
-        runner.serve_description(info, &mut entities).await?;
         // Presence: withdrawn when the node shuts down or dies.
         let live = liveliness_key(
             &runner.namespace,
@@ -482,6 +485,23 @@ impl NodeRunner {
             &runner.node_tag,
         );
         entities.liveliness = Some(runner.session.liveliness().declare_token(live).await?);
+        // Claims are out as soon as the node is up: a peer started
+        // earlier pairs with it at once.
+        let tools = pairing::Tools {
+            declarer: Declarer::start(runner.session.clone(), runner.token.clone()),
+            mismatch: mismatch_reporter(runner.session.clone(), runner.namespace.clone()),
+        };
+        let own = pairing::Own {
+            session: &runner.session,
+            ns: &runner.namespace,
+            core: &runner.core_node,
+            instance: &runner.instance_id,
+        };
+        let pairings =
+            Pairings::start(own, &doc.pairings, &pair_plans, tools, &runner.token).await?;
+        runner.pairings = pairings;
+        let info = runner.describe(descriptor, consumes, started_at_ms);
+        runner.serve_description(info, &mut entities).await?;
         runner.entities = Mutex::new(entities);
         info!(
             node = %format_args!("{}:{}", runner.node_name, runner.node_tag),
@@ -720,6 +740,7 @@ impl NodeRunner {
             consumes,
             services: services.collect(),
             actions: actions.collect(),
+            pairings: self.pairings.info(),
         }
     }
 
@@ -727,11 +748,21 @@ impl NodeRunner {
     async fn serve_description(&self, info: InstanceInfo, entities: &mut Entities) -> Result<()> {
         let key = describe_key(&self.namespace, &self.core_node, &self.instance_id);
         let (reply_key, body) = (key.clone(), info.to_json());
+        // Pairs come and go: a node with pairing slots describes their
+        // state as it is when asked.
+        let pairings = self.pairings.clone();
         let q = self
             .session
             .declare_queryable(key)
             .callback(move |q| {
-                let _ = zenoh::Wait::wait(q.reply(reply_key.as_str(), body.as_bytes().to_vec()));
+                let body = if pairings.is_empty() {
+                    body.clone()
+                } else {
+                    let mut info = info.clone();
+                    info.pairings = pairings.info();
+                    info.to_json()
+                };
+                let _ = zenoh::Wait::wait(q.reply(reply_key.as_str(), body.into_bytes()));
             })
             .await?;
         entities.queryables.push(q);
@@ -1012,6 +1043,11 @@ impl NodeRunner {
     /// The keys this node's requests go to, declared once each.
     pub(crate) fn request_keys(&self) -> &RequestKeys {
         &self.request_keys
+    }
+
+    /// The pairing slots of this instance.
+    pub(crate) fn pairings(&self) -> &Pairings {
+        &self.pairings
     }
 
     /// The Zenoh session, for anything peppy does not wrap.

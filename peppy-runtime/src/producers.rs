@@ -24,7 +24,7 @@ use tokio_util::sync::CancellationToken;
 use tracing::debug;
 use zenoh::Session;
 
-use crate::wire::keys::parse_entry_key;
+use crate::wire::keys::{parse_entry_key, parse_pairing_topic_key};
 
 /// How many producer keys one consumed topic remembers. Past it, a key is
 /// parsed per message and not declared: a flood of made-up keys costs
@@ -42,7 +42,15 @@ pub(crate) struct Producer {
 
 impl Producer {
     fn parse(key: &str) -> Option<Producer> {
-        let sender = parse_entry_key(key)?;
+        if let Some(sender) = parse_entry_key(key) {
+            return Some(Producer {
+                core: sender.core.into(),
+                instance: sender.instance.into(),
+            });
+        }
+        // A pairing's topic: the sender's slot is pinned by the
+        // subscription, so the instance is all a reader needs.
+        let sender = parse_pairing_topic_key(key)?;
         Some(Producer {
             core: sender.core.into(),
             instance: sender.instance.into(),

@@ -17,8 +17,8 @@ use crate::wire::codec::Encode;
 /// encoded when published, straight into shared memory when it goes there,
 /// so building it ahead copies nothing.
 pub struct OutgoingMessage {
-    topic: &'static TopicSpec,
-    body: Box<dyn Encode + Send + Sync>,
+    pub(crate) topic: &'static TopicSpec,
+    pub(crate) body: Box<dyn Encode + Send + Sync>,
 }
 
 impl OutgoingMessage {

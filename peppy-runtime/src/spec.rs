@@ -88,6 +88,26 @@ pub struct ConsumedTopicSpec {
     pub format: FormatSpec,
 }
 
+/// A pairing topic this node's role emits, through one pairing slot.
+#[derive(Debug)]
+pub struct PairedTopicSpec {
+    /// The pairing slot.
+    pub link_id: &'static str,
+    /// The topic (its owner is unused: a pairing's key names the pairing,
+    /// found from the slot).
+    pub topic: TopicSpec,
+}
+
+/// A pairing topic this node receives through one pairing slot: the
+/// counterpart's (a participant) or the watched role's (an observer).
+#[derive(Debug)]
+pub struct ConsumedPairedTopicSpec {
+    /// The pairing slot.
+    pub link_id: &'static str,
+    /// The topic (`link_id` and owner unused, as above).
+    pub topic: ConsumedTopicSpec,
+}
+
 /// A service this node exposes.
 #[derive(Debug)]
 pub struct ServiceSpec {

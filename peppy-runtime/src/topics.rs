@@ -469,6 +469,30 @@ pub async fn next_payload_from(
     ))
 }
 
+/// The next queued message of `inbox` its reader is to have, without
+/// waiting: what a pairing's fan-in reads from each of its inboxes.
+pub(crate) fn take_ready(inbox: &Inbox, spec: &'static ConsumedTopicSpec) -> Option<Delivery> {
+    loop {
+        let arrival = inbox.rx.try_recv().ok()?;
+        inbox.backlog.taken(spec.name, arrival.payload.len());
+        let producer = match arrival.producer {
+            Some(p) => p,
+            None => match inbox.admission.admit(
+                arrival.key.as_str(),
+                arrival.attachment.as_ref(),
+                &arrival.payload,
+            ) {
+                Some(p) => p,
+                None => continue,
+            },
+        };
+        return Some(Delivery {
+            producer,
+            payload: arrival.payload,
+        });
+    }
+}
+
 async fn next_delivery(
     runner: &NodeRunner,
     spec: &'static ConsumedTopicSpec,

@@ -246,6 +246,7 @@ mod tests {
             consumes: Vec::new(),
             services: Vec::new(),
             actions: Vec::new(),
+            pairings: Vec::new(),
         }
     }
 

@@ -12,6 +12,8 @@
 //! peppy/<ns>/service/<kind>/<name>/<tag>/<service>/<core>/<instance>
 //! peppy/<ns>/action/<kind>/<name>/<tag>/<action>/<core>/<instance>/<goal|cancel|result>
 //! peppy/<ns>/action/<kind>/<name>/<tag>/<action>/<core>/<instance>/feedback/<goal_id>
+//! peppy/<ns>/topic/pairing/<pairing>/<tag>/<topic>/<core>/<instance>/<link_id>
+//! peppy/<ns>/pair/<pairing>/<tag>/<role>/<core>/<instance>/<link_id>/<peer_instance>/<peer_link_id>
 //! peppy/<ns>/live/<core>/<instance>/<node>/<tag>
 //! peppy/<ns>/format/<fingerprint as 16 hex>/<instance>
 //! peppy/<ns>/describe/<core>/<instance>
@@ -22,6 +24,9 @@
 //!
 //! `<kind>` is `node` for a node's own declarations and `interface` for
 //! entries inherited through `conforms_to`: the two never match each other.
+//! A pairing's topics are `topic/pairing/...`, published under the sender's
+//! instance and pairing slot; `pair/...` are the claim tokens of pairing
+//! slots (docs/PAIRINGS.md §3), `~/~` for a slot claiming nobody.
 
 use std::fmt;
 
@@ -87,6 +92,8 @@ pub enum Space {
     Action,
     /// Instances' liveliness tokens.
     Live,
+    /// Pairing slots' claim tokens.
+    Pair,
     /// Where instances answer the canonical text of their formats.
     Format,
     /// Where instances answer their descriptions.
@@ -98,14 +105,15 @@ pub enum Space {
 }
 
 impl Space {
-    /// The segment: `topic`, `service`, `action`, `live`, `format`,
-    /// `describe`, `core` or `clock`.
+    /// The segment: `topic`, `service`, `action`, `live`, `pair`,
+    /// `format`, `describe`, `core` or `clock`.
     pub fn as_str(self) -> &'static str {
         match self {
             Space::Topic => "topic",
             Space::Service => "service",
             Space::Action => "action",
             Space::Live => "live",
+            Space::Pair => "pair",
             Space::Format => "format",
             Space::Describe => "describe",
             Space::Core => "core",
@@ -548,6 +556,169 @@ pub fn split_entry_key(key: &str) -> Option<SenderRef<'_>> {
         instance,
     };
     (is_segment(s.core) && is_segment(s.instance)).then_some(s)
+}
+
+/// The owner kind segment of a pairing's topic keys.
+const PAIRING_KIND: &str = "pairing";
+
+/// What a claim token names in place of a peer while its slot claims nobody.
+pub const NO_PEER: &str = "~";
+
+/// `peppy/<ns>/topic/pairing/<pairing>/<tag>/<topic>/<core>/<instance>/<link_id>`:
+/// the key an instance publishes a pairing topic on through its pairing
+/// slot `link_id`.
+pub fn pairing_topic_key(
+    ns: &str,
+    pairing: &str,
+    tag: &str,
+    topic: &str,
+    core: &str,
+    instance: &str,
+    link_id: &str,
+) -> String {
+    key(
+        ns,
+        Space::Topic,
+        &[PAIRING_KIND, pairing, tag, topic, core, instance, link_id],
+    )
+}
+
+/// A selector over a pairing topic's senders: `None` parts match any
+/// value (a paired slot pins its peer's instance and slot, any core).
+pub fn pairing_topic_selector(
+    ns: &str,
+    pairing: &str,
+    tag: &str,
+    topic: &str,
+    core: Option<&str>,
+    instance: Option<&str>,
+    link_id: Option<&str>,
+) -> String {
+    pairing_topic_key(
+        ns,
+        pairing,
+        tag,
+        topic,
+        core.unwrap_or("*"),
+        instance.unwrap_or("*"),
+        link_id.unwrap_or("*"),
+    )
+}
+
+/// The parts of a pairing topic's key, borrowed from the key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PairingSender<'a> {
+    /// The pairing's name.
+    pub pairing: &'a str,
+    /// The pairing's tag.
+    pub tag: &'a str,
+    /// The topic.
+    pub topic: &'a str,
+    /// The sender's core node.
+    pub core: &'a str,
+    /// The sender's instance id.
+    pub instance: &'a str,
+    /// The sender's pairing slot.
+    pub link_id: &'a str,
+}
+
+/// Reads a pairing topic's key back; `None` for anything
+/// [`pairing_topic_key`] does not build (a wildcard included).
+pub fn parse_pairing_topic_key(key: &str) -> Option<PairingSender<'_>> {
+    let mut parts = key.split('/');
+    let mut next = || parts.next().filter(|s| is_segment(s));
+    let (peppy, _ns, space, kind) = (next()?, next()?, next()?, next()?);
+    if peppy != "peppy" || space != Space::Topic.as_str() || kind != PAIRING_KIND {
+        return None;
+    }
+    let sender = PairingSender {
+        pairing: next()?,
+        tag: next()?,
+        topic: next()?,
+        core: next()?,
+        instance: next()?,
+        link_id: next()?,
+    };
+    parts.next().is_none().then_some(sender)
+}
+
+/// A pairing slot's claim: the liveliness token a participant slot holds
+/// for its node's life, naming the slot it is paired with or waiting for
+/// (docs/PAIRINGS.md §3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Claim<'a> {
+    /// The pairing's name.
+    pub pairing: &'a str,
+    /// The pairing's tag.
+    pub tag: &'a str,
+    /// The role the claiming slot plays.
+    pub role: &'a str,
+    /// The claimer's core node.
+    pub core: &'a str,
+    /// The claimer's instance id.
+    pub instance: &'a str,
+    /// The claimer's pairing slot.
+    pub link_id: &'a str,
+    /// The claimed slot, `(instance, link_id)`; `None` while claiming
+    /// nobody.
+    pub peer: Option<(&'a str, &'a str)>,
+}
+
+impl<'a> Claim<'a> {
+    /// `peppy/<ns>/pair/<pairing>/<tag>/<role>/<core>/<instance>/<link_id>/<peer_instance>/<peer_link_id>`.
+    pub fn key(&self, ns: &str) -> String {
+        let (peer, peer_link) = self.peer.unwrap_or((NO_PEER, NO_PEER));
+        key(
+            ns,
+            Space::Pair,
+            &[
+                self.pairing,
+                self.tag,
+                self.role,
+                self.core,
+                self.instance,
+                self.link_id,
+                peer,
+                peer_link,
+            ],
+        )
+    }
+
+    /// Reads a claim token's key back; `None` for anything
+    /// [`Claim::key`] does not build.
+    pub fn parse(key: &'a str) -> Option<Claim<'a>> {
+        let mut parts = key.split('/');
+        let mut next = || parts.next().filter(|s| is_segment(s));
+        let (peppy, _ns, space) = (next()?, next()?, next()?);
+        if peppy != "peppy" || space != Space::Pair.as_str() {
+            return None;
+        }
+        let mut claim = Claim {
+            pairing: next()?,
+            tag: next()?,
+            role: next()?,
+            core: next()?,
+            instance: next()?,
+            link_id: next()?,
+            peer: None,
+        };
+        claim.peer = match (next()?, next()?) {
+            (NO_PEER, NO_PEER) => None,
+            (NO_PEER, _) | (_, NO_PEER) => return None,
+            peer => Some(peer),
+        };
+        parts.next().is_none().then_some(claim)
+    }
+}
+
+/// `peppy/<ns>/pair/<pairing>/<tag>/*/*/*/*/*/*`: every claim of one
+/// pairing, whoever makes it.
+pub fn claim_selector(ns: &str, pairing: &str, tag: &str) -> String {
+    key(
+        ns,
+        Space::Pair,
+        &[pairing, tag, "*", "*", "*", "*", "*", "*"],
+    )
 }
 
 #[cfg(test)]

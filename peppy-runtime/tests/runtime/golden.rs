@@ -10,8 +10,8 @@ use peppy_runtime::wire::attachment::{
     self, END_OF_FEEDBACK, QueryHeader, QueryKind, ReplyStatus, parse_reply, parse_topic,
 };
 use peppy_runtime::wire::keys::{
-    self, ActionPart, Channel, EntrySelector, Owner, Space, is_segment, parse_core_key,
-    parse_entry_key, parse_liveliness_key, split_entry_key,
+    self, ActionPart, Channel, Claim, EntrySelector, Owner, Space, is_segment, parse_core_key,
+    parse_entry_key, parse_liveliness_key, parse_pairing_topic_key, split_entry_key,
 };
 use peppy_schema::MessageFormat;
 use serde_json::{Value, json};
@@ -86,6 +86,7 @@ fn space(name: &str) -> Space {
         Space::Service,
         Space::Action,
         Space::Live,
+        Space::Pair,
         Space::Format,
         Space::Describe,
         Space::Core,
@@ -152,6 +153,39 @@ fn build(function: &str, a: &Value) -> String {
         ),
         "clock_tick_selector" => keys::clock_tick_selector(s("ns")),
         "clock_sync_key" => keys::clock_sync_key(s("ns")),
+        "pairing_topic_key" => keys::pairing_topic_key(
+            s("ns"),
+            s("pairing"),
+            s("tag"),
+            s("topic"),
+            s("core"),
+            s("instance"),
+            s("link_id"),
+        ),
+        "pairing_topic_selector" => keys::pairing_topic_selector(
+            s("ns"),
+            s("pairing"),
+            s("tag"),
+            s("topic"),
+            wild(a, "core"),
+            wild(a, "instance"),
+            wild(a, "link_id"),
+        ),
+        "claim_key" => {
+            let peer = &a["peer"];
+            let peer = (!peer.is_null()).then(|| (text(peer, "instance"), text(peer, "link_id")));
+            Claim {
+                pairing: s("pairing"),
+                tag: s("tag"),
+                role: s("role"),
+                core: s("core"),
+                instance: s("instance"),
+                link_id: s("link_id"),
+                peer,
+            }
+            .key(s("ns"))
+        }
+        "claim_selector" => keys::claim_selector(s("ns"), s("pairing"), s("tag")),
         other => panic!("wire::keys has no `{other}`"),
     }
 }
@@ -208,6 +242,17 @@ fn every_golden_key_is_parsed_as_written() {
             "parse_core_key" => {
                 parse_core_key(key).map(|(core, launch)| json!({ "core": core, "launch": launch }))
             }
+            "parse_pairing_topic_key" => parse_pairing_topic_key(key).map(|p| {
+                json!({ "pairing": p.pairing, "tag": p.tag, "topic": p.topic,
+                        "core": p.core, "instance": p.instance, "link_id": p.link_id })
+            }),
+            "parse_claim_key" => Claim::parse(key).map(|c| {
+                let peer = c
+                    .peer
+                    .map(|(instance, link_id)| json!({ "instance": instance, "link_id": link_id }));
+                json!({ "pairing": c.pairing, "tag": c.tag, "role": c.role, "core": c.core,
+                        "instance": c.instance, "link_id": c.link_id, "peer": peer })
+            }),
             other => panic!("wire::keys has no `{other}`"),
         };
         assert_eq!(parts.unwrap_or(Value::Null), v["parts"], "{key:?}");
