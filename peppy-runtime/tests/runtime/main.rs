@@ -7,6 +7,7 @@ mod actions;
 mod bindings;
 mod clock;
 mod golden;
+mod pairings;
 mod process;
 mod routing;
 mod services;
