@@ -19,7 +19,7 @@ use serde_json::json;
 use crate::support::{Hub, WAIT, hub, namespace, start};
 
 const VALUE: FormatSpec = FormatSpec {
-    fingerprint: 0x5e7_901_47,
+    fingerprint: 0x5e79_0147,
     canonical: "{position:u64}",
 };
 
