@@ -224,7 +224,7 @@ fn docs() -> Vec<NodeDoc> {
     ]
     .iter()
     .map(|(name, (deps, topics))| {
-        NodeDoc::parse(&format!("{name}.json5"), &node(name, deps, topics))
+        NodeDoc::parse(format!("{name}.json5"), node(name, deps, topics))
             .unwrap_or_else(|e| panic!("{e}"))
             .0
     })
