@@ -283,6 +283,7 @@ pub(crate) fn render_plan(stack: &StackCheck) -> String {
             .slots
             .iter()
             .map(|s| s.link_id.len())
+            .chain(inst.pairs.iter().map(|p| p.link_id.len()))
             .max()
             .unwrap_or(0);
         let mut rows = Vec::new();
@@ -341,6 +342,52 @@ pub(crate) fn render_plan(stack: &StackCheck) -> String {
                 "", slot.link_id
             );
         }
+        let node = &stack.deployments[inst.deployment].resolved;
+        for (row, what) in pair_rows(inst, node, slot_width) {
+            let _ = writeln!(out, "  {:width$}    {row}  ({what})", "");
+        }
     }
     out
+}
+
+/// One line per pairing slot: the pair a participant forms, or the
+/// sources an observer watches.
+fn pair_rows(
+    inst: &peppy_schema::InstancePlan,
+    node: &peppy_schema::ResolvedNode,
+    width: usize,
+) -> Vec<(String, String)> {
+    inst.pairs
+        .iter()
+        .filter_map(|plan| {
+            let slot = node.node.pairings.iter().find(|p| p.link_id == plan.link_id)?;
+            let peers = plan
+                .peers
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join(", ");
+            let fill = match (&plan.vacant, peers.is_empty()) {
+                (Some(why), _) => format!("(vacant: {why})"),
+                (None, true) => "(waiting for a peer to link to it)".to_string(),
+                (None, false) => peers,
+            };
+            Some(if slot.observer {
+                (
+                    format!("{:width$} <~ {fill}", plan.link_id),
+                    format!("observes {} of pairing {}, {}", slot.role, slot.pairing, slot.cardinality),
+                )
+            } else {
+                (
+                    format!("{:width$} <> {fill}", plan.link_id),
+                    format!(
+                        "pairing {}, plays {}{}",
+                        slot.pairing,
+                        slot.role,
+                        if slot.optional { ", optional" } else { "" }
+                    ),
+                )
+            })
+        })
+        .collect()
 }

@@ -161,6 +161,7 @@ pub(crate) fn drawing(stack: &StackCheck) -> Drawing {
     };
     for inst in &stack.plan.instances {
         slot_edges(stack, inst, &mut picture);
+        pair_edges(stack, inst, &mut picture);
         external_edges(stack, inst, &mut picture);
     }
     picture
@@ -203,6 +204,40 @@ fn slot_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &m
                         .edges
                         .push(edge(p, consumer, &label, EdgeStyle::Dashed));
                 }
+            }
+        }
+    }
+}
+
+/// One solid edge per pair (drawn from the end written first in the
+/// plan, labelled with both slots), and a dotted edge from each source to
+/// the observer watching it.
+fn pair_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &mut Drawing) {
+    let Some(resolved) = flows::node_of(stack, &inst.instance_id) else {
+        return;
+    };
+    for plan in &inst.pairs {
+        let Some(slot) = resolved.node.pairings.iter().find(|p| p.link_id == plan.link_id) else {
+            continue;
+        };
+        for peer in &plan.peers {
+            let peer_slot = peer.link_id.as_deref().unwrap_or("?");
+            if slot.observer {
+                picture.edges.push(edge(
+                    &peer.instance,
+                    &inst.instance_id,
+                    &format!("{} (observes {peer_slot})", plan.link_id),
+                    EdgeStyle::Dotted,
+                ));
+            } else if (inst.instance_id.as_str(), plan.link_id.as_str())
+                < (peer.instance.as_str(), peer_slot)
+            {
+                picture.edges.push(edge(
+                    &inst.instance_id,
+                    &peer.instance,
+                    &format!("{} <> {peer_slot} ({})", plan.link_id, slot.pairing.name),
+                    EdgeStyle::Solid,
+                ));
             }
         }
     }
