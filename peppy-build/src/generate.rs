@@ -217,6 +217,7 @@ impl Gen<'_> {
             exposed_actions_flat: exposed_actions.flat.clone(),
         };
         let test_surfaces = self.test_surfaces(&layout, self.gate);
+        let paired_topics = self.paired_topics();
 
         let source = short_location(&self.node.node.name_loc);
         let identity = self.node.node.identity();
@@ -265,6 +266,7 @@ impl Gen<'_> {
                 #parameters
             }
             #(#modules)*
+            #paired_topics
             #test_surfaces
         }
     }
@@ -1235,7 +1237,7 @@ impl Gen<'_> {
     }
 }
 
-fn fields_of(format: Option<&MessageFormat>) -> &[peppy_schema::Field] {
+pub(crate) fn fields_of(format: Option<&MessageFormat>) -> &[peppy_schema::Field] {
     format.map(|f| f.fields.as_slice()).unwrap_or(&[])
 }
 

@@ -97,6 +97,7 @@ mod libs;
 #[doc(hidden)]
 pub mod macro_support;
 mod naming;
+mod pairings;
 mod params;
 mod python;
 mod testing;
