@@ -31,6 +31,7 @@
 mod clock;
 mod fixture;
 mod mocks;
+mod pairs;
 mod router;
 mod turned;
 mod watch;
@@ -50,6 +51,9 @@ pub use fixture::{GoalHandle, Tap};
 pub use mocks::{
     ActionMock, ActiveGoal, EXTERNAL_INSTANCE, MockProducer, PendingGoal, Responder,
     SUBSCRIBER_WAIT, ServiceMock, SlotSpec, TopicMock,
+};
+pub use pairs::{
+    MOCK_PEER_SLOT, MOCK_SOURCE_SLOT, PairMock, PairTopicMock, PairTopicReader, PairingSlotSpec,
 };
 
 use crate::actions::send_goal;
@@ -113,12 +117,19 @@ pub struct HarnessConfig {
 #[derive(Debug, Default)]
 pub struct MockSet {
     by_slot: HashMap<String, Vec<MockProducer>>,
+    by_pairing: HashMap<String, Vec<PairMock>>,
 }
 
 impl MockSet {
     /// Takes the mocks of slot `link_id` (none after the first call).
     pub fn take(&mut self, link_id: &str) -> Vec<MockProducer> {
         self.by_slot.remove(link_id).unwrap_or_default()
+    }
+
+    /// Takes the mocks of pairing slot `link_id`: its peer, or its
+    /// observed sources (none after the first call).
+    pub fn take_pairing(&mut self, link_id: &str) -> Vec<PairMock> {
+        self.by_pairing.remove(link_id).unwrap_or_default()
     }
 }
 
@@ -213,6 +224,27 @@ impl Harness {
         F: FnOnce(P, Arc<NodeRunner>) -> Fut,
         Fut: Future<Output = Result<()>> + Send + 'static,
     {
+        Harness::start_paired(slots, &[], config, setup).await
+    }
+
+    /// [`Harness::start`] for a node with pairing slots (`pairings`, from
+    /// generated code): each participant slot is pinned to a mock peer
+    /// (`mock-<link_id>`, slot [`MOCK_PEER_SLOT`]) and `setup` runs once
+    /// the pair holds; each observer slot watches mock sources (slot
+    /// [`MOCK_SOURCE_SLOT`]), as many as its cardinality's default (the
+    /// config's `slots` entry of the link_id overrides it, as for other
+    /// list slots).
+    pub async fn start_paired<P, F, Fut>(
+        slots: &'static [&'static SlotSpec],
+        pairings: &'static [&'static PairingSlotSpec],
+        config: HarnessConfig,
+        setup: F,
+    ) -> Result<(Harness, MockSet)>
+    where
+        P: NodeParameters,
+        F: FnOnce(P, Arc<NodeRunner>) -> Fut,
+        Fut: Future<Output = Result<()>> + Send + 'static,
+    {
         init_test_logging();
         let descriptor = P::descriptor();
         let model = NodeModel::from_json(descriptor.model).map_err(|e| {
@@ -290,6 +322,39 @@ impl Harness {
             mocks.by_slot.insert(String::new(), vec![mock]);
         }
 
+        for slot in &model.pairings {
+            let Some(spec) = pairings.iter().find(|s| s.link_id == slot.link_id) else {
+                return Err(Error::Testing(format!(
+                    "pairing slot `{}` has no mock description: regenerate the node's code (peppy-launch sync)",
+                    slot.link_id
+                )));
+            };
+            let (ids, mock_slot) = if slot.observer {
+                let wanted = config
+                    .slots
+                    .iter()
+                    .find(|(l, _)| *l == slot.link_id)
+                    .map(|(_, m)| m.clone())
+                    .unwrap_or_default();
+                let ids = mock_ids(&slot.link_id, slot.cardinality, false, &wanted)?;
+                (ids, MOCK_SOURCE_SLOT)
+            } else {
+                (vec![format!("mock-{}", slot.link_id)], MOCK_PEER_SLOT)
+            };
+            let mut started = Vec::new();
+            for id in ids {
+                standalone = standalone.with_bound_producer(
+                    slot.link_id.clone(),
+                    HARNESS_CORE,
+                    format!("{id}/{mock_slot}"),
+                );
+                started.push(
+                    PairMock::start(spec, slot, &instance_id, &id, port, watch.clone()).await?,
+                );
+            }
+            mocks.by_pairing.insert(slot.link_id.clone(), started);
+        }
+
         let turned = fixture::turned(descriptor, &model.identity);
         let fixture = fixture::open(
             turned,
@@ -329,6 +394,22 @@ impl Harness {
                 producer.instance_id()
             );
             reachable(node.session(), &key, &what).await?;
+        }
+        // Pairs hold before setup runs: its first publish reaches the peer.
+        for slot in model.pairings.iter().filter(|s| !s.observer) {
+            let what = format!("pairing slot `{}` to pair with its mock", slot.link_id);
+            let paired = tokio::time::timeout(
+                BARRIER,
+                crate::pairing::wait_paired(&node, &slot.link_id),
+            );
+            match paired.await {
+                Ok(Ok(_)) => {}
+                Ok(Err(e)) => return Err(e),
+                Err(_) => return Err(watch::timed_out(&what, BARRIER)),
+            }
+        }
+        for mock in mocks.by_pairing.values().flatten() {
+            mock.taps_reach(&node, BARRIER).await?;
         }
         let key = describe_key(namespace, HARNESS_CORE, &instance_id);
         reachable(
