@@ -262,3 +262,229 @@ fn slot_accessors(p: &ResolvedPairing) -> TokenStream {
         }
     }
 }
+
+/// The pairing slots' part of the `mock` module.
+#[derive(Default)]
+pub(crate) struct PairingMocks {
+    /// The `pairings` and `observed` modules and their structs.
+    pub(crate) items: TokenStream,
+    /// `Mocks`' fields.
+    pub(crate) fields: TokenStream,
+    /// How `Mocks::from_set` fills them.
+    pub(crate) takes: TokenStream,
+    /// The `PairingSlotSpec` of every slot, for the harness.
+    pub(crate) specs: Vec<TokenStream>,
+}
+
+impl Gen<'_> {
+    /// `mock::pairings::<link_id>` (a mock peer per participant slot) and
+    /// `mock::observed::<link_id>` (mock sources per observer slot).
+    pub(crate) fn pairing_mocks(&mut self) -> PairingMocks {
+        let node = self.node;
+        let mut out = PairingMocks::default();
+        if node.pairings.is_empty() {
+            return out;
+        }
+        let (mut peers, mut sources) = (TokenStream::new(), TokenStream::new());
+        let (mut peer_fields, mut source_fields) = (TokenStream::new(), TokenStream::new());
+        let (mut peer_takes, mut source_takes) = (TokenStream::new(), TokenStream::new());
+        for p in &node.pairings {
+            let slot = &p.slot;
+            let link_id = &slot.link_id;
+            let link = ident(link_id);
+            let group = if slot.observer {
+                quote!(observed)
+            } else {
+                quote!(pairings)
+            };
+            let mut uses = TokenStream::new();
+            let mut members = TokenStream::new();
+            let mut builds = TokenStream::new();
+            let (mut consumed, mut emitted) = (Vec::new(), Vec::new());
+            for (t, emits) in p
+                .consumed
+                .iter()
+                .map(|t| (t, false))
+                .chain(p.emitted.iter().map(|t| (t, true)))
+            {
+                let id = ident(&t.topic.decl.name);
+                uses.extend(quote! {
+                    #[doc = " The topic's types (the node's `paired_topics` module)."]
+                    pub use super::super::super::paired_topics::#link::#id;
+                });
+                if emits {
+                    members.extend(quote! {
+                        #[doc = " What the node sends the mock on this topic."]
+                        pub #id: ::peppy::testing::PairTopicReader<#id::Message>,
+                    });
+                    builds.extend(quote!(#id: mock.reader(&#id::SPEC),));
+                    emitted.push(quote!(&#id::SPEC));
+                } else {
+                    members.extend(quote! {
+                        #[doc = " Publishes this topic to the node."]
+                        pub #id: ::peppy::testing::PairTopicMock<#id::Message>,
+                    });
+                    builds.extend(quote!(#id: mock.publisher(&#id::SPEC)?,));
+                    consumed.push(quote!(&#id::SPEC));
+                }
+            }
+            let doc = if slot.observer {
+                format!(
+                    "A mock source of observer slot `{link_id}`: a node playing role `{}` through slot `mock_source`.",
+                    slot.role
+                )
+            } else {
+                format!(
+                    "The mock peer of pairing slot `{link_id}`: a node playing role `{}` through slot `mock_peer`, paired with the node before setup runs.",
+                    slot.counterpart
+                )
+            };
+            let doc = crate::docs::Doc::new(doc);
+            let module = quote! {
+                #doc
+                pub mod #link {
+                    #uses
+
+                    #[doc = " The slot's topics, for the harness."]
+                    pub(crate) static PAIRING: ::peppy::testing::PairingSlotSpec = ::peppy::testing::PairingSlotSpec {
+                        link_id: #link_id,
+                        consumed: &[#(#consumed),*],
+                        emitted: &[#(#emitted),*],
+                    };
+
+                    #doc
+                    pub struct Mock {
+                        #members
+                        _mock: ::peppy::testing::PairMock,
+                    }
+
+                    impl ::core::fmt::Debug for Mock {
+                        fn fmt(&self, f: &mut ::core::fmt::Formatter<'_>) -> ::core::fmt::Result {
+                            ::core::fmt::Debug::fmt(&self._mock, f)
+                        }
+                    }
+
+                    impl Mock {
+                        pub(crate) fn new(mock: ::peppy::testing::PairMock) -> ::peppy::codegen::Result<Mock> {
+                            ::core::result::Result::Ok(Mock { #builds _mock: mock })
+                        }
+
+                        #[doc = " The mock as the node's `paired` names it."]
+                        pub fn peer_info(&self) -> ::peppy::codegen::PeerInfo {
+                            self._mock.peer_info()
+                        }
+
+                        #[doc = " The mock instance."]
+                        pub fn producer_ref(&self) -> ::peppy::codegen::ProducerRef {
+                            self._mock.producer_ref()
+                        }
+
+                        #[doc = " The mock's instance id."]
+                        pub fn instance_id(&self) -> &str {
+                            self._mock.instance_id()
+                        }
+
+                        #[doc = " Stops the mock as its process dying would."]
+                        pub async fn stop(&self) {
+                            self._mock.stop().await
+                        }
+
+                        #[doc = " The untyped mock."]
+                        pub fn inner(&self) -> &::peppy::testing::PairMock {
+                            &self._mock
+                        }
+                    }
+                }
+            };
+            let (ty, take) = if slot.observer {
+                match slot.cardinality {
+                    Cardinality::One => (
+                        quote!(#group::#link::Mock),
+                        quote!(#group::#link::Mock::new(mocks.into_iter().next().ok_or_else(|| {
+                            ::peppy::codegen::Error::Testing(::std::format!("observer slot `{}` has no mock", #link_id))
+                        })?)?),
+                    ),
+                    Cardinality::ZeroOrOne => (
+                        quote!(::core::option::Option<#group::#link::Mock>),
+                        quote!(mocks.into_iter().next().map(#group::#link::Mock::new).transpose()?),
+                    ),
+                    Cardinality::OneOrMore | Cardinality::ZeroOrMore => (
+                        quote!(::std::vec::Vec<#group::#link::Mock>),
+                        quote!(mocks.into_iter().map(#group::#link::Mock::new).collect::<::peppy::codegen::Result<_>>()?),
+                    ),
+                }
+            } else if slot.optional {
+                (
+                    quote!(::core::option::Option<#group::#link::Mock>),
+                    quote!(mocks.into_iter().next().map(#group::#link::Mock::new).transpose()?),
+                )
+            } else {
+                (
+                    quote!(#group::#link::Mock),
+                    quote!(#group::#link::Mock::new(mocks.into_iter().next().ok_or_else(|| {
+                        ::peppy::codegen::Error::Testing(::std::format!("pairing slot `{}` has no mock", #link_id))
+                    })?)?),
+                )
+            };
+            let field_doc = crate::docs::Doc::new(format!("The mock(s) of slot `{link_id}`."));
+            let field = quote! {
+                #field_doc
+                pub #link: #ty,
+            };
+            let take = quote! {
+                #link: {
+                    let mocks = set.take_pairing(#link_id);
+                    #take
+                },
+            };
+            out.specs.push(quote!(&#group::#link::PAIRING));
+            if slot.observer {
+                sources.extend(module);
+                source_fields.extend(field);
+                source_takes.extend(take);
+            } else {
+                peers.extend(module);
+                peer_fields.extend(field);
+                peer_takes.extend(take);
+            }
+        }
+        let specs = &out.specs;
+        out.items = quote! {
+            #[doc = " The mock peers of the node's pairing slots, by link_id."]
+            #[derive(Debug)]
+            pub struct Pairings {
+                #peer_fields
+            }
+
+            #[doc = " The mock sources of the node's observer slots, by link_id: one `Mock` for a `one` slot, an `Option` for `zero_or_one`, a `Vec` for list slots."]
+            #[derive(Debug)]
+            pub struct Observed {
+                #source_fields
+            }
+
+            #[doc = " One module per participant slot."]
+            pub mod pairings {
+                #peers
+            }
+
+            #[doc = " One module per observer slot."]
+            pub mod observed {
+                #sources
+            }
+
+            #[doc = " Every pairing slot's topics, for the harness."]
+            pub(crate) static PAIRINGS: &[&::peppy::testing::PairingSlotSpec] = &[#(#specs),*];
+        };
+        out.fields = quote! {
+            #[doc = " By pairing slot: the mock peers."]
+            pub pairings: Pairings,
+            #[doc = " By observer slot: the mock sources."]
+            pub observed: Observed,
+        };
+        out.takes = quote! {
+            pairings: Pairings { #peer_takes },
+            observed: Observed { #source_takes },
+        };
+        out
+    }
+}

@@ -367,14 +367,20 @@ impl Gen<'_> {
                 })?),
             };
         }
+        let paired = self.pairing_mocks();
+        let (paired_items, paired_fields, paired_takes) =
+            (paired.items, paired.fields, paired.takes);
         quote! {
             #[doc = " Every slot's mock(s): `mocks.deps.<link_id>`."]
             #[derive(Debug)]
             pub struct Mocks {
                 #[doc = " By slot."]
                 pub deps: Deps,
+                #paired_fields
                 #external_field
             }
+
+            #paired_items
 
             #[doc = " The mocks of the node's slots, by link_id: one `Mock` for a `one` slot, an `Option` for `zero_or_one`, a `Vec` for list slots."]
             #[derive(Debug)]
@@ -385,7 +391,7 @@ impl Gen<'_> {
             impl Mocks {
                 pub(crate) fn from_set(mut set: ::peppy::testing::MockSet) -> ::peppy::codegen::Result<Mocks> {
                     let _ = &mut set;
-                    ::core::result::Result::Ok(Mocks { deps: Deps { #takes }, #external_take })
+                    ::core::result::Result::Ok(Mocks { deps: Deps { #takes }, #paired_takes #external_take })
                 }
             }
 
@@ -518,6 +524,11 @@ impl Gen<'_> {
         let services = self.fixture_calls(layout, EntryKind::Service);
         let actions = self.fixture_calls(layout, EntryKind::Action);
         let up = root(2);
+        let (start_fn, pairings_arg) = if node.pairings.is_empty() {
+            (quote!(start), TokenStream::new())
+        } else {
+            (quote!(start_paired), quote!(#up mock::PAIRINGS,))
+        };
         quote! {
             #[doc = " The harness: the node in-process against its mocks."]
             pub mod harness {
@@ -589,8 +600,9 @@ impl Gen<'_> {
                             ),
                             ::core::option::Option::None => ::core::option::Option::None,
                         };
-                        let (inner, set) = ::peppy::testing::Harness::start::<#up parameters::Parameters, F, Fut>(
+                        let (inner, set) = ::peppy::testing::Harness::#start_fn::<#up parameters::Parameters, F, Fut>(
                             #up mock::SLOTS,
+                            #pairings_arg
                             ::peppy::testing::HarnessConfig {
                                 parameters,
                                 instance_id: config.instance_id.clone(),

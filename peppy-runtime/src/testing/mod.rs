@@ -398,10 +398,8 @@ impl Harness {
         // Pairs hold before setup runs: its first publish reaches the peer.
         for slot in model.pairings.iter().filter(|s| !s.observer) {
             let what = format!("pairing slot `{}` to pair with its mock", slot.link_id);
-            let paired = tokio::time::timeout(
-                BARRIER,
-                crate::pairing::wait_paired(&node, &slot.link_id),
-            );
+            let paired =
+                tokio::time::timeout(BARRIER, crate::pairing::wait_paired(&node, &slot.link_id));
             match paired.await {
                 Ok(Ok(_)) => {}
                 Ok(Err(e)) => return Err(e),

@@ -259,7 +259,7 @@ impl PairMock {
     ///
     /// When `spec` is not a topic of this slot: generated code asks only
     /// for the slot's own topics.
-    pub async fn publisher<M: Encode + ?Sized>(
+    pub fn publisher<M: Encode + ?Sized>(
         &self,
         spec: &'static ConsumedPairedTopicSpec,
     ) -> Result<PairTopicMock<M>> {
@@ -278,7 +278,9 @@ impl PairMock {
             self.runner.instance_id(),
             &self.slot.link_id,
         );
-        let publisher = self.runner.session().declare_publisher(key).await?;
+        // Declared without a round trip: generated code builds its mocks
+        // outside of async code.
+        let publisher = zenoh::Wait::wait(self.runner.session().declare_publisher(key))?;
         Ok(PairTopicMock {
             publisher,
             name: spec.topic.name,
