@@ -17,6 +17,7 @@ from .describe import consumed_topic, instance_info
 from .errors import ShuttingDown, StartupError
 from .keys import ACTION, SERVICE, TOPIC, action_part_key, describe_key, format_key, liveliness_key
 from .members import Members
+from .pairing import check_slots, declare_pairings
 from .routing import ANY, SlotPlan
 from .runner import NodeRunner
 from .services import ServiceIntake
@@ -54,6 +55,8 @@ async def declare_all(runner: NodeRunner, retention: float) -> None:
         runner._services[spec] = (mailbox, key)
     for spec in d.exposed_actions:
         _serve_action(runner, spec, retention)
+    check_slots(runner)
+    declare_pairings(runner, runner.pairs)
     body = instance_info(
         d, runner.namespace, runner.core_node, runner.instance_id, os.getpid(), started_at_ms, runner.slots, consumes
     )
