@@ -27,7 +27,7 @@ from typing import Any, Dict, List, NamedTuple, Optional, Set, Tuple
 
 from . import attachment
 from .bridge import Mailbox, should_yield
-from .errors import ShuttingDown, StartupError, Undeclared
+from .errors import ShuttingDown, StartupError, Undeclared, WrongTopic
 from .keys import (
     PairClaim,
     instance_liveliness_selector,
@@ -338,7 +338,7 @@ class Participant:
         self._paired.clear()
         for inbox in self._inboxes.values():
             inbox.mailbox.take_all()
-        if pair is not None:
+        if pair is not None and not self.runner.is_stopping():
             log.warning(
                 "pairing slot `%s`: `%s/%s` is gone; unpaired (still claiming it)",
                 self.spec.link_id,
@@ -425,6 +425,8 @@ class Participant:
             d = await inbox.mailbox.get()
             if d.generation != self.generation:
                 continue
+            if should_yield():
+                await asyncio.sleep(0)
             try:
                 return d.who, spec.format.decode(d.payload)
             except ValueError as e:
@@ -618,6 +620,96 @@ def source(runner: Any, link_id: str) -> Optional[ObservedSource]:
     return found[0] if found else None
 
 
+class Payload(bytes):
+    """A pairing topic's message, encoded: what generated `build_message`
+    returns; it remembers its topic, so a publisher of another refuses it."""
+
+    topic: Optional[PairingTopicSpec] = None
+
+
+def build_message(spec: PairingTopicSpec, message: Any) -> Payload:
+    """`message` encoded for pairing topic `spec`."""
+    payload = Payload(spec.format.encode(message))
+    payload.topic = spec
+    return payload
+
+
+class PairedPublisher:
+    """The publisher of one pairing topic this node's role emits:
+    `await publisher.publish(payload)` sends to the peer while paired, and
+    succeeds sending nothing while not."""
+
+    def __init__(self, runner: Any, spec: PairingTopicSpec) -> None:
+        self._slot = _participant(runner, spec.link_id)
+        self._spec = spec
+        if spec.name not in self._slot._publishers:
+            raise Undeclared(f"pairing topic `{spec.name}` emitted through slot `{spec.link_id}`")
+
+    def __repr__(self) -> str:
+        return f"PairedPublisher(slot={self._spec.link_id!r}, topic={self._spec.name!r})"
+
+    async def publish(self, payload: Any) -> None:
+        """Sends one message built by this topic's `build_message` (or a
+        message object, encoded here)."""
+        topic = getattr(payload, "topic", None)
+        if isinstance(payload, (bytes, bytearray)) and topic is not None and topic != self._spec:
+            raise WrongTopic(self._spec.name, topic.name)
+        slot = self._slot
+        if slot.runner.session_closed:
+            raise await refused()
+        data = bytes(payload) if isinstance(payload, (bytes, bytearray)) else self._spec.format.encode(payload)
+        if slot._pair is not None:
+            slot._publishers[self._spec.name].put(data, attachment=attachment.topic(self._spec.format.fingerprint))
+        if should_yield():
+            await asyncio.sleep(0)
+
+
+async def declare_publisher(runner: Any, spec: PairingTopicSpec) -> PairedPublisher:
+    """The publisher of pairing topic `spec` (declared when the node started)."""
+    return PairedPublisher(runner, spec)
+
+
+class PairedSubscription:
+    """A received pairing topic, held: `await sub.next()` gives `(PeerInfo,
+    message)` (a participant) or `(ObservedSource, message)` (an observer),
+    or None once the node stops; `async for who, message in sub` reads
+    until then."""
+
+    def __init__(self, runner: Any, spec: PairingTopicSpec) -> None:
+        slot = runner._pairings.get(spec.link_id)
+        if slot is None or spec.name not in slot._inboxes:
+            raise Undeclared(f"pairing topic `{spec.name}` received through slot `{spec.link_id}`")
+        self._runner = runner
+        self._slot = slot
+        self._spec = spec
+
+    def __repr__(self) -> str:
+        return f"PairedSubscription(slot={self._spec.link_id!r}, topic={self._spec.name!r})"
+
+    async def next(self) -> Optional[Tuple[Any, Any]]:
+        """The next message and who sent it; None once the node stops."""
+        if self._runner.is_stopping():
+            return None
+        try:
+            return await self._slot.next(self._spec)
+        except ShuttingDown:
+            return None
+
+    def __aiter__(self) -> "PairedSubscription":
+        return self
+
+    async def __anext__(self) -> Tuple[Any, Any]:
+        item = await self.next()
+        if item is None:
+            raise StopAsyncIteration
+        return item
+
+
+async def subscribe(runner: Any, spec: PairingTopicSpec) -> PairedSubscription:
+    """Holds received pairing topic `spec` (subscribed when the node started)."""
+    return PairedSubscription(runner, spec)
+
+
 def check_slots(runner: Any) -> None:
     """Every pairing topic names a pairing slot of the node."""
     d = runner.descriptor
@@ -629,14 +721,19 @@ def check_slots(runner: Any) -> None:
 __all__ = [
     "ObservedSource",
     "Observer",
+    "PairedPublisher",
+    "PairedSubscription",
     "Participant",
+    "Payload",
     "PeerInfo",
-    "ShuttingDown",
+    "build_message",
     "declare_pairings",
+    "declare_publisher",
     "next_message",
     "paired",
     "publish",
     "source",
     "sources",
+    "subscribe",
     "wait_paired",
 ]
