@@ -12,7 +12,7 @@ import peppy_testing as t
 from peppy import attachment, pairing
 from peppy import keys as k
 from peppy import spec as s
-from peppy.errors import StartupError
+from peppy.errors import StartupError, WrongTopic
 from peppy.pair_plan import PairEnd, PairPlan, fit_pair_plans, pair_plan_from_json
 
 PAIRING, TAG = "arm_link", "v1"
@@ -190,7 +190,9 @@ class PairingTest(t.LiveTest):
         async def forge() -> None:
             seq = 0
             while True:
-                forged.put(t.READING.encode(t.Reading(seq, "forged")), attachment=attachment.topic(t.READING.fingerprint))
+                forged.put(
+                    t.READING.encode(t.Reading(seq, "forged")), attachment=attachment.topic(t.READING.fingerprint)
+                )
                 seq += 1
                 await asyncio.sleep(0.01)
 
@@ -263,7 +265,7 @@ class PairingTest(t.LiveTest):
         cmd = await self.node(COMMANDER, "cmd_1", links=["arm@arm_1/commander"])
         publisher = await pairing.declare_publisher(cmd, SETPOINT_OUT)
         subscription = await pairing.subscribe(arm, SETPOINT_IN)
-        with self.assertRaises(Exception):
+        with self.assertRaises(WrongTopic):
             await publisher.publish(pairing.build_message(STATE_OUT, t.Reading(0, "wrong topic")))
         await self.paired(cmd, "arm")
         await self.paired(arm, "commander")

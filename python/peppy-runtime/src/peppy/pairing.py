@@ -284,9 +284,7 @@ class Participant:
         others = sorted(self._claims)
         if others:
             c = others[0]
-            log.info(
-                "pairing slot `%s`: `%s/%s` claims it; pairing with it", self.spec.link_id, c.instance, c.link_id
-            )
+            log.info("pairing slot `%s`: `%s/%s` claims it; pairing with it", self.spec.link_id, c.instance, c.link_id)
             if self._lookup_sub is not None:
                 _undeclare(self._lookup_sub)
                 self._lookup_sub = None
@@ -473,7 +471,9 @@ class Observer:
                     )
                 )
             for t in self._received:
-                selector = pairing_topic_selector(r.namespace, s.pairing, s.tag, t.name, source.instance, source.link_id)
+                selector = pairing_topic_selector(
+                    r.namespace, s.pairing, s.tag, t.name, source.instance, source.link_id
+                )
                 self._declared.append(r.session.declare_subscriber(selector, self._intake(self._inboxes[t.name])))
 
     def close(self) -> None:
