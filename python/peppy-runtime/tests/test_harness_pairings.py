@@ -85,6 +85,8 @@ class PairingHarnessTests(unittest.IsolatedAsyncioTestCase):
 
             others = h.mocks.observed.others
             self.assertEqual([m.instance_id for m in others], ["mock-others-0", "mock-others-1"])
+            # Known from the start, with the launch each runs in.
+            self.assertEqual(pairing.sources(h.node_runner, "others"), [m.source() for m in others])
             self.assertEqual(
                 [(x.producer.instance_id, x.source_link_id) for x in pairing.sources(h.node_runner, "others")],
                 [("mock-others-0", "mock_source"), ("mock-others-1", "mock_source")],

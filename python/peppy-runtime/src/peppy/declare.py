@@ -56,7 +56,7 @@ async def declare_all(runner: NodeRunner, retention: float) -> None:
     for spec in d.exposed_actions:
         _serve_action(runner, spec, retention)
     check_slots(runner)
-    declare_pairings(runner, runner.pairs)
+    await declare_pairings(runner, runner.pairs)
     body = instance_info(
         d, runner.namespace, runner.core_node, runner.instance_id, os.getpid(), started_at_ms, runner.slots, consumes
     )

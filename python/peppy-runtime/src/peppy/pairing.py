@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from typing import Any, Dict, List, NamedTuple, Optional, Set, Tuple
 
 from . import attachment
-from .bridge import Mailbox, should_yield
+from .bridge import END, TIMED_OUT, Mailbox, ReplyStream, should_yield
 from .errors import ShuttingDown, StartupError, Undeclared, WrongTopic
 from .keys import (
     PairClaim,
@@ -476,6 +476,27 @@ class Observer:
                 )
                 self._declared.append(r.session.declare_subscriber(selector, self._intake(self._inboxes[t.name])))
 
+    async def learn_sources(self, timeout: float) -> None:
+        """Asks once which sources are up, so `sources()` names their
+        launches from the start (the liveliness watch follows them after)."""
+        r = self.runner
+        for source in self.planned:
+            stream = ReplyStream(r.loop, r._track_mailbox)
+            r.session.liveliness().get(
+                instance_liveliness_selector(r.namespace, source.instance), stream.handler(), timeout=timeout
+            )
+            deadline = r.loop.time() + timeout + 0.5
+            try:
+                while True:
+                    reply = await stream.next(deadline)
+                    if reply is END or reply is TIMED_OUT:
+                        break
+                    who = parse_liveliness_key(reply.key)
+                    if who is not None and who[1] == source.instance and who[0] not in self._live[who[1]]:
+                        self._on_live(True, *who)
+            finally:
+                stream.close()
+
     def close(self) -> None:
         """Withdraws everything the slot declared."""
         self._closed = True
@@ -557,7 +578,11 @@ class Observer:
                 log.warning("pairing topic `%s`: dropping a message that does not decode: %s", spec.name, e)
 
 
-def declare_pairings(runner: Any, pairs: List[PairPlan]) -> None:
+INITIAL_QUERY = 2.0
+"""How long start-up waits for an observer's sources already up (seconds)."""
+
+
+async def declare_pairings(runner: Any, pairs: List[PairPlan]) -> None:
     """Starts every pairing slot of the node (before its liveliness token)."""
     d = runner.descriptor
     plans = {p.link_id: p for p in pairs}
@@ -568,6 +593,8 @@ def declare_pairings(runner: Any, pairs: List[PairPlan]) -> None:
         runner._pairings[spec.link_id] = slot
         runner._declared.append(_Undeclare(slot))
         slot.start()
+        if isinstance(slot, Observer):
+            await slot.learn_sources(INITIAL_QUERY)
 
 
 def _participant(runner: Any, link_id: str) -> Participant:
