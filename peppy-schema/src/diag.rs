@@ -271,8 +271,28 @@ codes! {
     RefinementMismatch,
     /// An entry consumed through a node slot that the producer provides only through a contract.
     ConsumedInterfaceOnlyContractBacked,
-    /// A node or stack uses pairings, which peppy does not run yet.
-    PairingsNotSupported,
+    /// A pairing slot's topic list differs from its role's (missing, unknown, duplicated, the other role's).
+    PairingCoverageMismatch,
+    /// A pairing slot pinned to a revision the pairing document no longer has.
+    PairingShaMismatch,
+    /// A pairing slot naming a role its pairing does not have.
+    PairingRoleUnknown,
+    /// A pairing link to an instance with no free slot of the counterpart role.
+    PairingTargetNotComplementary,
+    /// A pairing link to an instance with several complementary slots, without `/slot`.
+    PairingTargetAmbiguous,
+    /// Both ends of a pair link each other differently.
+    PairingConflict,
+    /// A pairing slot linked to a second peer.
+    PairingSlotAlreadyPaired,
+    /// A required participant slot that no link pairs.
+    PairingSlotUncovered,
+    /// An observer linked to an instance that does not play the watched role.
+    ObservationTargetNotObservable,
+    /// An observer linked to an instance playing the watched role through several slots, without `/slot`.
+    ObservationTargetAmbiguous,
+    /// The same source twice in one observer slot.
+    DuplicateObservationTarget,
     /// A link key that names no slot of the node.
     LinkUnknownSlot,
     /// `{ vacant }` on a slot that may not stay empty, or that stays empty by omission.

@@ -66,7 +66,11 @@ mod launcher;
 #[cfg(feature = "documents")]
 mod node;
 #[cfg(feature = "documents")]
+mod pair_links;
+#[cfg(feature = "documents")]
 mod pairing;
+#[cfg(feature = "documents")]
+mod pairing_slots;
 #[cfg(feature = "documents")]
 mod plan;
 #[cfg(feature = "documents")]
@@ -131,6 +135,8 @@ pub use node::{
 };
 #[cfg(feature = "documents")]
 pub use pairing::{PairingDoc, PairingRole, PairingTopic};
+#[cfg(feature = "documents")]
+pub use pairing_slots::{PairingTopicUse, ResolvedPairing};
 #[cfg(feature = "documents")]
 pub use plan::{BindingPlan, InstancePlan, plan_bindings};
 #[cfg(feature = "documents")]

@@ -84,6 +84,7 @@ pub fn plan_bindings(
         }
     }
 
+    let mut pairs = crate::pair_links::plan_pairs(launcher, nodes, &mut diags);
     let mut instances = Vec::new();
     for (d, inst) in launcher.instances() {
         let Some(node) = nodes[d] else { continue };
@@ -94,7 +95,7 @@ pub fn plan_bindings(
             deployment: d,
             node: node.identity(),
             slots,
-            pairs: Vec::new(),
+            pairs: pairs.remove(&inst.instance_id).unwrap_or_default(),
             parameters,
             env_vars: inst.env_vars.clone(),
             restart: inst.restart,
@@ -186,29 +187,18 @@ fn written(inst: &Instance) -> Vec<Written<'_>> {
     out
 }
 
-/// Links that cannot reach the engine: a key naming a pairing slot (peppy
-/// does not run pairings yet), and a `peer/slot` target on a slot that is
-/// not a pairing's. Returns the keys refused.
-fn refuse_unsupported_links<'a>(
+/// Links that cannot reach the engine: a key naming a pairing slot
+/// (planned by [`crate::pair_links`]), and a `peer/slot` target on a slot
+/// that is not a pairing's (refused). Returns the keys left out.
+fn links_outside_the_engine<'a>(
     inst: &'a Instance,
     node: &NodeDoc,
     diags: &mut Diagnostics,
 ) -> Vec<&'a str> {
-    let mut refused = Vec::new();
+    let mut skipped = Vec::new();
     for l in &inst.links {
-        if let Some(p) = node.pairings.iter().find(|p| p.link_id == l.key) {
-            diags.push(
-                l.key_loc
-                    .error(
-                        Code::PairingsNotSupported,
-                        format!(
-                            "instance `{}` links pairing slot `{}` (pairing `{}`), and peppy does not run pairings yet",
-                            inst.instance_id, l.key, p.pairing
-                        ),
-                    )
-                    .with_help("this launcher is valid PeppyOS; peppy cannot start it until pairings are supported"),
-            );
-            refused.push(l.key.as_str());
+        if crate::pair_links::is_pairing_link(node, &l.key) {
+            skipped.push(l.key.as_str());
             continue;
         }
         for t in l.value.targets().iter().filter(|t| t.peer_slot.is_some()) {
@@ -223,10 +213,10 @@ fn refuse_unsupported_links<'a>(
                     )
                     .with_help(format!("write `\"{}\"`", t.instance)),
             );
-            refused.push(l.key.as_str());
+            skipped.push(l.key.as_str());
         }
     }
-    refused
+    skipped
 }
 
 /// A producer instance's node and the contracts it implements.
@@ -248,7 +238,7 @@ fn plan_instance(
             .and_then(|(d, _)| nodes[d])
             .map(|n| (n.identity(), conformances(n)))
     };
-    let mut skipped_keys = refuse_unsupported_links(inst, node, diags);
+    let mut skipped_keys = links_outside_the_engine(inst, node, diags);
     let mut known: Vec<(Written<'_>, Option<ProducerNode>)> = Vec::new();
     for w in written(inst) {
         if skipped_keys.contains(&w.key) {

@@ -580,6 +580,16 @@ impl RepoIndex {
         self.interfaces.keys()
     }
 
+    /// Every indexed pairing identity.
+    pub fn pairing_ids(&self) -> impl Iterator<Item = &Identity> {
+        self.pairings.keys()
+    }
+
+    /// Every pairing document indexed as `id`, the winning one first.
+    pub fn pairings(&self, id: &Identity) -> &[Entry<PairingDoc>] {
+        self.pairings.get(id).map_or(&[], Vec::as_slice)
+    }
+
     /// Warnings from the scan.
     pub fn findings(&self) -> &Diagnostics {
         &self.findings

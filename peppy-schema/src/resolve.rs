@@ -14,6 +14,7 @@ use crate::format::MessageFormat;
 use crate::interface::InterfaceDoc;
 use crate::node::RefinedMessage;
 use crate::node::{ConsumedRef, Dependency, Identity, NodeDoc, SlotKind, TopicSource};
+use crate::pairing_slots::ResolvedPairing;
 use crate::read::Loc;
 use crate::repos::{Entry, RepoIndex};
 
@@ -110,6 +111,8 @@ pub struct ResolvedNode {
     pub consumed_services: Vec<ResolvedCall<ServiceDecl>>,
     /// Consumed actions, in declaration order.
     pub consumed_actions: Vec<ResolvedCall<ActionDecl>>,
+    /// Pairing slots, participants and observers, in declaration order.
+    pub pairings: Vec<ResolvedPairing>,
     /// Every file read to resolve the node (for rebuild tracking).
     pub files: Vec<PathBuf>,
 }
@@ -168,21 +171,8 @@ pub fn resolve_node(
         });
     }
 
-    for p in &node.pairings {
-        diags.push(
-            p.loc
-                .error(
-                    Code::PairingsNotSupported,
-                    format!(
-                        "slot `{}` {} pairing `{}`, and peppy does not run pairings yet",
-                        p.link_id,
-                        if p.observer { "observes" } else { "takes part in" },
-                        p.pairing
-                    ),
-                )
-                .with_help("the document is valid (`peppy-launch validate` accepts it); building or launching it waits for pairing support"),
-        );
-    }
+    let pairings = crate::pairing_slots::resolve_pairings(&node, index, &mut files, &mut diags);
+    let node = with_counterparts(node, &pairings);
 
     // What each slot offers.
     let mut offers: Vec<(&Dependency, Offer)> = Vec::new();
@@ -244,9 +234,25 @@ pub fn resolve_node(
         consumed_topics,
         consumed_services,
         consumed_actions,
+        pairings,
         files,
     };
     diags.into_result(resolved)
+}
+
+/// The node with each pairing slot's counterpart role filled in from its
+/// pairing, so the model a binary embeds carries it.
+fn with_counterparts(node: Arc<NodeDoc>, pairings: &[ResolvedPairing]) -> Arc<NodeDoc> {
+    if pairings.is_empty() {
+        return node;
+    }
+    let mut doc = (*node).clone();
+    for slot in &mut doc.pairings {
+        if let Some(r) = pairings.iter().find(|r| r.slot.link_id == slot.link_id) {
+            slot.counterpart = r.slot.counterpart.clone();
+        }
+    }
+    Arc::new(doc)
 }
 
 /// A declaration's name, for matching consumers to producers.

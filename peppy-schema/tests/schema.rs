@@ -31,6 +31,8 @@ mod links_today;
 mod node_rules;
 #[path = "schema/node_today.rs"]
 mod node_today;
+#[path = "schema/pair_plans.rs"]
+mod pair_plans;
 #[path = "schema/pairings.rs"]
 mod pairings;
 #[path = "schema/parameters.rs"]

@@ -6,8 +6,8 @@ use std::collections::BTreeSet;
 use std::path::PathBuf;
 
 use peppy_schema::{
-    Code, Diagnostics, Identity, InstancePlan, LauncherDoc, NodeDoc, RouteFilter, SlotBinding,
-    SlotKind, SlotPlan, StackCheck, plan_bindings,
+    Code, Diagnostics, Identity, InstancePlan, RouteFilter, SlotBinding, SlotKind, SlotPlan,
+    StackCheck,
 };
 
 use crate::support::*;
@@ -424,40 +424,6 @@ fn a_producer_slot_takes_a_bare_instance_id() {
         d.message
     );
     assert_eq!(help(d), r#"write `"a1"`"#);
-}
-
-#[test]
-fn a_pairing_slot_cannot_be_linked_yet() {
-    let node = today(
-        "pairer",
-        r#"depends_on: { pairings: [{ name: "handshake", tag: "v1", role: "leader", link_id: "peer" }] },"#,
-        "",
-    );
-    let (node, _) = NodeDoc::parse("peppy.json5", &node).unwrap_or_else(|e| panic!("{e}"));
-    let (cam, _) = NodeDoc::parse("cam.json5", today("cam_a", IMPLEMENTS_CAM, CAM_MEMBERS))
-        .unwrap_or_else(|e| panic!("{e}"));
-    let text = r#"{
-  peppy_schema: "launcher/v1",
-  deployments: [
-    { source: { name: "cam_a:v1" }, instances: [{ instance_id: "a1" }] },
-    { source: { name: "pairer:v1" }, instances: [{ instance_id: "p", links: { peer: "a1" } }] },
-  ],
-}
-"#;
-    let (launcher, _) = LauncherDoc::parse("launch.json5", text).unwrap_or_else(|e| panic!("{e}"));
-    let errors = plan_bindings(&launcher, &[Some(&cam), Some(&node)]).expect_err("refused");
-    let d = only(&errors, Code::PairingsNotSupported);
-    assert_at(
-        d,
-        Code::PairingsNotSupported,
-        "deployments[1].instances[0].links.peer",
-        text,
-        "peer:",
-    );
-    assert_eq!(
-        d.message,
-        "instance `p` links pairing slot `peer` (pairing `handshake:v1`), and peppy does not run pairings yet"
-    );
 }
 
 #[test]

@@ -1,8 +1,8 @@
 //! Resolving today's `node/v1` documents against a repository of
 //! `contract/v1` and node documents (current_peppyos.md §1.1
 //! "Document-resolution errors", §2): contract coverage, refinements,
-//! natives-only node slots, both spellings meeting on one contract, and
-//! pairing slots refused until pairings run.
+//! natives-only node slots and both spellings meeting on one contract
+//! (pairing slots: `pair_plans`).
 
 use peppy_schema::{Code, Diagnostics, Identity, NodeCheck, Origin, SlotKind, check_node};
 
@@ -484,54 +484,4 @@ fn a_todays_consumer_meets_a_seeds_conformer_on_the_contract() {
         (slot.link_id.as_str(), slot.kind, &slot.target),
         ("arm", SlotKind::Interface, &arm())
     );
-}
-
-#[test]
-fn pairing_slots_are_refused_at_resolution() {
-    let tree = repo();
-    let (rel, text) = write(
-        &tree,
-        "pairer",
-        today(
-            "pairer",
-            r#"depends_on: {
-      pairings: [{ name: "handshake", tag: "v1", role: "leader", link_id: "peer", optional: true }],
-      pairing_observers: [{ name: "handshake", tag: "v1", role: "follower", link_id: "watch" }],
-    },"#,
-            r#"topics: {
-      emits: [{ link_id: "peer", name: "ping" }],
-      consumes: [{ link_id: "watch", name: "pong" }],
-    },"#,
-        ),
-    );
-    let errors = check_err(&tree, &rel);
-    assert_eq!(
-        error_codes(&errors),
-        [Code::PairingsNotSupported, Code::PairingsNotSupported],
-        "{errors}"
-    );
-    let found = all(&errors, Code::PairingsNotSupported);
-    assert_at(
-        found[0],
-        Code::PairingsNotSupported,
-        "manifest.depends_on.pairings[0]",
-        &text,
-        r#"{ name: "handshake", tag: "v1", role: "leader""#,
-    );
-    assert_eq!(
-        found[0].message,
-        "slot `peer` takes part in pairing `handshake:v1`, and peppy does not run pairings yet"
-    );
-    assert_at(
-        found[1],
-        Code::PairingsNotSupported,
-        "manifest.depends_on.pairing_observers[0]",
-        &text,
-        r#"{ name: "handshake", tag: "v1", role: "follower""#,
-    );
-    assert_eq!(
-        found[1].message,
-        "slot `watch` observes pairing `handshake:v1`, and peppy does not run pairings yet"
-    );
-    assert!(help(found[1]).contains("valid"), "{}", help(found[1]));
 }
