@@ -101,7 +101,9 @@ pub(super) fn paired_topic(
         out.dedent();
         out.blank();
         out.blank();
-        out.line("async def declare_publisher(node_runner: NodeRunner) -> _pairing.PairedPublisher:");
+        out.line(
+            "async def declare_publisher(node_runner: NodeRunner) -> _pairing.PairedPublisher:",
+        );
         out.indent();
         out.docstring(&format!(
             "The publisher of `{}` to the peer of slot `{link}`: `await publisher.publish(build_message(...))`\n\

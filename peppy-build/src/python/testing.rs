@@ -23,10 +23,13 @@ pub(super) struct Surface {
     pub(super) services: Vec<(String, bool)>,
     /// Exposed actions: (dotted module path, whether a goal is declared).
     pub(super) actions: Vec<(String, bool)>,
-    /// Pairing slots, each with its topics: (topic name, dotted module
-    /// path, whether the node sends it).
-    pub(super) pairings: Vec<(PairingSlot, Vec<(String, String, bool)>)>,
+    /// Pairing slots, each with its topics.
+    pub(super) pairings: Vec<(PairingSlot, Vec<PairedTopic>)>,
 }
+
+/// A pairing topic of a slot: (topic name, dotted module path, whether the
+/// node sends it).
+pub(super) type PairedTopic = (String, String, bool);
 
 /// The kind of a consumed entry.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -58,7 +61,11 @@ pub(super) fn files(node: &ResolvedNode, surface: &Surface) -> Vec<PythonFile> {
     }
     for (slot, topics) in &surface.pairings {
         let link = module(&slot.link_id);
-        let group = if slot.observer { "observed" } else { "pairings" };
+        let group = if slot.observer {
+            "observed"
+        } else {
+            "pairings"
+        };
         out.push((
             PathBuf::from("mock").join(group).join(format!("{link}.py")),
             pairing_mock_module(slot, topics),
@@ -99,10 +106,14 @@ pub(super) fn files(node: &ResolvedNode, surface: &Surface) -> Vec<PythonFile> {
     }
     for d in dirs {
         let text = match d.to_str() {
-            Some("mock") => format!(
+            Some("mock") if !surface.pairings.is_empty() => format!(
                 "\"\"\"Typed mock producers of node `{identity}`'s slots, for tests\n\
                  (`mock.deps.<link_id>`; pairing peers `mock.pairings.<link_id>` and observed\n\
                  sources `mock.observed.<link_id>`). Never imported by `peppygen` itself.\"\"\"\n"
+            ),
+            Some("mock") => format!(
+                "\"\"\"Typed mock producers of node `{identity}`'s slots, for tests\n\
+                 (`mock.deps.<link_id>`). Never imported by `peppygen` itself.\"\"\"\n"
             ),
             Some("fixtures") => format!(
                 "\"\"\"Test fixtures of node `{identity}`: `fixtures.harness` boots the node's setup\n\
@@ -193,7 +204,7 @@ fn mock_module(link_id: &str, target: &str, cardinality: Cardinality, surface: &
 /// The mock of a pairing slot: the peer of a participant slot
 /// (`PairingMock`: `publish` what the node receives, `next()` what it
 /// sends) or a source of an observer slot (`ObservedMock`: `publish`).
-fn pairing_mock_module(slot: &PairingSlot, topics: &[(String, String, bool)]) -> String {
+fn pairing_mock_module(slot: &PairingSlot, topics: &[PairedTopic]) -> String {
     let link_id = &slot.link_id;
     let mut out = Source::default();
     if slot.observer {
@@ -256,10 +267,14 @@ fn pairing_mock_module(slot: &PairingSlot, topics: &[(String, String, bool)]) ->
         let m = module(name);
         if *node_sends {
             out.line(&format!("{m}: _testing.PeerTap[_{m}.Message]"));
-            out.line(&format!("\"\"\"The topic `{name}` the node sends: `next()`.\"\"\""));
+            out.line(&format!(
+                "\"\"\"The topic `{name}` the node sends: `next()`.\"\"\""
+            ));
         } else {
             out.line(&format!("{m}: _testing.PeerTopicMock[_{m}.Message]"));
-            out.line(&format!("\"\"\"The topic `{name}` the node receives: `publish`.\"\"\""));
+            out.line(&format!(
+                "\"\"\"The topic `{name}` the node receives: `publish`.\"\"\""
+            ));
         }
     }
     out.dedent();
@@ -275,6 +290,7 @@ fn import_module(prefix: &str, path: &str, alias: &str) -> String {
 }
 
 fn harness(identity: &str, mocks: &[(String, String)], surface: &Surface) -> String {
+    let pairings = !surface.pairings.is_empty();
     let mut out = Source::default();
     out.docstring(&format!(
         "The test harness of node `{identity}`: `async with harness.start(setup) as h:`\n\
@@ -284,9 +300,15 @@ fn harness(identity: &str, mocks: &[(String, String)], surface: &Surface) -> Str
          Options: `parameters=` (a `Parameters` or a dict; defaults and checks by `peppy-launch plan`),\n\
          `instance_id=`, `use_sim_time=`, `node_dir=`, and per slot `<link_id>_instances=N`,\n\
          `<link_id>_instance_ids=[...]` (slots of several producers), `<link_id>_vacant=True`\n\
-         (a `zero_or_one` slot, an optional pairing slot). A pairing slot is paired with its mock\n\
-         peer (`h.mocks.pairings.<link_id>`) before `setup` runs; an observer slot watches mock\n\
-         sources (`h.mocks.observed.<link_id>`, `<link_id>_instances=N`)."
+         (a `zero_or_one` slot{}).{}",
+        if pairings { ", an optional pairing slot" } else { "" },
+        if pairings {
+            "\n\nA pairing slot is paired with its mock peer (`h.mocks.pairings.<link_id>`) before\n\
+             `setup` runs; an observer slot watches mock sources (`h.mocks.observed.<link_id>`,\n\
+             `<link_id>_instances=N`)."
+        } else {
+            ""
+        }
     ));
     out.line(HEADER);
     out.line("from __future__ import annotations");
