@@ -138,11 +138,17 @@ def pairing_topic_key(ns: str, pairing: str, tag: str, topic: str, core: str, in
 
 
 def pairing_topic_selector(
-    ns: str, pairing: str, tag: str, topic: str, instance: Optional[str], link_id: Optional[str]
+    ns: str,
+    pairing: str,
+    tag: str,
+    topic: str,
+    core: Optional[str],
+    instance: Optional[str],
+    link_id: Optional[str],
 ) -> str:
-    """A pairing topic of one slot (a peer, an observed source) on any core;
-    a `None` part matches any value."""
-    return f"peppy/{ns}/{TOPIC}/{PAIRING}/{pairing}/{tag}/{topic}/*/{instance or '*'}/{link_id or '*'}"
+    """A selector over a pairing topic's senders (a paired slot pins its
+    peer's instance and slot, on any core); a `None` part matches any value."""
+    return pairing_topic_key(ns, pairing, tag, topic, core or "*", instance or "*", link_id or "*")
 
 
 def pair_claim_key(
@@ -160,6 +166,11 @@ def pair_claim_key(
     naming the peer slot it pairs with; `~/~` when it names none."""
     peer = f"{peer_instance or NOBODY}/{peer_link_id or NOBODY}"
     return f"peppy/{ns}/{PAIR}/{pairing}/{tag}/{role}/{core}/{instance}/{link_id}/{peer}"
+
+
+def claim_selector(ns: str, pairing: str, tag: str) -> str:
+    """Every claim of one pairing, whoever makes it."""
+    return f"peppy/{ns}/{PAIR}/{pairing}/{tag}/*/*/*/*/*/*"
 
 
 def pair_claims_on_selector(ns: str, pairing: str, tag: str, role: str, instance: str, link_id: str) -> str:

@@ -240,7 +240,9 @@ class Participant:
         if named is None:
             return
         for t in self._received:
-            selector = pairing_topic_selector(r.namespace, s.pairing, s.tag, t.name, named.instance, named.link_id)
+            selector = pairing_topic_selector(
+                r.namespace, s.pairing, s.tag, t.name, None, named.instance, named.link_id
+            )
             self._topic_subs.append(r.session.declare_subscriber(selector, self._intake(self._inboxes[t.name])))
 
     # -- the pair, on the loop -----------------------------------------
@@ -472,7 +474,7 @@ class Observer:
                 )
             for t in self._received:
                 selector = pairing_topic_selector(
-                    r.namespace, s.pairing, s.tag, t.name, source.instance, source.link_id
+                    r.namespace, s.pairing, s.tag, t.name, None, source.instance, source.link_id
                 )
                 self._declared.append(r.session.declare_subscriber(selector, self._intake(self._inboxes[t.name])))
 
