@@ -106,8 +106,9 @@ pub(super) fn paired_topic(
         );
         out.indent();
         out.docstring(&format!(
-            "The publisher of `{}` to the peer of slot `{link}`: `await publisher.publish(build_message(...))`\n\
-             sends while the pair holds, and succeeds sending nothing while it does not.",
+            "The publisher of `{}` to the peer of slot `{link}`:\n\
+             `await publisher.publish(build_message(...))` sends while the pair holds,\n\
+             and succeeds sending nothing while it does not.",
             decl.name
         ));
         out.line("return await _pairing.declare_publisher(node_runner, SPEC)");
@@ -184,14 +185,15 @@ fn observer_accessor(out: &mut Source, slot: &PairingSlot) {
 /// messages tagged with `who` (`PeerInfo` or `ObservedSource`).
 fn subscription(out: &mut Source, name: &str, who: &str) {
     let from = if who == "PeerInfo" {
-        "from the current peer only, none from before the pair"
+        "the current peer's messages only, none from before the pair"
     } else {
-        "fanned in over the sources, none from a source's previous run"
+        "every source's messages, none from a source's previous run"
     };
     out.line(&format!(
         r#"class Subscription(_pairing.PairedSubscription):
-    """Topic `{name}`, held ({from}). `await sub.next()` gives `({who}, message)`,
-    None once the node stops; `async for who, message in sub` reads until then."""
+    """Topic `{name}`, held: {from}.
+    `await sub.next()` gives `({who}, message)`, None once the node stops;
+    `async for who, message in sub` reads until then."""
 
     async def next(self) -> Optional[Tuple[{who}, Message]]:
         return await super().next()

@@ -615,6 +615,9 @@ class _PairingMockBase:
         self.link_id = link_id
         self.instance_id = runner.instance_id
         self._stopped = False
+        slot = self._slot()
+        if hasattr(slot, "quiet"):
+            slot.quiet = True
         members: Dict[str, str] = getattr(type(self), "MEMBERS", {})
         for spec in runner.descriptor.pairing_topics:
             member = PeerTopicMock(self, spec) if spec.emitted else PeerTap(self, spec)
