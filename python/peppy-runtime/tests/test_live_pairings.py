@@ -5,6 +5,7 @@ observer of both arms, a side that stops and comes back."""
 from __future__ import annotations
 
 import asyncio
+import json
 import unittest
 from typing import List, Tuple
 
@@ -12,6 +13,7 @@ import peppy_testing as t
 from peppy import attachment, pairing
 from peppy import keys as k
 from peppy import spec as s
+from peppy.bridge import END, ReplyStream
 from peppy.errors import StartupError, WrongTopic
 from peppy.pair_plan import PairEnd, PairPlan, fit_pair_plans, pair_plan_from_json
 
@@ -223,6 +225,39 @@ class PairingTest(t.LiveTest):
         )
         # Observing takes no part: the pairs are the same.
         self.assertEqual(pairing.paired(arm_1, "commander").producer.instance_id, "cmd_1")
+        # The descriptions show each slot's state.
+        arm_info = (await self.describe(arm_1))["pairings"]
+        self.assertEqual(
+            arm_info,
+            [
+                {
+                    "link_id": "commander",
+                    "pairing": {"name": PAIRING, "tag": TAG},
+                    "role": "arm",
+                    "observer": False,
+                    "claiming": "cmd_1/arm",
+                    "peer": {"core_node": "lab", "instance_id": "cmd_1", "link_id": "arm"},
+                }
+            ],
+        )
+        watch_info = (await self.describe(watcher))["pairings"][0]
+        self.assertEqual((watch_info["observer"], watch_info["role"]), (True, "arm"))
+        self.assertEqual(
+            watch_info["sources"],
+            [
+                {"core_node": "lab", "instance_id": "arm_1", "link_id": "commander", "live": True},
+                {"core_node": "lab", "instance_id": "arm_2", "link_id": "commander", "live": True},
+            ],
+        )
+
+    async def describe(self, runner):
+        stream = ReplyStream(runner.loop, runner._track_mailbox)
+        runner.session.get(
+            k.describe_key(self.namespace, runner.core_node, runner.instance_id), stream.handler(), timeout=2
+        )
+        reply = await stream.next(runner.loop.time() + t.WAIT)
+        self.assertIsNot(reply, END)
+        return json.loads(reply.payload)
 
     async def test_closing_a_side_silences_the_survivor_and_a_restart_pairs_again(self):
         arm = await self.node(ARM, "arm_1")

@@ -365,6 +365,23 @@ class Participant:
 
     # -- what node code calls ------------------------------------------
 
+    def info(self) -> Dict[str, Any]:
+        """The slot and its state, as the instance description shows it
+        (WIRE §9 `pairings`)."""
+        s = self.spec
+        out: Dict[str, Any] = {
+            "link_id": s.link_id,
+            "pairing": {"name": s.pairing, "tag": s.tag},
+            "role": s.role,
+            "observer": False,
+        }
+        if self.target is not None:
+            out["claiming"] = str(self.target)
+        pair = self._pair
+        if pair is not None:
+            out["peer"] = {"core_node": pair.core, "instance_id": pair.instance, "link_id": pair.link_id}
+        return out
+
     def peer_info(self) -> Optional[PeerInfo]:
         """The peer while the pair holds."""
         pair = self._pair
@@ -557,12 +574,33 @@ class Observer:
         return on_sample
 
     def sources(self) -> List[ObservedSource]:
-        """The planned sources, in link order."""
+        """The planned sources, in link order (a source's core node is this
+        node's until its presence is seen; its slot empty until known)."""
         out = []
         for p in self.planned:
             cores = sorted(self._live.get(p.instance, ()))
-            core = cores[0] if cores else ""
+            core = cores[0] if cores else self.runner.core_node
             out.append(ObservedSource(ProducerRef(core, p.instance), p.link_id or self._links.get(p.instance, "")))
+        return out
+
+    def info(self) -> Dict[str, Any]:
+        """The slot and its sources, as the instance description shows them."""
+        s = self.spec
+        sources = []
+        for o in self.sources():
+            entry: Dict[str, Any] = {"core_node": o.producer.core_node, "instance_id": o.producer.instance_id}
+            if o.source_link_id:
+                entry["link_id"] = o.source_link_id
+            entry["live"] = bool(self._live.get(o.producer.instance_id))
+            sources.append(entry)
+        out: Dict[str, Any] = {
+            "link_id": s.link_id,
+            "pairing": {"name": s.pairing, "tag": s.tag},
+            "role": s.role,
+            "observer": True,
+        }
+        if sources:
+            out["sources"] = sources
         return out
 
     async def next(self, spec: PairingTopicSpec) -> Tuple[ObservedSource, Any]:
@@ -600,6 +638,11 @@ async def declare_pairings(runner: Any, pairs: List[PairPlan]) -> None:
         slot.start()
         if isinstance(slot, Observer):
             await slot.learn_sources(INITIAL_QUERY)
+
+
+def describe_pairings(runner: Any) -> List[Dict[str, Any]]:
+    """Every pairing slot of the node with its state, in the node's order."""
+    return [runner._pairings[p.link_id].info() for p in runner.descriptor.pairings if p.link_id in runner._pairings]
 
 
 def _participant(runner: Any, link_id: str) -> Participant:
