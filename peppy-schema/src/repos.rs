@@ -337,8 +337,8 @@ impl RepoIndex {
                 return;
             }
             // Nothing in peppy reads these yet.
-            IndexSection::Pairings | IndexSection::McpExposures => return,
-            IndexSection::Nodes | IndexSection::Contracts => {}
+            IndexSection::McpExposures => return,
+            IndexSection::Nodes | IndexSection::Contracts | IndexSection::Pairings => {}
         }
         match parse_tree(&file, &sha, &root, read) {
             Ok((Document::Node(n), _)) if key.section == IndexSection::Nodes => {
@@ -356,6 +356,14 @@ impl RepoIndex {
                     repository: repo.to_path_buf(),
                 };
                 self.insert_interface(entry.doc.identity.clone(), entry);
+            }
+            Ok((Document::Pairing(p), _)) if key.section == IndexSection::Pairings => {
+                let entry = Entry {
+                    doc: Arc::new(p),
+                    path,
+                    repository: repo.to_path_buf(),
+                };
+                self.insert_pairing(entry.doc.identity.clone(), entry);
             }
             // `mismatch` matched the section to the kind already.
             Ok((other, _)) => self.findings.push(unmatched(&format!(
@@ -421,15 +429,14 @@ impl RepoIndex {
             }
             Ok((Document::Pairing(p), _)) => {
                 let id = p.identity.clone();
-                let entries = self.pairings.entry(id.clone()).or_default();
-                if let Some(first) = entries.first() {
-                    self.findings.push(duplicate(&id, &first.path, path));
-                }
-                entries.push(Entry {
-                    doc: Arc::new(p),
-                    path: path.to_path_buf(),
-                    repository: repo.to_path_buf(),
-                });
+                self.insert_pairing(
+                    id,
+                    Entry {
+                        doc: Arc::new(p),
+                        path: path.to_path_buf(),
+                        repository: repo.to_path_buf(),
+                    },
+                );
             }
             Ok((Document::Launcher(_), _)) => self.add_launcher(path),
             Ok((Document::Repositories(_) | Document::RepositoryIndex(_), _)) => {}
@@ -489,6 +496,14 @@ impl RepoIndex {
 
     fn insert_interface(&mut self, id: Identity, entry: Entry<InterfaceDoc>) {
         let entries = self.interfaces.entry(id.clone()).or_default();
+        if let Some(first) = entries.first() {
+            self.findings.push(duplicate(&id, &first.path, &entry.path));
+        }
+        entries.push(entry);
+    }
+
+    fn insert_pairing(&mut self, id: Identity, entry: Entry<PairingDoc>) {
+        let entries = self.pairings.entry(id.clone()).or_default();
         if let Some(first) = entries.first() {
             self.findings.push(duplicate(&id, &first.path, &entry.path));
         }
