@@ -363,6 +363,10 @@ class ServiceMock(Generic[Req, Resp]):
         """Every request received so far, in arrival order."""
         return list(self._captured)
 
+    def captured_count(self) -> int:
+        """How many requests were received so far."""
+        return len(self._captured)
+
     def _leftovers(self) -> List[str]:
         out = []
         if self._scripted:
