@@ -2,6 +2,7 @@
 played by the generated pairing mock over the real wire."""
 
 from peppygen.fixtures import harness
+from peppygen.paired_topics.leader import joint_setpoint
 
 from py_joint_follower import setup, step
 
@@ -14,7 +15,7 @@ async def test_the_joint_tracks_its_leaders_setpoints():
         position = 0.0
         for sequence, target in enumerate([1.0, 1.0, -1.0]):
             await leader.joint_setpoint.publish(
-                leader.joint_setpoint.Message(position=target, sequence=sequence)
+                joint_setpoint.Message(position=target, sequence=sequence)
             )
             state = await leader.joint_state.next(WAIT)
             position = step(position, target, 0.5)
