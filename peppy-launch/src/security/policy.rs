@@ -7,10 +7,11 @@
 use std::collections::BTreeSet;
 
 use peppy_runtime::wire::keys::{
-    ActionPart, Channel, ClockSource, EntrySelector, Owner, Space, action_part_key,
+    ActionPart, Channel, Claim, ClockSource, EntrySelector, Owner, Space, action_part_key,
     action_parts_selector, clock_sync_key, clock_tick_key, clock_tick_selector, describe_key,
     entry_key, entry_selector, feedback_selector, format_selector, liveliness_key,
-    namespace_prefix, namespace_selector, space_selector,
+    namespace_prefix, namespace_selector, pairing_topic_key, pairing_topic_selector,
+    space_selector,
 };
 use peppy_schema::{InstancePlan, Origin, StackCheck};
 use serde::Serialize;
@@ -36,9 +37,13 @@ pub(crate) struct InstancePolicy {
     pub(crate) core_node: String,
     /// The node it runs, `name:tag`.
     pub(crate) node: String,
-    /// The liveliness token it may hold: the only one, naming its own node.
+    /// The liveliness token it may hold naming its own node.
     #[serde(skip)]
     pub(crate) token: String,
+    /// The claim tokens its pairing slots may hold: their own, on any peer
+    /// (a pair holds only while both ends claim each other).
+    #[serde(skip)]
+    pub(crate) claims: Vec<String>,
     /// Topics (and action feedback) it publishes: its own keys.
     pub(crate) emits: Vec<Grant>,
     /// Services and actions it answers: its own keys.
@@ -199,6 +204,16 @@ pub(crate) fn derive(
                 }
             }
 
+            let claims = pair_grants(
+                namespace,
+                inst,
+                resolved,
+                &my_core,
+                &core_by_id,
+                &mut emits,
+                &mut receives,
+            );
+
             let mut calls = Vec::new();
             let services = resolved
                 .consumed_services
@@ -262,6 +277,7 @@ pub(crate) fn derive(
             InstancePolicy {
                 instance_id: me.to_string(),
                 token: liveliness_key(namespace, &my_core, me, &inst.node.name, &inst.node.tag),
+                claims,
                 core_node: my_core,
                 node: inst.node.to_string(),
                 emits,
@@ -275,6 +291,92 @@ pub(crate) fn derive(
         namespace: namespace.to_string(),
         instances,
     }
+}
+
+/// What an instance's pairing slots may do: publish the topics its role
+/// emits on its own keys, receive the topics it consumes from its planned
+/// peer (a participant) or sources (an observer) only, and hold its own
+/// claims. Returns the claim keys.
+fn pair_grants(
+    ns: &str,
+    inst: &InstancePlan,
+    resolved: &peppy_schema::ResolvedNode,
+    my_core: &str,
+    core_by_id: &dyn Fn(&str) -> String,
+    emits: &mut Vec<Grant>,
+    receives: &mut Vec<Grant>,
+) -> Vec<String> {
+    let me = inst.instance_id.as_str();
+    let mut claims = Vec::new();
+    for p in &resolved.pairings {
+        let (name, tag, link) = (&p.slot.pairing.name, &p.slot.pairing.tag, &p.slot.link_id);
+        for t in &p.emitted {
+            let topic = &t.topic.decl.name;
+            emits.push(Grant {
+                entry: format!("topic {topic}"),
+                slot: Some(link.clone()),
+                peers: Vec::new(),
+                keys: vec![pairing_topic_key(ns, name, tag, topic, my_core, me, link)],
+                selectors: Vec::new(),
+            });
+        }
+        let ends = inst
+            .pairs
+            .iter()
+            .find(|plan| &plan.link_id == link)
+            .map_or(&[][..], |plan| plan.peers.as_slice());
+        for t in &p.consumed {
+            let topic = &t.topic.decl.name;
+            receives.push(Grant {
+                entry: format!("topic {topic}"),
+                slot: Some(link.clone()),
+                peers: ends.iter().map(|e| e.instance.clone()).collect(),
+                keys: ends
+                    .iter()
+                    .map(|e| {
+                        pairing_topic_key(
+                            ns,
+                            name,
+                            tag,
+                            topic,
+                            &core_by_id(&e.instance),
+                            &e.instance,
+                            e.link_id.as_deref().unwrap_or("*"),
+                        )
+                    })
+                    .collect(),
+                selectors: ends
+                    .iter()
+                    .map(|e| {
+                        pairing_topic_selector(
+                            ns,
+                            name,
+                            tag,
+                            topic,
+                            None,
+                            Some(&e.instance),
+                            e.link_id.as_deref(),
+                        )
+                    })
+                    .collect(),
+            });
+        }
+        if !p.slot.observer {
+            claims.push(
+                Claim {
+                    pairing: name,
+                    tag,
+                    role: &p.slot.role,
+                    core: my_core,
+                    instance: me,
+                    link_id: link,
+                    peer: Some(("*", "*")),
+                }
+                .key(ns),
+            );
+        }
+    }
+    claims
 }
 
 fn own(entry: String, keys: Vec<String>) -> Grant {
@@ -325,6 +427,15 @@ impl Policy {
                 "ingress",
                 &["declare_liveliness_subscriber", "liveliness_query"],
                 &[space_selector(ns, Space::Live)],
+            ),
+            // Pairs: every instance may follow the claims of the stack's
+            // pairing slots (claims carry no data; what a pair sends is
+            // granted per instance below).
+            rule(
+                "any.pairs",
+                "ingress",
+                &["declare_liveliness_subscriber", "liveliness_query"],
+                &[space_selector(ns, Space::Pair)],
             ),
             rule(
                 "any.live.in",
@@ -404,6 +515,7 @@ impl Policy {
             let id = &inst.instance_id;
             let mut mine = vec![
                 "any.live".to_string(),
+                "any.pairs".to_string(),
                 "any.live.in".to_string(),
                 "any.format".to_string(),
                 "any.format.in".to_string(),
@@ -428,6 +540,12 @@ impl Policy {
                 "ingress",
                 &["liveliness_token"],
                 vec![inst.token.clone()],
+            );
+            add(
+                "claims",
+                "ingress",
+                &["liveliness_token"],
+                inst.claims.clone(),
             );
             add(
                 "self.answers",
