@@ -337,8 +337,8 @@ impl RepoIndex {
                 return;
             }
             // Nothing in peppy reads these yet.
-            IndexSection::Pairings | IndexSection::McpExposures => return,
-            IndexSection::Nodes | IndexSection::Contracts => {}
+            IndexSection::McpExposures => return,
+            IndexSection::Nodes | IndexSection::Contracts | IndexSection::Pairings => {}
         }
         match parse_tree(&file, &sha, &root, read) {
             Ok((Document::Node(n), _)) if key.section == IndexSection::Nodes => {
@@ -357,6 +357,14 @@ impl RepoIndex {
                 };
                 self.insert_interface(entry.doc.identity.clone(), entry);
             }
+            Ok((Document::Pairing(p), _)) if key.section == IndexSection::Pairings => {
+                let entry = Entry {
+                    doc: Arc::new(p),
+                    path,
+                    repository: repo.to_path_buf(),
+                };
+                self.insert_pairing(entry);
+            }
             // `mismatch` matched the section to the kind already.
             Ok((other, _)) => self.findings.push(unmatched(&format!(
                 "which peppy reads as a `{}` document",
@@ -364,6 +372,17 @@ impl RepoIndex {
             ))),
             Err(diagnostics) => self.add_broken(key, &path, diagnostics),
         }
+    }
+
+    /// Adds a pairing document; a second one of the same identity is a
+    /// finding, the first found wins.
+    fn insert_pairing(&mut self, entry: Entry<PairingDoc>) {
+        let id = entry.doc.identity.clone();
+        let entries = self.pairings.entry(id.clone()).or_default();
+        if let Some(first) = entries.first() {
+            self.findings.push(duplicate(&id, &first.path, &entry.path));
+        }
+        entries.push(entry);
     }
 
     /// Keeps an invalid listed document under the identity it is listed as.
@@ -419,18 +438,11 @@ impl RepoIndex {
                     },
                 );
             }
-            Ok((Document::Pairing(p), _)) => {
-                let id = p.identity.clone();
-                let entries = self.pairings.entry(id.clone()).or_default();
-                if let Some(first) = entries.first() {
-                    self.findings.push(duplicate(&id, &first.path, path));
-                }
-                entries.push(Entry {
-                    doc: Arc::new(p),
-                    path: path.to_path_buf(),
-                    repository: repo.to_path_buf(),
-                });
-            }
+            Ok((Document::Pairing(p), _)) => self.insert_pairing(Entry {
+                doc: Arc::new(p),
+                path: path.to_path_buf(),
+                repository: repo.to_path_buf(),
+            }),
             Ok((Document::Launcher(_), _)) => self.add_launcher(path),
             Ok((Document::Repositories(_) | Document::RepositoryIndex(_), _)) => {}
             // A launcher is found by its file name, valid or not: whoever
