@@ -154,6 +154,14 @@ impl From<zenoh::Error> for Error {
     }
 }
 
+/// An I/O failure in node code (`?` on a file read, an `io::Error::other`
+/// a node builds to fail its instance) is the node's own error.
+impl From<std::io::Error> for Error {
+    fn from(e: std::io::Error) -> Self {
+        Error::User(e.to_string())
+    }
+}
+
 impl From<String> for Error {
     fn from(s: String) -> Self {
         Error::User(s)

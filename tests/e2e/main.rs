@@ -10,6 +10,7 @@ mod actions;
 mod api;
 mod harness;
 mod nodes;
+mod pairings;
 mod params;
 mod python;
 mod roundtrip;

@@ -20,3 +20,6 @@ pub(crate) mod arm_controller {}
 
 #[peppy::node("peppy-build/tests/fixtures/shapes_client/peppy.json5")]
 pub(crate) mod shapes_client {}
+
+#[peppy::node("peppy-build/tests/fixtures/arm_commander/peppy.json5")]
+pub(crate) mod arm_commander {}

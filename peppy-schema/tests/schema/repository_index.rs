@@ -405,7 +405,7 @@ fn indexed_repo(tree: &Tree) {
     );
     tree.write(
         "repo/robot/joint_link.json5",
-        r#"{ peppy_schema: "pairing/v1", manifest: { name: "joint_link", tag: "v1" }, roles: ["a", "b"], topics: [] }"#,
+        r#"{ peppy_schema: "pairing/v1", manifest: { name: "joint_link", tag: "v1" }, roles: ["a", "b"], topics: [{ emitted_by: "a", name: "t", message_format: { x: "u8" } }] }"#,
     );
     tree.write("repo/today/peppy.json5", NODE_V1_BROKEN);
     tree.write(
@@ -432,6 +432,9 @@ fn a_repository_with_an_index_is_read_through_it() {
     assert_eq!(nodes, ["cam:v1"], "only listed files are read");
     let interfaces: Vec<String> = index.interface_ids().map(ToString::to_string).collect();
     assert_eq!(interfaces, ["rgb:v1"]);
+    let pairing = index.pairings(&Identity::new("joint_link", "v1"));
+    assert_eq!(pairing.len(), 1, "a listed pairing is read");
+    assert_eq!(pairing[0].path, tree.path("repo/robot/joint_link.json5"));
     assert_eq!(
         index.launcher("demo"),
         Some(tree.path("repo/stacks/demo.json5").as_path())
