@@ -16,6 +16,7 @@ mod build_times;
 mod children;
 mod floor;
 mod launch;
+mod peers;
 mod peppy_side;
 mod procs;
 mod raw_side;
@@ -68,6 +69,9 @@ enum Command {
 enum Group {
     /// Topic round trips, 64 B to 4 MiB, `reliable` and `sensor_data`.
     Roundtrip,
+    /// Small round trips over each link on one host: loopback TCP, a
+    /// Unix socket, Zenoh's low-latency transport.
+    Links,
     /// One producer to one consumer, as fast as it goes.
     Throughput,
     /// One producer, eight consumer processes, 1 MiB at 30 Hz.
@@ -115,8 +119,9 @@ fn main() -> std::process::ExitCode {
     let wanted = |g| cli.only.is_empty() || cli.only.contains(&g);
     let mut runs: Vec<Vec<Row>> = Vec::new();
     let mut failures = Vec::new();
-    let groups: [(Group, Measure); 6] = [
+    let groups: [(Group, Measure); 7] = [
         (Group::Roundtrip, transport::round_trips),
+        (Group::Links, transport::links),
         (Group::Throughput, transport::throughput),
         (Group::Fanout, transport::fan_out),
         (Group::Service, transport::services),
