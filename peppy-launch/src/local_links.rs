@@ -39,6 +39,7 @@ impl LocalLinks {
             .map(PathBuf::from)
             .filter(|d| d.is_dir())
             .unwrap_or_else(std::env::temp_dir);
+        remove_stale(&base);
         let stamp = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.subsec_nanos());
@@ -77,6 +78,30 @@ impl Drop for LocalLinks {
     }
 }
 
+/// Removes the socket directories of launches that ended without removing
+/// theirs (a launcher killed with SIGKILL): `peppy-<pid>-…` whose launcher
+/// is gone. A directory of another user's is left alone (its removal
+/// fails).
+fn remove_stale(base: &Path) {
+    let Ok(entries) = std::fs::read_dir(base) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name
+            .to_str()
+            .and_then(|n| n.strip_prefix("peppy-"))
+            .and_then(|rest| rest.split_once('-'))
+            .and_then(|(pid, _)| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if !crate::runs::pid_alive(pid) && entry.path().join("router.sock").exists() {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
 /// Makes `dir`, enterable by its owner only: a socket can be connected to
 /// by anyone who can reach it.
 #[cfg(unix)]
@@ -111,5 +136,25 @@ mod tests {
         assert!(links.instance(3).unwrap().ends_with("/i3.sock"));
         drop(links);
         assert!(!dir.exists());
+    }
+
+    #[test]
+    fn a_killed_launchs_sockets_are_removed_by_the_next_launch() {
+        let base = tempfile::tempdir().unwrap();
+        // No process has pid 2^22 + 1 (above Linux's pid_max limit).
+        let stale = base.path().join("peppy-4194305-0000abcd");
+        let other = base.path().join("peppy-notes");
+        for dir in [&stale, &other] {
+            std::fs::create_dir(dir).unwrap();
+            std::fs::write(dir.join("router.sock"), "").unwrap();
+        }
+        let mine = base
+            .path()
+            .join(format!("peppy-{}-0000abcd", std::process::id()));
+        std::fs::create_dir(&mine).unwrap();
+        std::fs::write(mine.join("router.sock"), "").unwrap();
+        remove_stale(base.path());
+        assert!(!stale.exists());
+        assert!(other.exists() && mine.exists());
     }
 }
