@@ -1,7 +1,9 @@
-//! `peppy-bench`: peppy next to raw Zenoh doing the same work between real
-//! processes on this machine, in one run, reported as ratios (peppy / raw)
-//! with p50, p99 and max; then what a person waits for: launching a stack
-//! and building a node. The table is printed and written as JSON.
+//! `peppy-bench`: peppy next to raw Zenoh and its peers (dora-rs, and the
+//! hand-off floor on iceoryx2: `peers.rs`) doing the same work between
+//! real processes on this machine, in one run, reported as ratios (peppy /
+//! the other) with p50, p99 and max; then what a person waits for:
+//! launching a stack and building a node. The table is printed and
+//! written as JSON.
 //!
 //! Run it in release: `cargo run --release -p peppy-bench`
 //! (docs/PERFORMANCE.md explains every figure).

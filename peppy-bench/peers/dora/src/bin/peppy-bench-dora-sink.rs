@@ -236,7 +236,7 @@ fn launch(s: &mut Sink, expect: usize) -> Res<()> {
 
 fn main() -> Res<()> {
     let (node, events) = DoraNode::init_from_env()?;
-    let (control, args) = Control::connect(&node.id().to_string())?;
+    let (control, args) = Control::connect(node.id().as_ref())?;
     let mut s = Sink {
         node,
         events,

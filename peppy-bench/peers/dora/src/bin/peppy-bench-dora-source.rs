@@ -11,7 +11,7 @@ fn main() -> Res<()> {
     let (mut node, mut events) = DoraNode::init_from_env()?;
     // The launch group's cameras run without a link to the benchmark.
     let mut control = match std::env::var_os("PEPPY_BENCH_CONTROL") {
-        Some(_) => Some(Control::connect(&node.id().to_string())?.0),
+        Some(_) => Some(Control::connect(node.id().as_ref())?.0),
         None => None,
     };
     let (pong, stream, frame) = (
