@@ -49,6 +49,11 @@ pub(crate) struct Place {
     /// in place, the sink reads a pong's sequence number and length only.
     #[arg(long)]
     in_place: bool,
+    /// Raw Zenoh only: Zenoh's low-latency transport
+    /// (`transport/unicast/lowlatency`, which needs QoS off and cannot
+    /// fragment: messages up to a batch, 64 KiB).
+    #[arg(long)]
+    lowlatency: bool,
 }
 
 /// Whether this child runs with shared memory (set once from its [`Place`]).
@@ -57,6 +62,15 @@ static SHM: AtomicBool = AtomicBool::new(false);
 /// Whether this child's sessions use shared memory.
 pub(crate) fn shared_memory() -> bool {
     SHM.load(Relaxed)
+}
+
+/// Whether this child's raw sessions use Zenoh's low-latency transport
+/// (set once from its [`Place`]).
+static LOWLATENCY: AtomicBool = AtomicBool::new(false);
+
+/// Whether this child's raw sessions use Zenoh's low-latency transport.
+pub(crate) fn lowlatency() -> bool {
+    LOWLATENCY.load(Relaxed)
 }
 
 /// Whether this child reads round-trip messages in place (set once from
@@ -194,6 +208,7 @@ async fn stdin_closed() {
 async fn role(child: Child) -> Res<()> {
     SHM.store(child.place().is_some_and(|p| p.shm), Relaxed);
     IN_PLACE.store(child.place().is_some_and(|p| p.in_place), Relaxed);
+    LOWLATENCY.store(child.place().is_some_and(|p| p.lowlatency), Relaxed);
     match child {
         Child::Source(p) => {
             let ready = async {

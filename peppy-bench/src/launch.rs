@@ -43,14 +43,19 @@ impl Build {
 /// Builds what the launches start, both ways, then measures.
 pub(crate) fn launch(_quick: bool) -> Res<Vec<Row>> {
     let mut rows = Vec::new();
+    let ms = |v: f64| Figure::Value {
+        value: v,
+        unit: "ms".into(),
+    };
+    // peppy's optimised launches, beside dora-rs's below.
+    let mut optimised = Vec::new();
     for build in [Build::Debug, Build::Optimised] {
         let launcher = build_examples(build)?;
         for n in [10usize, 50] {
             let (first, all, rss) = launch_once(&launcher, build, n)?;
-            let ms = |v: f64| Figure::Value {
-                value: v,
-                unit: "ms".into(),
-            };
+            if build == Build::Optimised {
+                optimised.push((n, first, all));
+            }
             rows.push(Row::new(
                 build.group(),
                 format!("{n} instances: up to first message"),
@@ -104,6 +109,30 @@ pub(crate) fn launch(_quick: bool) -> Res<Vec<Row>> {
         });
         source.stop();
     }
+    if let Some(dora) = &crate::peers::peers().dora {
+        let group = "launch, dora-rs vs peppy (already built, optimised nodes)";
+        for (n, first, all) in optimised {
+            let (d_first, d_all) = dora_launch(dora, n)?;
+            rows.push(
+                Row::new(
+                    group,
+                    format!("{n} instances: up to first message"),
+                    Some(ms(d_first)),
+                    Some(ms(first)),
+                )
+                .against(crate::transport::DORA_NAME),
+            );
+            rows.push(
+                Row::new(
+                    group,
+                    format!("{n} instances: up to a message from each"),
+                    d_all.map(ms),
+                    all.map(ms),
+                )
+                .against(crate::transport::DORA_NAME),
+            );
+        }
+    }
     let [zenoh, peppy] = idle;
     rows.push(
         Row::new(
@@ -117,8 +146,53 @@ pub(crate) fn launch(_quick: bool) -> Res<Vec<Row>> {
     Ok(rows)
 }
 
+/// `dora run` of `n` camera nodes (release builds, a frame every 33 ms)
+/// and a sink: ms from the command to the sink's first frame, and to a
+/// frame from each.
+fn dora_launch(dora: &crate::peers::Dora, n: usize) -> Res<(f64, Option<f64>)> {
+    use crate::peers::DoraNode;
+    let mut nodes: Vec<DoraNode> = (0..n)
+        .map(|i| DoraNode {
+            id: format!("cam_{i}"),
+            sink: false,
+            inputs: vec![("tick".into(), "dora/timer/millis/33".into(), None)],
+            outputs: vec!["frame".into()],
+            args: None,
+        })
+        .collect();
+    nodes.push(DoraNode {
+        id: "sink".into(),
+        sink: true,
+        inputs: (0..n)
+            .map(|i| (format!("cam_{i}"), format!("cam_{i}/frame"), None))
+            .collect(),
+        outputs: Vec::new(),
+        args: Some(
+            ["launch", "--expect", &n.to_string()]
+                .map(String::from)
+                .to_vec(),
+        ),
+    });
+    let started = now_ns();
+    let mut run = dora.run(&nodes)?;
+    let seen = run
+        .nodes
+        .get_mut("sink")
+        .ok_or("dora's sink never linked")?
+        .next_with("heard", Duration::from_secs(150));
+    run.stop();
+    let seen = seen?;
+    let since = |key: &str| {
+        seen[key]
+            .as_u64()
+            .map(|t| t.saturating_sub(started) as f64 / 1e6)
+    };
+    let first = since("first_ns").ok_or("no frame from dora's cameras")?;
+    Ok((first, since("all_ns")))
+}
+
 /// The workspace's target directory.
-fn target() -> PathBuf {
+pub(crate) fn target() -> PathBuf {
     std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| workspace().join("target"), PathBuf::from)
 }
 

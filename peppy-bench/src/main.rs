@@ -1,7 +1,9 @@
-//! `peppy-bench`: peppy next to raw Zenoh doing the same work between real
-//! processes on this machine, in one run, reported as ratios (peppy / raw)
-//! with p50, p99 and max; then what a person waits for: launching a stack
-//! and building a node. The table is printed and written as JSON.
+//! `peppy-bench`: peppy next to raw Zenoh and its peers (dora-rs, and the
+//! hand-off floor on iceoryx2: `peers.rs`) doing the same work between
+//! real processes on this machine, in one run, reported as ratios (peppy /
+//! the other) with p50, p99 and max; then what a person waits for:
+//! launching a stack and building a node. The table is printed and
+//! written as JSON.
 //!
 //! Run it in release: `cargo run --release -p peppy-bench`
 //! (docs/PERFORMANCE.md explains every figure).
@@ -16,6 +18,7 @@ mod build_times;
 mod children;
 mod floor;
 mod launch;
+mod peers;
 mod peppy_side;
 mod procs;
 mod raw_side;
@@ -68,6 +71,9 @@ enum Command {
 enum Group {
     /// Topic round trips, 64 B to 4 MiB, `reliable` and `sensor_data`.
     Roundtrip,
+    /// Small round trips over each link on one host: loopback TCP, a
+    /// Unix socket, Zenoh's low-latency transport.
+    Links,
     /// One producer to one consumer, as fast as it goes.
     Throughput,
     /// One producer, eight consumer processes, 1 MiB at 30 Hz.
@@ -115,8 +121,9 @@ fn main() -> std::process::ExitCode {
     let wanted = |g| cli.only.is_empty() || cli.only.contains(&g);
     let mut runs: Vec<Vec<Row>> = Vec::new();
     let mut failures = Vec::new();
-    let groups: [(Group, Measure); 6] = [
+    let groups: [(Group, Measure); 7] = [
         (Group::Roundtrip, transport::round_trips),
+        (Group::Links, transport::links),
         (Group::Throughput, transport::throughput),
         (Group::Fanout, transport::fan_out),
         (Group::Service, transport::services),

@@ -1,8 +1,9 @@
 //! The parent's side of the child processes: spawn one, read its JSON
 //! lines with a bound on every wait, stop it, read its memory.
 
-use std::io::{BufRead, BufReader, Read};
-use std::process::{Child, ChildStdin, Command, Stdio};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{Shutdown, TcpStream};
+use std::process::{Child, Command, Stdio};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
 use std::time::Duration;
 
@@ -10,11 +11,17 @@ use serde_json::Value;
 
 use crate::roles::Res;
 
-/// A running child process of the benchmark.
+/// A running child process of the benchmark, or a process started by
+/// another program (a dora node, started by dora's daemon) that talks to
+/// the benchmark over a loopback socket instead of stdin and stdout.
 pub(crate) struct Proc {
     what: String,
-    child: Child,
-    stdin: Option<ChildStdin>,
+    /// `None` for a process reached over a socket.
+    child: Option<Child>,
+    stdin: Option<Box<dyn Write + Send>>,
+    /// The socket of a process reached over one: shut down to close it
+    /// (its reading half is another handle of the same socket).
+    link: Option<TcpStream>,
     lines: Receiver<String>,
     stderr: std::sync::Arc<std::sync::Mutex<String>>,
 }
@@ -59,16 +66,42 @@ impl Proc {
         });
         Ok(Proc {
             what: what.to_string(),
-            stdin: child.stdin.take(),
-            child,
+            stdin: child
+                .stdin
+                .take()
+                .map(|s| Box::new(s) as Box<dyn Write + Send>),
+            child: Some(child),
+            link: None,
             lines,
             stderr,
         })
     }
 
-    /// The process id.
+    /// A process reached over `stream`: its JSON lines come on it, and
+    /// [`Proc::say`] writes to it.
+    pub(crate) fn remote(stream: TcpStream, what: &str) -> Res<Proc> {
+        let (tx, lines) = channel();
+        let reader = stream.try_clone()?;
+        std::thread::spawn(move || {
+            for line in BufReader::new(reader).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    return;
+                }
+            }
+        });
+        Ok(Proc {
+            what: what.to_string(),
+            child: None,
+            stdin: Some(Box::new(stream.try_clone()?)),
+            link: Some(stream),
+            lines,
+            stderr: Default::default(),
+        })
+    }
+
+    /// The process id (0 for a process reached over a socket).
     pub(crate) fn pid(&self) -> u32 {
-        self.child.id()
+        self.child.as_ref().map_or(0, Child::id)
     }
 
     /// What it has printed on stderr so far.
@@ -96,7 +129,7 @@ impl Proc {
                     .into());
                 }
                 Err(RecvTimeoutError::Disconnected) => {
-                    let status = self.child.wait().ok();
+                    let status = self.child.as_mut().and_then(|c| c.wait().ok());
                     return Err(format!(
                         "`{}` ended ({status:?}); its stderr:\n{}",
                         self.what,
@@ -136,34 +169,52 @@ impl Proc {
         self.wait_or_kill(Duration::from_secs(10));
     }
 
-    /// Waits at most `bound` for it to end, then kills it.
+    /// Waits at most `bound` for it to end, then kills it. A process
+    /// reached over a socket has said all it had to by then: its socket
+    /// is closed, which ends it.
     pub(crate) fn wait_or_kill(&mut self, bound: Duration) {
+        if let Some(link) = self.link.take() {
+            self.stdin.take();
+            let _ = link.shutdown(Shutdown::Both);
+        }
+        let Some(child) = self.child.as_mut() else {
+            return;
+        };
         let deadline = std::time::Instant::now() + bound;
         while std::time::Instant::now() < deadline {
-            if let Ok(Some(_)) = self.child.try_wait() {
+            if let Ok(Some(_)) = child.try_wait() {
                 return;
             }
             std::thread::sleep(Duration::from_millis(20));
         }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        let _ = child.kill();
+        let _ = child.wait();
     }
 
     /// Asks it to stop as Ctrl-C would (SIGINT), then waits at most
     /// `bound` before killing it.
     pub(crate) fn interrupt(mut self, bound: Duration) {
-        let _ = Command::new("kill")
-            .args(["-INT", &self.pid().to_string()])
-            .status();
+        // Never `kill -INT 0` (the whole process group) for a process
+        // reached over a socket.
+        if let Some(child) = &self.child {
+            let _ = Command::new("kill")
+                .args(["-INT", &child.id().to_string()])
+                .status();
+        }
         self.wait_or_kill(bound);
     }
 }
 
 impl Drop for Proc {
     fn drop(&mut self) {
-        if let Ok(None) = self.child.try_wait() {
-            let _ = self.child.kill();
-            let _ = self.child.wait();
+        if let Some(link) = self.link.take() {
+            let _ = link.shutdown(Shutdown::Both);
+        }
+        if let Some(child) = self.child.as_mut()
+            && let Ok(None) = child.try_wait()
+        {
+            let _ = child.kill();
+            let _ = child.wait();
         }
     }
 }

@@ -25,6 +25,10 @@ pub(crate) async fn open(listen: Option<&str>, connect: Option<&str>) -> Res<Ses
         "transport/shared_memory/enabled",
         &crate::children::shared_memory().to_string(),
     )?;
+    if crate::children::lowlatency() {
+        c.insert_json5("transport/unicast/lowlatency", "true")?;
+        c.insert_json5("transport/unicast/qos/enabled", "false")?;
+    }
     if let Some(l) = listen {
         c.insert_json5("listen/endpoints", &format!("[\"{l}\"]"))?;
     }

@@ -113,6 +113,15 @@ pub(crate) struct Row {
     /// highest ratio (or peppy's figure, where there is no raw side).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub(crate) over_runs: Option<OverRuns>,
+    /// What the left-hand figure (`zenoh`) measures when it is not raw
+    /// Zenoh: a peer (`dora-rs`), the hand-off floor, or peppy itself
+    /// another way.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) base: Option<String>,
+    /// What the right-hand figure (`peppy`) measures when it is not peppy
+    /// as the record runs it (another link of peppy's, or raw Zenoh's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) subject: Option<String>,
 }
 
 /// How one figure moved over the runs of the whole table.
@@ -149,7 +158,22 @@ impl Row {
             ratio_p99,
             note: None,
             over_runs: None,
+            base: None,
+            subject: None,
         }
+    }
+
+    /// The right-hand figure is `subject`'s, not peppy's as the record
+    /// runs it.
+    pub(crate) fn of(mut self, subject: &str) -> Row {
+        self.subject = Some(subject.to_string());
+        self
+    }
+
+    /// The left-hand figure is `base`'s, not raw Zenoh's.
+    pub(crate) fn against(mut self, base: &str) -> Row {
+        self.base = Some(base.to_string());
+        self
     }
 
     pub(crate) fn with_note(mut self, note: impl Into<String>) -> Row {
@@ -218,14 +242,16 @@ pub(crate) fn render(rows: &[Row]) -> String {
             let who = if group == crate::transport::MACHINE {
                 "measured"
             } else {
-                "peppy"
+                r.subject.as_deref().unwrap_or("peppy")
             };
+            let base = r.base.as_deref().unwrap_or("raw zenoh");
+            let short = if base == "raw zenoh" { "raw" } else { base };
             out.push_str(&format!(
                 "\n{group}\n  {:width$}  {:>30}  {:>30}  {:>13}\n",
                 "case",
-                format!("raw zenoh {what}"),
+                format!("{base} {what}"),
                 format!("{who} {what}"),
-                "peppy / raw"
+                format!("{} / {short}", r.subject.as_deref().unwrap_or("peppy"))
             ));
         }
         let ratio = match (r.ratio, r.ratio_p99) {

@@ -12,6 +12,7 @@ use serde_json::Value;
 
 use crate::children::System;
 use crate::floor;
+use crate::peers::{self, DoraNode, DoraRun};
 use crate::procs::{Proc, free_port};
 use crate::roles::{Qos, Res};
 use crate::stats::{Figure, Row, Spread, size};
@@ -28,6 +29,31 @@ struct Mode {
     /// Round-trip messages read where they arrived, not decoded into owned
     /// data (`--in-place`).
     in_place: bool,
+    /// The link between the two processes.
+    link: Link,
+    /// A peer measured instead of `system` (which it then ignores).
+    peer: Option<Peer>,
+    /// Raw Zenoh on its low-latency transport (`--lowlatency`).
+    lowlatency: bool,
+}
+
+/// The Zenoh link between a source and its sinks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Link {
+    /// Loopback TCP, as between two hosts.
+    Tcp,
+    /// A Unix socket (`unixsock-stream`): one host only.
+    Unix,
+}
+
+/// A framework or floor measured beside peppy and raw Zenoh
+/// (`peers.rs`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Peer {
+    /// dora-rs: the source and sink as dora nodes of one `dora run`.
+    Dora,
+    /// The hand-off floor: an iceoryx2 ping-pong with event wake-ups.
+    Floor,
 }
 
 const RAW_TCP: Mode = Mode {
@@ -35,24 +61,36 @@ const RAW_TCP: Mode = Mode {
     shm: false,
     zenoh_defaults: false,
     in_place: false,
+    link: Link::Tcp,
+    peer: None,
+    lowlatency: false,
 };
 const PEPPY_TCP: Mode = Mode {
     system: System::Peppy,
     shm: false,
     zenoh_defaults: false,
     in_place: false,
+    link: Link::Tcp,
+    peer: None,
+    lowlatency: false,
 };
 const RAW_SHM: Mode = Mode {
     system: System::Zenoh,
     shm: true,
     zenoh_defaults: false,
     in_place: false,
+    link: Link::Tcp,
+    peer: None,
+    lowlatency: false,
 };
 const PEPPY_SHM: Mode = Mode {
     system: System::Peppy,
     shm: true,
     zenoh_defaults: false,
     in_place: false,
+    link: Link::Tcp,
+    peer: None,
+    lowlatency: false,
 };
 
 /// With shared memory, reading in place: a camera consumer's way.
@@ -72,6 +110,39 @@ const RAW_TCP_DEFAULTS: Mode = Mode {
     shm: false,
     zenoh_defaults: true,
     in_place: false,
+    link: Link::Tcp,
+    peer: None,
+    lowlatency: false,
+};
+
+/// Over a Unix socket, shared memory on: the link `peppy-launch up`
+/// gives the instances of one launch on one host.
+const RAW_UNIX: Mode = Mode {
+    link: Link::Unix,
+    ..RAW_SHM
+};
+const PEPPY_UNIX: Mode = Mode {
+    link: Link::Unix,
+    ..PEPPY_SHM
+};
+
+/// Raw Zenoh over a Unix socket on its low-latency transport.
+const RAW_UNIX_LOWLATENCY: Mode = Mode {
+    lowlatency: true,
+    ..RAW_UNIX
+};
+
+/// dora-rs as it runs on one host: its nodes on Zenoh over loopback TCP,
+/// with its shared memory from 4 KiB (`peers.rs`).
+const DORA: Mode = Mode {
+    peer: Some(Peer::Dora),
+    ..RAW_SHM
+};
+
+/// The hand-off floor (iceoryx2).
+const FLOOR: Mode = Mode {
+    peer: Some(Peer::Floor),
+    ..RAW_SHM
 };
 
 /// Like for like (raw first in the pair, first to run in every other
@@ -84,25 +155,137 @@ fn transport(shm: bool) -> &'static str {
 
 /// A running source process and where to reach it.
 struct Source {
-    proc: Proc,
+    /// The source process (the floor's pong for the floor; none for
+    /// dora-rs, whose nodes `dora` runs).
+    proc: Option<Proc>,
+    /// dora's run, whose nodes are the source and the sinks.
+    dora: Option<DoraRun>,
     ns: String,
     endpoint: String,
     mode: Mode,
+}
+
+/// Where a run's Unix sockets go (removed when the benchmark ends).
+fn socket_dir() -> Res<&'static std::path::Path> {
+    static DIR: std::sync::OnceLock<Option<tempfile::TempDir>> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| {
+        tempfile::Builder::new()
+            .prefix("peppy-bench-")
+            .tempdir()
+            .ok()
+    })
+    .as_ref()
+    .map(tempfile::TempDir::path)
+    .ok_or_else(|| "cannot make a directory for the Unix sockets".into())
 }
 
 impl Source {
     fn start(mode: Mode, case: &str) -> Res<Source> {
         let port = free_port()?;
         let ns = format!("{case}-{}-{port}", std::process::id());
-        let endpoint = format!("tcp/127.0.0.1:{port}");
-        let mut proc = Proc::child(&place_args("source", mode, &ns, &endpoint))?;
-        proc.next_with("ready", Duration::from_secs(30))?;
+        let endpoint = match mode.link {
+            Link::Tcp => format!("tcp/127.0.0.1:{port}"),
+            Link::Unix => format!(
+                "unixsock-stream/{}",
+                socket_dir()?.join(format!("{ns}.sock")).display()
+            ),
+        };
+        let proc = match mode.peer {
+            Some(Peer::Dora) => None,
+            Some(Peer::Floor) => {
+                let bin = peers::peers()
+                    .floor
+                    .as_ref()
+                    .ok_or("the hand-off floor is not built")?;
+                let mut command = std::process::Command::new(bin);
+                command.args(["pong", "--name", &ns]);
+                let mut proc = Proc::spawn(command, "the floor's pong")?;
+                proc.next_with("ready", Duration::from_secs(30))?;
+                Some(proc)
+            }
+            None => {
+                let mut proc = Proc::child(&place_args("source", mode, &ns, &endpoint))?;
+                proc.next_with("ready", Duration::from_secs(30))?;
+                Some(proc)
+            }
+        };
         Ok(Source {
             proc,
+            dora: None,
             ns,
             endpoint,
             mode,
         })
+    }
+
+    /// Starts a source and its sink, given the sink's arguments (a
+    /// benchmark child's: a peer's sink reads the same flags).
+    fn with_sink(
+        mode: Mode,
+        case: &str,
+        sink_args: impl FnOnce(&Source) -> Vec<String>,
+    ) -> Res<(Source, Proc)> {
+        let mut source = Source::start(mode, case)?;
+        let args = sink_args(&source);
+        let sink = match mode.peer {
+            None => Proc::child(&args)?,
+            Some(Peer::Floor) => {
+                let bin = peers::peers()
+                    .floor
+                    .as_ref()
+                    .ok_or("the hand-off floor is not built")?;
+                let mut command = std::process::Command::new(bin);
+                command
+                    .args(["ping", "--name", &source.ns])
+                    .args(&args[1..]);
+                Proc::spawn(command, "the floor's ping")?
+            }
+            Some(Peer::Dora) => {
+                let dora = peers::peers()
+                    .dora
+                    .as_ref()
+                    .ok_or("dora-rs is not set up")?;
+                let nodes = [
+                    DoraNode {
+                        id: "source".into(),
+                        sink: false,
+                        inputs: vec![
+                            ("ping".into(), "sink/ping".into(), None),
+                            ("flood".into(), "sink/flood".into(), None),
+                        ],
+                        outputs: vec!["pong".into(), "stream".into()],
+                        args: Some(Vec::new()),
+                    },
+                    DoraNode {
+                        id: "sink".into(),
+                        sink: true,
+                        // A flood's messages queue as peppy's keep-all
+                        // reader would hold them (dora's default keeps 10).
+                        inputs: vec![
+                            ("pong".into(), "source/pong".into(), None),
+                            ("stream".into(), "source/stream".into(), Some(STREAM_QUEUE)),
+                        ],
+                        outputs: vec!["ping".into(), "flood".into()],
+                        args: Some(args),
+                    },
+                ];
+                let mut run = dora.run(&nodes)?;
+                let sink = run.nodes.remove("sink").ok_or("dora's sink never linked")?;
+                source.dora = Some(run);
+                sink
+            }
+        };
+        Ok((source, sink))
+    }
+
+    /// Stops the source (and a peer's run).
+    fn stop(self) {
+        if let Some(proc) = self.proc {
+            proc.stop();
+        }
+        if let Some(run) = self.dora {
+            run.stop();
+        }
     }
 
     /// `peppy-bench child ROLE` flags that reach this source.
@@ -127,6 +310,9 @@ fn place_args(role: &str, mode: Mode, ns: &str, endpoint: &str) -> Vec<String> {
     }
     if mode.in_place {
         args.push("--in-place".into());
+    }
+    if mode.lowlatency {
+        args.push("--lowlatency".into());
     }
     args
 }
@@ -157,7 +343,7 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
         // Beside this profile's round trips, as a profile's turns run
         // seconds after the other's and the machine moves meanwhile.
         let mut floor_samples = Vec::new();
-        let modes = [
+        let mut modes = vec![
             RAW_TCP,
             PEPPY_TCP,
             RAW_SHM,
@@ -165,7 +351,15 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
             RAW_TCP_DEFAULTS,
             RAW_SHM_IN_PLACE,
             PEPPY_SHM_IN_PLACE,
+            RAW_UNIX,
+            PEPPY_UNIX,
         ];
+        if peers::peers().dora.is_some() {
+            modes.push(DORA);
+        }
+        if peers::peers().floor.is_some() {
+            modes.push(FLOOR);
+        }
         let sizes_arg: Vec<String> = sizes.iter().map(ToString::to_string).collect();
         let got = in_turns(
             &modes,
@@ -205,22 +399,49 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
                     .collect()
             })
             .collect();
+        // (group, the base mode and its name, peppy's mode)
         let cases = [
-            ("topic round trip, TCP (SHM off both sides)", 0, 1),
-            ("topic round trip, shared memory both sides", 2, 3),
+            (RT_DORA_TCP, DORA, DORA_NAME, PEPPY_SHM),
+            (RT_DORA_UNIX, DORA, DORA_NAME, PEPPY_UNIX),
+            (RT_FLOOR, FLOOR, FLOOR_NAME, PEPPY_UNIX),
+            (
+                "topic round trip, TCP (SHM off both sides)",
+                RAW_TCP,
+                RAW,
+                PEPPY_TCP,
+            ),
+            (
+                "topic round trip, shared memory both sides",
+                RAW_SHM,
+                RAW,
+                PEPPY_SHM,
+            ),
             (
                 "topic round trip, shared memory, read in place (a camera consumer's way)",
-                5,
-                6,
+                RAW_SHM_IN_PLACE,
+                RAW,
+                PEPPY_SHM_IN_PLACE,
             ),
-            ("topic round trip, peppy with SHM vs raw over TCP", 0, 3),
+            (RT_UNIX, RAW_UNIX, RAW, PEPPY_UNIX),
+            (RT_UNIX_VS_TCP, PEPPY_SHM, "peppy over TCP", PEPPY_UNIX),
+            (
+                "topic round trip, peppy with SHM vs raw over TCP",
+                RAW_TCP,
+                RAW,
+                PEPPY_SHM,
+            ),
             (
                 "topic round trip, raw Zenoh on its default threads vs peppy (TCP)",
-                4,
-                1,
+                RAW_TCP_DEFAULTS,
+                RAW,
+                PEPPY_TCP,
             ),
         ];
-        for (group, z, p) in cases {
+        let at = |m: Mode| modes.iter().position(|&x| x == m);
+        for (group, base, name, peppy) in cases {
+            let (Some(z), Some(p)) = (at(base), at(peppy)) else {
+                continue;
+            };
             for ((zs, zlost, bytes), (ps, plost, _)) in got[z].iter().zip(&got[p]) {
                 let mut row = Row::new(
                     group,
@@ -228,8 +449,12 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
                     zs.map(Figure::Latency),
                     ps.map(Figure::Latency),
                 );
+                if name != RAW {
+                    row = row.against(name);
+                }
                 if zlost + plost > 0 {
-                    row = row.with_note(format!("unanswered in 2 s: raw {zlost}, peppy {plost}"));
+                    row =
+                        row.with_note(format!("unanswered in 2 s: {name} {zlost}, peppy {plost}"));
                 }
                 rows.push(row);
             }
@@ -243,9 +468,14 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     }
     rows.sort_by_key(|r| {
         [
+            RT_DORA_TCP,
+            RT_DORA_UNIX,
+            RT_FLOOR,
             "topic round trip, TCP",
             "topic round trip, shared memory both",
             "topic round trip, shared memory, read",
+            RT_UNIX,
+            RT_UNIX_VS_TCP,
             MACHINE,
             "topic round trip, peppy",
             "topic round trip, raw",
@@ -255,6 +485,102 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     });
     Ok(rows)
 }
+
+/// The base column's name for raw Zenoh (the default).
+const RAW: &str = "raw zenoh";
+/// The base column's name for dora-rs.
+pub(crate) const DORA_NAME: &str = "dora-rs";
+/// The base column's name for the hand-off floor.
+const FLOOR_NAME: &str = "floor";
+
+const RT_DORA_TCP: &str =
+    "topic round trip, dora-rs vs peppy (each with its shared memory, loopback TCP)";
+const RT_DORA_UNIX: &str =
+    "topic round trip, dora-rs vs peppy over a Unix socket (each with its shared memory)";
+const RT_FLOOR: &str =
+    "topic round trip, the hand-off floor (iceoryx2, event wake-ups) vs peppy over a Unix socket";
+const RT_UNIX: &str = "topic round trip, Unix socket, shared memory both sides";
+const RT_UNIX_VS_TCP: &str =
+    "topic round trip, peppy over a Unix socket vs over loopback TCP (shared memory)";
+
+/// How many messages a dora sink's flood input holds (dora's default is
+/// 10, and it drops the oldest beyond): a flood is read as it comes, as
+/// peppy's keep-all reader holds what it has not read.
+const STREAM_QUEUE: usize = 100_000;
+
+/// What each link on one host buys small messages: round trips of 64 B
+/// and 4 KiB over loopback TCP and over a Unix socket, peppy and raw
+/// Zenoh (shared memory on, as `up` runs nodes; it does not apply at
+/// these sizes), and raw Zenoh's low-latency transport, all in turns.
+pub(crate) fn links(quick: bool) -> Res<Vec<Row>> {
+    let sizes = [64usize, 4 << 10];
+    let count = if quick { 100 } else { 5000 };
+    let modes = [
+        RAW_SHM,
+        PEPPY_SHM,
+        RAW_UNIX,
+        PEPPY_UNIX,
+        RAW_UNIX_LOWLATENCY,
+    ];
+    let sizes_arg: Vec<String> = sizes.iter().map(ToString::to_string).collect();
+    let got = in_turns(
+        &modes,
+        rounds(quick),
+        sizes.len(),
+        |source| {
+            let mut args = source.args("round-trip");
+            args.extend([
+                "--qos".into(),
+                "reliable".into(),
+                "--sizes".into(),
+                sizes_arg.join(","),
+                "--count".into(),
+                (count / rounds(quick)).to_string(),
+            ]);
+            args
+        },
+        |_| {},
+        |_, _, sink| Ok(vec![sink.next_with("spread", BOUND)?]),
+    )?;
+    let spreads: Vec<Vec<Option<Spread>>> = got
+        .iter()
+        .map(|cases| {
+            cases
+                .iter()
+                .map(|runs| median_spread(runs.iter().map(|v| &v["spread"])))
+                .collect()
+        })
+        .collect();
+    let cases = [
+        (LINKS_PEPPY, 1, 3, "TCP", "Unix"),
+        (LINKS_RAW, 0, 2, "TCP", "Unix"),
+        (LINKS_LOWLATENCY, 2, 4, "default", "low-latency"),
+        (LINKS_PEPPY_UNIX_RAW_TCP, 0, 3, "raw, TCP", "peppy, Unix"),
+    ];
+    let mut rows = Vec::new();
+    for (group, base, subject, base_name, subject_name) in cases {
+        for (i, &bytes) in sizes.iter().enumerate() {
+            rows.push(
+                Row::new(
+                    group,
+                    format!("reliable {}", size(bytes)),
+                    spreads[base][i].map(Figure::Latency),
+                    spreads[subject][i].map(Figure::Latency),
+                )
+                .against(base_name)
+                .of(subject_name),
+            );
+        }
+    }
+    Ok(rows)
+}
+
+const LINKS_PEPPY: &str = "links on one host, peppy: Unix socket vs loopback TCP";
+const LINKS_RAW: &str = "links on one host, raw Zenoh: Unix socket vs loopback TCP";
+const LINKS_LOWLATENCY: &str =
+    "links on one host, raw Zenoh over a Unix socket: the low-latency transport vs the default";
+const LINKS_PEPPY_UNIX_RAW_TCP: &str =
+    "links on one host: peppy over a Unix socket vs raw Zenoh over loopback TCP";
 
 /// The size whose round trips the machine's floor (`floor`) is measured
 /// beside, in the same turns.
@@ -290,32 +616,72 @@ pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
     };
     let mut rows = Vec::new();
     for (raw, peppy) in PAIRS {
-        let got = in_rounds(&[raw, peppy], rounds(quick), |mode| {
-            let source = Source::start(mode, "tp")?;
-            let mut args = source.args("throughput");
-            let list: Vec<String> = cases.iter().map(|(s, c)| format!("{s}:{c}")).collect();
-            args.extend(["--cases".into(), list.join(",")]);
-            let mut sink = Proc::child(&args)?;
+        // dora-rs beside the pair that runs as it does on one host.
+        let mut modes = vec![raw, peppy];
+        if raw.shm && peers::peers().dora.is_some() {
+            modes.push(DORA);
+        }
+        let got = in_rounds(&modes, rounds(quick), |mode| {
+            let (source, mut sink) = Source::with_sink(mode, "tp", |source| {
+                let mut args = source.args("throughput");
+                // dora-rs moves small messages at a tenth of the others'
+                // rate or less here: a tenth of the messages keeps its
+                // flood near a second too.
+                let tenth = |(s, c): &(usize, u32)| match mode.peer {
+                    Some(Peer::Dora) if *s < 1024 => (*s, c / 10),
+                    _ => (*s, *c),
+                };
+                let list: Vec<String> = cases
+                    .iter()
+                    .map(tenth)
+                    .map(|(s, c)| format!("{s}:{c}"))
+                    .collect();
+                args.extend(["--cases".into(), list.join(",")]);
+                args
+            })?;
             let mut got = Vec::new();
             for _ in 0..cases.len() {
                 got.push(sink.next_with("msgs_per_s", BOUND)?);
             }
             sink.wait_or_kill(Duration::from_secs(10));
-            source.proc.stop();
+            source.stop();
             Ok(got)
         })?;
         let group = format!(
             "topic throughput (reliable, one to one, {})",
             transport(raw.shm)
         );
+        let short = |runs: &[Value]| -> u64 {
+            runs.iter()
+                .map(|v| v["sent"].as_u64().unwrap_or(0) - v["received"].as_u64().unwrap_or(0))
+                .sum()
+        };
+        if let Some(dora) = got.get(2) {
+            rows.extend(dora.iter().zip(&got[1]).map(|(d, p)| {
+                let bytes = d[0]["size"].as_u64().unwrap_or(0) as usize;
+                let mut row = Row::new(
+                    "topic throughput, dora-rs vs peppy (one to one, shared memory)",
+                    size(bytes),
+                    Some(rate(d)),
+                    Some(rate(p)),
+                )
+                .against(DORA_NAME);
+                if bytes < 1024 {
+                    row = row.with_note("dora-rs sent a tenth as many messages");
+                }
+                if short(d) + short(p) > 0 {
+                    let note = format!("not received: dora-rs {}, peppy {}", short(d), short(p));
+                    row.note = Some(match row.note.take() {
+                        Some(n) => format!("{n}; {note}"),
+                        None => note,
+                    });
+                }
+                row
+            }));
+        }
         rows.extend(got[0].iter().zip(&got[1]).map(|(z, p)| {
             let bytes = z[0]["size"].as_u64().unwrap_or(0) as usize;
             let mut row = Row::new(&group, size(bytes), Some(rate(z)), Some(rate(p)));
-            let short = |runs: &[Value]| -> u64 {
-                runs.iter()
-                    .map(|v| v["sent"].as_u64().unwrap_or(0) - v["received"].as_u64().unwrap_or(0))
-                    .sum()
-            };
             if short(z) + short(p) > 0 {
                 row = row.with_note(format!(
                     "not received: raw {}, peppy {}",
@@ -386,11 +752,11 @@ fn in_turns(
     for round in 0..rounds {
         let mut sides = Vec::new();
         for &mode in modes {
-            let source = Source::start(mode, "turns")?;
-            let mut args = sink_args(&source);
-            args.extend(["--turns".into(), TURNS.to_string()]);
-            let sink = Proc::child(&args)?;
-            sides.push((source, sink));
+            sides.push(Source::with_sink(mode, "turns", |source| {
+                let mut args = sink_args(source);
+                args.extend(["--turns".into(), TURNS.to_string()]);
+                args
+            })?);
         }
         let mut position = vec![0; modes.len()];
         for case in 0..cases {
@@ -421,96 +787,195 @@ fn in_turns(
         }
         for (source, mut sink) in sides {
             sink.wait_or_kill(Duration::from_secs(10));
-            source.proc.stop();
+            source.stop();
         }
     }
     Ok(got)
 }
 
 /// One producer, eight consumer processes, 1 MiB frames at 30 Hz, both
-/// with shared memory (each system's default on one host).
+/// with shared memory (each system's default on one host); dora-rs too,
+/// its producer and consumers nodes of one dataflow.
 pub(crate) fn fan_out(quick: bool) -> Res<Vec<Row>> {
     const CONSUMERS: usize = 8;
+    const GROUP: &str = "fan-out: 1 producer, 8 consumer processes, 1 MiB at 30 Hz";
     let (warmup, frames) = (30u64, if quick { 60u64 } else { 150 });
-    let mut rows = Vec::new();
-    let mut latency: [Option<Spread>; 2] = [None, None];
-    let mut cpu: [f64; 2] = [0.0; 2];
-    for (i, mode) in [RAW_SHM, PEPPY_SHM].into_iter().enumerate() {
+    let window = frames as f64 / 30.0;
+    // A consumer's arguments (the last one starts the producer).
+    let consumer_args = |source_args: Vec<String>, id: usize| {
+        let mut args = source_args;
+        args.extend(
+            [
+                "--id",
+                &id.to_string(),
+                "--size",
+                &(1u32 << 20).to_string(),
+                "--hz",
+                "30",
+                "--warmup",
+                &warmup.to_string(),
+                "--frames",
+                &frames.to_string(),
+            ]
+            .map(String::from),
+        );
+        if id == CONSUMERS - 1 {
+            args.push("--trigger".into());
+        }
+        args
+    };
+    let mut figures = Vec::new();
+    for mode in [RAW_SHM, PEPPY_SHM] {
         let mut source = Source::start(mode, "fan")?;
         let mut consumers = Vec::new();
         for id in 0..CONSUMERS {
-            let mut args = source.args("fan-out");
-            args.extend(
-                [
-                    "--id",
-                    &id.to_string(),
-                    "--size",
-                    &(1u32 << 20).to_string(),
-                    "--hz",
-                    "30",
-                    "--warmup",
-                    &warmup.to_string(),
-                    "--frames",
-                    &frames.to_string(),
-                ]
-                .map(String::from),
-            );
-            // The last consumer starts the producer, once all are ready.
-            if id == CONSUMERS - 1 {
-                args.push("--trigger".into());
-            }
-            let mut c = Proc::child(&args)?;
+            let mut c = Proc::child(&consumer_args(source.args("fan-out"), id))?;
             c.next_with("ready", Duration::from_secs(30))?;
             consumers.push(c);
         }
-        let mut samples = Vec::new();
-        let window = frames as f64 / 30.0;
-        let mut cpu_s = 0.0;
+        let mut received = Vec::new();
         for mut c in consumers {
-            let r = c.next_with("received", BOUND)?;
-            if let Some(s) = spread(&r["spread"]) {
-                // Per-consumer p50s: the spread across consumers.
-                samples.push(s.p50);
-                latency[i] = Some(match latency[i] {
-                    Some(m) if m.max >= s.max => Spread { max: m.max, ..m },
-                    _ => s,
-                });
-            }
-            cpu_s += r["cpu_ms"].as_f64().unwrap_or(0.0) / 1e3;
+            received.push(c.next_with("received", BOUND)?);
             c.wait_or_kill(Duration::from_secs(10));
         }
-        let flood = source.proc.next_with("flood", Duration::from_secs(30))?;
-        let (src_cpu, src_secs) = (
-            flood["flood"]["cpu_ms"].as_f64().unwrap_or(0.0) / 1e3,
-            flood["flood"]["secs"].as_f64().unwrap_or(1.0),
-        );
-        cpu[i] = 100.0 * (cpu_s / window + src_cpu / src_secs);
-        let all = Spread::of(&mut samples);
-        if let (Some(l), Some(a)) = (latency[i].as_mut(), all) {
-            // Report the median consumer's p50, the worst p99 and max.
-            l.p50 = a.p50;
-        }
-        source.proc.stop();
+        let proc = source.proc.as_mut().ok_or("no source process")?;
+        let flood = proc.next_with("flood", Duration::from_secs(30))?;
+        figures.push(fan_figures(&received, &flood, window));
+        source.stop();
     }
-    rows.push(Row::new(
-        "fan-out: 1 producer, 8 consumer processes, 1 MiB at 30 Hz",
-        "latency per consumer".into(),
-        latency[0].map(Figure::Latency),
-        latency[1].map(Figure::Latency),
-    ));
-    rows.push(Row::new(
-        "fan-out: 1 producer, 8 consumer processes, 1 MiB at 30 Hz",
-        "CPU, all nine processes".into(),
-        Some(Figure::Value {
-            value: cpu[0],
-            unit: "% of one core".into(),
-        }),
-        Some(Figure::Value {
-            value: cpu[1],
-            unit: "% of one core".into(),
-        }),
-    ));
+    let mut rows = vec![
+        Row::new(
+            GROUP,
+            "latency per consumer".into(),
+            figures[0].0.map(Figure::Latency),
+            figures[1].0.map(Figure::Latency),
+        ),
+        Row::new(
+            GROUP,
+            "CPU, all nine processes".into(),
+            Some(cpu_figure(figures[0].1)),
+            Some(cpu_figure(figures[1].1)),
+        ),
+    ];
+    if let Some(dora) = &peers::peers().dora {
+        let (latency, cpu) = dora_fan_out(dora, CONSUMERS, &consumer_args, window)?;
+        let group = "fan-out, dora-rs vs peppy: 1 producer, 8 consumer processes, 1 MiB at 30 Hz";
+        rows.push(
+            Row::new(
+                group,
+                "latency per consumer".into(),
+                latency.map(Figure::Latency),
+                figures[1].0.map(Figure::Latency),
+            )
+            .against(DORA_NAME),
+        );
+        rows.push(
+            Row::new(
+                group,
+                "CPU, all nine processes".into(),
+                Some(cpu_figure(cpu)),
+                Some(cpu_figure(figures[1].1)),
+            )
+            .against(DORA_NAME)
+            .with_note("dora's own process (daemon) not counted"),
+        );
+    }
     Ok(rows)
+}
+
+fn cpu_figure(value: f64) -> Figure {
+    Figure::Value {
+        value,
+        unit: "% of one core".into(),
+    }
+}
+
+/// A fan-out's figures from its consumers' reports and its producer's:
+/// the median consumer's p50 with the worst p99 and max, and the CPU of
+/// all the processes over the window (% of one core).
+fn fan_figures(received: &[Value], flood: &Value, window: f64) -> (Option<Spread>, f64) {
+    let (mut latency, mut samples, mut cpu_s) = (None::<Spread>, Vec::new(), 0.0);
+    for r in received {
+        if let Some(s) = spread(&r["spread"]) {
+            samples.push(s.p50);
+            latency = Some(match latency {
+                Some(m) if m.max >= s.max => Spread { max: m.max, ..m },
+                _ => s,
+            });
+        }
+        cpu_s += r["cpu_ms"].as_f64().unwrap_or(0.0) / 1e3;
+    }
+    let (src_cpu, src_secs) = (
+        flood["flood"]["cpu_ms"].as_f64().unwrap_or(0.0) / 1e3,
+        flood["flood"]["secs"].as_f64().unwrap_or(1.0),
+    );
+    let cpu = 100.0 * (cpu_s / window + src_cpu / src_secs);
+    if let (Some(l), Some(a)) = (latency.as_mut(), Spread::of(&mut samples)) {
+        l.p50 = a.p50;
+    }
+    (latency, cpu)
+}
+
+/// The fan-out as a dora dataflow: a source node and `consumers` sink
+/// nodes, each told the same flags as the benchmark's consumers.
+fn dora_fan_out(
+    dora: &peers::Dora,
+    consumers: usize,
+    consumer_args: &dyn Fn(Vec<String>, usize) -> Vec<String>,
+    window: f64,
+) -> Res<(Option<Spread>, f64)> {
+    let mut nodes = vec![DoraNode {
+        id: "source".into(),
+        sink: false,
+        inputs: vec![(
+            "flood".into(),
+            format!("sink_{}/flood", consumers - 1),
+            None,
+        )],
+        outputs: vec!["pong".into(), "stream".into()],
+        args: Some(Vec::new()),
+    }];
+    for id in 0..consumers {
+        nodes.push(DoraNode {
+            id: format!("sink_{id}"),
+            sink: true,
+            inputs: vec![("stream".into(), "source/stream".into(), None)],
+            outputs: if id == consumers - 1 {
+                vec!["flood".into()]
+            } else {
+                Vec::new()
+            },
+            args: Some(consumer_args(vec!["fan-out".into()], id)),
+        });
+    }
+    let mut run = dora.run(&nodes)?;
+    let mut take = |id: &str| {
+        run.nodes
+            .remove(id)
+            .ok_or_else(|| format!("dora node {id} never linked"))
+    };
+    let mut source = take("source")?;
+    let mut sinks = Vec::new();
+    for id in 0..consumers {
+        let mut c = take(&format!("sink_{id}"))?;
+        c.next_with("ready", Duration::from_secs(30))?;
+        sinks.push(c);
+    }
+    // As the benchmark's trigger does: a second for every subscription to
+    // be matched, then the producer starts.
+    std::thread::sleep(Duration::from_secs(1));
+    sinks[consumers - 1].say("go")?;
+    let mut received = Vec::new();
+    for c in &mut sinks {
+        received.push(c.next_with("received", BOUND)?);
+    }
+    let flood = source.next_with("flood", Duration::from_secs(30))?;
+    run.nodes.insert("source".into(), source);
+    for (id, c) in sinks.into_iter().enumerate() {
+        run.nodes.insert(format!("sink_{id}"), c);
+    }
+    run.stop();
+    Ok(fan_figures(&received, &flood, window))
 }
 
 /// A pinned service call against a raw query and queryable; an action's

@@ -14,6 +14,7 @@ mod find_launcher;
 mod flows;
 mod graph;
 mod inspect;
+mod local_links;
 mod migrate;
 mod output;
 mod placement;

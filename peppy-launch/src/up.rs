@@ -460,8 +460,17 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         None
     };
     note_security(&out, &stack, args, &links);
+    // The instances of this launch reach the router, and each other, over
+    // Unix sockets; the router's own endpoints stay for everything else.
+    let local_links = crate::local_links::LocalLinks::create();
+    let router_listen: Vec<String> = links
+        .listen
+        .iter()
+        .cloned()
+        .chain(local_links.as_ref().map(|l| l.router()))
+        .collect();
     let router = open_router(
-        &links.listen,
+        &router_listen,
         &links.connect,
         !stack.launcher.core_nodes.is_empty(),
         secured.as_ref().map(|s| &s.guard),
@@ -478,6 +487,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     let instances = Instances {
         namespace: &namespace,
         connect: links.node_endpoints(),
+        local: local_links.as_ref(),
         secured: secured.as_ref(),
     };
     let planned = instances.plan(&stack, &share, &programs);
@@ -705,6 +715,8 @@ struct Instances<'a> {
     namespace: &'a str,
     /// Where instances connect (the launch's router).
     connect: Vec<String>,
+    /// The Unix sockets instances use instead, when this host has them.
+    local: Option<&'a crate::local_links::LocalLinks>,
     secured: Option<&'a Secured>,
 }
 
@@ -721,7 +733,8 @@ impl Instances<'_> {
             .instances
             .iter()
             .zip(&share.core_of)
-            .map(|(&i, core_node)| {
+            .enumerate()
+            .map(|(index, (&i, core_node))| {
                 let inst = &stack.plan.instances[i];
                 let deployment = &stack.deployments[inst.deployment];
                 let node = deployment.resolved.node.identity();
@@ -738,7 +751,7 @@ impl Instances<'_> {
                     .and_then(|(_, i)| i.framework.use_sim_time)
                     .unwrap_or(false);
                 Ok(Planned {
-                    config: self.config(inst, core_node, use_sim_time),
+                    config: self.config(inst, index, core_node, use_sim_time),
                     node: node.to_string(),
                     dir: deployment.dir.clone(),
                     argv,
@@ -750,16 +763,31 @@ impl Instances<'_> {
             .collect()
     }
 
-    /// One instance's runtime config: the launcher's decisions for it.
+    /// One instance's runtime config: the launcher's decisions for it
+    /// (`index`: its place among the launch's instances).
     fn config(
         &self,
         inst: &peppy_schema::InstancePlan,
+        index: usize,
         core_node: &str,
         use_sim_time: bool,
     ) -> StartupConfig {
         let login = self
             .secured
             .and_then(|s| s.secrets.instances.get(&inst.instance_id).cloned());
+        // On this host's Unix sockets: the router's, and (a peer, links to
+        // other peers directly) one of its own. A client (secured) only
+        // reaches the router, which checks what it sends, over any link.
+        let (listen, connect) = match self.local {
+            Some(local) => (
+                match self.secured {
+                    Some(_) => Vec::new(),
+                    None => local.instance(index).into_iter().collect(),
+                },
+                vec![local.router()],
+            ),
+            None => (Vec::new(), self.connect.clone()),
+        };
         StartupConfig {
             instance_id: inst.instance_id.clone(),
             core_node: core_node.to_string(),
@@ -772,8 +800,8 @@ impl Instances<'_> {
             // other peers directly, past the router.
             zenoh: Endpoints {
                 mode: self.secured.map(|_| "client".to_string()),
-                listen: Vec::new(),
-                connect: self.connect.clone(),
+                listen,
+                connect,
                 multicast_scouting: false,
                 login,
             },

@@ -642,3 +642,78 @@ fn a_node_runs_zenoh_on_the_node_layout_unless_told_otherwise() {
         }
     }
 }
+
+/// The runtime config an instance of `dir`'s launch got, with the
+/// launcher's environment set to `env`; stops the launch after reading it
+/// and returns the config and the launch's stderr.
+fn launched_config(dir: &Path, env: &[(&str, &str)]) -> (serde_json::Value, String) {
+    shell_node(
+        dir,
+        "probe",
+        "cat \"$PEPPY_RUNTIME_CONFIG\" > config.tmp && mv config.tmp config.json; exec sleep 1000",
+    );
+    launcher(dir, &[("probe", "probe", "no")]);
+    let child = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+        .arg("stack.json5")
+        .current_dir(dir)
+        .env("NO_COLOR", "1")
+        .env_remove("PEPPY_REPOSITORIES")
+        .env_remove("PEPPY_LOCAL_LINK")
+        .envs(env.iter().copied())
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let text = wait_for_file(&dir.join("probe/config.json"), Duration::from_secs(30));
+    let config: serde_json::Value =
+        serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"));
+    // While the launch runs, its socket directory is there, private.
+    if let Some(router) = config["zenoh"]["connect"][0]
+        .as_str()
+        .and_then(|e| e.strip_prefix("unixsock-stream/"))
+    {
+        let dir = Path::new(router).parent().unwrap();
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(dir).unwrap().permissions().mode();
+        assert_eq!(mode & 0o777, 0o700, "{}", dir.display());
+        assert!(Path::new(router).exists(), "the router's socket {router}");
+    }
+    interrupt(&child);
+    let (_, stderr, _) = finish(child, Duration::from_secs(30));
+    (config, stderr)
+}
+
+#[test]
+fn instances_of_one_launch_link_over_unix_sockets_removed_at_its_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let (config, stderr) = launched_config(dir.path(), &[]);
+    let endpoint = |key: &str| config["zenoh"][key][0].as_str().unwrap_or("").to_string();
+    let (connect, listen) = (endpoint("connect"), endpoint("listen"));
+    assert!(
+        connect.starts_with("unixsock-stream/") && connect.ends_with("/router.sock"),
+        "{config}\n{stderr}"
+    );
+    assert!(
+        listen.starts_with("unixsock-stream/") && listen.ends_with("/i0.sock"),
+        "{config}"
+    );
+    let sockets = Path::new(connect.strip_prefix("unixsock-stream/").unwrap())
+        .parent()
+        .unwrap()
+        .to_path_buf();
+    assert!(
+        !sockets.exists(),
+        "the launch left {} behind",
+        sockets.display()
+    );
+}
+
+#[test]
+fn peppy_local_link_tcp_keeps_instances_on_loopback_tcp() {
+    let dir = tempfile::tempdir().unwrap();
+    let (config, stderr) = launched_config(dir.path(), &[("PEPPY_LOCAL_LINK", "tcp")]);
+    let connect = config["zenoh"]["connect"][0].as_str().unwrap_or("");
+    assert!(connect.starts_with("tcp/127.0.0.1:"), "{config}\n{stderr}");
+    assert_eq!(config["zenoh"]["listen"], serde_json::json!([]));
+}
