@@ -360,7 +360,11 @@ fn pair_rows(
     inst.pairs
         .iter()
         .filter_map(|plan| {
-            let slot = node.node.pairings.iter().find(|p| p.link_id == plan.link_id)?;
+            let slot = node
+                .node
+                .pairings
+                .iter()
+                .find(|p| p.link_id == plan.link_id)?;
             let peers = plan
                 .peers
                 .iter()
@@ -375,7 +379,10 @@ fn pair_rows(
             Some(if slot.observer {
                 (
                     format!("{:width$} <~ {fill}", plan.link_id),
-                    format!("observes {} of pairing {}, {}", slot.role, slot.pairing, slot.cardinality),
+                    format!(
+                        "observes {} of pairing {}, {}",
+                        slot.role, slot.pairing, slot.cardinality
+                    ),
                 )
             } else {
                 (

@@ -217,7 +217,12 @@ fn pair_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &m
         return;
     };
     for plan in &inst.pairs {
-        let Some(slot) = resolved.node.pairings.iter().find(|p| p.link_id == plan.link_id) else {
+        let Some(slot) = resolved
+            .node
+            .pairings
+            .iter()
+            .find(|p| p.link_id == plan.link_id)
+        else {
             continue;
         };
         for peer in &plan.peers {

@@ -54,8 +54,29 @@ pub(crate) fn run(args: &UpArgs) -> Outcome {
             });
         }
     };
-    if !stack.warnings.is_empty() {
-        report::print_human(&stack.warnings);
+    // What `check` only warns about, `up` cannot do: a node it has no way
+    // to start is an error here.
+    let mut warnings = peppy_schema::Diagnostics::new();
+    let mut unstartable = 0;
+    for d in stack.warnings.iter() {
+        let mut d = d.clone();
+        if d.code == peppy_schema::Code::UnsupportedExecution {
+            d.severity = peppy_schema::Severity::Error;
+            unstartable += 1;
+        }
+        warnings.push(d);
+    }
+    if !warnings.is_empty() {
+        report::print_human(&warnings);
+    }
+    if unstartable > 0 {
+        eprintln!(
+            "invalid: {}; nothing was built or started",
+            report::count(unstartable, "error")
+        );
+        return Err(LaunchError::Invalid {
+            errors: unstartable,
+        });
     }
     if let Some(selection) = &stack.selection {
         eprintln!("components: {selection}");

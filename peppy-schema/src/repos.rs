@@ -363,7 +363,7 @@ impl RepoIndex {
                     path,
                     repository: repo.to_path_buf(),
                 };
-                self.insert_pairing(entry);
+                self.insert_pairing(entry.doc.identity.clone(), entry);
             }
             // `mismatch` matched the section to the kind already.
             Ok((other, _)) => self.findings.push(unmatched(&format!(
@@ -372,17 +372,6 @@ impl RepoIndex {
             ))),
             Err(diagnostics) => self.add_broken(key, &path, diagnostics),
         }
-    }
-
-    /// Adds a pairing document; a second one of the same identity is a
-    /// finding, the first found wins.
-    fn insert_pairing(&mut self, entry: Entry<PairingDoc>) {
-        let id = entry.doc.identity.clone();
-        let entries = self.pairings.entry(id.clone()).or_default();
-        if let Some(first) = entries.first() {
-            self.findings.push(duplicate(&id, &first.path, &entry.path));
-        }
-        entries.push(entry);
     }
 
     /// Keeps an invalid listed document under the identity it is listed as.
@@ -438,11 +427,17 @@ impl RepoIndex {
                     },
                 );
             }
-            Ok((Document::Pairing(p), _)) => self.insert_pairing(Entry {
-                doc: Arc::new(p),
-                path: path.to_path_buf(),
-                repository: repo.to_path_buf(),
-            }),
+            Ok((Document::Pairing(p), _)) => {
+                let id = p.identity.clone();
+                self.insert_pairing(
+                    id,
+                    Entry {
+                        doc: Arc::new(p),
+                        path: path.to_path_buf(),
+                        repository: repo.to_path_buf(),
+                    },
+                );
+            }
             Ok((Document::Launcher(_), _)) => self.add_launcher(path),
             Ok((Document::Repositories(_) | Document::RepositoryIndex(_), _)) => {}
             // A launcher is found by its file name, valid or not: whoever
@@ -501,6 +496,14 @@ impl RepoIndex {
 
     fn insert_interface(&mut self, id: Identity, entry: Entry<InterfaceDoc>) {
         let entries = self.interfaces.entry(id.clone()).or_default();
+        if let Some(first) = entries.first() {
+            self.findings.push(duplicate(&id, &first.path, &entry.path));
+        }
+        entries.push(entry);
+    }
+
+    fn insert_pairing(&mut self, id: Identity, entry: Entry<PairingDoc>) {
+        let entries = self.pairings.entry(id.clone()).or_default();
         if let Some(first) = entries.first() {
             self.findings.push(duplicate(&id, &first.path, &entry.path));
         }

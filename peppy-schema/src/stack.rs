@@ -220,8 +220,9 @@ pub fn check_resolved(
             None => load_deployment(d, &base, &index, &mut diags),
         })
         .collect();
-    // Refused here rather than after building and opening the router: a
-    // launch that cannot start every node starts none.
+    // `check` plans such a stack (a warning); `up` refuses it before
+    // building or opening the router: a launch that cannot start every
+    // node starts none.
     for (d, (doc, _)) in launcher
         .deployments
         .iter()
@@ -231,14 +232,14 @@ pub fn check_resolved(
         if matches!(doc.execution.launch(), Launch::Container(_)) {
             diags.push(
                 d.source_loc
-                    .error(
+                    .warning(
                         Code::UnsupportedExecution,
                         format!(
                             "`{}` runs in a container (`execution.container`), which peppy-launch does not start yet",
                             doc.identity()
                         ),
                     )
-                    .with_help("give the node an `execution.run_cmd` to run it as a process"),
+                    .with_help("`check` plans it; `up` refuses to start it: give the node an `execution.run_cmd` to run it as a process"),
             );
         }
     }

@@ -9,6 +9,7 @@
 
 mod messages;
 mod modules;
+mod pairings;
 mod params;
 mod source;
 mod testing;
@@ -139,6 +140,28 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
         ));
         specs.consumed_actions.push(path);
     }
+    for rp in &node.pairings {
+        let slot = &rp.slot;
+        let mut topics = Vec::new();
+        for (uses, emitted) in [(&rp.emitted, true), (&rp.consumed, false)] {
+            for u in uses {
+                let decl = &u.topic.decl;
+                let parts = [module(&slot.link_id), module(&decl.name)];
+                let mut out = Source::default();
+                pairings::paired_topic(&mut out, &document, slot, decl, emitted);
+                let mut path = PathBuf::from(pairings::CATEGORY);
+                for p in &parts {
+                    path.push(p);
+                }
+                path.set_extension("py");
+                files.list.push((path, out.finish()));
+                let dotted = format!("{}.{}", pairings::CATEGORY, parts.join("."));
+                topics.push((decl.name.clone(), dotted.clone(), emitted));
+                specs.pairing_topics.push(dotted);
+            }
+        }
+        surface.pairings.push((slot.clone(), topics));
+    }
     if !today {
         files.flat_reexports();
     }
@@ -168,6 +191,8 @@ struct Specs {
     consumed_services: Vec<String>,
     actions: Vec<String>,
     consumed_actions: Vec<String>,
+    /// Pairing topics, sent or received, slot by slot.
+    pairing_topics: Vec<String>,
 }
 
 struct Files {
@@ -366,6 +391,7 @@ fn init(node: &ResolvedNode, document: &str, specs: &Specs) -> String {
         .chain(&specs.consumed_services)
         .chain(&specs.actions)
         .chain(&specs.consumed_actions)
+        .chain(&specs.pairing_topics)
         .collect();
     for m in &all {
         out.line(&format!("from .{} import SPEC as _{}", m, alias(m)));
@@ -414,6 +440,28 @@ fn init(node: &ResolvedNode, document: &str, specs: &Specs) -> String {
         "consumed_actions={},",
         list(&specs.consumed_actions)
     ));
+    if !node.pairings.is_empty() {
+        let pairings: Vec<String> = node
+            .pairings
+            .iter()
+            .map(|rp| {
+                let p = &rp.slot;
+                format!(
+                    "_s.PairingSlotSpec({}, {}, {}, {}, {}, {}, {}, {}),",
+                    py_string(&p.link_id),
+                    py_string(&p.pairing.name),
+                    py_string(&p.pairing.tag),
+                    py_string(&p.role),
+                    py_string(&p.counterpart),
+                    if p.observer { "True" } else { "False" },
+                    if p.optional { "True" } else { "False" },
+                    py_string(p.cardinality.as_str())
+                )
+            })
+            .collect();
+        out.line(&format!("pairings=({}),", pairings.join(" ")));
+        out.line(&format!("pairing_topics={},", list(&specs.pairing_topics)));
+    }
     out.line("parameters=Parameters,");
     out.line(&format!("document={},", py_string(document)));
     // What a node started by hand hands `peppy-launch plan`, as a Rust

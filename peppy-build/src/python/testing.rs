@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use peppy_schema::names::module;
-use peppy_schema::{Cardinality, ResolvedNode};
+use peppy_schema::{Cardinality, PairingSlot, ResolvedNode};
 
 use super::PythonFile;
 use super::source::{Source, py_string};
@@ -23,7 +23,13 @@ pub(super) struct Surface {
     pub(super) services: Vec<(String, bool)>,
     /// Exposed actions: (dotted module path, whether a goal is declared).
     pub(super) actions: Vec<(String, bool)>,
+    /// Pairing slots, each with its topics.
+    pub(super) pairings: Vec<(PairingSlot, Vec<PairedTopic>)>,
 }
+
+/// A pairing topic of a slot: (topic name, dotted module path, whether the
+/// node sends it).
+pub(super) type PairedTopic = (String, String, bool);
 
 /// The kind of a consumed entry.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -51,7 +57,20 @@ pub(super) fn files(node: &ResolvedNode, surface: &Surface) -> Vec<PythonFile> {
                 surface,
             ),
         ));
-        mocks.push((d.link_id.clone(), link));
+        mocks.push((d.link_id.clone(), format!("deps.{link}")));
+    }
+    for (slot, topics) in &surface.pairings {
+        let link = module(&slot.link_id);
+        let group = if slot.observer {
+            "observed"
+        } else {
+            "pairings"
+        };
+        out.push((
+            PathBuf::from("mock").join(group).join(format!("{link}.py")),
+            pairing_mock_module(slot, topics),
+        ));
+        mocks.push((slot.link_id.clone(), format!("{group}.{link}")));
     }
     out.push((
         "fixtures/harness.py".into(),
@@ -70,6 +89,9 @@ pub(super) fn files(node: &ResolvedNode, surface: &Surface) -> Vec<PythonFile> {
         out.push((file.clone(), action_fixture(&file, path, *has_goal)));
     }
     let mut dirs: Vec<PathBuf> = vec!["mock".into(), "mock/deps".into(), "fixtures".into()];
+    if !surface.pairings.is_empty() {
+        dirs.extend(["mock/pairings".into(), "mock/observed".into()]);
+    }
     for (path, _) in &out {
         let mut dir = path.parent();
         while let Some(d) = dir {
@@ -84,6 +106,11 @@ pub(super) fn files(node: &ResolvedNode, surface: &Surface) -> Vec<PythonFile> {
     }
     for d in dirs {
         let text = match d.to_str() {
+            Some("mock") if !surface.pairings.is_empty() => format!(
+                "\"\"\"Typed mock producers of node `{identity}`'s slots, for tests\n\
+                 (`mock.deps.<link_id>`; pairing peers `mock.pairings.<link_id>` and observed\n\
+                 sources `mock.observed.<link_id>`). Never imported by `peppygen` itself.\"\"\"\n"
+            ),
             Some("mock") => format!(
                 "\"\"\"Typed mock producers of node `{identity}`'s slots, for tests\n\
                  (`mock.deps.<link_id>`). Never imported by `peppygen` itself.\"\"\"\n"
@@ -174,6 +201,86 @@ fn mock_module(link_id: &str, target: &str, cardinality: Cardinality, surface: &
     out.finish()
 }
 
+/// The mock of a pairing slot: the peer of a participant slot
+/// (`PairingMock`: `publish` what the node receives, `next()` what it
+/// sends) or a source of an observer slot (`ObservedMock`: `publish`).
+fn pairing_mock_module(slot: &PairingSlot, topics: &[PairedTopic]) -> String {
+    let link_id = &slot.link_id;
+    let mut out = Source::default();
+    if slot.observer {
+        out.docstring(&format!(
+            "A mock source of observer slot `{link_id}` (pairing `{}`, role `{}`, cardinality\n\
+             `{}`): instance `mock-{link_id}` (or `mock-{link_id}-<i>`), slot `mock_source`, one typed\n\
+             member per topic the node observes (`publish`). The harness starts it\n\
+             (`h.mocks.observed.{}`).",
+            slot.pairing,
+            slot.role,
+            slot.cardinality,
+            module(link_id)
+        ));
+    } else {
+        out.docstring(&format!(
+            "The mock peer of pairing slot `{link_id}` (pairing `{}`, playing `{}`): instance\n\
+             `mock-{link_id}`, slot `mock_peer`, paired with the node before its setup runs. One typed\n\
+             member per pairing topic: `publish` for what the node receives, `next()` for what it\n\
+             sends. The harness starts it (`h.mocks.pairings.{}`{}).",
+            slot.pairing,
+            slot.counterpart,
+            module(link_id),
+            if slot.optional {
+                "; None when left vacant"
+            } else {
+                ""
+            }
+        ));
+    }
+    out.line(HEADER);
+    out.line("from __future__ import annotations");
+    out.blank();
+    out.line("from peppy import testing as _testing");
+    for (name, path, _) in topics {
+        out.line(&import_module("...", path, &format!("_{}", module(name))));
+    }
+    out.blank();
+    out.line(&format!("LINK_ID = {}", py_string(link_id)));
+    out.blank();
+    out.blank();
+    let base = if slot.observer {
+        "ObservedMock"
+    } else {
+        "PairingMock"
+    };
+    out.line(&format!("class Mock(_testing.{base}):"));
+    out.indent();
+    out.docstring(&if slot.observer {
+        format!("A source of observer slot `{link_id}`, as the node under test sees it.")
+    } else {
+        format!("The peer of pairing slot `{link_id}`, as the node under test sees it.")
+    });
+    out.blank();
+    let members: Vec<String> = topics
+        .iter()
+        .map(|(name, ..)| format!("{}: {}", py_string(name), py_string(&module(name))))
+        .collect();
+    out.line(&format!("MEMBERS = {{{}}}", members.join(", ")));
+    for (name, _, node_sends) in topics {
+        let m = module(name);
+        if *node_sends {
+            out.line(&format!("{m}: _testing.PeerTap[_{m}.Message]"));
+            out.line(&format!(
+                "\"\"\"The topic `{name}` the node sends: `next()`.\"\"\""
+            ));
+        } else {
+            out.line(&format!("{m}: _testing.PeerTopicMock[_{m}.Message]"));
+            out.line(&format!(
+                "\"\"\"The topic `{name}` the node receives: `publish`.\"\"\""
+            ));
+        }
+    }
+    out.dedent();
+    out.finish()
+}
+
 /// `from ...<category>.<a> import <b> as _<b>` for a dotted module path.
 fn import_module(prefix: &str, path: &str, alias: &str) -> String {
     match path.rsplit_once('.') {
@@ -183,6 +290,7 @@ fn import_module(prefix: &str, path: &str, alias: &str) -> String {
 }
 
 fn harness(identity: &str, mocks: &[(String, String)], surface: &Surface) -> String {
+    let pairings = !surface.pairings.is_empty();
     let mut out = Source::default();
     out.docstring(&format!(
         "The test harness of node `{identity}`: `async with harness.start(setup) as h:`\n\
@@ -192,7 +300,15 @@ fn harness(identity: &str, mocks: &[(String, String)], surface: &Surface) -> Str
          Options: `parameters=` (a `Parameters` or a dict; defaults and checks by `peppy-launch plan`),\n\
          `instance_id=`, `use_sim_time=`, `node_dir=`, and per slot `<link_id>_instances=N`,\n\
          `<link_id>_instance_ids=[...]` (slots of several producers), `<link_id>_vacant=True`\n\
-         (a `zero_or_one` slot)."
+         (a `zero_or_one` slot{}).{}",
+        if pairings { ", an optional pairing slot" } else { "" },
+        if pairings {
+            "\n\nA pairing slot is paired with its mock peer (`h.mocks.pairings.<link_id>`) before\n\
+             `setup` runs; an observer slot watches mock sources (`h.mocks.observed.<link_id>`,\n\
+             `<link_id>_instances=N`)."
+        } else {
+            ""
+        }
     ));
     out.line(HEADER);
     out.line("from __future__ import annotations");
@@ -204,7 +320,11 @@ fn harness(identity: &str, mocks: &[(String, String)], surface: &Surface) -> Str
     out.blank();
     out.line("from .. import DESCRIPTOR");
     for (_, m) in mocks {
-        out.line(&format!("from ..mock.deps import {m} as _mock_{m}"));
+        let (group, leaf) = m.split_once('.').unwrap_or(("deps", m));
+        out.line(&format!(
+            "from ..mock.{group} import {leaf} as _mock_{}",
+            mock_alias(m)
+        ));
     }
     for (i, (_, path)) in surface.emitted.iter().enumerate() {
         out.line(&import_module("..", path, &format!("_emitted_{i}")));
@@ -212,7 +332,7 @@ fn harness(identity: &str, mocks: &[(String, String)], surface: &Surface) -> Str
     out.blank();
     let mock_items: Vec<String> = mocks
         .iter()
-        .map(|(link, m)| format!("{}: _mock_{m}.Mock", py_string(link)))
+        .map(|(link, m)| format!("{}: _mock_{}.Mock", py_string(link), mock_alias(m)))
         .collect();
     out.line(&format!("MOCKS = {{{}}}", mock_items.join(", ")));
     out.line("\"\"\"Each slot's mock class, by link_id.\"\"\"");
@@ -248,6 +368,15 @@ fn harness(identity: &str, mocks: &[(String, String)], surface: &Surface) -> Str
     out.line(")");
     out.dedent();
     out.finish()
+}
+
+/// The alias of a mock module (`deps.<link>` keeps the bare link's name,
+/// as before pairings; `pairings.<link>` and `observed.<link>` carry their group).
+fn mock_alias(dotted: &str) -> String {
+    match dotted.split_once('.') {
+        Some(("deps", leaf)) => leaf.to_string(),
+        _ => dotted.replace('.', "_"),
+    }
 }
 
 fn reexport(out: &mut Source, file: &Path, path: &str, names: &str) {

@@ -4,6 +4,7 @@
 
 mod equivalence;
 mod errors;
+mod pairings;
 mod scale;
 mod snapshots;
 mod support;

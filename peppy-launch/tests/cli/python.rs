@@ -452,7 +452,12 @@ fn sync_writes_the_libs_projects_and_uv_reinstalls_what_changed() {
 #[test]
 fn python_examples_pass_their_harness_tests() {
     let repo = root().join("examples");
-    for example in ["py_arm_controller", "py_depth_camera", "py_today_camera"] {
+    for example in [
+        "py_arm_controller",
+        "py_depth_camera",
+        "py_today_camera",
+        "py_joint_follower",
+    ] {
         let node = repo.join("nodes").join(example);
         let run = crate::support::peppy_launch(
             &root(),

@@ -166,6 +166,18 @@ def model_of(descriptor: s.NodeDescriptor, parameters: Optional[Dict[str, Any]] 
                 for x in descriptor.slots
             ],
             "parameters": parameters or {"fields": []},
+            "pairings": [
+                {
+                    "link_id": x.link_id,
+                    "pairing": {"name": x.pairing, "tag": x.tag},
+                    "role": x.role,
+                    "counterpart": x.counterpart,
+                    "observer": x.observer,
+                    "optional": x.optional,
+                    "cardinality": x.cardinality,
+                }
+                for x in descriptor.pairings
+            ],
         }
     )
 
@@ -196,6 +208,7 @@ class LiveTest(unittest.IsolatedAsyncioTestCase):
         self.namespace = "t" + uuid.uuid4().hex[:12]
         self.endpoints: List[str] = []
         self.runners: List[NodeRunner] = []
+        self.endpoint_of: Dict[str, str] = {}
         self.tmp = tempfile.TemporaryDirectory()
 
     async def asyncTearDown(self) -> None:
@@ -209,6 +222,7 @@ class LiveTest(unittest.IsolatedAsyncioTestCase):
         instance: str,
         core: str,
         bindings: Dict[str, Any],
+        links: Optional[List[str]] = None,
     ) -> str:
         """A runtime-config file as the launcher writes it: the slots are
         planned by `peppy-launch plan` (the launcher's binding engine) from
@@ -220,6 +234,8 @@ class LiveTest(unittest.IsolatedAsyncioTestCase):
             producers = [binding["producer"]] if binding["kind"] == "pinned" else binding.get("producers", [])
             for producer in producers:
                 args += ["--bind", f"{link_id}@{producer}"]
+        for link in links or ():
+            args += ["--link", link]
         config = plan(descriptor, args)
         config.update(
             core_node=core,
@@ -232,6 +248,7 @@ class LiveTest(unittest.IsolatedAsyncioTestCase):
             },
         )
         self.endpoints.append(endpoint)
+        self.endpoint_of[instance] = endpoint
         path = os.path.join(self.tmp.name, f"{instance}.json")
         with open(path, "w") as f:
             json.dump(config, f)
@@ -244,15 +261,25 @@ class LiveTest(unittest.IsolatedAsyncioTestCase):
         core: str = "lab",
         bindings: Optional[Dict[str, Any]] = None,
         retention: Optional[float] = None,
+        links: Optional[List[str]] = None,
     ) -> NodeRunner:
-        """Starts a node from a runtime config; shut down at the end of the test."""
-        path = self.write_config(descriptor, instance, core, bindings or {})
+        """Starts a node from a runtime config; shut down at the end of the
+        test. `links`: `--link` flags (pairing slots) for its plan."""
+        path = self.write_config(descriptor, instance, core, bindings or {}, links)
         builder = NodeBuilder(descriptor).with_runtime_config(path)
         if retention is not None:
             builder.action_result_retention(retention)
         runner = await asyncio.wait_for(builder.start(), WAIT)
         self.runners.append(runner)
         return runner
+
+    async def stop(self, runner: NodeRunner) -> None:
+        """Shuts `runner` down now; nodes started later no longer connect to it."""
+        await asyncio.wait_for(runner.shutdown(), WAIT)
+        self.runners.remove(runner)
+        endpoint = self.endpoint_of.pop(runner.instance_id, None)
+        if endpoint in self.endpoints:
+            self.endpoints.remove(endpoint)
 
     async def sees(self, runner: NodeRunner, node: str, instance: str) -> None:
         """Waits until `runner` sees `instance` (of `node:v1`) up. Its

@@ -141,6 +141,7 @@ class HarnessTests(unittest.IsolatedAsyncioTestCase):
             request, responder = await add.next_request(WAIT)
             await responder.respond_error("broken")
             self.assertEqual([r.a for r in add.captured()], [1, 2, 3])
+            self.assertEqual(add.captured_count(), 3)
             # `caller` never serves its `double`: the call names it when it times out.
             with self.assertRaises(TimeoutError) as e:
                 await testing.poll_service(h, DOUBLE_SERVED, AddRequest(21, 0), 2.0)

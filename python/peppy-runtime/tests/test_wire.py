@@ -92,6 +92,24 @@ BUILD = {
     "describe_key": lambda v: k.describe_key(v["ns"], v["core"], v["instance"]),
     "clock_tick_key": lambda v: k.clock_tick_key(v["ns"], v["source"]),
     "clock_sync_key": lambda v: k.clock_sync_key(v["ns"]),
+    "pairing_topic_key": lambda v: k.pairing_topic_key(
+        v["ns"], v["pairing"], v["tag"], v["topic"], v["core"], v["instance"], v["link_id"]
+    ),
+    "pairing_topic_selector": lambda v: k.pairing_topic_selector(
+        v["ns"], v["pairing"], v["tag"], v["topic"], v.get("core"), v.get("instance"), v.get("link_id")
+    ),
+    "claim_key": lambda v: k.pair_claim_key(
+        v["ns"],
+        v["pairing"],
+        v["tag"],
+        v["role"],
+        v["core"],
+        v["instance"],
+        v["link_id"],
+        None if v.get("peer") is None else v["peer"]["instance"],
+        None if v.get("peer") is None else v["peer"]["link_id"],
+    ),
+    "claim_selector": lambda v: k.claim_selector(v["ns"], v["pairing"], v["tag"]),
 }
 
 
@@ -105,7 +123,33 @@ def _parse_liveliness_key(key):
     return None if parsed is None else dict(zip(("core", "instance"), parsed))
 
 
-PARSE = {"parse_entry_key": _parse_entry_key, "parse_liveliness_key": _parse_liveliness_key}
+def _parse_pairing_topic_key(key):
+    s = k.parse_pairing_topic_key(key)
+    return None if s is None else s._asdict()
+
+
+def _parse_claim_key(key):
+    c = k.parse_pair_claim_key(key)
+    if c is None:
+        return None
+    peer = None if c.peer_instance is None else {"instance": c.peer_instance, "link_id": c.peer_link_id}
+    return {
+        "pairing": c.pairing,
+        "tag": c.tag,
+        "role": c.role,
+        "core": c.core,
+        "instance": c.instance,
+        "link_id": c.link_id,
+        "peer": peer,
+    }
+
+
+PARSE = {
+    "parse_entry_key": _parse_entry_key,
+    "parse_liveliness_key": _parse_liveliness_key,
+    "parse_pairing_topic_key": _parse_pairing_topic_key,
+    "parse_claim_key": _parse_claim_key,
+}
 
 # Keys only the launcher and its tools build and read (the security
 # policy's selectors, core node tokens, descriptions of every instance).
@@ -145,6 +189,28 @@ class KeyTest(unittest.TestCase):
                     continue
                 self.assertIn(v["fn"], PARSE, "a key this runtime does not read: add it, or say why not")
                 self.assertEqual(PARSE[v["fn"]](v["key"]), v["parts"])
+
+    def test_pairing_keys_in_the_shared_files_shape(self):
+        # The shapes the shared file gives pairing keys in (docs/PAIRINGS.md
+        # §3), checked here until the file carries them.
+        claim = {"ns": "lab", "pairing": "arm_link", "tag": "v1", "role": "arm", "core": "c1"}
+        claim.update(instance="arm_1", link_id="commander")
+        key = "peppy/lab/pair/arm_link/v1/arm/c1/arm_1/commander/cmd_1/arm"
+        self.assertEqual(BUILD["claim_key"](dict(claim, peer={"instance": "cmd_1", "link_id": "arm"})), key)
+        self.assertEqual(PARSE["parse_claim_key"](key)["peer"], {"instance": "cmd_1", "link_id": "arm"})
+        nobody = BUILD["claim_key"](dict(claim, peer=None))
+        self.assertEqual(nobody, "peppy/lab/pair/arm_link/v1/arm/c1/arm_1/commander/~/~")
+        self.assertIsNone(PARSE["parse_claim_key"](nobody)["peer"])
+        self.assertIsNone(PARSE["parse_claim_key"]("peppy/lab/pair/arm_link/v1/arm/c1/arm_1/commander/~/arm"))
+        topic = {"ns": "lab", "pairing": "arm_link", "tag": "v1", "topic": "state"}
+        self.assertEqual(
+            BUILD["pairing_topic_selector"](dict(topic, core=None, instance="arm_1", link_id="commander")),
+            "peppy/lab/topic/pairing/arm_link/v1/state/*/arm_1/commander",
+        )
+        key = BUILD["pairing_topic_key"](dict(topic, core="c1", instance="arm_1", link_id="commander"))
+        self.assertEqual(PARSE["parse_pairing_topic_key"](key)["link_id"], "commander")
+        self.assertIsNone(PARSE["parse_pairing_topic_key"]("peppy/lab/topic/pairing/arm_link/v1/state/*/arm_1/x"))
+        self.assertEqual(BUILD["claim_selector"](claim), "peppy/lab/pair/arm_link/v1/*/*/*/*/*/*")
 
     def test_golden_segments(self):
         for s in KEYS["segments"]["valid"]:

@@ -23,6 +23,7 @@ from .errors import (
     WrongTopic,
 )
 from .node import NodeBuilder, NodeRunner
+from .pairing import ObservedSource, PeerInfo
 from .producer import ProducerRef
 from .spec import QoSProfile
 from .standalone import StandaloneConfig
@@ -35,6 +36,8 @@ __all__ = [
     "FeedbackEnded",
     "NodeBuilder",
     "NodeRunner",
+    "ObservedSource",
+    "PeerInfo",
     "PeppyError",
     "ProducerRef",
     "QoSProfile",

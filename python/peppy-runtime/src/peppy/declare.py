@@ -6,10 +6,11 @@ token that tells the others the node is up."""
 from __future__ import annotations
 
 import asyncio
+import json
 import logging
 import os
 import time
-from typing import Any, Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional, Union
 
 from .action_server import GoalIntake, Registry
 from .bridge import END, TIMED_OUT, ReplyStream
@@ -17,6 +18,7 @@ from .describe import consumed_topic, instance_info
 from .errors import ShuttingDown, StartupError
 from .keys import ACTION, SERVICE, TOPIC, action_part_key, describe_key, format_key, liveliness_key
 from .members import Members
+from .pairing import check_slots, declare_pairings, describe_pairings
 from .routing import ANY, SlotPlan
 from .runner import NodeRunner
 from .services import ServiceIntake
@@ -54,10 +56,17 @@ async def declare_all(runner: NodeRunner, retention: float) -> None:
         runner._services[spec] = (mailbox, key)
     for spec in d.exposed_actions:
         _serve_action(runner, spec, retention)
+    check_slots(runner)
+    await declare_pairings(runner, runner.pairs)
     body = instance_info(
         d, runner.namespace, runner.core_node, runner.instance_id, os.getpid(), started_at_ms, runner.slots, consumes
     )
-    _answer(runner, describe_key(runner.namespace, runner.core_node, runner.instance_id), body.encode("utf-8"))
+    key = describe_key(runner.namespace, runner.core_node, runner.instance_id)
+    if not runner._pairings:
+        _answer(runner, key, body.encode("utf-8"))
+    else:
+        # Pairs change while the node runs: each answer says how they are now.
+        _answer(runner, key, lambda: _with_pairings(runner, body))
     # Presence: withdrawn when the node shuts down or dies.
     runner._token = session.liveliness().declare_token(
         liveliness_key(runner.namespace, runner.core_node, runner.instance_id, runner.node_name, runner.node_tag)
@@ -71,12 +80,18 @@ def _answer_nothing(query: Any) -> None:
         pass
 
 
-def _answer(runner: NodeRunner, key: str, body: bytes) -> None:
-    """A queryable answering every query with `body`, no attachment."""
+def _with_pairings(runner: NodeRunner, body: str) -> bytes:
+    info = json.loads(body)
+    info["pairings"] = describe_pairings(runner)
+    return json.dumps(info, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
+
+
+def _answer(runner: NodeRunner, key: str, body: Union[bytes, Callable[[], bytes]]) -> None:
+    """A queryable answering every query with `body` (or what it returns), no attachment."""
 
     def on_query(query: Any) -> None:
         try:
-            query.reply(key, body)
+            query.reply(key, body() if callable(body) else body)
         except Exception as e:
             log.debug("reply on %s failed: %s", key, e)
         finally:

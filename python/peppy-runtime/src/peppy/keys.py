@@ -121,3 +121,124 @@ def parse_entry_key(key: str) -> Optional[Sender]:
         return None
     s = Sender(parts[3], parts[4], parts[5], parts[6], parts[7], parts[8])
     return s if is_segment(s.core) and is_segment(s.instance) else None
+
+
+# Pairings (docs/PAIRINGS.md §3): a pairing topic is published under its
+# sender's instance and pairing slot; each participant slot holds a claim
+# token naming the peer it pairs with, `~/~` while it names nobody.
+PAIRING = "pairing"
+PAIR = "pair"
+NOBODY = "~"
+
+
+def pairing_topic_key(ns: str, pairing: str, tag: str, topic: str, core: str, instance: str, link_id: str) -> str:
+    """`peppy/<ns>/topic/pairing/<pairing>/<tag>/<topic>/<core>/<instance>/<link_id>`:
+    where slot `link_id` of an instance publishes a pairing topic."""
+    return f"peppy/{ns}/{TOPIC}/{PAIRING}/{pairing}/{tag}/{topic}/{core}/{instance}/{link_id}"
+
+
+def pairing_topic_selector(
+    ns: str,
+    pairing: str,
+    tag: str,
+    topic: str,
+    core: Optional[str],
+    instance: Optional[str],
+    link_id: Optional[str],
+) -> str:
+    """A selector over a pairing topic's senders (a paired slot pins its
+    peer's instance and slot, on any core); a `None` part matches any value."""
+    return pairing_topic_key(ns, pairing, tag, topic, core or "*", instance or "*", link_id or "*")
+
+
+def pair_claim_key(
+    ns: str,
+    pairing: str,
+    tag: str,
+    role: str,
+    core: str,
+    instance: str,
+    link_id: str,
+    peer_instance: Optional[str],
+    peer_link_id: Optional[str],
+) -> str:
+    """The claim token of participant slot `instance/link_id` (role `role`),
+    naming the peer slot it pairs with; `~/~` when it names none."""
+    peer = f"{peer_instance or NOBODY}/{peer_link_id or NOBODY}"
+    return f"peppy/{ns}/{PAIR}/{pairing}/{tag}/{role}/{core}/{instance}/{link_id}/{peer}"
+
+
+def claim_selector(ns: str, pairing: str, tag: str) -> str:
+    """Every claim of one pairing, whoever makes it."""
+    return f"peppy/{ns}/{PAIR}/{pairing}/{tag}/*/*/*/*/*/*"
+
+
+def pair_claims_on_selector(ns: str, pairing: str, tag: str, role: str, instance: str, link_id: str) -> str:
+    """Every claim of a slot of role `role` on slot `instance/link_id`."""
+    return f"peppy/{ns}/{PAIR}/{pairing}/{tag}/{role}/*/*/*/{instance}/{link_id}"
+
+
+def pair_claims_of_selector(ns: str, pairing: str, tag: str, role: str, instance: str) -> str:
+    """The claims of every slot of role `role` of instance `instance`."""
+    return f"peppy/{ns}/{PAIR}/{pairing}/{tag}/{role}/*/{instance}/*/*/*"
+
+
+def instance_liveliness_selector(ns: str, instance: str) -> str:
+    """The liveliness token of instance `instance`, on any core."""
+    return f"peppy/{ns}/live/*/{instance}/*/*"
+
+
+class PairClaim(NamedTuple):
+    """What a claim token says: who claims (`core`, `instance`, `link_id`,
+    in `role` of `pairing:tag`) and which slot it names (`None` for `~`)."""
+
+    pairing: str
+    tag: str
+    role: str
+    core: str
+    instance: str
+    link_id: str
+    peer_instance: Optional[str]
+    peer_link_id: Optional[str]
+
+
+def parse_pair_claim_key(key: str) -> Optional[PairClaim]:
+    """Parses a claim token's key; None when it is not one."""
+    parts = key.split("/")
+    if len(parts) != 11 or parts[0] != "peppy" or parts[2] != PAIR:
+        return None
+    pairing, tag, role, core, instance, link_id, peer_instance, peer_link_id = parts[3:]
+    if not all(is_segment(s) for s in parts[3:]):
+        return None
+    if (peer_instance == NOBODY) != (peer_link_id == NOBODY):
+        return None
+    return PairClaim(
+        pairing,
+        tag,
+        role,
+        core,
+        instance,
+        link_id,
+        None if peer_instance == NOBODY else peer_instance,
+        None if peer_link_id == NOBODY else peer_link_id,
+    )
+
+
+class PairingSender(NamedTuple):
+    """The identity at the end of a pairing topic's key."""
+
+    pairing: str
+    tag: str
+    topic: str
+    core: str
+    instance: str
+    link_id: str
+
+
+def parse_pairing_topic_key(key: str) -> Optional[PairingSender]:
+    """Parses `peppy/<ns>/topic/pairing/<pairing>/<tag>/<topic>/<core>/<instance>/<link_id>`."""
+    parts = key.split("/")
+    if len(parts) != 10 or parts[0] != "peppy" or parts[2] != TOPIC or parts[3] != PAIRING:
+        return None
+    s = PairingSender(*parts[4:])
+    return s if all(is_segment(p) for p in s) else None

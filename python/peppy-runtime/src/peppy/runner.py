@@ -56,6 +56,9 @@ class NodeRunner:
         self.stopped = asyncio.Event()
         self.slots: List[SlotPlan] = list(startup.slots)
         self._slots: Dict[str, SlotPlan] = {s.link_id: s for s in self.slots}
+        self.pairs = list(startup.pairs)
+        # Pairing slots by link_id (`peppy.pairing`), started with the node.
+        self._pairings: Dict[str, Any] = {}
         self._publishers: Dict[TopicSpec, Any] = {}
         self._inboxes: Dict[ConsumedTopicSpec, Inbox] = {}
         self._services: Dict[ServiceSpec, Tuple[Mailbox, str]] = {}

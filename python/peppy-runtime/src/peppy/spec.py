@@ -182,6 +182,37 @@ class SlotSpec:
 
 
 @dataclass(frozen=True)
+class PairingSlotSpec:
+    """One pairing slot (docs/PAIRINGS.md): a participant playing `role` of
+    pairing `pairing:tag` with a peer playing `counterpart`, or an observer
+    (`observer`) watching `role`'s topics of `cardinality` sources."""
+
+    link_id: str
+    pairing: str
+    tag: str
+    role: str
+    counterpart: str
+    observer: bool = False
+    optional: bool = False
+    cardinality: str = "one"
+
+
+@dataclass(frozen=True)
+class PairingTopicSpec:
+    """A topic of a pairing, through one pairing slot: `emitted` when this
+    node's role sends it (a participant), else one it receives (from its
+    peer, or from an observed source)."""
+
+    link_id: str
+    pairing: str
+    tag: str
+    name: str
+    qos: QoSProfile
+    format: Format
+    emitted: bool = False
+
+
+@dataclass(frozen=True)
 class NodeDescriptor:
     """Everything the runtime sets up before the node's code runs.
 
@@ -189,7 +220,8 @@ class NodeDescriptor:
     None for a node whose parameters stay plain JSON; `document` is the
     node document's path, for messages; `model` is the node's model as JSON
     (`peppy_schema::NodeModel`, what a Rust binary embeds), which a node
-    started by hand hands `peppy-launch plan`.
+    started by hand hands `peppy-launch plan`. `pairings` are its pairing
+    slots and `pairing_topics` the topics it sends or receives through them.
     """
 
     name: str
@@ -204,7 +236,13 @@ class NodeDescriptor:
     parameters: Any = None
     document: str = "peppy.json5"
     model: Optional[str] = None
+    pairings: Tuple[PairingSlotSpec, ...] = ()
+    pairing_topics: Tuple[PairingTopicSpec, ...] = ()
 
     def slot(self, link_id: str) -> Optional[SlotSpec]:
         """The slot named `link_id`, if the node has one."""
         return next((s for s in self.slots if s.link_id == link_id), None)
+
+    def pairing(self, link_id: str) -> Optional[PairingSlotSpec]:
+        """The pairing slot named `link_id`, if the node has one."""
+        return next((p for p in self.pairings if p.link_id == link_id), None)

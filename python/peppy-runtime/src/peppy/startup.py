@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from .errors import StartupError
+from .pair_plan import PairPlan, fit_pair_plans, pair_plan_from_json
 from .routing import SlotPlan, fit_plan, slot_from_json
 from .spec import NodeDescriptor
 
@@ -94,6 +95,8 @@ class Startup:
     shutdown_grace_secs: Optional[float] = None
     """The one window every shutdown hook runs in (seconds, > 0); None when
     the plan does not say (the node's own choice, else 5 s)."""
+    pairs: List[PairPlan] = field(default_factory=list)
+    """One plan per pairing slot, in the node's order (docs/PAIRINGS.md)."""
 
 
 def _reject_unknown(data: Dict[str, Any], allowed: Sequence[str], where: str) -> None:
@@ -152,6 +155,7 @@ _PLAN_FIELDS = (
     "core_node",
     "namespace",
     "slots",
+    "pairs",
     "parameters",
     "zenoh",
     "use_sim_time",
@@ -195,6 +199,9 @@ def plan_from_text(text: str, where: str, descriptor: NodeDescriptor) -> Startup
     slots = data.get("slots", [])
     if not isinstance(slots, list):
         raise StartupError(f"{where}: `slots` must be a list")
+    pairs = data.get("pairs", [])
+    if not isinstance(pairs, list):
+        raise StartupError(f"{where}: `pairs` must be a list")
     parameters = data.get("parameters")
     use_sim_time = data.get("use_sim_time", False)
     if not isinstance(use_sim_time, bool):
@@ -209,6 +216,7 @@ def plan_from_text(text: str, where: str, descriptor: NodeDescriptor) -> Startup
         parameters={} if parameters is None else parameters,
         use_sim_time=use_sim_time,
         shutdown_grace_secs=None if grace is None else grace_secs(grace, where),
+        pairs=fit_pair_plans([pair_plan_from_json(p) for p in pairs], descriptor.pairings),
     )
 
 

@@ -39,6 +39,8 @@ from .formats import Format
 from .intake import finish, reply
 from .keys import ACTION, SERVICE, action_part_key, clock_sync_key, clock_tick_key, entry_key
 from .node import NodeBuilder, _call_setup
+from .pair_plan import PairEnd, PairPlan
+from .pairing import ObservedSource, PairedSubscription, PeerInfo
 from .producer import ProducerRef
 from .routing import RouteFilter, SlotBinding, SlotPlan
 from .runner import NodeRunner
@@ -50,6 +52,8 @@ from .spec import (
     ConsumedTopicSpec,
     NodeDescriptor,
     Owner,
+    PairingSlotSpec,
+    PairingTopicSpec,
     QoSProfile,
     ServiceSpec,
     SlotSpec,
@@ -201,13 +205,18 @@ def _endpoints(router: str) -> Endpoints:
 
 
 async def _open_runner(
-    descriptor: NodeDescriptor, core: str, instance: str, router: str, slots: List[SlotPlan]
+    descriptor: NodeDescriptor,
+    core: str,
+    instance: str,
+    router: str,
+    slots: List[SlotPlan],
+    pairs: Optional[List[PairPlan]] = None,
 ) -> NodeRunner:
     """A runner of `descriptor` on its own session, everything declared."""
     import zenoh
 
     endpoints = _endpoints(router)
-    startup = Startup(instance, core, NAMESPACE, endpoints, slots, {})
+    startup = Startup(instance, core, NAMESPACE, endpoints, slots, {}, pairs=list(pairs or ()))
     loop = asyncio.get_running_loop()
     session = await loop.run_in_executor(None, zenoh.open, endpoints.zenoh_config())
     runner = NodeRunner(descriptor, startup, session, {})
@@ -353,6 +362,10 @@ class ServiceMock(Generic[Req, Resp]):
     def captured(self) -> List[Any]:
         """Every request received so far, in arrival order."""
         return list(self._captured)
+
+    def captured_count(self) -> int:
+        """How many requests were received so far."""
+        return len(self._captured)
 
     def _leftovers(self) -> List[str]:
         out = []
@@ -523,6 +536,183 @@ class SlotMock:
         for line in [x for s in self._services for x in s._leftovers()]:
             log.warning("mock `%s`: %s", self.instance_id, line)
         await self._runner.shutdown()
+
+
+MOCK_PEER = "mock_peer"
+"""The pairing slot of a pairing mock (`h.mocks.pairings.<link_id>`)."""
+MOCK_SOURCE = "mock_source"
+"""The pairing slot of an observed source's mock (`h.mocks.observed.<link_id>`)."""
+
+
+class PeerTopicMock(Generic[T]):
+    """A pairing topic the node receives, played by a mock:
+    `await publish(message)`."""
+
+    def __init__(self, mock: "_PairingMockBase", spec: PairingTopicSpec) -> None:
+        self._mock = mock
+        self._spec = spec
+        self._subscribed = False
+
+    def __repr__(self) -> str:
+        return f"PeerTopicMock({self._spec.name!r}, instance={self._mock.instance_id!r})"
+
+    async def wait_for_subscriber(self, timeout: float = READY_TIMEOUT) -> bool:
+        """Whether the node's subscription to this topic is seen within `timeout` seconds."""
+        publisher = self._mock._slot()._publishers[self._spec.name]
+        matched = await _bounded(
+            self._mock._failure, _matched(publisher, timeout), None, f"a subscriber of `{self._spec.name}`"
+        )
+        if matched:
+            self._subscribed = True
+        return matched
+
+    async def publish(self, message: T) -> None:
+        """Sends `message` to the node. The first call waits (up to 10 s)
+        for the node's subscription, so nothing is lost to its start."""
+        if not self._subscribed and not await self.wait_for_subscriber(READY_TIMEOUT):
+            raise TimeoutError(
+                f"mock `{self._mock.instance_id}`: the node did not subscribe to pairing topic "
+                f"`{self._spec.name}` within {READY_TIMEOUT:g} s"
+            )
+        runner = self._mock._runner
+        if runner.session_closed:
+            raise RuntimeError(f"mock `{self._mock.instance_id}` is stopped")
+        fmt = self._spec.format
+        # Straight onto the slot's publisher: an observed source's mock
+        # plays a source whatever its own pair, and the pairing mock's pair
+        # holds from before setup.
+        self._mock._slot()._publishers[self._spec.name].put(
+            fmt.encode(message), attachment=attachment.topic(fmt.fingerprint)
+        )
+        await asyncio.sleep(0)
+
+
+class PeerTap(Generic[T]):
+    """A pairing topic the node sends its peer, received by the pairing
+    mock: `await tap.next()`."""
+
+    def __init__(self, mock: "_PairingMockBase", spec: PairingTopicSpec) -> None:
+        self._mock = mock
+        self._spec = spec
+        self._subscription = PairedSubscription(mock._runner, spec)
+
+    def __repr__(self) -> str:
+        return f"PeerTap({self._spec.name!r}, instance={self._mock.instance_id!r})"
+
+    async def next(self, timeout: Optional[float] = None) -> Optional[T]:
+        """The node's next message on this topic, in order; None once the
+        mock is stopped. `timeout` in seconds (None: no bound)."""
+        got = await _bounded(
+            self._mock._failure, self._subscription.next(), timeout, f"a message on pairing topic `{self._spec.name}`"
+        )
+        return None if got is None else got[1]
+
+
+class _PairingMockBase:
+    """A mock instance with one pairing slot, on its own session."""
+
+    SLOT = MOCK_PEER
+
+    def __init__(self, runner: NodeRunner, link_id: str, failure: _Failure) -> None:
+        self._runner = runner
+        self._failure = failure
+        self.link_id = link_id
+        self.instance_id = runner.instance_id
+        self._stopped = False
+        slot = self._slot()
+        if hasattr(slot, "quiet"):
+            slot.quiet = True
+        members: Dict[str, str] = getattr(type(self), "MEMBERS", {})
+        for spec in runner.descriptor.pairing_topics:
+            member = PeerTopicMock(self, spec) if spec.emitted else PeerTap(self, spec)
+            setattr(self, members.get(spec.name) or _attr(spec.name), member)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(link_id={self.link_id!r}, instance_id={self.instance_id!r})"
+
+    def _slot(self) -> Any:
+        return self._runner._pairings[self.SLOT]
+
+    def producer_ref(self) -> ProducerRef:
+        """This mock's identity on the wire."""
+        return ProducerRef(MOCK_CORE, self.instance_id)
+
+    async def stop(self) -> None:
+        """The mock is lost: its claim, its declarations and its session go
+        at once (the node's pair dissolves). Stays stopped."""
+        if self._stopped:
+            return
+        self._stopped = True
+        await self._runner.shutdown()
+
+
+class PairingMock(_PairingMockBase):
+    """The peer of one of the node's participant slots (instance
+    `mock-<link_id>`, slot `mock_peer`): a member per pairing topic,
+    `publish` for those the node receives, `next()` for those it sends.
+    Generated `Mock` classes name the members' types."""
+
+    def peer_info(self) -> PeerInfo:
+        """The mock as the node sees its peer."""
+        return PeerInfo(self.producer_ref(), MOCK_PEER)
+
+    def paired(self) -> bool:
+        """Whether the mock's pair with the node holds."""
+        return self._slot().peer_info() is not None
+
+
+class ObservedMock(_PairingMockBase):
+    """A source one of the node's observer slots watches (slot
+    `mock_source`): a member per observed topic, `publish`."""
+
+    SLOT = MOCK_SOURCE
+
+    def source(self) -> ObservedSource:
+        """The mock as the node sees this source."""
+        return ObservedSource(self.producer_ref(), MOCK_SOURCE)
+
+
+def pairing_mock_descriptor(node: NodeDescriptor, slot: PairingSlotSpec) -> NodeDescriptor:
+    """What plays the other side of pairing slot `slot` of `node`: the
+    counterpart role through slot `mock_peer` (a participant's peer),
+    or the watched role through `mock_source` (an observer's source),
+    sending what the node receives and receiving what the node sends."""
+    if slot.observer:
+        mine = PairingSlotSpec(MOCK_SOURCE, slot.pairing, slot.tag, slot.role, slot.counterpart)
+    else:
+        mine = PairingSlotSpec(MOCK_PEER, slot.pairing, slot.tag, slot.counterpart, slot.role)
+    topics = tuple(
+        PairingTopicSpec(mine.link_id, t.pairing, t.tag, t.name, t.qos, t.format, not t.emitted)
+        for t in node.pairing_topics
+        if t.link_id == slot.link_id
+    )
+    return NodeDescriptor(name=f"mock_{slot.link_id}", tag="v1", pairings=(mine,), pairing_topics=topics)
+
+
+def _observed_ids(slot: PairingSlotSpec, options: Dict[str, Any]) -> List[str]:
+    """The mock source instance ids of observer slot `slot`."""
+    link = slot.link_id
+    count = options.pop(f"{link}_instances", None)
+    ids = options.pop(f"{link}_instance_ids", None)
+    many = slot.cardinality in ("one_or_more", "zero_or_more")
+    if ids is not None:
+        ids = [str(i) for i in ids]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"`{link}_instance_ids` names an instance twice: {ids}")
+    elif many:
+        n = (0 if slot.cardinality == "zero_or_more" else 1) if count is None else int(count)
+        ids = [f"mock-{link}-{i}" for i in range(n)]
+    else:
+        n = (0 if slot.cardinality == "zero_or_one" else 1) if count is None else int(count)
+        ids = [f"mock-{link}"] if n else []
+    fits = {
+        "one": len(ids) == 1,
+        "zero_or_one": len(ids) <= 1,
+        "one_or_more": len(ids) >= 1,
+    }.get(slot.cardinality, True)
+    if not fits:
+        raise ValueError(f"observer slot `{link}` is `{slot.cardinality}`: {len(ids)} source(s) do not fit it")
+    return ids
 
 
 def _attr(name: str) -> str:
@@ -745,7 +935,7 @@ class Harness:
         self._failure = _Failure()
         self._router: Any = None
         self._fixture: Any = None
-        self._mock_list: List[SlotMock] = []
+        self._mock_list: List[Any] = []
         self._clock_server: Optional[ClockServer] = None
         self._setup_task: Optional["asyncio.Task[Any]"] = None
         self._closed = False
@@ -755,6 +945,8 @@ class Harness:
         self.instance_id = ""
         self.mocks = _Group("the harness's mocks")
         self.mocks.deps = _Group("mocks.deps")
+        self.mocks.pairings = _Group("mocks.pairings")
+        self.mocks.observed = _Group("mocks.observed")
         self.emitted = _Group("the harness's taps (emitted)")
         self.clock: TestClock = None  # type: ignore[assignment]
 
@@ -868,6 +1060,11 @@ def start(
     or in `PEPPY_LAUNCH`). Per slot:
     `<link_id>_instances=N` and `<link_id>_instance_ids=[...]` (slots of
     several producers), `<link_id>_vacant=True` (a `zero_or_one` slot).
+    Each participant pairing slot is paired with a `PairingMock` (the
+    class `mocks` names for its link_id; `<link_id>_vacant=True` leaves an
+    optional one vacant), each observer slot watches `ObservedMock`s
+    (`<link_id>_instances=N`, `<link_id>_instance_ids=[...]`); `setup` starts
+    once every pair holds.
     `node_dir` is where relative paths of the node resolve (the working
     directory while `setup` starts)."""
     return Starting(
@@ -919,6 +1116,7 @@ def _plan_flags(
     instance_id: str,
     wanted: Sequence[Tuple[SlotSpec, List[str], bool]],
     parameters_file: Optional[str],
+    pair_links: Sequence[Tuple[str, Optional[str]]] = (),
 ) -> List[str]:
     """The standalone command line that binds each slot to its mocks (or
     leaves it vacant): `peppy-launch plan` turns it into the node's plan,
@@ -929,6 +1127,11 @@ def _plan_flags(
         if vacant:
             flags += ["--vacant-link", f"{slot.link_id}=left vacant by the test harness"]
         flags += [a for i in ids for a in ("--link", f"{slot.link_id}@{i}")]
+    for link_id, target in pair_links:
+        if target is None:
+            flags += ["--vacant-link", f"{link_id}=left vacant by the test harness"]
+        else:
+            flags += ["--link", f"{link_id}@{target}"]
     if parameters_file is not None:
         flags += ["--params", parameters_file]
     return flags
@@ -973,9 +1176,24 @@ async def _start(
         ids, vacant = _instances(slot, options)
         chosen.append((slot, ids, vacant))
     wanted = [(slot, ids) for slot, ids, _ in chosen]
+    # Pairing slots: a participant's peer (None: left vacant), an observer's sources.
+    pairing_wanted: List[Tuple[PairingSlotSpec, List[str]]] = []
+    for p in descriptor.pairings:
+        if p.observer:
+            pairing_wanted.append((p, _observed_ids(p, options)))
+            continue
+        vacant = bool(options.pop(f"{p.link_id}_vacant", False))
+        if vacant and not p.optional:
+            raise TypeError(f"`{p.link_id}_vacant`: pairing slot `{p.link_id}` is not optional")
+        pairing_wanted.append((p, [] if vacant else [f"mock-{p.link_id}"]))
     if options:
         allowed = sorted(
-            f"{s.link_id}_{k}" for s in descriptor.slots for k in ("instances", "instance_ids", "vacant")
+            [f"{s.link_id}_{k}" for s in descriptor.slots for k in ("instances", "instance_ids", "vacant")]
+            + [
+                f"{p.link_id}_{k}"
+                for p in descriptor.pairings
+                for k in (("instances", "instance_ids") if p.observer else ("vacant",))
+            ]
         )
         raise TypeError(f"harness.start: unknown option(s) {sorted(options)}; slot options are {allowed}")
     h = Harness()
@@ -1021,6 +1239,30 @@ async def _start(
                 made.append(mock)
             many = slot.from_any or slot.cardinality in ("one_or_more", "zero_or_more")
             setattr(h.mocks.deps, _attr(slot.link_id), made if many else (made[0] if made else None))
+        pair_links: List[Tuple[str, Optional[str]]] = []
+        for p, ids in pairing_wanted:
+            base = ObservedMock if p.observer else PairingMock
+            cls = mock_classes.get(p.link_id, base)
+            made = []
+            for mock_id in ids:
+                d = pairing_mock_descriptor(descriptor, p)
+                # A pairing mock claims the node's slot from the start; a
+                # source's mock pairs with nobody.
+                peers = () if p.observer else (PairEnd(h.instance_id, p.link_id),)
+                runner = await _open_runner(
+                    d, MOCK_CORE, mock_id, h.router_endpoint, [], [PairPlan(d.pairings[0].link_id, peers)]
+                )
+                mock = cls(runner, p.link_id, h._failure)
+                h._mock_list.append(mock)
+                made.append(mock)
+                pair_links.append((p.link_id, f"{mock_id}/{d.pairings[0].link_id}"))
+            if p.observer:
+                many = p.cardinality in ("one_or_more", "zero_or_more")
+                setattr(h.mocks.observed, _attr(p.link_id), made if many else (made[0] if made else None))
+            else:
+                if not made:
+                    pair_links.append((p.link_id, None))
+                setattr(h.mocks.pairings, _attr(p.link_id), made[0] if made else None)
         given = _parameters_given(parameters)
         params_file = None
         if given is not None:
@@ -1028,10 +1270,8 @@ async def _start(
                 json.dump(given, f)
                 params_file = f.name
         try:
-            flags = _plan_flags(descriptor, h.instance_id, chosen, params_file)
-            plan_text = await asyncio.get_running_loop().run_in_executor(
-                None, plan_text_from_flags, flags, descriptor
-            )
+            flags = _plan_flags(descriptor, h.instance_id, chosen, params_file, pair_links)
+            plan_text = await asyncio.get_running_loop().run_in_executor(None, plan_text_from_flags, flags, descriptor)
         finally:
             if params_file is not None:
                 os.remove(params_file)
@@ -1049,6 +1289,7 @@ async def _start(
         finally:
             os.remove(path)
         await _barrier(h, wanted)
+        await _pairs_barrier(h)
         cwd = os.getcwd()
         if node_dir is not None:
             os.chdir(node_dir)
@@ -1096,6 +1337,26 @@ async def _barrier(h: Harness, wanted: Sequence[Tuple[SlotSpec, List[str]]]) -> 
         raise TimeoutError(f"harness: not ready within {READY_TIMEOUT:g} s: {', '.join(missing)}")
 
 
+async def _pairs_barrier(h: Harness) -> None:
+    """Before `setup`: every participant slot of the node is paired with
+    its mock (both sides see the pair), and every observed source's mock
+    sees the node's subscriptions."""
+    waits = []
+    for mock in h._mock_list:
+        if isinstance(mock, PairingMock):
+            for runner, link in ((h.node_runner, mock.link_id), (mock._runner, MOCK_PEER)):
+                waits.append((runner._pairings[link].wait_paired(), f"the pair of slot `{mock.link_id}`"))
+        elif isinstance(mock, ObservedMock):
+            for publisher in mock._slot()._publishers.values():
+                waits.append(
+                    (_matched(publisher, READY_TIMEOUT), f"the observer `{mock.link_id}` of `{mock.instance_id}`")
+                )
+    for awaitable, what in waits:
+        result = await _bounded(h._failure, awaitable, READY_TIMEOUT, what)
+        if result is False:
+            raise TimeoutError(f"harness: not ready within {READY_TIMEOUT:g} s: {what}")
+
+
 async def _reach(session: Any, key: str) -> bool:
     querier = session.declare_querier(key)
     try:
@@ -1114,6 +1375,10 @@ __all__ = [
     "GoalHandle",
     "GoalResult",
     "Harness",
+    "ObservedMock",
+    "PairingMock",
+    "PeerTap",
+    "PeerTopicMock",
     "PendingGoalMock",
     "Responder",
     "ServiceMock",
@@ -1123,6 +1388,7 @@ __all__ = [
     "TestClock",
     "TopicMock",
     "mock_descriptor",
+    "pairing_mock_descriptor",
     "poll_service",
     "send_goal",
     "start",
