@@ -507,7 +507,6 @@ impl RepoIndex {
         entries.push(entry);
     }
 
-
     /// The repositories scanned, in priority order.
     pub fn repositories(&self) -> &[PathBuf] {
         &self.repositories
