@@ -247,8 +247,12 @@ impl<P: NodeParameters> NodeBuilder<P> {
 }
 
 fn init_logging() {
-    let filter = tracing_subscriber::EnvFilter::try_from_env("RUST_LOG")
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=warn"));
+    // Zenoh's Unix-socket link warns on every link it opens from a client
+    // socket, which has no path by nature (a launch's instances link over
+    // them): not a fault anyone can act on.
+    let filter = tracing_subscriber::EnvFilter::try_from_env("RUST_LOG").unwrap_or_else(|_| {
+        tracing_subscriber::EnvFilter::new("info,zenoh=warn,zenoh_link_unixsock_stream=error")
+    });
     // Colour only for a person at a terminal: the launcher pipes output.
     let ansi = std::io::IsTerminal::is_terminal(&std::io::stderr())
         && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty());
