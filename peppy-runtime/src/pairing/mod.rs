@@ -87,6 +87,20 @@ use lane::*;
 use observer::*;
 use participant::*;
 
+/// Follows every claim on `slot`'s pairing, those already held first: a
+/// participant's pair and an observer's sources' slots both come from them.
+async fn follow_claims(
+    session: &zenoh::Session,
+    ns: &str,
+    slot: &PairingSlot,
+) -> Result<Subscriber<FifoChannelHandler<Sample>>> {
+    Ok(session
+        .liveliness()
+        .declare_subscriber(claim_selector(ns, &slot.pairing.name, &slot.pairing.tag))
+        .history(true)
+        .await?)
+}
+
 /// The pairing slots of one instance.
 #[derive(Default, Clone)]
 pub(crate) struct Pairings {

@@ -63,16 +63,7 @@ impl Observer {
             .declare_subscriber(all_liveliness_selector(&self.ns))
             .history(true)
             .await?;
-        let claims = self
-            .session
-            .liveliness()
-            .declare_subscriber(claim_selector(
-                &self.ns,
-                &self.slot.pairing.name,
-                &self.slot.pairing.tag,
-            ))
-            .history(true)
-            .await?;
+        let claims = follow_claims(&self.session, &self.ns, &self.slot).await?;
         let me = self.clone();
         tokio::spawn(async move {
             loop {

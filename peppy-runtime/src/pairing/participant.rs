@@ -121,16 +121,7 @@ impl Participant {
         let key = self.claim_key(plan.as_ref());
         let token = self.session.liveliness().declare_token(key.clone()).await?;
         *self.claiming.lock().unwrap_or_else(|p| p.into_inner()) = plan.clone();
-        let claims = self
-            .session
-            .liveliness()
-            .declare_subscriber(claim_selector(
-                &self.ns,
-                &self.slot.pairing.name,
-                &self.slot.pairing.tag,
-            ))
-            .history(true)
-            .await?;
+        let claims = follow_claims(&self.session, &self.ns, &self.slot).await?;
         let me = self.clone();
         tokio::spawn(async move {
             let mut follow = Follow {
