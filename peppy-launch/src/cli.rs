@@ -259,6 +259,17 @@ pub(crate) struct TopicSelect {
     /// (`recon.left_cam`), or `INSTANCE` for its external topic.
     #[arg(long, value_name = "INSTANCE.SLOT")]
     pub(crate) slot: Option<String>,
+    /// A pair's topic: `TOPIC` is a topic of the pairing this pairing slot
+    /// takes part in (`leader.follower`), shown as the pair carries it
+    /// (sent by the slot, or by its peer); an observer slot: as its
+    /// sources send it. Its format is read from the pairing document.
+    #[arg(long, value_name = "INSTANCE.SLOT", conflicts_with_all = ["slot", "from"])]
+    pub(crate) pair: Option<String>,
+    /// With `--pair`: a repository to find the pairing document in
+    /// (repeatable; default: `PEPPY_REPOSITORIES`, else the
+    /// `peppy_repositories.json5` of the current directory or above).
+    #[arg(long = "repo", value_name = "DIR", requires = "pair")]
+    pub(crate) repos: Vec<PathBuf>,
 }
 
 #[derive(Debug, Args)]

@@ -15,7 +15,7 @@ use crate::find_launcher::LauncherLookupError;
 use crate::inspect::SelectError;
 use crate::placement::{PlaceError, PlacementError};
 use crate::python_sync::PackageError;
-use crate::run_node::LocateError;
+use crate::run_node::{LocateError, PairLinkRefused};
 use crate::runs::LogsError;
 use crate::security::keys::KeysError;
 use crate::up::RouterError;
@@ -84,6 +84,7 @@ macro_rules! launch_error_from {
 
 launch_error_from!(
     LocateError => Usage,
+    PairLinkRefused => Usage,
     PlacementError => Usage,
     PlaceError => Usage,
     LauncherLookupError => Usage,
@@ -196,6 +197,9 @@ pub enum UsageError {
         /// The format's canonical text.
         format: String,
     },
+    /// `run --link` names a peer slot another instance holds.
+    #[error(transparent)]
+    PairLink(#[from] PairLinkRefused),
     /// `topic pub --rate` is out of range.
     #[error("--rate {rate} is out of range: give messages per second above 0, at most 100000")]
     Rate {

@@ -3,10 +3,13 @@
 
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::time::Duration;
 
+use peppy_runtime::StartupConfig;
+use peppy_runtime::wire::keys::{Claim, claim_selector};
 use peppy_schema::{
-    DocumentKind, Identity, Launch, NodeCheck, NodeDoc, NodeModel, RepoIndex, RepoOptions,
-    RepositoryList, check_node, node_file,
+    DocumentKind, Identity, Launch, NodeCheck, NodeDoc, NodeModel, PairEnd, PairingSlot, RepoIndex,
+    RepoOptions, RepositoryList, check_node, node_file,
 };
 
 use crate::cli::{PlanArgs, RunArgs};
@@ -105,7 +108,8 @@ pub(crate) fn run(args: &RunArgs) -> Result {
         flags.push("--use-sim-time".into());
     }
     flags.extend(args.overrides.iter().cloned());
-    let mut config = peppy_runtime::startup_from_flags(&NodeModel::of(doc), flags)?;
+    let model = NodeModel::of(doc);
+    let mut config = peppy_runtime::startup_from_flags(&model, flags)?;
     config.core_node = format!("run-{:x}", std::process::id());
     if let Launch::Container(_) = doc.execution.launch() {
         return Err(UsageError::Container {
@@ -148,6 +152,10 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             args.connect.clone()
         };
         config.zenoh.listen = args.listen.clone();
+        if _hub.is_none() {
+            // A stack is already there: a linked peer slot may be taken.
+            refuse_held_peers(&model.pairings, &config).await?;
+        }
         let run_dir = std::env::temp_dir().join(format!("peppy-run-{}", std::process::id()));
         std::fs::create_dir_all(&run_dir).map_err(|source| SetupError::CreateDir {
             path: run_dir.clone(),
@@ -183,6 +191,169 @@ pub(crate) fn run(args: &RunArgs) -> Result {
         };
         run_instances(vec![Ok(planned)], &run_dir, args.grace, out).await
     })
+}
+
+/// How long `run --link` waits for the stack's claim tokens.
+const CLAIMS_WAIT: Duration = Duration::from_secs(2);
+
+/// A pairing slot's claim as read from its token (docs/PAIRINGS.md §3).
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct HeldClaim {
+    role: String,
+    instance: String,
+    link_id: String,
+    peer: Option<(String, String)>,
+}
+
+impl HeldClaim {
+    fn read(key: &str) -> Option<HeldClaim> {
+        let c = Claim::parse(key)?;
+        Some(HeldClaim {
+            role: c.role.into(),
+            instance: c.instance.into(),
+            link_id: c.link_id.into(),
+            peer: c.peer.map(|(i, l)| (i.into(), l.into())),
+        })
+    }
+
+    fn claims(&self, instance: &str, link_id: &str) -> bool {
+        self.peer
+            .as_ref()
+            .is_some_and(|(i, l)| i == instance && l == link_id)
+    }
+}
+
+/// `run --link SLOT@PEER[/PEER_SLOT]` starts only against a peer slot that
+/// is free: a slot paired with another live instance (it claims that
+/// instance's slot, which claims it back) refuses the link. A peer not up
+/// yet, or a stack that cannot be reached, is left to the node: it waits.
+async fn refuse_held_peers(slots: &[PairingSlot], config: &StartupConfig) -> Result {
+    let linked: Vec<(&PairingSlot, &PairEnd)> = config
+        .pairs
+        .iter()
+        .filter_map(|plan| {
+            let slot = slots
+                .iter()
+                .find(|s| s.link_id == plan.link_id && !s.observer)?;
+            match plan.peers.as_slice() {
+                [peer] => Some((slot, peer)),
+                _ => None,
+            }
+        })
+        .collect();
+    if linked.is_empty() {
+        return Ok(());
+    }
+    let endpoints = peppy_runtime::Endpoints {
+        mode: Some("client".into()),
+        listen: Vec::new(),
+        connect: config.zenoh.connect.clone(),
+        multicast_scouting: false,
+        login: None,
+    };
+    let Ok(zenoh_config) = endpoints.zenoh_config() else {
+        return Ok(());
+    };
+    let session = match tokio::time::timeout(CLAIMS_WAIT, zenoh::open(zenoh_config)).await {
+        Ok(Ok(session)) => session,
+        _ => return Ok(()),
+    };
+    for (slot, peer) in linked {
+        let claims = read_claims(&session, &config.namespace, slot).await;
+        if let Some(held) = held_by_other(slot, peer, &config.instance_id, &claims) {
+            let _ = session.close().await;
+            return Err(held.into());
+        }
+    }
+    let _ = session.close().await;
+    Ok(())
+}
+
+/// Every claim of `slot`'s pairing alive now (bounded by [`CLAIMS_WAIT`]).
+async fn read_claims(session: &zenoh::Session, ns: &str, slot: &PairingSlot) -> Vec<HeldClaim> {
+    let selector = claim_selector(ns, &slot.pairing.name, &slot.pairing.tag);
+    let Ok(replies) = session
+        .liveliness()
+        .get(selector)
+        .timeout(CLAIMS_WAIT)
+        .await
+    else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    while let Ok(reply) = replies.recv_async().await {
+        if let Ok(sample) = reply.result()
+            && let Some(c) = HeldClaim::read(sample.key_expr().as_str())
+        {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// The refusal when every slot of `peer` that `slot` could link to is
+/// paired with someone other than `me/slot`; `None` when one is free (or
+/// the peer is not up: there is nothing to refuse yet).
+fn held_by_other(
+    slot: &PairingSlot,
+    peer: &PairEnd,
+    me: &str,
+    claims: &[HeldClaim],
+) -> Option<PairLinkRefused> {
+    let counterpart = |role: &str| {
+        if slot.counterpart.is_empty() {
+            role != slot.role
+        } else {
+            role == slot.counterpart
+        }
+    };
+    let candidates: Vec<&HeldClaim> = claims
+        .iter()
+        .filter(|c| c.instance == peer.instance && counterpart(&c.role))
+        .filter(|c| peer.link_id.as_ref().is_none_or(|l| *l == c.link_id))
+        .collect();
+    let mut held = Vec::new();
+    for c in &candidates {
+        let holder = c
+            .peer
+            .as_ref()
+            .filter(|(i, l)| !(i == me && *l == slot.link_id));
+        let Some((i, l)) = holder else {
+            return None;
+        };
+        // Paired only while the claimed slot claims it back.
+        if !claims
+            .iter()
+            .any(|o| o.instance == *i && o.link_id == *l && o.claims(&c.instance, &c.link_id))
+        {
+            return None;
+        }
+        held.push((format!("{}/{}", c.instance, c.link_id), format!("{i}/{l}")));
+    }
+    let (peer_slot, holder) = held.into_iter().next()?;
+    Some(PairLinkRefused {
+        slot: slot.link_id.clone(),
+        pairing: slot.pairing.to_string(),
+        peer_slot,
+        holder,
+    })
+}
+
+/// `run --link` names a peer slot that is already paired with another
+/// live instance (`PairingSlotAlreadyPaired`).
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "pairing slot `{slot}` cannot link to `{peer_slot}` ({pairing}): it is already paired with `{holder}`; link to a free slot, or stop the instance holding it first (PairingSlotAlreadyPaired)"
+)]
+pub struct PairLinkRefused {
+    /// This node's pairing slot.
+    pub slot: String,
+    /// The pairing (`name:tag`).
+    pub pairing: String,
+    /// The peer's slot, `instance/link_id`.
+    pub peer_slot: String,
+    /// Who holds it, `instance/link_id`.
+    pub holder: String,
 }
 
 /// Why `NODE` (of `run`, `plan`, `sync`) names no node.
@@ -247,5 +418,79 @@ pub(crate) fn locate(
             searched: index.searched(),
             node: id,
         }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn slot() -> PairingSlot {
+        PairingSlot {
+            link_id: "follower".into(),
+            pairing: Identity::new("joint_link", "v1"),
+            role: "leader".into(),
+            counterpart: "follower".into(),
+            observer: false,
+            sha256: None,
+            optional: false,
+            cardinality: Default::default(),
+            loc: Default::default(),
+        }
+    }
+
+    fn claim(role: &str, instance: &str, link: &str, peer: Option<(&str, &str)>) -> HeldClaim {
+        HeldClaim {
+            role: role.into(),
+            instance: instance.into(),
+            link_id: link.into(),
+            peer: peer.map(|(i, l)| (i.into(), l.into())),
+        }
+    }
+
+    fn peer(target: &str) -> PairEnd {
+        PairEnd::parse(target).unwrap()
+    }
+
+    #[test]
+    fn a_slot_paired_with_another_instance_refuses_the_link() {
+        let claims = [
+            claim("follower", "arm", "leader", Some(("lead_1", "follower"))),
+            claim("leader", "lead_1", "follower", Some(("arm", "leader"))),
+        ];
+        let refused = held_by_other(&slot(), &peer("arm"), "lead_2", &claims).unwrap();
+        assert_eq!(
+            (refused.peer_slot.as_str(), refused.holder.as_str()),
+            ("arm/leader", "lead_1/follower")
+        );
+        assert!(refused.to_string().contains("(PairingSlotAlreadyPaired)"));
+        assert!(held_by_other(&slot(), &peer("arm/leader"), "lead_2", &claims).is_some());
+    }
+
+    #[test]
+    fn a_free_waiting_or_absent_slot_is_no_reason_to_refuse() {
+        // Claims a slot that does not claim it back: not paired.
+        let one_sided = [claim(
+            "follower",
+            "arm",
+            "leader",
+            Some(("gone", "follower")),
+        )];
+        assert!(held_by_other(&slot(), &peer("arm"), "lead_2", &one_sided).is_none());
+        let free = [claim("follower", "arm", "leader", None)];
+        assert!(held_by_other(&slot(), &peer("arm"), "lead_2", &free).is_none());
+        assert!(held_by_other(&slot(), &peer("arm"), "lead_2", &[]).is_none());
+        // Paired with this very instance (a restart): its own pair.
+        let mine = [
+            claim("follower", "arm", "leader", Some(("lead_2", "follower"))),
+            claim("leader", "lead_2", "follower", Some(("arm", "leader"))),
+        ];
+        assert!(held_by_other(&slot(), &peer("arm"), "lead_2", &mine).is_none());
+        // A slot of the same role is no candidate.
+        let same_role = [
+            claim("leader", "arm", "x", Some(("lead_1", "follower"))),
+            claim("leader", "lead_1", "follower", Some(("arm", "x"))),
+        ];
+        assert!(held_by_other(&slot(), &peer("arm"), "lead_2", &same_role).is_none());
     }
 }

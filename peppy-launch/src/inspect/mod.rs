@@ -10,6 +10,7 @@ pub(crate) mod calls;
 pub(crate) mod dynamic;
 pub(crate) mod live_graph;
 pub(crate) mod nodes;
+pub(crate) mod pairs;
 pub(crate) mod rates;
 pub(crate) mod stream;
 pub(crate) mod topics;
@@ -252,6 +253,9 @@ pub enum SelectError {
         /// The slot's routing filter.
         keeps: peppy_schema::RouteFilter,
     },
+    /// `--pair` names no pair's topic ([`pairs::PairSelectError`]).
+    #[error(transparent)]
+    Pair(#[from] pairs::PairSelectError),
     /// `topic pub` without `--as`, and several instances emit the topic.
     #[error(
         "several instances emit `{topic}`: {}; publish as one of them with --as INSTANCE",

@@ -1,6 +1,6 @@
 //! `node list` and `node info`.
 
-use peppy_runtime::describe::InstanceInfo;
+use peppy_runtime::describe::{InstanceInfo, PairingSlotInfo};
 use peppy_schema::{RouteFilter, SlotBinding};
 
 use super::{Observer, owner_label, print_json};
@@ -126,6 +126,39 @@ pub(crate) fn binding_text(binding: &SlotBinding, filter: &RouteFilter) -> Strin
     }
 }
 
+/// A pairing slot and its state, for people: the role it plays and its
+/// peer (or what it waits for), or the role it observes and its sources.
+pub(crate) fn pairing_text(p: &PairingSlotInfo) -> String {
+    if p.observer {
+        let sources: Vec<String> = p
+            .sources
+            .iter()
+            .map(|x| {
+                let at = match &x.link_id {
+                    Some(l) => format!("{}/{l}", x.instance_id),
+                    None => x.instance_id.clone(),
+                };
+                format!("{at} ({})", if x.live { "live" } else { "not running" })
+            })
+            .collect();
+        let sources = if sources.is_empty() {
+            "no sources".to_string()
+        } else {
+            sources.join(", ")
+        };
+        return format!("pairing {} observes {}: {sources}", p.pairing, p.role);
+    }
+    let state = match (&p.peer, &p.claiming) {
+        (Some(peer), _) => format!(
+            "paired with {}/{} (core node {})",
+            peer.instance_id, peer.link_id, peer.core_node
+        ),
+        (None, Some(target)) => format!("not paired, waiting for {target}"),
+        (None, None) => "not paired, waiting for a peer to link to it".into(),
+    };
+    format!("pairing {} plays {}: {state}", p.pairing, p.role)
+}
+
 /// `node info` for people.
 pub(crate) fn info_text(i: &InstanceInfo, now: u64) -> String {
     use std::fmt::Write as _;
@@ -147,6 +180,18 @@ pub(crate) fn info_text(i: &InstanceInfo, now: u64) -> String {
                 slot.target,
                 binding_text(&slot.binding, &slot.filter)
             );
+        }
+    }
+    if !i.pairings.is_empty() {
+        let _ = writeln!(s, "pairings");
+        let width = i
+            .pairings
+            .iter()
+            .map(|x| x.link_id.len())
+            .max()
+            .unwrap_or(0);
+        for p in &i.pairings {
+            let _ = writeln!(s, "  {:width$}  {}", p.link_id, pairing_text(p));
         }
     }
     if !i.emits.is_empty() {
@@ -205,6 +250,53 @@ pub(crate) fn info_text(i: &InstanceInfo, now: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pairing_slots_say_their_state() {
+        use peppy_runtime::describe::{PeerEndInfo, SourceInfo};
+        let mut p = PairingSlotInfo {
+            link_id: "follower".into(),
+            pairing: peppy_schema::Identity::new("joint_link", "v1"),
+            role: "leader".into(),
+            observer: false,
+            claiming: Some("arm/leader".into()),
+            peer: None,
+            sources: Vec::new(),
+        };
+        assert_eq!(
+            pairing_text(&p),
+            "pairing joint_link:v1 plays leader: not paired, waiting for arm/leader"
+        );
+        p.peer = Some(PeerEndInfo {
+            core_node: "launch-1".into(),
+            instance_id: "arm".into(),
+            link_id: "leader".into(),
+        });
+        assert_eq!(
+            pairing_text(&p),
+            "pairing joint_link:v1 plays leader: paired with arm/leader (core node launch-1)"
+        );
+        p.observer = true;
+        p.role = "follower".into();
+        p.sources = vec![
+            SourceInfo {
+                core_node: "launch-1".into(),
+                instance_id: "arm".into(),
+                link_id: Some("leader".into()),
+                live: true,
+            },
+            SourceInfo {
+                core_node: "launch-1".into(),
+                instance_id: "arm_2".into(),
+                link_id: None,
+                live: false,
+            },
+        ];
+        assert_eq!(
+            pairing_text(&p),
+            "pairing joint_link:v1 observes follower: arm/leader (live), arm_2 (not running)"
+        );
+    }
 
     #[test]
     fn tables_pad_columns_to_the_widest_cell() {

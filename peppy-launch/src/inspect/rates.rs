@@ -192,7 +192,7 @@ pub(crate) async fn run(args: RateArgs, measure: Measure) -> Result {
     let observer = Observer::open(&args.stack).await?;
     let all = observer.describe_some().await?;
     let mut selection = Selection::new(&args.select, &observer.reach.namespace, &all)?;
-    let tap = Tap::open(&observer, &selection.selector, false).await?;
+    let tap = Tap::of(&observer, &selection, false).await?;
     let limits = Limits::new(&args.stream);
     let live = args.format == Format::Human && std::io::stdout().is_terminal();
     let mut windows: BTreeMap<String, Window> = BTreeMap::new();

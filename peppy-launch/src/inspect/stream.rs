@@ -121,6 +121,8 @@ pub(crate) struct Selection {
     pub(crate) formats: HashMap<u64, String>,
     /// Instances whose description was asked for after start.
     asked: std::collections::HashSet<String>,
+    /// Through `--pair`: the pairing slots whose sends are taken.
+    pub(crate) pair: Option<super::pairs::Senders>,
 }
 
 impl Selection {
@@ -130,6 +132,9 @@ impl Selection {
         ns: &str,
         all: &BTreeMap<String, InstanceInfo>,
     ) -> Result<Selection> {
+        if let Some(pair) = &args.pair {
+            return super::pairs::selection(args, pair, ns, all);
+        }
         let topic = TopicArg::parse(&args.topic)?;
         let name = topic.name.clone();
         let emitters = topic.emitters(all);
@@ -192,6 +197,7 @@ impl Selection {
             nodes,
             formats,
             asked: Default::default(),
+            pair: None,
         };
         match &args.slot {
             Some(slot) => selection.through_slot(slot, &name, &consumed, args.from.as_deref())?,
@@ -236,6 +242,25 @@ impl Selection {
             }
         }
         Ok(selection)
+    }
+
+    /// A `--pair` selection: `senders`' samples on `selector`, read with
+    /// `formats`.
+    pub(crate) fn of_pair(
+        topic: String,
+        selector: String,
+        formats: HashMap<u64, String>,
+        senders: super::pairs::Senders,
+    ) -> Selection {
+        Selection {
+            topic,
+            selector,
+            slot: None,
+            nodes: HashMap::new(),
+            formats,
+            asked: Default::default(),
+            pair: Some(senders),
+        }
     }
 
     /// `--slot INSTANCE.SLOT`: exactly what that slot receives.
@@ -416,6 +441,34 @@ impl Tap {
         selector: &str,
         keep_payload: bool,
     ) -> Result<Tap> {
+        Tap::open_with(observer, selector, keep_payload, parse_entry_key).await
+    }
+
+    /// [`Tap::open`] of a selection: its keys read by the selection's own
+    /// reader (a pair's keys are not an owner's).
+    pub(crate) async fn of(
+        observer: &Observer,
+        selection: &Selection,
+        keep_payload: bool,
+    ) -> Result<Tap> {
+        match &selection.pair {
+            Some(senders) => {
+                let senders = senders.clone();
+                let read = move |key: &str| super::pairs::sender(key, &senders);
+                Tap::open_with(observer, &selection.selector, keep_payload, read).await
+            }
+            None => Tap::open(observer, &selection.selector, keep_payload).await,
+        }
+    }
+
+    /// [`Tap::open`], reading who sent each sample with `read` (`None`:
+    /// not a sample the command takes).
+    pub(crate) async fn open_with(
+        observer: &Observer,
+        selector: &str,
+        keep_payload: bool,
+        read: impl Fn(&str) -> Option<Sender> + Send + Sync + 'static,
+    ) -> Result<Tap> {
         let (tx, rx) = flume::bounded(BACKLOG);
         let dropped = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
         let counter = dropped.clone();
@@ -423,7 +476,7 @@ impl Tap {
             .session
             .declare_subscriber(selector.to_string())
             .callback(move |sample| {
-                let Some(sender) = parse_entry_key(sample.key_expr().as_str()) else {
+                let Some(sender) = read(sample.key_expr().as_str()) else {
                     return;
                 };
                 let received = Received {

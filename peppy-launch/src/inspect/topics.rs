@@ -137,7 +137,7 @@ pub(crate) async fn echo(args: EchoArgs) -> Result {
     let observer = Observer::open(&args.stack).await?;
     let all = observer.describe_some().await?;
     let mut selection = Selection::new(&args.select, &observer.reach.namespace, &all)?;
-    let tap = Tap::open(&observer, &selection.selector, true).await?;
+    let tap = Tap::of(&observer, &selection, true).await?;
     let mut limits = Limits::new(&args.stream);
     if args.once {
         limits.count = Some(1);

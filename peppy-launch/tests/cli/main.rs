@@ -10,6 +10,7 @@ mod migrate;
 mod netns;
 mod node_deps;
 mod one_engine;
+mod pairs;
 mod placement;
 mod python;
 mod repo_index;

@@ -39,9 +39,15 @@ impl Launch {
         extra: &[&str],
         env: &[(&str, &Path)],
     ) -> Launch {
+        let mut args = vec!["up", launcher];
+        args.extend_from_slice(extra);
+        Launch::start(wrapper, &args, env)
+    }
+
+    /// Any long-running `peppy-launch ARGS` (`up`, `run`), read like `up`.
+    pub(crate) fn start(wrapper: &[&str], args: &[&str], env: &[(&str, &Path)]) -> Launch {
         let mut child = crate::support::peppy_launch_command(wrapper)
-            .args(["up", launcher])
-            .args(extra)
+            .args(args)
             .envs(env.iter().copied())
             .current_dir(root())
             .env("NO_COLOR", "1")
