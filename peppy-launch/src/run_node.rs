@@ -318,9 +318,7 @@ fn held_by_other(
             .peer
             .as_ref()
             .filter(|(i, l)| !(i == me && *l == slot.link_id));
-        let Some((i, l)) = holder else {
-            return None;
-        };
+        let (i, l) = holder?;
         // Paired only while the claimed slot claims it back.
         if !claims
             .iter()
