@@ -49,7 +49,8 @@ impl Gen<'_> {
                 t.topic.decl.name, slot.link_id
             )
         };
-        for t in &p.emitted {
+        let emitted = p.emitted.iter().map(|t| (t, true));
+        for (t, sends) in emitted.chain(p.consumed.iter().map(|t| (t, false))) {
             if names.claim(
                 NameKind::module_of(self.node.node.spelling),
                 &t.topic.decl.name,
@@ -57,18 +58,7 @@ impl Gen<'_> {
                 &t.loc,
                 &mut self.diags,
             ) {
-                topics.extend(self.paired_topic(p, t, true));
-            }
-        }
-        for t in &p.consumed {
-            if names.claim(
-                NameKind::module_of(self.node.node.spelling),
-                &t.topic.decl.name,
-                &what(t),
-                &t.loc,
-                &mut self.diags,
-            ) {
-                topics.extend(self.paired_topic(p, t, false));
+                topics.extend(self.paired_topic(p, t, sends));
             }
         }
         let id = ident(link);
