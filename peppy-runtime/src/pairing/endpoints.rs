@@ -38,7 +38,7 @@ impl PairedPublisher {
                 message: message.topic.name.to_string(),
             });
         }
-        if self.participant.peer().is_none() {
+        if !self.participant.is_paired() {
             return Ok(());
         }
         let payload = self.runner.shm().payload(

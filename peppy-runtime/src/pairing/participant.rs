@@ -102,6 +102,11 @@ impl Participant {
         self.state.borrow().peer.clone()
     }
 
+    /// Whether the pair holds, without copying the peer (asked per publish).
+    pub(crate) fn is_paired(&self) -> bool {
+        self.state.borrow().peer.is_some()
+    }
+
     /// Waits until paired; `None` once `stop` fires.
     pub(super) async fn wait_paired(&self, stop: &CancellationToken) -> Option<PeerInfo> {
         let mut rx = self.state.subscribe();
