@@ -54,6 +54,11 @@ pub(crate) struct Place {
     /// fragment: messages up to a batch, 64 KiB).
     #[arg(long)]
     lowlatency: bool,
+    /// peppy over a Unix socket only: direct links between the two nodes
+    /// too, in a directory beside the socket (what `up` gives the
+    /// instances of one launch).
+    #[arg(long)]
+    direct: bool,
 }
 
 /// Whether this child runs with shared memory (set once from its [`Place`]).
@@ -71,6 +76,15 @@ static LOWLATENCY: AtomicBool = AtomicBool::new(false);
 /// Whether this child's raw sessions use Zenoh's low-latency transport.
 pub(crate) fn lowlatency() -> bool {
     LOWLATENCY.load(Relaxed)
+}
+
+/// The directory of this child's direct links (set once from its
+/// [`Place`]).
+static DIRECT: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+
+/// The directory of this child's direct links, if it uses them.
+pub(crate) fn direct_links() -> Option<&'static std::path::Path> {
+    DIRECT.get().map(std::path::PathBuf::as_path)
 }
 
 /// Whether this child reads round-trip messages in place (set once from
@@ -209,6 +223,17 @@ async fn role(child: Child) -> Res<()> {
     SHM.store(child.place().is_some_and(|p| p.shm), Relaxed);
     IN_PLACE.store(child.place().is_some_and(|p| p.in_place), Relaxed);
     LOWLATENCY.store(child.place().is_some_and(|p| p.lowlatency), Relaxed);
+    if let Some(place) = child.place().filter(|p| p.direct) {
+        // Beside the source's socket, named by the case: the source and
+        // its sinks find it without being told.
+        let socket = place
+            .endpoint
+            .strip_prefix("unixsock-stream/")
+            .ok_or("direct links are tried over a Unix socket only")?;
+        let dir = std::path::Path::new(socket).with_extension("d");
+        std::fs::create_dir_all(&dir)?;
+        let _ = DIRECT.set(dir);
+    }
     match child {
         Child::Source(p) => {
             let ready = async {

@@ -22,6 +22,10 @@ async fn start<P: peppy::codegen::NodeParameters>(
 ) -> Res<Arc<NodeRunner>> {
     let mut args = vec!["peppy-bench", "--instance-id", instance, "--namespace", ns];
     args.extend_from_slice(endpoint);
+    let direct = crate::children::direct_links().map(|d| d.display().to_string());
+    if let Some(dir) = &direct {
+        args.extend(["--direct-links", dir.as_str()]);
+    }
     let shm = if crate::children::shared_memory() {
         SharedMemory::default()
     } else {

@@ -35,6 +35,9 @@ struct Mode {
     peer: Option<Peer>,
     /// Raw Zenoh on its low-latency transport (`--lowlatency`).
     lowlatency: bool,
+    /// peppy over a Unix socket with direct links between the nodes too
+    /// (`--direct`), as `up` runs the instances of one launch.
+    direct: bool,
 }
 
 /// The Zenoh link between a source and its sinks.
@@ -64,6 +67,7 @@ const RAW_TCP: Mode = Mode {
     link: Link::Tcp,
     peer: None,
     lowlatency: false,
+    direct: false,
 };
 const PEPPY_TCP: Mode = Mode {
     system: System::Peppy,
@@ -73,6 +77,7 @@ const PEPPY_TCP: Mode = Mode {
     link: Link::Tcp,
     peer: None,
     lowlatency: false,
+    direct: false,
 };
 const RAW_SHM: Mode = Mode {
     system: System::Zenoh,
@@ -82,6 +87,7 @@ const RAW_SHM: Mode = Mode {
     link: Link::Tcp,
     peer: None,
     lowlatency: false,
+    direct: false,
 };
 const PEPPY_SHM: Mode = Mode {
     system: System::Peppy,
@@ -91,6 +97,7 @@ const PEPPY_SHM: Mode = Mode {
     link: Link::Tcp,
     peer: None,
     lowlatency: false,
+    direct: false,
 };
 
 /// With shared memory, reading in place: a camera consumer's way.
@@ -113,6 +120,7 @@ const RAW_TCP_DEFAULTS: Mode = Mode {
     link: Link::Tcp,
     peer: None,
     lowlatency: false,
+    direct: false,
 };
 
 /// Over a Unix socket, shared memory on: the link `peppy-launch up`
@@ -124,6 +132,13 @@ const RAW_UNIX: Mode = Mode {
 const PEPPY_UNIX: Mode = Mode {
     link: Link::Unix,
     ..PEPPY_SHM
+};
+
+/// peppy as `up` runs the instances of one launch on one host: a Unix
+/// socket, and direct links beside it.
+const PEPPY_DIRECT: Mode = Mode {
+    direct: true,
+    ..PEPPY_UNIX
 };
 
 /// Raw Zenoh over a Unix socket on its low-latency transport.
@@ -314,6 +329,9 @@ fn place_args(role: &str, mode: Mode, ns: &str, endpoint: &str) -> Vec<String> {
     if mode.lowlatency {
         args.push("--lowlatency".into());
     }
+    if mode.direct {
+        args.push("--direct".into());
+    }
     args
 }
 
@@ -353,6 +371,7 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
             PEPPY_SHM_IN_PLACE,
             RAW_UNIX,
             PEPPY_UNIX,
+            PEPPY_DIRECT,
         ];
         if peers::peers().dora.is_some() {
             modes.push(DORA);
@@ -401,9 +420,12 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
             .collect();
         // (group, the base mode and its name, peppy's mode)
         let cases = [
+            (RT_DORA_DIRECT, DORA, DORA_NAME, PEPPY_DIRECT),
             (RT_DORA_TCP, DORA, DORA_NAME, PEPPY_SHM),
             (RT_DORA_UNIX, DORA, DORA_NAME, PEPPY_UNIX),
+            (RT_FLOOR_DIRECT, FLOOR, FLOOR_NAME, PEPPY_DIRECT),
             (RT_FLOOR, FLOOR, FLOOR_NAME, PEPPY_UNIX),
+            (RT_DIRECT_VS_TCP, PEPPY_SHM, "peppy over TCP", PEPPY_DIRECT),
             (
                 "topic round trip, TCP (SHM off both sides)",
                 RAW_TCP,
@@ -468,9 +490,12 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
     }
     rows.sort_by_key(|r| {
         [
+            RT_DORA_DIRECT,
             RT_DORA_TCP,
             RT_DORA_UNIX,
+            RT_FLOOR_DIRECT,
             RT_FLOOR,
+            RT_DIRECT_VS_TCP,
             "topic round trip, TCP",
             "topic round trip, shared memory both",
             "topic round trip, shared memory, read",
@@ -493,6 +518,11 @@ pub(crate) const DORA_NAME: &str = "dora-rs";
 /// The base column's name for the hand-off floor.
 const FLOOR_NAME: &str = "floor";
 
+const RT_DORA_DIRECT: &str = "topic round trip, dora-rs vs peppy as `up` links one launch's instances (Unix socket and direct links)";
+const RT_FLOOR_DIRECT: &str =
+    "topic round trip, the hand-off floor (iceoryx2, event wake-ups) vs peppy with direct links";
+const RT_DIRECT_VS_TCP: &str =
+    "topic round trip, peppy with direct links vs over loopback TCP (shared memory)";
 const RT_DORA_TCP: &str =
     "topic round trip, dora-rs vs peppy (each with its shared memory, loopback TCP)";
 const RT_DORA_UNIX: &str =
@@ -515,13 +545,17 @@ const STREAM_QUEUE: usize = 100_000;
 pub(crate) fn links(quick: bool) -> Res<Vec<Row>> {
     let sizes = [64usize, 4 << 10];
     let count = if quick { 100 } else { 5000 };
-    let modes = [
+    let mut modes = vec![
         RAW_SHM,
         PEPPY_SHM,
         RAW_UNIX,
         PEPPY_UNIX,
         RAW_UNIX_LOWLATENCY,
+        PEPPY_DIRECT,
     ];
+    if peers::peers().floor.is_some() {
+        modes.push(FLOOR);
+    }
     let sizes_arg: Vec<String> = sizes.iter().map(ToString::to_string).collect();
     let got = in_turns(
         &modes,
@@ -552,6 +586,9 @@ pub(crate) fn links(quick: bool) -> Res<Vec<Row>> {
         })
         .collect();
     let cases = [
+        (LINKS_DIRECT, 1, 5, "TCP", "direct"),
+        (LINKS_DIRECT_UNIX, 3, 5, "Unix", "direct"),
+        (LINKS_DIRECT_FLOOR, 6, 5, "floor", "direct"),
         (LINKS_PEPPY, 1, 3, "TCP", "Unix"),
         (LINKS_RAW, 0, 2, "TCP", "Unix"),
         (LINKS_LOWLATENCY, 2, 4, "default", "low-latency"),
@@ -559,6 +596,9 @@ pub(crate) fn links(quick: bool) -> Res<Vec<Row>> {
     ];
     let mut rows = Vec::new();
     for (group, base, subject, base_name, subject_name) in cases {
+        if base >= modes.len() {
+            continue;
+        }
         for (i, &bytes) in sizes.iter().enumerate() {
             rows.push(
                 Row::new(
@@ -575,6 +615,10 @@ pub(crate) fn links(quick: bool) -> Res<Vec<Row>> {
     Ok(rows)
 }
 
+const LINKS_DIRECT: &str = "links on one host, peppy: direct links vs loopback TCP";
+const LINKS_DIRECT_UNIX: &str = "links on one host, peppy: direct links vs a Unix socket";
+const LINKS_DIRECT_FLOOR: &str =
+    "links on one host: the hand-off floor (iceoryx2) vs peppy with direct links";
 const LINKS_PEPPY: &str = "links on one host, peppy: Unix socket vs loopback TCP";
 const LINKS_RAW: &str = "links on one host, raw Zenoh: Unix socket vs loopback TCP";
 const LINKS_LOWLATENCY: &str =
@@ -615,10 +659,13 @@ pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
         }
     };
     let mut rows = Vec::new();
-    for (raw, peppy) in PAIRS {
+    // The pairs, then peppy as `up` runs one launch's instances (a Unix
+    // socket and direct links) against raw Zenoh over the same socket.
+    let pairs = PAIRS.into_iter().chain([(RAW_UNIX, PEPPY_DIRECT)]);
+    for (raw, peppy) in pairs {
         // dora-rs beside the pair that runs as it does on one host.
         let mut modes = vec![raw, peppy];
-        if raw.shm && peers::peers().dora.is_some() {
+        if raw == RAW_SHM && peers::peers().dora.is_some() {
             modes.push(DORA);
         }
         let got = in_rounds(&modes, rounds(quick), |mode| {
@@ -647,10 +694,14 @@ pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
             source.stop();
             Ok(got)
         })?;
-        let group = format!(
-            "topic throughput (reliable, one to one, {})",
-            transport(raw.shm)
-        );
+        let group = if peppy.direct {
+            "topic throughput (reliable, one to one), peppy with direct links vs raw Zenoh over a Unix socket".to_string()
+        } else {
+            format!(
+                "topic throughput (reliable, one to one, {})",
+                transport(raw.shm)
+            )
+        };
         let short = |runs: &[Value]| -> u64 {
             runs.iter()
                 .map(|v| v["sent"].as_u64().unwrap_or(0) - v["received"].as_u64().unwrap_or(0))

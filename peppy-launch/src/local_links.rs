@@ -16,6 +16,10 @@ use std::path::{Path, PathBuf};
 /// behaviour before Unix-socket links, for comparison).
 pub(crate) const LINK_ENV: &str = "PEPPY_LOCAL_LINK";
 
+/// Set to `off` to keep a launch's topics on Zenoh alone, without direct
+/// links between its instances (for comparison).
+pub(crate) const DIRECT_ENV: &str = "PEPPY_DIRECT_LINKS";
+
 /// The longest socket path used: `sockaddr_un` holds 108 bytes on Linux
 /// (104 on macOS), with room for the `.lock` file Zenoh puts beside it.
 const MAX_PATH: usize = 96;
@@ -61,6 +65,17 @@ impl LocalLinks {
     pub(crate) fn instance(&self, index: usize) -> Option<String> {
         let name = format!("i{index}");
         (self.socket(&name).len() <= MAX_PATH).then(|| self.endpoint(&name))
+    }
+
+    /// The directory where the launch's instances hand topic messages to
+    /// each other over direct links (peppy-runtime's `direct` module), or
+    /// `None` when the user turned them off or their sockets' names would
+    /// not fit.
+    pub(crate) fn direct(&self) -> Option<std::path::PathBuf> {
+        if std::env::var(DIRECT_ENV).is_ok_and(|v| v.eq_ignore_ascii_case("off")) {
+            return None;
+        }
+        (self.socket("d0123456789abcdef").len() <= MAX_PATH).then(|| self.dir.clone())
     }
 
     fn socket(&self, name: &str) -> String {
@@ -134,6 +149,9 @@ mod tests {
         assert!(links.router().starts_with("unixsock-stream/"));
         assert!(links.router().ends_with("/router.sock"));
         assert!(links.instance(3).unwrap().ends_with("/i3.sock"));
+        if std::env::var_os(DIRECT_ENV).is_none() {
+            assert_eq!(links.direct().as_deref(), Some(dir.as_path()));
+        }
         drop(links);
         assert!(!dir.exists());
     }

@@ -809,6 +809,12 @@ impl Instances<'_> {
             // The node's own (its code's, else 5 s): `start_instance`
             // waits for that window, whatever it is, before escalating.
             shutdown_grace_secs: None,
+            // Secured, every message goes through the router, which checks
+            // it: no link past it.
+            direct_links: match self.secured {
+                Some(_) => None,
+                None => self.local.and_then(|l| l.direct()),
+            },
         }
     }
 }
@@ -1244,6 +1250,7 @@ mod tests {
             zenoh: Endpoints::default(),
             use_sim_time: false,
             shutdown_grace_secs: grace,
+            direct_links: None,
         };
         let env = |v: &str| vec![(peppy_runtime::SHUTDOWN_GRACE_ENV.to_string(), v.to_string())];
         if std::env::var_os(peppy_runtime::SHUTDOWN_GRACE_ENV).is_none() {

@@ -37,6 +37,11 @@ mod acks;
 mod actions;
 pub mod clock;
 pub mod describe;
+#[cfg(unix)]
+mod direct;
+#[cfg(not(unix))]
+#[path = "direct/elsewhere.rs"]
+mod direct;
 mod error;
 mod intake;
 mod members;

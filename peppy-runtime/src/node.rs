@@ -381,6 +381,10 @@ pub struct NodeRunner {
     stopped: tokio::sync::Mutex<bool>,
     /// The pairing slots and their pairs.
     pairings: Pairings,
+    /// The launch's directory of direct links (same host), if it gave one.
+    direct_dir: Option<PathBuf>,
+    /// This node's socket for direct links, while it is up.
+    direct_listener: Option<crate::direct::outlet::Listener>,
 }
 
 /// A shutdown hook and where it was registered (its name in the logs).
@@ -470,10 +474,13 @@ impl NodeRunner {
             use_sim_time: startup.use_sim_time,
             stopped: tokio::sync::Mutex::new(false),
             pairings: Pairings::default(),
+            direct_dir: startup.direct_links.take(),
+            direct_listener: None,
         };
         let mut entities = Entities::default();
         let started_at_ms = describe::now_ms();
         runner.declare_publishers(descriptor, &mut entities).await?;
+        runner.serve_direct_links();
         runner.serve_formats(descriptor, &mut entities).await?;
         let consumes = runner.subscribe(descriptor, &mut entities).await?;
         runner.serve_services(descriptor, &mut entities).await?;
@@ -579,6 +586,13 @@ impl NodeRunner {
             self.publishers.insert(
                 address(*spec),
                 Outlet {
+                    direct: self.direct_dir.as_ref().map(|_| {
+                        Arc::new(crate::direct::outlet::DirectOutlet::new(
+                            &publisher,
+                            spec.qos,
+                            spec.format.fingerprint,
+                        ))
+                    }),
                     publisher,
                     readers_known: known,
                     attachment: ZBytes::from(attachment::topic(spec.format.fingerprint)),
@@ -586,6 +600,24 @@ impl NodeRunner {
             );
         }
         Ok(())
+    }
+
+    /// Listens for consumers on this host that read the node's topics over
+    /// direct links (docs/WIRE.md, "Direct links").
+    fn serve_direct_links(&mut self) {
+        let Some(dir) = &self.direct_dir else {
+            return;
+        };
+        let outlets: Vec<_> = self
+            .publishers
+            .values()
+            .filter_map(|o| o.direct.clone())
+            .collect();
+        if outlets.is_empty() {
+            return;
+        }
+        let path = crate::direct::socket_path(dir, &self.core_node, &self.instance_id);
+        self.direct_listener = crate::direct::outlet::serve(&path, outlets, self.token.clone());
     }
 
     /// The format queryables of emitted topics.
@@ -630,6 +662,17 @@ impl NodeRunner {
         let mismatch = mismatch_reporter(self.session.clone(), self.namespace.clone());
         let declarer = Declarer::start(self.session.clone(), self.token.clone());
         let mut trackers = HashMap::new();
+        let direct = match &self.direct_dir {
+            Some(dir) if !descriptor.consumed_topics.is_empty() => {
+                Some(crate::direct::inlet::Consumer::new(
+                    dir.clone(),
+                    format!("{}/{}", self.core_node, self.instance_id),
+                    tokio::runtime::Handle::current(),
+                    self.token.clone(),
+                ))
+            }
+            _ => None,
+        };
         for spec in descriptor.consumed_topics {
             let filter = match spec.link_id {
                 Some(link) => self.slot(link)?.filter.clone(),
@@ -656,8 +699,15 @@ impl NodeRunner {
                     .flatten()
                     .map(|s| s.target.clone()),
             });
-            let (intake, inbox) =
+            let (mut intake, inbox) =
                 Intake::new(spec, filter, members, declarer.clone(), mismatch.clone());
+            if let Some(consumer) = &direct {
+                intake = intake.with_direct(crate::direct::inlet::Inlet::new(consumer.clone()));
+            }
+            let intake = Arc::new(intake);
+            if let Some(inlet) = intake.direct() {
+                inlet.bind(&intake);
+            }
             let subscriber = self
                 .session
                 .declare_subscriber(selector)
@@ -1148,6 +1198,13 @@ impl NodeRunner {
         Ok(self.inbox(topic)?.backlog.shared.load(Ordering::Relaxed))
     }
 
+    /// How many messages of `topic` have arrived over direct links from
+    /// producers of this launch on this host (docs/WIRE.md, "Direct
+    /// links"), rather than through Zenoh.
+    pub fn received_over_direct_links(&self, topic: &'static ConsumedTopicSpec) -> Result<u64> {
+        Ok(self.inbox(topic)?.backlog.direct.load(Ordering::Relaxed))
+    }
+
     pub(crate) fn shm(&self) -> &Shm {
         &self.shm
     }
@@ -1212,6 +1269,13 @@ impl NodeRunner {
         // could overtake the last messages the shutdown hooks emitted,
         // which the router could then no longer name.
         let queryables = entities.queryables;
+        // Consumers on this host read what the hooks sent over the links,
+        // then hear of the end at once rather than when the process exits.
+        for outlet in self.publishers.values() {
+            if let Some(direct) = &outlet.direct {
+                direct.close();
+            }
+        }
         if let Some(token) = entities.liveliness {
             let _ = token.undeclare().await;
         }
@@ -1249,6 +1313,9 @@ fn bound_refs(slots: &[SlotPlan], core_node: &str) -> HashMap<String, Vec<Produc
 /// for it: only then does a large message go through shared memory.
 pub(crate) struct Outlet {
     pub(crate) publisher: Publisher<'static>,
+    /// Its direct links to consumers on this host, when the launch gives
+    /// the node a directory for them.
+    pub(crate) direct: Option<Arc<crate::direct::outlet::DirectOutlet>>,
     readers_known: Arc<AtomicBool>,
     /// The topic's attachment (its format's fingerprint), made once: each
     /// message shares it.

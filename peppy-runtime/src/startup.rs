@@ -66,6 +66,12 @@ pub struct StartupConfig {
     /// [`NodeBuilder::shutdown_grace`]: crate::NodeBuilder::shutdown_grace
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shutdown_grace_secs: Option<f64>,
+    /// The directory of this launch's direct links: instances of one
+    /// launch on one host hand small topic messages to each other over
+    /// Unix sockets there, beside Zenoh (docs/WIRE.md, "Direct links").
+    /// Absent: Zenoh alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direct_links: Option<PathBuf>,
 }
 
 /// The environment variable that overrides a node's shutdown grace window
@@ -348,6 +354,11 @@ struct Flags {
     /// (`peppy/<ns>/clock/tick/sim`) instead of the OS clock.
     #[arg(long)]
     use_sim_time: bool,
+    /// Hand small topic messages to other nodes started with the same
+    /// directory over Unix sockets there, beside Zenoh (what `up` gives the
+    /// instances of one launch on one host; docs/WIRE.md, "Direct links").
+    #[arg(long, value_name = "DIR")]
+    direct_links: Option<PathBuf>,
     /// Parameter overrides, `key=value`, dot-paths for groups (`video.fps=30`).
     #[arg(value_name = "KEY=VALUE")]
     overrides: Vec<String>,
@@ -598,6 +609,7 @@ fn standalone_config(
         zenoh: endpoints,
         use_sim_time: flags.use_sim_time || standalone.use_sim_time,
         shutdown_grace_secs: None,
+        direct_links: flags.direct_links,
     };
     Ok((config, Some(binds)))
 }
@@ -1167,6 +1179,7 @@ mod tests {
             },
             use_sim_time: false,
             shutdown_grace_secs: None,
+            direct_links: None,
         }
     }
 

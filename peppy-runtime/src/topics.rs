@@ -40,9 +40,25 @@ pub(crate) struct Delivery {
 pub(crate) struct Arrival {
     /// The admitted producer; `None` until the reader admits it.
     producer: Option<Arc<Producer>>,
-    key: KeyExpr<'static>,
+    pub(crate) key: KeyExpr<'static>,
     payload: ZBytes,
     attachment: Option<ZBytes>,
+}
+
+impl Arrival {
+    /// A message that came over a direct link, under its producer's key.
+    pub(crate) fn direct(
+        key: KeyExpr<'static>,
+        payload: ZBytes,
+        attachment: Option<ZBytes>,
+    ) -> Self {
+        Arrival {
+            producer: None,
+            key,
+            payload,
+            attachment,
+        }
+    }
 }
 
 /// The queue of one consumed topic; filled by a Zenoh callback.
@@ -68,6 +84,8 @@ pub(crate) struct Backlog {
     dropped: AtomicU64,
     /// Messages that arrived in shared memory (mapped, not copied).
     pub(crate) shared: AtomicU64,
+    /// Messages that arrived over a direct link.
+    pub(crate) direct: AtomicU64,
 }
 
 impl Backlog {
@@ -175,6 +193,17 @@ pub(crate) struct Intake {
     rx: flume::Receiver<Arrival>,
     policy: QueuePolicy,
     backlog: Arc<Backlog>,
+    /// The producers read over direct links (instances of one launch on
+    /// this host), when the launch gives the node a directory for them.
+    direct: Option<crate::direct::inlet::Inlet>,
+}
+
+impl std::fmt::Debug for Intake {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Intake")
+            .field("topic", &self.admission.spec.name)
+            .finish_non_exhaustive()
+    }
 }
 
 impl Intake {
@@ -207,6 +236,7 @@ impl Intake {
                 rx: rx.clone(),
                 policy,
                 backlog: backlog.clone(),
+                direct: None,
             },
             Inbox {
                 rx,
@@ -216,21 +246,54 @@ impl Intake {
         )
     }
 
-    /// The Zenoh callback: queue (a keep-newest topic admits first).
+    /// Reads the producers that offer it over direct links.
+    pub(crate) fn with_direct(mut self, inlet: crate::direct::inlet::Inlet) -> Self {
+        self.direct = Some(inlet);
+        self
+    }
+
+    /// Counts a message that arrived over a direct link.
+    pub(crate) fn counted_direct(&self) {
+        self.backlog.direct.fetch_add(1, Relaxed);
+    }
+
+    /// The topic's direct links, if it has them.
+    pub(crate) fn direct(&self) -> Option<&crate::direct::inlet::Inlet> {
+        self.direct.as_ref()
+    }
+
+    /// The Zenoh callback: queue (a keep-newest topic admits first), unless
+    /// a direct link delivers the message.
     pub(crate) fn accept(&self, sample: Sample) {
+        let source = self.direct.as_ref().and_then(|_| {
+            let info = sample.source_info()?;
+            Some((crate::direct::source_id(info.source_id()), info.source_sn()))
+        });
         let SampleFields {
             key_expr,
             payload,
             attachment,
             ..
         } = sample.into();
-        let size = payload.len();
-        let mut arrival = Arrival {
+        let arrival = Arrival {
             producer: None,
             key: key_expr,
             payload,
             attachment,
         };
+        let arrival = match &self.direct {
+            None => arrival,
+            Some(direct) => match direct.route(arrival, source) {
+                crate::direct::inlet::Route::Take(a) => a,
+                crate::direct::inlet::Route::Handled => return,
+            },
+        };
+        self.queue(arrival);
+    }
+
+    /// Queues a message, as the topic's profile says.
+    pub(crate) fn queue(&self, mut arrival: Arrival) {
+        let size = arrival.payload.len();
         match self.policy {
             QueuePolicy::KeepAll { warn_at, max_bytes } => {
                 self.keep(arrival, size, warn_at, max_bytes)
@@ -351,12 +414,15 @@ pub fn emit<'a, M: Encode + ?Sized>(
         let Some(outlet) = outlet else {
             return Err(Error::Undeclared(format!("emitted topic `{}`", spec.name)));
         };
-        match outlet
-            .publisher
-            .put(payload)
-            .attachment(outlet.attachment.clone())
-            .wait()
-        {
+        let sent = match &outlet.direct {
+            Some(direct) => direct.publish(&outlet.publisher, payload, outlet.attachment.clone()),
+            None => outlet
+                .publisher
+                .put(payload)
+                .attachment(outlet.attachment.clone())
+                .wait(),
+        };
+        match sent {
             Ok(()) => Ok(()),
             Err(_) if runner.session().is_closed() => Err(Box::pin(stop::refused()).await),
             Err(e) => Err(Error::from(e)),

@@ -545,3 +545,135 @@ async fn large_frames_travel_through_shared_memory_and_everything_else_as_bytes(
         r.shutdown().await;
     }
 }
+
+/// Starts `P` with a directory for direct links.
+async fn start_direct<P: peppy_runtime::codegen::NodeParameters>(
+    hub: &crate::support::Hub,
+    ns: &str,
+    instance: &str,
+    bind: &str,
+    links: &str,
+) -> std::sync::Arc<NodeRunner> {
+    let args = ["--bind", bind, "--direct-links", links];
+    start_configured::<P>(hub, ns, instance, &args, |b| b)
+        .await
+        .1
+}
+
+/// Reads `n` frames from `reader`, checking they come in order from `first`
+/// and intact (`frame(seq)` rebuilds each as sent).
+async fn read_in_order(
+    reader: &NodeRunner,
+    first: u32,
+    n: u32,
+    frame: impl Fn(u32) -> crate::support::Frame,
+) {
+    tokio::time::timeout(WAIT, async {
+        for seq in first..first + n {
+            let (_, got): (String, crate::support::Frame) =
+                next_message(reader, &FLOOD_IN, None).await.unwrap();
+            assert_eq!(
+                got.seq,
+                seq,
+                "{}: frames come once each, in order",
+                reader.instance_id()
+            );
+            assert!(got == frame(seq), "frame {seq} arrives intact");
+        }
+    })
+    .await
+    .expect("every frame arrives");
+}
+
+/// Two nodes given one directory for direct links (as `up` gives the
+/// instances of one launch) hand small messages over it and large ones
+/// through Zenoh, and the reader gets each once, in order, across the
+/// switch from Zenoh to the link and back when the producer restarts; a
+/// reader without the directory gets the same through Zenoh.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn direct_links_hand_every_message_once_in_order() {
+    let hub = hub().await;
+    let ns = namespace("direct");
+    let dir = tempfile::tempdir().unwrap();
+    let links = dir.path().display().to_string();
+    let on = SharedMemory::default();
+    let station = start_direct::<Station>(&hub, &ns, "station", "src@flood", &links).await;
+    let remote = start_shm::<Station>(&hub, &ns, "remote", "src@flood", on).await;
+    let flood = start_direct::<Flood>(&hub, &ns, "flood", "st@station", &links).await;
+    beats_pass(&flood, &station).await;
+    beats_pass(&flood, &remote).await;
+    // Every seventh frame is large: it goes through Zenoh (shared memory)
+    // and takes its place among the small ones the link carries.
+    let frame = |seq: u32| {
+        let len = if seq % 7 == 3 {
+            100 << 10
+        } else {
+            16 + (seq as usize * 37) % 2000
+        };
+        patterned(seq, len)
+    };
+    let direct = |r: &NodeRunner| r.received_over_direct_links(&FLOOD_IN).unwrap();
+
+    // A burst: the first frame links the reader, mid-burst.
+    for seq in 0..300 {
+        emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+    }
+    read_in_order(&station, 0, 300, frame).await;
+    read_in_order(&remote, 0, 300, frame).await;
+    assert_eq!(direct(&remote), 0, "no directory, no direct link");
+
+    // Linked: every small frame comes over the link.
+    let before = direct(&station);
+    for seq in 300..400 {
+        emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+    }
+    read_in_order(&station, 300, 100, frame).await;
+    read_in_order(&remote, 300, 100, frame).await;
+    let small = (300..400).filter(|s| s % 7 != 3).count() as u64;
+    assert_eq!(
+        direct(&station) - before,
+        small,
+        "small frames over the link"
+    );
+    assert!(
+        std::fs::read_dir(dir.path()).unwrap().count() >= 1,
+        "the producer's socket is in the directory"
+    );
+
+    // The producer restarts: Zenoh until the new one is linked, then the
+    // link again.
+    flood.shutdown().await;
+    drop(flood);
+    // Beats left from the first producer would pass for the new one's.
+    for reader in [&station, &remote] {
+        while tokio::time::timeout(
+            Duration::from_millis(200),
+            next_message::<u32>(reader, &BEAT_IN, None),
+        )
+        .await
+        .is_ok()
+        {}
+    }
+    let flood = start_direct::<Flood>(&hub, &ns, "flood", "st@station", &links).await;
+    beats_pass(&flood, &station).await;
+    beats_pass(&flood, &remote).await;
+    let before = direct(&station);
+    for seq in 400..500 {
+        emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+    }
+    read_in_order(&station, 400, 100, frame).await;
+    read_in_order(&remote, 400, 100, frame).await;
+    tokio::time::timeout(WAIT, async {
+        let mut seq = 500;
+        while direct(&station) == before {
+            emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+            read_in_order(&station, seq, 1, frame).await;
+            seq += 1;
+        }
+    })
+    .await
+    .expect("the restarted producer is read over a direct link again");
+    for r in [station, remote, flood] {
+        r.shutdown().await;
+    }
+}

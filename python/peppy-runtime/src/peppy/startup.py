@@ -160,6 +160,10 @@ _PLAN_FIELDS = (
     "zenoh",
     "use_sim_time",
     "shutdown_grace_secs",
+    # Direct links (same-host Unix sockets beside Zenoh) are the Rust
+    # runtime's: a Python node reads and publishes through Zenoh, where a
+    # Rust producer also publishes everything it sends over a link.
+    "direct_links",
 )
 
 
@@ -207,6 +211,8 @@ def plan_from_text(text: str, where: str, descriptor: NodeDescriptor) -> Startup
     if not isinstance(use_sim_time, bool):
         raise StartupError(f"{where}: `use_sim_time` must be true or false")
     grace = data.get("shutdown_grace_secs")
+    if not isinstance(data.get("direct_links", ""), str):
+        raise StartupError(f"{where}: `direct_links` must be a directory's path")
     return Startup(
         instance_id=data["instance_id"],
         core_node=data["core_node"],

@@ -1,0 +1,224 @@
+//! Direct links: topic messages handed between two instances of one
+//! launch on one host over a Unix socket of their own, beside Zenoh.
+//!
+//! Zenoh stays the one engine: every message is still published through
+//! it (other consumers, other hosts, inspection tools and Python nodes get
+//! it there), and discovery, routing, formats and security are Zenoh's as
+//! before. What a direct link removes is the cost of a small message on
+//! one host: Zenoh hands it from the publishing task to its transmit
+//! queue, a link task, the socket, the receiving link task, the
+//! subscription callback and the reader's task, each hand-off a thread
+//! wake-up. Over a direct link the publishing task writes the message into
+//! the consumer's socket itself and the consumer's reading task is woken
+//! by that socket (docs/PERFORMANCE.md, "The hand-off floor, and links on
+//! one host"; docs/WIRE.md, "Direct links").
+//!
+//! How a consumer comes to read a producer directly, without losing,
+//! doubling or reordering a message:
+//!
+//! 1. A producer with direct links numbers every message it publishes,
+//!    and its Zenoh copy carries the number in its source info.
+//! 2. The first message a consumed topic receives through Zenoh from a
+//!    producer makes the consumer connect to that producer's socket in the
+//!    launch's directory (named after its core node and instance:
+//!    [`socket_path`]). No socket (a producer of another launch, host or
+//!    language) leaves that producer on Zenoh.
+//! 3. The consumer names the key it reads ([`Hello`]). The producer,
+//!    holding the topic's lock (so no message is published meanwhile),
+//!    answers with the number of the first message the link will carry,
+//!    and adds the link.
+//! 4. The consumer takes every message numbered below that from Zenoh,
+//!    and holds the link's until Zenoh has brought the one just before it
+//!    (or one after it: Zenoh dropped it). From then on it takes the
+//!    link's and drops Zenoh's copies.
+//! 5. A message of [`INLINE_MAX`] bytes or more is not copied through the
+//!    socket (Zenoh carries it through shared memory without a copy): the
+//!    link carries a placeholder with its number, and the consumer puts
+//!    Zenoh's copy where the placeholder is.
+//! 6. When the link breaks (the producer stopped, a write timed out) the
+//!    consumer takes that producer's messages from Zenoh again, past the
+//!    last the link brought; the next one links it again. A message from
+//!    another publisher under the same key (the producer restarted) is
+//!    taken from Zenoh and links the new one.
+
+pub(crate) mod inlet;
+pub(crate) mod outlet;
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Messages of this size or more travel through Zenoh (its shared memory
+/// on one host) and only a placeholder through the link.
+pub(crate) const INLINE_MAX: usize = 64 * 1024;
+
+/// How long a consumer waits for Zenoh's last message before a link's
+/// first, or for a large message whose placeholder has arrived, before
+/// going on without it.
+pub(crate) const HOLD_LIMIT: Duration = Duration::from_secs(2);
+
+/// How long a producer waits for a consumer to make room in its socket
+/// for a message of a topic that never drops, before closing the link
+/// (the consumer then reads that topic through Zenoh again).
+pub(crate) const WRITE_LIMIT: Duration = Duration::from_secs(10);
+
+/// The first bytes of a consumer's hello.
+const MAGIC: &[u8; 4] = b"PPYD";
+
+/// The version of the direct link's framing.
+const VERSION: u8 = 1;
+
+/// A frame's kind: a message follows.
+pub(crate) const FRAME_MESSAGE: u8 = 0;
+
+/// A frame's kind: a large message went through Zenoh instead.
+pub(crate) const FRAME_PLACEHOLDER: u8 = 1;
+
+/// A frame's header: its kind, the message's sequence number (the one its
+/// Zenoh copy carries in its source info), and the length of the message
+/// that follows (0 for a placeholder), both `u32` little-endian.
+pub(crate) const HEADER: usize = 9;
+
+/// Which publisher a Zenoh sample comes from: its session's id and the
+/// publisher's number in it (Zenoh's `EntityGlobalId`, which peppy cannot
+/// build from its parts).
+pub(crate) type SourceId = ([u8; 16], u32);
+
+/// The source id of a publisher or a sample's source info.
+pub(crate) fn source_id(id: &zenoh::session::EntityGlobalId) -> SourceId {
+    (id.zid().to_le_bytes(), id.eid())
+}
+
+/// Whether sequence number `a` comes after `b` (they wrap).
+pub(crate) fn after(a: u32, b: u32) -> bool {
+    (a.wrapping_sub(b) as i32) > 0
+}
+
+/// The socket a node listens on for direct links, in its launch's
+/// directory: named by a hash of its core node and instance, since an
+/// instance id can be longer than a socket path allows.
+pub(crate) fn socket_path(dir: &Path, core: &str, instance: &str) -> PathBuf {
+    // FNV-1a: the same name in every process, whatever its build.
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    for byte in core.bytes().chain([0]).chain(instance.bytes()) {
+        hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+    }
+    dir.join(format!("d{hash:016x}.sock"))
+}
+
+/// A consumer's request for a direct link.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct Hello {
+    /// The topic key the consumer reads from this producer.
+    pub(crate) key: String,
+    /// Who asks (`<core node>/<instance>`), for the producer's log.
+    pub(crate) consumer: String,
+}
+
+impl Hello {
+    /// The longest hello a producer reads.
+    pub(crate) const MAX: usize = 4096;
+
+    /// The hello as sent: its length (`u16`, little-endian), then it.
+    pub(crate) fn encode(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(11 + self.key.len() + self.consumer.len());
+        out.extend_from_slice(&[0, 0]);
+        out.extend_from_slice(MAGIC);
+        out.push(VERSION);
+        for text in [&self.key, &self.consumer] {
+            out.extend_from_slice(&(text.len().min(Self::MAX) as u16).to_le_bytes());
+            out.extend_from_slice(&text.as_bytes()[..text.len().min(Self::MAX)]);
+        }
+        let len = (out.len() - 2).min(usize::from(u16::MAX)) as u16;
+        out[..2].copy_from_slice(&len.to_le_bytes());
+        out
+    }
+
+    /// Decodes a whole hello (after its length); `None` for anything
+    /// malformed.
+    pub(crate) fn decode(bytes: &[u8]) -> Option<Hello> {
+        let rest = bytes.strip_prefix(MAGIC)?;
+        let (&VERSION, mut rest) = rest.split_first()? else {
+            return None;
+        };
+        let mut text = || -> Option<String> {
+            let n = u16::from_le_bytes(rest.get(..2)?.try_into().ok()?) as usize;
+            let s = std::str::from_utf8(rest.get(2..2 + n)?).ok()?.to_string();
+            rest = &rest[2 + n..];
+            Some(s)
+        };
+        let key = text()?;
+        let consumer = text()?;
+        rest.is_empty().then_some(Hello { key, consumer })
+    }
+}
+
+/// A frame's header.
+pub(crate) fn header(kind: u8, sequence: u32, len: u32) -> [u8; HEADER] {
+    let mut out = [kind, 0, 0, 0, 0, 0, 0, 0, 0];
+    out[1..5].copy_from_slice(&sequence.to_le_bytes());
+    out[5..].copy_from_slice(&len.to_le_bytes());
+    out
+}
+
+/// The producer's answer to a hello that names one of its topics: `0`,
+/// the topic's attachment (a length byte, then it), the source id its
+/// Zenoh copies carry, and the number of the first message the link
+/// carries (`u32` little-endian).
+pub(crate) fn answer(attachment: &[u8], source: SourceId, first: u32) -> Vec<u8> {
+    let mut out = vec![0, attachment.len() as u8];
+    out.extend_from_slice(attachment);
+    out.extend_from_slice(&source.0);
+    out.extend_from_slice(&source.1.to_le_bytes());
+    out.extend_from_slice(&first.to_le_bytes());
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_hello_decodes_to_itself_and_nothing_else_decodes() {
+        let hello = Hello {
+            key: "peppy/ns/topic/cam/v1/frames/core/cam-1".into(),
+            consumer: "core/sink".into(),
+        };
+        let sent = hello.encode();
+        assert_eq!(
+            usize::from(u16::from_le_bytes([sent[0], sent[1]])),
+            sent.len() - 2
+        );
+        let bytes = sent[2..].to_vec();
+        assert_eq!(Hello::decode(&bytes), Some(hello));
+        for cut in 0..bytes.len() {
+            assert_eq!(Hello::decode(&bytes[..cut]), None, "cut at {cut}");
+        }
+        let mut longer = bytes.clone();
+        longer.push(0);
+        assert_eq!(Hello::decode(&longer), None);
+        let mut other = bytes;
+        other[4] = VERSION + 1;
+        assert_eq!(Hello::decode(&other), None);
+    }
+
+    #[test]
+    fn sequence_numbers_wrap() {
+        assert!(after(1, 0));
+        assert!(!after(0, 0));
+        assert!(!after(0, 1));
+        assert!(after(0, u32::MAX));
+        assert!(!after(u32::MAX, 0));
+    }
+
+    #[test]
+    fn socket_names_are_short_and_differ_by_instance() {
+        let dir = Path::new("/run/peppy-1");
+        let a = socket_path(dir, "core", "cam-1");
+        let b = socket_path(dir, "core", "cam-2");
+        let c = socket_path(dir, "corec", "am-1");
+        assert_ne!(a, b);
+        assert_ne!(a, c);
+        assert_eq!(a, socket_path(dir, "core", "cam-1"));
+        assert_eq!(a.file_name().unwrap().len(), "d0123456789abcdef.sock".len());
+    }
+}

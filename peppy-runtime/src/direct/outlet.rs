@@ -1,0 +1,303 @@
+//! The producer's side of direct links: the socket consumers connect to,
+//! and each emitted topic's links.
+
+use std::io::{ErrorKind, IoSlice, Write};
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use peppy_schema::QosProfile;
+use tokio_util::sync::CancellationToken;
+use tracing::{debug, warn};
+use zenoh::Wait;
+use zenoh::bytes::ZBytes;
+use zenoh::pubsub::Publisher;
+use zenoh::qos::CongestionControl;
+use zenoh::sample::SourceInfo;
+
+use super::{FRAME_MESSAGE, FRAME_PLACEHOLDER, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT, header};
+use crate::qos;
+
+/// One emitted topic's direct links. Every publication of the topic takes
+/// its lock, so a link is added between two publications, never during
+/// one: what makes the switch exact (the module's point 2).
+#[derive(Debug)]
+pub(crate) struct DirectOutlet {
+    key: String,
+    qos: QosProfile,
+    fingerprint: u64,
+    /// The Zenoh publisher's id, which its samples carry.
+    source: super::SourceId,
+    links: Mutex<Links>,
+}
+
+#[derive(Debug, Default)]
+struct Links {
+    open: Vec<Link>,
+    /// The last message's sequence number.
+    sequence: u32,
+}
+
+#[derive(Debug)]
+struct Link {
+    stream: UnixStream,
+    /// The consumer (`<core node>/<instance>`), for the log.
+    consumer: String,
+    /// Messages of a dropping topic not written since the last report.
+    dropped: u64,
+}
+
+impl DirectOutlet {
+    pub(crate) fn new(publisher: &Publisher<'static>, qos: QosProfile, fingerprint: u64) -> Self {
+        DirectOutlet {
+            key: publisher.key_expr().to_string(),
+            qos,
+            fingerprint,
+            source: super::source_id(&publisher.id()),
+            links: Mutex::new(Links::default()),
+        }
+    }
+
+    /// Publishes `payload` through Zenoh, numbered in its source info, and
+    /// over every link of the topic.
+    pub(crate) fn publish(
+        &self,
+        publisher: &Publisher<'static>,
+        payload: ZBytes,
+        attachment: ZBytes,
+    ) -> zenoh::Result<()> {
+        let Ok(mut links) = self.links.lock() else {
+            return publisher.put(payload).attachment(attachment).wait();
+        };
+        links.sequence = links.sequence.wrapping_add(1);
+        let sequence = links.sequence;
+        if !links.open.is_empty() {
+            // The links first: they are what a consumer on this host reads.
+            let len = payload.len();
+            if len < INLINE_MAX {
+                let bytes = payload.to_bytes();
+                let head = header(FRAME_MESSAGE, sequence, len as u32);
+                links.write(&head, &bytes, self.drops());
+            } else {
+                links.write(&header(FRAME_PLACEHOLDER, sequence, 0), &[], false);
+            }
+        }
+        publisher
+            .put(payload)
+            .attachment(attachment)
+            .source_info(SourceInfo::new(publisher.id(), sequence))
+            .wait()
+    }
+
+    /// Closes every link (the node stops): each consumer reads the rest of
+    /// its link, then goes back to Zenoh.
+    pub(crate) fn close(&self) {
+        if let Ok(mut links) = self.links.lock() {
+            links.open.clear();
+        }
+    }
+
+    /// Whether the topic drops a message rather than wait for a slow
+    /// reader (its Zenoh publisher's congestion control).
+    fn drops(&self) -> bool {
+        qos::congestion(self.qos) == CongestionControl::Drop
+    }
+
+    /// Adds the link a consumer asked for, under the lock (between two
+    /// publications): the answer names the first message it will carry.
+    fn attach(&self, mut stream: UnixStream, consumer: String) -> std::io::Result<()> {
+        let mut links = self
+            .links
+            .lock()
+            .map_err(|_| std::io::Error::other("a publisher panicked"))?;
+        let first = links.sequence.wrapping_add(1);
+        let attachment = crate::wire::attachment::topic(self.fingerprint);
+        stream.set_write_timeout(Some(HOLD_LIMIT))?;
+        stream.write_all(&super::answer(&attachment, self.source, first))?;
+        stream.set_nonblocking(true)?;
+        links.open.push(Link {
+            stream,
+            consumer,
+            dropped: 0,
+        });
+        Ok(())
+    }
+}
+
+impl Links {
+    /// Writes one frame to every link, closing the links that fail.
+    fn write(&mut self, head: &[u8], body: &[u8], may_drop: bool) {
+        self.open.retain_mut(|link| match write_frame(&link.stream, head, body, may_drop) {
+            Ok(true) => {
+                if link.dropped > 0 {
+                    debug!(consumer = %link.consumer, dropped = link.dropped, "a direct link has room again");
+                    link.dropped = 0;
+                }
+                true
+            }
+            Ok(false) => {
+                link.dropped += 1;
+                if link.dropped.is_power_of_two() {
+                    debug!(consumer = %link.consumer, dropped = link.dropped, "a direct link's reader is behind: dropping as the topic's profile says");
+                }
+                true
+            }
+            Err(e) => {
+                warn!(consumer = %link.consumer, error = %e, "closing a direct link: the consumer goes back to Zenoh");
+                false
+            }
+        });
+    }
+}
+
+/// Writes a whole frame to a non-blocking socket: `Ok(false)` when it was
+/// dropped because the socket was full before its first byte and the topic
+/// drops; otherwise it waits for room, up to [`WRITE_LIMIT`].
+fn write_frame(
+    mut stream: &UnixStream,
+    head: &[u8],
+    body: &[u8],
+    may_drop: bool,
+) -> std::io::Result<bool> {
+    let total = head.len() + body.len();
+    let mut done = 0;
+    let mut deadline: Option<Instant> = None;
+    let result = loop {
+        if done == total {
+            break Ok(true);
+        }
+        let slices = if done < head.len() {
+            [IoSlice::new(&head[done..]), IoSlice::new(body)]
+        } else {
+            [IoSlice::new(&body[done - head.len()..]), IoSlice::new(&[])]
+        };
+        match stream.write_vectored(&slices) {
+            Ok(0) => break Err(ErrorKind::WriteZero.into()),
+            Ok(n) => done += n,
+            Err(e) if e.kind() == ErrorKind::Interrupted => {}
+            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
+                if done == 0 && may_drop {
+                    break Ok(false);
+                }
+                // Full: wait for room in blocking mode, with what is left
+                // of the limit as the write's timeout.
+                let until = *deadline.get_or_insert_with(|| Instant::now() + WRITE_LIMIT);
+                let left = until.saturating_duration_since(Instant::now());
+                if left.is_zero() {
+                    break Err(ErrorKind::TimedOut.into());
+                }
+                if let Err(e) = stream
+                    .set_nonblocking(false)
+                    .and_then(|()| stream.set_write_timeout(Some(left)))
+                {
+                    break Err(e);
+                }
+            }
+            Err(e) => break Err(e),
+        }
+    };
+    if deadline.is_some() {
+        stream.set_nonblocking(true)?;
+    }
+    result
+}
+
+/// A node's socket for direct links, removed when the node stops.
+#[derive(Debug)]
+pub(crate) struct Listener {
+    path: PathBuf,
+}
+
+impl Drop for Listener {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// Listens at `path` for consumers of `outlets` (the node's emitted
+/// topics by key) until `token` fires. `None` (the node's topics stay on
+/// Zenoh alone) when the socket cannot be made.
+pub(crate) fn serve(
+    path: &Path,
+    outlets: Vec<Arc<DirectOutlet>>,
+    token: CancellationToken,
+) -> Option<Listener> {
+    // A socket left by an earlier run of this instance (killed) is stale.
+    let _ = std::fs::remove_file(path);
+    let listener = match std::os::unix::net::UnixListener::bind(path)
+        .and_then(|l| l.set_nonblocking(true).map(|()| l))
+        .and_then(tokio::net::UnixListener::from_std)
+    {
+        Ok(l) => l,
+        Err(e) => {
+            warn!(path = %path.display(), error = %e, "no direct links for this node's topics: its socket cannot be made");
+            return None;
+        }
+    };
+    let outlets = Arc::new(outlets);
+    tokio::spawn(async move {
+        loop {
+            let stream = tokio::select! {
+                accepted = listener.accept() => match accepted {
+                    Ok((stream, _)) => stream,
+                    Err(e) => {
+                        warn!(error = %e, "direct links: accepting a consumer failed");
+                        tokio::time::sleep(Duration::from_millis(100)).await;
+                        continue;
+                    }
+                },
+                () = token.cancelled() => return,
+            };
+            let outlets = outlets.clone();
+            tokio::spawn(async move {
+                if let Err(e) = welcome(stream, &outlets).await {
+                    debug!(error = %e, "a direct link was not made");
+                }
+            });
+        }
+    });
+    Some(Listener {
+        path: path.to_path_buf(),
+    })
+}
+
+/// Reads a consumer's hello and links it to the topic it names.
+async fn welcome(
+    mut stream: tokio::net::UnixStream,
+    outlets: &[Arc<DirectOutlet>],
+) -> std::io::Result<()> {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let hello = tokio::time::timeout(HOLD_LIMIT, async {
+        let len = usize::from(stream.read_u16_le().await?);
+        if len > Hello::MAX {
+            return Err(std::io::Error::other("hello too long"));
+        }
+        let mut bytes = vec![0; len];
+        stream.read_exact(&mut bytes).await?;
+        Hello::decode(&bytes).ok_or_else(|| std::io::Error::other("malformed hello"))
+    })
+    .await
+    .map_err(|_| std::io::Error::from(ErrorKind::TimedOut))??;
+    let Some(outlet) = outlets.iter().find(|o| o.key == hello.key) else {
+        stream.write_all(&[1]).await?;
+        return Err(std::io::Error::other(format!(
+            "no emitted topic under `{}`",
+            hello.key
+        )));
+    };
+    let stream = stream.into_std()?;
+    stream.set_nonblocking(false)?;
+    let outlet = outlet.clone();
+    let Hello { key, consumer } = hello;
+    let who = consumer.clone();
+    tokio::task::spawn_blocking(move || outlet.attach(stream, who))
+        .await
+        .map_err(std::io::Error::other)??;
+    debug!(
+        consumer,
+        topic = key,
+        "a consumer on this host reads a topic over a direct link"
+    );
+    Ok(())
+}
