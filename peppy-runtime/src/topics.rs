@@ -252,6 +252,12 @@ impl Intake {
         self
     }
 
+    /// Whether the topic drops messages rather than wait (a keep-newest
+    /// queue).
+    pub(crate) fn drops(&self) -> bool {
+        matches!(self.policy, QueuePolicy::KeepNewest(_))
+    }
+
     /// Counts a message that arrived over a direct link.
     pub(crate) fn counted_direct(&self) {
         self.backlog.direct.fetch_add(1, Relaxed);

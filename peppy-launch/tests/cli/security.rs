@@ -51,6 +51,8 @@ fn record(state: &Path) -> Value {
 fn login_of(record: &Value, instance: &str) -> (String, String) {
     let path = Path::new(record["run_dir"].as_str().unwrap()).join(format!("{instance}.json"));
     let config: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    // Secured, every message goes through the router: no link past it.
+    assert!(config.get("direct_links").is_none(), "{config}");
     let login = &config["zenoh"]["login"];
     (
         login["user"].as_str().unwrap().to_string(),

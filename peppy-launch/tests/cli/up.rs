@@ -659,6 +659,7 @@ fn launched_config(dir: &Path, env: &[(&str, &str)]) -> (serde_json::Value, Stri
         .env("NO_COLOR", "1")
         .env_remove("PEPPY_REPOSITORIES")
         .env_remove("PEPPY_LOCAL_LINK")
+        .env_remove("PEPPY_DIRECT_LINKS")
         .envs(env.iter().copied())
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -702,6 +703,12 @@ fn instances_of_one_launch_link_over_unix_sockets_removed_at_its_end() {
         .parent()
         .unwrap()
         .to_path_buf();
+    // Direct links go in the same private directory.
+    assert_eq!(
+        config["direct_links"].as_str().map(Path::new),
+        Some(sockets.as_path()),
+        "{config}"
+    );
     assert!(
         !sockets.exists(),
         "the launch left {} behind",
@@ -716,4 +723,14 @@ fn peppy_local_link_tcp_keeps_instances_on_loopback_tcp() {
     let connect = config["zenoh"]["connect"][0].as_str().unwrap_or("");
     assert!(connect.starts_with("tcp/127.0.0.1:"), "{config}\n{stderr}");
     assert_eq!(config["zenoh"]["listen"], serde_json::json!([]));
+    assert!(config.get("direct_links").is_none(), "{config}");
+}
+
+#[test]
+fn peppy_direct_links_off_keeps_topics_on_zenoh_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let (config, stderr) = launched_config(dir.path(), &[("PEPPY_DIRECT_LINKS", "off")]);
+    let connect = config["zenoh"]["connect"][0].as_str().unwrap_or("");
+    assert!(connect.ends_with("/router.sock"), "{config}\n{stderr}");
+    assert!(config.get("direct_links").is_none(), "{config}");
 }

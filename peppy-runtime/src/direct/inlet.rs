@@ -1,7 +1,16 @@
 //! The consumer's side of direct links: which producers of a consumed
-//! topic are read over one, and the order their messages are handed on in.
+//! topic are read over one, and how a link's messages and Zenoh's are
+//! merged back into the producer's order.
+//!
+//! Per producer (its topic key) the consumer keeps the number of the next
+//! message to hand on. Zenoh brings every message; the link brings some
+//! of them sooner. Whichever copy of the next message comes first is
+//! handed on and the other dropped; a link message ahead of the next one
+//! waits until Zenoh has brought those before it (messages the producer
+//! sent through Zenoh alone: large ones, the rest of a burst, those from
+//! before the link).
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::{BTreeMap, HashMap};
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, OnceLock, Weak};
 use std::time::{Duration, Instant};
@@ -12,9 +21,7 @@ use tracing::{debug, warn};
 use zenoh::bytes::ZBytes;
 use zenoh::key_expr::KeyExpr;
 
-use super::{
-    FRAME_MESSAGE, FRAME_PLACEHOLDER, HEADER, HOLD_LIMIT, Hello, INLINE_MAX, SourceId, after,
-};
+use super::{FRAME_MESSAGE, HEADER, HOLD_LIMIT, Hello, INLINE_MAX, SourceId};
 use crate::topics::{Arrival, Intake};
 use crate::wire::keys::split_entry_key;
 
@@ -22,11 +29,16 @@ use crate::wire::keys::split_entry_key;
 /// of its messages tries again (a producer restarted with direct links).
 const RETRY_AFTER: Duration = Duration::from_secs(5);
 
+/// How long after a link to a producer closed the next of its messages
+/// may link it again.
+const RELINK_AFTER: Duration = Duration::from_secs(1);
+
 /// The most producers of one consumed topic tried for a link.
 const MAX_LINKS: usize = 256;
 
-/// Messages kept that came through Zenoh before the link told of them.
-const EARLY_MAX: usize = 64;
+/// How long a link's message waits for Zenoh's messages before it on a
+/// topic that drops: Zenoh may have dropped them.
+const DROPPING_HOLD: Duration = Duration::from_millis(50);
 
 /// A node's direct links as a consumer: where producers' sockets are, and
 /// who it is.
@@ -55,41 +67,19 @@ impl Consumer {
     }
 }
 
-/// One consumed topic's direct links, by producer key.
+/// One consumed topic's producers on direct links, by key.
 #[derive(Debug)]
 pub(crate) struct Inlet {
     consumer: Arc<Consumer>,
-    links: Mutex<HashMap<Box<str>, Link, foldhash::fast::FixedState>>,
+    lanes: Mutex<HashMap<Box<str>, Arc<Lane>, foldhash::fast::FixedState>>,
     intake: OnceLock<Weak<Intake>>,
-}
-
-#[derive(Debug)]
-enum Link {
-    /// The producer has no socket: its messages come through Zenoh.
-    Unavailable {
-        until: Instant,
-    },
-    Linked(Arc<Lane>),
-    /// The link ended: Zenoh's copies of what it delivered are dropped,
-    /// anything newer is taken (and links the producer again).
-    Ended(Ended),
-}
-
-#[derive(Debug, Clone)]
-struct Ended {
-    source: SourceId,
-    /// The last message the link delivered.
-    last: u32,
-    /// Large messages announced on the link that it ended before: taken
-    /// when they come.
-    expected: Vec<u32>,
 }
 
 /// What a message that came through Zenoh is to its reader.
 pub(crate) enum Route {
     /// Queue it.
     Take(Arrival),
-    /// The link has it (or placed it): nothing to queue now.
+    /// Handed on, held or dropped here: nothing to queue.
     Handled,
 }
 
@@ -97,7 +87,7 @@ impl Inlet {
     pub(crate) fn new(consumer: Arc<Consumer>) -> Inlet {
         Inlet {
             consumer,
-            links: Mutex::new(HashMap::default()),
+            lanes: Mutex::new(HashMap::default()),
             intake: OnceLock::new(),
         }
     }
@@ -108,364 +98,277 @@ impl Inlet {
     }
 
     /// Routes a message that came through Zenoh, with the publisher and
-    /// sequence number its source info carries (a producer with direct
-    /// links numbers every message).
+    /// number its source info carries (a producer with direct links
+    /// numbers every message; any other is taken as it comes).
     pub(crate) fn route(&self, arrival: Arrival, source: Option<(SourceId, u32)>) -> Route {
+        let Some((id, number)) = source else {
+            return Route::Take(arrival);
+        };
         let Some(intake) = self.intake.get().and_then(Weak::upgrade) else {
             return Route::Take(arrival);
         };
-        let Ok(mut links) = self.links.lock() else {
+        let Ok(mut lanes) = self.lanes.lock() else {
             return Route::Take(arrival);
         };
-        let lane = match links.get_mut(arrival.key.as_str()) {
-            Some(Link::Linked(lane)) => lane.clone(),
-            Some(Link::Unavailable { until }) if Instant::now() < *until => {
-                return Route::Take(arrival);
-            }
-            Some(Link::Ended(ended)) => {
-                if let Some((id, sequence)) = source
-                    && id == ended.source
-                {
-                    if let Some(at) = ended.expected.iter().position(|&s| s == sequence) {
-                        ended.expected.swap_remove(at);
-                        return Route::Take(arrival);
-                    }
-                    if !after(sequence, ended.last) {
-                        return Route::Handled;
-                    }
+        let lane = match lanes.get(arrival.key.as_str()) {
+            Some(lane) => lane.clone(),
+            None if lanes.len() >= MAX_LINKS => return Route::Take(arrival),
+            None => {
+                let lane = Lane::new(arrival.key.clone(), id, number);
+                lanes.insert(arrival.key.as_str().into(), lane.clone());
+                // Queued before the link can answer: its answer takes the
+                // lane's lock.
+                if let Ok(mut state) = lane.state.lock() {
+                    self.connect_locked(&lane, &mut state);
                 }
-                // Newer than the link: the producer is read through Zenoh,
-                // and linked again.
-                self.relink(&mut links, arrival, source, &intake);
-                return Route::Handled;
-            }
-            _ => {
-                if links.len() >= MAX_LINKS {
-                    return Route::Take(arrival);
-                }
-                self.relink(&mut links, arrival, source, &intake);
+                intake.queue(arrival);
                 return Route::Handled;
             }
         };
+        drop(lanes);
         let Ok(mut state) = lane.state.lock() else {
             return Route::Take(arrival);
         };
-        match (state.source, source) {
-            (None, _) => {
-                // Not answered yet: Zenoh's to hand on, before the answer
-                // (under the lane's lock) can let the link's messages by.
-                if let Some(seen) = source {
-                    state.seen = Some(seen);
-                }
-                intake.queue(arrival);
+        if state.source != id {
+            if state.previous == Some(id) {
+                // The last messages of a publisher already replaced.
+                return Route::Take(arrival);
             }
-            (Some(linked), Some((id, sequence))) if id == linked => {
-                drop(links);
-                state.from_zenoh(sequence, arrival, &intake);
-            }
-            _ => {
-                // Another process publishes under this key (the producer
-                // restarted): the link is to one that is gone.
-                drop(state);
-                self.relink(&mut links, arrival, source, &intake);
-            }
+            // Another publisher under this key: the producer restarted.
+            // Its numbers start afresh, and it is linked anew.
+            state.restart(id, number);
+            intake.queue(arrival);
+            self.connect_locked(&lane, &mut state);
+            return Route::Handled;
+        }
+        state.from_zenoh(number, arrival, &intake);
+        if state.link == LinkState::Closed && state.retry_due() {
+            self.connect_locked(&lane, &mut state);
         }
         Route::Handled
     }
 
-    /// Hands on `arrival` and links its producer (again).
-    fn relink(
-        &self,
-        links: &mut HashMap<Box<str>, Link, foldhash::fast::FixedState>,
-        arrival: Arrival,
-        source: Option<(SourceId, u32)>,
-        intake: &Intake,
-    ) {
-        match self.link(links, &arrival.key, source) {
-            // Queued under the new lane's lock: its answer cannot let the
-            // link's first messages by before this one.
-            Some(lane) => {
-                let _state = lane.state.lock();
-                intake.queue(arrival);
-            }
-            None => intake.queue(arrival),
-        }
-    }
-
-    /// Starts linking the producer of `key`, if it names one; `seen` is
-    /// the message through Zenoh that prompted it.
-    fn link(
-        &self,
-        links: &mut HashMap<Box<str>, Link, foldhash::fast::FixedState>,
-        key: &KeyExpr<'static>,
-        seen: Option<(SourceId, u32)>,
-    ) -> Option<Arc<Lane>> {
-        let sender = split_entry_key(key.as_str())?;
-        let intake = self.intake.get().cloned()?;
+    /// Starts reading `lane`'s producer over a link (its state locked by
+    /// the caller).
+    fn connect_locked(&self, lane: &Arc<Lane>, state: &mut LaneState) {
+        let (Some(sender), Some(intake)) = (
+            split_entry_key(lane.key.as_str()),
+            self.intake.get().cloned(),
+        ) else {
+            state.link = LinkState::Closed;
+            state.retry_at = Some(Instant::now() + Duration::from_secs(3600));
+            return;
+        };
+        state.link = LinkState::Connecting;
+        state.retry_at = None;
+        state.generation += 1;
+        let generation = state.generation;
         let path = super::socket_path(&self.consumer.dir, sender.core, sender.instance);
-        let lane = Arc::new(Lane {
-            key: key.clone(),
-            state: Mutex::new(LaneState {
-                seen,
-                ..LaneState::default()
-            }),
-        });
-        links.insert(key.as_str().into(), Link::Linked(lane.clone()));
-        let reader = lane.clone();
         let hello = Hello {
-            key: key.as_str().to_string(),
+            key: lane.key.as_str().to_string(),
             consumer: self.consumer.name.clone(),
         };
-        let consumer = self.consumer.clone();
+        let (consumer, lane) = (self.consumer.clone(), lane.clone());
         self.consumer.runtime.spawn(async move {
-            let lane = reader;
-            let outcome = read_link(&consumer, &lane, path, hello, &intake).await;
-            if let Some(intake) = intake.upgrade() {
-                let ended = lane.close(&intake);
-                if let Some(inlet) = intake.direct() {
-                    inlet.unlink(&lane, (!outcome.is_unavailable()).then_some(ended));
-                }
+            let outcome = read_link(&consumer, &lane, generation, path, hello, &intake).await;
+            let Ok(mut state) = lane.state.lock() else {
+                return;
+            };
+            if state.generation != generation {
+                return; // Replaced by a link to a restarted producer.
             }
             match outcome {
                 Outcome::Stopped => {}
                 Outcome::Unavailable(why) => {
                     debug!(topic = %lane.key, why, "no direct link to this producer: its messages come through Zenoh");
+                    state.retry_at = Some(Instant::now() + RETRY_AFTER);
                 }
                 Outcome::Closed(why) => {
                     debug!(topic = %lane.key, why, "a direct link closed: this producer's messages come through Zenoh again");
+                    state.retry_at = Some(Instant::now() + RELINK_AFTER);
                 }
             }
+            state.link = LinkState::Closed;
+            // What the link brought ahead of Zenoh is handed on once Zenoh
+            // catches up, or when the wait runs out.
+            if let Some(intake) = intake.upgrade() {
+                state.expire(Instant::now(), &lane.key, &intake);
+            }
         });
-        Some(lane)
-    }
-
-    /// Forgets a link that ended (`ended`: what Zenoh may still bring of
-    /// it; `None`: the producer has no socket, and is left on Zenoh for a
-    /// while).
-    fn unlink(&self, lane: &Arc<Lane>, ended: Option<Option<Ended>>) {
-        let Ok(mut links) = self.links.lock() else {
-            return;
-        };
-        let key = lane.key.as_str();
-        if !matches!(links.get(key), Some(Link::Linked(l)) if Arc::ptr_eq(l, lane)) {
-            return;
-        }
-        match ended {
-            None => {
-                let until = Instant::now() + RETRY_AFTER;
-                links.insert(key.into(), Link::Unavailable { until });
-            }
-            Some(Some(ended)) => {
-                links.insert(key.into(), Link::Ended(ended));
-            }
-            Some(None) => {
-                links.remove(key);
-            }
-        }
     }
 }
 
-/// One producer's link, as its consumer reads it.
+/// One producer of a consumed topic, as its consumer merges it.
 #[derive(Debug)]
 struct Lane {
     key: KeyExpr<'static>,
     state: Mutex<LaneState>,
 }
 
-#[derive(Debug, Default)]
-struct LaneState {
-    /// Zenoh brought every message before the link's first (or is past
-    /// it, or was waited for long enough): the link's messages are the
-    /// reader's, Zenoh's copies are dropped.
-    live: bool,
-    /// When the producer answered: the wait for Zenoh starts.
-    answered: Option<Instant>,
-    /// The number of the first message the link carries.
-    first: u32,
-    /// The last message Zenoh brought before the answer.
-    seen: Option<(SourceId, u32)>,
-    /// The producer's topic attachment, from its answer.
-    attachment: Option<ZBytes>,
-    /// The producer's Zenoh publisher, from its answer.
-    source: Option<SourceId>,
-    /// The sequence number of the last message the link delivered or
-    /// announced.
-    last: Option<u32>,
-    /// What the link delivered that waits for Zenoh's messages before it
-    /// or for a large message ahead of it.
-    held: VecDeque<Held>,
-    /// Messages that came through Zenoh before the link told of them.
-    early: VecDeque<(u32, Arrival)>,
-}
-
-#[derive(Debug)]
-enum Held {
-    Message(Arrival),
-    Large { sequence: u32, since: Instant },
-}
-
 impl Lane {
-    /// The link ended: what it delivered is handed on, and what Zenoh may
-    /// still bring of it is returned.
-    fn close(&self, intake: &Intake) -> Option<Ended> {
-        let Ok(mut state) = self.state.lock() else {
-            return None;
-        };
-        state.live = true;
-        let mut expected = Vec::new();
-        while let Some(held) = state.held.pop_front() {
-            match held {
-                Held::Message(a) => intake.queue(a),
-                Held::Large { sequence, .. } => expected.push(sequence),
-            }
-        }
-        // Copies Zenoh brought first of messages the link never did.
-        let last = state.last;
-        let mut early: Vec<_> = state.early.drain(..).collect();
-        early.sort_by(|a, b| {
-            if after(a.0, b.0) {
-                std::cmp::Ordering::Greater
-            } else {
-                std::cmp::Ordering::Less
-            }
-        });
-        for (sequence, arrival) in early {
-            if last.is_none_or(|l| after(sequence, l)) {
-                intake.queue(arrival);
-            }
-        }
-        Some(Ended {
-            source: state.source?,
-            last: last?,
-            expected,
+    fn new(key: KeyExpr<'static>, source: SourceId, number: u32) -> Arc<Lane> {
+        Arc::new(Lane {
+            key,
+            state: Mutex::new(LaneState {
+                source,
+                previous: None,
+                next: i64::from(number) + 1,
+                link: LinkState::Closed,
+                generation: 0,
+                retry_at: None,
+                attachment: None,
+                held: BTreeMap::new(),
+                held_since: None,
+            }),
         })
     }
 }
 
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum LinkState {
+    Connecting,
+    Open,
+    Closed,
+}
+
+#[derive(Debug)]
+struct LaneState {
+    /// The producer's Zenoh publisher whose numbers `next` follows.
+    source: SourceId,
+    /// The publisher it replaced (a restarted producer's last messages).
+    previous: Option<SourceId>,
+    /// The number of the next message to hand on, unwrapped: the `u32`
+    /// numbers on the wire are read as the nearest value to it.
+    next: i64,
+    link: LinkState,
+    /// Which connection is the lane's: an older one's reader stops.
+    generation: u64,
+    /// When a closed link may be tried again.
+    retry_at: Option<Instant>,
+    /// The producer's topic attachment, from its answer.
+    attachment: Option<ZBytes>,
+    /// Link messages ahead of `next`, by number.
+    held: BTreeMap<i64, Arrival>,
+    /// Since when the oldest held message waits.
+    held_since: Option<Instant>,
+}
+
 impl LaneState {
-    /// Hands on everything the link delivered that is not behind a large
-    /// message still on its way, once live.
-    fn drain(&mut self, intake: &Intake) {
-        if !self.live {
-            return;
+    /// Whether a closed link may be tried again.
+    fn retry_due(&self) -> bool {
+        self.retry_at.is_none_or(|t| Instant::now() >= t)
+    }
+
+    /// `number` unwrapped: the value nearest to `next`.
+    fn unwrap(&self, number: u32) -> i64 {
+        let distance = number.wrapping_sub(self.next as u32) as i32;
+        self.next + i64::from(distance)
+    }
+
+    /// A new publisher under the key, whose message `number` was just
+    /// taken.
+    fn restart(&mut self, source: SourceId, number: u32) {
+        self.previous = Some(self.source);
+        self.source = source;
+        self.next = i64::from(number) + 1;
+        self.held.clear();
+        self.held_since = None;
+    }
+
+    /// The producer answered: its link carries messages from `first` on.
+    fn answered(&mut self, source: SourceId, first: u32, attachment: ZBytes) {
+        self.attachment = Some(attachment);
+        self.link = LinkState::Open;
+        if source != self.source {
+            // Zenoh has brought nothing of this publisher yet: everything
+            // before the link's first is Zenoh's to bring.
+            self.previous = Some(self.source);
+            self.source = source;
+            self.next = i64::from(first);
+            self.held.clear();
+            self.held_since = None;
         }
-        while let Some(Held::Message(_)) = self.held.front() {
-            if let Some(Held::Message(a)) = self.held.pop_front() {
-                intake.queue(a);
+    }
+
+    /// A message through Zenoh. Everything before it that has not come is
+    /// lost (Zenoh keeps a publisher's order, so it dropped them): the
+    /// link's messages held before it go first, then it, or the link's
+    /// copy of it if that came first.
+    fn from_zenoh(&mut self, number: u32, arrival: Arrival, intake: &Intake) {
+        let number = self.unwrap(number);
+        if number < self.next {
+            return; // The link brought it.
+        }
+        while let Some(entry) = self.held.first_entry() {
+            if *entry.key() > number {
+                break;
+            }
+            let at = *entry.key();
+            intake.queue(entry.remove());
+            if at == number {
+                self.next = number + 1;
+                self.drain(intake);
+                return;
             }
         }
+        intake.queue(arrival);
+        self.next = number + 1;
+        self.drain(intake);
     }
 
     /// A message from the link.
-    fn message(&mut self, sequence: u32, arrival: Arrival, intake: &Intake) {
-        self.last = Some(sequence);
-        if let Some(at) = self.early.iter().position(|(s, _)| *s == sequence) {
-            // Zenoh's copy came first: the link's is the one in order.
-            self.early.remove(at);
-        }
-        if self.live && self.held.is_empty() {
+    fn from_link(&mut self, number: u32, arrival: Arrival, intake: &Intake) {
+        let number = self.unwrap(number);
+        if number == self.next {
             intake.queue(arrival);
-        } else {
-            self.held.push_back(Held::Message(arrival));
-        }
-    }
-
-    /// A large message's placeholder from the link.
-    fn placeholder(&mut self, sequence: u32, intake: &Intake) {
-        self.last = Some(sequence);
-        if let Some(at) = self.early.iter().position(|(s, _)| *s == sequence) {
-            let (_, arrival) = self.early.remove(at).expect("found");
-            self.held.push_back(Held::Message(arrival));
+            self.next = number + 1;
             self.drain(intake);
-        } else {
-            self.held.push_back(Held::Large {
-                sequence,
-                since: Instant::now(),
-            });
+        } else if number > self.next {
+            // Zenoh has not brought those before it yet.
+            self.held.insert(number, arrival);
+            self.held_since.get_or_insert_with(Instant::now);
         }
+        // Else Zenoh brought it already.
     }
 
-    /// The producer answered: the link carries messages from `first` on.
-    fn answered(&mut self, source: SourceId, first: u32, attachment: ZBytes) {
-        self.source = Some(source);
-        self.first = first;
-        self.attachment = Some(attachment);
-        self.answered = Some(Instant::now());
-        // Zenoh already brought the message before the first (or there is
-        // none): nothing to wait for.
-        let before = first.wrapping_sub(1);
-        self.live = match self.seen {
-            Some((id, seen)) if id == source => !after(before, seen),
-            _ => false,
-        };
-    }
-
-    /// Ends the wait for Zenoh: the link's messages flow.
-    fn go_live(&mut self, intake: &Intake) {
-        if !self.live {
-            self.live = true;
-            self.drain(intake);
-        }
-    }
-
-    /// A message of the linked producer through Zenoh: one from before the
-    /// link is handed on (ending the wait when it is the last before it); a
-    /// large one goes where its placeholder is; a copy of what the link
-    /// delivered is dropped; one the link has not told of yet waits for it.
-    fn from_zenoh(&mut self, sequence: u32, arrival: Arrival, intake: &Intake) {
-        if after(self.first, sequence) {
-            intake.queue(arrival);
-            if sequence == self.first.wrapping_sub(1) {
-                self.go_live(intake);
-            }
-            return;
-        }
-        // Zenoh is past the link's first message: whatever came before it
-        // that has not arrived was dropped.
-        self.go_live(intake);
-        let slot = self
-            .held
-            .iter()
-            .position(|h| matches!(h, Held::Large { sequence: s, .. } if *s == sequence));
-        if let Some(at) = slot {
-            self.held[at] = Held::Message(arrival);
-            self.drain(intake);
-        } else if self.last.is_some_and(|l| !after(sequence, l)) {
-            // Delivered by the link, or given up on.
-        } else {
-            if self.early.len() == EARLY_MAX {
-                self.early.pop_front();
-            }
-            self.early.push_back((sequence, arrival));
-        }
-    }
-
-    /// When the oldest wait ends.
-    fn deadline(&self) -> Option<Instant> {
-        if !self.live {
-            return self.answered.map(|t| t + HOLD_LIMIT);
-        }
-        match self.held.front() {
-            Some(Held::Large { since, .. }) => Some(*since + HOLD_LIMIT),
-            _ => None,
-        }
-    }
-
-    /// Ends the waits that have run out.
-    fn expire(&mut self, now: Instant, key: &KeyExpr<'static>, intake: &Intake) {
-        if !self.live && self.answered.is_some_and(|t| now >= t + HOLD_LIMIT) {
-            debug!(topic = %key, "Zenoh never brought the message before a direct link's first: reading the link without it");
-            self.live = true;
-        }
-        while let Some(&Held::Large { since, .. }) = self.held.front() {
-            if now < since + HOLD_LIMIT {
+    /// Hands on the held messages that are next in order.
+    fn drain(&mut self, intake: &Intake) {
+        while let Some(entry) = self.held.first_entry() {
+            if *entry.key() != self.next {
                 break;
             }
-            warn!(topic = %key, "a large message announced on a direct link never came through Zenoh; going on without it");
-            self.held.pop_front();
-            self.drain(intake);
+            intake.queue(entry.remove());
+            self.next += 1;
         }
-        self.drain(intake);
+        if self.held.is_empty() {
+            self.held_since = None;
+        }
+    }
+
+    /// When the wait of the oldest held message ends.
+    fn deadline(&self, dropping: bool) -> Option<Instant> {
+        let limit = if dropping { DROPPING_HOLD } else { HOLD_LIMIT };
+        self.held_since.map(|t| t + limit)
+    }
+
+    /// Ends a wait that has run out (or every wait, once the link is
+    /// closed): the held messages go, in order, and Zenoh's copies of
+    /// anything before them will be dropped.
+    fn expire(&mut self, now: Instant, key: &KeyExpr<'static>, intake: &Intake) {
+        let Some(deadline) = self.deadline(intake.drops()) else {
+            return;
+        };
+        if now < deadline && self.link != LinkState::Closed {
+            return;
+        }
+        if self.link != LinkState::Closed && !intake.drops() {
+            warn!(topic = %key, "messages from a direct link waited too long for the ones before them through Zenoh; going on without those");
+        }
+        for (number, arrival) in std::mem::take(&mut self.held) {
+            intake.queue(arrival);
+            self.next = number + 1;
+        }
+        self.held_since = None;
     }
 }
 
@@ -479,16 +382,11 @@ enum Outcome {
     Stopped,
 }
 
-impl Outcome {
-    fn is_unavailable(&self) -> bool {
-        matches!(self, Outcome::Unavailable(_))
-    }
-}
-
 /// Connects to a producer and reads its link until it ends.
 async fn read_link(
     consumer: &Consumer,
     lane: &Arc<Lane>,
+    generation: u64,
     path: PathBuf,
     hello: Hello,
     intake: &Weak<Intake>,
@@ -526,15 +424,19 @@ async fn read_link(
             Ok(Err(e)) => return Outcome::Unavailable(e),
             Err(_) => return Outcome::Unavailable("no answer".into()),
         };
-    if let Ok(mut state) = lane.state.lock() {
-        state.answered(source, first, ZBytes::from(attachment));
-        if state.live {
-            debug!(topic = %lane.key, "reading a producer over a direct link");
+    match lane.state.lock() {
+        Ok(mut state) if state.generation == generation => {
+            state.answered(source, first, ZBytes::from(attachment));
         }
+        _ => return Outcome::Stopped,
     }
+    debug!(topic = %lane.key, "reading a producer over a direct link");
     let mut buf = bytes::BytesMut::with_capacity(64 * 1024);
     loop {
-        let deadline = lane.state.lock().ok().and_then(|s| s.deadline());
+        let Some(dropping) = intake.upgrade().map(|i| i.drops()) else {
+            return Outcome::Stopped;
+        };
+        let deadline = lane.state.lock().ok().and_then(|s| s.deadline(dropping));
         let read = tokio::select! {
             read = stream.read_buf(&mut buf) => read,
             () = sleep_until(deadline) => {
@@ -554,41 +456,43 @@ async fn read_link(
         let Some(intake) = intake.upgrade() else {
             return Outcome::Stopped;
         };
-        if let Err(why) = take_frames(&mut buf, lane, &intake) {
+        if let Err(why) = take_frames(&mut buf, lane, generation, &intake) {
             return Outcome::Closed(why);
         }
     }
 }
 
 /// Hands on every whole frame in `buf`.
-fn take_frames(buf: &mut bytes::BytesMut, lane: &Lane, intake: &Intake) -> Result<(), String> {
+fn take_frames(
+    buf: &mut bytes::BytesMut,
+    lane: &Lane,
+    generation: u64,
+    intake: &Intake,
+) -> Result<(), String> {
     let Ok(mut state) = lane.state.lock() else {
         return Err("poisoned".into());
     };
+    if state.generation != generation {
+        return Err("replaced by a link to a restarted producer".into());
+    }
     while buf.len() >= HEADER {
-        let sequence = u32::from_le_bytes([buf[1], buf[2], buf[3], buf[4]]);
+        let number = u32::from_le_bytes([buf[1], buf[2], buf[3], buf[4]]);
         let len = u32::from_le_bytes([buf[5], buf[6], buf[7], buf[8]]) as usize;
-        match buf[0] {
-            FRAME_MESSAGE => {
-                if len >= INLINE_MAX {
-                    return Err(format!("a message of {len} bytes on a direct link"));
-                }
-                if buf.len() < HEADER + len {
-                    buf.reserve(HEADER + len - buf.len());
-                    break;
-                }
-                let _ = buf.split_to(HEADER);
-                let payload = ZBytes::from(buf.split_to(len).freeze());
-                let arrival = Arrival::direct(lane.key.clone(), payload, state.attachment.clone());
-                intake.counted_direct();
-                state.message(sequence, arrival, intake);
-            }
-            FRAME_PLACEHOLDER if len == 0 => {
-                let _ = buf.split_to(HEADER);
-                state.placeholder(sequence, intake);
-            }
-            kind => return Err(format!("a malformed frame (kind {kind}) on a direct link")),
+        if buf[0] != FRAME_MESSAGE || len >= INLINE_MAX {
+            return Err(format!(
+                "a malformed frame (kind {}, {len} bytes) on a direct link",
+                buf[0]
+            ));
         }
+        if buf.len() < HEADER + len {
+            buf.reserve(HEADER + len - buf.len());
+            break;
+        }
+        let _ = buf.split_to(HEADER);
+        let payload = ZBytes::from(buf.split_to(len).freeze());
+        let arrival = Arrival::direct(lane.key.clone(), payload, state.attachment.clone());
+        intake.counted_direct();
+        state.from_link(number, arrival, intake);
     }
     Ok(())
 }

@@ -16,7 +16,7 @@ use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::SourceInfo;
 
-use super::{FRAME_MESSAGE, FRAME_PLACEHOLDER, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT, header};
+use super::{BURST_GAP, FRAME_MESSAGE, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT, header};
 use crate::qos;
 
 /// One emitted topic's direct links. Every publication of the topic takes
@@ -35,8 +35,10 @@ pub(crate) struct DirectOutlet {
 #[derive(Debug, Default)]
 struct Links {
     open: Vec<Link>,
-    /// The last message's sequence number.
+    /// The last message's number.
     sequence: u32,
+    /// When the last small message was published while linked.
+    last: Option<Instant>,
 }
 
 #[derive(Debug)]
@@ -60,7 +62,8 @@ impl DirectOutlet {
     }
 
     /// Publishes `payload` through Zenoh, numbered in its source info, and
-    /// over every link of the topic.
+    /// over every link of the topic when it is small and not part of a
+    /// burst.
     pub(crate) fn publish(
         &self,
         publisher: &Publisher<'static>,
@@ -71,22 +74,23 @@ impl DirectOutlet {
             return publisher.put(payload).attachment(attachment).wait();
         };
         links.sequence = links.sequence.wrapping_add(1);
-        let sequence = links.sequence;
-        if !links.open.is_empty() {
-            // The links first: they are what a consumer on this host reads.
-            let len = payload.len();
-            if len < INLINE_MAX {
+        let number = links.sequence;
+        if !links.open.is_empty() && payload.len() < INLINE_MAX {
+            let now = Instant::now();
+            let burst = links.last.is_some_and(|t| now - t < BURST_GAP);
+            links.last = Some(now);
+            if !burst {
+                // The links first: they are what a consumer on this host
+                // reads.
                 let bytes = payload.to_bytes();
-                let head = header(FRAME_MESSAGE, sequence, len as u32);
+                let head = header(FRAME_MESSAGE, number, bytes.len() as u32);
                 links.write(&head, &bytes, self.drops());
-            } else {
-                links.write(&header(FRAME_PLACEHOLDER, sequence, 0), &[], false);
             }
         }
         publisher
             .put(payload)
             .attachment(attachment)
-            .source_info(SourceInfo::new(publisher.id(), sequence))
+            .source_info(SourceInfo::new(publisher.id(), number))
             .wait()
     }
 

@@ -587,9 +587,9 @@ async fn read_in_order(
 
 /// Two nodes given one directory for direct links (as `up` gives the
 /// instances of one launch) hand small messages over it and large ones
-/// through Zenoh, and the reader gets each once, in order, across the
-/// switch from Zenoh to the link and back when the producer restarts; a
-/// reader without the directory gets the same through Zenoh.
+/// (and bursts) through Zenoh, and the reader gets each once, in order,
+/// across the switch from Zenoh to the link and back when the producer
+/// restarts; a reader without the directory gets the same through Zenoh.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn direct_links_hand_every_message_once_in_order() {
     let hub = hub().await;
@@ -622,10 +622,12 @@ async fn direct_links_hand_every_message_once_in_order() {
     read_in_order(&remote, 0, 300, frame).await;
     assert_eq!(direct(&remote), 0, "no directory, no direct link");
 
-    // Linked: every small frame comes over the link.
+    // Linked, and a millisecond apart (no burst): every small frame comes
+    // over the link.
     let before = direct(&station);
     for seq in 300..400 {
         emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+        tokio::time::sleep(Duration::from_millis(1)).await;
     }
     read_in_order(&station, 300, 100, frame).await;
     read_in_order(&remote, 300, 100, frame).await;
