@@ -275,16 +275,18 @@ impl LaneState {
         self.held_since = None;
     }
 
-    /// The producer answered: its link carries messages from `first` on.
-    fn answered(&mut self, source: SourceId, first: u32, attachment: ZBytes) {
+    /// The producer answered: its link is open.
+    fn answered(&mut self, source: SourceId, attachment: ZBytes) {
         self.attachment = Some(attachment);
         self.link = LinkState::Open;
         if source != self.source {
-            // Zenoh has brought nothing of this publisher yet: everything
-            // before the link's first is Zenoh's to bring.
+            // The socket is a restarted producer's, of which Zenoh has
+            // brought nothing yet: from its first message on, whichever
+            // Zenoh still brings (the first Zenoh message past what the
+            // link holds lets those go).
             self.previous = Some(self.source);
             self.source = source;
-            self.next = i64::from(first);
+            self.next = 1;
             self.held.clear();
             self.held_since = None;
         }
@@ -415,18 +417,16 @@ async fn read_link(
             .await
             .map_err(|e| e.to_string())?;
         let eid = stream.read_u32_le().await.map_err(|e| e.to_string())?;
-        let first = stream.read_u32_le().await.map_err(|e| e.to_string())?;
-        Ok::<_, String>((stream, attachment, (zid, eid), first))
+        Ok::<_, String>((stream, attachment, (zid, eid)))
     };
-    let (mut stream, attachment, source, first) =
-        match tokio::time::timeout(HOLD_LIMIT, handshake).await {
-            Ok(Ok(linked)) => linked,
-            Ok(Err(e)) => return Outcome::Unavailable(e),
-            Err(_) => return Outcome::Unavailable("no answer".into()),
-        };
+    let (mut stream, attachment, source) = match tokio::time::timeout(HOLD_LIMIT, handshake).await {
+        Ok(Ok(linked)) => linked,
+        Ok(Err(e)) => return Outcome::Unavailable(e),
+        Err(_) => return Outcome::Unavailable("no answer".into()),
+    };
     match lane.state.lock() {
         Ok(mut state) if state.generation == generation => {
-            state.answered(source, first, ZBytes::from(attachment));
+            state.answered(source, ZBytes::from(attachment));
         }
         _ => return Outcome::Stopped,
     }

@@ -16,8 +16,8 @@
 //! How a consumer comes to read a producer directly, without losing,
 //! doubling or reordering a message:
 //!
-//! 1. A producer with direct links numbers every message it publishes,
-//!    and its Zenoh copy carries the number in its source info.
+//! 1. A producer with direct links numbers every message of each emitted
+//!    topic, and its Zenoh copy carries the number in its source info.
 //! 2. The first message a consumed topic receives through Zenoh from a
 //!    producer makes the consumer connect to that producer's socket in the
 //!    launch's directory (named after its core node and instance:
@@ -25,21 +25,20 @@
 //!    language) leaves that producer on Zenoh.
 //! 3. The consumer names the key it reads ([`Hello`]). The producer,
 //!    holding the topic's lock (so no message is published meanwhile),
-//!    answers with the number of the first message the link will carry,
-//!    and adds the link.
-//! 4. The consumer takes every message numbered below that from Zenoh,
-//!    and holds the link's until Zenoh has brought the one just before it
-//!    (or one after it: Zenoh dropped it). From then on it takes the
-//!    link's and drops Zenoh's copies.
-//! 5. A message of [`INLINE_MAX`] bytes or more is not copied through the
-//!    socket (Zenoh carries it through shared memory without a copy): the
-//!    link carries a placeholder with its number, and the consumer puts
-//!    Zenoh's copy where the placeholder is.
-//! 6. When the link breaks (the producer stopped, a write timed out) the
-//!    consumer takes that producer's messages from Zenoh again, past the
-//!    last the link brought; the next one links it again. A message from
-//!    another publisher under the same key (the producer restarted) is
-//!    taken from Zenoh and links the new one.
+//!    answers with the publisher's id its Zenoh copies carry, and adds the
+//!    link.
+//! 4. From then on a message below [`INLINE_MAX`] bytes goes over the link
+//!    too, unless it follows the topic's previous one within
+//!    [`BURST_GAP`] (in a burst, Zenoh's batching moves more). A large
+//!    message goes through Zenoh alone, through shared memory without a
+//!    copy.
+//! 5. The consumer merges the two by number (`inlet`): whichever copy of
+//!    the next message comes first is handed on, the other dropped; a link
+//!    message ahead of it waits until Zenoh has brought those before it.
+//! 6. When the link breaks (the producer stopped, a write timed out) Zenoh
+//!    alone goes on with the same numbers; a message from another
+//!    publisher under the same key (the producer restarted) starts the
+//!    numbers afresh and links the new one.
 
 pub(crate) mod inlet;
 pub(crate) mod outlet;
@@ -159,15 +158,14 @@ pub(crate) fn header(kind: u8, sequence: u32, len: u32) -> [u8; HEADER] {
 }
 
 /// The producer's answer to a hello that names one of its topics: `0`,
-/// the topic's attachment (a length byte, then it), the source id its
-/// Zenoh copies carry, and the number of the first message the link
-/// carries (`u32` little-endian).
-pub(crate) fn answer(attachment: &[u8], source: SourceId, first: u32) -> Vec<u8> {
+/// the topic's attachment (a length byte, then it), and the source id its
+/// Zenoh copies carry (the session's id, then the publisher's number,
+/// `u32` little-endian).
+pub(crate) fn answer(attachment: &[u8], source: SourceId) -> Vec<u8> {
     let mut out = vec![0, attachment.len() as u8];
     out.extend_from_slice(attachment);
     out.extend_from_slice(&source.0);
     out.extend_from_slice(&source.1.to_le_bytes());
-    out.extend_from_slice(&first.to_le_bytes());
     out
 }
 

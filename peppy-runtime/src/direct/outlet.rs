@@ -109,16 +109,15 @@ impl DirectOutlet {
     }
 
     /// Adds the link a consumer asked for, under the lock (between two
-    /// publications): the answer names the first message it will carry.
+    /// publications).
     fn attach(&self, mut stream: UnixStream, consumer: String) -> std::io::Result<()> {
         let mut links = self
             .links
             .lock()
             .map_err(|_| std::io::Error::other("a publisher panicked"))?;
-        let first = links.sequence.wrapping_add(1);
         let attachment = crate::wire::attachment::topic(self.fingerprint);
         stream.set_write_timeout(Some(HOLD_LIMIT))?;
-        stream.write_all(&super::answer(&attachment, self.source, first))?;
+        stream.write_all(&super::answer(&attachment, self.source))?;
         stream.set_nonblocking(true)?;
         links.open.push(Link {
             stream,

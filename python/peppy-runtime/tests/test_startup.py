@@ -229,6 +229,7 @@ class ConfigFileTest(unittest.TestCase):
             (self.config(slots=[dict(PINNED_LEFT, more=1)]), "expected the fields"),
             (self.config(slots={}), "`slots` must be a list"),
             (self.config(zenoh={"mode": "peer", "port": 1}), "unknown field `port`"),
+            (self.config(direct_links=3), "`direct_links` must be a directory's path"),
             ("{not json", "invalid runtime config"),
         ):
             with self.assertRaises(StartupError) as caught:
@@ -236,6 +237,12 @@ class ConfigFileTest(unittest.TestCase):
             self.assertIn(words, str(caught.exception))
         with self.assertRaises(StartupError):
             load(RECON, [], os.path.join(self.tmp.name, "missing.json"))
+
+    def test_a_launchs_direct_links_directory_is_accepted_and_left_to_rust_nodes(self):
+        # A Python node reads and publishes through Zenoh, where a Rust
+        # producer on a direct link publishes everything too.
+        st = load(RECON, [], self.write(self.config(direct_links="/run/user/1000/peppy-1-2")))
+        self.assertEqual((st.instance_id, st.core_node), ("recon_1", "lab-1"))
 
     def test_parameters_missing_from_the_plan_are_named(self):
         st = load(RECON, [], self.write(self.config(parameters={"name": "n"})))
