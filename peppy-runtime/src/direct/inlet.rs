@@ -141,7 +141,7 @@ impl Inlet {
             self.connect_locked(&lane, &mut state);
             return Route::Handled;
         }
-        state.from_zenoh(number, arrival, &intake);
+        state.zenoh_brought(number, arrival, &intake);
         if state.link == LinkState::Closed && state.retry_due() {
             self.connect_locked(&lane, &mut state);
         }
@@ -296,7 +296,7 @@ impl LaneState {
     /// lost (Zenoh keeps a publisher's order, so it dropped them): the
     /// link's messages held before it go first, then it, or the link's
     /// copy of it if that came first.
-    fn from_zenoh(&mut self, number: u32, arrival: Arrival, intake: &Intake) {
+    fn zenoh_brought(&mut self, number: u32, arrival: Arrival, intake: &Intake) {
         let number = self.unwrap(number);
         if number < self.next {
             return; // The link brought it.
@@ -319,7 +319,7 @@ impl LaneState {
     }
 
     /// A message from the link.
-    fn from_link(&mut self, number: u32, arrival: Arrival, intake: &Intake) {
+    fn link_brought(&mut self, number: u32, arrival: Arrival, intake: &Intake) {
         let number = self.unwrap(number);
         if number == self.next {
             intake.queue(arrival);
@@ -492,7 +492,7 @@ fn take_frames(
         let payload = ZBytes::from(buf.split_to(len).freeze());
         let arrival = Arrival::direct(lane.key.clone(), payload, state.attachment.clone());
         intake.counted_direct();
-        state.from_link(number, arrival, intake);
+        state.link_brought(number, arrival, intake);
     }
     Ok(())
 }
