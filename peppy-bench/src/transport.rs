@@ -668,6 +668,10 @@ pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
         if raw == RAW_SHM && peers::peers().dora.is_some() {
             modes.push(DORA);
         }
+        // What direct links change, against peppy on the same socket alone.
+        if peppy.direct {
+            modes.push(PEPPY_UNIX);
+        }
         let got = in_rounds(&modes, rounds(quick), |mode| {
             let (source, mut sink) = Source::with_sink(mode, "tp", |source| {
                 let mut args = source.args("throughput");
@@ -707,7 +711,35 @@ pub(crate) fn throughput(quick: bool) -> Res<Vec<Row>> {
                 .map(|v| v["sent"].as_u64().unwrap_or(0) - v["received"].as_u64().unwrap_or(0))
                 .sum()
         };
-        if let Some(dora) = got.get(2) {
+        if peppy.direct {
+            let rate_row =
+                |group: &str, base: &[Vec<Value>], subject: &[Vec<Value>], name: &str, of: &str| {
+                    base.iter()
+                        .zip(subject)
+                        .map(|(b, p)| {
+                            let bytes = b[0]["size"].as_u64().unwrap_or(0) as usize;
+                            Row::new(group, size(bytes), Some(rate(b)), Some(rate(p)))
+                                .against(name)
+                                .of(of)
+                        })
+                        .collect::<Vec<_>>()
+                };
+            rows.extend(rate_row(
+                "topic throughput (reliable, one to one), peppy with direct links vs over a Unix socket alone",
+                &got[2],
+                &got[1],
+                "Unix",
+                "direct",
+            ));
+            rows.extend(rate_row(
+                "topic throughput (reliable, one to one), peppy over a Unix socket vs raw Zenoh over it",
+                &got[0],
+                &got[2],
+                RAW,
+                "peppy, Unix",
+            ));
+        }
+        if let Some(dora) = got.get(2).filter(|_| raw == RAW_SHM) {
             rows.extend(dora.iter().zip(&got[1]).map(|(d, p)| {
                 let bytes = d[0]["size"].as_u64().unwrap_or(0) as usize;
                 let mut row = Row::new(

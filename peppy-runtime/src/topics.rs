@@ -46,6 +46,12 @@ pub(crate) struct Arrival {
 }
 
 impl Arrival {
+    /// Its payload (tests read what was queued).
+    #[cfg(test)]
+    pub(crate) fn payload(&self) -> &ZBytes {
+        &self.payload
+    }
+
     /// A message that came over a direct link, under its producer's key.
     pub(crate) fn direct(
         key: KeyExpr<'static>,

@@ -171,28 +171,24 @@ impl Inlet {
         let (consumer, lane) = (self.consumer.clone(), lane.clone());
         self.consumer.runtime.spawn(async move {
             let outcome = read_link(&consumer, &lane, generation, path, hello, &intake).await;
-            let Ok(mut state) = lane.state.lock() else {
-                return;
-            };
-            if state.generation != generation {
+            if !lane.ended(generation, outcome) {
                 return; // Replaced by a link to a restarted producer.
             }
-            match outcome {
-                Outcome::Stopped => {}
-                Outcome::Unavailable(why) => {
-                    debug!(topic = %lane.key, why, "no direct link to this producer: its messages come through Zenoh");
-                    state.retry_at = Some(Instant::now() + RETRY_AFTER);
-                }
-                Outcome::Closed(why) => {
-                    debug!(topic = %lane.key, why, "a direct link closed: this producer's messages come through Zenoh again");
-                    state.retry_at = Some(Instant::now() + RELINK_AFTER);
-                }
-            }
-            state.link = LinkState::Closed;
             // What the link brought ahead of Zenoh is handed on once Zenoh
             // catches up, or when the wait runs out.
-            if let Some(intake) = intake.upgrade() {
-                state.expire(Instant::now(), &lane.key, &intake);
+            while let Some(intake) = intake.upgrade() {
+                let deadline = match lane.state.lock() {
+                    Ok(state) => state.deadline(intake.drops()),
+                    Err(_) => None,
+                };
+                let Some(deadline) = deadline else { break };
+                tokio::select! {
+                    () = tokio::time::sleep_until(deadline.into()) => {}
+                    () = consumer.token.cancelled() => break,
+                }
+                if let Ok(mut state) = lane.state.lock() {
+                    state.expire(Instant::now(), &lane.key, &intake);
+                }
             }
         });
     }
@@ -209,18 +205,32 @@ impl Lane {
     fn new(key: KeyExpr<'static>, source: SourceId, number: u32) -> Arc<Lane> {
         Arc::new(Lane {
             key,
-            state: Mutex::new(LaneState {
-                source,
-                previous: None,
-                next: i64::from(number) + 1,
-                link: LinkState::Closed,
-                generation: 0,
-                retry_at: None,
-                attachment: None,
-                held: BTreeMap::new(),
-                held_since: None,
-            }),
+            state: Mutex::new(LaneState::new(source, number)),
         })
+    }
+
+    /// Link `generation` ended as `outcome`; `false` if the lane has moved
+    /// on to a newer link.
+    fn ended(&self, generation: u64, outcome: Outcome) -> bool {
+        let Ok(mut state) = self.state.lock() else {
+            return false;
+        };
+        if state.generation != generation {
+            return false;
+        }
+        match outcome {
+            Outcome::Stopped => {}
+            Outcome::Unavailable(why) => {
+                debug!(topic = %self.key, why, "no direct link to this producer: its messages come through Zenoh");
+                state.retry_at = Some(Instant::now() + RETRY_AFTER);
+            }
+            Outcome::Closed(why) => {
+                debug!(topic = %self.key, why, "a direct link closed: this producer's messages come through Zenoh again");
+                state.retry_at = Some(Instant::now() + RELINK_AFTER);
+            }
+        }
+        state.link = LinkState::Closed;
+        true
     }
 }
 
@@ -254,6 +264,21 @@ struct LaneState {
 }
 
 impl LaneState {
+    /// The state of a producer whose message `number` Zenoh just brought.
+    fn new(source: SourceId, number: u32) -> LaneState {
+        LaneState {
+            source,
+            previous: None,
+            next: i64::from(number) + 1,
+            link: LinkState::Closed,
+            generation: 0,
+            retry_at: None,
+            attachment: None,
+            held: BTreeMap::new(),
+            held_since: None,
+        }
+    }
+
     /// Whether a closed link may be tried again.
     fn retry_due(&self) -> bool {
         self.retry_at.is_none_or(|t| Instant::now() >= t)
@@ -353,17 +378,16 @@ impl LaneState {
         self.held_since.map(|t| t + limit)
     }
 
-    /// Ends a wait that has run out (or every wait, once the link is
-    /// closed): the held messages go, in order, and Zenoh's copies of
-    /// anything before them will be dropped.
+    /// Ends a wait that has run out: the held messages go, in order, and
+    /// Zenoh's copies of anything before them will be dropped.
     fn expire(&mut self, now: Instant, key: &KeyExpr<'static>, intake: &Intake) {
         let Some(deadline) = self.deadline(intake.drops()) else {
             return;
         };
-        if now < deadline && self.link != LinkState::Closed {
+        if now < deadline {
             return;
         }
-        if self.link != LinkState::Closed && !intake.drops() {
+        if !intake.drops() {
             warn!(topic = %key, "messages from a direct link waited too long for the ones before them through Zenoh; going on without those");
         }
         for (number, arrival) in std::mem::take(&mut self.held) {
@@ -501,5 +525,134 @@ async fn sleep_until(deadline: Option<Instant>) {
     match deadline {
         Some(at) => tokio::time::sleep_until(at.into()).await,
         None => std::future::pending().await,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::producers::Declarer;
+    use crate::spec::{ConsumedTopicSpec, FormatSpec, OwnerSpec};
+    use crate::topics::Inbox;
+    use peppy_schema::{QosProfile, RouteFilter};
+
+    static TICKS: ConsumedTopicSpec = ConsumedTopicSpec {
+        link_id: None,
+        owner: OwnerSpec::Any,
+        name: "ticks",
+        qos: QosProfile::Reliable,
+        format: FormatSpec::EMPTY,
+    };
+
+    const KEY: &str = "peppy/lab/topic/node/clock/v1/ticks/core/ticker";
+    const SOURCE: SourceId = ([7; 16], 3);
+
+    fn intake() -> (Intake, Inbox) {
+        Intake::new(
+            &TICKS,
+            RouteFilter::Any,
+            None,
+            Declarer::none(),
+            Arc::new(|_, _, _| {}),
+        )
+    }
+
+    /// Message `n`: its number in its payload.
+    fn message(n: u32) -> Arrival {
+        let key = KeyExpr::try_from(KEY).unwrap();
+        Arrival::direct(key, ZBytes::from(n.to_le_bytes().to_vec()), None)
+    }
+
+    /// A lane whose Zenoh brought message `last` (the next is `last + 1`).
+    fn lane(last: u32) -> LaneState {
+        LaneState::new(SOURCE, last)
+    }
+
+    /// What the reader would read, in order.
+    fn queued(inbox: &Inbox) -> Vec<u32> {
+        inbox
+            .rx
+            .drain()
+            .map(|a| u32::from_le_bytes(a.payload().to_bytes()[..4].try_into().unwrap()))
+            .collect()
+    }
+
+    #[test]
+    fn link_messages_ahead_of_zenoh_wait_for_the_ones_before_them() {
+        let (intake, inbox) = intake();
+        let mut s = lane(0);
+        s.link_brought(2, message(2), &intake);
+        s.link_brought(3, message(3), &intake);
+        assert_eq!(queued(&inbox), Vec::<u32>::new(), "1 has not come");
+        s.zenoh_brought(1, message(1), &intake);
+        for n in [2, 3] {
+            s.zenoh_brought(n, message(n), &intake);
+        }
+        assert_eq!(queued(&inbox), [1, 2, 3], "each once, in order");
+        assert!(s.deadline(false).is_none(), "nothing waits");
+    }
+
+    #[test]
+    fn whichever_copy_comes_first_is_handed_on() {
+        let (intake, inbox) = intake();
+        let mut s = lane(0);
+        s.zenoh_brought(1, message(1), &intake);
+        s.link_brought(1, message(1), &intake);
+        s.link_brought(2, message(2), &intake);
+        s.zenoh_brought(2, message(2), &intake);
+        s.zenoh_brought(3, message(3), &intake);
+        s.link_brought(3, message(3), &intake);
+        assert_eq!(queued(&inbox), [1, 2, 3]);
+    }
+
+    #[test]
+    fn a_zenoh_message_past_the_next_means_those_between_were_dropped() {
+        let (intake, inbox) = intake();
+        let mut s = lane(0);
+        s.link_brought(3, message(3), &intake);
+        // 1 and 2 were dropped (a dropping topic), 4 went through Zenoh only.
+        s.zenoh_brought(4, message(4), &intake);
+        s.zenoh_brought(3, message(3), &intake);
+        s.link_brought(5, message(5), &intake);
+        assert_eq!(queued(&inbox), [3, 4, 5]);
+    }
+
+    #[test]
+    fn a_held_message_goes_when_its_wait_runs_out_and_late_ones_are_dropped() {
+        let (intake, inbox) = intake();
+        let mut s = lane(0);
+        let key = KeyExpr::try_from(KEY).unwrap();
+        s.link_brought(5, message(5), &intake);
+        let deadline = s.deadline(false).expect("5 waits");
+        s.expire(deadline - Duration::from_millis(1), &key, &intake);
+        assert_eq!(queued(&inbox), Vec::<u32>::new(), "not yet");
+        s.expire(deadline, &key, &intake);
+        assert_eq!(queued(&inbox), [5]);
+        s.zenoh_brought(2, message(2), &intake);
+        s.zenoh_brought(6, message(6), &intake);
+        assert_eq!(queued(&inbox), [6], "2 came too late");
+    }
+
+    #[test]
+    fn numbers_wrap() {
+        let (intake, inbox) = intake();
+        let mut s = lane(u32::MAX - 1);
+        s.link_brought(0, message(0), &intake);
+        s.link_brought(1, message(1), &intake);
+        s.zenoh_brought(u32::MAX, message(u32::MAX), &intake);
+        s.zenoh_brought(0, message(0), &intake);
+        s.zenoh_brought(2, message(2), &intake);
+        assert_eq!(queued(&inbox), [u32::MAX, 0, 1, 2]);
+    }
+
+    #[test]
+    fn a_restarted_publisher_starts_the_numbers_afresh() {
+        let (intake, inbox) = intake();
+        let mut s = lane(500);
+        s.restart(([8; 16], 3), 1);
+        s.zenoh_brought(2, message(2), &intake);
+        s.link_brought(3, message(3), &intake);
+        assert_eq!(queued(&inbox), [2, 3]);
+        assert_eq!(s.previous, Some(SOURCE));
     }
 }

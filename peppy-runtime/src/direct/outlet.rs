@@ -20,8 +20,8 @@ use super::{BURST_GAP, FRAME_MESSAGE, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT
 use crate::qos;
 
 /// One emitted topic's direct links. Every publication of the topic takes
-/// its lock, so a link is added between two publications, never during
-/// one: what makes the switch exact (the module's point 2).
+/// its lock: messages are numbered in the order Zenoh gets them, and a link
+/// is added between two publications, never during one.
 #[derive(Debug)]
 pub(crate) struct DirectOutlet {
     key: String,
@@ -146,8 +146,12 @@ impl Links {
                 }
                 true
             }
+            Err(e) if matches!(e.kind(), ErrorKind::BrokenPipe | ErrorKind::ConnectionReset) => {
+                debug!(consumer = %link.consumer, "a consumer closed its direct link");
+                false
+            }
             Err(e) => {
-                warn!(consumer = %link.consumer, error = %e, "closing a direct link: the consumer goes back to Zenoh");
+                warn!(consumer = %link.consumer, error = %e, "closing a direct link: the consumer reads this topic through Zenoh alone");
                 false
             }
         });
