@@ -659,6 +659,16 @@ fn emit_accepts_a_temporary<'a>(
     emit(runner, spec, &vec![1u8, 2, 3])
 }
 
+/// A consumed topic for the intake's tests (here and in `direct`).
+#[cfg(test)]
+pub(crate) static TEST_TICKS: ConsumedTopicSpec = ConsumedTopicSpec {
+    link_id: None,
+    owner: crate::spec::OwnerSpec::Any,
+    name: "ticks",
+    qos: peppy_schema::QosProfile::Reliable,
+    format: crate::spec::FormatSpec::EMPTY,
+};
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -666,13 +676,7 @@ mod tests {
     use crate::wire::keys::{Owner, entry_key};
     use peppy_schema::QosProfile;
 
-    static TICKS: ConsumedTopicSpec = ConsumedTopicSpec {
-        link_id: None,
-        owner: OwnerSpec::Any,
-        name: "ticks",
-        qos: QosProfile::Reliable,
-        format: FormatSpec::EMPTY,
-    };
+    use super::TEST_TICKS as TICKS;
 
     const TICKER: &str = "peppy/lab/topic/node/clock/v1/ticks/core/ticker";
 

@@ -532,24 +532,15 @@ async fn sleep_until(deadline: Option<Instant>) {
 mod tests {
     use super::*;
     use crate::producers::Declarer;
-    use crate::spec::{ConsumedTopicSpec, FormatSpec, OwnerSpec};
-    use crate::topics::Inbox;
-    use peppy_schema::{QosProfile, RouteFilter};
-
-    static TICKS: ConsumedTopicSpec = ConsumedTopicSpec {
-        link_id: None,
-        owner: OwnerSpec::Any,
-        name: "ticks",
-        qos: QosProfile::Reliable,
-        format: FormatSpec::EMPTY,
-    };
+    use crate::topics::{Inbox, TEST_TICKS};
+    use peppy_schema::RouteFilter;
 
     const KEY: &str = "peppy/lab/topic/node/clock/v1/ticks/core/ticker";
     const SOURCE: SourceId = ([7; 16], 3);
 
     fn intake() -> (Intake, Inbox) {
         Intake::new(
-            &TICKS,
+            &TEST_TICKS,
             RouteFilter::Any,
             None,
             Declarer::none(),
