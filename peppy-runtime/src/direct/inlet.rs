@@ -250,6 +250,9 @@ struct LaneState {
     /// The number of the next message to hand on, unwrapped: the `u32`
     /// numbers on the wire are read as the nearest value to it.
     next: i64,
+    /// Whether a link to this publisher was ever answered: only then can
+    /// a Zenoh message be a copy of one already handed on.
+    linked: bool,
     link: LinkState,
     /// Which connection is the lane's: an older one's reader stops.
     generation: u64,
@@ -270,6 +273,7 @@ impl LaneState {
             source,
             previous: None,
             next: i64::from(number) + 1,
+            linked: false,
             link: LinkState::Closed,
             generation: 0,
             retry_at: None,
@@ -296,6 +300,7 @@ impl LaneState {
         self.previous = Some(self.source);
         self.source = source;
         self.next = i64::from(number) + 1;
+        self.linked = false;
         self.held.clear();
         self.held_since = None;
     }
@@ -304,6 +309,7 @@ impl LaneState {
     fn answered(&mut self, source: SourceId, attachment: ZBytes) {
         self.attachment = Some(attachment);
         self.link = LinkState::Open;
+        self.linked = true;
         if source != self.source {
             // The socket is a restarted producer's, of which Zenoh has
             // brought nothing yet: from its first message on, whichever
@@ -324,7 +330,12 @@ impl LaneState {
     fn zenoh_brought(&mut self, number: u32, arrival: Arrival, intake: &Intake) {
         let number = self.unwrap(number);
         if number < self.next {
-            return; // The link brought it.
+            if !self.linked {
+                // No link has brought anything: a message Zenoh itself
+                // delivered late is still the reader's.
+                intake.queue(arrival);
+            }
+            return; // Else the link brought it.
         }
         while let Some(entry) = self.held.first_entry() {
             if *entry.key() > number {
@@ -554,9 +565,22 @@ mod tests {
         Arrival::direct(key, ZBytes::from(n.to_le_bytes().to_vec()), None)
     }
 
-    /// A lane whose Zenoh brought message `last` (the next is `last + 1`).
+    /// A linked lane whose Zenoh brought message `last` (the next is
+    /// `last + 1`).
     fn lane(last: u32) -> LaneState {
-        LaneState::new(SOURCE, last)
+        let mut state = LaneState::new(SOURCE, last);
+        state.linked = true;
+        state
+    }
+
+    #[test]
+    fn without_a_link_nothing_zenoh_brings_is_dropped() {
+        let (intake, inbox) = intake();
+        let mut s = LaneState::new(SOURCE, 0);
+        for n in [1, 3, 2, 4] {
+            s.zenoh_brought(n, message(n), &intake);
+        }
+        assert_eq!(queued(&inbox), [1, 3, 2, 4], "as Zenoh delivered them");
     }
 
     /// What the reader would read, in order.
@@ -641,6 +665,7 @@ mod tests {
         let (intake, inbox) = intake();
         let mut s = lane(500);
         s.restart(([8; 16], 3), 1);
+        s.linked = true;
         s.zenoh_brought(2, message(2), &intake);
         s.link_brought(3, message(3), &intake);
         assert_eq!(queued(&inbox), [2, 3]);
