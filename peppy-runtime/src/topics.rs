@@ -52,12 +52,9 @@ impl Arrival {
         &self.payload
     }
 
-    /// A message that came over a direct link, under its producer's key.
-    pub(crate) fn direct(
-        key: KeyExpr<'static>,
-        payload: ZBytes,
-        attachment: Option<ZBytes>,
-    ) -> Self {
+    /// A message as it came (through Zenoh, or over a direct link), under
+    /// its producer's key, not yet admitted.
+    pub(crate) fn new(key: KeyExpr<'static>, payload: ZBytes, attachment: Option<ZBytes>) -> Self {
         Arrival {
             producer: None,
             key,
@@ -260,11 +257,13 @@ impl Intake {
 
     /// Whether the topic drops messages rather than wait (a keep-newest
     /// queue).
+    #[cfg(unix)]
     pub(crate) fn drops(&self) -> bool {
         matches!(self.policy, QueuePolicy::KeepNewest(_))
     }
 
     /// Counts a message that arrived over a direct link.
+    #[cfg(unix)]
     pub(crate) fn counted_direct(&self) {
         self.backlog.direct.fetch_add(1, Relaxed);
     }
@@ -287,12 +286,7 @@ impl Intake {
             attachment,
             ..
         } = sample.into();
-        let arrival = Arrival {
-            producer: None,
-            key: key_expr,
-            payload,
-            attachment,
-        };
+        let arrival = Arrival::new(key_expr, payload, attachment);
         let arrival = match &self.direct {
             None => arrival,
             Some(direct) => match direct.route(arrival, source) {

@@ -16,14 +16,6 @@ pub(crate) fn socket_path(dir: &Path, _core: &str, _instance: &str) -> PathBuf {
     dir.to_path_buf()
 }
 
-/// Where a consumer's markers would arrive.
-pub(crate) fn marker_prefix(ns: &str, core: &str, instance: &str) -> String {
-    format!(
-        "{}@direct/{core}/{instance}",
-        crate::wire::keys::namespace_prefix(ns)
-    )
-}
-
 pub(crate) mod outlet {
     use std::path::Path;
     use std::sync::Arc;
@@ -66,7 +58,6 @@ pub(crate) mod outlet {
     pub(crate) fn serve(
         _path: &Path,
         _outlets: Vec<Arc<DirectOutlet>>,
-        _session: zenoh::Session,
         _token: CancellationToken,
     ) -> Option<Listener> {
         None
@@ -83,25 +74,17 @@ pub(crate) mod inlet {
 
     /// A consumer that reads through Zenoh only.
     #[derive(Debug)]
-    pub(crate) struct Consumer {
-        prefix: String,
-    }
+    pub(crate) struct Consumer;
 
     impl Consumer {
         pub(crate) fn new(
             _dir: PathBuf,
-            prefix: String,
+            _name: String,
             _runtime: tokio::runtime::Handle,
             _token: CancellationToken,
         ) -> Arc<Consumer> {
-            Arc::new(Consumer { prefix })
+            Arc::new(Consumer)
         }
-
-        pub(crate) fn marker_selector(&self) -> String {
-            format!("{}/*", self.prefix)
-        }
-
-        pub(crate) fn marker(&self, _key: &str) {}
     }
 
     /// No links.

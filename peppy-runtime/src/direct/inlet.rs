@@ -525,7 +525,7 @@ fn take_frames(
         }
         let _ = buf.split_to(HEADER);
         let payload = ZBytes::from(buf.split_to(len).freeze());
-        let arrival = Arrival::direct(lane.key.clone(), payload, state.attachment.clone());
+        let arrival = Arrival::new(lane.key.clone(), payload, state.attachment.clone());
         intake.counted_direct();
         state.link_brought(number, arrival, intake);
     }
@@ -562,7 +562,7 @@ mod tests {
     /// Message `n`: its number in its payload.
     fn message(n: u32) -> Arrival {
         let key = KeyExpr::try_from(KEY).unwrap();
-        Arrival::direct(key, ZBytes::from(n.to_le_bytes().to_vec()), None)
+        Arrival::new(key, ZBytes::from(n.to_le_bytes().to_vec()), None)
     }
 
     /// A linked lane whose Zenoh brought message `last` (the next is

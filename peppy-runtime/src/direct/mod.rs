@@ -46,8 +46,8 @@ pub(crate) mod outlet;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-/// Messages of this size or more travel through Zenoh (its shared memory
-/// on one host) and only a placeholder through the link.
+/// Messages of this size or more travel through Zenoh alone (its shared
+/// memory on one host carries them without a copy).
 pub(crate) const INLINE_MAX: usize = 64 * 1024;
 
 /// How long a link's message waits for the messages before it to come
