@@ -118,9 +118,12 @@ pub mod codegen {
         }
     }
 
-    /// An action server's decision on a goal in today's API:
-    /// `GoalDecision::accept()` or `GoalDecision::reject(reason)`. On the
-    /// wire it is the same goal response as [`GoalResponse`].
+    /// An action server's decision on a goal, in PeppyOS's current API,
+    /// for an action that declares no goal response:
+    /// `GoalDecision::accept()` or `GoalDecision::reject(reason)`
+    /// (`GoalDecision::Reject { reason: None }` rejects without one). An
+    /// action that declares a goal response gets a `GoalDecision` of its
+    /// own, whose `accept` takes the response.
     #[derive(Debug, Clone, PartialEq, Eq)]
     pub enum GoalDecision {
         /// Accept the goal: it is handed to the server to work on.
@@ -128,7 +131,7 @@ pub mod codegen {
         /// Reject the goal; the caller sees `reason`.
         Reject {
             /// Why the goal was rejected.
-            reason: String,
+            reason: Option<String>,
         },
     }
 
@@ -141,7 +144,7 @@ pub mod codegen {
         /// Rejects the goal; the caller sees `reason`.
         pub fn reject(reason: impl Into<String>) -> Self {
             GoalDecision::Reject {
-                reason: reason.into(),
+                reason: Some(reason.into()),
             }
         }
     }

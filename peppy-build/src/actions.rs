@@ -139,36 +139,97 @@ impl Gen<'_> {
                 " (the action takes no goal data)"
             }
         ));
-        // Today's spelling decides with `GoalDecision` and hands the decider
-        // the request by value; the seeds' with `GoalResponse` by reference.
-        let (decision_use, decider_bound, decide, accepted, rejected) = if self.today() {
-            (
-                quote! {
-                    #[doc = " The server's decision on a goal: `GoalDecision::accept()` or `GoalDecision::reject(reason)`."]
-                    pub use ::peppy::codegen::GoalDecision;
-                },
-                quote!(::core::ops::FnMut(GoalRequest) -> ::peppy::codegen::Result<GoalDecision>),
-                quote!(decider(::core::clone::Clone::clone(&request))),
-                quote!(GoalDecision::Accept),
-                quote!(GoalDecision::Reject { reason }),
-            )
-        } else {
-            (
-                quote! {
-                    #[doc = " The server's decision on a goal: `GoalResponse::accept()` or `GoalResponse::reject(reason)`."]
-                    pub use ::peppy::codegen::GoalResponse;
-                },
-                quote!(::core::ops::Fn(&GoalRequest) -> ::peppy::codegen::Result<GoalResponse>),
-                quote!(decider(&request)),
-                quote!(GoalResponse { accepted: true, .. }),
-                quote!(GoalResponse { error_message, .. }),
-            )
-        };
-        let reason = if self.today() {
-            quote!(reason)
-        } else {
-            quote!(error_message.unwrap_or_default())
-        };
+        // Today's spelling decides with `GoalDecision` (the action's own
+        // when it declares a goal response); the seeds' with `GoalResponse`.
+        // Both hand the decider the request by reference, as PeppyOS does.
+        let declared = decl.goal_response.as_ref().filter(|_| self.today());
+        let mut decision_types = TokenStream::new();
+        if let Some(format) = declared {
+            let mut structs = Structs {
+                names: &mut names,
+                diags: &mut self.diags,
+                out: TokenStream::new(),
+            };
+            let doc =
+                format!("The goal response action `{name}` declares: data sent with a decision.");
+            structs.message("GoalResponse", "GoalResponse", Some(format), &doc);
+            decision_types = structs.out;
+        }
+        let (decision_use, decider_bound, accepted, rejected, reason, accept_call, reject_call) =
+            match (self.today(), declared.is_some()) {
+                (true, true) => (
+                    quote! {
+                        #decision_types
+
+                        #[doc = " The server's decision on a goal: `GoalDecision::accept(response)` or `GoalDecision::reject(reason)`; construct `GoalDecision::Reject { reason, response }` to send a response with a rejection."]
+                        #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
+                        pub enum GoalDecision {
+                            #[doc = " Accept the goal, answering with the declared response."]
+                            Accept(GoalResponse),
+                            #[doc = " Reject the goal."]
+                            Reject {
+                                #[doc = " Why, as the caller reads it."]
+                                reason: ::core::option::Option<::std::string::String>,
+                                #[doc = " A response to send with the rejection."]
+                                response: ::core::option::Option<GoalResponse>,
+                            },
+                        }
+
+                        impl GoalDecision {
+                            #[doc = " Accepts the goal with its declared response."]
+                            pub fn accept(response: GoalResponse) -> Self {
+                                GoalDecision::Accept(response)
+                            }
+
+                            #[doc = " Rejects the goal with a reason and no response."]
+                            pub fn reject(reason: impl ::core::convert::Into<::std::string::String>) -> Self {
+                                GoalDecision::Reject {
+                                    reason: ::core::option::Option::Some(reason.into()),
+                                    response: ::core::option::Option::None,
+                                }
+                            }
+                        }
+                    },
+                    quote!(::core::ops::FnMut(&GoalRequest) -> ::peppy::codegen::Result<GoalDecision>),
+                    quote!(GoalDecision::Accept(response)),
+                    quote!(GoalDecision::Reject { reason, response }),
+                    quote!(reason),
+                    quote!(incoming.accept_with(::peppy::codegen::to_bytes(&response))),
+                    quote!(
+                        incoming.reject_with(
+                            reason,
+                            response
+                                .map(|r| ::peppy::codegen::to_bytes(&r))
+                                .unwrap_or_default()
+                        )
+                    ),
+                ),
+                (true, false) => (
+                    quote! {
+                        #[doc = " The server's decision on a goal: `GoalDecision::accept()` or `GoalDecision::reject(reason)`."]
+                        pub use ::peppy::codegen::GoalDecision;
+                    },
+                    quote!(::core::ops::FnMut(&GoalRequest) -> ::peppy::codegen::Result<GoalDecision>),
+                    quote!(GoalDecision::Accept),
+                    quote!(GoalDecision::Reject { reason }),
+                    quote!(reason),
+                    quote!(incoming.accept()),
+                    quote!(incoming.reject_with(reason, ::std::vec::Vec::new())),
+                ),
+                (false, _) => (
+                    quote! {
+                        #[doc = " The server's decision on a goal: `GoalResponse::accept()` or `GoalResponse::reject(reason)`."]
+                        pub use ::peppy::codegen::GoalResponse;
+                    },
+                    quote!(::core::ops::FnMut(&GoalRequest) -> ::peppy::codegen::Result<GoalResponse>),
+                    quote!(GoalResponse { accepted: true, .. }),
+                    quote!(GoalResponse { error_message, .. }),
+                    quote!(error_message),
+                    quote!(incoming.accept()),
+                    quote!(incoming.reject_with(error_message, ::std::vec::Vec::new())),
+                ),
+            };
+        let _ = reason;
         quote! {
             #types
 
@@ -206,7 +267,7 @@ impl Gen<'_> {
                     ::core::result::Result::Ok(ActionHandle { server })
                 }
 
-                #[doc = " Waits for the next goal and lets `decider` accept or reject it. Rejected goals (and goals `decider` fails on, with its error as the reason) are answered and skipped; an accepted goal is returned to be worked on. `None` once the node stops: at once if it was waiting, after a short pause if called on an already stopped node, so a loop that ignores the result parks instead of spinning."]
+                #[doc = " Waits for the next goal and lets `decider` accept or reject it. Rejected goals are answered and skipped; an accepted goal is returned to be worked on. When `decider` fails, the goal is rejected with its error as the reason and the error is returned. `None` once the node stops: at once if it was waiting, after a short pause if called on an already stopped node, so a loop that ignores the result parks instead of spinning."]
                 pub async fn handle_goal_next_request<F>(
                     &mut self,
                     #[allow(unused_mut)] mut decider: F,
@@ -227,16 +288,19 @@ impl Gen<'_> {
                             core_node: incoming.caller.core_node.clone(),
                             #data_init
                         };
-                        match #decide {
+                        match decider(&request) {
                             ::core::result::Result::Ok(#accepted) => {
-                                let inner = incoming.accept()?;
+                                let inner = #accept_call?;
                                 return ::core::result::Result::Ok(::core::option::Option::Some(GoalContext { inner, request }));
                             }
                             ::core::result::Result::Ok(#rejected) => {
-                                incoming.reject(#reason)?;
+                                #reject_call?;
                             }
                             ::core::result::Result::Err(e) => {
-                                incoming.reject(::std::string::ToString::to_string(&e))?;
+                                // The caller hears why, and the node's
+                                // accept loop gets its own error back.
+                                let _ = incoming.reject(::std::string::ToString::to_string(&e));
+                                return ::core::result::Result::Err(e);
                             }
                         }
                     }
@@ -275,14 +339,14 @@ impl Gen<'_> {
 
                 #[doc = " Finishes the goal successfully with its result, the fields in declaration order."]
                 #allows
-                pub async fn complete(self, #(#params),*) -> ::peppy::codegen::Result<()> {
+                pub async fn complete(&self, #(#params),*) -> ::peppy::codegen::Result<()> {
                     let result = #result_id { #(#inits),* };
                     self.inner.complete(&result)
                 }
 
                 #[doc = " Finishes the goal as cancelled, with a (partial) result."]
                 #allows
-                pub async fn complete_cancelled(self, #(#params),*) -> ::peppy::codegen::Result<()> {
+                pub async fn complete_cancelled(&self, #(#params),*) -> ::peppy::codegen::Result<()> {
                     let result = #result_id { #(#inits),* };
                     self.inner.complete_cancelled(&result)
                 }
@@ -318,6 +382,7 @@ impl Gen<'_> {
         if decl.result.is_some() {
             fixed.push("ResultResponseData");
         }
+        let declared = decl.goal_response.as_ref().filter(|_| self.today());
         let mut names = Names::with_fixed(&fixed);
         let mut structs = Structs {
             names: &mut names,
@@ -336,7 +401,22 @@ impl Gen<'_> {
             let doc = format!("The result data of action `{name}`.");
             structs.message("ResultResponseData", &pre.result, Some(result), &doc);
         }
+        if let Some(response) = declared {
+            let doc = format!(
+                "The goal response action `{name}` declares: data the server sends with its decision."
+            );
+            structs.message("GoalResponseData", "GoalResponseData", Some(response), &doc);
+        }
         let types = structs.out;
+        let mut constructors =
+            data_constructor("ResultResponseData", &pre.result, decl.result.as_ref());
+        if let Some(response) = declared {
+            constructors.extend(data_constructor(
+                "GoalResponseData",
+                "GoalResponseData",
+                Some(response),
+            ));
+        }
 
         let constructor = goal_constructor(&pre.goal, decl.goal.as_ref());
         let (goal_param, goal_ref) = match &decl.goal {
@@ -345,7 +425,7 @@ impl Gen<'_> {
         };
         let feedback = match &decl.feedback {
             Some(_) => quote! {
-                #[doc = " The next feedback message of this goal; `Error::FeedbackEnded` once the goal is terminal and every feedback message was read; `Error::ShuttingDown` once this node stops."]
+                #[doc = " The next feedback message of this goal; `Error::ActionFeedbackChannelClosed` once the goal is terminal and every feedback message was read; `Error::ShuttingDown` once this node stops."]
                 pub async fn on_next_feedback_message(&mut self) -> ::peppy::codegen::Result<FeedbackMessage> {
                     self.inner.next_feedback::<FeedbackMessage>().await
                 }
@@ -363,19 +443,47 @@ impl Gen<'_> {
                 (
                     quote!(),
                     quote!(#[doc = " A goal sent to the action's server. `accepted` says whether it was accepted (and `reason` why not)."]),
-                    quote! {
-                        #[doc = " Whether the server accepted the goal."]
-                        pub accepted: bool,
-                        #[doc = " The server's reason when it rejected the goal."]
-                        pub reason: ::core::option::Option<::std::string::String>,
+                    {
+                        let data = declared.map(|_| {
+                            quote! {
+                                #[doc = " The goal response the server sent with its decision (`None` when a rejection carried none)."]
+                                pub data: ::core::option::Option<GoalResponseData>,
+                            }
+                        });
+                        quote! {
+                            #[doc = " Whether the server accepted the goal."]
+                            pub accepted: bool,
+                            #[doc = " The server's reason when it rejected the goal."]
+                            pub reason: ::core::option::Option<::std::string::String>,
+                            #data
+                        }
                     },
                     quote!(#[doc = " Sends a goal to `target`, one of the producers bound to the action's slot (`bound_producer` / `bound_producers`), and waits at most `timeout` for the decision; returns after a rejection too (check `accepted`). `TargetNotBound` for any other target, before anything is sent. The feedback stream is subscribed before the goal is sent, so no feedback is missed. `feedback_qos` is accepted for compatibility: feedback travels with the server's declared QoS."]),
                     quote!(target: &::peppy::codegen::ProducerRef,),
                     quote!(::peppy::codegen::send_goal_to(node_runner, &SPEC, target, timeout, #goal_ref)),
-                    quote! {
-                        let accepted = inner.accepted;
-                        let reason = inner.error_message.clone();
-                        ::core::result::Result::Ok(ActionHandle { inner, accepted, reason })
+                    match declared {
+                        Some(_) => quote! {
+                            let accepted = inner.accepted;
+                            let reason = inner.error_message.clone();
+                            let data = if inner.response.is_empty() {
+                                ::core::option::Option::None
+                            } else {
+                                ::core::option::Option::Some(
+                                    ::peppy::codegen::from_bytes::<GoalResponseData>(&inner.response).map_err(|source| {
+                                        ::peppy::codegen::Error::Decode {
+                                            what: ::std::format!("goal response of `{}`", #name),
+                                            source,
+                                        }
+                                    })?,
+                                )
+                            };
+                            ::core::result::Result::Ok(ActionHandle { inner, accepted, reason, data })
+                        },
+                        None => quote! {
+                            let accepted = inner.accepted;
+                            let reason = inner.error_message.clone();
+                            ::core::result::Result::Ok(ActionHandle { inner, accepted, reason })
+                        },
                     },
                 )
             } else {
@@ -402,6 +510,8 @@ impl Gen<'_> {
             #types
 
             #constructor
+
+            #constructors
 
             #response_use
 
@@ -528,6 +638,33 @@ fn goal_constructor(prefix: &str, goal: Option<&MessageFormat>) -> TokenStream {
             }
         }
         None => quote!(),
+    }
+}
+
+/// `<Type>::new`, the constructor of a message struct from its fields, in
+/// declaration order (nothing without a format): a test scripts a mock's
+/// answers with it (`ResponseData::new(..)`, `ResultResponseData::new(..)`).
+pub(crate) fn data_constructor(
+    type_name: &str,
+    prefix: &str,
+    format: Option<&MessageFormat>,
+) -> TokenStream {
+    let Some(format) = format else {
+        return TokenStream::new();
+    };
+    let a = args(prefix, &format.fields, &[]);
+    let (params, inits) = (&a.params, &a.inits);
+    let mut allows = snake_allow(&format.fields);
+    allows.extend(many_args_allow(format.fields.len()));
+    let ty = crate::naming::ident(type_name);
+    quote! {
+        impl #ty {
+            #[doc = " A value from its fields, in declaration order."]
+            #allows
+            pub fn new(#(#params),*) -> Self {
+                Self { #(#inits),* }
+            }
+        }
     }
 }
 

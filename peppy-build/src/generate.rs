@@ -60,7 +60,7 @@ pub fn stub() -> TokenStream {
         quote!(pub mod #id {})
     });
     quote! {
-        pub use ::peppy::codegen::{Error, NodeRunner, ProducerRef, QoSProfile, Result, StandaloneConfig};
+        pub use ::peppy::codegen::{Error, NodeRunner, ObservedSource, PeerInfo, ProducerRef, QoSProfile, Result, StandaloneConfig};
         pub type NodeBuilder<P = self::parameters::Parameters> = ::peppy::codegen::NodeBuilder<P>;
         pub use self::parameters::Parameters;
         pub mod parameters {
@@ -254,7 +254,7 @@ impl Gen<'_> {
         ));
         quote! {
             #[doc = " Re-exported from peppy, so node code needs only `peppygen`."]
-            pub use ::peppy::codegen::{Error, NodeRunner, ProducerRef, QoSProfile, Result, StandaloneConfig};
+            pub use ::peppy::codegen::{Error, NodeRunner, ObservedSource, PeerInfo, ProducerRef, QoSProfile, Result, StandaloneConfig};
             #[doc = " Builds and runs this node: `NodeBuilder::new().run(|params: Parameters, runner| async move { Ok(()) })`."]
             #[allow(dead_code)]
             pub type NodeBuilder<P = self::parameters::Parameters> = ::peppy::codegen::NodeBuilder<P>;
@@ -1195,10 +1195,33 @@ impl Gen<'_> {
             )
         };
         let poll_doc = crate::docs::Doc::new(poll_doc);
+        let response_constructor = crate::actions::data_constructor(
+            "ResponseData",
+            "ResponseData",
+            decl.response.as_ref(),
+        );
+        // PeppyOS's current API answers a call without response data with
+        // `()`; the older one with the server's identity.
+        let (poll_type, poll_answer) = if self.today() && decl.response.is_none() {
+            (quote!(()), quote!(::core::result::Result::Ok(())))
+        } else {
+            (
+                quote!(Response),
+                quote! {
+                    ::core::result::Result::Ok(Response {
+                        instance_id: reply.instance_id,
+                        core_node: reply.core_node,
+                        #data_init
+                    })
+                },
+            )
+        };
         quote! {
             #types
 
             #constructor
+
+            #response_constructor
 
             #[doc = " A response with the server's identity."]
             #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
@@ -1225,13 +1248,10 @@ impl Gen<'_> {
                 #target_param
                 timeout: ::core::time::Duration,
                 #request_param
-            ) -> ::peppy::codegen::Result<Response> {
+            ) -> ::peppy::codegen::Result<#poll_type> {
+                #[allow(unused_variables)]
                 let reply: ::peppy::codegen::Reply<#data_type> = #call.await?;
-                ::core::result::Result::Ok(Response {
-                    instance_id: reply.instance_id,
-                    core_node: reply.core_node,
-                    #data_init
-                })
+                #poll_answer
             }
         }
     }

@@ -138,7 +138,7 @@ impl Gen<'_> {
                 #[doc = " Declares a publisher of this topic: it sends to the current peer, and sends nothing (successfully) while the slot is unpaired."]
                 pub async fn declare_publisher(
                     node_runner: &::peppy::codegen::NodeRunner,
-                ) -> ::peppy::codegen::Result<::peppy::codegen::PairedPublisher> {
+                ) -> ::peppy::codegen::Result<::peppy::codegen::TopicPublisher> {
                     ::peppy::codegen::declare_paired_publisher(node_runner, &SPEC).await
                 }
             }
@@ -212,7 +212,15 @@ impl Gen<'_> {
 fn slot_accessors(p: &ResolvedPairing) -> TokenStream {
     let link = &p.slot.link_id;
     if p.slot.observer {
-        let one = match p.slot.cardinality {
+        let vec_sources = quote! {
+            #[doc = " The slot's sources, in link order."]
+            pub fn sources(
+                node_runner: &::peppy::codegen::NodeRunner,
+            ) -> ::peppy::codegen::Result<::std::vec::Vec<::peppy::codegen::ObservedSource>> {
+                ::peppy::codegen::observed_sources(node_runner, #link)
+            }
+        };
+        match p.slot.cardinality {
             Cardinality::One => quote! {
                 #[doc = " The slot's one source."]
                 pub fn source(
@@ -222,17 +230,28 @@ fn slot_accessors(p: &ResolvedPairing) -> TokenStream {
                         ::peppy::codegen::Error::Undeclared(::std::format!("a source of observer slot `{}`", #link))
                     })
                 }
+
+                #vec_sources
             },
-            _ => TokenStream::new(),
-        };
-        quote! {
-            #one
-            #[doc = " The slot's sources, in link order."]
-            pub fn sources(
-                node_runner: &::peppy::codegen::NodeRunner,
-            ) -> ::peppy::codegen::Result<::std::vec::Vec<::peppy::codegen::ObservedSource>> {
-                ::peppy::codegen::observed_sources(node_runner, #link)
-            }
+            Cardinality::ZeroOrOne => quote! {
+                #[doc = " The slot's source, `None` when it watches none."]
+                pub fn source(
+                    node_runner: &::peppy::codegen::NodeRunner,
+                ) -> ::peppy::codegen::Result<::core::option::Option<::peppy::codegen::ObservedSource>> {
+                    ::peppy::codegen::observed_source(node_runner, #link)
+                }
+
+                #vec_sources
+            },
+            Cardinality::OneOrMore => quote! {
+                #[doc = " The slot's sources, in link order: never empty (`first()` always has one)."]
+                pub fn sources(
+                    node_runner: &::peppy::codegen::NodeRunner,
+                ) -> ::peppy::codegen::Result<::peppy::codegen::NonEmptyObservedSources> {
+                    ::peppy::codegen::non_empty_observed_sources(node_runner, #link)
+                }
+            },
+            Cardinality::ZeroOrMore => vec_sources,
         }
     } else {
         quote! {
@@ -298,21 +317,35 @@ impl Gen<'_> {
                 .chain(p.emitted.iter().map(|t| (t, true)))
             {
                 let id = ident(&t.topic.decl.name);
+                let mock_type = if emits {
+                    quote! {
+                        #[doc = " The mock's reader of what the node sends on this topic."]
+                        pub type Subscription = ::peppy::testing::PairTopicReader<Message>;
+                    }
+                } else {
+                    quote! {
+                        #[doc = " The mock's publisher of this topic to the node."]
+                        pub type Publisher = ::peppy::testing::PairTopicMock<Message>;
+                    }
+                };
                 uses.extend(quote! {
-                    #[doc = " The topic's types (the node's `paired_topics` module)."]
-                    pub use super::super::super::paired_topics::#link::#id;
+                    #[doc = " The topic's types (those of the node's `paired_topics` module) and its mock's."]
+                    pub mod #id {
+                        pub use super::super::super::super::paired_topics::#link::#id::*;
+                        #mock_type
+                    }
                 });
                 if emits {
                     members.extend(quote! {
                         #[doc = " What the node sends the mock on this topic."]
-                        pub #id: ::peppy::testing::PairTopicReader<#id::Message>,
+                        pub #id: #id::Subscription,
                     });
                     builds.extend(quote!(#id: mock.reader(&#id::SPEC),));
                     emitted.push(quote!(&#id::SPEC));
                 } else {
                     members.extend(quote! {
                         #[doc = " Publishes this topic to the node."]
-                        pub #id: ::peppy::testing::PairTopicMock<#id::Message>,
+                        pub #id: #id::Publisher,
                     });
                     builds.extend(quote!(#id: mock.publisher(&#id::SPEC)?,));
                     consumed.push(quote!(&#id::SPEC));
@@ -330,9 +363,56 @@ impl Gen<'_> {
                 )
             };
             let doc = crate::docs::Doc::new(doc);
+            let instance = format!("mock-{link_id}");
+            let (pairing_name, pairing_tag) = (&slot.pairing.name, &slot.pairing.tag);
+            let identity = if slot.observer {
+                quote! {
+                    #[doc = " The slot of the mock sources (the role the node watches)."]
+                    pub const SOURCE_LINK_ID: &str = ::peppy::testing::MOCK_SOURCE_SLOT;
+
+                    #[doc = " The slot's mock source as the node's `source` names it."]
+                    pub fn source() -> ::peppy::codegen::ObservedSource {
+                        source_for(MOCK_INSTANCE_ID)
+                    }
+
+                    #[doc = " The mock source of instance id `instance_id` (a slot of several sources: `mock-<link_id>-<n>`, n from 0)."]
+                    pub fn source_for(instance_id: &str) -> ::peppy::codegen::ObservedSource {
+                        ::peppy::codegen::ObservedSource {
+                            producer: ::peppy::codegen::ProducerRef::new(MOCK_CORE_NODE, instance_id),
+                            source_link_id: ::std::string::ToString::to_string(SOURCE_LINK_ID),
+                        }
+                    }
+                }
+            } else {
+                quote! {
+                    #[doc = " The slot of the mock peer."]
+                    pub const PEER_LINK_ID: &str = ::peppy::testing::MOCK_PEER_SLOT;
+
+                    #[doc = " The mock peer as the node's `paired` names it."]
+                    pub fn peer_info() -> ::peppy::codegen::PeerInfo {
+                        ::peppy::codegen::PeerInfo {
+                            producer: ::peppy::codegen::ProducerRef::new(MOCK_CORE_NODE, MOCK_INSTANCE_ID),
+                            peer_link_id: ::std::string::ToString::to_string(PEER_LINK_ID),
+                        }
+                    }
+                }
+            };
             let module = quote! {
                 #doc
                 pub mod #link {
+                    #[doc = " The node's slot this mock plays against."]
+                    pub const LINK_ID: &str = #link_id;
+                    #[doc = " The pairing's name."]
+                    pub const PAIRING_NAME: &str = #pairing_name;
+                    #[doc = " The pairing's tag."]
+                    pub const PAIRING_TAG: &str = #pairing_tag;
+                    #[doc = " The core node of the harness's mocks."]
+                    pub const MOCK_CORE_NODE: &str = ::peppy::testing::MOCK_CORE;
+                    #[doc = " The mock's instance id."]
+                    pub const MOCK_INSTANCE_ID: &str = #instance;
+
+                    #identity
+
                     #uses
 
                     #[doc = " The slot's topics, for the harness."]
@@ -374,9 +454,9 @@ impl Gen<'_> {
                             self._mock.instance_id()
                         }
 
-                        #[doc = " Stops the mock as its process dying would."]
-                        pub async fn stop(&self) {
-                            self._mock.stop().await
+                        #[doc = " Stops the mock as its process dying would. The stop begins at once (`mock.stop();`); awaiting it waits for its end."]
+                        pub fn stop(&self) -> ::peppy::testing::Stopping {
+                            self._mock.stop()
                         }
 
                         #[doc = " The untyped mock."]
@@ -403,11 +483,6 @@ impl Gen<'_> {
                         quote!(mocks.into_iter().map(#group::#link::Mock::new).collect::<::peppy::codegen::Result<_>>()?),
                     ),
                 }
-            } else if slot.optional {
-                (
-                    quote!(::core::option::Option<#group::#link::Mock>),
-                    quote!(mocks.into_iter().next().map(#group::#link::Mock::new).transpose()?),
-                )
             } else {
                 (
                     quote!(#group::#link::Mock),

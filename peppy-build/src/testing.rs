@@ -68,6 +68,9 @@ struct MockEntry {
     member: TokenStream,
     /// How `Mock::new` builds the member.
     build: TokenStream,
+    /// The mock's types of the entry (`Publisher`, `Service`, ...), in the
+    /// entry's module.
+    types: TokenStream,
 }
 
 impl Gen<'_> {
@@ -112,8 +115,12 @@ impl Gen<'_> {
                 loc: t.loc.clone(),
                 kind: EntryKind::Topic,
                 path: quote!(#up consumed_topics::#(#path)::*),
-                member: quote!(::peppy::testing::TopicMock<#id::Message>),
+                member: quote!(#id::Publisher),
                 build: quote!(producer.topic(&#id::SPEC)),
+                types: quote! {
+                    #[doc = " The mock's publisher of the topic."]
+                    pub type Publisher = ::peppy::testing::TopicMock<Message>;
+                },
             });
         }
         for (i, s) in node.consumed_services.iter().enumerate() {
@@ -125,11 +132,11 @@ impl Gen<'_> {
             };
             let id = ident(&module(&s.decl.name));
             let req = match &s.decl.request {
-                Some(_) => quote!(#id::Request),
+                Some(_) => quote!(Request),
                 None => quote!(()),
             };
             let resp = match &s.decl.response {
-                Some(_) => quote!(#id::ResponseData),
+                Some(_) => quote!(ResponseData),
                 None => quote!(()),
             };
             entries.push(MockEntry {
@@ -137,8 +144,14 @@ impl Gen<'_> {
                 loc: s.loc.clone(),
                 kind: EntryKind::Service,
                 path: quote!(#up consumed_services::#(#path)::*),
-                member: quote!(::peppy::testing::ServiceMock<#req, #resp>),
+                member: quote!(#id::Service),
                 build: quote!(producer.service(&#id::SPEC)),
+                types: quote! {
+                    #[doc = " The mock's server of the service: `next_request`, `enqueue_response`, `captured`."]
+                    pub type Service = ::peppy::testing::ServiceMock<#req, #resp>;
+                    #[doc = " Answers one request `next_request` handed out."]
+                    pub type Responder = ::peppy::testing::Responder<#resp>;
+                },
             });
         }
         for (i, a) in node.consumed_actions.iter().enumerate() {
@@ -150,15 +163,19 @@ impl Gen<'_> {
             };
             let id = ident(&module(&a.decl.name));
             let goal = match &a.decl.goal {
-                Some(_) => quote!(#id::GoalRequest),
+                Some(_) => quote!(GoalRequest),
+                None => quote!(()),
+            };
+            let response = match a.decl.goal_response.as_ref().filter(|_| self.today()) {
+                Some(_) => quote!(GoalResponseData),
                 None => quote!(()),
             };
             let feedback = match &a.decl.feedback {
-                Some(_) => quote!(#id::FeedbackMessage),
+                Some(_) => quote!(FeedbackMessage),
                 None => quote!(()),
             };
             let result = match &a.decl.result {
-                Some(_) => quote!(#id::ResultResponseData),
+                Some(_) => quote!(ResultResponseData),
                 None => quote!(()),
             };
             entries.push(MockEntry {
@@ -166,8 +183,16 @@ impl Gen<'_> {
                 loc: a.loc.clone(),
                 kind: EntryKind::Action,
                 path: quote!(#up consumed_actions::#(#path)::*),
-                member: quote!(::peppy::testing::ActionMock<#goal, #feedback, #result>),
+                member: quote!(#id::Action),
                 build: quote!(producer.action(&#id::SPEC)),
+                types: quote! {
+                    #[doc = " The mock's server of the action: `next_goal`."]
+                    pub type Action = ::peppy::testing::ActionMock<#goal, #response, #feedback, #result>;
+                    #[doc = " A goal the node sent, waiting for the test's decision."]
+                    pub type PendingGoal = ::peppy::testing::PendingGoal<#goal, #response, #feedback, #result>;
+                    #[doc = " An accepted goal the test plays the server of."]
+                    pub type ActiveGoal = ::peppy::testing::ActiveGoal<#feedback, #result>;
+                },
             });
         }
         entries
@@ -190,21 +215,25 @@ impl Gen<'_> {
         let mut members = TokenStream::new();
         let mut builds = TokenStream::new();
         let (mut topics, mut services, mut actions) = (Vec::new(), Vec::new(), Vec::new());
-        for e in self.mock_entries(link_id, layout, depth) {
+        // Each entry has a module of its own, one level below the slot's.
+        for e in self.mock_entries(link_id, layout, depth + 1) {
             let m = module(&e.name);
             let what = format!("{} `{}` of {whose}", e.kind, e.name);
             if !names.claim(NameKind::Module, &m, &what, &e.loc, &mut self.diags) {
                 continue;
             }
             let id = ident(&m);
-            let (path, member, build) = (&e.path, &e.member, &e.build);
+            let (path, member, build, types) = (&e.path, &e.member, &e.build, &e.types);
             let doc = crate::docs::Doc::new(format!(
-                "The types of {} `{}` (the node's consumed module).",
+                "The types of {} `{}` (those of the node's consumed module) and of its mock.",
                 e.kind, e.name
             ));
             uses.extend(quote! {
                 #doc
-                pub use #path as #id;
+                pub mod #id {
+                    pub use #path::*;
+                    #types
+                }
             });
             let doc = crate::docs::Doc::new(format!("The mock's side of {} `{}`.", e.kind, e.name));
             members.extend(quote! {
@@ -219,8 +248,34 @@ impl Gen<'_> {
             }
         }
         let slot_doc = crate::docs::Doc::new(doc.to_string());
+        let identity = match link_id {
+            Some(link_id) => {
+                let instance = format!("mock-{link_id}");
+                quote! {
+                    #[doc = " The node's slot this mock fills."]
+                    pub const LINK_ID: &str = #link_id;
+                    #[doc = " The core node of the harness's mocks."]
+                    pub const MOCK_CORE_NODE: &str = ::peppy::testing::MOCK_CORE;
+                    #[doc = " The instance id of the slot's mock (a slot of several mocks: `mock-<link_id>-<n>`, n from 0)."]
+                    pub const MOCK_INSTANCE_ID: &str = #instance;
+
+                    #[doc = " The slot's mock as the node sees it among its bound producers."]
+                    pub fn producer_ref() -> ::peppy::codegen::ProducerRef {
+                        producer_ref_for(MOCK_INSTANCE_ID)
+                    }
+
+                    #[doc = " The slot's mock of instance id `instance_id` (a slot of several mocks)."]
+                    pub fn producer_ref_for(instance_id: &str) -> ::peppy::codegen::ProducerRef {
+                        ::peppy::codegen::ProducerRef::new(MOCK_CORE_NODE, instance_id)
+                    }
+                }
+            }
+            None => TokenStream::new(),
+        };
         let link_id = link_id.unwrap_or("");
         quote! {
+                #identity
+
                 #uses
 
                 #[doc = " The slot's consumed entries, for the harness."]
@@ -261,9 +316,9 @@ impl Gen<'_> {
                         self._producer.instance_id()
                     }
 
-                    #[doc = " Stops the mock as a producer process dying would: the node sees it gone."]
-                    pub async fn stop(&self) {
-                        self._producer.stop().await
+                    #[doc = " Stops the mock as a producer process dying would: the node sees it gone. The stop begins at once (`mock.stop();`); awaiting it waits for its end."]
+                    pub fn stop(&self) -> ::peppy::testing::Stopping {
+                        self._producer.stop()
                     }
 
                     #[doc = " The untyped mock (its runner, its session)."]
@@ -461,57 +516,27 @@ impl Gen<'_> {
             });
         }
 
-        let mut config_fields = TokenStream::new();
-        let mut config_defaults = TokenStream::new();
-        let mut config_slots = TokenStream::new();
+        let mut config = SlotConfig::default();
         for dep in &node.node.dependencies {
-            let link_id = &dep.link_id;
-            let link = module(link_id);
             let list = dep.from_any || !dep.cardinality.is_scalar();
-            if list {
-                let n = format_ident!("{}_instances", link);
-                let ids = format_ident!("{}_instance_ids", link);
-                let default =
-                    usize::from(dep.from_any || dep.cardinality == Cardinality::OneOrMore);
-                let doc = crate::docs::Doc::new(format!(
-                    "How many mocks fill slot `{link_id}` (default {default}), named `mock-{link_id}-<n>`."
-                ));
-                let ids_doc = crate::docs::Doc::new(format!(
-                    "The instance ids of slot `{link_id}`'s mocks, in order (overrides `{n}`)."
-                ));
-                config_fields.extend(quote! {
-                    #doc
-                    pub #n: usize,
-                    #ids_doc
-                    pub #ids: ::core::option::Option<::std::vec::Vec<::std::string::String>>,
-                });
-                config_defaults.extend(quote!(#n: #default, #ids: ::core::option::Option::None,));
-                config_slots.extend(quote! {
-                    slots.push((
-                        #link_id.to_string(),
-                        match &config.#ids {
-                            ::core::option::Option::Some(ids) => ::peppy::testing::SlotMocks::Named(ids.clone()),
-                            ::core::option::Option::None => ::peppy::testing::SlotMocks::Count(config.#n),
-                        },
-                    ));
-                });
-            } else if dep.cardinality == Cardinality::ZeroOrOne {
-                let vacant = format_ident!("{}_vacant", link);
-                let doc = crate::docs::Doc::new(format!(
-                    "Leave slot `{link_id}` vacant: no mock, and the node's `bound_producer` is `None`."
-                ));
-                config_fields.extend(quote! {
-                    #doc
-                    pub #vacant: bool,
-                });
-                config_defaults.extend(quote!(#vacant: false,));
-                config_slots.extend(quote! {
-                    if config.#vacant {
-                        slots.push((#link_id.to_string(), ::peppy::testing::SlotMocks::Vacant));
-                    }
-                });
+            let default = usize::from(dep.from_any || dep.cardinality == Cardinality::OneOrMore);
+            config.slot(&dep.link_id, list, dep.cardinality, default);
+        }
+        for p in &node.pairings {
+            let slot = &p.slot;
+            if slot.observer {
+                let list = !slot.cardinality.is_scalar();
+                let default = usize::from(slot.cardinality == Cardinality::OneOrMore);
+                config.slot(&slot.link_id, list, slot.cardinality, default);
+            } else if slot.optional {
+                config.unpaired(&slot.link_id);
             }
         }
+        let SlotConfig {
+            fields: config_fields,
+            defaults: config_defaults,
+            slots: config_slots,
+        } = config;
 
         // A glob of an empty module is an unreachable `pub` item to rustc.
         let emitted_types = if layout.emitted_topics.is_empty() {
@@ -532,6 +557,9 @@ impl Gen<'_> {
         quote! {
             #[doc = " The harness: the node in-process against its mocks."]
             pub mod harness {
+                #[doc = " The mocks `Harness::start` returns (also `peppygen::mock::Mocks`)."]
+                pub use #up mock::Mocks;
+
                 #[doc = " How `Harness::start_with` starts the node; `Config::default()` is what `Harness::start` uses."]
                 #[derive(Debug, Clone)]
                 pub struct Config {
@@ -727,11 +755,89 @@ impl Gen<'_> {
                         }
                         None => quote!(()),
                     };
-                    let result = ident(&pre.result);
                     let name = &a.decl.name;
                     let (param, arg) = match &a.decl.goal {
                         Some(_) => (quote!(request: &GoalRequestData,), quote!(request)),
                         None => (quote!(), quote!(&())),
+                    };
+                    let (feedback_alias, on_next_feedback) = match &a.decl.feedback {
+                        Some(_) => (
+                            quote! {
+                                #[doc = " A feedback message of the action."]
+                                pub type Feedback = #feedback;
+                            },
+                            quote! {
+                                #[doc = " The node's next feedback message on this goal; `Error::ActionFeedbackChannelClosed` once the goal is over and every feedback message was read."]
+                                pub async fn on_next_feedback(&mut self) -> ::peppy::codegen::Result<Feedback> {
+                                    self.inner.on_next_feedback().await
+                                }
+                            },
+                        ),
+                        None => (quote!(), quote!()),
+                    };
+                    let (result_type, outcome, completed, cancelled) = match &a.decl.result {
+                        Some(_) => {
+                            let r = ident(&pre.result);
+                            (
+                                quote! {
+                                    #[doc = " The action's result."]
+                                    pub type ResultData = #r;
+                                },
+                                quote! {
+                                    #[doc = " Finished with a result."]
+                                    Completed(ResultData),
+                                    #[doc = " Cancelled, with a (partial) result."]
+                                    Cancelled(ResultData),
+                                },
+                                quote!(ResultOutcome::Completed(data)),
+                                quote!(ResultOutcome::Cancelled(data)),
+                            )
+                        }
+                        None => (
+                            quote!(),
+                            quote! {
+                                #[doc = " Finished."]
+                                Completed,
+                                #[doc = " Cancelled."]
+                                Cancelled,
+                            },
+                            quote!({
+                                let () = data;
+                                ResultOutcome::Completed
+                            }),
+                            quote!({
+                                let () = data;
+                                ResultOutcome::Cancelled
+                            }),
+                        ),
+                    };
+                    let result_inner = match &a.decl.result {
+                        Some(_) => quote!(ResultData),
+                        None => quote!(()),
+                    };
+                    let declared = a.decl.goal_response.as_ref().filter(|_| self.today());
+                    let (data_field, data_init) = match declared {
+                        Some(_) => (
+                            quote! {
+                                #[doc = " The goal response the node sent with its decision (`None` when a rejection carried none)."]
+                                pub data: ::core::option::Option<GoalResponse>,
+                            },
+                            quote! {
+                                data: if inner.response_bytes().is_empty() {
+                                    ::core::option::Option::None
+                                } else {
+                                    ::core::option::Option::Some(
+                                        ::peppy::codegen::from_bytes::<GoalResponse>(inner.response_bytes()).map_err(|source| {
+                                            ::peppy::codegen::Error::Decode {
+                                                what: ::std::format!("goal response of `{}`", #name),
+                                                source,
+                                            }
+                                        })?,
+                                    )
+                                },
+                            },
+                        ),
+                        None => (quote!(), quote!()),
                     };
                     let doc = crate::docs::Doc::new(format!(
                         "Sends a goal to the node's action `{name}` and waits at most `timeout` for its decision (`accepted`, `reason`); then `on_next_feedback`, `get_result`, `cancel_goal`. `qos` is accepted for compatibility: feedback travels with the node's declared QoS."
@@ -740,8 +846,43 @@ impl Gen<'_> {
                         path.clone(),
                         quote! {
                             pub use #up exposed_actions::#(#path)::*::*;
-                            #[doc = " How a goal ended: `Completed(result)`, `Cancelled(result)`, `Abandoned`, `Expired`."]
-                            pub use ::peppy::testing::Outcome;
+                            #[doc = " The answer to a cancel request."]
+                            pub use ::peppy::testing::CancelState;
+
+                            #feedback_alias
+                            #result_type
+
+                            #[doc = " How a goal ended."]
+                            #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
+                            pub enum ResultOutcome {
+                                #outcome
+                                #[doc = " The node dropped the goal without a result."]
+                                Abandoned,
+                                #[doc = " The result was not fetched within the node's retention period."]
+                                Expired,
+                            }
+
+                            #[doc = " How a goal ended, with the node's identity."]
+                            #[derive(::core::fmt::Debug, ::core::clone::Clone, ::core::cmp::PartialEq)]
+                            pub struct ResultResponse {
+                                #[doc = " The node's instance id."]
+                                pub instance_id: ::std::string::String,
+                                #[doc = " The node's core node."]
+                                pub core_node: ::std::string::String,
+                                #[doc = " How the goal ended."]
+                                pub outcome: ResultOutcome,
+                            }
+
+                            #[doc = " A goal the harness sent to the node's action."]
+                            #[derive(::core::fmt::Debug)]
+                            pub struct GoalHandle {
+                                inner: ::peppy::testing::GoalHandle<#feedback, #result_inner>,
+                                #[doc = " Whether the node accepted the goal."]
+                                pub accepted: bool,
+                                #[doc = " The node's reason when it rejected the goal."]
+                                pub reason: ::core::option::Option<::std::string::String>,
+                                #data_field
+                            }
 
                             #doc
                             pub async fn send_goal(
@@ -749,9 +890,45 @@ impl Gen<'_> {
                                 #param
                                 qos: ::peppy::codegen::QoSProfile,
                                 timeout: ::std::time::Duration,
-                            ) -> ::peppy::codegen::Result<::peppy::testing::GoalHandle<#feedback, #result>> {
+                            ) -> ::peppy::codegen::Result<GoalHandle> {
                                 let _ = qos;
-                                harness.inner().send_goal(&SPEC, #arg, timeout).await
+                                let inner = harness.inner().send_goal(&SPEC, #arg, timeout).await?;
+                                ::core::result::Result::Ok(GoalHandle {
+                                    accepted: inner.accepted,
+                                    reason: inner.reason.clone(),
+                                    #data_init
+                                    inner,
+                                })
+                            }
+
+                            impl GoalHandle {
+                                #[doc = " The goal's id."]
+                                pub fn goal_id(&self) -> &str {
+                                    self.inner.goal_id()
+                                }
+
+                                #on_next_feedback
+
+                                #[doc = " Waits at most `timeout` for the goal to end and returns how."]
+                                pub async fn get_result(&self, timeout: ::std::time::Duration) -> ::peppy::codegen::Result<ResultResponse> {
+                                    let outcome = match self.inner.get_result(timeout).await? {
+                                        ::peppy::testing::Outcome::Completed(data) => #completed,
+                                        ::peppy::testing::Outcome::Cancelled(data) => #cancelled,
+                                        ::peppy::testing::Outcome::Abandoned => ResultOutcome::Abandoned,
+                                        ::peppy::testing::Outcome::Expired => ResultOutcome::Expired,
+                                    };
+                                    let (instance_id, core_node) = self.inner.server();
+                                    ::core::result::Result::Ok(ResultResponse {
+                                        instance_id: instance_id.to_string(),
+                                        core_node: core_node.to_string(),
+                                        outcome,
+                                    })
+                                }
+
+                                #[doc = " Asks the node to cancel the goal and waits at most `timeout` for its answer."]
+                                pub async fn cancel_goal(&self, timeout: ::std::time::Duration) -> ::peppy::codegen::Result<CancelState> {
+                                    self.inner.cancel_goal(timeout).await
+                                }
                             }
                         },
                     ));
@@ -806,4 +983,78 @@ fn nest(leaves: &[(Vec<Ident>, TokenStream)]) -> TokenStream {
         });
     }
     out
+}
+
+/// The harness `Config` fields of the node's slots, their defaults, and how
+/// they become the runtime's `HarnessConfig::slots` (PeppyOS's names:
+/// `<link>_instances`, `<link>_instance_ids`, `<link>_vacant`).
+#[derive(Default)]
+struct SlotConfig {
+    fields: TokenStream,
+    defaults: TokenStream,
+    slots: TokenStream,
+}
+
+impl SlotConfig {
+    /// A producer or observer slot: a count and ids for a list slot, a
+    /// vacancy for a `zero_or_one` one.
+    fn slot(&mut self, link_id: &str, list: bool, cardinality: Cardinality, default: usize) {
+        let link = module(link_id);
+        if list {
+            let n = format_ident!("{}_instances", link);
+            let ids = format_ident!("{}_instance_ids", link);
+            let doc = crate::docs::Doc::new(format!(
+                "How many mocks fill slot `{link_id}` (default {default}), named `mock-{link_id}-<n>`."
+            ));
+            let ids_doc = crate::docs::Doc::new(format!(
+                "The instance ids of slot `{link_id}`'s mocks, in order; when not empty, it overrides `{n}`."
+            ));
+            self.fields.extend(quote! {
+                #doc
+                pub #n: usize,
+                #ids_doc
+                pub #ids: ::std::vec::Vec<::std::string::String>,
+            });
+            self.defaults
+                .extend(quote!(#n: #default, #ids: ::std::vec::Vec::new(),));
+            self.slots.extend(quote! {
+                slots.push((
+                    #link_id.to_string(),
+                    if config.#ids.is_empty() {
+                        ::peppy::testing::SlotMocks::Count(config.#n)
+                    } else {
+                        ::peppy::testing::SlotMocks::Named(config.#ids.clone())
+                    },
+                ));
+            });
+        } else if cardinality == Cardinality::ZeroOrOne {
+            let doc = format!(
+                "Leave slot `{link_id}` vacant: no mock, and the node's `bound_producer` (or `source`) is `None`."
+            );
+            self.vacancy(link_id, &doc);
+        }
+    }
+
+    /// An optional participant slot: left unpaired on demand.
+    fn unpaired(&mut self, link_id: &str) {
+        let doc = format!(
+            "Start with the optional pairing slot `{link_id}` unpaired: its mock peer still runs (and still reads what the node sends on the slot, which is nothing while unpaired), but neither side claims the other, so the node's `paired` stays `None`."
+        );
+        self.vacancy(link_id, &doc);
+    }
+
+    fn vacancy(&mut self, link_id: &str, doc: &str) {
+        let vacant = format_ident!("{}_vacant", module(link_id));
+        let doc = crate::docs::Doc::new(doc.to_string());
+        self.fields.extend(quote! {
+            #doc
+            pub #vacant: bool,
+        });
+        self.defaults.extend(quote!(#vacant: false,));
+        self.slots.extend(quote! {
+            if config.#vacant {
+                slots.push((#link_id.to_string(), ::peppy::testing::SlotMocks::Vacant));
+            }
+        });
+    }
 }

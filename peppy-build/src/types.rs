@@ -33,14 +33,21 @@ pub(crate) fn primitive_type(p: Primitive) -> TokenStream {
 pub(crate) fn describe(ty: &FieldType) -> String {
     match ty {
         FieldType::Primitive(p) => format!("`{}`", p.name()),
-        FieldType::Array { items, length } => {
+        FieldType::Array {
+            items,
+            length,
+            pinned,
+        } => {
             let item = match items.as_ref() {
                 FieldType::Object(_) => "objects".to_string(),
                 other => describe(other),
             };
-            match length {
-                Some(n) => format!("array of {n} {item}"),
-                None => format!("array of {item}"),
+            match (length, pinned) {
+                (Some(n), _) => format!("array of {n} {item}"),
+                (None, Some(n)) => format!(
+                    "array of {n} {item} (pinned by this node's `refine`; the document leaves the length open)"
+                ),
+                (None, None) => format!("array of {item}"),
             }
         }
         FieldType::Object(_) => "object".to_string(),
@@ -130,7 +137,12 @@ impl Structs<'_> {
                 #fdoc
                 pub #id: #ty,
             });
-            ids.push(id);
+            // A pinned array keeps the open array's wire encoding.
+            ids.push(if is_pinned(&f.ty) {
+                quote!(#id as counted)
+            } else {
+                quote!(#id)
+            });
         }
         let allow = snake_allow(fields);
         let name = ident(name);
@@ -164,7 +176,11 @@ impl Structs<'_> {
                 let name = nested_type(prefix, field);
                 self.nested(&name, fields, field, loc, "the object field")
             }
-            FieldType::Array { items, length } => {
+            FieldType::Array {
+                items,
+                length,
+                pinned,
+            } => {
                 let item = match items.as_ref() {
                     FieldType::Object(fields) => {
                         let name = format!("{}Item", nested_type(prefix, field));
@@ -172,9 +188,9 @@ impl Structs<'_> {
                     }
                     other => self.type_of(prefix, field, other, loc),
                 };
-                match length {
+                match length.or(*pinned) {
                     Some(n) => {
-                        let n = Literal::usize_unsuffixed(*n as usize);
+                        let n = Literal::usize_unsuffixed(n as usize);
                         quote!([#item; #n])
                     }
                     None => quote!(::std::vec::Vec<#item>),
@@ -205,6 +221,19 @@ impl Structs<'_> {
         let id = ident(name);
         quote!(#id)
     }
+}
+
+/// Whether a field is an open array this node pins with `refine`: its
+/// Rust type is fixed-size, its wire encoding the open array's.
+pub(crate) fn is_pinned(ty: &FieldType) -> bool {
+    matches!(
+        ty,
+        FieldType::Array {
+            length: None,
+            pinned: Some(_),
+            ..
+        }
+    )
 }
 
 /// `FormatSpec` of a format: its fingerprint and canonical text, or
@@ -268,7 +297,11 @@ fn quiet_type(prefix: &str, f: &Field) -> TokenStream {
                 let id = ident(&nested_type(prefix, field));
                 quote!(#id)
             }
-            FieldType::Array { items, length } => {
+            FieldType::Array {
+                items,
+                length,
+                pinned,
+            } => {
                 let item = match items.as_ref() {
                     FieldType::Object(_) => {
                         let id = ident(&format!("{}Item", nested_type(prefix, field)));
@@ -276,9 +309,9 @@ fn quiet_type(prefix: &str, f: &Field) -> TokenStream {
                     }
                     other => type_of(prefix, field, other),
                 };
-                match length {
+                match length.or(*pinned) {
                     Some(n) => {
-                        let n = Literal::usize_unsuffixed(*n as usize);
+                        let n = Literal::usize_unsuffixed(n as usize);
                         quote!([#item; #n])
                     }
                     None => quote!(::std::vec::Vec<#item>),

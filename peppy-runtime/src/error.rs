@@ -51,7 +51,10 @@ pub enum Error {
     /// Parameter values do not fit the node's parameter schema.
     #[error("invalid parameters:{}", params_list(.0))]
     Parameters(Vec<ParamError>),
-    /// An action goal's feedback stream ended (the goal is terminal).
+    /// An action goal's feedback stream ended (the goal is terminal). Not
+    /// returned any more: a clean end is
+    /// [`Error::ActionFeedbackChannelClosed`], as in PeppyOS; kept so code
+    /// that names it compiles.
     #[error("the feedback stream of action `{action}` has ended")]
     FeedbackEnded {
         /// The action.
@@ -107,6 +110,125 @@ pub enum Error {
     /// `source()` returns it).
     #[error("{0}")]
     Node(#[source] Box<dyn std::error::Error + Send + Sync>),
+
+    // PeppyOS's variants, with its names and fields, for node code that
+    // matches on them.
+    /// An I/O failure (node code's `?` on a file read, or an
+    /// `io::Error::other` a node builds to fail its instance).
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+    /// The system clock reads before the Unix epoch.
+    #[error("system clock unavailable: {0}")]
+    SystemTime(#[from] std::time::SystemTimeError),
+    /// A goal's feedback stream closed cleanly: the server finished
+    /// (completed, cancelled or abandoned) the goal and every feedback
+    /// message was read. `get_result` says how it ended.
+    #[error("action feedback channel closed: the goal is over and its feedback was read")]
+    ActionFeedbackChannelClosed,
+    /// The server instance a goal was sent to went away (its process died,
+    /// its host was lost) without closing the goal's feedback stream; the
+    /// goal's result is `Abandoned`.
+    #[error(
+        "action `{action_name}`{} went away before closing the feedback stream",
+        for_instance(.instance_id)
+    )]
+    ActionFeedbackProducerGone {
+        /// The server instance.
+        instance_id: Option<String>,
+        /// The action.
+        action_name: String,
+    },
+    /// Waiting for a goal's result ran out of time: the goal is still
+    /// running (ask again), or its server stopped answering.
+    #[error(
+        "action `{action_name}`{} has timed out waiting for result",
+        for_instance(.instance_id)
+    )]
+    ActionResultTimeout {
+        /// The server instance.
+        instance_id: Option<String>,
+        /// The action.
+        action_name: String,
+    },
+    /// No server answered the request for a goal's result.
+    #[error(
+        "action `{action_name}`{} is unreachable for result",
+        for_instance(.instance_id)
+    )]
+    ActionResultUnreachable {
+        /// The server instance.
+        instance_id: Option<String>,
+        /// The action.
+        action_name: String,
+    },
+    /// The goal's server abandoned it without a result.
+    #[error(
+        "action `{action_name}`{} was abandoned by its worker before producing a result",
+        for_instance(.instance_id)
+    )]
+    ActionGoalAbandoned {
+        /// The server instance.
+        instance_id: Option<String>,
+        /// The action.
+        action_name: String,
+    },
+    /// The goal finished, but its result was kept only for a while and is
+    /// gone.
+    #[error(
+        "action `{action_name}`{} result expired before it could be fetched",
+        for_instance(.instance_id)
+    )]
+    ActionResultExpired {
+        /// The server instance.
+        instance_id: Option<String>,
+        /// The action.
+        action_name: String,
+    },
+    /// A service's request stream closed while a request was awaited.
+    #[error("service request stream closed unexpectedly")]
+    ServiceRequestStreamClosed,
+    /// A subscription ended before it yielded a message.
+    #[error("subscription to `{topic_name}` closed without yielding a message")]
+    SubscriptionClosed {
+        /// The topic.
+        topic_name: String,
+    },
+    /// A pairing call named a slot the node does not declare.
+    #[error(
+        "unknown pairing slot `{link_id}`: the node declares no depends_on.pairings entry with that link_id"
+    )]
+    UnknownPairingSlot {
+        /// The slot asked for.
+        link_id: String,
+    },
+    /// A wait for a peer ended because the node's runtime stopped.
+    #[error("pairing slot closed (the runtime stopped while waiting for a peer)")]
+    PairingSlotClosed,
+    /// An observer call named a slot the node does not declare.
+    #[error(
+        "unknown observer slot `{link_id}`: the node declares no depends_on.pairing_observers entry with that link_id"
+    )]
+    UnknownObservationSlot {
+        /// The slot asked for.
+        link_id: String,
+    },
+    /// A request could not be built (an empty datastore key, say).
+    #[error("invalid service request `{identifier}`: {reason}")]
+    InvalidServiceRequest {
+        /// What was asked.
+        identifier: String,
+        /// Why it is refused.
+        reason: String,
+    },
+    /// A value could not be encoded.
+    #[error("serialization error: {0}")]
+    Serialization(String),
+    /// A value could not be decoded.
+    #[error("deserialization error: {0}")]
+    Deserialization(String),
+    /// The node's parameters were already taken.
+    #[error("parameters have already been taken (take_parameters() can only be called once)")]
+    ParametersAlreadyTaken,
 }
 
 fn for_instance(instance: &Option<String>) -> String {
@@ -151,14 +273,6 @@ fn params_list(errors: &[ParamError]) -> String {
 impl From<zenoh::Error> for Error {
     fn from(e: zenoh::Error) -> Self {
         Error::Transport(e.to_string())
-    }
-}
-
-/// An I/O failure in node code (`?` on a file read, an `io::Error::other`
-/// a node builds to fail its instance) is the node's own error.
-impl From<std::io::Error> for Error {
-    fn from(e: std::io::Error) -> Self {
-        Error::User(e.to_string())
     }
 }
 

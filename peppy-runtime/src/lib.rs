@@ -36,6 +36,8 @@
 mod acks;
 mod actions;
 pub mod clock;
+pub mod core_functions;
+pub mod datastore;
 pub mod describe;
 #[cfg(unix)]
 mod direct;
@@ -43,6 +45,7 @@ mod direct;
 #[path = "direct/elsewhere.rs"]
 mod direct;
 mod error;
+pub mod info;
 mod intake;
 mod members;
 mod node;
@@ -56,6 +59,7 @@ mod services;
 mod shm;
 mod slots;
 pub mod spec;
+pub mod stack;
 mod startup;
 mod stop;
 mod subscription;
@@ -73,11 +77,11 @@ pub use actions::{
 pub use error::{Error, Result};
 pub use node::{NodeBuilder, NodeRunner};
 pub use pairing::{
-    ObservedSource, ObservedSubscription, PairedPublisher, PairedSubscription, PeerInfo,
+    NonEmptyObservedSources, ObservedSource, ObservedSubscription, PairedSubscription, PeerInfo,
 };
 pub use peppy_schema::QosProfile as QoSProfile;
 pub use producer_ref::{NonEmptyProducers, ProducerRef};
-pub use publisher::{OutgoingMessage, TopicPublisher};
+pub use publisher::{OutgoingMessage, PairedPublisher, TopicPublisher};
 pub use services::{Caller, Reply};
 pub use shm::{SHM_ENV, SharedMemory};
 pub use startup::{
@@ -97,12 +101,14 @@ pub mod codegen {
         send_goal, send_goal_to,
     };
     pub use crate::pairing::{
-        ObservedSource, ObservedSubscription, PairedPublisher, PairedSubscription, PeerInfo,
-        declare_paired_publisher, observed_source, observed_sources, paired, subscribe_observed,
-        subscribe_paired, wait_paired,
+        NonEmptyObservedSources, ObservedSource, ObservedSubscription, PairedSubscription,
+        PeerInfo, declare_paired_publisher, non_empty_observed_sources, observed_source,
+        observed_sources, paired, subscribe_observed, subscribe_paired, wait_paired,
     };
     pub use crate::producer_ref::{NonEmptyProducers, ProducerRef};
-    pub use crate::publisher::{OutgoingMessage, TopicPublisher, declare_publisher};
+    pub use crate::publisher::{
+        OutgoingMessage, PairedPublisher, TopicPublisher, declare_publisher,
+    };
     pub use crate::services::{Caller, Reply, call, call_to, handle_next};
     pub use crate::slots::{
         bound_producer, bound_producers, non_empty_bound_producers, optional_bound_producer,
@@ -113,8 +119,10 @@ pub mod codegen {
     pub use crate::topics::{
         Senders, emit, next_message, next_message_from, next_payload, next_payload_from,
     };
-    pub use crate::wire::codec::{Decode, DecodeError, Decoder, Encode, Writer};
-    pub use crate::wire::struct_codec::min_size_of;
+    pub use crate::wire::codec::{
+        Counted, Decode, DecodeError, Decoder, Encode, MessageData, Writer, from_bytes, to_bytes,
+    };
+    pub use crate::wire::struct_codec::{min_counted_size_of, min_size_of};
     pub use peppy_schema::QosProfile;
     pub use serde;
     pub use serde_json;

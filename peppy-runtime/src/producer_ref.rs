@@ -7,7 +7,9 @@ use std::fmt;
 /// One producer instance: the launch (core node) that started it and its
 /// instance id. Instance ids are unique in a stack, so `instance_id` alone
 /// names the producer; `core_node` says where it runs.
-#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(
+    Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 pub struct ProducerRef {
     /// The launch (core node) that started the producer.
     pub core_node: String,

@@ -4,12 +4,15 @@
 //!
 //! The node already declares one Zenoh publisher per emitted topic at
 //! start-up; a [`TopicPublisher`] is a handle on it, so declaring one is
-//! cheap and several handles of one topic share it.
+//! cheap and several handles of one topic share it. A pairing topic's
+//! publisher is the same type (PeppyOS has one publisher type for both):
+//! it sends to the current peer, and nothing while the slot is unpaired.
 
 use std::sync::Arc;
 
 use crate::error::{Error, Result};
 use crate::node::NodeRunner;
+use crate::pairing::{PairedSender, PeerInfo};
 use crate::spec::TopicSpec;
 use crate::wire::codec::Encode;
 
@@ -44,40 +47,97 @@ impl std::fmt::Debug for OutgoingMessage {
     }
 }
 
-/// A declared publisher of one emitted topic. It holds the node, so it can
-/// move into a spawned task.
+/// A declared publisher of one emitted topic, or of a pairing topic this
+/// node's role emits. It holds what it needs of the node, so it can move
+/// into a spawned task.
 #[derive(Clone)]
 pub struct TopicPublisher {
-    runner: Arc<NodeRunner>,
-    topic: &'static TopicSpec,
+    route: Route,
 }
+
+/// Where a publisher's messages go.
+#[derive(Clone)]
+enum Route {
+    /// The node's declared publisher of an emitted topic.
+    Emitted {
+        runner: Arc<NodeRunner>,
+        topic: &'static TopicSpec,
+    },
+    /// A pairing slot's topic: the current peer only.
+    Paired(Arc<PairedSender>),
+}
+
+/// The older name of a pairing topic's publisher: it is a [`TopicPublisher`].
+pub type PairedPublisher = TopicPublisher;
 
 impl std::fmt::Debug for TopicPublisher {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("TopicPublisher")
-            .field("topic", &self.topic.name)
-            .finish_non_exhaustive()
+        let mut d = f.debug_struct("TopicPublisher");
+        if let Route::Paired(p) = &self.route {
+            d.field("slot", &p.link_id());
+        }
+        d.field("topic", &self.topic()).finish_non_exhaustive()
     }
 }
 
 impl TopicPublisher {
+    pub(crate) fn paired(sender: PairedSender) -> Self {
+        TopicPublisher {
+            route: Route::Paired(Arc::new(sender)),
+        }
+    }
+
+    fn spec(&self) -> &'static TopicSpec {
+        match &self.route {
+            Route::Emitted { topic, .. } => topic,
+            Route::Paired(p) => p.topic(),
+        }
+    }
+
     /// Publishes `message`, which must have been built for this publisher's
-    /// topic (`Error::WrongTopic` otherwise). Works while the node is
-    /// stopping (shutdown hooks may publish); once its session is closed it
-    /// returns `Error::ShuttingDown`.
+    /// topic (`Error::WrongTopic` otherwise). A pairing topic's message goes
+    /// to the current peer, and publishing while the slot is unpaired is a
+    /// successful no-op. Works while the node is stopping (shutdown hooks
+    /// may publish); once its session is closed it returns
+    /// `Error::ShuttingDown`.
     pub async fn publish(&self, message: OutgoingMessage) -> Result<()> {
-        if !std::ptr::eq(message.topic, self.topic) {
+        let topic = self.spec();
+        if !std::ptr::eq(message.topic, topic) {
             return Err(Error::WrongTopic {
-                publisher: self.topic.name.to_string(),
+                publisher: topic.name.to_string(),
                 message: message.topic.name.to_string(),
             });
         }
-        crate::topics::emit(&self.runner, self.topic, &*message.body).await
+        match &self.route {
+            Route::Emitted { runner, topic } => {
+                crate::topics::emit(runner, topic, &*message.body).await
+            }
+            Route::Paired(p) => p.send(&*message.body).await,
+        }
     }
 
     /// The topic this publisher sends on.
     pub fn topic(&self) -> &'static str {
-        self.topic.name
+        self.spec().name
+    }
+
+    /// The peer a pairing topic's publisher sends to, while paired (`None`
+    /// while unpaired, and for an emitted topic, which has no peer).
+    pub fn peer(&self) -> Option<PeerInfo> {
+        match &self.route {
+            Route::Emitted { .. } => None,
+            Route::Paired(p) => p.peer(),
+        }
+    }
+
+    /// Whether Zenoh knows a subscriber of this topic.
+    pub fn has_readers(&self) -> bool {
+        match &self.route {
+            Route::Emitted { runner, topic } => runner
+                .outlet(topic)
+                .is_some_and(crate::node::Outlet::readers_known),
+            Route::Paired(p) => p.has_readers(),
+        }
     }
 }
 
@@ -91,7 +151,9 @@ pub async fn declare_publisher(
         return Err(Error::Undeclared(format!("emitted topic `{}`", topic.name)));
     }
     Ok(TopicPublisher {
-        runner: runner.arc()?,
-        topic,
+        route: Route::Emitted {
+            runner: runner.arc()?,
+            topic,
+        },
     })
 }

@@ -50,6 +50,11 @@ pub struct ActionDecl {
     pub name: String,
     /// Goal request format.
     pub goal: Option<MessageFormat>,
+    /// The declared goal response (`goal_service.response_message_format`,
+    /// the current `node/v1` and `contract/v1` spelling): data the server
+    /// sends with its decision, beside the framework's accepted flag and
+    /// reason. The older spelling has none.
+    pub goal_response: Option<MessageFormat>,
     /// Feedback topic, if the action publishes feedback.
     pub feedback: Option<FeedbackDecl>,
     /// Result format.
@@ -289,6 +294,7 @@ fn parse_action_in(
     let mut ok = true;
     let name = parse_entry_name(r, &obj, EntryKind::Action);
     let mut goal = None;
+    let mut goal_response = None;
     if let Some(g) = obj.get("goal_service") {
         let gpath = obj.path_of("goal_service");
         if let Some(gobj) = r.object(
@@ -302,17 +308,20 @@ fn parse_action_in(
                 &gobj.path_of("request_message_format"),
                 &mut ok,
             );
-            if let Some(m) = gobj.member("response_message_format") {
+            if today {
+                goal_response = parse_optional_format(
+                    r,
+                    gobj.get("response_message_format"),
+                    &gobj.path_of("response_message_format"),
+                    &mut ok,
+                );
+            } else if let Some(m) = gobj.member("response_message_format") {
                 r.warn_help(
                     Code::IgnoredKey,
                     m.key_span,
                     &gobj.path_of("response_message_format"),
                     "`goal_service.response_message_format` is ignored",
-                    if today {
-                        "peppy answers a goal with `{ accepted: bool, error_message: optional string }` and does not carry a declared goal response yet"
-                    } else {
-                        "a goal response is always `{ accepted: bool, error_message: optional string }`; remove the key"
-                    },
+                    "a goal response is always `{ accepted: bool, error_message: optional string }` in the `node_v1` spelling; declare the node in `node/v1` to send data with the decision",
                 );
             }
         } else {
@@ -390,6 +399,7 @@ fn parse_action_in(
     ok.then_some(ActionDecl {
         name,
         goal,
+        goal_response,
         feedback,
         result,
         loc,

@@ -50,7 +50,7 @@ impl PartialEq for MessageFormat {
 }
 
 /// A field's type.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub enum FieldType {
     /// A primitive.
     Primitive(Primitive),
@@ -60,9 +60,50 @@ pub enum FieldType {
         items: Box<FieldType>,
         /// `$length`: a fixed-size array.
         length: Option<u32>,
+        /// A length this node pins on an open array with `refine` (the
+        /// current `node/v1` spelling): the node's own generated type holds
+        /// exactly that many items, while the wire, the canonical text and
+        /// the fingerprint stay those of the open array the document
+        /// declares, so every other node reads the same messages.
+        pinned: Option<u32>,
     },
     /// A nested object.
     Object(Vec<Field>),
+}
+
+/// Types are equal when their wire encodings are: a `refine` pin is one
+/// node's view of a message, not a different message.
+impl PartialEq for FieldType {
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (FieldType::Primitive(a), FieldType::Primitive(b)) => a == b,
+            (
+                FieldType::Array {
+                    items: a,
+                    length: la,
+                    ..
+                },
+                FieldType::Array {
+                    items: b,
+                    length: lb,
+                    ..
+                },
+            ) => a == b && la == lb,
+            (FieldType::Object(a), FieldType::Object(b)) => a == b,
+            _ => false,
+        }
+    }
+}
+
+impl FieldType {
+    /// An array of `items`, fixed to `length` items when given, unpinned.
+    pub fn array(items: FieldType, length: Option<u32>) -> FieldType {
+        FieldType::Array {
+            items: Box::new(items),
+            length,
+            pinned: None,
+        }
+    }
 }
 
 impl MessageFormat {
@@ -295,10 +336,7 @@ impl<'a> Canonical<'a> {
         };
         self.expect(b']', "to close the array")?;
         self.depth -= 1;
-        Ok(FieldType::Array {
-            items: Box::new(items),
-            length,
-        })
+        Ok(FieldType::array(items, length))
     }
 
     /// A fixed length as `canonical` writes it: decimal, no leading zero.
@@ -340,7 +378,7 @@ fn write_fields(out: &mut String, fields: &[Field]) {
 fn write_type(out: &mut String, ty: &FieldType) {
     match ty {
         FieldType::Primitive(p) => out.push_str(p.name()),
-        FieldType::Array { items, length } => {
+        FieldType::Array { items, length, .. } => {
             out.push('[');
             write_type(out, items);
             if let Some(n) = length {
@@ -822,10 +860,7 @@ fn parse_array(r: &mut Reader<'_>, node: &Node, path: &str, ok: &mut bool) -> Op
     let (items, length) = parse_array_shape(r, node, path, ok, |r, items, ipath| {
         parse_type(r, items, ipath, place).map(|(ty, _)| ty)
     })?;
-    Some(FieldType::Array {
-        items: Box::new(items),
-        length,
-    })
+    Some(FieldType::array(items, length))
 }
 
 /// A `message_format` that may be absent. `{}` is rejected by the parser, so

@@ -195,7 +195,7 @@ fn emitted_topics(
             Some(t) => {
                 check_refine(m.refine.as_ref(), t, diags);
                 out.push(PairingTopicUse {
-                    topic: t.clone(),
+                    topic: t.refined(m.refine.as_ref()),
                     loc: m.loc.clone(),
                 });
             }
@@ -261,7 +261,7 @@ fn consumed_topics(
             Some(p) if &p.emitted_by == from_role => {
                 check_refine(t.refine.as_ref(), p, diags);
                 out.push(PairingTopicUse {
-                    topic: p.clone(),
+                    topic: p.refined(t.refine.as_ref()),
                     loc: t.loc.clone(),
                 });
                 continue;
@@ -307,5 +307,15 @@ fn check_refine(refine: Option<&Refine>, topic: &PairingTopic, diags: &mut Diagn
             )
             .with_help("a pin lands on an array the document leaves open (no `$length`) whose items are scalars"),
         );
+    }
+}
+
+impl PairingTopic {
+    /// This topic as a node that refines it with `refine` sees it.
+    fn refined(&self, refine: Option<&Refine>) -> PairingTopic {
+        PairingTopic {
+            decl: self.decl.refined(refine),
+            ..self.clone()
+        }
     }
 }

@@ -161,10 +161,12 @@ pub fn resolve_node(
             continue;
         };
         files.push(entry.path.clone());
+        let mut offer = interface_offer(&entry.doc, &c.target);
         if let Some(link_id) = &c.link_id {
             check_coverage(&node, link_id, c, &entry.doc, &mut diags);
+            offer.refine_members(&node, link_id);
         }
-        provides.extend(interface_offer(&entry.doc, &c.target));
+        provides.extend(offer);
         conformed.push(UsedInterface {
             doc: entry.doc.clone(),
             path: entry.path.clone(),
@@ -256,15 +258,20 @@ fn with_counterparts(node: Arc<NodeDoc>, pairings: &[ResolvedPairing]) -> Arc<No
 }
 
 /// A declaration's name, for matching consumers to producers.
-trait Named {
+trait Named: Sized {
     fn name(&self) -> &str;
     /// The format `refine` names (`None`: the entry has no such message).
     fn message(&self, which: RefinedMessage) -> Option<Option<MessageFormat>>;
+    /// The declaration as a node refining it with `refine` sees it.
+    fn refined(&self, refine: Option<&crate::node::Refine>) -> Self;
 }
 
 impl Named for TopicDecl {
     fn name(&self) -> &str {
         &self.name
+    }
+    fn refined(&self, refine: Option<&crate::node::Refine>) -> Self {
+        TopicDecl::refined(self, refine)
     }
     fn message(&self, which: RefinedMessage) -> Option<Option<MessageFormat>> {
         (which == RefinedMessage::Topic).then(|| self.format.clone())
@@ -274,6 +281,9 @@ impl Named for TopicDecl {
 impl Named for ServiceDecl {
     fn name(&self) -> &str {
         &self.name
+    }
+    fn refined(&self, refine: Option<&crate::node::Refine>) -> Self {
+        ServiceDecl::refined(self, refine)
     }
     fn message(&self, which: RefinedMessage) -> Option<Option<MessageFormat>> {
         match which {
@@ -287,6 +297,9 @@ impl Named for ServiceDecl {
 impl Named for ActionDecl {
     fn name(&self) -> &str {
         &self.name
+    }
+    fn refined(&self, refine: Option<&crate::node::Refine>) -> Self {
+        ActionDecl::refined(self, refine)
     }
     fn message(&self, which: RefinedMessage) -> Option<Option<MessageFormat>> {
         crate::node::action_message(self, which)
@@ -339,6 +352,26 @@ fn interface_offer(doc: &InterfaceDoc, identity: &Identity) -> Offer {
 }
 
 impl Offer {
+    /// The members a node implements under `link_id`, as its `refine`s
+    /// pin them.
+    fn refine_members(&mut self, node: &NodeDoc, link_id: &str) {
+        let refine = |kind: EntryKind, name: &str| {
+            node.members
+                .iter()
+                .find(|m| m.kind == kind && m.link_id == link_id && m.name == name)
+                .and_then(|m| m.refine.as_ref())
+        };
+        for p in &mut self.topics {
+            p.decl = p.decl.refined(refine(EntryKind::Topic, &p.decl.name));
+        }
+        for p in &mut self.services {
+            p.decl = p.decl.refined(refine(EntryKind::Service, &p.decl.name));
+        }
+        for p in &mut self.actions {
+            p.decl = p.decl.refined(refine(EntryKind::Action, &p.decl.name));
+        }
+    }
+
     fn extend(&mut self, other: Offer) {
         self.topics.extend(other.topics);
         self.services.extend(other.services);
@@ -384,7 +417,7 @@ fn resolve_topics(
                             name: t.name.clone(),
                             slot: Some(slot_of(dep)),
                             origin: Some(p.origin.clone()),
-                            format: p.decl.format.clone(),
+                            format: p.decl.refined(t.refine.as_ref()).format,
                             qos: p.decl.qos,
                             loc: t.loc.clone(),
                         })
@@ -422,7 +455,7 @@ fn resolve_calls<T: Clone + Named>(
                 check_consumed_refine(c.refine.as_ref(), &p.decl, diags);
                 out.push(ResolvedCall {
                     slot: slot_of(dep),
-                    decl: p.decl.clone(),
+                    decl: p.decl.refined(c.refine.as_ref()),
                     origin: p.origin.clone(),
                     loc: c.loc.clone(),
                 })

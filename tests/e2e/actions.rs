@@ -122,7 +122,7 @@ async fn goals_feedback_results_cancel_and_abandon() {
     // After the result, the feedback stream has ended.
     let ended = moving.on_next_feedback_message().await.unwrap_err();
     assert!(
-        matches!(ended, peppy::Error::FeedbackEnded { .. }),
+        matches!(ended, peppy::Error::ActionFeedbackChannelClosed),
         "{ended}"
     );
 

@@ -381,7 +381,7 @@ async fn each_slot_gets_the_mocks_its_cardinality_and_config_ask_for() -> Result
     harness.shutdown().await?;
 
     let wrong = Config {
-        backup_cams_instance_ids: Some(vec!["cam_a".into()]),
+        backup_cams_instance_ids: vec!["cam_a".into()],
         ..Config::default()
     };
     let (harness, mocks) = Harness::start_with(wrong, |_p, _r| async { Ok(()) }).await?;

@@ -70,7 +70,11 @@ fn type_of(out: &mut Source, prefix: &str, field: &str, ty: &FieldType) -> (Stri
             object(out, &name, &name, fields, &doc);
             (format!("_c.Obj({name})"), name)
         }
-        FieldType::Array { items, length } => {
+        FieldType::Array {
+            items,
+            length,
+            pinned,
+        } => {
             let (d, h) = match items.as_ref() {
                 FieldType::Object(fields) => {
                     let name = format!("{}Item", nested_type(prefix, field));
@@ -80,9 +84,11 @@ fn type_of(out: &mut Source, prefix: &str, field: &str, ty: &FieldType) -> (Stri
                 }
                 other => type_of(out, prefix, field, other),
             };
-            let descriptor = match length {
-                Some(n) => format!("_c.Array({d}, {n})"),
-                None => format!("_c.Array({d})"),
+            let descriptor = match (length, pinned) {
+                (Some(n), _) => format!("_c.Array({d}, {n})"),
+                // Pinned by `refine`: counted on the wire, checked here.
+                (None, Some(n)) => format!("_c.Array({d}, pinned={n})"),
+                (None, None) => format!("_c.Array({d})"),
             };
             // Bytes, not a list of ints: camera frames are arrays of u8.
             let hint = if matches!(items.as_ref(), FieldType::Primitive(Primitive::U8)) {

@@ -92,7 +92,7 @@ fn decode_type(d: &mut Decoder<'_>, ty: &FieldType) -> Result<Dyn, DecodeError> 
     match ty {
         FieldType::Primitive(p) => decode_primitive(d, *p),
         FieldType::Object(fields) => decode_fields(d, fields),
-        FieldType::Array { items, length } => decode_array(d, items, *length),
+        FieldType::Array { items, length, .. } => decode_array(d, items, *length),
     }
 }
 
@@ -186,6 +186,7 @@ fn min_size(ty: &FieldType) -> usize {
         FieldType::Array {
             items,
             length: Some(n),
+            ..
         } => min_size(items).saturating_mul(*n as usize),
         FieldType::Object(fields) => fields
             .iter()
@@ -315,7 +316,7 @@ fn type_name(ty: &FieldType) -> String {
         match ty {
             FieldType::Primitive(p) => out.push_str(p.name()),
             FieldType::Object(_) => out.push_str("{…}"),
-            FieldType::Array { items, length } => {
+            FieldType::Array { items, length, .. } => {
                 out.push('[');
                 spell(items, out);
                 if let Some(n) = length {
@@ -409,7 +410,7 @@ fn encode_type(ty: &FieldType, v: &Value, out: &mut Writer<'_>) -> Result<(), Fi
     match ty {
         FieldType::Primitive(p) => encode_primitive(*p, v, out),
         FieldType::Object(fields) => encode_fields(fields, v, out),
-        FieldType::Array { items, length } => encode_array(items, *length, v, out),
+        FieldType::Array { items, length, .. } => encode_array(items, *length, v, out),
     }
 }
 
@@ -1046,7 +1047,7 @@ mod tests {
                 saw("object");
                 cover_fields(fields, value, seen);
             }
-            FieldType::Array { items, length } => {
+            FieldType::Array { items, length, .. } => {
                 let items_are = match &**items {
                     FieldType::Primitive(Primitive::U8) => Some("of u8"),
                     FieldType::Object(_) => Some("of objects"),

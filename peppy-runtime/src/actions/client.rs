@@ -38,6 +38,9 @@ pub struct GoalClient {
     pub accepted: bool,
     /// The server's reason when it rejected the goal.
     pub error_message: Option<String>,
+    /// The action's declared goal response as the server encoded it with
+    /// its decision (empty when it sent none).
+    pub response: Vec<u8>,
     /// The server's instance id.
     pub instance_id: String,
     /// The server's core node.
@@ -238,6 +241,7 @@ pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
     let mut d = Decoder::new(&body);
     let accepted = bool::decode(&mut d).map_err(malformed)?;
     let error_message = Option::<String>::decode(&mut d).map_err(malformed)?;
+    let response = body[body.len() - d.remaining()..].to_vec();
     Ok(GoalClient {
         session: o.session.clone(),
         base_key: o.feedback_base,
@@ -250,6 +254,7 @@ pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
         messaging: o.messaging.clone(),
         accepted,
         error_message,
+        response,
         instance_id: answer.instance,
         core_node: answer.core,
         remote: o.remote,
@@ -262,8 +267,8 @@ impl GoalClient {
         &self.goal_id
     }
 
-    /// The next feedback message; [`Error::FeedbackEnded`] once the goal is
-    /// terminal and every feedback message was read. Once this node stops
+    /// The next feedback message; [`Error::ActionFeedbackChannelClosed`]
+    /// once the goal is terminal and every feedback message was read. Once this node stops
     /// it returns [`Error::ShuttingDown`]: at once if it was waiting, after
     /// a short pause if called on an already stopped node.
     pub async fn next_feedback<F: Decode>(&mut self) -> Result<F> {
@@ -282,11 +287,7 @@ impl GoalClient {
                         warn!(action = %self.action, error = %e, "dropping feedback that does not decode")
                     }
                 },
-                Ok(None) | Err(_) => {
-                    return Err(Error::FeedbackEnded {
-                        action: self.action.clone(),
-                    });
-                }
+                Ok(None) | Err(_) => return Err(Error::ActionFeedbackChannelClosed),
             }
         }
     }
@@ -322,8 +323,25 @@ impl GoalClient {
     /// Waits (up to `timeout`) until the goal is terminal and returns how it
     /// ended. It works until the node's messaging closes (shutdown hooks may
     /// ask), then returns [`Error::ShuttingDown`].
+    ///
+    /// A wait that runs out of time is [`Error::ActionResultTimeout`] (the
+    /// goal may still be running: ask again); a server nobody reaches,
+    /// [`Error::ActionResultUnreachable`].
     pub async fn result<R: Decode>(&self, timeout: Duration) -> Result<Outcome<R>> {
-        let body = self.ask(ActionPart::Result, timeout).await?;
+        let body = self
+            .ask(ActionPart::Result, timeout)
+            .await
+            .map_err(|e| match e {
+                Error::ServiceTimeout { .. } => Error::ActionResultTimeout {
+                    instance_id: Some(self.instance_id.clone()),
+                    action_name: self.action.clone(),
+                },
+                Error::ServiceUnreachable { .. } => Error::ActionResultUnreachable {
+                    instance_id: Some(self.instance_id.clone()),
+                    action_name: self.action.clone(),
+                },
+                other => other,
+            })?;
         let decode = |bytes: &[u8]| {
             from_bytes::<R>(bytes).map_err(|source| Error::Decode {
                 what: format!("result of `{}`", self.action),

@@ -3,6 +3,7 @@
 //! queryable's intake, and what the node's code holds while serving.
 
 use std::collections::{HashMap, VecDeque};
+use std::sync::atomic::{AtomicBool, Ordering as AtomicOrdering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -302,9 +303,12 @@ impl<G> std::fmt::Debug for IncomingGoal<G> {
     }
 }
 
-/// The goal response every action uses: `{ accepted, error_message }`.
-fn goal_response(accepted: bool, error: Option<String>) -> Vec<u8> {
-    to_bytes(&(accepted, error))
+/// A goal's answer: `{ accepted, error_message }`, then the action's
+/// declared goal response when one is sent (docs/WIRE.md, "Actions").
+fn goal_response(accepted: bool, error: Option<String>, response: &[u8]) -> Vec<u8> {
+    let mut out = to_bytes(&(accepted, error));
+    out.extend_from_slice(response);
+    out
 }
 
 impl<G> IncomingGoal<G> {
@@ -336,6 +340,12 @@ impl<G> IncomingGoal<G> {
     /// Accepts the goal: it is registered before the caller hears back, so
     /// an immediate cancel or result request finds it.
     pub fn accept(self) -> Result<GoalContext> {
+        self.accept_with(Vec::new())
+    }
+
+    /// [`accept`](Self::accept) with the action's declared goal response,
+    /// encoded: the caller reads it as its handle's `data`.
+    pub fn accept_with(self, response: Vec<u8>) -> Result<GoalContext> {
         let token = CancellationToken::new();
         lock(&self.registry.goals).insert(
             self.pending.goal_id.clone(),
@@ -348,7 +358,7 @@ impl<G> IncomingGoal<G> {
             .query
             .reply(
                 self.registry.key(ActionPart::Goal),
-                goal_response(true, None),
+                goal_response(true, None, &response),
             )
             .attachment(attachment::reply(ReplyStatus::Ok, 0))
             .wait()?;
@@ -356,17 +366,23 @@ impl<G> IncomingGoal<G> {
             goal_id: self.pending.goal_id,
             registry: self.registry,
             cancel: token,
-            finished: false,
+            finished: AtomicBool::new(false),
         })
     }
 
     /// Rejects the goal with a reason the caller sees.
     pub fn reject(self, reason: impl Into<String>) -> Result<()> {
+        self.reject_with(Some(reason.into()), Vec::new())
+    }
+
+    /// Rejects the goal, with or without a reason, and with the action's
+    /// declared goal response (encoded; empty for none).
+    pub fn reject_with(self, reason: Option<String>, response: Vec<u8>) -> Result<()> {
         self.pending
             .query
             .reply(
                 self.registry.key(ActionPart::Goal),
-                goal_response(false, Some(reason.into())),
+                goal_response(false, reason, &response),
             )
             .attachment(attachment::reply(ReplyStatus::Ok, 0))
             .wait()
@@ -439,7 +455,7 @@ impl GoalServer {
                         .query
                         .reply(
                             self.registry.key(ActionPart::Goal),
-                            goal_response(false, Some(format!("goal does not decode: {e}"))),
+                            goal_response(false, Some(format!("goal does not decode: {e}")), &[]),
                         )
                         .attachment(attachment::reply(ReplyStatus::Ok, 0))
                         .await;
@@ -464,7 +480,7 @@ pub struct GoalContext {
     goal_id: String,
     registry: Arc<Registry>,
     cancel: CancellationToken,
-    finished: bool,
+    finished: AtomicBool,
 }
 
 impl std::fmt::Debug for GoalContext {
@@ -507,26 +523,32 @@ impl GoalContext {
             .map_err(Error::from)
     }
 
-    /// Finishes the goal successfully with its result.
-    pub fn complete<R: Encode + ?Sized>(mut self, result: &R) -> Result<()> {
-        self.finished = true;
-        self.registry
-            .finish(&self.goal_id, Terminal::Completed, to_bytes(result));
+    /// Finishes the goal successfully with its result. The first finish of
+    /// a goal counts; a later `complete` or `complete_cancelled` does
+    /// nothing (as PeppyOS's, it is idempotent, so a worker holding the
+    /// context by reference may race its cancel path safely).
+    pub fn complete<R: Encode + ?Sized>(&self, result: &R) -> Result<()> {
+        self.finish(Terminal::Completed, result);
         Ok(())
     }
 
-    /// Finishes the goal as cancelled, with a (partial) result.
-    pub fn complete_cancelled<R: Encode + ?Sized>(mut self, result: &R) -> Result<()> {
-        self.finished = true;
-        self.registry
-            .finish(&self.goal_id, Terminal::Cancelled, to_bytes(result));
+    /// Finishes the goal as cancelled, with a (partial) result. As
+    /// [`complete`](Self::complete), only the first finish counts.
+    pub fn complete_cancelled<R: Encode + ?Sized>(&self, result: &R) -> Result<()> {
+        self.finish(Terminal::Cancelled, result);
         Ok(())
+    }
+
+    fn finish<R: Encode + ?Sized>(&self, how: Terminal, result: &R) {
+        if !self.finished.swap(true, AtomicOrdering::AcqRel) {
+            self.registry.finish(&self.goal_id, how, to_bytes(result));
+        }
     }
 }
 
 impl Drop for GoalContext {
     fn drop(&mut self) {
-        if !self.finished
+        if !self.finished.load(AtomicOrdering::Acquire)
             && self
                 .registry
                 .finish(&self.goal_id, Terminal::Abandoned, Vec::new())

@@ -4,46 +4,30 @@
 
 use super::*;
 
-/// A declared publisher of a pairing topic this node's role emits: it
-/// sends to the current peer (and the pair's observers), and sends nothing
-/// while the slot is unpaired.
-#[derive(Clone)]
-pub struct PairedPublisher {
-    pub(super) runner: Arc<NodeRunner>,
-    pub(super) spec: &'static PairedTopicSpec,
-    pub(super) participant: Arc<Participant>,
-    pub(super) publisher: Arc<Publisher<'static>>,
-    pub(super) readers_known: Arc<AtomicBool>,
-    pub(super) attachment: ZBytes,
+/// What a [`TopicPublisher`] of a pairing topic this node's role emits
+/// holds: it sends to the current peer (and the pair's observers), and
+/// sends nothing while the slot is unpaired.
+pub(crate) struct PairedSender {
+    runner: Arc<NodeRunner>,
+    spec: &'static PairedTopicSpec,
+    participant: Arc<Participant>,
+    publisher: Publisher<'static>,
+    readers_known: Arc<AtomicBool>,
+    attachment: ZBytes,
 }
 
-impl std::fmt::Debug for PairedPublisher {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("PairedPublisher")
-            .field("slot", &self.spec.link_id)
-            .field("topic", &self.spec.topic.name)
-            .finish_non_exhaustive()
-    }
-}
-
-impl PairedPublisher {
-    /// Publishes `message` (built for this publisher's topic, or
-    /// `Error::WrongTopic`) to the peer; a successful no-op while the slot
-    /// is unpaired. Works while the node is stopping; once its session is
-    /// closed it returns `Error::ShuttingDown`.
-    pub async fn publish(&self, message: OutgoingMessage) -> Result<()> {
-        if !std::ptr::eq(message.topic, &self.spec.topic) {
-            return Err(Error::WrongTopic {
-                publisher: self.spec.topic.name.to_string(),
-                message: message.topic.name.to_string(),
-            });
-        }
+impl PairedSender {
+    /// Sends `message` (already checked to be of this topic) to the peer; a
+    /// successful no-op while the slot is unpaired. Works while the node is
+    /// stopping; once its session is closed it returns
+    /// `Error::ShuttingDown`.
+    pub(crate) async fn send(&self, message: &(dyn Encode + Send + Sync)) -> Result<()> {
         if !self.participant.is_paired() {
             return Ok(());
         }
         let payload = self.runner.shm().payload(
             &self.spec.topic,
-            &*message.body,
+            message,
             self.readers_known.load(Ordering::Relaxed),
         );
         match self
@@ -59,19 +43,24 @@ impl PairedPublisher {
     }
 
     /// The peer, while paired.
-    pub fn peer(&self) -> Option<PeerInfo> {
+    pub(crate) fn peer(&self) -> Option<PeerInfo> {
         self.participant.peer()
     }
 
     /// Whether Zenoh knows a subscriber of this topic (the peer's, or an
     /// observer's).
-    pub fn has_readers(&self) -> bool {
+    pub(crate) fn has_readers(&self) -> bool {
         self.readers_known.load(Ordering::Relaxed)
     }
 
-    /// The topic this publisher sends on.
-    pub fn topic(&self) -> &'static str {
-        self.spec.topic.name
+    /// The topic this sender sends on.
+    pub(crate) fn topic(&self) -> &'static crate::spec::TopicSpec {
+        &self.spec.topic
+    }
+
+    /// The pairing slot it sends through.
+    pub(crate) fn link_id(&self) -> &'static str {
+        self.spec.link_id
     }
 }
 
@@ -80,7 +69,7 @@ impl PairedPublisher {
 pub async fn declare_paired_publisher(
     runner: &NodeRunner,
     spec: &'static PairedTopicSpec,
-) -> Result<PairedPublisher> {
+) -> Result<TopicPublisher> {
     let participant = runner.pairings().participant(spec.link_id)?.clone();
     let slot = &participant.slot;
     let key = pairing_topic_key(
@@ -113,14 +102,14 @@ pub async fn declare_paired_publisher(
         .callback(move |status| flag.store(status.matching(), Ordering::Relaxed))
         .background()
         .await?;
-    Ok(PairedPublisher {
+    Ok(TopicPublisher::paired(PairedSender {
         runner: runner.arc()?,
         spec,
         participant,
-        publisher: Arc::new(publisher),
+        publisher,
         readers_known: known,
         attachment: ZBytes::from(attachment::topic(spec.topic.format.fingerprint)),
-    })
+    }))
 }
 
 /// A held subscription to one of the peer's pairing topics: only the

@@ -32,12 +32,13 @@ use crate::error::{Error, Result};
 use crate::node::NodeRunner;
 use crate::producer_ref::ProducerRef;
 use crate::producers::Declarer;
-use crate::publisher::OutgoingMessage;
+use crate::publisher::TopicPublisher;
 use crate::qos;
 use crate::spec::{ConsumedPairedTopicSpec, ConsumedTopicSpec, PairedTopicSpec};
 use crate::stop;
 use crate::topics::{self, Delivery, Inbox, Intake};
 use crate::wire::attachment;
+use crate::wire::codec::Encode;
 use crate::wire::codec::{Decode, from_bytes};
 use crate::wire::keys::{
     Claim, all_liveliness_selector, claim_selector, pairing_topic_key, pairing_topic_selector,
@@ -79,9 +80,10 @@ mod lane;
 mod observer;
 mod participant;
 
+pub(crate) use endpoints::PairedSender;
 pub use endpoints::{
-    ObservedSubscription, PairedPublisher, PairedSubscription, declare_paired_publisher,
-    subscribe_observed, subscribe_paired,
+    ObservedSubscription, PairedSubscription, declare_paired_publisher, subscribe_observed,
+    subscribe_paired,
 };
 use lane::*;
 use observer::*;
@@ -231,6 +233,80 @@ pub async fn wait_paired(runner: &NodeRunner, link_id: &str) -> Result<PeerInfo>
 /// The sources of observer slot `link_id`, in link order.
 pub fn observed_sources(runner: &NodeRunner, link_id: &str) -> Result<Vec<ObservedSource>> {
     Ok(runner.pairings().observer(link_id)?.sources())
+}
+
+/// The sources of observer slot `link_id` of cardinality `one_or_more`:
+/// never empty (a slot whose plan gave it none fails here, naming it).
+pub fn non_empty_observed_sources(
+    runner: &NodeRunner,
+    link_id: &str,
+) -> Result<NonEmptyObservedSources> {
+    let sources = observed_sources(runner, link_id)?;
+    if sources.is_empty() {
+        return Err(Error::Undeclared(format!(
+            "a source of observer slot `{link_id}`"
+        )));
+    }
+    Ok(NonEmptyObservedSources(sources))
+}
+
+/// The sources of an observer slot that always holds at least one
+/// (cardinality `one_or_more`), in link order.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct NonEmptyObservedSources(Vec<ObservedSource>);
+
+impl NonEmptyObservedSources {
+    /// The first source, in link order.
+    pub fn first(&self) -> &ObservedSource {
+        &self.0[0]
+    }
+
+    /// Every source, in link order.
+    pub fn as_slice(&self) -> &[ObservedSource] {
+        &self.0
+    }
+
+    /// How many sources the slot watches (at least one).
+    #[allow(clippy::len_without_is_empty)]
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// The sources, in link order.
+    pub fn iter(&self) -> std::slice::Iter<'_, ObservedSource> {
+        self.0.iter()
+    }
+
+    /// The sources, as a vector.
+    pub fn into_vec(self) -> Vec<ObservedSource> {
+        self.0
+    }
+}
+
+impl std::ops::Deref for NonEmptyObservedSources {
+    type Target = [ObservedSource];
+
+    fn deref(&self) -> &[ObservedSource] {
+        &self.0
+    }
+}
+
+impl IntoIterator for NonEmptyObservedSources {
+    type Item = ObservedSource;
+    type IntoIter = std::vec::IntoIter<ObservedSource>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.0.into_iter()
+    }
+}
+
+impl<'a> IntoIterator for &'a NonEmptyObservedSources {
+    type Item = &'a ObservedSource;
+    type IntoIter = std::slice::Iter<'a, ObservedSource>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.0.iter()
+    }
 }
 
 /// The first source of observer slot `link_id` (its one source, for a

@@ -253,8 +253,19 @@ impl<F: Decode, R: Decode> GoalHandle<F, R> {
         self.client.goal_id()
     }
 
+    /// The server (the node under test): its instance id and core node.
+    pub fn server(&self) -> (&str, &str) {
+        (&self.client.instance_id, &self.client.core_node)
+    }
+
+    /// The declared goal response the node sent with its decision, as
+    /// encoded (empty when it sent none).
+    pub fn response_bytes(&self) -> &[u8] {
+        &self.client.response
+    }
+
     /// The node's next feedback message on this goal;
-    /// [`Error::FeedbackEnded`] once the goal is over and every feedback
+    /// [`Error::ActionFeedbackChannelClosed`] once the goal is over and every feedback
     /// message was read.
     pub async fn on_next_feedback(&mut self) -> Result<F> {
         let watch = self.watch.clone();

@@ -15,7 +15,6 @@ use peppy_schema::{Identity, NodeModel, ParameterSchema, Spelling};
 use tokio::task::JoinHandle;
 use tracing::warn;
 
-use super::HARNESS_CORE;
 use super::turned;
 use super::watch::Watch;
 use crate::actions::{DEFAULT_RESULT_RETENTION, GoalContext, GoalServer, IncomingGoal};
@@ -28,7 +27,7 @@ use crate::spec::{
     OwnerSpec, ServiceSpec, TopicSpec,
 };
 use crate::startup::{self, StandaloneConfig};
-use crate::wire::codec::{Decode, Encode, from_bytes, to_bytes};
+use crate::wire::codec::{Decode, Encode, MessageData, from_bytes, to_bytes};
 
 /// How long a mock's first publish waits for the node's subscription.
 pub const SUBSCRIBER_WAIT: Duration = Duration::from_secs(10);
@@ -145,7 +144,7 @@ impl MockProducer {
         let standalone = StandaloneConfig::new()
             .with_instance_id(instance_id)
             .with_messaging("127.0.0.1", port)
-            .with_core_node(HARNESS_CORE);
+            .with_core_node(super::MOCK_CORE);
         let config = startup::load(&doc, vec!["peppy-mock".into()], None, &standalone)?;
         let runner = NodeRunner::open(
             &doc,
@@ -211,10 +210,7 @@ impl MockProducer {
     /// # Panics
     ///
     /// When `spec` is not a service of this slot.
-    pub fn service<Req: Decode, Resp: Encode>(
-        &self,
-        spec: &'static ConsumedServiceSpec,
-    ) -> ServiceMock<Req, Resp> {
+    pub fn service<Req, Resp>(&self, spec: &'static ConsumedServiceSpec) -> ServiceMock<Req, Resp> {
         let served = self
             .turned
             .services
@@ -241,10 +237,10 @@ impl MockProducer {
     /// # Panics
     ///
     /// When `spec` is not an action of this slot.
-    pub fn action<G: Decode, F: Encode + ?Sized, R: Encode + ?Sized>(
+    pub fn action<G: Decode, GR, F, R>(
         &self,
         spec: &'static ConsumedActionSpec,
-    ) -> ActionMock<G, F, R> {
+    ) -> ActionMock<G, GR, F, R> {
         let served = self
             .turned
             .actions
@@ -264,7 +260,11 @@ impl MockProducer {
     /// Stops the mock as a producer process dying would: its session
     /// closes with every declaration and its liveliness token, so the node
     /// sees the producer gone. A stopped mock stays stopped.
-    pub async fn stop(&self) {
+    ///
+    /// The stop begins when this returns: `mock.stop();` (PeppyOS's
+    /// spelling) stops the mock, and `mock.stop().await` also waits until
+    /// its session is closed.
+    pub fn stop(&self) -> Stopping {
         for p in self
             .pumps
             .lock()
@@ -273,7 +273,7 @@ impl MockProducer {
         {
             p.abort();
         }
-        self.runner.shutdown().await;
+        Stopping::begin(&self.runner)
     }
 }
 
@@ -287,6 +287,29 @@ impl Drop for MockProducer {
         {
             p.abort();
         }
+    }
+}
+
+/// A mock on its way down: [`MockProducer::stop`]'s answer. The mock stops
+/// whether or not this is awaited; awaiting it waits for the end.
+#[derive(Debug)]
+pub struct Stopping(JoinHandle<()>);
+
+impl Stopping {
+    pub(crate) fn begin(runner: &Arc<NodeRunner>) -> Stopping {
+        let runner = runner.clone();
+        Stopping(tokio::spawn(async move { runner.shutdown().await }))
+    }
+}
+
+impl std::future::Future for Stopping {
+    type Output = ();
+
+    fn poll(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<()> {
+        std::pin::Pin::new(&mut self.0).poll(cx).map(|_| ())
     }
 }
 
@@ -428,10 +451,10 @@ impl<Req, Resp> std::fmt::Debug for ServiceMock<Req, Resp> {
     }
 }
 
-impl<Req: Decode, Resp: Encode> ServiceMock<Req, Resp> {
+impl<Req, Resp> ServiceMock<Req, Resp> {
     /// Waits up to `timeout` for the node's next request not answered by
-    /// the script, and returns it with the responder that answers it.
-    pub async fn next_request(&self, timeout: Duration) -> Result<(Req, Responder<Resp>)> {
+    /// the script.
+    async fn next_parked(&self, timeout: Duration) -> Result<(Vec<u8>, Responder<Resp>)> {
         let what = format!("a request of service `{}` from the node", self.name);
         let (body, answer) = self
             .watch
@@ -442,12 +465,8 @@ impl<Req: Decode, Resp: Encode> ServiceMock<Req, Resp> {
                     .map_err(|_| Error::ShuttingDown)
             })
             .await?;
-        let request = from_bytes::<Req>(&body).map_err(|source| Error::Decode {
-            what: format!("request of `{}`", self.name),
-            source,
-        })?;
         Ok((
-            request,
+            body,
             Responder {
                 answer,
                 _response: PhantomData,
@@ -455,15 +474,39 @@ impl<Req: Decode, Resp: Encode> ServiceMock<Req, Resp> {
         ))
     }
 
-    /// Queues a response: the node's next request not yet answered gets
-    /// it, in order (scripted answers go before parking).
-    pub fn enqueue_response(&self, response: Resp) -> Result<()> {
+    fn script(&self, body: Vec<u8>) {
         self.state
             .scripted
             .lock()
             .unwrap_or_else(|p| p.into_inner())
-            .push_back(to_bytes(&response));
-        Ok(())
+            .push_back(body);
+    }
+
+    /// How many requests the node made so far, scripted and parked alike.
+    pub fn captured_count(&self) -> usize {
+        self.state
+            .captured
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .len()
+    }
+
+    /// The service's name.
+    pub fn service(&self) -> &'static str {
+        self.name
+    }
+}
+
+impl<Req: MessageData, Resp> ServiceMock<Req, Resp> {
+    /// Waits up to `timeout` for the node's next request not answered by
+    /// the script, and returns it with the responder that answers it.
+    pub async fn next_request(&self, timeout: Duration) -> Result<(Req, Responder<Resp>)> {
+        let (body, responder) = self.next_parked(timeout).await?;
+        let request = from_bytes::<Req>(&body).map_err(|source| Error::Decode {
+            what: format!("request of `{}`", self.name),
+            source,
+        })?;
+        Ok((request, responder))
     }
 
     /// Every request received so far, scripted and parked alike, in
@@ -482,10 +525,33 @@ impl<Req: Decode, Resp: Encode> ServiceMock<Req, Resp> {
             })
             .collect()
     }
+}
 
-    /// The service's name.
-    pub fn service(&self) -> &'static str {
-        self.name
+/// A service without request data: a request is only a call.
+impl<Resp> ServiceMock<(), Resp> {
+    /// Waits up to `timeout` for the node's next call not answered by the
+    /// script, and returns the responder that answers it.
+    pub async fn next_request(&self, timeout: Duration) -> Result<Responder<Resp>> {
+        Ok(self.next_parked(timeout).await?.1)
+    }
+}
+
+impl<Req, Resp: MessageData> ServiceMock<Req, Resp> {
+    /// Queues a response: the node's next request not yet answered gets
+    /// it, in order (scripted answers go before parking).
+    pub fn enqueue_response(&self, response: Resp) -> Result<()> {
+        self.script(to_bytes(&response));
+        Ok(())
+    }
+}
+
+/// A service without response data: an answer is only a reply.
+impl<Req> ServiceMock<Req, ()> {
+    /// Queues an answer: the node's next request not yet answered gets it,
+    /// in order (scripted answers go before parking).
+    pub fn enqueue_response(&self) -> Result<()> {
+        self.script(Vec::new());
+        Ok(())
     }
 }
 
@@ -523,12 +589,7 @@ impl<Resp> std::fmt::Debug for Responder<Resp> {
     }
 }
 
-impl<Resp: Encode> Responder<Resp> {
-    /// Answers with `response`.
-    pub async fn respond(self, response: Resp) -> Result<()> {
-        self.answer.respond(to_bytes(&response)).await
-    }
-
+impl<Resp> Responder<Resp> {
     /// Answers with an error: the node's call fails with
     /// [`Error::ServiceError`] carrying `reason`.
     pub async fn respond_error(self, reason: impl AsRef<str>) -> Result<()> {
@@ -536,19 +597,68 @@ impl<Resp: Encode> Responder<Resp> {
     }
 }
 
-/// What a goal's server sends: feedback `F` and result `R`.
-type Sends<F, R> = PhantomData<(fn(&F), fn(&R))>;
+impl<Resp: MessageData> Responder<Resp> {
+    /// Answers with `response`.
+    pub async fn respond(self, response: Resp) -> Result<()> {
+        self.answer.respond(to_bytes(&response)).await
+    }
+}
 
-/// A mock's server of one action the node calls.
-pub struct ActionMock<G, F: ?Sized, R: ?Sized> {
+/// A service without response data.
+impl Responder<()> {
+    /// Answers the call.
+    pub async fn respond(self) -> Result<()> {
+        self.answer.respond(Vec::new()).await
+    }
+}
+
+/// A goal's rejection reason: a text, or `Some(text)` / `None` as
+/// PeppyOS's mocks take it.
+pub trait RejectReason {
+    /// The reason, if any.
+    fn into_reason(self) -> Option<String>;
+}
+
+impl RejectReason for &str {
+    fn into_reason(self) -> Option<String> {
+        Some(self.to_string())
+    }
+}
+
+impl RejectReason for String {
+    fn into_reason(self) -> Option<String> {
+        Some(self)
+    }
+}
+
+impl RejectReason for &String {
+    fn into_reason(self) -> Option<String> {
+        Some(self.clone())
+    }
+}
+
+impl RejectReason for Option<&str> {
+    fn into_reason(self) -> Option<String> {
+        self.map(str::to_string)
+    }
+}
+
+/// What a goal's server sends: goal response `GR`, feedback `F` and
+/// result `R` (each `()` where the action declares none).
+type Sends<GR, F, R> = PhantomData<(fn(&GR), fn(&F), fn(&R))>;
+
+/// A mock's server of one action the node calls: goals `G`, declared goal
+/// response `GR`, feedback `F`, result `R` (`()` where the action has
+/// none).
+pub struct ActionMock<G, GR, F, R> {
     name: &'static str,
     server: GoalServer,
     watch: Watch,
     _types: PhantomData<fn() -> G>,
-    _sends: Sends<F, R>,
+    _sends: Sends<GR, F, R>,
 }
 
-impl<G, F: ?Sized, R: ?Sized> std::fmt::Debug for ActionMock<G, F, R> {
+impl<G, GR, F, R> std::fmt::Debug for ActionMock<G, GR, F, R> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ActionMock")
             .field("action", &self.name)
@@ -556,9 +666,9 @@ impl<G, F: ?Sized, R: ?Sized> std::fmt::Debug for ActionMock<G, F, R> {
     }
 }
 
-impl<G: Decode, F: Encode + ?Sized, R: Encode + ?Sized> ActionMock<G, F, R> {
+impl<G: Decode, GR, F, R> ActionMock<G, GR, F, R> {
     /// Waits up to `timeout` for the node's next goal.
-    pub async fn next_goal(&self, timeout: Duration) -> Result<PendingGoal<G, F, R>> {
+    pub async fn next_goal(&self, timeout: Duration) -> Result<PendingGoal<G, GR, F, R>> {
         let what = format!("a goal of action `{}` from the node", self.name);
         let incoming: IncomingGoal<G> = self
             .watch
@@ -579,14 +689,14 @@ impl<G: Decode, F: Encode + ?Sized, R: Encode + ?Sized> ActionMock<G, F, R> {
 }
 
 /// A goal the node sent, not yet accepted or rejected.
-pub struct PendingGoal<G, F: ?Sized, R: ?Sized> {
+pub struct PendingGoal<G, GR, F, R> {
     /// The goal's request.
     pub request: G,
     incoming: IncomingGoal<()>,
-    _types: Sends<F, R>,
+    _types: Sends<GR, F, R>,
 }
 
-impl<G: std::fmt::Debug, F: ?Sized, R: ?Sized> std::fmt::Debug for PendingGoal<G, F, R> {
+impl<G: std::fmt::Debug, GR, F, R> std::fmt::Debug for PendingGoal<G, GR, F, R> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("PendingGoal")
             .field("goal_id", &self.incoming.goal_id())
@@ -595,7 +705,7 @@ impl<G: std::fmt::Debug, F: ?Sized, R: ?Sized> std::fmt::Debug for PendingGoal<G
     }
 }
 
-impl<G, F: Encode + ?Sized, R: Encode + ?Sized> PendingGoal<G, F, R> {
+impl<G, GR, F, R> PendingGoal<G, GR, F, R> {
     /// The goal's id.
     pub fn goal_id(&self) -> &str {
         self.incoming.goal_id()
@@ -606,28 +716,52 @@ impl<G, F: Encode + ?Sized, R: Encode + ?Sized> PendingGoal<G, F, R> {
         &self.incoming.caller
     }
 
-    /// Accepts the goal; the node's `fire_goal` returns accepted.
-    pub async fn accept(self) -> Result<ActiveGoal<F, R>> {
-        let context = self.incoming.accept()?;
+    fn accepted(self, response: Vec<u8>) -> Result<ActiveGoal<F, R>> {
+        let context = self.incoming.accept_with(response)?;
         Ok(ActiveGoal {
             context,
             _types: PhantomData,
         })
     }
+}
 
-    /// Rejects the goal with `reason`, which the node sees.
-    pub async fn reject(self, reason: impl Into<String>) -> Result<()> {
-        self.incoming.reject(reason)
+/// An action that declares a goal response: the decision carries one.
+impl<G, GR: MessageData, F, R> PendingGoal<G, GR, F, R> {
+    /// Accepts the goal with its declared response; the node's `fire_goal`
+    /// returns accepted, with `data` holding `response`.
+    pub async fn accept(self, response: GR) -> Result<ActiveGoal<F, R>> {
+        self.accepted(to_bytes(&response))
+    }
+
+    /// Rejects the goal with `reason` (a text, `Some(text)` or `None`) and,
+    /// optionally, a response; the node sees both.
+    pub async fn reject(self, reason: impl RejectReason, response: Option<GR>) -> Result<()> {
+        let body = response.map(|r| to_bytes(&r)).unwrap_or_default();
+        self.incoming.reject_with(reason.into_reason(), body)
+    }
+}
+
+/// An action without a declared goal response.
+impl<G, F, R> PendingGoal<G, (), F, R> {
+    /// Accepts the goal; the node's `fire_goal` returns accepted.
+    pub async fn accept(self) -> Result<ActiveGoal<F, R>> {
+        self.accepted(Vec::new())
+    }
+
+    /// Rejects the goal with `reason` (a text, `Some(text)` or `None`),
+    /// which the node sees.
+    pub async fn reject(self, reason: impl RejectReason) -> Result<()> {
+        self.incoming.reject_with(reason.into_reason(), Vec::new())
     }
 }
 
 /// An accepted goal the test plays the server of.
-pub struct ActiveGoal<F: ?Sized, R: ?Sized> {
+pub struct ActiveGoal<F, R> {
     context: GoalContext,
-    _types: Sends<F, R>,
+    _types: PhantomData<(fn(&F), fn(&R))>,
 }
 
-impl<F: ?Sized, R: ?Sized> std::fmt::Debug for ActiveGoal<F, R> {
+impl<F, R> std::fmt::Debug for ActiveGoal<F, R> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ActiveGoal")
             .field("goal_id", &self.context.goal_id())
@@ -635,25 +769,10 @@ impl<F: ?Sized, R: ?Sized> std::fmt::Debug for ActiveGoal<F, R> {
     }
 }
 
-impl<F: Encode + ?Sized, R: Encode + ?Sized> ActiveGoal<F, R> {
+impl<F, R> ActiveGoal<F, R> {
     /// The goal's id.
     pub fn goal_id(&self) -> &str {
         self.context.goal_id()
-    }
-
-    /// Sends one feedback message to the node.
-    pub async fn publish_feedback(&self, feedback: &F) -> Result<()> {
-        self.context.publish_feedback(feedback).await
-    }
-
-    /// Finishes the goal with `result`.
-    pub async fn complete(self, result: &R) -> Result<()> {
-        self.context.complete(result)
-    }
-
-    /// Finishes the goal as cancelled, with a (partial) `result`.
-    pub async fn complete_cancelled(self, result: &R) -> Result<()> {
-        self.context.complete_cancelled(result)
     }
 
     /// Resolves when the node asks to cancel the goal.
@@ -664,5 +783,37 @@ impl<F: Encode + ?Sized, R: Encode + ?Sized> ActiveGoal<F, R> {
     /// Whether the node asked to cancel the goal.
     pub fn is_cancelled(&self) -> bool {
         self.context.is_cancelled()
+    }
+}
+
+impl<F: MessageData, R> ActiveGoal<F, R> {
+    /// Sends one feedback message to the node.
+    pub async fn publish_feedback(&self, feedback: &F) -> Result<()> {
+        self.context.publish_feedback(feedback).await
+    }
+}
+
+impl<F, R: MessageData> ActiveGoal<F, R> {
+    /// Finishes the goal with `result` (only the first finish counts).
+    pub async fn complete(&self, result: &R) -> Result<()> {
+        self.context.complete(result)
+    }
+
+    /// Finishes the goal as cancelled, with a (partial) `result`.
+    pub async fn complete_cancelled(&self, result: &R) -> Result<()> {
+        self.context.complete_cancelled(result)
+    }
+}
+
+/// An action without a result.
+impl<F> ActiveGoal<F, ()> {
+    /// Finishes the goal (only the first finish counts).
+    pub async fn complete(&self) -> Result<()> {
+        self.context.complete(&())
+    }
+
+    /// Finishes the goal as cancelled.
+    pub async fn complete_cancelled(&self) -> Result<()> {
+        self.context.complete_cancelled(&())
     }
 }

@@ -49,8 +49,8 @@ pub use crate::actions::{CancelState, Outcome};
 pub use clock::TestClock;
 pub use fixture::{GoalHandle, Tap};
 pub use mocks::{
-    ActionMock, ActiveGoal, EXTERNAL_INSTANCE, MockProducer, PendingGoal, Responder,
-    SUBSCRIBER_WAIT, ServiceMock, SlotSpec, TopicMock,
+    ActionMock, ActiveGoal, EXTERNAL_INSTANCE, MockProducer, PendingGoal, RejectReason, Responder,
+    SUBSCRIBER_WAIT, ServiceMock, SlotSpec, Stopping, TopicMock,
 };
 pub use pairs::{
     MOCK_PEER_SLOT, MOCK_SOURCE_SLOT, PairMock, PairTopicMock, PairTopicReader, PairingSlotSpec,
@@ -69,6 +69,10 @@ use watch::Watch;
 /// The core node of everything a harness runs: the node, its mocks and
 /// its fixture (as a standalone run is `standalone`).
 pub const HARNESS_CORE: &str = "standalone-core";
+
+/// The core node of the harness's mocks (PeppyOS's `mock-core`): a mock is
+/// `ProducerRef { core_node: "mock-core", instance_id: "mock-<link_id>" }`.
+pub const MOCK_CORE: &str = "mock-core";
 
 /// How long each start-up barrier may take.
 const BARRIER: Duration = Duration::from_secs(10);
@@ -306,7 +310,7 @@ impl Harness {
             let mut started = Vec::new();
             for id in ids {
                 standalone =
-                    standalone.with_bound_producer(dep.link_id.clone(), HARNESS_CORE, id.clone());
+                    standalone.with_bound_producer(dep.link_id.clone(), MOCK_CORE, id.clone());
                 started.push(
                     MockProducer::start(slot, identity.clone(), &id, port, watch.clone()).await?,
                 );
@@ -322,6 +326,7 @@ impl Harness {
             mocks.by_slot.insert(String::new(), vec![mock]);
         }
 
+        let mut unpaired_slots = Vec::new();
         for slot in &model.pairings {
             let Some(spec) = pairings.iter().find(|s| s.link_id == slot.link_id) else {
                 return Err(Error::Testing(format!(
@@ -329,27 +334,44 @@ impl Harness {
                     slot.link_id
                 )));
             };
+            let wanted = config
+                .slots
+                .iter()
+                .find(|(l, _)| *l == slot.link_id)
+                .map(|(_, m)| m.clone())
+                .unwrap_or_default();
             let (ids, mock_slot) = if slot.observer {
-                let wanted = config
-                    .slots
-                    .iter()
-                    .find(|(l, _)| *l == slot.link_id)
-                    .map(|(_, m)| m.clone())
-                    .unwrap_or_default();
                 let ids = mock_ids(&slot.link_id, slot.cardinality, false, &wanted)?;
                 (ids, MOCK_SOURCE_SLOT)
             } else {
                 (vec![format!("mock-{}", slot.link_id)], MOCK_PEER_SLOT)
             };
+            // An optional participant left unpaired: its mock peer runs
+            // (the test may still read from it, and pair it later), but
+            // neither side names the other.
+            let unpaired = !slot.observer && wanted == SlotMocks::Vacant;
+            if unpaired && !slot.optional {
+                return Err(Error::Testing(format!(
+                    "pairing slot `{}` cannot start unpaired: it is not `optional`",
+                    slot.link_id
+                )));
+            }
+            if unpaired {
+                unpaired_slots.push(slot.link_id.clone());
+            }
             let mut started = Vec::new();
             for id in ids {
-                standalone = standalone.with_bound_producer(
-                    slot.link_id.clone(),
-                    HARNESS_CORE,
-                    format!("{id}/{mock_slot}"),
-                );
+                if !unpaired {
+                    standalone = standalone.with_bound_producer(
+                        slot.link_id.clone(),
+                        MOCK_CORE,
+                        format!("{id}/{mock_slot}"),
+                    );
+                }
+                let node_end = (!unpaired).then_some(instance_id.as_str());
                 started.push(
-                    PairMock::start(spec, slot, &instance_id, &id, port, watch.clone()).await?,
+                    PairMock::start(spec, slot, &instance_id, node_end, &id, port, watch.clone())
+                        .await?,
                 );
             }
             mocks.by_pairing.insert(slot.link_id.clone(), started);
@@ -388,7 +410,7 @@ impl Harness {
             }
         }
         for producer in mocks.by_slot.values().flatten() {
-            let key = describe_key(namespace, HARNESS_CORE, producer.instance_id());
+            let key = describe_key(namespace, MOCK_CORE, producer.instance_id());
             let what = format!(
                 "mock `{}` to be reachable from the node",
                 producer.instance_id()
@@ -396,7 +418,11 @@ impl Harness {
             reachable(node.session(), &key, &what).await?;
         }
         // Pairs hold before setup runs: its first publish reaches the peer.
-        for slot in model.pairings.iter().filter(|s| !s.observer) {
+        for slot in model
+            .pairings
+            .iter()
+            .filter(|s| !s.observer && !unpaired_slots.contains(&s.link_id))
+        {
             let what = format!("pairing slot `{}` to pair with its mock", slot.link_id);
             let paired =
                 tokio::time::timeout(BARRIER, crate::pairing::wait_paired(&node, &slot.link_id));

@@ -81,13 +81,16 @@ impl std::fmt::Debug for PairMock {
 }
 
 impl PairMock {
-    /// Starts a mock of the node's pairing slot `node_slot` as instance
-    /// `instance_id`: its peer (claiming `node_instance`'s slot) for a
-    /// participant slot, a source for an observer slot.
+    /// Starts a mock of the node's pairing slot `node_slot` (of instance
+    /// `node_instance`) as instance `instance_id`: its peer for a
+    /// participant slot, claiming the node's slot when `claim` names the
+    /// node (`None`: an unpaired optional slot), a source for an observer
+    /// slot.
     pub(crate) async fn start(
         spec: &'static PairingSlotSpec,
         node_slot: &PairingSlot,
         node_instance: &str,
+        claim: Option<&str>,
         instance_id: &str,
         port: u16,
         watch: Watch,
@@ -126,12 +129,12 @@ impl PairMock {
         let mut standalone = StandaloneConfig::new()
             .with_instance_id(instance_id)
             .with_messaging("127.0.0.1", port)
-            .with_core_node(HARNESS_CORE);
-        if !node_slot.observer {
+            .with_core_node(super::MOCK_CORE);
+        if let Some(node) = claim.filter(|_| !node_slot.observer) {
             standalone = standalone.with_bound_producer(
                 link,
                 HARNESS_CORE,
-                format!("{node_instance}/{}", node_slot.link_id),
+                format!("{node}/{}", node_slot.link_id),
             );
         }
         let config = startup::load(&doc, vec!["peppy-mock".into()], None, &standalone)?;
@@ -240,8 +243,10 @@ impl PairMock {
     }
 
     /// Stops the mock as its process dying would: a peer's pair dissolves.
-    pub async fn stop(&self) {
-        self.runner.shutdown().await;
+    /// The stop begins when this returns; awaiting waits for its end (see
+    /// [`super::Stopping`]).
+    pub fn stop(&self) -> super::Stopping {
+        super::Stopping::begin(&self.runner)
     }
 
     /// Whether the mock peer is paired with the node (always `false` for

@@ -458,6 +458,73 @@ impl<T: Decode> Decode for Option<T> {
     }
 }
 
+/// A message struct generated from a format (every struct `codec!`
+/// implements), as opposed to `()`, which stands for "no payload" where a
+/// service or action declares none. Test mocks take their shapes from it:
+/// `respond(response)` where a response is declared, `respond()` where not.
+pub trait MessageData: Encode + Decode {}
+
+/// A fixed-size array that travels as a variable one: a field whose length
+/// a node pins with `refine` (the current `node/v1` spelling). The node's
+/// type is `[T; N]`, the wire that of the open array the document declares
+/// (a `u32` count, then the items), so every other node reads it; a count
+/// other than `N` does not decode.
+pub trait Counted: Sized {
+    /// The fewest bytes a value takes.
+    const MIN_COUNTED_SIZE: usize;
+    /// Writes the value as a counted array.
+    fn encode_counted(&self, out: &mut Writer<'_>);
+    /// Reads a counted array of exactly the pinned length.
+    fn decode_counted(d: &mut Decoder<'_>) -> Result<Self, DecodeError>;
+}
+
+impl<T: Encode + Decode, const N: usize> Counted for [T; N] {
+    const MIN_COUNTED_SIZE: usize = 4 + T::MIN_SIZE * N;
+
+    fn encode_counted(&self, out: &mut Writer<'_>) {
+        (N as u32).encode(out);
+        T::encode_slice(self, out);
+    }
+
+    fn decode_counted(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        let at = d.pos;
+        let n = d.count(T::MIN_SIZE)?;
+        if n != N {
+            return Err(DecodeError {
+                offset: at,
+                reason: format!("{n} items where this node's `refine` pins {N}"),
+            });
+        }
+        let items = T::decode_vec(d, N)?;
+        items.try_into().map_err(|_| d.error("fixed array length"))
+    }
+}
+
+impl<C: Counted> Counted for Option<C> {
+    const MIN_COUNTED_SIZE: usize = 1;
+
+    fn encode_counted(&self, out: &mut Writer<'_>) {
+        match self {
+            None => out.put_u8(0),
+            Some(v) => {
+                out.put_u8(1);
+                v.encode_counted(out);
+            }
+        }
+    }
+
+    fn decode_counted(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        match d.take(1)?[0] {
+            0 => Ok(None),
+            1 => C::decode_counted(d).map(Some),
+            b => Err(DecodeError {
+                offset: d.pos - 1,
+                reason: format!("presence byte is {b}, expected 0 or 1"),
+            }),
+        }
+    }
+}
+
 /// Two values, one after the other (a reply made of a status and a detail).
 impl<A: Encode, B: Encode> Encode for (A, B) {
     fn encode(&self, out: &mut Writer<'_>) {

@@ -102,6 +102,9 @@ pub enum Space {
     Core,
     /// The stack clock: ticks and synchronization (docs/WIRE.md, "Clock").
     Clock,
+    /// What a core node (a launch) answers its nodes: the datastore, its
+    /// info and its stack listing (docs/WIRE.md, "Core node functions").
+    Stack,
 }
 
 impl Space {
@@ -118,6 +121,7 @@ impl Space {
             Space::Describe => "describe",
             Space::Core => "core",
             Space::Clock => "clock",
+            Space::Stack => "stack",
         }
     }
 }
@@ -445,6 +449,39 @@ pub fn clock_tick_selector(ns: &str) -> String {
 /// synchronization queries.
 pub fn clock_sync_key(ns: &str) -> String {
     key(ns, Space::Clock, &["sync"])
+}
+
+/// A core node function a launch answers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CoreFunction {
+    /// The key/value store (`datastore::{store, get, list, remove}`).
+    Datastore,
+    /// What the core node is (`info`).
+    Info,
+    /// Its nodes and their instances (`stack::list`).
+    List,
+}
+
+impl CoreFunction {
+    /// The key's last segment.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            CoreFunction::Datastore => "datastore",
+            CoreFunction::Info => "info",
+            CoreFunction::List => "list",
+        }
+    }
+}
+
+/// `peppy/<ns>/stack/<core>/<function>`: where core node `core` answers
+/// its nodes' calls of `function`.
+pub fn core_function_key(ns: &str, core: &str, function: CoreFunction) -> String {
+    key(ns, Space::Stack, &[core, function.as_str()])
+}
+
+/// `peppy/<ns>/stack/**`: every core node function of `ns`.
+pub fn core_functions_selector(ns: &str) -> String {
+    key(ns, Space::Stack, &["**"])
 }
 
 /// The tokens of every instance in `ns`.

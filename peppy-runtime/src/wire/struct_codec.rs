@@ -17,26 +17,37 @@ pub const fn min_size_of<S, T: super::codec::Decode>(_field: fn(&S) -> &T) -> us
     T::MIN_SIZE
 }
 
+/// The fewest bytes a `refine`-pinned field takes (see
+/// [`Counted`](super::codec::Counted)).
+#[doc(hidden)]
+pub const fn min_counted_size_of<S, T: super::codec::Counted>(_field: fn(&S) -> &T) -> usize {
+    T::MIN_COUNTED_SIZE
+}
+
 /// Implements `Encode` and `Decode` for a struct whose fields are all
 /// message values: `codec!(Message { header, data, note })`, every field
-/// in declaration order.
+/// in declaration order. A field written `name as counted` is a
+/// fixed-size array a node pins with `refine`: it travels as the open
+/// array its document declares ([`Counted`](super::codec::Counted)).
 ///
 /// Generated code calls it as `::peppy::codegen::codec!`.
 #[doc(hidden)]
 #[macro_export]
 macro_rules! __peppy_codec {
-    ($name:ident { $($field:ident),* $(,)? }) => {
+    ($name:ident { $($field:ident $(as $mode:ident)?),* $(,)? }) => {
+        impl $crate::codegen::MessageData for $name {}
+
         impl $crate::codegen::Encode for $name {
             fn encode(&self, out: &mut $crate::codegen::Writer<'_>) {
                 // A struct without fields writes nothing.
                 let _ = &out;
-                $($crate::codegen::Encode::encode(&self.$field, out);)*
+                $($crate::__peppy_codec_field!(encode &self.$field, out $(, $mode)?);)*
             }
         }
 
         impl $crate::codegen::Decode for $name {
             const MIN_SIZE: usize =
-                0 $(+ $crate::codegen::min_size_of(|m: &$name| &m.$field))*;
+                0 $(+ $crate::__peppy_codec_field!(min $name, $field $(, $mode)?))*;
 
             fn decode(
                 decoder: &mut $crate::codegen::Decoder<'_>,
@@ -44,10 +55,34 @@ macro_rules! __peppy_codec {
                 // A struct without fields reads nothing.
                 let _ = &decoder;
                 ::core::result::Result::Ok(Self {
-                    $($field: $crate::codegen::Decode::decode(decoder)?,)*
+                    $($field: $crate::__peppy_codec_field!(decode decoder $(, $mode)?)?,)*
                 })
             }
         }
+    };
+}
+
+/// One field of [`__peppy_codec`]: plain, or `counted`.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __peppy_codec_field {
+    (encode $value:expr, $out:ident) => {
+        $crate::codegen::Encode::encode($value, $out)
+    };
+    (encode $value:expr, $out:ident, counted) => {
+        $crate::codegen::Counted::encode_counted($value, $out)
+    };
+    (min $name:ident, $field:ident) => {
+        $crate::codegen::min_size_of(|m: &$name| &m.$field)
+    };
+    (min $name:ident, $field:ident, counted) => {
+        $crate::codegen::min_counted_size_of(|m: &$name| &m.$field)
+    };
+    (decode $decoder:ident) => {
+        $crate::codegen::Decode::decode($decoder)
+    };
+    (decode $decoder:ident, counted) => {
+        $crate::codegen::Counted::decode_counted($decoder)
     };
 }
 
@@ -76,6 +111,41 @@ mod tests {
         samples,
         fooBar
     });
+
+    /// A field pinned with `refine` travels as a counted array.
+    #[derive(Debug, PartialEq)]
+    struct Pinned {
+        joints: [f64; 2],
+        maybe: Option<[u8; 1]>,
+        tail: u8,
+    }
+    crate::__peppy_codec!(Pinned {
+        joints as counted,
+        maybe as counted,
+        tail
+    });
+
+    #[test]
+    fn pinned_fields_travel_as_open_arrays_of_their_length() {
+        let m = Pinned {
+            joints: [1.5, -2.0],
+            maybe: Some([7]),
+            tail: 9,
+        };
+        let bytes = to_bytes(&m);
+        let open = to_bytes(&(vec![1.5f64, -2.0], (Some(vec![7u8]), 9u8)));
+        assert_eq!(bytes, open);
+        assert_eq!(from_bytes::<Pinned>(&bytes).unwrap(), m);
+        assert_eq!(Pinned::MIN_SIZE, (4 + 16) + 1 + 1);
+        // Another length is refused, not cut or padded.
+        let three = to_bytes(&(vec![1.0f64, 2.0, 3.0], (None::<Vec<u8>>, 9u8)));
+        let err = from_bytes::<Pinned>(&three).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("3 items where this node's `refine` pins 2"),
+            "{err}"
+        );
+    }
 
     #[derive(Debug, PartialEq)]
     struct Empty {}

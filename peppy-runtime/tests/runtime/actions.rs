@@ -139,7 +139,7 @@ async fn goals_feedback_results_cancel_and_abandon() {
             .unwrap()
         {
             Ok(f) => feedback.push(f),
-            Err(Error::FeedbackEnded { .. }) => break,
+            Err(Error::ActionFeedbackChannelClosed) => break,
             Err(e) => panic!("{e}"),
         }
     }

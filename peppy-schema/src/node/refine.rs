@@ -357,6 +357,87 @@ fn check_fields(fields: &[Field], refine: &FormatRefine, at: &str, out: &mut Vec
     }
 }
 
+/// `format` (message `which` of a member) as the refining node sees it:
+/// every pin of `refine` on that message applied. Pins that do not land
+/// are left out ([`check_refine`] reports them).
+fn pinned(
+    refine: Option<&Refine>,
+    which: RefinedMessage,
+    format: &Option<MessageFormat>,
+) -> Option<MessageFormat> {
+    let mut format = format.clone()?;
+    for (w, f) in refine.map(|r| r.formats.as_slice()).unwrap_or_default() {
+        if *w == which {
+            pin_fields(&mut format.fields, f);
+        }
+    }
+    Some(format)
+}
+
+fn pin_fields(fields: &mut [Field], refine: &FormatRefine) {
+    for fr in &refine.fields {
+        let Some(field) = fields.iter_mut().find(|f| f.name == fr.field) else {
+            continue;
+        };
+        match (&fr.pin, &mut field.ty) {
+            (
+                Pin::Length(n),
+                FieldType::Array {
+                    items,
+                    length: None,
+                    pinned,
+                },
+            ) if matches!(**items, FieldType::Primitive(_)) => *pinned = Some(*n),
+            (Pin::Items(inner), FieldType::Array { items, .. }) => {
+                if let FieldType::Object(sub) = &mut **items {
+                    pin_fields(sub, inner);
+                }
+            }
+            (Pin::Nested(inner), FieldType::Object(sub)) => pin_fields(sub, inner),
+            _ => {}
+        }
+    }
+}
+
+impl TopicDecl {
+    /// This topic as a node that refines it with `refine` sees it.
+    pub(crate) fn refined(&self, refine: Option<&Refine>) -> TopicDecl {
+        TopicDecl {
+            format: pinned(refine, RefinedMessage::Topic, &self.format),
+            ..self.clone()
+        }
+    }
+}
+
+impl ServiceDecl {
+    /// This service as a node that refines it with `refine` sees it.
+    pub(crate) fn refined(&self, refine: Option<&Refine>) -> ServiceDecl {
+        ServiceDecl {
+            request: pinned(refine, RefinedMessage::Request, &self.request),
+            response: pinned(refine, RefinedMessage::Response, &self.response),
+            ..self.clone()
+        }
+    }
+}
+
+impl ActionDecl {
+    /// This action as a node that refines it with `refine` sees it.
+    pub(crate) fn refined(&self, refine: Option<&Refine>) -> ActionDecl {
+        let feedback = self.feedback.as_ref().map(|f| FeedbackDecl {
+            qos: f.qos,
+            format: pinned(refine, RefinedMessage::Feedback, &Some(f.format.clone()))
+                .unwrap_or_else(|| f.format.clone()),
+        });
+        ActionDecl {
+            goal: pinned(refine, RefinedMessage::GoalRequest, &self.goal),
+            goal_response: pinned(refine, RefinedMessage::GoalResponse, &self.goal_response),
+            feedback,
+            result: pinned(refine, RefinedMessage::Result, &self.result),
+            ..self.clone()
+        }
+    }
+}
+
 /// The formats of an action or service member, by refined message.
 pub(crate) fn action_message(
     a: &ActionDecl,
@@ -364,8 +445,7 @@ pub(crate) fn action_message(
 ) -> Option<Option<MessageFormat>> {
     match which {
         RefinedMessage::GoalRequest => Some(a.goal.clone()),
-        // The goal answer is peppy's own envelope; nothing to refine in it.
-        RefinedMessage::GoalResponse => Some(None),
+        RefinedMessage::GoalResponse => Some(a.goal_response.clone()),
         RefinedMessage::Feedback => {
             Some(a.feedback.as_ref().map(|f: &FeedbackDecl| f.format.clone()))
         }

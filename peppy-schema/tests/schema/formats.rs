@@ -200,10 +200,7 @@ fn canonical_form_keeps_key_order_and_resolves_aliases() {
     assert_eq!(format.fields[0].ty, FieldType::Primitive(Primitive::F64));
     assert_eq!(
         format.fields[6].ty,
-        FieldType::Array {
-            items: Box::new(FieldType::Primitive(Primitive::U8)),
-            length: Some(4)
-        }
+        FieldType::array(FieldType::Primitive(Primitive::U8), Some(4))
     );
     // Field locations point at the keys.
     assert_eq!(

@@ -31,7 +31,7 @@ async fn drive(runner: &driver::NodeRunner) -> driver::Result<()> {
     let mut action = grasp::ActionHandle::expose(runner).await?;
     let mut seen = 0;
     let next = action
-        .handle_goal_next_request(|request: grasp::GoalRequest| {
+        .handle_goal_next_request(|request: &grasp::GoalRequest| {
             seen += 1;
             if request.data.width > 0.1 {
                 Ok(grasp::GoalDecision::reject("too wide"))

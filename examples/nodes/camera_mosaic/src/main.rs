@@ -72,7 +72,7 @@ mod tests {
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn it_takes_frames_from_every_camera_bound_to_extras() -> Result<()> {
         let config = Config {
-            extras_instance_ids: Some(vec!["cam_a".into(), "cam_b".into(), "cam_c".into()]),
+            extras_instance_ids: vec!["cam_a".into(), "cam_b".into(), "cam_c".into()],
             parameters: Some(Parameters {
                 only_core_node: String::new(),
             }),

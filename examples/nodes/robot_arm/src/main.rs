@@ -205,8 +205,8 @@ mod tests {
         assert!(goal.accepted);
         let remaining = goal.on_next_feedback().await?;
         assert!(remaining.remaining <= 0.2 + 1e-9, "{remaining:?}");
-        match goal.get_result(TIMEOUT).await? {
-            move_arm::Outcome::Completed(result) => {
+        match goal.get_result(TIMEOUT).await?.outcome {
+            move_arm::ResultOutcome::Completed(result) => {
                 assert!(result.reached);
                 assert_eq!(result.final_positions, [0.2, 0.0, -0.2]);
             }

@@ -25,20 +25,29 @@ from .codec_scalars import (
 
 class Array(WireType):
     """An array of `item`: a u32 count then the items, or exactly `length`
-    items and no count (`$length`). Arrays of `U8` are `bytes` in Python."""
+    items and no count (`$length`). Arrays of `U8` are `bytes` in Python.
 
-    def __init__(self, item: WireType, length: "int | None" = None) -> None:
+    `pinned` is a length a node fixes with `refine` on an open array: the
+    wire keeps the count (every other node reads the open array), and this
+    node's values must hold exactly `pinned` items, on the way out and in."""
+
+    def __init__(self, item: WireType, length: "int | None" = None, pinned: "int | None" = None) -> None:
         if not isinstance(item, WireType):
             raise TypeError(f"Array item must be a codec type, got {item!r}")
         if length is not None and (not isinstance(length, int) or length < 0):
             raise ValueError(f"Array length must be a non-negative int, got {length!r}")
+        if pinned is not None and (length is not None or not isinstance(pinned, int) or pinned < 0):
+            raise ValueError(f"Array pins a length only on an open array, got pinned={pinned!r} length={length!r}")
         self.item = item
         self.length = length
+        self.pinned = pinned
         self.name = f"[{item.name}]" if length is None else f"[{item.name};{length}]"
 
     @property
     def min_size(self) -> int:
-        return 4 if self.length is None else self.item.min_size * self.length
+        if self.length is None:
+            return 4 + self.item.min_size * (self.pinned or 0)
+        return self.item.min_size * self.length
 
     def encoder(self) -> Encoder:
         if self.item is U8:
@@ -60,6 +69,8 @@ class Array(WireType):
         return enc
 
     def _put_length(self, n: int, out: bytearray) -> None:
+        if self.pinned is not None and n != self.pinned:
+            raise EncodeError(f"the array has {n} items, this node's `refine` pins {self.pinned}")
         if self.length is None:
             put_count(n, out)
         elif n != self.length:
@@ -134,6 +145,16 @@ class Array(WireType):
     def _length_reader(self) -> Callable[[Any, int], Tuple[int, int]]:
         min_item = self.item.min_size
         length = self.length
+        pinned = self.pinned
+        if length is None and pinned is not None:
+
+            def counted(buf: Any, pos: int) -> Tuple[int, int]:
+                n, after = read_count(buf, pos, min_item)
+                if n != pinned:
+                    raise DecodeError(pos, f"{n} items where this node's `refine` pins {pinned}")
+                return n, after
+
+            return counted
         if length is None:
             return lambda buf, pos: read_count(buf, pos, min_item)
 
