@@ -7,6 +7,7 @@
 mod build_progress;
 mod check;
 mod cli;
+mod core_view;
 mod drawing;
 mod error;
 mod executable;

@@ -189,7 +189,27 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             has_hooks: crate::up::has_hooks(&doc.execution.language),
             config,
         };
-        run_instances(vec![Ok(planned)], &run_dir, args.grace, out).await
+        // The first `run` hosts the hub, and is its nodes' core node: the
+        // stack clock, the datastore, `info` and `stack::list`.
+        let (mut _clock, mut _core, mut view) = (None, Vec::new(), None);
+        if let Some(hub) = &_hub {
+            let namespace = planned.config.namespace.clone();
+            _clock = peppy_runtime::clock::serve(hub, &namespace)
+                .await
+                .map_err(|e| out.note(&format!("the stack clock is not served: {e}")))
+                .ok();
+            let core = planned.config.core_node.clone();
+            let pairings = model.pairings.clone();
+            let v = Arc::new(crate::core_view::LaunchView::new(
+                &core,
+                crate::core_view::port_of(&[LOCAL_HUB.to_string()]),
+                &[&planned],
+                &|_| pairings.clone(),
+            ));
+            _core = crate::up::serve_core(hub, &namespace, &core, &[&planned], &v, &out).await;
+            view = Some(v);
+        }
+        run_instances(vec![Ok(planned)], &run_dir, args.grace, out, view).await
     })
 }
 

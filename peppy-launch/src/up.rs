@@ -495,6 +495,23 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     let _registration = runs::register(&record)
         .map_err(|e| out.note(&e.to_string()))
         .ok();
+    // The launch is its instances' core node: the datastore, `info` and
+    // `stack::list` (docs/WIRE.md, "Core node functions").
+    let starting: Vec<&Planned> = planned.iter().flatten().collect();
+    let view = Arc::new(crate::core_view::LaunchView::new(
+        &share.name,
+        crate::core_view::port_of(&links.listen),
+        &starting,
+        &|node| {
+            stack
+                .deployments
+                .iter()
+                .find(|d| d.resolved.node.identity().to_string() == node)
+                .map(|d| d.resolved.node.pairings.clone())
+                .unwrap_or_default()
+        },
+    ));
+    let _core = serve_core(&router, &namespace, &share.name, &starting, &view, &out).await;
     let code = if planned.is_empty() {
         // A machine with only a router still links the others: it stays up.
         let stop = interrupts_from_now();
@@ -503,10 +520,40 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         out.note("done");
         Ok(())
     } else {
-        run_instances(planned, &run_dir, args.grace, out).await
+        run_instances(planned, &run_dir, args.grace, out, Some(view)).await
     };
     let _ = router.close().await;
     code
+}
+
+/// Serves the core node functions of `core` (and of any other core node
+/// an instance of this launch names) on `router` while the launch runs; a
+/// failure is said and the launch goes on without them.
+pub(crate) async fn serve_core(
+    router: &zenoh::Session,
+    namespace: &str,
+    core: &str,
+    starting: &[&Planned],
+    view: &Arc<crate::core_view::LaunchView>,
+    out: &Output,
+) -> Vec<peppy_runtime::core_functions::CoreFunctions> {
+    let mut cores = vec![core.to_string()];
+    for p in starting {
+        if !cores.contains(&p.config.core_node) {
+            cores.push(p.config.core_node.clone());
+        }
+    }
+    let mut served = Vec::new();
+    for core in cores {
+        let view: Arc<dyn peppy_runtime::core_functions::CoreView> = view.clone();
+        match peppy_runtime::core_functions::serve(router, namespace, &core, view).await {
+            Ok(s) => served.push(s),
+            Err(e) => out.note(&format!(
+                "the datastore, info and stack list of core node `{core}` are not served: {e}"
+            )),
+        }
+    }
+    served
 }
 
 /// `--namespace`, or the launcher's own ([`default_namespace`]).
@@ -904,6 +951,7 @@ pub(crate) async fn run_instances(
     run_dir: &Path,
     grace: Duration,
     out: Arc<Output>,
+    view: Option<Arc<crate::core_view::LaunchView>>,
 ) -> Outcome {
     let signals = StopSignals::default();
     let ctrl_c = tokio::spawn(stop_on_interrupts(signals.clone(), out.clone()));
@@ -915,15 +963,17 @@ pub(crate) async fn run_instances(
             let takes_from = producers_of(&p.config);
             let own = signals.instance();
             let stop = own.stop.clone();
-            start_instance(p, run_dir, grace, &own, &out).map(|(id, finished, task)| {
-                order.push(Stopping {
-                    id: id.clone(),
-                    takes_from,
-                    stop,
-                    finished,
-                });
-                (id, task)
-            })
+            start_instance(p, run_dir, grace, &own, &out, view.clone()).map(
+                |(id, finished, task)| {
+                    order.push(Stopping {
+                        id: id.clone(),
+                        takes_from,
+                        stop,
+                        finished,
+                    });
+                    (id, task)
+                },
+            )
         });
         match started {
             Ok(instance) => running.push(instance),
@@ -1044,6 +1094,7 @@ fn start_instance(
     grace: Duration,
     signals: &StopSignals,
     out: &Arc<Output>,
+    view: Option<Arc<crate::core_view::LaunchView>>,
 ) -> Result<
     (
         String,
@@ -1096,8 +1147,12 @@ fn start_instance(
     let supervisor = supervise::supervise(spec, child, pumps, grace, signals.clone(), out.clone());
     let finished = tokio_util::sync::CancellationToken::new();
     let done = finished.clone();
+    let ended_id = id.clone();
     let task = tokio::spawn(async move {
         let ended = supervisor.await;
+        if let Some(view) = view {
+            view.ended(&ended_id, ended.is_failure());
+        }
         done.cancel();
         ended
     });

@@ -8,34 +8,50 @@
 //! functions"); a node asks the core node it was started by
 //! ([`NodeRunner::core_node`]).
 
-use std::sync::Arc;
+use std::collections::HashSet;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tracing::debug;
 use zenoh::Wait;
 use zenoh::query::{ConsolidationMode, QueryTarget};
+use zenoh::sample::SampleKind;
 
 use crate::datastore::Store;
 use crate::error::{Error, Result};
 use crate::info::InfoResponse;
 use crate::node::NodeRunner;
 use crate::stack::{SerializedNodeGraph, StackList};
-use crate::wire::keys::{CoreFunction, core_function_key};
+use crate::wire::keys::{
+    CoreFunction, all_liveliness_selector, core_function_key, parse_liveliness_key,
+};
 
 /// What a core node knows of itself and its stack, asked at each call of
 /// `info` and `stack::list`.
 pub trait CoreView: Send + Sync + 'static {
     /// The core node's facts.
     fn info(&self) -> InfoResponse;
-    /// Its nodes, their instances and the links between them.
-    fn graph(&self) -> SerializedNodeGraph;
+    /// Its nodes, their instances and the links between them; `live`
+    /// holds the instances whose liveliness token is up (reachable now).
+    fn graph(&self, live: &HashSet<String>) -> SerializedNodeGraph;
+}
+
+/// The instances of the namespace whose liveliness token is up, as the
+/// core node's subscription saw them.
+#[derive(Default)]
+struct Live(Mutex<HashSet<String>>);
+
+impl Live {
+    fn snapshot(&self) -> HashSet<String> {
+        self.0.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
 }
 
 /// The stack listing a core node answers: its graph and who it is.
-fn stack_list(view: &dyn CoreView) -> StackList {
+fn stack_list(view: &dyn CoreView, live: &Live) -> StackList {
     let info = view.info();
     StackList {
-        graph: view.graph(),
+        graph: view.graph(&live.snapshot()),
         core_node: info.core_node_name,
         instance_id: info.core_node_instance_id,
         host_name: info.host_name,
@@ -45,6 +61,7 @@ fn stack_list(view: &dyn CoreView) -> StackList {
 /// A core node's answers, served until dropped.
 pub struct CoreFunctions {
     _queryables: Vec<zenoh::query::Queryable<()>>,
+    _live: zenoh::pubsub::Subscriber<()>,
 }
 
 impl std::fmt::Debug for CoreFunctions {
@@ -63,6 +80,22 @@ pub async fn serve(
     view: Arc<dyn CoreView>,
 ) -> Result<CoreFunctions> {
     let store = Arc::new(Store::default());
+    let live = Arc::new(Live::default());
+    let seen = live.clone();
+    let live_sub = session
+        .liveliness()
+        .declare_subscriber(all_liveliness_selector(namespace))
+        .history(true)
+        .callback(move |sample| {
+            if let Some((_core, instance)) = parse_liveliness_key(sample.key_expr().as_str()) {
+                let mut set = seen.0.lock().unwrap_or_else(|p| p.into_inner());
+                match sample.kind() {
+                    SampleKind::Put => set.insert(instance),
+                    SampleKind::Delete => set.remove(&instance),
+                };
+            }
+        })
+        .await?;
     let mut queryables = Vec::new();
     for function in [
         CoreFunction::Datastore,
@@ -70,7 +103,8 @@ pub async fn serve(
         CoreFunction::List,
     ] {
         let key = core_function_key(namespace, core, function);
-        let (reply_key, store, view) = (key.clone(), store.clone(), view.clone());
+        let (reply_key, store, view, live) =
+            (key.clone(), store.clone(), view.clone(), live.clone());
         let queryable = session
             .declare_queryable(key)
             .callback(move |q| {
@@ -79,7 +113,7 @@ pub async fn serve(
                     CoreFunction::Datastore => store.answer(&payload),
                     CoreFunction::Info => serde_json::to_vec(&view.info()).map_err(|e| e.to_string()),
                     CoreFunction::List => {
-                        serde_json::to_vec(&stack_list(&*view)).map_err(|e| e.to_string())
+                        serde_json::to_vec(&stack_list(&*view, &live)).map_err(|e| e.to_string())
                     }
                 };
                 let sent = match answer {
@@ -98,6 +132,7 @@ pub async fn serve(
     }
     Ok(CoreFunctions {
         _queryables: queryables,
+        _live: live_sub,
     })
 }
 

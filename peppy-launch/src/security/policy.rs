@@ -8,10 +8,10 @@ use std::collections::BTreeSet;
 
 use peppy_runtime::wire::keys::{
     ActionPart, Channel, Claim, ClockSource, EntrySelector, Owner, Space, action_part_key,
-    action_parts_selector, clock_sync_key, clock_tick_key, clock_tick_selector, describe_key,
-    entry_key, entry_selector, feedback_selector, format_selector, liveliness_key,
-    namespace_prefix, namespace_selector, pairing_topic_key, pairing_topic_selector,
-    space_selector,
+    action_parts_selector, clock_sync_key, clock_tick_key, clock_tick_selector,
+    core_functions_selector, describe_key, entry_key, entry_selector, feedback_selector,
+    format_selector, liveliness_key, namespace_prefix, namespace_selector, pairing_topic_key,
+    pairing_topic_selector, space_selector,
 };
 use peppy_schema::{InstancePlan, Origin, StackCheck};
 use serde::Serialize;
@@ -490,6 +490,20 @@ impl Policy {
                 &["reply"],
                 &[clock_sync_key(ns)],
             ),
+            // The core node functions (datastore, info, stack list): every
+            // instance asks its launch, which alone answers.
+            rule(
+                "any.stack.ask",
+                "ingress",
+                &["query"],
+                &[core_functions_selector(ns)],
+            ),
+            rule(
+                "any.stack.answers",
+                "egress",
+                &["reply"],
+                &[core_functions_selector(ns)],
+            ),
             rule(
                 "any.declarations",
                 "egress",
@@ -524,6 +538,8 @@ impl Policy {
                 "any.clock.sim".to_string(),
                 "any.clock.in".to_string(),
                 "any.clock.answers".to_string(),
+                "any.stack.ask".to_string(),
+                "any.stack.answers".to_string(),
                 "any.declarations".to_string(),
             ];
             let mut add = |suffix: &str, flow: &str, messages: &[&str], keys: Vec<String>| {

@@ -185,3 +185,61 @@ fn todays_node_code_runs_beside_the_seeds() {
         );
     }
 }
+
+/// `today_camera` restarted when it fails.
+const RESTARTING_CAMERA: &str = r#"{ peppy_schema: "launcher/v1",
+    deployments: [
+      { source: { name: "today_camera:v1" },
+        instances: [{ instance_id: "cam", restart: "on-failure" }] } ] }"#;
+
+/// The datastore lives in the launch, the node's core node: a camera
+/// SIGKILLed and restarted under `on-failure` reads back the count of its
+/// starts it stored before (`today_camera` counts them there), written by
+/// itself.
+#[test]
+fn a_restarted_node_reads_back_what_it_stored_in_the_datastore() {
+    use std::process::Command;
+
+    let dir = tempfile::tempdir().unwrap();
+    let launcher = dir.path().join("restarting_camera.json5");
+    std::fs::write(&launcher, RESTARTING_CAMERA).unwrap();
+    let state = tempfile::tempdir().unwrap();
+    let examples = root().join("examples");
+    let mut launch = Launch::up_with(
+        launcher.to_str().unwrap(),
+        &[
+            "--repo",
+            examples.to_str().unwrap(),
+            "--namespace",
+            "datastore-restart",
+        ],
+        &[("PEPPY_STATE_DIR", state.path())],
+    );
+    launch.expect("with its first start counted", BUILD_AND_START, |l| {
+        l == "[cam] today_camera: start 1"
+    });
+    let info = crate::support::peppy_launch_with(
+        &root(),
+        &["node", "info", "cam", "--format", "json", "--wait", "10"],
+        &[("PEPPY_STATE_DIR", state.path())],
+    );
+    assert_eq!(info.code, 0, "{}", info.stderr);
+    let pid = serde_json::from_str::<serde_json::Value>(info.stdout.trim()).unwrap()["pid"]
+        .as_u64()
+        .expect("the camera's pid");
+    let mark = launch.seen.len();
+    assert!(
+        Command::new("kill")
+            .args(["-KILL", &pid.to_string()])
+            .status()
+            .unwrap()
+            .success()
+    );
+    launch.expect_since(
+        mark,
+        "with its second start counted",
+        Duration::from_secs(60),
+        |l| l == "[cam] today_camera: start 2 (the count was last written by cam)",
+    );
+    assert_eq!(launch.stop(), 0);
+}

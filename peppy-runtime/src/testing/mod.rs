@@ -154,8 +154,59 @@ pub struct Harness {
     state: Arc<SetupState>,
     watch: Watch,
     clock: Arc<TestClock>,
+    _core: crate::core_functions::CoreFunctions,
     router: router::PrivateRouter,
     _clock_use: ClockUse,
+}
+
+/// What a harness answers as the node's core node.
+struct HarnessView {
+    identity: Identity,
+    instance_id: String,
+    port: u16,
+    started: std::time::Instant,
+}
+
+impl crate::core_functions::CoreView for HarnessView {
+    fn info(&self) -> crate::info::InfoResponse {
+        crate::info::InfoResponse {
+            uptime_secs: self.started.elapsed().as_secs(),
+            core_node_name: HARNESS_CORE.to_string(),
+            core_node_instance_id: format!("harness-{}", self.instance_id),
+            host_name: String::new(),
+            node_count: 1,
+            git_version: format!("peppy test harness {}", env!("CARGO_PKG_VERSION")),
+            container_info: Default::default(),
+            messaging_port: self.port,
+        }
+    }
+
+    fn graph(&self, live: &std::collections::HashSet<String>) -> crate::stack::SerializedNodeGraph {
+        use crate::stack::{InstanceState, NodeStage, SerializedInstance, SerializedNode};
+        let up = live.contains(&self.instance_id);
+        crate::stack::SerializedNodeGraph {
+            nodes: vec![SerializedNode {
+                name: self.identity.name.clone(),
+                tag: self.identity.tag.clone(),
+                core_node: HARNESS_CORE.to_string(),
+                config_path: String::new(),
+                artifact_path: None,
+                stage: Some(NodeStage::Ready),
+                instances: vec![SerializedInstance {
+                    instance_id: self.instance_id.clone(),
+                    state: if up {
+                        InstanceState::Running
+                    } else {
+                        InstanceState::Starting
+                    },
+                    healthy: up,
+                    slot_bindings: Default::default(),
+                    pairing_slots: Default::default(),
+                }],
+            }],
+            edges: Vec::new(),
+        }
+    }
 }
 
 enum ClockUse {
@@ -273,6 +324,20 @@ impl Harness {
         let port = router.port;
         let namespace = crate::DEFAULT_NAMESPACE;
         let mut clock = TestClock::serve(router.session(), namespace, config.use_sim_time).await?;
+        // The harness is the node's core node: a datastore of the test's
+        // own, `info`, and a stack of the node and its mocks.
+        let core = crate::core_functions::serve(
+            router.session(),
+            namespace,
+            HARNESS_CORE,
+            Arc::new(HarnessView {
+                identity: model.identity.clone(),
+                instance_id: instance_id.clone(),
+                port,
+                started: std::time::Instant::now(),
+            }),
+        )
+        .await?;
         let watch = Watch::default();
 
         let mut standalone = StandaloneConfig::new()
@@ -479,6 +544,7 @@ impl Harness {
                 state,
                 watch,
                 clock: Arc::new(clock),
+                _core: core,
                 router,
                 _clock_use: clock_use,
             },

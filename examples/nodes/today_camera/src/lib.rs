@@ -1,8 +1,9 @@
 //! `today_camera`: a `depth_camera:v1` written in today's node API. It
 //! declares its publisher once and publishes built messages, answers
 //! `video_stream_info`, stamps frames with the stack's clock (sim time when
-//! the launcher says `framework.use_sim_time`), and says goodbye from a
-//! shutdown hook.
+//! the launcher says `framework.use_sim_time`), counts its starts in its
+//! core node's datastore (so a restarted camera knows it restarted), and
+//! says goodbye from a shutdown hook.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -11,6 +12,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use peppygen::emitted_topics::camera::video_stream;
 use peppygen::exposed_services::camera::video_stream_info;
 use peppygen::{NodeRunner, Parameters, Result};
+use peppylib::datastore::{self, Encoding};
 use peppylib::runtime::CancellationToken;
 
 /// The clock's time as a `time` field; the OS clock until the clock has a
@@ -84,10 +86,45 @@ async fn serve_info(runner: Arc<NodeRunner>, params: Parameters, token: Cancella
     }
 }
 
+/// How long the camera waits for its core node's datastore: a camera
+/// started without one (a bare `cargo run`) streams all the same.
+const DATASTORE_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// Counts this start in the core node's datastore, under a key of this
+/// instance: the count survives the camera's restarts, not the stack's.
+async fn count_start(runner: &NodeRunner) -> Result<u64> {
+    let key = format!("today_camera/{}/starts", runner.instance_id());
+    let before = datastore::get(runner, key.as_str(), DATASTORE_TIMEOUT).await?;
+    let starts = before
+        .as_ref()
+        .and_then(|v| std::str::from_utf8(&v.value).ok()?.parse::<u64>().ok())
+        .unwrap_or(0)
+        + 1;
+    datastore::store(
+        runner,
+        key.as_str(),
+        starts.to_string().into_bytes(),
+        Encoding::TEXT_PLAIN,
+        DATASTORE_TIMEOUT,
+    )
+    .await?;
+    match before {
+        Some(v) => println!(
+            "today_camera: start {starts} (the count was last written by {})",
+            v.last_modified_by
+        ),
+        None => println!("today_camera: start {starts}"),
+    }
+    Ok(starts)
+}
+
 /// Starts the camera's tasks: what `main` runs, and what its tests
 /// (`tests/harness.rs`) run in-process against the generated harness.
 pub async fn setup(params: Parameters, node_runner: Arc<NodeRunner>) -> Result<()> {
     peppygen::clock::init(&node_runner).await?;
+    if let Err(e) = count_start(&node_runner).await {
+        eprintln!("today_camera: starts not counted: {e}");
+    }
     let token = node_runner.cancellation_token().clone();
     let sent = Arc::new(AtomicU64::new(0));
 

@@ -85,3 +85,35 @@ async fn with_sim_time_frames_carry_the_stack_clock() -> Result<()> {
     }
     harness.shutdown().await
 }
+
+/// The harness is the node's core node, datastore included: the camera's
+/// first start is counted there, written by the camera itself.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_camera_counts_its_start_in_the_datastore() -> Result<()> {
+    use peppylib::datastore;
+
+    let (harness, _mocks) = Harness::start_with(small_camera(false), today_camera::setup).await?;
+    let runner = harness.node_runner().clone();
+    let key = format!("today_camera/{}/starts", harness.instance_id());
+    let deadline = tokio::time::Instant::now() + TIMEOUT;
+    let stored = loop {
+        if let Some(v) = datastore::get(&runner, key.as_str(), TIMEOUT).await? {
+            break v;
+        }
+        assert!(
+            tokio::time::Instant::now() < deadline,
+            "the camera never counted its start"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    };
+    assert_eq!(stored.value, b"1");
+    assert_eq!(stored.encoding, datastore::Encoding::TEXT_PLAIN);
+    assert_eq!(stored.last_modified_by, harness.instance_id());
+    let keys = datastore::list(&runner, TIMEOUT).await?;
+    assert_eq!(keys.len(), 1);
+    assert_eq!(keys[0].key, key);
+    assert!(datastore::remove(&runner, key.as_str(), TIMEOUT).await?);
+    assert!(!datastore::remove(&runner, key.as_str(), TIMEOUT).await?);
+    assert_eq!(datastore::get(&runner, key.as_str(), None).await?, None);
+    harness.shutdown().await
+}
