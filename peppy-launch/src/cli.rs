@@ -599,14 +599,17 @@ pub(crate) struct RunArgs {
     #[arg(value_name = "NODE")]
     pub(crate) node: String,
     /// The instance id (default: a readable random id).
-    #[arg(long, value_name = "ID")]
+    #[arg(short = 'i', long, value_name = "ID")]
     pub(crate) instance_id: Option<String>,
-    /// Bind a slot: `--bind left_cam@rs_left` (repeatable).
-    #[arg(long = "bind", value_name = "KEY@INSTANCE")]
+    /// Bind a slot: `--bind left_cam@rs_left` (repeatable, or
+    /// comma-separated).
+    #[arg(long = "bind", value_name = "KEY@INSTANCE", value_delimiter = ',')]
     pub(crate) bind: Vec<String>,
-    /// Link a slot, today's spelling: `--link camera@cam_1` (repeat it for
-    /// a list slot; every key must name a slot).
-    #[arg(long = "link", value_name = "SLOT@INSTANCE")]
+    /// Link a slot, as PeppyOS's `node/v1` links: `--link camera@cam_1`, a
+    /// pairing slot to its peer `--link arm@arm_1[/slot]` (repeatable, or
+    /// comma-separated: `--link a@p1,b@p2`; repeat a key for a list slot;
+    /// every key must name a slot).
+    #[arg(long = "link", value_name = "SLOT@TARGET", value_delimiter = ',')]
     pub(crate) link: Vec<String>,
     /// Leave a `zero_or_one` slot empty on purpose: `--vacant-link 'logger=why'`.
     #[arg(long = "vacant-link", value_name = "SLOT=WHY")]

@@ -319,6 +319,67 @@ impl StandaloneConfig {
         self.vacant.push(link_id.into());
         self
     }
+
+    /// Pins pairing slot `link_id` to its peer: slot `peer_link_id` of
+    /// instance `instance_id` (as `--link link_id@instance_id/peer_link_id`
+    /// does). The pair forms once both sides run. Used when the command
+    /// line links no slot.
+    pub fn with_peer_pin(
+        mut self,
+        link_id: impl Into<String>,
+        core_node: impl Into<String>,
+        instance_id: impl Into<String>,
+        peer_link_id: impl Into<String>,
+    ) -> Self {
+        let _ = core_node.into();
+        let target = format!("{}/{}", instance_id.into(), peer_link_id.into());
+        self.links.push((link_id.into(), target));
+        self
+    }
+
+    /// Adds a source to observer slot `link_id`: slot `source_link_id` of
+    /// instance `instance_id` (as `--link link_id@instance_id/source_link_id`
+    /// does; repeat it for a slot of several sources, in order). Used when
+    /// the command line links no slot.
+    pub fn with_observed_source(
+        mut self,
+        link_id: impl Into<String>,
+        core_node: impl Into<String>,
+        instance_id: impl Into<String>,
+        source_link_id: impl Into<String>,
+    ) -> Self {
+        let _ = core_node.into();
+        let target = format!("{}/{}", instance_id.into(), source_link_id.into());
+        self.links.push((link_id.into(), target));
+        self
+    }
+
+    /// The host of the Zenoh endpoint [`with_messaging`](Self::with_messaging)
+    /// connects to (port 7447 until [`with_messaging_port`](Self::with_messaging_port)).
+    pub fn with_messaging_host(self, host: impl AsRef<str>) -> Self {
+        let port = self.messaging().1;
+        self.with_messaging(host, port)
+    }
+
+    /// The port of the Zenoh endpoint [`with_messaging`](Self::with_messaging)
+    /// connects to (on 127.0.0.1 until [`with_messaging_host`](Self::with_messaging_host)).
+    pub fn with_messaging_port(self, port: u16) -> Self {
+        let host = self.messaging().0;
+        self.with_messaging(host, port)
+    }
+
+    /// The host and port of the one TCP endpoint this configuration
+    /// connects to, or `127.0.0.1:7447`.
+    fn messaging(&self) -> (String, u16) {
+        let endpoint = self
+            .endpoints
+            .as_ref()
+            .and_then(|e| e.connect.first())
+            .and_then(|c| c.strip_prefix("tcp/"))
+            .and_then(|a| a.rsplit_once(':'))
+            .and_then(|(h, p)| Some((h.trim_matches(['[', ']']).to_string(), p.parse().ok()?)));
+        endpoint.unwrap_or_else(|| ("127.0.0.1".to_string(), 7447))
+    }
 }
 
 /// Flags of a standalone run.
@@ -326,14 +387,16 @@ impl StandaloneConfig {
 #[command(about = "A peppy node. Started by `peppy-launch`, or standalone with these flags.")]
 struct Flags {
     /// This instance's id (default: a readable random id).
-    #[arg(long, value_name = "ID")]
+    #[arg(short = 'i', long, value_name = "ID")]
     instance_id: Option<String>,
-    /// Bind a slot: `--bind left_cam@rs_left` (repeatable).
-    #[arg(long = "bind", value_name = "KEY@INSTANCE")]
+    /// Bind a slot: `--bind left_cam@rs_left` (repeatable, or
+    /// comma-separated).
+    #[arg(long = "bind", value_name = "KEY@INSTANCE", value_delimiter = ',')]
     bind: Vec<String>,
-    /// Link a slot to a producer, today's spelling: `--link camera@cam_1`
-    /// (repeat it to give a list slot several producers, in order).
-    #[arg(long = "link", value_name = "SLOT@INSTANCE")]
+    /// Link a slot to a producer, as PeppyOS's `node/v1` links:
+    /// `--link camera@cam_1` (repeat it, or separate with commas, to give
+    /// a list slot several producers, in order: `--link a@p1,b@p2`).
+    #[arg(long = "link", value_name = "SLOT@TARGET", value_delimiter = ',')]
     link: Vec<String>,
     /// Leave a `zero_or_one` slot empty on purpose: `--vacant-link 'logger=not needed on the bench'`.
     #[arg(long = "vacant-link", value_name = "SLOT=WHY")]
@@ -1366,5 +1429,96 @@ mod tests {
             )
             .is_err()
         );
+    }
+}
+
+#[cfg(test)]
+mod pairing_tests {
+    use super::*;
+    use peppy_schema::{NodeDoc, PairEnd};
+
+    /// A `node/v1` participant and observer of one pairing.
+    fn paired() -> NodeModel {
+        let (doc, _) = NodeDoc::parse(
+            "peppy.json5",
+            r#"{ peppy_schema: "node/v1",
+                manifest: { name: "relay", tag: "v1", depends_on: {
+                    pairings: [{ name: "joint_link", tag: "v1", role: "follower", link_id: "backbone" }],
+                    pairing_observers: [{ name: "joint_link", tag: "v1", role: "leader", link_id: "watch",
+                                          cardinality: "one_or_more" }] } },
+                interfaces: { topics: { consumes: [{ link_id: "watch", name: "joint_setpoints" }] } },
+                execution: { language: "rust", run_cmd: ["x"] } }"#,
+        )
+        .unwrap();
+        NodeModel::from_json(&NodeModel::of(&doc).to_json()).unwrap()
+    }
+
+    #[test]
+    fn the_code_pins_peers_and_sources_as_link_flags_do() {
+        let code = StandaloneConfig::new()
+            .with_peer_pin("backbone", "lab", "backbone_1", "left_arm_link")
+            .with_observed_source("watch", "lab", "panel", "left_arm")
+            .with_observed_source("watch", "lab", "teleop", "left_arm")
+            .with_messaging_port(17447)
+            .with_messaging_host("192.0.2.9");
+        let s = load(&paired(), vec!["node".into()], None, &code).unwrap();
+        let plan = |id: &str| {
+            s.pairs
+                .iter()
+                .find(|p| p.link_id == id)
+                .unwrap()
+                .peers
+                .clone()
+        };
+        let end = |i: &str, l: &str| PairEnd {
+            instance: i.into(),
+            link_id: Some(l.into()),
+        };
+        assert_eq!(plan("backbone"), vec![end("backbone_1", "left_arm_link")]);
+        assert_eq!(
+            plan("watch"),
+            vec![end("panel", "left_arm"), end("teleop", "left_arm")]
+        );
+        assert_eq!(s.zenoh.connect, vec!["tcp/192.0.2.9:17447".to_string()]);
+        // The flags' spelling gives the same plan.
+        let flags = load(
+            &paired(),
+            [
+                "node",
+                "--link",
+                "backbone@backbone_1/left_arm_link",
+                "--link",
+                "watch@panel/left_arm",
+                "--link",
+                "watch@teleop/left_arm",
+            ]
+            .map(String::from)
+            .to_vec(),
+            None,
+            &StandaloneConfig::new(),
+        )
+        .unwrap();
+        assert_eq!(flags.pairs, s.pairs);
+        // As PeppyOS's `node run` takes them: `-i`, and links separated
+        // by commas.
+        let commas = load(
+            &paired(),
+            [
+                "node",
+                "-i",
+                "relay_1",
+                "--link",
+                "backbone@backbone_1/left_arm_link,watch@panel/left_arm",
+                "--link",
+                "watch@teleop/left_arm",
+            ]
+            .map(String::from)
+            .to_vec(),
+            None,
+            &StandaloneConfig::new(),
+        )
+        .unwrap();
+        assert_eq!(commas.instance_id, "relay_1");
+        assert_eq!(commas.pairs, s.pairs);
     }
 }
