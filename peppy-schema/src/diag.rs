@@ -283,6 +283,10 @@ codes! {
     PairingTargetAmbiguous,
     /// Both ends of a pair link each other differently.
     PairingConflict,
+    /// The two ends of a pair (or an observer and its source) pin different revisions of their pairing.
+    PairingSha256Mismatch,
+    /// Nodes of a stack calling each other's services or actions round a loop.
+    ServiceActionContractCycle,
     /// A pairing slot linked to a second peer.
     PairingSlotAlreadyPaired,
     /// A required participant slot that no link pairs.

@@ -48,6 +48,8 @@ mod source;
 // The documents: parsing, resolution, launchers and repositories (the
 // `documents` feature, on by default; node binaries go without it).
 #[cfg(feature = "documents")]
+mod call_cycles;
+#[cfg(feature = "documents")]
 mod compose;
 #[cfg(feature = "documents")]
 mod core_nodes;

@@ -103,6 +103,9 @@ pub(crate) fn plan_pairs(
                     let Some(source) = observed_slot(inst, slot, t, target_node, diags) else {
                         continue;
                     };
+                    if !pins_agree(inst, slot, t, target_node, source.link_id.as_deref(), diags) {
+                        continue;
+                    }
                     let list = sources.entry(key.clone()).or_default();
                     if list.contains(&source) {
                         diags.push(
@@ -124,6 +127,9 @@ pub(crate) fn plan_pairs(
                 let Some(peer_slot) = complementary_slot(inst, slot, t, target_node, diags) else {
                     continue;
                 };
+                if !pins_agree(inst, slot, t, target_node, Some(&peer_slot), diags) {
+                    continue;
+                }
                 let here = PairEnd {
                     instance: inst.instance_id.clone(),
                     link_id: Some(slot.link_id.clone()),
@@ -209,6 +215,42 @@ pub(crate) fn plan_pairs(
         out.insert(inst.instance_id.clone(), plans);
     }
     out
+}
+
+/// Whether the two ends of a link pin the same revision of their pairing
+/// (a pin missing on either side agrees with anything): PeppyOS's
+/// `PairingSha256Mismatch` otherwise, since each end would read the
+/// pairing's topics from a different document.
+fn pins_agree(
+    inst: &Instance,
+    slot: &PairingSlot,
+    t: &LinkTarget,
+    target_node: &NodeDoc,
+    target_link: Option<&str>,
+    diags: &mut Diagnostics,
+) -> bool {
+    let Some(theirs) =
+        target_link.and_then(|l| target_node.pairings.iter().find(|p| p.link_id == l))
+    else {
+        return true;
+    };
+    match (&slot.sha256, &theirs.sha256) {
+        (Some(a), Some(b)) if !a.eq_ignore_ascii_case(b) => {
+            diags.push(
+                t.loc
+                    .error(
+                        Code::PairingSha256Mismatch,
+                        format!(
+                            "slot `{}` of `{}` pins pairing `{}` at sha256 {a}, and slot `{}` of `{}` at {b}",
+                            slot.link_id, inst.instance_id, slot.pairing, theirs.link_id, t.instance
+                        ),
+                    )
+                    .with_help("both ends of a pair read the same pairing document: pin the same sha256 on both slots, or drop one pin"),
+            );
+            false
+        }
+        _ => true,
+    }
 }
 
 /// The peer's slot a participant's link names: the one given after `/`,

@@ -243,6 +243,16 @@ pub fn check_resolved(
             );
         }
     }
+    // Calls round a loop can deadlock: refused before anything runs.
+    let mut stack_nodes: Vec<&NodeDoc> = Vec::new();
+    for (doc, _) in loaded.iter().flatten() {
+        if !stack_nodes.iter().any(|n| n.identity() == doc.identity()) {
+            stack_nodes.push(doc);
+        }
+    }
+    if let Some(cycle) = crate::call_cycles::call_cycle(&stack_nodes) {
+        diags.push(cycle);
+    }
     // What the launcher deploys is what its consumers depend on.
     for (doc, path) in loaded.iter().flatten() {
         index.overlay_node(doc.clone(), path.clone());

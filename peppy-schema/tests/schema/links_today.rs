@@ -562,3 +562,88 @@ fn todays_links_on_a_seeds_from_any_slot() {
     );
     assert!(help(d).contains("can simply stay empty"), "{}", help(d));
 }
+
+const PING_CONTRACT: &str = r#"{
+  peppy_schema: "contract/v1",
+  manifest: { name: "ping", tag: "v1" },
+  interfaces: { services: [{ name: "ping", response_message_format: { ok: "bool" } }] },
+}
+"#;
+
+/// Nodes calling each other's services round a loop, through a contract
+/// and a node slot, are refused before anything runs, at the slot that
+/// closes the loop (PeppyOS's `ServiceActionContractCycle`); topics both
+/// ways are no loop.
+#[test]
+fn calls_round_a_loop_are_refused_and_topics_both_ways_are_not() {
+    let tree = Tree::new();
+    tree.write(
+        peppy_schema::REPOSITORIES_FILE,
+        r#"[{ type: "fs", path: "repo" }]"#,
+    );
+    tree.write("repo/contracts/ping.json5", PING_CONTRACT);
+    tree.write("repo/contracts/cam.json5", CAM_CONTRACT);
+    let pinger = |name: &str, calls: &str| {
+        today(
+            name,
+            &format!(
+                r#"implements: [{{ name: "ping", tag: "v1", link_id: "me" }}],
+                   depends_on: {calls},"#
+            ),
+            r#"services: { exposes: [{ link_id: "me", name: "ping" }], consumes: [{ link_id: "other", name: "ping" }] }"#,
+        )
+    };
+    // `left` calls any `ping:v1` (so `right`); `right` calls `left` itself.
+    tree.write(
+        "repo/left/peppy.json5",
+        &pinger(
+            "left",
+            r#"{ contracts: [{ name: "ping", tag: "v1", link_id: "other" }] }"#,
+        ),
+    );
+    let right_text = pinger(
+        "right",
+        r#"{ nodes: [{ name: "left", tag: "v1", link_id: "other" }] }"#,
+    );
+    tree.write("repo/right/peppy.json5", &right_text);
+    let path = tree.write(
+        "launch.json5",
+        r#"{ peppy_schema: "launcher/v1", deployments: [
+          { source: { name: "left:v1" }, instances: [{ instance_id: "l", links: { other: "r" } }] },
+          { source: { name: "right:v1" }, instances: [{ instance_id: "r", links: { other: "l" } }] },
+        ] }"#,
+    );
+    let errors = stack_err(&path);
+    let d = one(&errors, Code::ServiceActionContractCycle);
+    assert!(
+        d.message
+            .contains("`left:v1`, `right:v1` call each other round a loop"),
+        "{}",
+        d.message
+    );
+    assert!(help(d).contains("deadlock"), "{}", help(d));
+
+    // Topics both ways: no loop.
+    let cam = |name: &str, other: &str| {
+        today(
+            name,
+            &format!(
+                r#"{IMPLEMENTS_CAM} depends_on: {{ nodes: [{{ name: "{other}", tag: "v1", link_id: "peer" }}] }},"#
+            ),
+            r#"topics: { emits: [{ link_id: "cam", name: "frame" }], consumes: [{ link_id: "peer", name: "frame" }] }"#,
+        )
+    };
+    tree.write("repo/cam_x/peppy.json5", &cam("cam_x", "cam_y"));
+    tree.write("repo/cam_y/peppy.json5", &cam("cam_y", "cam_x"));
+    let path = tree.write(
+        "topics.json5",
+        r#"{ peppy_schema: "launcher/v1", deployments: [
+          { source: { name: "cam_x:v1" }, instances: [{ instance_id: "x", links: { peer: "y" } }] },
+          { source: { name: "cam_y:v1" }, instances: [{ instance_id: "y", links: { peer: "x" } }] },
+        ] }"#,
+    );
+    let errors = peppy_schema::check_launcher(&path, &options(Vec::new()));
+    if let Err(e) = errors {
+        assert!(all(&e, Code::ServiceActionContractCycle).is_empty(), "{e}");
+    }
+}

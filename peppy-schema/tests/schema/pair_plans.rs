@@ -432,3 +432,57 @@ fn a_peer_with_several_fitting_slots_is_named_with_its_slot() {
     );
     assert_eq!(help(d), r#"name the slot: `"d/left"`"#);
 }
+
+/// Both ends of a pair read one pairing document: two different pins are
+/// refused at the link (PeppyOS's `PairingSha256Mismatch`), for an
+/// observer and its source too; equal pins agree.
+#[test]
+fn the_two_ends_of_a_pair_pin_the_same_revision() {
+    let a = "a".repeat(64);
+    let b = "b".repeat(64);
+    let pinned = |slot: &str, sha: &str| {
+        slot.replace(r#"tag: "v1","#, &format!(r#"tag: "v1", sha256: "{sha}","#))
+    };
+    let commander = NodeDoc::parse(
+        "c.json5",
+        &node("commander", &pinned(COMMANDER.0, &a), COMMANDER.1),
+    )
+    .unwrap()
+    .0;
+    let arm = NodeDoc::parse("a.json5", &node("arm", &pinned(ARM.0, &b), ARM.1))
+        .unwrap()
+        .0;
+    let arm_same = NodeDoc::parse("a.json5", &node("arm", &pinned(ARM.0, &a), ARM.1))
+        .unwrap()
+        .0;
+    let monitor = NodeDoc::parse(
+        "m.json5",
+        &node("monitor", &pinned(MONITOR.0, &a), MONITOR.1),
+    )
+    .unwrap()
+    .0;
+    let text = r#"{ peppy_schema: "launcher/v1", deployments: [
+      { source: { name: "commander:v1" }, instances: [{ instance_id: "c1", links: { arm: "a1" } }] },
+      { source: { name: "arm:v1" }, instances: [{ instance_id: "a1" }] },
+      { source: { name: "monitor:v1" }, instances: [{ instance_id: "m", links: { arms: ["a1"] } }] },
+    ] }"#;
+    let (launcher, _) = LauncherDoc::parse("launch.json5", text).unwrap();
+    let errors = plan_bindings(&launcher, &[Some(&commander), Some(&arm), Some(&monitor)])
+        .expect_err("different pins");
+    let found = all(&errors, Code::PairingSha256Mismatch);
+    assert_eq!(found.len(), 2, "{errors}");
+    assert_eq!(
+        found[0].message,
+        format!(
+            "slot `arm` of `c1` pins pairing `arm_link:v1` at sha256 {a}, and slot `commander` of `a1` at {b}"
+        )
+    );
+    assert_eq!(lc(found[0]), pos(text, r#""a1" } }]"#));
+    assert_eq!(lc(found[1]), pos(text, r#""a1"] } }]"#));
+    // The same pin on both ends agrees.
+    plan_bindings(
+        &launcher,
+        &[Some(&commander), Some(&arm_same), Some(&monitor)],
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+}
