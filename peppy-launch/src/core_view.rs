@@ -114,7 +114,7 @@ impl LaunchView {
 }
 
 /// The producers a slot's binding names.
-fn producers(binding: &SlotBinding) -> Vec<&String> {
+pub(crate) fn producers(binding: &SlotBinding) -> Vec<&String> {
     match binding {
         SlotBinding::Pinned { producer } => vec![producer],
         SlotBinding::FromAnyBound { producers } | SlotBinding::Set { producers, .. } => {

@@ -484,11 +484,29 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         .await
         .map_err(|e| out.note(&format!("the stack clock is not served: {e}")))
         .ok();
+    let cores = stack
+        .plan
+        .instances
+        .iter()
+        .map(|i| {
+            let core = if stack.launcher.core_nodes.is_empty() {
+                share.name.clone()
+            } else {
+                stack
+                    .launcher
+                    .core_node_of(i.core_node.as_deref())
+                    .unwrap_or(&share.name)
+                    .to_string()
+            };
+            (i.instance_id.clone(), core)
+        })
+        .collect();
     let instances = Instances {
         namespace: &namespace,
         connect: links.node_endpoints(),
         local: local_links.as_ref(),
         secured: secured.as_ref(),
+        cores,
     };
     let planned = instances.plan(&stack, &share, &programs);
     let record = launch_record(args, &share, &namespace, &instances, &run_dir, &planned);
@@ -765,6 +783,9 @@ struct Instances<'a> {
     /// The Unix sockets instances use instead, when this host has them.
     local: Option<&'a crate::local_links::LocalLinks>,
     secured: Option<&'a Secured>,
+    /// The core node of every instance of the stack (its machine's name,
+    /// or this launch's when the launcher names no machines).
+    cores: HashMap<String, String>,
 }
 
 impl Instances<'_> {
@@ -835,7 +856,18 @@ impl Instances<'_> {
             ),
             None => (Vec::new(), self.connect.clone()),
         };
+        // The producers on other machines, for the slots' ProducerRefs.
+        let producer_cores = inst
+            .slots
+            .iter()
+            .flat_map(|s| crate::core_view::producers(&s.binding))
+            .filter_map(|p| {
+                let core = self.cores.get(p.as_str())?;
+                (core != core_node).then(|| (p.clone(), core.clone()))
+            })
+            .collect();
         StartupConfig {
+            producer_cores,
             instance_id: inst.instance_id.clone(),
             core_node: core_node.to_string(),
             namespace: self.namespace.to_string(),

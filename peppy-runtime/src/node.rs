@@ -457,7 +457,7 @@ impl NodeRunner {
             core_node: startup.core_node.clone(),
             namespace: startup.namespace.clone(),
             token: CancellationToken::new(),
-            bound: bound_refs(&startup.slots, &startup.core_node),
+            bound: bound_refs(&startup.slots, &startup.core_node, &startup.producer_cores),
             slots: startup.slots,
             publishers: ByAddress::default(),
             inboxes: ByAddress::default(),
@@ -1288,8 +1288,12 @@ impl NodeRunner {
 
 /// Every slot's bound producers as [`ProducerRef`]s. The plan names
 /// producers by instance id, unique in a stack; they are placed on this
-/// launch's core node unless the launcher says otherwise.
-fn bound_refs(slots: &[SlotPlan], core_node: &str) -> HashMap<String, Vec<ProducerRef>> {
+/// launch's core node unless `cores` says otherwise.
+fn bound_refs(
+    slots: &[SlotPlan],
+    core_node: &str,
+    cores: &std::collections::BTreeMap<String, String>,
+) -> HashMap<String, Vec<ProducerRef>> {
     slots
         .iter()
         .map(|slot| {
@@ -1302,7 +1306,10 @@ fn bound_refs(slots: &[SlotPlan], core_node: &str) -> HashMap<String, Vec<Produc
             };
             let refs = producers
                 .iter()
-                .map(|p| ProducerRef::new(core_node, p.as_str()))
+                .map(|p| {
+                    let core = cores.get(p).map_or(core_node, String::as_str);
+                    ProducerRef::new(core, p.as_str())
+                })
                 .collect();
             (slot.link_id.clone(), refs)
         })

@@ -72,6 +72,12 @@ pub struct StartupConfig {
     /// Absent: Zenoh alone.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub direct_links: Option<PathBuf>,
+    /// The core node of each producer its slots are bound to that runs on
+    /// another core node than this instance, by instance id: what the
+    /// slots' `bound_producer(s)` say of it. A producer not listed runs on
+    /// this instance's core node.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub producer_cores: std::collections::BTreeMap<String, String>,
 }
 
 /// The environment variable that overrides a node's shutdown grace window
@@ -228,6 +234,8 @@ pub struct StandaloneConfig {
     pub(crate) links: Vec<(String, String)>,
     /// Slots left vacant: as `--vacant-link` flags.
     pub(crate) vacant: Vec<String>,
+    /// The core node of each producer the links name, by instance id.
+    pub(crate) cores: Vec<(String, String)>,
 }
 
 impl StandaloneConfig {
@@ -298,18 +306,20 @@ impl StandaloneConfig {
         self
     }
 
-    /// Links slot `link_id` to producer `instance_id` (as `--link
-    /// link_id@instance_id` does; repeat it for a list slot, in order).
-    /// Instance ids name producers in a stack: `core_node` is not needed to
-    /// reach one. Used when the command line links no slot.
+    /// Links slot `link_id` to producer `instance_id` of core node
+    /// `core_node` (as `--link link_id@instance_id` does; repeat it for a
+    /// list slot, in order). Instance ids name producers in a stack;
+    /// `core_node` is where the producer runs, as the slot's
+    /// `bound_producer(s)` tell it. Used when the command line links no slot.
     pub fn with_bound_producer(
         mut self,
         link_id: impl Into<String>,
         core_node: impl Into<String>,
         instance_id: impl Into<String>,
     ) -> Self {
-        let _ = core_node.into();
-        self.links.push((link_id.into(), instance_id.into()));
+        let instance_id = instance_id.into();
+        self.cores.push((instance_id.clone(), core_node.into()));
+        self.links.push((link_id.into(), instance_id));
         self
     }
 
@@ -595,6 +605,7 @@ fn standalone_config(
         });
     }
     // The code's links stand in for a command line that links nothing.
+    let code_links = binds.is_empty();
     if binds.is_empty() {
         for (key, instance) in &standalone.links {
             binds.push(FlagBind {
@@ -673,6 +684,11 @@ fn standalone_config(
         use_sim_time: flags.use_sim_time || standalone.use_sim_time,
         shutdown_grace_secs: None,
         direct_links: flags.direct_links,
+        producer_cores: if code_links {
+            standalone.cores.iter().cloned().collect()
+        } else {
+            Default::default()
+        },
     };
     Ok((config, Some(binds)))
 }

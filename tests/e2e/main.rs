@@ -12,6 +12,7 @@ mod harness;
 mod nodes;
 mod pairings;
 mod params;
+mod peppyos_api;
 mod python;
 mod roundtrip;
 mod services;

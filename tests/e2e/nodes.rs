@@ -23,3 +23,9 @@ pub(crate) mod shapes_client {}
 
 #[peppy::node("peppy-build/tests/fixtures/arm_commander/peppy.json5")]
 pub(crate) mod arm_commander {}
+
+#[peppy::node("peppy-build/tests/fixtures/limb_backbone/peppy.json5")]
+pub(crate) mod limb_backbone {}
+
+#[peppy::node("peppy-build/tests/fixtures/limb_panel/peppy.json5")]
+pub(crate) mod limb_panel {}

@@ -465,9 +465,24 @@ pub(super) fn exposed_action(out: &mut Source, p: &Provided<ActionDecl>, today: 
         d.result.as_ref(),
         &format!("The result of action `{}`.", d.name),
     );
+    // A goal response the action declares (the current `node/v1`
+    // spelling): the decision's `response`, sent with it.
+    let response = match d.goal_response.as_ref().filter(|_| today) {
+        Some(format) => message(
+            out,
+            "GoalResponse",
+            "GoalResponse",
+            Some(format),
+            &format!(
+                "The goal response action `{}` declares: data sent with a decision.",
+                d.name
+            ),
+        ),
+        None => "None".to_string(),
+    };
     let fb_qos = d.feedback.as_ref().map_or(QosProfile::Standard, |f| f.qos);
     out.line(&format!(
-        "SPEC = _s.ActionSpec({}, {}, {goal}, {feedback}, {result})",
+        "SPEC = _s.ActionSpec({}, {}, {goal}, {feedback}, {result}, {response})",
         owner(Some(&p.origin), true),
         py_string(&d.name)
     ));
@@ -570,8 +585,21 @@ pub(super) fn consumed_action(out: &mut Source, node: &ResolvedNode, c: &Resolve
         d.result.as_ref(),
         &format!("The result of action `{}`.", d.name),
     );
+    let response = match d.goal_response.as_ref().filter(|_| today) {
+        Some(format) => message(
+            out,
+            "GoalResponseData",
+            "GoalResponseData",
+            Some(format),
+            &format!(
+                "The goal response action `{}` declares: data the server sends with its decision.",
+                d.name
+            ),
+        ),
+        None => "None".to_string(),
+    };
     out.line(&format!(
-        "SPEC = _s.ConsumedActionSpec({}, {}, {}, {goal}, {feedback}, {result})",
+        "SPEC = _s.ConsumedActionSpec({}, {}, {}, {goal}, {feedback}, {result}, {response})",
         py_string(&c.slot.link_id),
         owner(Some(&c.origin), false),
         py_string(&d.name)

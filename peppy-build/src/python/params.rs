@@ -64,6 +64,13 @@ fn group(out: &mut Source, name: &str, prefix: &str, fields: &[ParamField], doc:
     out.dedent();
     out.line(")");
     out.dedent();
+    out.blank();
+    out.line("@classmethod");
+    out.line(&format!("def from_dict(cls, data: Any) -> \"{name}\":"));
+    out.indent();
+    out.docstring("PeppyOS's name for `from_json`: the values of a dict (a group's, nested).");
+    out.line("return cls.from_json(data)");
+    out.dedent();
     out.dedent();
     out.blank();
     out.blank();

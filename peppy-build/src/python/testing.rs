@@ -169,6 +169,23 @@ fn mock_module(link_id: &str, target: &str, cardinality: Cardinality, surface: &
         "CARDINALITY = {}",
         py_string(cardinality.as_str())
     ));
+    out.line("MOCK_CORE_NODE = _testing.MOCK_CORE");
+    out.line(&format!(
+        "MOCK_INSTANCE_ID = {}",
+        py_string(&format!("mock-{link_id}"))
+    ));
+    out.blank();
+    out.blank();
+    out.line(
+        r#"def producer_ref() -> _testing.ProducerRef:
+    """The slot's mock as the node sees it among its bound producers."""
+    return producer_ref_for(MOCK_INSTANCE_ID)
+
+
+def producer_ref_for(instance_id: str) -> _testing.ProducerRef:
+    """The slot's mock of instance id `instance_id` (`mock-<link_id>-<n>` on a slot of several)."""
+    return _testing.ProducerRef(MOCK_CORE_NODE, instance_id)"#,
+    );
     out.blank();
     out.blank();
     out.line("class Mock(_testing.SlotMock):");
@@ -228,7 +245,7 @@ fn pairing_mock_module(slot: &PairingSlot, topics: &[PairedTopic]) -> String {
             slot.counterpart,
             module(link_id),
             if slot.optional {
-                "; None when left vacant"
+                "; with `<link_id>_vacant=True` it runs unpaired"
             } else {
                 ""
             }
@@ -243,6 +260,39 @@ fn pairing_mock_module(slot: &PairingSlot, topics: &[PairedTopic]) -> String {
     }
     out.blank();
     out.line(&format!("LINK_ID = {}", py_string(link_id)));
+    out.line(&format!("PAIRING_NAME = {}", py_string(&slot.pairing.name)));
+    out.line(&format!("PAIRING_TAG = {}", py_string(&slot.pairing.tag)));
+    out.line("MOCK_CORE_NODE = _testing.MOCK_CORE");
+    out.line(&format!(
+        "MOCK_INSTANCE_ID = {}",
+        py_string(&format!("mock-{link_id}"))
+    ));
+    out.blank();
+    out.blank();
+    if slot.observer {
+        out.line(
+            r#"SOURCE_LINK_ID = _testing.MOCK_SOURCE
+
+
+def source() -> _testing.ObservedSource:
+    """The slot's mock source as the node's `source` names it."""
+    return source_for(MOCK_INSTANCE_ID)
+
+
+def source_for(instance_id: str) -> _testing.ObservedSource:
+    """The mock source of instance id `instance_id` (`mock-<link_id>-<n>` on a slot of several)."""
+    return _testing.ObservedSource(_testing.ProducerRef(MOCK_CORE_NODE, instance_id), SOURCE_LINK_ID)"#,
+        );
+    } else {
+        out.line(
+            r#"PEER_LINK_ID = _testing.MOCK_PEER
+
+
+def peer_info() -> _testing.PeerInfo:
+    """The mock peer as the node's `paired` names it."""
+    return _testing.PeerInfo(_testing.ProducerRef(MOCK_CORE_NODE, MOCK_INSTANCE_ID), PEER_LINK_ID)"#,
+        );
+    }
     out.blank();
     out.blank();
     let base = if slot.observer {

@@ -97,7 +97,9 @@ async def subscribe(node_runner: NodeRunner) -> Subscription:
 /// goals are skipped, and `cancel_signal` is awaited.
 pub(super) const GOAL_SERVER: GoalServerShape = GoalServerShape {
     decision: r#"class GoalDecision:
-    """What the decider returns: `GoalDecision.accept()` or `GoalDecision.reject(reason)`."""
+    """What the decider returns: `GoalDecision.accept()` (`accept(response)`
+    when the action declares a goal response) or `GoalDecision.reject(reason)`
+    (`reject(reason, response)` to send one with the rejection)."""
 
     def __init__(self, accepted: bool, reason: Optional[str] = None, response: Any = None) -> None:
         self.accepted = accepted
@@ -174,7 +176,7 @@ class ActionHandle:
         self._client = client
         self.accepted: bool = client.accepted
         self.reason: Optional[str] = client.error_message
-        self.data: Any = None
+        self.data: Any = client.data
         self.instance_id: str = client.instance_id
         self.core_node: str = client.core_node
 

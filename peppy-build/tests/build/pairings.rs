@@ -205,7 +205,7 @@ fn a_participant_sends_its_role_topics_and_receives_its_peers() {
 }
 
 #[test]
-fn an_observer_of_one_source_has_source_and_an_optional_peer_may_be_vacant() {
+fn an_observer_of_one_source_has_source_and_an_optional_peer_may_start_unpaired() {
     let files = package_of(COMMANDER);
     let fault = &files["paired_topics/watched/fault.py"];
     has_all(
@@ -216,7 +216,7 @@ fn an_observer_of_one_source_has_source_and_an_optional_peer_may_be_vacant() {
     has_all(
         &files["mock/pairings/arm.py"],
         &[
-            "; None when left vacant",
+            "; with `<link_id>_vacant=True` it runs unpaired",
             "setpoint: _testing.PeerTap[_setpoint.Message]",
         ],
     );

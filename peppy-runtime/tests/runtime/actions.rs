@@ -172,11 +172,12 @@ async fn goals_feedback_results_cancel_and_abandon() {
         (Outcome::Completed(30), Outcome::Completed(40))
     );
 
-    // A result that is not ready in time is a timeout, not unreachable.
+    // A result that is not ready in time is a timeout (PeppyOS's
+    // `ActionResultTimeout`: ask again), not unreachable.
     let slow = goal_until_up(&planner, 1000).await;
     assert!(matches!(
         slow.result::<u32>(Duration::from_millis(200)).await,
-        Err(Error::ServiceTimeout { .. })
+        Err(Error::ActionResultTimeout { .. })
     ));
     let _ = slow.cancel(WAIT).await;
 

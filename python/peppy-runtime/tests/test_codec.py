@@ -243,6 +243,23 @@ class RoundTripTest(unittest.TestCase):
         h = Header(Time(5, 6), 9)
         self.assertEqual(f.decode(f.encode(h)), h)
 
+    def test_a_refine_pin_keeps_the_open_arrays_wire_and_checks_the_length(self):
+        # `refine` pins an open array to 7 on one node's side: the bytes are
+        # those of the open array (a count, then the items), and only
+        # exactly 7 items go out or come in.
+        pinned = one(c.Array(c.F64, pinned=7))
+        open_ = one(c.Array(c.F64))
+        joints = [0.5 * i for i in range(7)]
+        data = c.encode(pinned, pinned(joints))
+        self.assertEqual(data, c.encode(open_, open_(joints)))
+        self.assertEqual(c.decode(pinned, data).value, joints)
+        with self.assertRaises(c.EncodeError) as e:
+            c.encode(pinned, pinned(joints[:6]))
+        self.assertIn("this node's `refine` pins 7", str(e.exception))
+        with self.assertRaises(c.DecodeError) as e:
+            c.decode(pinned, c.encode(open_, open_(joints + [1.0])))
+        self.assertIn("8 items where this node's `refine` pins 7", str(e.exception))
+
 
 class RefusalTest(unittest.TestCase):
     def assertRefused(self, cls, data, offset, words):

@@ -209,3 +209,36 @@ class HarnessTests(unittest.IsolatedAsyncioTestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class CoreNodeTests(unittest.IsolatedAsyncioTestCase):
+    """The harness is the node's core node: its datastore, `info` and
+    stack listing answer as a launch's do (docs/WIRE.md, "Core node functions")."""
+
+    async def test_the_datastore_keeps_values_with_their_writer_and_info_and_stack_answer(self) -> None:
+        from peppy import datastore, stack
+        from peppy.info import info
+
+        async with testing.start(RELAY, lambda p, n: None) as h:
+            runner = h.node_runner
+            self.assertIsNone(await datastore.get(runner, "calibration/wrist", 3.0))
+            await datastore.store(runner, "calibration/wrist", b'{"x": 0.1}', datastore.Encoding.APPLICATION_JSON, 3.0)
+            await datastore.store(runner, "lock", b"locked", "text/plain")
+            stored = await datastore.get(runner, "calibration/wrist", 3.0)
+            self.assertEqual(stored.value, b'{"x": 0.1}')
+            self.assertEqual(stored.encoding, datastore.Encoding.APPLICATION_JSON)
+            self.assertEqual(stored.last_modified_by, h.instance_id)
+            entries = await datastore.list(runner, 3.0)
+            self.assertEqual([e.key for e in entries], ["calibration/wrist", "lock"])
+            self.assertTrue(await datastore.remove(runner, "lock", 3.0))
+            self.assertFalse(await datastore.remove(runner, "lock", 3.0))
+            with self.assertRaises(ValueError):
+                await datastore.get(runner, "", 3.0)
+
+            facts = await info(runner, 3.0)
+            self.assertEqual((facts.core_node_name, facts.node_count), ("standalone-core", 1))
+            listed = await stack.list(runner, 3.0)
+            self.assertEqual(listed.core_node, "standalone-core")
+            self.assertEqual(listed.running_instance_ids_by_node("relay", "v1"), [h.instance_id])
+            with self.assertRaises(KeyError):
+                listed.running_instance_ids_by_node("nobody", "v1")

@@ -112,9 +112,11 @@ class PairingHarnessTests(unittest.IsolatedAsyncioTestCase):
                 self.assertLess(loop.time(), deadline, "the node stays paired with a stopped mock")
                 await asyncio.sleep(0.02)
 
-    async def test_an_optional_slot_left_vacant_has_no_mock(self) -> None:
+    async def test_an_optional_slot_left_vacant_starts_unpaired_beside_its_mock(self) -> None:
+        # As PeppyOS's harness: the mock peer runs, but neither side claims
+        # the other.
         async with testing.start(SPARE, lambda p, r: None, arm_vacant=True) as h:
-            self.assertIsNone(h.mocks.pairings.arm)
+            self.assertFalse(h.mocks.pairings.arm.paired())
             self.assertIsNone(pairing.paired(h.node_runner, "arm"))
             self.assertEqual(h.node_runner.pairs[0].vacant, "left vacant by the test harness")
         with self.assertRaises(TypeError):

@@ -121,8 +121,10 @@ class GeneratedHarnessTest(unittest.IsolatedAsyncioTestCase):
             await publisher.publish(setpoint.build_message(1.0, 1))
 
         async with harness.start(setup, arm_vacant=True) as h:
-            self.assertIsNone(h.mocks.pairings.arm)
+            # The mock peer runs unpaired, and hears nothing.
             self.assertIsNone(setpoint.paired(h.node_runner))
+            with self.assertRaises(TimeoutError):
+                await h.mocks.pairings.arm.setpoint.next(0.3)
 
 
 class GeneratedNodesTest(t.LiveTest):

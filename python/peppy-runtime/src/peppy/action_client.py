@@ -11,7 +11,7 @@ from .action_states import (
     CancelState,
     ResultOutcome,
     ResultStatus,
-    decode_decision,
+    decode_decision_with_response,
     encode_string,
     new_goal_id,
 )
@@ -67,6 +67,10 @@ class GoalClient:
         self.goal_id = goal_id
         self.accepted = accepted
         self.error_message = error_message
+        #: The declared goal response the server sent, as encoded (b"" for none).
+        self.response = b""
+        #: That response decoded (None when none was sent).
+        self.data: Any = None
         self.instance_id = instance_id
         self.core_node = core_node
         self._runner = runner
@@ -205,7 +209,8 @@ async def fire_goal(
             request_format=spec.goal.canonical,
             response=None,  # the decision is a status reply without a format of its own
         ).send(runner)
-        accepted, error_message = decode_decision(answer.body)
+        accepted, error_message, response = decode_decision_with_response(answer.body)
+        data = spec.goal_response.decode(response) if response and spec.goal_response is not None else None
     except ValueError as e:
         subscriber.undeclare()
         raise ServiceError(entry.describe, server, f"cannot decode the goal response: {e}") from None
@@ -226,6 +231,8 @@ async def fire_goal(
         answer.instance,
         answer.core,
     )
+    client.response = response
+    client.data = data
     if not accepted:
         client._ended = True
         client.close()

@@ -216,14 +216,31 @@ def _arity(decider: Callable[..., Any]) -> int:
     return 1
 
 
-def _decision(answer: Any) -> Tuple[bool, Optional[str]]:
+def _decision(answer: Any) -> Tuple[bool, Optional[str], Any]:
+    """`(accepted, reason, response)` of a decider's answer: a bool, a pair
+    `(accepted, reason)`, a triple with the goal response, or an object
+    with `accepted` (and `error_message` or `reason`, and `response`)."""
     if isinstance(answer, bool):
-        return answer, None
-    if isinstance(answer, tuple) and len(answer) == 2:
-        return bool(answer[0]), answer[1]
+        return answer, None, None
+    if isinstance(answer, tuple) and len(answer) in (2, 3):
+        return bool(answer[0]), answer[1], answer[2] if len(answer) == 3 else None
     if hasattr(answer, "accepted"):
-        return bool(answer.accepted), getattr(answer, "error_message", None)
+        reason = getattr(answer, "error_message", None)
+        if reason is None:
+            reason = getattr(answer, "reason", None)
+        return bool(answer.accepted), reason, getattr(answer, "response", None)
     raise TypeError(f"a goal decider returns (accepted, error_message), got {answer!r}")
+
+
+def encode_goal_response(spec: Any, response: Any) -> bytes:
+    """A decision's goal response, encoded with the action's declared
+    format; empty when there is none to send. A response for an action
+    that declares none is refused, as is one that does not encode."""
+    if response is None:
+        return b""
+    if spec.goal_response is None:
+        raise TypeError(f"action `{spec.name}` declares no goal response; decide without one")
+    return spec.goal_response.encode(response)
 
 
 class GoalServer:
@@ -275,15 +292,16 @@ class GoalServer:
                         answer = decider(goal)
                     if inspect.isawaitable(answer):
                         answer = await answer
-                    accepted, error = _decision(answer)
+                    accepted, error, response = _decision(answer)
+                    body = encode_goal_response(self.spec, response)
                 except Exception as e:
                     log.warning("action `%s`: the goal decider failed: %s", self.spec.name, e)
-                    accepted, error = False, str(e) or type(e).__name__
+                    accepted, error, body = False, str(e) or type(e).__name__, b""
                 if not accepted:
-                    reply(pending.query, goal_key, ReplyStatus.OK, 0, encode_decision(False, error), self.spec.name)
+                    reply(pending.query, goal_key, ReplyStatus.OK, 0, encode_decision(False, error, body), self.spec.name)
                     return None
                 context = GoalContext(self._runner, registry, pending, goal)
-                reply(pending.query, goal_key, ReplyStatus.OK, 0, encode_decision(True, None), self.spec.name)
+                reply(pending.query, goal_key, ReplyStatus.OK, 0, encode_decision(True, None, body), self.spec.name)
                 return context
             finally:
                 finish(pending.query)

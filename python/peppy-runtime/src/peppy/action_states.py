@@ -74,19 +74,29 @@ def goal_id_of(payload: bytes) -> Optional[str]:
     return split[0] if split is not None and not split[1] else None
 
 
-def encode_decision(accepted: bool, error_message: Optional[str]) -> bytes:
-    """The goal response `{ accepted: bool, error_message: optional string }`."""
+def encode_decision(accepted: bool, error_message: Optional[str], response: bytes = b"") -> bytes:
+    """The goal's answer `{ accepted: bool, error_message: optional string }`,
+    then the action's declared goal response, encoded, when one is sent."""
     out = bytearray([1 if accepted else 0])
     if error_message is None:
         out.append(0)
     else:
         out.append(1)
         _STRING_ENC(str(error_message), out)
+    out += response
     return bytes(out)
 
 
 def decode_decision(body: bytes) -> Tuple[bool, Optional[str]]:
-    """`(accepted, error_message)` of a goal response (trailing bytes are ignored, as the Rust client does)."""
-    accepted, pos = _DECISION_ACCEPTED(body, 0)
-    error, _ = _DECISION_ERROR(body, pos)
+    """`(accepted, error_message)` of a goal's answer (a declared goal
+    response after them is left out: `decode_decision_with_response`)."""
+    accepted, error, _ = decode_decision_with_response(body)
     return accepted, error
+
+
+def decode_decision_with_response(body: bytes) -> Tuple[bool, Optional[str], bytes]:
+    """`(accepted, error_message, response)` of a goal's answer: `response`
+    is the declared goal response as encoded (empty when none was sent)."""
+    accepted, pos = _DECISION_ACCEPTED(body, 0)
+    error, pos = _DECISION_ERROR(body, pos)
+    return accepted, error, bytes(body[pos:])

@@ -242,3 +242,9 @@ def parse_pairing_topic_key(key: str) -> Optional[PairingSender]:
         return None
     s = PairingSender(*parts[4:])
     return s if all(is_segment(p) for p in s) else None
+
+
+def core_function_key(ns: str, core: str, function: str) -> str:
+    """`peppy/<ns>/stack/<core>/<function>`: where core node `core` answers
+    its nodes' calls of `function` (`datastore`, `info`, `list`)."""
+    return f"peppy/{ns}/stack/{core}/{function}"

@@ -103,6 +103,7 @@ class NodeBuilder:
         sim_flag = USE_SIM_TIME_FLAG in args
         args = [a for a in args if a != USE_SIM_TIME_FLAG]
         standalone = self._standalone if not config_file else None
+        links_given = any(a.split("=", 1)[0] in ("--link", "--vacant-link", "--bind") for a in args)
         if standalone is not None:
             args += standalone.flags(args)
         try:
@@ -113,6 +114,9 @@ class NodeBuilder:
                     os.remove(path)
                 except OSError:
                     pass
+        if not config_file and standalone is not None and not links_given:
+            # The code's links say where their producers run.
+            startup.producer_cores = dict(standalone.cores)
         if not config_file:
             # A standalone start: the flag, else the code, says.
             wanted = standalone.use_sim_time if standalone is not None else None

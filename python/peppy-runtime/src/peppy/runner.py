@@ -74,7 +74,8 @@ class NodeRunner:
         self.shutdown_grace = startup.shutdown_grace_secs or DEFAULT_SHUTDOWN_GRACE
         self._cancel_token = CancellationToken(self.stop)
         self._bound: Dict[str, List[ProducerRef]] = {
-            s.link_id: [ProducerRef(self.core_node, p) for p in s.binding.producers] for s in self.slots
+            s.link_id: [ProducerRef(startup.producer_cores.get(p, self.core_node), p) for p in s.binding.producers]
+            for s in self.slots
         }
         self._declared: List[Any] = []
         self._token: Any = None

@@ -144,13 +144,15 @@ class ConsumedServiceSpec:
 
 @dataclass(frozen=True)
 class ActionSpec:
-    """An action this node exposes."""
+    """An action this node exposes. `goal_response`: the goal response it
+    declares (`node/v1`), sent with each decision; None for none."""
 
     owner: Owner
     name: str
     goal: Format
     feedback: Format
     result: Format
+    goal_response: Optional[Format] = None
 
 
 @dataclass(frozen=True)
@@ -163,6 +165,7 @@ class ConsumedActionSpec:
     goal: Format
     feedback: Format
     result: Format
+    goal_response: Optional[Format] = None
 
 
 @dataclass(frozen=True)

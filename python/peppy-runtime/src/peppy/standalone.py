@@ -7,7 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import tempfile
-from typing import Any, List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 
 class StandaloneConfig:
@@ -22,6 +22,7 @@ class StandaloneConfig:
         self.use_sim_time: Optional[bool] = None
         self.links: List[Tuple[str, str]] = []
         self.vacant: List[str] = []
+        self.cores: Dict[str, str] = {}
         self.written: List[str] = []
 
     def with_parameters(self, parameters: Any) -> "StandaloneConfig":
@@ -44,12 +45,41 @@ class StandaloneConfig:
         self.use_sim_time = bool(use_sim_time)
         return self
 
+    def with_messaging_host(self, host: str) -> "StandaloneConfig":
+        """The host of the Zenoh endpoint (port 7447 until `with_messaging_port`)."""
+        _, port = self.messaging or ("127.0.0.1", 7447)
+        self.messaging = (host, port)
+        return self
+
+    def with_messaging_port(self, port: int) -> "StandaloneConfig":
+        """The port of the Zenoh endpoint (on 127.0.0.1 until `with_messaging_host`)."""
+        host, _ = self.messaging or ("127.0.0.1", 7447)
+        self.messaging = (host, int(port))
+        return self
+
     def with_bound_producer(self, link_id: str, core_node: str, instance_id: str) -> "StandaloneConfig":
-        """Links slot `link_id` to producer `instance_id` (repeat for a list
-        slot). Instance ids name producers in a stack; `core_node` is not
-        needed to reach one and is not checked."""
-        del core_node
+        """Links slot `link_id` to producer `instance_id` of core node
+        `core_node` (repeat for a list slot). Instance ids name producers in
+        a stack; `core_node` is where the producer runs, as the slot's
+        `bound_producer(s)` tell it."""
         self.links.append((link_id, instance_id))
+        self.cores[instance_id] = core_node
+        return self
+
+    def with_peer_pin(self, link_id: str, core_node: str, instance_id: str, peer_link_id: str) -> "StandaloneConfig":
+        """Pins pairing slot `link_id` to slot `peer_link_id` of instance
+        `instance_id` (as `--link link_id@instance_id/peer_link_id`)."""
+        del core_node
+        self.links.append((link_id, f"{instance_id}/{peer_link_id}"))
+        return self
+
+    def with_observed_source(
+        self, link_id: str, core_node: str, instance_id: str, source_link_id: str
+    ) -> "StandaloneConfig":
+        """Adds slot `source_link_id` of instance `instance_id` to observer
+        slot `link_id`'s sources (repeat for several)."""
+        del core_node
+        self.links.append((link_id, f"{instance_id}/{source_link_id}"))
         return self
 
     def with_vacant_producer_slot(self, link_id: str) -> "StandaloneConfig":

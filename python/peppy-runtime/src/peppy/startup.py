@@ -97,6 +97,9 @@ class Startup:
     the plan does not say (the node's own choice, else 5 s)."""
     pairs: List[PairPlan] = field(default_factory=list)
     """One plan per pairing slot, in the node's order (docs/PAIRINGS.md)."""
+    producer_cores: Dict[str, str] = field(default_factory=dict)
+    """The core node of each bound producer that runs on another core node
+    than this instance, by instance id (what `bound_producer(s)` say)."""
 
 
 def _reject_unknown(data: Dict[str, Any], allowed: Sequence[str], where: str) -> None:
@@ -164,6 +167,7 @@ _PLAN_FIELDS = (
     # runtime's: a Python node reads and publishes through Zenoh, where a
     # Rust producer also publishes everything it sends over a link.
     "direct_links",
+    "producer_cores",
 )
 
 
@@ -213,6 +217,9 @@ def plan_from_text(text: str, where: str, descriptor: NodeDescriptor) -> Startup
     grace = data.get("shutdown_grace_secs")
     if not isinstance(data.get("direct_links", ""), str):
         raise StartupError(f"{where}: `direct_links` must be a directory's path")
+    cores = data.get("producer_cores", {})
+    if not isinstance(cores, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in cores.items()):
+        raise StartupError(f"{where}: `producer_cores` must map instance ids to core node names")
     return Startup(
         instance_id=data["instance_id"],
         core_node=data["core_node"],
@@ -223,6 +230,7 @@ def plan_from_text(text: str, where: str, descriptor: NodeDescriptor) -> Startup
         use_sim_time=use_sim_time,
         shutdown_grace_secs=None if grace is None else grace_secs(grace, where),
         pairs=fit_pair_plans([pair_plan_from_json(p) for p in pairs], descriptor.pairings),
+        producer_cores=dict(cores),
     )
 
 

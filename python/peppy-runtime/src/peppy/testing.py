@@ -24,12 +24,13 @@ import logging
 import os
 import socket
 import tempfile
+import time
 from collections import deque
-from typing import Any, Awaitable, Callable, Deque, Dict, Generic, List, Optional, Sequence, Tuple, TypeVar
+from typing import Any, Awaitable, Callable, Deque, Dict, Generic, List, Optional, Sequence, Set, Tuple, TypeVar
 
 from . import attachment
 from .action_client import GoalClient, fire_goal
-from .action_server import DEFAULT_RESULT_RETENTION, GoalContext, PendingGoal
+from .action_server import DEFAULT_RESULT_RETENTION, GoalContext, PendingGoal, encode_goal_response
 from .action_states import encode_decision
 from .attachment import ReplyStatus
 from .clock import ClockServer, encode_time, sim_time_of
@@ -40,6 +41,7 @@ from .intake import finish, reply
 from .keys import ACTION, SERVICE, action_part_key, clock_sync_key, clock_tick_key, entry_key
 from .node import NodeBuilder, _call_setup
 from .pair_plan import PairEnd, PairPlan
+from .core_functions import CoreServer
 from .pairing import ObservedSource, PairedSubscription, PeerInfo
 from .producer import ProducerRef
 from .routing import RouteFilter, SlotBinding, SlotPlan
@@ -419,26 +421,27 @@ class PendingGoalMock:
     def goal_id(self) -> str:
         return self._pending.goal_id
 
-    def _decide(self, accepted: bool, reason: Optional[str]) -> None:
+    def _decide(self, accepted: bool, reason: Optional[str], response: Any) -> None:
         if self._decided:
             raise RuntimeError(f"action `{self._action._spec.name}`: goal {self.goal_id()} was decided already")
+        body = encode_goal_response(self._action._spec, response)
         self._decided = True
         key = action_part_key(self._action._registry.base_key, "goal")
-        reply(self._pending.query, key, ReplyStatus.OK, 0, encode_decision(accepted, reason), self._action._spec.name)
+        reply(
+            self._pending.query, key, ReplyStatus.OK, 0, encode_decision(accepted, reason, body), self._action._spec.name
+        )
         finish(self._pending.query)
 
     async def accept(self, response: Any = None) -> ActiveGoal:
-        """Accepts the goal. `response` (a goal response) is not carried
-        by this wire and is ignored."""
-        del response
+        """Accepts the goal, with the action's declared goal response when it
+        has one (the node's handle reads it as `data`)."""
         context = GoalContext(self._action._mock._runner, self._action._registry, self._pending, self.request)
-        self._decide(True, None)
+        self._decide(True, None, response)
         return ActiveGoal(context)
 
     async def reject(self, reason: Optional[str] = None, response: Any = None) -> None:
-        """Rejects the goal with `reason`."""
-        del response
-        self._decide(False, reason)
+        """Rejects the goal with `reason` and, optionally, a goal response."""
+        self._decide(False, reason, response)
 
 
 class ActionMock:
@@ -694,8 +697,15 @@ def _observed_ids(slot: PairingSlotSpec, options: Dict[str, Any]) -> List[str]:
     link = slot.link_id
     count = options.pop(f"{link}_instances", None)
     ids = options.pop(f"{link}_instance_ids", None)
+    vacant = bool(options.pop(f"{link}_vacant", False))
     many = slot.cardinality in ("one_or_more", "zero_or_more")
-    if ids is not None:
+    if vacant:
+        if slot.cardinality != "zero_or_one":
+            raise TypeError(
+                f"`{link}_vacant`: observer slot `{link}` is `{slot.cardinality}`; only a `zero_or_one` slot can be vacant"
+            )
+        return []
+    if ids:
         ids = [str(i) for i in ids]
         if len(set(ids)) != len(ids):
             raise ValueError(f"`{link}_instance_ids` names an instance twice: {ids}")
@@ -703,7 +713,7 @@ def _observed_ids(slot: PairingSlotSpec, options: Dict[str, Any]) -> List[str]:
         n = (0 if slot.cardinality == "zero_or_more" else 1) if count is None else int(count)
         ids = [f"mock-{link}-{i}" for i in range(n)]
     else:
-        n = (0 if slot.cardinality == "zero_or_one" else 1) if count is None else int(count)
+        n = 1 if count is None else int(count)
         ids = [f"mock-{link}"] if n else []
     fits = {
         "one": len(ids) == 1,
@@ -742,7 +752,7 @@ def mock_descriptor(node: NodeDescriptor, slot: SlotSpec) -> NodeDescriptor:
             if s.link_id == link
         ),
         exposed_actions=tuple(
-            ActionSpec(owner(a.owner), a.name, a.goal, a.feedback, a.result)
+            ActionSpec(owner(a.owner), a.name, a.goal, a.feedback, a.result, a.goal_response)
             for a in node.consumed_actions
             if a.link_id == link
         ),
@@ -790,7 +800,7 @@ class GoalHandle:
         self._client = client
         self.accepted: bool = client.accepted
         self.reason: Optional[str] = client.error_message
-        self.data: Any = None
+        self.data: Any = client.data
 
     def goal_id(self) -> str:
         return self._client.goal_id
@@ -856,7 +866,7 @@ async def send_goal(
     h = harness
     node = h.node_runner.descriptor
     consumed = ConsumedActionSpec(
-        _FIXTURE_LINK, _own(spec.owner, node), spec.name, spec.goal, spec.feedback, spec.result
+        _FIXTURE_LINK, _own(spec.owner, node), spec.name, spec.goal, spec.feedback, spec.result, spec.goal_response
     )
     owner = consumed.owner.segments(node.name, node.tag)
     loop = asyncio.get_running_loop()
@@ -936,7 +946,10 @@ class Harness:
         self._router: Any = None
         self._fixture: Any = None
         self._mock_list: List[Any] = []
+        self._unpaired: Set[str] = set()
         self._clock_server: Optional[ClockServer] = None
+        self._core_server: Optional[CoreServer] = None
+        self._started = time.monotonic()
         self._setup_task: Optional["asyncio.Task[Any]"] = None
         self._closed = False
         self.router_endpoint = ""
@@ -956,6 +969,46 @@ class Harness:
     def node_producer_ref(self) -> ProducerRef:
         """The node's identity on the wire."""
         return ProducerRef(NODE_CORE, self.instance_id)
+
+    def _core_info(self) -> Dict[str, Any]:
+        """What the harness answers `info` with, as the node's core node."""
+        port = self.router_endpoint.rsplit(":", 1)[-1] if self.router_endpoint else "0"
+        return {
+            "uptime_secs": int(time.monotonic() - self._started),
+            "core_node_name": NODE_CORE,
+            "core_node_instance_id": f"harness-{self.instance_id}",
+            "host_name": "",
+            "node_count": 1,
+            "git_version": "peppy test harness",
+            "container_info": {"apptainer_version": "", "lima_version": ""},
+            "messaging_port": int(port) if port.isdigit() else 0,
+        }
+
+    def _core_graph(self) -> Dict[str, Any]:
+        """The stack the harness answers `stack.list` with: the node under test."""
+        runner = self.node_runner
+        running = runner is not None and not runner.is_stopping()
+        d = runner.descriptor if runner is not None else None
+        return {
+            "nodes": [
+                {
+                    "name": d.name if d else "",
+                    "tag": d.tag if d else "",
+                    "core_node": NODE_CORE,
+                    "config_path": "",
+                    "artifact_path": None,
+                    "stage": "Ready",
+                    "instances": [
+                        {
+                            "instance_id": self.instance_id,
+                            "state": "running" if running else "starting",
+                            "healthy": running,
+                        }
+                    ],
+                }
+            ],
+            "edges": [],
+        }
 
     def setup_finished(self) -> bool:
         """Whether `setup` has returned (without raising)."""
@@ -980,6 +1033,8 @@ class Harness:
                 await self.node_runner.shutdown()
             if self._clock_server is not None:
                 self._clock_server.close()
+            if self._core_server is not None:
+                self._core_server.close()
             if self._fixture is not None:
                 await self._fixture.shutdown()
             for mock in self._mock_list:
@@ -1178,6 +1233,7 @@ async def _start(
     wanted = [(slot, ids) for slot, ids, _ in chosen]
     # Pairing slots: a participant's peer (None: left vacant), an observer's sources.
     pairing_wanted: List[Tuple[PairingSlotSpec, List[str]]] = []
+    unpaired: Set[str] = set()
     for p in descriptor.pairings:
         if p.observer:
             pairing_wanted.append((p, _observed_ids(p, options)))
@@ -1185,18 +1241,23 @@ async def _start(
         vacant = bool(options.pop(f"{p.link_id}_vacant", False))
         if vacant and not p.optional:
             raise TypeError(f"`{p.link_id}_vacant`: pairing slot `{p.link_id}` is not optional")
-        pairing_wanted.append((p, [] if vacant else [f"mock-{p.link_id}"]))
+        # Vacant, the mock peer still runs, but neither side claims the
+        # other: the node's slot stays unpaired.
+        pairing_wanted.append((p, [f"mock-{p.link_id}"]))
+        if vacant:
+            unpaired.add(p.link_id)
     if options:
         allowed = sorted(
             [f"{s.link_id}_{k}" for s in descriptor.slots for k in ("instances", "instance_ids", "vacant")]
             + [
                 f"{p.link_id}_{k}"
                 for p in descriptor.pairings
-                for k in (("instances", "instance_ids") if p.observer else ("vacant",))
+                for k in (("instances", "instance_ids", "vacant") if p.observer else ("vacant",))
             ]
         )
         raise TypeError(f"harness.start: unknown option(s) {sorted(options)}; slot options are {allowed}")
     h = Harness()
+    h._unpaired = unpaired
     h.instance_id = instance_id or f"test-{os.getpid()}-{next(_counter)}"
     try:
         h._router, h.router_endpoint = await _open_router()
@@ -1227,6 +1288,9 @@ async def _start(
             setattr(h.emitted, name, Tap(h, by_spec[spec]))
         h._clock_server = ClockServer(h.session, NAMESPACE)
         h.clock = TestClock(h, h._clock_server, use_sim_time)
+        # The harness is the node's core node: a datastore of the test's
+        # own, `info`, and a stack of the node under test.
+        h._core_server = CoreServer(h.session, NAMESPACE, NODE_CORE, h._core_info, h._core_graph)
         for slot, ids in wanted:
             cls = mock_classes.get(slot.link_id, SlotMock)
             made = []
@@ -1246,21 +1310,24 @@ async def _start(
             made = []
             for mock_id in ids:
                 d = pairing_mock_descriptor(descriptor, p)
-                # A pairing mock claims the node's slot from the start; a
-                # source's mock pairs with nobody.
-                peers = () if p.observer else (PairEnd(h.instance_id, p.link_id),)
+                # A pairing mock claims the node's slot from the start
+                # (unless the slot starts unpaired); a source's mock pairs
+                # with nobody.
+                claims = not p.observer and p.link_id not in unpaired
+                peers = (PairEnd(h.instance_id, p.link_id),) if claims else ()
                 runner = await _open_runner(
                     d, MOCK_CORE, mock_id, h.router_endpoint, [], [PairPlan(d.pairings[0].link_id, peers)]
                 )
                 mock = cls(runner, p.link_id, h._failure)
                 h._mock_list.append(mock)
                 made.append(mock)
-                pair_links.append((p.link_id, f"{mock_id}/{d.pairings[0].link_id}"))
+                if p.observer or p.link_id not in unpaired:
+                    pair_links.append((p.link_id, f"{mock_id}/{d.pairings[0].link_id}"))
             if p.observer:
                 many = p.cardinality in ("one_or_more", "zero_or_more")
                 setattr(h.mocks.observed, _attr(p.link_id), made if many else (made[0] if made else None))
             else:
-                if not made:
+                if p.link_id in unpaired:
                     pair_links.append((p.link_id, None))
                 setattr(h.mocks.pairings, _attr(p.link_id), made[0] if made else None)
         given = _parameters_given(parameters)
@@ -1278,6 +1345,8 @@ async def _start(
         # The engine's plan, placed on the harness: its identity, its router.
         plan = json.loads(plan_text)
         plan["core_node"] = NODE_CORE
+        # The mocks run on the harness's mock core node.
+        plan["producer_cores"] = {m.instance_id: MOCK_CORE for m in h._mock_list if isinstance(m, SlotMock)}
         plan["namespace"] = NAMESPACE
         plan["zenoh"] = {"mode": "client", "connect": [h.router_endpoint], "multicast_scouting": False}
         plan["use_sim_time"] = bool(use_sim_time)
@@ -1344,6 +1413,8 @@ async def _pairs_barrier(h: Harness) -> None:
     waits = []
     for mock in h._mock_list:
         if isinstance(mock, PairingMock):
+            if mock.link_id in h._unpaired:
+                continue
             for runner, link in ((h.node_runner, mock.link_id), (mock._runner, MOCK_PEER)):
                 waits.append((runner._pairings[link].wait_paired(), f"the pair of slot `{mock.link_id}`"))
         elif isinstance(mock, ObservedMock):

@@ -157,7 +157,7 @@ async def next_accepted_goal(server: GoalServer, decide: Callable[[str, str, Any
     `accepted` and `reason` (or an awaitable of one). None once the node
     stops."""
 
-    async def decision(instance_id: str, core_node: str, goal: Any) -> Tuple[bool, Optional[str]]:
+    async def decision(instance_id: str, core_node: str, goal: Any) -> Tuple[bool, Optional[str], Any]:
         answer = decide(instance_id, core_node, goal)
         if inspect.isawaitable(answer):
             answer = await answer
@@ -165,7 +165,7 @@ async def next_accepted_goal(server: GoalServer, decide: Callable[[str, str, Any
             raise TypeError(
                 f"a goal decider returns GoalDecision.accept() or GoalDecision.reject(reason), got {answer!r}"
             )
-        return bool(answer.accepted), getattr(answer, "reason", None)
+        return bool(answer.accepted), getattr(answer, "reason", None), getattr(answer, "response", None)
 
     while True:
         if server._runner.is_stopping():
