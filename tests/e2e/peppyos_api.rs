@@ -150,13 +150,13 @@ struct Seen {
 }
 
 /// The panel: asks the backbone whether it is ready, sends one goal, and
-/// reports what came back; then asks for that goal's result again once
-/// the test stopped the backbone.
+/// reports what came back; then sends a second goal and drains its
+/// feedback until the stream ends, reporting how it ended and the goal's
+/// result.
 async fn panel(
     runner: Arc<NodeRunner>,
     seen: tokio::sync::mpsc::Sender<Seen>,
-    after_loss: tokio::sync::oneshot::Receiver<()>,
-    lost: tokio::sync::oneshot::Sender<peppy::Error>,
+    lost: tokio::sync::oneshot::Sender<(peppy::Error, ResultOutcome)>,
 ) -> Result<()> {
     use limb_panel::consumed_actions::motion::move_joints;
     use limb_panel::consumed_services::motion::is_ready;
@@ -182,15 +182,30 @@ async fn panel(
             accepted: handle.accepted,
             eta: handle.data.as_ref().map(|d| d.eta_s),
             outcome,
-            bound: backbone,
+            bound: backbone.clone(),
         })
         .await;
-    let _ = after_loss.await;
-    if let Err(e) = handle.get_result(Duration::from_millis(500)).await {
-        let _ = lost.send(e);
-    }
+    let mut second = move_joints::ActionHandle::fire_goal(
+        &runner,
+        &backbone,
+        TIMEOUT,
+        move_joints::GoalRequest::new(0, HOME),
+        QoSProfile::Standard,
+    )
+    .await?;
+    // As PeppyOS's guide drains feedback: until a terminal error.
+    let ended = loop {
+        match second.on_next_feedback_message().await {
+            Ok(_) => continue,
+            Err(e) => break e,
+        }
+    };
+    let outcome = second.get_result(TIMEOUT).await?.outcome;
+    let _ = lost.send((ended, outcome));
     Ok(())
 }
+
+type ResultOutcome = limb_panel::consumed_actions::motion::move_joints::ResultOutcome;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_panel_calls_its_mock_backbone_and_learns_of_its_loss() -> Result<()> {
@@ -198,7 +213,6 @@ async fn a_panel_calls_its_mock_backbone_and_learns_of_its_loss() -> Result<()> 
     use limb_panel::mock::deps::motion;
 
     let (seen_tx, mut seen_rx) = tokio::sync::mpsc::channel(1);
-    let (loss_tx, loss_rx) = tokio::sync::oneshot::channel();
     let (lost_tx, lost_rx) = tokio::sync::oneshot::channel();
     let config = Config {
         arms_vacant: true,
@@ -206,7 +220,7 @@ async fn a_panel_calls_its_mock_backbone_and_learns_of_its_loss() -> Result<()> 
     };
     let (harness, mocks) = Harness::start_with(config, move |_p, runner| async move {
         tokio::spawn(async move {
-            if let Err(e) = panel(runner, seen_tx, loss_rx, lost_tx).await {
+            if let Err(e) = panel(runner, seen_tx, lost_tx).await {
                 panic!("the panel failed: {e}");
             }
         });
@@ -251,20 +265,22 @@ async fn a_panel_calls_its_mock_backbone_and_learns_of_its_loss() -> Result<()> 
     assert_eq!(seen.bound, motion::producer_ref());
     assert_eq!(seen.bound.core_node, motion::MOCK_CORE_NODE);
 
-    // Stopped without awaiting (PeppyOS's spelling): the backbone is gone,
-    // and asking for a result again says so in PeppyOS's words.
+    // The second goal is accepted, then its server dies (stopped without
+    // awaiting, PeppyOS's spelling): the panel's feedback loop ends with
+    // `ActionFeedbackProducerGone`, and the goal is abandoned.
+    let pending = backbone.move_joints.next_goal(TIMEOUT).await?;
+    let _active = pending
+        .accept(motion::move_joints::GoalResponseData::new(1.0))
+        .await?;
     backbone.stop();
-    let _ = loss_tx.send(());
-    let lost = tokio::time::timeout(TIMEOUT, lost_rx)
+    let (ended, outcome) = tokio::time::timeout(TIMEOUT, lost_rx)
         .await
-        .expect("the panel asks again")
-        .expect("the second ask fails");
+        .expect("the panel's feedback loop ends")
+        .expect("the panel reports");
     assert!(
-        matches!(
-            lost,
-            peppy::Error::ActionResultUnreachable { .. } | peppy::Error::ActionResultTimeout { .. }
-        ),
-        "{lost:?}"
+        matches!(ended, peppy::Error::ActionFeedbackProducerGone { .. }),
+        "{ended:?}"
     );
+    assert_eq!(outcome, ResultOutcome::Abandoned);
     harness.shutdown().await
 }

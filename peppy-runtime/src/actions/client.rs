@@ -28,8 +28,13 @@ pub struct GoalClient {
     goal_id: String,
     /// The result format's fingerprint and canonical text.
     result_format: (u64, String),
-    feedback: flume::Receiver<Option<Vec<u8>>>,
+    feedback: flume::Receiver<Feedback>,
     _subscriber: zenoh::pubsub::Subscriber<()>,
+    /// Follows the server's liveliness token: its withdrawal (the server's
+    /// process died, its host was lost) ends the feedback stream.
+    _server_watch: Option<zenoh::pubsub::Subscriber<()>>,
+    /// Whether the server went away without finishing the goal.
+    gone: std::sync::Arc<std::sync::atomic::AtomicBool>,
     stop: CancellationToken,
     /// Fires when the node's messaging closes, after its shutdown hooks:
     /// asking for the result or a cancel works until then.
@@ -57,6 +62,16 @@ impl std::fmt::Debug for GoalClient {
             .field("server", &self.instance_id)
             .finish_non_exhaustive()
     }
+}
+
+/// What the feedback stream of a goal carries to its caller.
+enum Feedback {
+    /// One feedback message, encoded.
+    Message(Vec<u8>),
+    /// The server closed the stream: the goal is terminal.
+    End,
+    /// The server's liveliness token went away first.
+    Gone,
 }
 
 static GOAL_COUNTER: AtomicU64 = AtomicU64::new(0);
@@ -157,6 +172,39 @@ async fn goal_through(
     Ok(GoalClient { base_key, ..opened })
 }
 
+/// Follows the liveliness token of server `instance` (in the namespace of
+/// `base_key`): when it is withdrawn, the goal's feedback stream ends with
+/// [`Feedback::Gone`] after what already arrived, and `gone` is set.
+/// `None` when the subscription cannot be declared (the stream then ends
+/// only when the server closes it).
+async fn watch_server(
+    session: &zenoh::Session,
+    base_key: &str,
+    instance: &str,
+    feedback: flume::Sender<Feedback>,
+    gone: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> Option<zenoh::pubsub::Subscriber<()>> {
+    let ns = base_key.split('/').nth(1)?;
+    // Instance ids name instances in a stack: on whichever core node.
+    let selector = crate::wire::keys::instance_liveliness_selector(ns, "*", instance);
+    session
+        .liveliness()
+        .declare_subscriber(selector)
+        // With the tokens already there: a withdrawal is then always one
+        // of a token this subscriber knows.
+        .history(true)
+        .callback(move |sample| {
+            if sample.kind() == zenoh::sample::SampleKind::Delete
+                && !gone.swap(true, std::sync::atomic::Ordering::AcqRel)
+            {
+                let _ = feedback.send(Feedback::Gone);
+            }
+        })
+        .await
+        .map_err(|e| debug!(error = %e, "cannot follow a goal's server"))
+        .ok()
+}
+
 /// Everything needed to send one goal to one server.
 pub(crate) struct GoalOpening<'a> {
     pub(crate) session: &'a zenoh::Session,
@@ -196,6 +244,7 @@ pub(crate) struct GoalOpening<'a> {
 pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
     let goal_id = new_goal_id();
     let (tx, rx) = flume::unbounded();
+    let fb = tx.clone();
     let feedback_fp = o.feedback_fingerprint;
     let subscriber = o
         .session
@@ -206,14 +255,18 @@ pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
                 .map(|a| a.to_bytes().into_owned())
                 .unwrap_or_default();
             if att == attachment::END_OF_FEEDBACK {
-                let _ = tx.send(None);
+                let _ = fb.send(Feedback::End);
             } else if attachment::parse_topic(&att) == Some(feedback_fp) {
-                let _ = tx.send(Some(sample.payload().to_bytes().into_owned()));
+                let _ = fb.send(Feedback::Message(sample.payload().to_bytes().into_owned()));
             } else {
                 debug!("dropping feedback with another format");
             }
         })
         .await?;
+    // Followed from before the goal is sent: a server lost at any time
+    // after it accepts ends the feedback stream.
+    let gone = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let server_watch = watch_server(o.session, &o.feedback_base, o.server, tx, gone.clone()).await;
     let mut payload = to_bytes(goal_id.as_str());
     payload.extend_from_slice(&o.body);
     let answer = Request {
@@ -250,6 +303,8 @@ pub(crate) async fn open_goal(o: GoalOpening<'_>) -> Result<GoalClient> {
         result_format: (o.result.0, o.result.1.to_string()),
         feedback: rx,
         _subscriber: subscriber,
+        _server_watch: server_watch,
+        gone,
         stop: o.stop.clone(),
         messaging: o.messaging.clone(),
         accepted,
@@ -281,13 +336,19 @@ impl GoalClient {
                 () = self.stop.cancelled() => return Err(Error::ShuttingDown),
             };
             match next {
-                Ok(Some(bytes)) => match from_bytes::<F>(&bytes) {
+                Ok(Feedback::Message(bytes)) => match from_bytes::<F>(&bytes) {
                     Ok(f) => return Ok(f),
                     Err(e) => {
                         warn!(action = %self.action, error = %e, "dropping feedback that does not decode")
                     }
                 },
-                Ok(None) | Err(_) => return Err(Error::ActionFeedbackChannelClosed),
+                Ok(Feedback::Gone) => {
+                    return Err(Error::ActionFeedbackProducerGone {
+                        instance_id: Some(self.instance_id.clone()),
+                        action_name: self.action.clone(),
+                    });
+                }
+                Ok(Feedback::End) | Err(_) => return Err(Error::ActionFeedbackChannelClosed),
             }
         }
     }
@@ -328,6 +389,10 @@ impl GoalClient {
     /// goal may still be running: ask again); a server nobody reaches,
     /// [`Error::ActionResultUnreachable`].
     pub async fn result<R: Decode>(&self, timeout: Duration) -> Result<Outcome<R>> {
+        // The server is gone: its goals' results went with it.
+        if self.gone.load(std::sync::atomic::Ordering::Acquire) {
+            return Ok(Outcome::Abandoned);
+        }
         let body = self
             .ask(ActionPart::Result, timeout)
             .await

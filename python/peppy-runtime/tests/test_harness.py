@@ -190,6 +190,39 @@ class HarnessTests(unittest.IsolatedAsyncioTestCase):
             self.assertIsNone(h.mocks.deps.cam)
             self.assertIsNone(h.node_runner.bound_producer("cam"))
 
+    async def test_a_goals_server_lost_ends_its_feedback_with_a_connection_error(self) -> None:
+        ended: List[Any] = []
+
+        async def mover(params: Any, node_runner: Any) -> List[Any]:
+            from peppy.today import fire_goal_at
+
+            async def go() -> None:
+                target = node_runner.bound_producer("cam")
+                client = await fire_goal_at(node_runner, MOVE_CALLED, target, MoveGoal(1.0), WAIT)
+                try:
+                    while True:
+                        await client.next_feedback()
+                except ConnectionError as e:
+                    ended.append(e)
+                ended.append(await client.get_result(WAIT))
+
+            return [asyncio.ensure_future(go())]
+
+        async with testing.start(MOVER, mover) as h:
+            pending = await h.mocks.deps.cam.move.next_goal(WAIT)
+            active = await pending.accept()
+            # The server is lost with the goal running: no clean close.
+            await h.mocks.deps.cam.stop()
+
+            async def both() -> None:
+                while len(ended) < 2:
+                    await asyncio.sleep(0.01)
+
+            await asyncio.wait_for(both(), WAIT)
+            del active
+            self.assertIn("went away before closing the feedback stream", str(ended[0]))
+            self.assertEqual(ended[1], (ResultStatus.ABANDONED, None))
+
     async def test_sim_ticks_reach_the_node_clock_and_wall_offsets_skew_sync(self) -> None:
         async def reader(params: Any, node_runner: Any) -> None:
             await clock.init(node_runner)

@@ -10,6 +10,7 @@ from . import clock
 from .action_states import CancelState, ResultOutcome, ResultStatus
 from .cancellation import CancellationToken
 from .errors import (
+    ActionFeedbackProducerGone,
     ClockNotReady,
     FeedbackEnded,
     PeppyError,
@@ -30,6 +31,7 @@ from .standalone import StandaloneConfig
 from .timestamps import Time
 
 __all__ = [
+    "ActionFeedbackProducerGone",
     "CancelState",
     "CancellationToken",
     "ClockNotReady",

@@ -17,7 +17,7 @@ from .action_states import (
 )
 from .attachment import QueryHeader, QueryKind
 from .bridge import END, Mailbox
-from .errors import FeedbackEnded, ServiceError
+from .errors import ActionFeedbackProducerGone, FeedbackEnded, ServiceError
 from .keys import ACTION, action_part_key, entry_key, feedback_key
 from .request import Request
 from .spec import ConsumedActionSpec, QoSProfile
@@ -77,7 +77,13 @@ class GoalClient:
         self._base_key = base_key
         self._feedback = feedback
         self._subscriber = subscriber
+        self._server_watch: Optional[_ServerWatch] = None
         self._ended = False
+
+    @property
+    def gone(self) -> bool:
+        """Whether the server went away without finishing the goal."""
+        return self._server_watch is not None and self._server_watch.gone
 
     def __repr__(self) -> str:
         return f"GoalClient(goal_id={self.goal_id!r}, accepted={self.accepted}, server={self.instance_id!r})"
@@ -90,14 +96,18 @@ class GoalClient:
                 subscriber.undeclare()
             except Exception:
                 pass
+        watch = getattr(self, "_server_watch", None)
+        if watch is not None:
+            watch.close()
 
     def __del__(self) -> None:
         self.close()
 
     async def next_feedback(self) -> Any:
-        """The next feedback message; `FeedbackEnded` once the goal is
-        terminal and every feedback message was read. Raises
-        `ShuttingDown` once this node stops."""
+        """The next feedback message; `FeedbackEnded` (a `RuntimeError`)
+        once the goal is terminal and every feedback message was read,
+        `ActionFeedbackProducerGone` (a `ConnectionError`) when the server
+        went away first. Raises `ShuttingDown` once this node stops."""
         if self._runner.refuses_calls():
             raise await refused()
         while not self._ended:
@@ -105,6 +115,9 @@ class GoalClient:
             if item is END:
                 self._ended = True
                 break
+            if item is _GONE:
+                self._ended = True
+                raise ActionFeedbackProducerGone(self.spec.name, self.instance_id)
             try:
                 return self.spec.feedback.decode(item)
             except ValueError as e:
@@ -128,7 +141,10 @@ class GoalClient:
 
     async def get_result(self, timeout: float) -> ResultOutcome:
         """Waits (up to `timeout` seconds) until the goal is terminal:
-        `(status, result)`, the result None unless COMPLETED or CANCELLED."""
+        `(status, result)`, the result None unless COMPLETED or CANCELLED.
+        A server that went away took its goals' results with it: ABANDONED."""
+        if self.gone:
+            return ResultOutcome(ResultStatus.ABANDONED, None)
         body = await self._ask("result", timeout)
         if not body or body[0] > 3:
             raise ServiceError(self.spec.name, self.instance_id, "malformed result")
@@ -148,6 +164,44 @@ class GoalClient:
         if body[:1] == b"\x01":
             return CancelState.ALREADY_TERMINAL
         return CancelState.UNKNOWN
+
+
+#: What the feedback mailbox gets when the goal's server goes away.
+_GONE = object()
+
+
+class _ServerWatch:
+    """Follows a goal's server's liveliness token: its withdrawal (the
+    server's process died, its host was lost) ends the goal's feedback
+    stream after what already arrived, and marks the goal gone."""
+
+    def __init__(self, runner: Any, feedback: Mailbox, instance: str) -> None:
+        from .keys import instance_liveliness_selector
+
+        self.gone = False
+        self._feedback = feedback
+        self._subscriber: Any = None
+        try:
+            self._subscriber = runner.session.liveliness().declare_subscriber(
+                instance_liveliness_selector(runner.namespace, instance), self._on_sample, history=True
+            )
+        except Exception as e:
+            log.debug("cannot follow the server of a goal: %s", e)
+
+    def _on_sample(self, sample: Any) -> None:
+        import zenoh
+
+        if sample.kind == zenoh.SampleKind.DELETE and not self.gone:
+            self.gone = True
+            self._feedback.put(_GONE)
+
+    def close(self) -> None:
+        subscriber, self._subscriber = self._subscriber, None
+        if subscriber is not None:
+            try:
+                subscriber.undeclare()
+            except Exception:
+                pass
 
 
 async def fire_goal(
@@ -198,6 +252,9 @@ async def fire_goal(
         _FeedbackIntake(feedback, spec.feedback.fingerprint, ended),
     )
     holder.append(subscriber)
+    # Followed from before the goal is sent: a server lost at any time
+    # after it accepts ends the feedback stream.
+    watch = _ServerWatch(runner, feedback, server)
     try:
         answer = await Request(
             key=entry.selector(runner, server),
@@ -213,9 +270,11 @@ async def fire_goal(
         data = spec.goal_response.decode(response) if response and spec.goal_response is not None else None
     except ValueError as e:
         subscriber.undeclare()
+        watch.close()
         raise ServiceError(entry.describe, server, f"cannot decode the goal response: {e}") from None
     except BaseException:
         subscriber.undeclare()
+        watch.close()
         raise
     owner = spec.owner.segments(runner.node_name, runner.node_tag)
     base_key = entry_key(runner.namespace, ACTION, owner or "", spec.name, answer.core, answer.instance)
@@ -233,6 +292,7 @@ async def fire_goal(
     )
     client.response = response
     client.data = data
+    client._server_watch = watch
     if not accepted:
         client._ended = True
         client.close()

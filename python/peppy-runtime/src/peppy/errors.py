@@ -60,6 +60,17 @@ class FeedbackEnded(PeppyError, RuntimeError):
         super().__init__(f"the feedback stream of action `{action}` has ended")
 
 
+class ActionFeedbackProducerGone(PeppyError, ConnectionError):
+    """The server a goal was sent to went away (its process died, its host
+    was lost) without closing the goal's feedback stream (a
+    `ConnectionError`); the goal's result is ABANDONED."""
+
+    def __init__(self, action: str, instance: Optional[str] = None) -> None:
+        self.action = action
+        self.instance = instance
+        super().__init__(f"action `{action}`{_on(instance)} went away before closing the feedback stream")
+
+
 class Undeclared(PeppyError):
     """An entry or slot was used that this node does not declare."""
 
