@@ -1338,6 +1338,7 @@ mod tests {
             use_sim_time: false,
             shutdown_grace_secs: grace,
             direct_links: None,
+            producer_cores: Default::default(),
         };
         let env = |v: &str| vec![(peppy_runtime::SHUTDOWN_GRACE_ENV.to_string(), v.to_string())];
         if std::env::var_os(peppy_runtime::SHUTDOWN_GRACE_ENV).is_none() {

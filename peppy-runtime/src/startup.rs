@@ -1259,6 +1259,7 @@ mod tests {
             use_sim_time: false,
             shutdown_grace_secs: None,
             direct_links: None,
+            producer_cores: Default::default(),
         }
     }
 

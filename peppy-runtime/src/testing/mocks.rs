@@ -755,10 +755,13 @@ impl<G, F, R> PendingGoal<G, (), F, R> {
     }
 }
 
+/// What an accepted goal's server sends: feedback `F` and result `R`.
+type GoalSends<F, R> = PhantomData<(fn(&F), fn(&R))>;
+
 /// An accepted goal the test plays the server of.
 pub struct ActiveGoal<F, R> {
     context: GoalContext,
-    _types: PhantomData<(fn(&F), fn(&R))>,
+    _types: GoalSends<F, R>,
 }
 
 impl<F, R> std::fmt::Debug for ActiveGoal<F, R> {

@@ -201,6 +201,7 @@ async fn a_pinned_call_follows_its_server_into_another_launch() {
         use_sim_time: false,
         shutdown_grace_secs: None,
         direct_links: None,
+        producer_cores: Default::default(),
     };
     std::fs::write(&config, serde_json::to_string(&startup).expect("json")).expect("written");
     let (_, second) = tokio::time::timeout(

@@ -445,19 +445,19 @@ fn the_two_ends_of_a_pair_pin_the_same_revision() {
     };
     let commander = NodeDoc::parse(
         "c.json5",
-        &node("commander", &pinned(COMMANDER.0, &a), COMMANDER.1),
+        node("commander", &pinned(COMMANDER.0, &a), COMMANDER.1),
     )
     .unwrap()
     .0;
-    let arm = NodeDoc::parse("a.json5", &node("arm", &pinned(ARM.0, &b), ARM.1))
+    let arm = NodeDoc::parse("a.json5", node("arm", &pinned(ARM.0, &b), ARM.1))
         .unwrap()
         .0;
-    let arm_same = NodeDoc::parse("a.json5", &node("arm", &pinned(ARM.0, &a), ARM.1))
+    let arm_same = NodeDoc::parse("a.json5", node("arm", &pinned(ARM.0, &a), ARM.1))
         .unwrap()
         .0;
     let monitor = NodeDoc::parse(
         "m.json5",
-        &node("monitor", &pinned(MONITOR.0, &a), MONITOR.1),
+        node("monitor", &pinned(MONITOR.0, &a), MONITOR.1),
     )
     .unwrap()
     .0;
