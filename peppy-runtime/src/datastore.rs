@@ -495,6 +495,38 @@ impl Store {
     }
 }
 
+/// The golden datastore vectors (`tests/golden/wire.json`, `datastore`):
+/// each step's request as this client encodes it, and the reply a fresh
+/// store gives, in order. Checked by the runtime's golden tests.
+#[doc(hidden)]
+pub fn golden_steps(requests: &[Vec<u8>]) -> Vec<std::result::Result<Vec<u8>, String>> {
+    let store = Store::default();
+    requests.iter().map(|r| store.answer(r)).collect()
+}
+
+/// What [`store`] sends, for the golden vectors.
+#[doc(hidden)]
+pub fn golden_store_request(key: &str, value: &[u8], encoding: &str, writer: &str) -> Vec<u8> {
+    crate::wire::codec::to_bytes(&Request::Store {
+        key: key.into(),
+        value: value.to_vec(),
+        encoding: encoding.into(),
+        writer: writer.into(),
+    })
+}
+
+/// What [`get`], [`list`] and [`remove`] send, for the golden vectors
+/// (`op`: `get`, `list` or `remove`).
+#[doc(hidden)]
+pub fn golden_request(op: &str, key: &str) -> Vec<u8> {
+    let r = match op {
+        "get" => Request::Get { key: key.into() },
+        "list" => Request::List,
+        _ => Request::Remove { key: key.into() },
+    };
+    crate::wire::codec::to_bytes(&r)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

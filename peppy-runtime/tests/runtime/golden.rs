@@ -91,6 +91,7 @@ fn space(name: &str) -> Space {
         Space::Describe,
         Space::Core,
         Space::Clock,
+        Space::Stack,
     ]
     .into_iter()
     .find(|s| s.as_str() == name)
@@ -186,6 +187,16 @@ fn build(function: &str, a: &Value) -> String {
             .key(s("ns"))
         }
         "claim_selector" => keys::claim_selector(s("ns"), s("pairing"), s("tag")),
+        "core_function_key" => keys::core_function_key(
+            s("ns"),
+            s("core"),
+            match s("function") {
+                "datastore" => keys::CoreFunction::Datastore,
+                "info" => keys::CoreFunction::Info,
+                "list" => keys::CoreFunction::List,
+                other => panic!("no core function `{other}`"),
+            },
+        ),
         other => panic!("wire::keys has no `{other}`"),
     }
 }
@@ -385,5 +396,43 @@ fn golden_plans_fit_as_written() {
         .unwrap_or_else(|e| panic!("{case}: {e}"));
         let fits = peppy_schema::fit_plan(std::slice::from_ref(&slot), vec![plan]).is_ok();
         assert_eq!(Some(fits), case["fits"].as_bool(), "{case}");
+    }
+}
+
+/// The datastore's requests encode, and a fresh store answers them, as the
+/// golden steps say (the Python runtime's tests check the same steps).
+#[test]
+fn the_datastore_speaks_the_golden_steps() {
+    use peppy_runtime::datastore::{golden_request, golden_steps, golden_store_request};
+
+    let golden = golden();
+    let steps = golden["datastore"].as_array().unwrap();
+    let hex = |s: &str| -> Vec<u8> {
+        (0..s.len())
+            .step_by(2)
+            .map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap())
+            .collect()
+    };
+    let key = "calibration/wrist";
+    let ours = [
+        golden_store_request(key, br#"{"x":1}"#, "application/json", "arm_left"),
+        golden_request("get", key),
+        golden_request("list", ""),
+        golden_request("remove", key),
+        golden_request("get", key),
+        golden_request("remove", key),
+    ];
+    assert_eq!(steps.len(), ours.len());
+    let requests: Vec<Vec<u8>> = steps
+        .iter()
+        .map(|s| hex(s["request"].as_str().unwrap()))
+        .collect();
+    assert_eq!(requests, ours);
+    for (step, reply) in steps.iter().zip(golden_steps(&requests)) {
+        assert_eq!(
+            reply.unwrap(),
+            hex(step["reply"].as_str().unwrap()),
+            "{step}"
+        );
     }
 }

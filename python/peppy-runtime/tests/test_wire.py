@@ -92,6 +92,7 @@ BUILD = {
     "describe_key": lambda v: k.describe_key(v["ns"], v["core"], v["instance"]),
     "clock_tick_key": lambda v: k.clock_tick_key(v["ns"], v["source"]),
     "clock_sync_key": lambda v: k.clock_sync_key(v["ns"]),
+    "core_function_key": lambda v: k.core_function_key(v["ns"], v["core"], v["function"]),
     "pairing_topic_key": lambda v: k.pairing_topic_key(
         v["ns"], v["pairing"], v["tag"], v["topic"], v["core"], v["instance"], v["link_id"]
     ),
@@ -221,3 +222,28 @@ class KeyTest(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class DatastoreGoldenTest(unittest.TestCase):
+    """The datastore's requests encode, and a store answers them, as the
+    golden steps say (the Rust runtime's tests check the same steps)."""
+
+    def test_the_datastore_speaks_the_golden_steps(self):
+        from peppy.core_functions import Store
+        from peppy.datastore import key_request, store_request
+
+        steps = golden.load()["datastore"]
+        key = "calibration/wrist"
+        ours = [
+            store_request(key, b'{"x":1}', "application/json", "arm_left"),
+            key_request(1, key),
+            key_request(2),
+            key_request(3, key),
+            key_request(1, key),
+            key_request(3, key),
+        ]
+        self.assertEqual([bytes.fromhex(s["request"]) for s in steps], ours)
+        store = Store()
+        for step in steps:
+            with self.subTest(step["about"]):
+                self.assertEqual(store.answer(bytes.fromhex(step["request"])).hex(), step["reply"])

@@ -87,33 +87,15 @@ async def _ask_once(runner: Any, function: str, payload: bytes, timeout: float) 
         replies.close()
 
 
-class CoreServer:
-    """A core node's functions served in this process (what a launch
-    serves, for a test harness): a datastore of its own, `info` and the
-    stack listing from `view()` (a dict of the `stack.list` graph), on
-    `session` for core node `core` of namespace `ns`. Close it with
-    `close()`."""
+class Store:
+    """One core node's datastore (docs/WIRE.md §12): `answer(request)`
+    gives the reply, or raises `ValueError` with the refusal."""
 
-    def __init__(self, session: Any, ns: str, core: str, info: Callable[[], Dict[str, Any]], graph: Callable[[], Dict[str, Any]]) -> None:
-        self._store: Dict[str, Tuple[bytes, str, str]] = {}
+    def __init__(self) -> None:
+        self._values: Dict[str, Tuple[bytes, str, str]] = {}
         self._lock = threading.Lock()
-        self._declared: List[Any] = []
-        for function, answer in (
-            ("datastore", self._datastore),
-            ("info", lambda _payload: json.dumps(info()).encode()),
-            ("list", lambda _payload: json.dumps(_stack_list(info(), graph())).encode()),
-        ):
-            self._declared.append(session.declare_queryable(core_function_key(ns, core, function), _answering(answer)))
 
-    def close(self) -> None:
-        for d in self._declared:
-            try:
-                d.undeclare()
-            except Exception:
-                pass
-        self._declared.clear()
-
-    def _datastore(self, payload: bytes) -> bytes:
+    def answer(self, payload: bytes) -> bytes:
         from .datastore import MAX_VALUE_BYTES, _bytes, _Reader, _string
 
         r = _Reader(payload)
@@ -126,13 +108,13 @@ class CoreServer:
                     raise ValueError("a datastore key cannot be empty")
                 if len(value) > MAX_VALUE_BYTES:
                     raise ValueError(f"the datastore keeps values of at most {MAX_VALUE_BYTES} bytes")
-                self._store[key] = (value, encoding, writer)
+                self._values[key] = (value, encoding, writer)
                 return bytes([0])
             if op == 1:
                 key = r.string()
                 r.end()
                 out = bytearray([1])
-                found = self._store.get(key)
+                found = self._values.get(key)
                 if found is None:
                     out.append(0)
                 else:
@@ -144,17 +126,50 @@ class CoreServer:
             if op == 2:
                 r.end()
                 out = bytearray([2])
-                out += struct.pack("<I", len(self._store))
-                for key in sorted(self._store):
+                out += struct.pack("<I", len(self._values))
+                for key in sorted(self._values):
                     _string(key, out)
-                    _string(self._store[key][1], out)
-                    _string(self._store[key][2], out)
+                    _string(self._values[key][1], out)
+                    _string(self._values[key][2], out)
                 return bytes(out)
             if op == 3:
                 key = r.string()
                 r.end()
-                return bytes([3, 1 if self._store.pop(key, None) is not None else 0])
+                return bytes([3, 1 if self._values.pop(key, None) is not None else 0])
         raise ValueError(f"unknown datastore operation {op}")
+
+
+class CoreServer:
+    """A core node's functions served in this process (what a launch
+    serves, for a test harness): a datastore of its own, `info` and the
+    stack listing (`graph()`, a dict of the `stack.list` graph), on
+    `session` for core node `core` of namespace `ns`. Close it with
+    `close()`."""
+
+    def __init__(
+        self,
+        session: Any,
+        ns: str,
+        core: str,
+        info: Callable[[], Dict[str, Any]],
+        graph: Callable[[], Dict[str, Any]],
+    ) -> None:
+        self.store = Store()
+        self._declared: List[Any] = []
+        for function, answer in (
+            ("datastore", self.store.answer),
+            ("info", lambda _payload: json.dumps(info()).encode()),
+            ("list", lambda _payload: json.dumps(_stack_list(info(), graph())).encode()),
+        ):
+            self._declared.append(session.declare_queryable(core_function_key(ns, core, function), _answering(answer)))
+
+    def close(self) -> None:
+        for d in self._declared:
+            try:
+                d.undeclare()
+            except Exception:
+                pass
+        self._declared.clear()
 
 
 def _stack_list(info: Dict[str, Any], graph: Dict[str, Any]) -> Dict[str, Any]:

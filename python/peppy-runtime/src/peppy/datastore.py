@@ -105,6 +105,24 @@ def _tag(encoding: Union[str, Encoding]) -> str:
     return encoding.value if isinstance(encoding, Encoding) else str(encoding)
 
 
+def store_request(key: str, value: bytes, encoding: Union[str, Encoding], writer: str) -> bytes:
+    """What `store` sends (docs/WIRE.md §12)."""
+    out = bytearray([0])
+    _string(_key(key), out)
+    _bytes(bytes(value), out)
+    _string(_tag(encoding), out)
+    _string(writer, out)
+    return bytes(out)
+
+
+def key_request(operation: int, key: Optional[str] = None) -> bytes:
+    """What `get` (1), `list` (2, no key) and `remove` (3) send."""
+    out = bytearray([operation])
+    if key is not None:
+        _string(_key(key), out)
+    return bytes(out)
+
+
 async def _call(runner: Any, request: bytes, timeout: Optional[float]) -> Tuple[int, _Reader]:
     reader = _Reader(await ask(runner, "datastore", request, timeout))
     return reader.u8(), reader
@@ -123,12 +141,7 @@ async def store(
     value = bytes(value)
     if len(value) > MAX_VALUE_BYTES:
         raise ValueError(f"the datastore keeps values of at most {MAX_VALUE_BYTES} bytes, got {len(value)}")
-    out = bytearray([0])
-    _string(_key(key), out)
-    _bytes(value, out)
-    _string(_tag(encoding), out)
-    _string(node_runner.instance_id, out)
-    kind, reader = await _call(node_runner, bytes(out), response_timeout)
+    kind, reader = await _call(node_runner, store_request(key, value, encoding, node_runner.instance_id), response_timeout)
     if kind != 0:
         raise ValueError(f"the datastore answered a store with a reply of kind {kind}")
     reader.end()
@@ -137,9 +150,7 @@ async def store(
 async def get(node_runner: Any, key: str, response_timeout: Optional[float] = None) -> Optional[StoredValue]:
     """The value stored under `key` on this node's core node, None when no
     node stored one."""
-    out = bytearray([1])
-    _string(_key(key), out)
-    kind, reader = await _call(node_runner, bytes(out), response_timeout)
+    kind, reader = await _call(node_runner, key_request(1, key), response_timeout)
     if kind != 1:
         raise ValueError(f"the datastore answered a get with a reply of kind {kind}")
     present = reader.u8()
@@ -154,7 +165,7 @@ async def get(node_runner: Any, key: str, response_timeout: Optional[float] = No
 async def list(node_runner: Any, response_timeout: Optional[float] = None) -> _List[DatastoreEntry]:  # noqa: A001
     """Every key of this node's core node's store with its tag and last
     writer (not the values), in key order."""
-    kind, reader = await _call(node_runner, bytes([2]), response_timeout)
+    kind, reader = await _call(node_runner, key_request(2), response_timeout)
     if kind != 2:
         raise ValueError(f"the datastore answered a list with a reply of kind {kind}")
     entries = [DatastoreEntry(reader.string(), reader.string(), reader.string()) for _ in builtins.range(reader.count())]
@@ -164,9 +175,7 @@ async def list(node_runner: Any, response_timeout: Optional[float] = None) -> _L
 
 async def remove(node_runner: Any, key: str, response_timeout: Optional[float] = None) -> bool:
     """Removes `key` from this node's core node's store: True when it was there."""
-    out = bytearray([3])
-    _string(_key(key), out)
-    kind, reader = await _call(node_runner, bytes(out), response_timeout)
+    kind, reader = await _call(node_runner, key_request(3, key), response_timeout)
     if kind != 3:
         raise ValueError(f"the datastore answered a remove with a reply of kind {kind}")
     removed = reader.u8() == 1
