@@ -40,6 +40,7 @@ pub(crate) fn parameters(
         out: &mut out,
     };
     generator.group("Parameters", "", fields, &doc);
+    out.extend(group_modules(fields));
 
     let path = &descriptor.document_path;
     let model = &descriptor.model;
@@ -63,6 +64,68 @@ pub(crate) fn parameters(
         }
     });
     out
+}
+
+/// One module per top-level group holding that group's types, as PeppyOS
+/// names them: group `camera` is `parameters::camera::Camera`, its group
+/// `intrinsics` is `parameters::camera::CameraIntrinsics`. The types stay
+/// at the top of `parameters` too, where this generator has always put
+/// them.
+fn group_modules(fields: &[ParamField]) -> TokenStream {
+    // A module shares the type namespace: a group spelled like a type
+    // (`Camera`) keeps its types at the top only.
+    let mut taken = vec!["Parameters".to_string()];
+    group_types("", fields, &mut taken);
+    let mut out = TokenStream::new();
+    for f in fields {
+        let ParamKind::Group(inner) = &f.kind else {
+            continue;
+        };
+        let module = ident(&f.name);
+        if taken.contains(&module.to_string()) {
+            continue;
+        }
+        let root = nested_type("", &f.name);
+        let mut types = vec![root.clone()];
+        group_types(&root, inner, &mut types);
+        let types = types.iter().map(|t| ident(t));
+        let doc = crate::docs::Doc::new(format!(
+            "The types of parameter group `{}` (declared at `{}`).",
+            f.name,
+            short_location(&f.loc)
+        ));
+        out.extend(quote! {
+            #doc
+            #[allow(non_snake_case)]
+            pub mod #module {
+                pub use super::{#(#types),*};
+            }
+        });
+    }
+    out
+}
+
+/// The names `ParamGen::field_type` gives the types nested in a group whose
+/// own type is `prefix`.
+fn group_types(prefix: &str, fields: &[ParamField], out: &mut Vec<String>) {
+    for f in fields {
+        match &f.kind {
+            ParamKind::Group(inner) => {
+                let name = nested_type(prefix, &f.name);
+                out.push(name.clone());
+                group_types(&name, inner, out);
+            }
+            ParamKind::Array {
+                items: ParamItem::Object(inner),
+                ..
+            } => {
+                let name = format!("{}Item", nested_type(prefix, &f.name));
+                out.push(name.clone());
+                group_types(&name, inner, out);
+            }
+            _ => {}
+        }
+    }
 }
 
 struct ParamGen<'a> {

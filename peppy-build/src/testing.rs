@@ -554,11 +554,35 @@ impl Gen<'_> {
         } else {
             (quote!(start_paired), quote!(#up mock::PAIRINGS,))
         };
+        let node_name = &node.node.name;
+        let node_tag = &node.node.tag;
+        let config_path = match &self.document_path {
+            // `.peppy/libs/peppygen`, three levels below the node's directory.
+            Some(file) => {
+                let suffix = format!("/../../../{file}");
+                quote!(::core::concat!(::core::env!("CARGO_MANIFEST_DIR"), #suffix))
+            }
+            None => {
+                let path = node.node.file.path().display().to_string();
+                quote!(#path)
+            }
+        };
         quote! {
             #[doc = " The harness: the node in-process against its mocks."]
             pub mod harness {
                 #[doc = " The mocks `Harness::start` returns (also `peppygen::mock::Mocks`)."]
                 pub use #up mock::Mocks;
+
+                #[doc = " The core node of the harness's own session (the fixture that taps and calls the node)."]
+                pub const FIXTURE_CORE_NODE: &str = ::peppy::testing::FIXTURE_CORE;
+                #[doc = " The fixture session's instance id."]
+                pub const FIXTURE_INSTANCE_ID: &str = ::peppy::testing::FIXTURE_INSTANCE_ID;
+                #[doc = " The node's name, as its document declares it."]
+                pub const NODE_NAME: &str = #node_name;
+                #[doc = " The node's tag, as its document declares it."]
+                pub const NODE_TAG: &str = #node_tag;
+                #[doc = " The node's `peppy.json5`."]
+                pub const PEPPY_CONFIG_PATH: &str = #config_path;
 
                 #[doc = " How `Harness::start_with` starts the node; `Config::default()` is what `Harness::start` uses."]
                 #[derive(Debug, Clone)]

@@ -5,7 +5,8 @@
 //! Two layouts. By default the package is `peppygen/` next to
 //! `peppy.json5`, and the node's project lists it among its packages. A
 //! node whose `pyproject.toml` takes `peppygen` from `.peppy/libs/peppygen`
-//! (a `[tool.uv.sources]` path, as today's PeppyOS nodes do) gets two small
+//! (a `[tool.uv.sources]` path, as PeppyOS's nodes do), or a `node/v1`
+//! node with no `pyproject.toml` (built into a container image), gets two small
 //! projects there instead: `.peppy/libs/peppygen` (the generated package)
 //! and `.peppy/libs/peppylib` (`peppylib`, today's name for the `peppy`
 //! runtime: a thin package re-exporting it). Both depend on the runtime
@@ -63,7 +64,7 @@ pub(crate) fn run(args: &SyncArgs) -> Result {
     }
     let dir = file.parent().unwrap_or(Path::new("."));
     let changed = write_package(node, dir)?;
-    let written = if uses_libs(dir) {
+    let written = if uses_libs(node, dir) {
         dir.join(LIBS)
     } else {
         dir.join(PACKAGE)
@@ -131,7 +132,7 @@ pub(crate) fn write_package(
             errors: diags.error_count(),
         }
     })?;
-    if !uses_libs(dir) {
+    if !uses_libs(node, dir) {
         return write_tree(&dir.join(PACKAGE), &files, true);
     }
     let runtime = runtime_dir()?;
@@ -203,10 +204,14 @@ pub(crate) fn write_tree(
 }
 
 /// Whether the node in `dir` takes `peppygen` from `.peppy/libs/peppygen`:
-/// its `pyproject.toml` names that path (a `[tool.uv.sources]` entry).
-pub(crate) fn uses_libs(dir: &Path) -> bool {
+/// its `pyproject.toml` names that path (a `[tool.uv.sources]` entry), or,
+/// in the `node/v1` spelling, it has no `pyproject.toml` at all (a node
+/// PeppyOS builds into a container image, whose definition copies
+/// `.peppy/libs/peppygen` and `.peppy/libs/peppylib`, the only layout
+/// PeppyOS writes).
+pub(crate) fn uses_libs(node: &ResolvedNode, dir: &Path) -> bool {
     let Ok(text) = std::fs::read_to_string(dir.join("pyproject.toml")) else {
-        return false;
+        return node.node.spelling == peppy_schema::Spelling::Today;
     };
     let wanted = format!("{LIBS}/{PACKAGE}");
     text.lines()

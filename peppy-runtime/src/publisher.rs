@@ -18,10 +18,12 @@ use crate::wire::codec::Encode;
 
 /// A message of one emitted topic, built and ready to publish. It is
 /// encoded when published, straight into shared memory when it goes there,
-/// so building it ahead copies nothing.
+/// so building it ahead copies nothing. A clone shares the message (one
+/// built message may go out through several publishers, or again later).
+#[derive(Clone)]
 pub struct OutgoingMessage {
     pub(crate) topic: &'static TopicSpec,
-    pub(crate) body: Box<dyn Encode + Send + Sync>,
+    pub(crate) body: Arc<dyn Encode + Send + Sync>,
 }
 
 impl OutgoingMessage {
@@ -29,7 +31,7 @@ impl OutgoingMessage {
     pub fn new<M: Encode + Send + Sync + 'static>(topic: &'static TopicSpec, message: M) -> Self {
         OutgoingMessage {
             topic,
-            body: Box::new(message),
+            body: Arc::new(message),
         }
     }
 

@@ -21,17 +21,25 @@ const HOME: [f64; 7] = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6];
 
 /// The backbone: ready once asked twice; moves arm 0 only, with an
 /// estimate; finishes each goal through a reference to its context.
-async fn backbone(_p: limb_backbone::Parameters, runner: Arc<NodeRunner>) -> Result<()> {
+async fn backbone(p: limb_backbone::Parameters, runner: Arc<NodeRunner>) -> Result<()> {
     use limb_backbone::exposed_actions::motion::move_joints;
     use limb_backbone::exposed_services::motion::is_ready;
     use limb_backbone::paired_topics::arm::joint_setpoints;
+    use limb_backbone::parameters::limits::{Limits, LimitsVelocity};
+
+    // A parameter group's types live in the group's module, defaults filled.
+    let limits: &Limits = &p.limits;
+    let velocity: &LimitsVelocity = &limits.velocity;
+    assert_eq!((p.control_rate_hz, velocity.max_rad_s), (250, 1.5));
+    assert_eq!(limits.torque_nm, 12.0);
 
     // A pairing topic's publisher is the one publisher type.
     let setpoints: peppy::TopicPublisher = joint_setpoints::declare_publisher(&runner).await?;
     // Unpaired (the slot is optional and left so): a successful no-op.
-    setpoints
-        .publish(joint_setpoints::build_message(HOME)?)
-        .await?;
+    // A built message is a value: cloned, it goes out twice.
+    let home = joint_setpoints::build_message(HOME)?;
+    setpoints.publish(home.clone()).await?;
+    setpoints.publish(home).await?;
     assert!(setpoints.peer().is_none());
 
     let serving = runner.clone();
@@ -82,6 +90,16 @@ async fn a_backbone_pins_its_vectors_answers_with_its_estimate_and_starts_unpair
     use limb_backbone::fixtures::exposed_services::motion::is_ready;
     use limb_backbone::fixtures::harness::{Config, Harness};
 
+    // The harness names the node, its document and its own session.
+    {
+        use limb_backbone::fixtures::harness as h;
+        assert_eq!((h::NODE_NAME, h::NODE_TAG), ("limb_backbone", "v1"));
+        assert!(std::fs::read_to_string(h::PEPPY_CONFIG_PATH)?.contains("limb_backbone"));
+        assert_eq!(
+            (h::FIXTURE_CORE_NODE, h::FIXTURE_INSTANCE_ID),
+            ("fixture-core", "fixture-observer")
+        );
+    }
     let config = Config {
         arm_vacant: true,
         ..Config::default()

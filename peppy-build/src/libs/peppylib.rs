@@ -34,13 +34,13 @@ pub mod clock {
 /// The core node's key/value store: `store`, `get`, `list`, `remove`.
 pub mod datastore {
     pub use ::peppy::runtime::datastore::{
-        DatastoreEntry, Encoding, StoredValue, get, list, remove, store,
+        get, list, remove, store, DatastoreEntry, Encoding, StoredValue,
     };
 }
 
 /// What the core node is: `info(&runner, timeout)`.
 pub mod info {
-    pub use ::peppy::runtime::info::{ContainerInfo, InfoResponse, info};
+    pub use ::peppy::runtime::info::{info, ContainerInfo, InfoResponse};
 }
 pub use info::info;
 

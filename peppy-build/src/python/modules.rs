@@ -56,6 +56,14 @@ pub(super) fn owner(origin: Option<&Origin>, own: bool) -> String {
     }
 }
 
+/// The name of the node or contract a slot depends on (what PeppyOS's
+/// modules call the call's `NODE_NAME` / `TARGET_NODE_NAME`).
+fn origin_name(origin: &Origin) -> &str {
+    match origin {
+        Origin::Node(id) | Origin::Interface(id) => &id.name,
+    }
+}
+
 pub(super) fn qos(q: QosProfile) -> String {
     format!("QoSProfile.{}", q.as_str().to_ascii_uppercase())
 }
@@ -329,6 +337,10 @@ pub(super) fn consumed_service(
         py_string(&d.name)
     ));
     if today {
+        out.line(&format!(
+            "NODE_NAME = {}",
+            py_string(origin_name(&c.origin))
+        ));
         out.line(&format!("SERVICE_NAME = {}", py_string(&d.name)));
         out.line(&format!("LINK_ID = {}", py_string(&c.slot.link_id)));
     }
@@ -605,6 +617,10 @@ pub(super) fn consumed_action(out: &mut Source, node: &ResolvedNode, c: &Resolve
         py_string(&d.name)
     ));
     if today {
+        out.line(&format!(
+            "TARGET_NODE_NAME = {}",
+            py_string(origin_name(&c.origin))
+        ));
         out.line(&format!("TARGET_ACTION_NAME = {}", py_string(&d.name)));
         out.line(&format!("LINK_ID = {}", py_string(&c.slot.link_id)));
         out.line("ResultStatus = _actions.ResultStatus");

@@ -72,10 +72,7 @@ pub(super) fn files(node: &ResolvedNode, surface: &Surface) -> Vec<PythonFile> {
         ));
         mocks.push((slot.link_id.clone(), format!("{group}.{link}")));
     }
-    out.push((
-        "fixtures/harness.py".into(),
-        harness(&identity, &mocks, surface),
-    ));
+    out.push(("fixtures/harness.py".into(), harness(node, &mocks, surface)));
     for (tap, path) in &surface.emitted {
         let file = fixture_path(path);
         out.push((file.clone(), emitted_fixture(&file, path, tap)));
@@ -339,7 +336,8 @@ fn import_module(prefix: &str, path: &str, alias: &str) -> String {
     }
 }
 
-fn harness(identity: &str, mocks: &[(String, String)], surface: &Surface) -> String {
+fn harness(node: &ResolvedNode, mocks: &[(String, String)], surface: &Surface) -> String {
+    let identity = node.node.identity().to_string();
     let pairings = !surface.pairings.is_empty();
     let mut out = Source::default();
     out.docstring(&format!(
@@ -384,6 +382,12 @@ fn harness(identity: &str, mocks: &[(String, String)], surface: &Surface) -> Str
         .iter()
         .map(|(link, m)| format!("{}: _mock_{}.Mock", py_string(link), mock_alias(m)))
         .collect();
+    out.line("FIXTURE_CORE_NODE = _testing.FIXTURE_CORE");
+    out.line("\"\"\"The core node of the harness's own session (the fixture that taps and calls the node).\"\"\"");
+    out.line("FIXTURE_INSTANCE_ID = _testing.FIXTURE_INSTANCE_ID");
+    out.line("\"\"\"The fixture session's instance id.\"\"\"");
+    out.line(&format!("NODE_NAME = {}", py_string(&node.node.name)));
+    out.line(&format!("NODE_TAG = {}", py_string(&node.node.tag)));
     out.line(&format!("MOCKS = {{{}}}", mock_items.join(", ")));
     out.line("\"\"\"Each slot's mock class, by link_id.\"\"\"");
     let taps: Vec<String> = surface

@@ -335,6 +335,40 @@ fn installed(node: &std::path::Path, relative: &str) -> String {
     std::fs::read_to_string(python.join("site-packages").join(relative)).unwrap()
 }
 
+/// A `node/v1` Python node with no pyproject.toml (PeppyOS builds such a
+/// node into a container image that copies `.peppy/libs/*`) is synced into
+/// the `.peppy/libs` layout too.
+#[test]
+fn a_node_without_a_project_is_synced_into_the_libs_layout() {
+    let dir = tempfile::tempdir().unwrap();
+    let node = dir.path().join("engine");
+    std::fs::create_dir_all(&node).unwrap();
+    let example = root().join("examples/nodes/py_today_camera/peppy.json5");
+    std::fs::copy(example, node.join("peppy.json5")).unwrap();
+    let repo = root().join("examples");
+    let run = crate::support::peppy_launch(
+        dir.path(),
+        &[
+            "sync",
+            node.to_str().unwrap(),
+            "--repo",
+            repo.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    let libs = node.join(".peppy/libs");
+    for file in [
+        "peppygen/peppygen/__init__.py",
+        "peppylib/peppylib/__init__.py",
+    ] {
+        assert!(libs.join(file).is_file(), "{file}: {}", run.stdout);
+    }
+    assert!(
+        !node.join("peppygen").exists(),
+        "nothing beside peppy.json5"
+    );
+}
+
 /// `sync` on a node whose pyproject.toml takes `peppygen` and `peppylib`
 /// from `.peppy/libs`: two projects there (nothing beside peppy.json5), a
 /// second `sync` touches no file, `uv sync --no-editable` installs them

@@ -95,7 +95,6 @@ pub(crate) fn turned(node: &'static NodeDescriptor, identity: &Identity) -> &'st
 pub(crate) async fn open(
     turned: &'static Turned,
     identity: &Identity,
-    instance_id: &str,
     subject: &str,
     port: u16,
 ) -> Result<Arc<NodeRunner>> {
@@ -115,9 +114,9 @@ pub(crate) async fn open(
         pairings: Vec::new(),
     };
     let standalone = StandaloneConfig::new()
-        .with_instance_id(instance_id)
+        .with_instance_id(super::FIXTURE_INSTANCE_ID)
         .with_messaging("127.0.0.1", port)
-        .with_core_node(HARNESS_CORE)
+        .with_core_node(super::FIXTURE_CORE)
         .with_bound_producer(SUBJECT, HARNESS_CORE, subject);
     let config = startup::load(&doc, vec!["peppy-harness".into()], None, &standalone)?;
     NodeRunner::open(

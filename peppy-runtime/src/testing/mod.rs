@@ -66,9 +66,17 @@ use crate::wire::codec::{Decode, Encode};
 use crate::wire::keys::describe_key;
 use watch::Watch;
 
-/// The core node of everything a harness runs: the node, its mocks and
-/// its fixture (as a standalone run is `standalone`).
+/// The core node of the node a harness runs (as a standalone run's is).
 pub const HARNESS_CORE: &str = "standalone-core";
+
+/// The core node of the harness's own session, the fixture that taps the
+/// node's topics and calls its services and actions (PeppyOS's
+/// `fixture-core`).
+pub const FIXTURE_CORE: &str = "fixture-core";
+
+/// The fixture session's instance id (PeppyOS's `fixture-observer`); each
+/// harness has a router of its own, so one id serves them all.
+pub const FIXTURE_INSTANCE_ID: &str = "fixture-observer";
 
 /// The core node of the harness's mocks (PeppyOS's `mock-core`): a mock is
 /// `ProducerRef { core_node: "mock-core", instance_id: "mock-<link_id>" }`.
@@ -443,14 +451,7 @@ impl Harness {
         }
 
         let turned = fixture::turned(descriptor, &model.identity);
-        let fixture = fixture::open(
-            turned,
-            &model.identity,
-            &format!("harness-{instance_id}"),
-            &instance_id,
-            port,
-        )
-        .await?;
+        let fixture = fixture::open(turned, &model.identity, &instance_id, port).await?;
 
         let (params, node) = NodeBuilder::<P>::new()
             .standalone(standalone)

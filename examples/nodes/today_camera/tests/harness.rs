@@ -49,6 +49,15 @@ async fn frames_are_numbered_and_their_bytes_move_with_the_number() -> Result<()
     harness.shutdown().await
 }
 
+/// The harness names the node and its document as PeppyOS's does.
+#[test]
+fn the_harness_names_the_node_and_finds_its_document() {
+    use peppygen::fixtures::harness::{NODE_NAME, NODE_TAG, PEPPY_CONFIG_PATH};
+    assert_eq!((NODE_NAME, NODE_TAG), ("today_camera", "v1"));
+    let document = std::fs::read_to_string(PEPPY_CONFIG_PATH).expect("the node's peppy.json5");
+    assert!(document.contains("name: \"today_camera\""), "{document}");
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn stream_info_tells_the_configured_stream() -> Result<()> {
     let (harness, _mocks) = Harness::start_with(small_camera(false), today_camera::setup).await?;

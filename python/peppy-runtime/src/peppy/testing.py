@@ -80,6 +80,8 @@ MOCK_CORE = "mock-core"
 """The core node of every mock producer."""
 FIXTURE_CORE = "fixture-core"
 """The core node of the harness's own caller and observer session."""
+FIXTURE_INSTANCE_ID = "fixture-observer"
+"""The fixture session's instance id (each harness has its own router)."""
 NAMESPACE = "local"
 """The namespace every harness uses (each has its own router)."""
 ROUTER_ATTEMPTS = 20
@@ -1280,7 +1282,7 @@ async def _start(
             SlotBinding.pinned(h.instance_id),
             RouteFilter("pin", frozenset((h.instance_id,))),
         )
-        h._fixture = await _open_runner(fixture, FIXTURE_CORE, f"fixture-{h.instance_id}", h.router_endpoint, [pin])
+        h._fixture = await _open_runner(fixture, FIXTURE_CORE, FIXTURE_INSTANCE_ID, h.router_endpoint, [pin])
         h.session = h._fixture.session
         by_spec = dict(zip(descriptor.emitted_topics, fixture.consumed_topics))
         names = emitted if emitted is not None else {_attr(t.name): t for t in descriptor.emitted_topics}

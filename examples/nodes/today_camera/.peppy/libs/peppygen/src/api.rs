@@ -291,6 +291,18 @@ pub mod fixtures {
     pub mod harness {
         /// The mocks `Harness::start` returns (also `peppygen::mock::Mocks`).
         pub use super::super::mock::Mocks;
+        /// The core node of the harness's own session (the fixture that taps and calls the node).
+        pub const FIXTURE_CORE_NODE: &str = ::peppy::testing::FIXTURE_CORE;
+        /// The fixture session's instance id.
+        pub const FIXTURE_INSTANCE_ID: &str = ::peppy::testing::FIXTURE_INSTANCE_ID;
+        /// The node's name, as its document declares it.
+        pub const NODE_NAME: &str = "today_camera";
+        /// The node's tag, as its document declares it.
+        pub const NODE_TAG: &str = "v1";
+        /// The node's `peppy.json5`.
+        pub const PEPPY_CONFIG_PATH: &str = ::core::concat!(
+            ::core::env!("CARGO_MANIFEST_DIR"), "/../../../peppy.json5"
+        );
         /// How `Harness::start_with` starts the node; `Config::default()` is what `Harness::start` uses.
         #[derive(Debug, Clone)]
         pub struct Config {
