@@ -5,8 +5,8 @@
 //! Two layouts. By default the package is `peppygen/` next to
 //! `peppy.json5`, and the node's project lists it among its packages. A
 //! node whose `pyproject.toml` takes `peppygen` from `.peppy/libs/peppygen`
-//! (a `[tool.uv.sources]` path, as PeppyOS's nodes do), or a `node/v1`
-//! node with no `pyproject.toml` (built into a container image), gets two small
+//! (a `[tool.uv.sources]` path, as PeppyOS's nodes do), or that runs in a
+//! container (`execution.container`: its image copies them), gets two small
 //! projects there instead: `.peppy/libs/peppygen` (the generated package)
 //! and `.peppy/libs/peppylib` (`peppylib`, today's name for the `peppy`
 //! runtime: a thin package re-exporting it). Both depend on the runtime
@@ -204,14 +204,16 @@ pub(crate) fn write_tree(
 }
 
 /// Whether the node in `dir` takes `peppygen` from `.peppy/libs/peppygen`:
-/// its `pyproject.toml` names that path (a `[tool.uv.sources]` entry), or,
-/// in the `node/v1` spelling, it has no `pyproject.toml` at all (a node
-/// PeppyOS builds into a container image, whose definition copies
-/// `.peppy/libs/peppygen` and `.peppy/libs/peppylib`, the only layout
-/// PeppyOS writes).
+/// it runs in a container (`execution.container`: PeppyOS builds it into an
+/// image whose definition copies `.peppy/libs/peppygen` and
+/// `.peppy/libs/peppylib`), or its `pyproject.toml` names that path (a
+/// `[tool.uv.sources]` entry).
 pub(crate) fn uses_libs(node: &ResolvedNode, dir: &Path) -> bool {
+    if node.node.execution.container.is_some() {
+        return true;
+    }
     let Ok(text) = std::fs::read_to_string(dir.join("pyproject.toml")) else {
-        return node.node.spelling == peppy_schema::Spelling::Today;
+        return false;
     };
     let wanted = format!("{LIBS}/{PACKAGE}");
     text.lines()

@@ -335,16 +335,20 @@ fn installed(node: &std::path::Path, relative: &str) -> String {
     std::fs::read_to_string(python.join("site-packages").join(relative)).unwrap()
 }
 
-/// A `node/v1` Python node with no pyproject.toml (PeppyOS builds such a
-/// node into a container image that copies `.peppy/libs/*`) is synced into
-/// the `.peppy/libs` layout too.
+/// A Python node that runs in a container, with no pyproject.toml
+/// (PeppyOS builds it into an image whose definition copies
+/// `.peppy/libs/*`), is synced into the `.peppy/libs` layout too.
 #[test]
-fn a_node_without_a_project_is_synced_into_the_libs_layout() {
+fn a_container_node_is_synced_into_the_libs_layout() {
     let dir = tempfile::tempdir().unwrap();
     let node = dir.path().join("engine");
     std::fs::create_dir_all(&node).unwrap();
     let example = root().join("examples/nodes/py_today_camera/peppy.json5");
-    std::fs::copy(example, node.join("peppy.json5")).unwrap();
+    let text = std::fs::read_to_string(example).unwrap();
+    let commands = "build_cmd: [\"uv\", \"sync\", \"--no-editable\"],\n    run_cmd: [\"./.venv/bin/python\", \"-m\", \"py_today_camera\"],";
+    assert!(text.contains(commands), "{text}");
+    let text = text.replace(commands, "container: { def_file: \"apptainer.def\" },");
+    std::fs::write(node.join("peppy.json5"), text).unwrap();
     let repo = root().join("examples");
     let run = crate::support::peppy_launch(
         dir.path(),
