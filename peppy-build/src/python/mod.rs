@@ -420,6 +420,13 @@ fn init(node: &ResolvedNode, document: &str, specs: &Specs) -> String {
         let items: Vec<String> = ms.iter().map(|m| format!("_{},", alias(m))).collect();
         format!("({})", items.join(" "))
     };
+    // `peppy-launch sync` records itself beside the package, so a node
+    // started by hand (or its pytest) plans with the engine that wrote it.
+    out.line("try:");
+    out.line("    from ._engine import PEPPY_LAUNCH as _ENGINE");
+    out.line("except ImportError:  # a package not written by `peppy-launch sync`");
+    out.line("    _ENGINE = None");
+    out.blank();
     out.line("DESCRIPTOR = _s.NodeDescriptor(");
     out.indent();
     out.line(&format!("name={},", py_string(&n.name)));
@@ -470,6 +477,7 @@ fn init(node: &ResolvedNode, document: &str, specs: &Specs) -> String {
         "model={},",
         py_string(&peppy_schema::NodeModel::of(n).to_json())
     ));
+    out.line("engine=_ENGINE,");
     out.dedent();
     out.line(")");
     out.line("\"\"\"What the runtime knows about this node.\"\"\"");

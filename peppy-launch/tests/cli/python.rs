@@ -486,7 +486,9 @@ fn sync_writes_the_libs_projects_and_uv_reinstalls_what_changed() {
 
 /// Every Python example's own tests: `sync` writes its `peppygen` (with
 /// the `mock` and `fixtures` packages), then pytest (the project's `dev`
-/// group) boots the node's setup through the generated harness.
+/// group) boots the node's setup through the generated harness, planning
+/// with the `peppy-launch` that synced it (neither `PATH` nor
+/// `PEPPY_LAUNCH` names one).
 #[test]
 fn python_examples_pass_their_harness_tests() {
     let repo = root().join("examples");
@@ -518,8 +520,9 @@ fn python_examples_pass_their_harness_tests() {
                 "no:cacheprovider",
             ])
             .current_dir(&node)
-            // The harness asks `peppy-launch plan` for the node's plan.
-            .env("PEPPY_LAUNCH", env!("CARGO_BIN_EXE_peppy-launch"))
+            // The harness asks `peppy-launch plan` for the node's plan,
+            // and finds the one that synced it with nothing set up.
+            .env_remove("PEPPY_LAUNCH")
             .stdout(std::process::Stdio::piped())
             .stderr(std::process::Stdio::piped())
             .spawn()

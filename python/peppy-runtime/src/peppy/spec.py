@@ -225,6 +225,8 @@ class NodeDescriptor:
     (`peppy_schema::NodeModel`, what a Rust binary embeds), which a node
     started by hand hands `peppy-launch plan`. `pairings` are its pairing
     slots and `pairing_topics` the topics it sends or receives through them.
+    `engine` is the `peppy-launch` that wrote the generated package (what
+    `sync` records), the one a node started by hand plans with.
     """
 
     name: str
@@ -241,6 +243,7 @@ class NodeDescriptor:
     model: Optional[str] = None
     pairings: Tuple[PairingSlotSpec, ...] = ()
     pairing_topics: Tuple[PairingTopicSpec, ...] = ()
+    engine: Optional[str] = None
 
     def slot(self, link_id: str) -> Optional[SlotSpec]:
         """The slot named `link_id`, if the node has one."""

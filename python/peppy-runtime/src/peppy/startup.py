@@ -234,9 +234,17 @@ def plan_from_text(text: str, where: str, descriptor: NodeDescriptor) -> Startup
     )
 
 
-def peppy_launch() -> Optional[str]:
-    """The `peppy-launch` program: `PEPPY_LAUNCH`, else the one on `PATH`."""
-    return os.environ.get(PEPPY_LAUNCH_ENV) or shutil.which("peppy-launch")
+def peppy_launch(descriptor: Optional[NodeDescriptor] = None) -> Optional[str]:
+    """The `peppy-launch` program: `PEPPY_LAUNCH`, else the one that wrote
+    the node's generated package (recorded by `sync`, while it is still
+    there), else the one on `PATH`."""
+    named = os.environ.get(PEPPY_LAUNCH_ENV)
+    if named:
+        return named
+    recorded = descriptor.engine if descriptor is not None else None
+    if recorded and os.path.isfile(recorded) and os.access(recorded, os.X_OK):
+        return recorded
+    return shutil.which("peppy-launch")
 
 
 def plan_text_from_flags(args: Sequence[str], descriptor: NodeDescriptor) -> str:
@@ -250,12 +258,13 @@ def plan_text_from_flags(args: Sequence[str], descriptor: NodeDescriptor) -> str
             f"node `{descriptor.name}:{descriptor.tag}` has no model to plan with; "
             "regenerate its peppygen (`peppy-launch sync`) or give it a runtime config"
         )
-    program = peppy_launch()
+    program = peppy_launch(descriptor)
     if program is None:
+        recorded = f" (the one that wrote peppygen, {descriptor.engine}, is gone)" if descriptor.engine else ""
         raise StartupError(
             "a node started by hand asks `peppy-launch plan` for its slots and parameters, and "
-            f"peppy-launch was not found: put it on PATH, set {PEPPY_LAUNCH_ENV}, "
-            "or start the node with `peppy-launch run NODE_DIR ...`"
+            f"peppy-launch was not found{recorded}: rerun `peppy-launch sync`, put it on PATH, "
+            f"set {PEPPY_LAUNCH_ENV}, or start the node with `peppy-launch run NODE_DIR ...`"
         )
     try:
         done = subprocess.run(
