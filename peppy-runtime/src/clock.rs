@@ -294,8 +294,8 @@ pub async fn synchronize(runner: &NodeRunner, timeout: Option<Duration>) -> Resu
         let left = deadline.saturating_duration_since(tokio::time::Instant::now());
         if left.is_zero() {
             return Err(Error::ServiceUnreachable {
-                service: "clock sync".into(),
-                instance: None,
+                service_name: "clock sync".into(),
+                instance_id: None,
             });
         }
         tokio::select! {

@@ -177,8 +177,8 @@ pub(crate) async fn ask(
                     // of its own, not the core node's.
                     if why != "Timeout" {
                         return Err(Error::ServiceError {
-                            service: function.as_str().to_string(),
-                            instance: runner.core_node().to_string(),
+                            service_name: function.as_str().to_string(),
+                            instance_id: Some(runner.core_node().to_string()),
                             reason: why,
                         });
                     }
@@ -188,12 +188,12 @@ pub(crate) async fn ask(
         let left = deadline.saturating_duration_since(tokio::time::Instant::now());
         if left.is_zero() {
             return Err(Error::ServiceUnreachable {
-                service: format!(
+                service_name: format!(
                     "{} of core node `{}`",
                     function.as_str(),
                     runner.core_node()
                 ),
-                instance: None,
+                instance_id: None,
             });
         }
         tokio::select! {

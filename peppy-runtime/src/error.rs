@@ -7,28 +7,29 @@ use peppy_schema::{BindError, ParamError};
 #[non_exhaustive]
 pub enum Error {
     /// Nobody answered: no server of that service was reachable.
-    #[error("service `{service}`{} is unreachable: no server answered", for_instance(.instance))]
+    #[error("service `{service_name}`{} is unreachable: no server answered", for_instance(.instance_id))]
     ServiceUnreachable {
-        /// The service.
-        service: String,
         /// The targeted instance, if pinned.
-        instance: Option<String>,
+        instance_id: Option<String>,
+        /// The service.
+        service_name: String,
     },
     /// A server accepted the request but did not reply in time.
-    #[error("service `{service}`{} accepted the request but did not reply in time", for_instance(.instance))]
+    #[error("service `{service_name}`{} accepted the request but did not reply in time", for_instance(.instance_id))]
     ServiceTimeout {
-        /// The service.
-        service: String,
         /// The server instance.
-        instance: Option<String>,
+        instance_id: Option<String>,
+        /// The service.
+        service_name: String,
     },
     /// The server's handler returned an error (its text is the reason).
-    #[error("service `{service}` failed on `{instance}`: {reason}")]
+    #[error("service `{service_name}` failed{}: {reason}", for_instance(.instance_id))]
     ServiceError {
+        /// The server instance that answered (always known here; an
+        /// `Option` as PeppyOS has it).
+        instance_id: Option<String>,
         /// The service.
-        service: String,
-        /// The server instance.
-        instance: String,
+        service_name: String,
         /// The handler's error text.
         reason: String,
     },

@@ -164,8 +164,8 @@ pub(crate) struct Answer {
 impl Request<'_> {
     fn failed(&self, instance: String, reason: String) -> Error {
         Error::ServiceError {
-            service: self.describe.to_string(),
-            instance,
+            service_name: self.describe.to_string(),
+            instance_id: Some(instance),
             reason,
         }
     }
@@ -315,11 +315,18 @@ impl Request<'_> {
     /// The error of a request no server answered: held by one (`acked`)
     /// but not answered in time, or never reached.
     fn unanswered(&self, acked: bool) -> Error {
-        let (service, instance) = (self.describe.to_string(), Some(self.instance.to_string()));
+        let (service_name, instance_id) =
+            (self.describe.to_string(), Some(self.instance.to_string()));
         if acked {
-            Error::ServiceTimeout { service, instance }
+            Error::ServiceTimeout {
+                service_name,
+                instance_id,
+            }
         } else {
-            Error::ServiceUnreachable { service, instance }
+            Error::ServiceUnreachable {
+                service_name,
+                instance_id,
+            }
         }
     }
 }

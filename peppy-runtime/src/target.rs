@@ -67,8 +67,8 @@ impl Entry<'_> {
 
     fn unreachable(&self) -> Error {
         Error::ServiceUnreachable {
-            service: self.describe.to_string(),
-            instance: None,
+            service_name: self.describe.to_string(),
+            instance_id: None,
         }
     }
 }

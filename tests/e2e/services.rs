@@ -83,9 +83,11 @@ async fn node_and_interface_slot_services() {
         .unwrap_err();
     match err {
         Error::ServiceError {
-            reason, instance, ..
+            reason,
+            instance_id,
+            ..
         } => {
-            assert_eq!(instance, "cam");
+            assert_eq!(instance_id.as_deref(), Some("cam"));
             assert_eq!(reason, "recon may not hard-reset");
         }
         other => panic!("{other}"),

@@ -419,8 +419,8 @@ impl GoalClient {
             Some((2, _)) => Ok(Outcome::Abandoned),
             Some((3, _)) => Ok(Outcome::Expired),
             _ => Err(Error::ServiceError {
-                service: self.action.clone(),
-                instance: self.instance_id.clone(),
+                service_name: self.action.clone(),
+                instance_id: Some(self.instance_id.clone()),
                 reason: "malformed result".into(),
             }),
         }

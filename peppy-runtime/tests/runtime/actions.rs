@@ -253,12 +253,12 @@ async fn a_goal_in_another_format_names_both_formats() {
     .unwrap_err();
     match err {
         Error::ServiceError {
-            service,
-            instance,
+            service_name,
+            instance_id,
             reason,
         } => {
-            assert_eq!(service, "move_arm (action goal)");
-            assert_eq!(instance, "arm");
+            assert_eq!(service_name, "move_arm (action goal)");
+            assert_eq!(instance_id.as_deref(), Some("arm"));
             assert_eq!(
                 reason,
                 "the server expects request format {steps:u32}, this node sends {steps:u16}; rebuild one side"

@@ -279,10 +279,12 @@ async fn unreachable_timeout_and_handler_errors_are_distinct() {
         .unwrap_err();
     match err {
         Error::ServiceError {
-            reason, instance, ..
+            reason,
+            instance_id,
+            ..
         } => {
             assert_eq!(reason, "cannot scale zero for recon");
-            assert_eq!(instance, "rs_left");
+            assert_eq!(instance_id.as_deref(), Some("rs_left"));
         }
         other => panic!("{other}"),
     }

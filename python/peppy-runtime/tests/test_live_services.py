@@ -52,6 +52,7 @@ class ServiceTest(t.LiveTest):
             await services.call(viewer, t.ADD_PINNED, 5.0, t.AddRequest(-1, 1))
         self.assertEqual(caught.exception.reason, "negative numbers are not served")
         self.assertEqual(caught.exception.instance, "cam_a")
+        self.assertEqual((caught.exception.instance_id, caught.exception.service_name), ("cam_a", "add"))
         # The server keeps serving after a handler error.
         _, _, response = await services.call(viewer, t.ADD_PINNED, 5.0, t.AddRequest(1, 1))
         self.assertEqual(response, t.AddResponse(2))

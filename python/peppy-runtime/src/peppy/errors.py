@@ -19,6 +19,9 @@ class ServiceUnreachable(PeppyError, ConnectionError):
     def __init__(self, service: str, instance: Optional[str] = None) -> None:
         self.service = service
         self.instance = instance
+        # PeppyOS's names for the same two.
+        self.service_name = service
+        self.instance_id = instance
         super().__init__(f"service `{service}`{_on(instance)} is unreachable: no server answered")
 
 
@@ -28,6 +31,9 @@ class ServiceTimeout(PeppyError, TimeoutError):
     def __init__(self, service: str, instance: Optional[str] = None) -> None:
         self.service = service
         self.instance = instance
+        # PeppyOS's names for the same two.
+        self.service_name = service
+        self.instance_id = instance
         super().__init__(f"service `{service}`{_on(instance)} accepted the request but did not reply in time")
 
 
@@ -37,6 +43,9 @@ class ServiceError(PeppyError, RuntimeError):
     def __init__(self, service: str, instance: str, reason: str) -> None:
         self.service = service
         self.instance = instance
+        # PeppyOS's names for the same two.
+        self.service_name = service
+        self.instance_id = instance
         self.reason = reason
         super().__init__(f"service `{service}` failed on `{instance}`: {reason}")
 
