@@ -516,15 +516,16 @@ pub fn golden_store_request(key: &str, value: &[u8], encoding: &str, writer: &st
 }
 
 /// What [`get`], [`list`] and [`remove`] send, for the golden vectors
-/// (`op`: `get`, `list` or `remove`).
+/// (`op`: `get`, `list` or `remove`; another is `None`).
 #[doc(hidden)]
-pub fn golden_request(op: &str, key: &str) -> Vec<u8> {
+pub fn golden_request(op: &str, key: &str) -> Option<Vec<u8>> {
     let r = match op {
         "get" => Request::Get { key: key.into() },
         "list" => Request::List,
-        _ => Request::Remove { key: key.into() },
+        "remove" => Request::Remove { key: key.into() },
+        _ => return None,
     };
-    crate::wire::codec::to_bytes(&r)
+    Some(crate::wire::codec::to_bytes(&r))
 }
 
 #[cfg(test)]

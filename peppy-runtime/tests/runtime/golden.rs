@@ -414,13 +414,14 @@ fn the_datastore_speaks_the_golden_steps() {
             .collect()
     };
     let key = "calibration/wrist";
+    let op = |op: &str, key: &str| golden_request(op, key).expect(op);
     let ours = [
         golden_store_request(key, br#"{"x":1}"#, "application/json", "arm_left"),
-        golden_request("get", key),
-        golden_request("list", ""),
-        golden_request("remove", key),
-        golden_request("get", key),
-        golden_request("remove", key),
+        op("get", key),
+        op("list", ""),
+        op("remove", key),
+        op("get", key),
+        op("remove", key),
     ];
     assert_eq!(steps.len(), ours.len());
     let requests: Vec<Vec<u8>> = steps
