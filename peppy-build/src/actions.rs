@@ -142,7 +142,7 @@ impl Gen<'_> {
         // Today's spelling decides with `GoalDecision` (the action's own
         // when it declares a goal response); the seeds' with `GoalResponse`.
         // Both hand the decider the request by reference, as PeppyOS does.
-        let declared = decl.goal_response.as_ref().filter(|_| self.today());
+        let declared = decl.goal_response.as_ref();
         let mut decision_types = TokenStream::new();
         if let Some(format) = declared {
             let mut structs = Structs {
@@ -382,7 +382,7 @@ impl Gen<'_> {
         if decl.result.is_some() {
             fixed.push("ResultResponseData");
         }
-        let declared = decl.goal_response.as_ref().filter(|_| self.today());
+        let declared = decl.goal_response.as_ref();
         let mut names = Names::with_fixed(&fixed);
         let mut structs = Structs {
             names: &mut names,
@@ -465,18 +465,7 @@ impl Gen<'_> {
                         Some(_) => quote! {
                             let accepted = inner.accepted;
                             let reason = inner.error_message.clone();
-                            let data = if inner.response.is_empty() {
-                                ::core::option::Option::None
-                            } else {
-                                ::core::option::Option::Some(
-                                    ::peppy::codegen::from_bytes::<GoalResponseData>(&inner.response).map_err(|source| {
-                                        ::peppy::codegen::Error::Decode {
-                                            what: ::std::format!("goal response of `{}`", #name),
-                                            source,
-                                        }
-                                    })?,
-                                )
-                            };
+                            let data = inner.goal_response::<GoalResponseData>()?;
                             ::core::result::Result::Ok(ActionHandle { inner, accepted, reason, data })
                         },
                         None => quote! {

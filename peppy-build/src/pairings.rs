@@ -363,7 +363,7 @@ impl Gen<'_> {
                 )
             };
             let doc = crate::docs::Doc::new(doc);
-            let instance = format!("mock-{link_id}");
+            let instance = peppy_schema::names::mock_instance_id(link_id, None);
             let (pairing_name, pairing_tag) = (&slot.pairing.name, &slot.pairing.tag);
             let identity = if slot.observer {
                 quote! {

@@ -166,7 +166,7 @@ impl Gen<'_> {
                 Some(_) => quote!(GoalRequest),
                 None => quote!(()),
             };
-            let response = match a.decl.goal_response.as_ref().filter(|_| self.today()) {
+            let response = match a.decl.goal_response.as_ref() {
                 Some(_) => quote!(GoalResponseData),
                 None => quote!(()),
             };
@@ -250,7 +250,7 @@ impl Gen<'_> {
         let slot_doc = crate::docs::Doc::new(doc.to_string());
         let identity = match link_id {
             Some(link_id) => {
-                let instance = format!("mock-{link_id}");
+                let instance = peppy_schema::names::mock_instance_id(link_id, None);
                 quote! {
                     #[doc = " The node's slot this mock fills."]
                     pub const LINK_ID: &str = #link_id;
@@ -839,7 +839,7 @@ impl Gen<'_> {
                         Some(_) => quote!(ResultData),
                         None => quote!(()),
                     };
-                    let declared = a.decl.goal_response.as_ref().filter(|_| self.today());
+                    let declared = a.decl.goal_response.as_ref();
                     let (data_field, data_init) = match declared {
                         Some(_) => (
                             quote! {
@@ -847,18 +847,7 @@ impl Gen<'_> {
                                 pub data: ::core::option::Option<GoalResponse>,
                             },
                             quote! {
-                                data: if inner.response_bytes().is_empty() {
-                                    ::core::option::Option::None
-                                } else {
-                                    ::core::option::Option::Some(
-                                        ::peppy::codegen::from_bytes::<GoalResponse>(inner.response_bytes()).map_err(|source| {
-                                            ::peppy::codegen::Error::Decode {
-                                                what: ::std::format!("goal response of `{}`", #name),
-                                                source,
-                                            }
-                                        })?,
-                                    )
-                                },
+                                data: inner.goal_response::<GoalResponse>()?,
                             },
                         ),
                         None => (quote!(), quote!()),

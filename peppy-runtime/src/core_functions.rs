@@ -136,19 +136,38 @@ pub async fn serve(
     })
 }
 
+/// How long a call of a core node function waits for its core node by
+/// default.
+pub const DEFAULT_RESPONSE_TIMEOUT: Duration = Duration::from_secs(10);
+
 /// How long a call waits before asking again when nobody answered (a node
 /// just started may not know its core node's queryables yet).
 const RETRY: Duration = Duration::from_millis(50);
 
+/// Asks this node's core node `function` for its JSON answer (`info`,
+/// `list`); `what` names the answer in a decoding error.
+pub(crate) async fn ask_json<T: serde::de::DeserializeOwned>(
+    runner: &NodeRunner,
+    function: CoreFunction,
+    timeout: Option<Duration>,
+    what: &str,
+) -> Result<T> {
+    let body = ask(runner, function, Vec::new(), timeout).await?;
+    serde_json::from_slice(&body)
+        .map_err(|e| Error::Deserialization(format!("the core node's {what}: {e}")))
+}
+
 /// Asks this node's core node `function` with `payload`: the answer's
 /// payload. `Error::ServiceUnreachable` when nobody answers within
-/// `timeout`, `Error::ServiceError` when the core node refuses.
+/// `timeout` (`None`: [`DEFAULT_RESPONSE_TIMEOUT`]), `Error::ServiceError`
+/// when the core node refuses.
 pub(crate) async fn ask(
     runner: &NodeRunner,
     function: CoreFunction,
     payload: Vec<u8>,
-    timeout: Duration,
+    timeout: Option<Duration>,
 ) -> Result<Vec<u8>> {
+    let timeout = timeout.unwrap_or(DEFAULT_RESPONSE_TIMEOUT);
     if runner.messaging_stop().is_cancelled() {
         return Err(crate::stop::refused().await);
     }

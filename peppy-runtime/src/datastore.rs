@@ -33,7 +33,7 @@ use crate::wire::codec::{Decode, DecodeError, Decoder, Encode, Writer};
 use crate::wire::keys::CoreFunction;
 
 /// How long a call waits for its core node by default.
-pub const DEFAULT_RESPONSE_TIMEOUT: Duration = Duration::from_secs(10);
+pub use crate::core_functions::DEFAULT_RESPONSE_TIMEOUT;
 
 /// The largest value the store keeps (16 MiB): it is for small shared
 /// state, not a file store.
@@ -241,7 +241,7 @@ async fn ask(runner: &NodeRunner, request: &Request, timeout: Option<Duration>) 
         runner,
         CoreFunction::Datastore,
         crate::wire::codec::to_bytes(request),
-        timeout.unwrap_or(DEFAULT_RESPONSE_TIMEOUT),
+        timeout,
     )
     .await?;
     crate::wire::codec::from_bytes::<Reply>(&body).map_err(|source| Error::Decode {
@@ -347,24 +347,11 @@ impl Encode for Reply {
             Reply::Done => 0u8.encode(out),
             Reply::Value(v) => {
                 1u8.encode(out);
-                match v {
-                    None => 0u8.encode(out),
-                    Some((value, encoding, writer)) => {
-                        1u8.encode(out);
-                        value.encode(out);
-                        encoding.encode(out);
-                        writer.encode(out);
-                    }
-                }
+                v.encode(out);
             }
             Reply::Entries(entries) => {
                 2u8.encode(out);
-                (entries.len() as u32).encode(out);
-                for (key, encoding, writer) in entries {
-                    key.encode(out);
-                    encoding.encode(out);
-                    writer.encode(out);
-                }
+                entries.encode(out);
             }
             Reply::Removed(was) => {
                 3u8.encode(out);
@@ -380,24 +367,8 @@ impl Decode for Reply {
     fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
         Ok(match u8::decode(d)? {
             0 => Reply::Done,
-            1 => Reply::Value(match u8::decode(d)? {
-                0 => None,
-                1 => Some((
-                    Vec::<u8>::decode(d)?,
-                    String::decode(d)?,
-                    String::decode(d)?,
-                )),
-                b => return Err(d.error(format!("presence byte is {b}, expected 0 or 1"))),
-            }),
-            2 => {
-                // Each entry takes at least three empty strings' lengths.
-                let n = d.count(12)?;
-                let mut entries = Vec::with_capacity(n);
-                for _ in 0..n {
-                    entries.push((String::decode(d)?, String::decode(d)?, String::decode(d)?));
-                }
-                Reply::Entries(entries)
-            }
+            1 => Reply::Value(Option::decode(d)?),
+            2 => Reply::Entries(Vec::decode(d)?),
             3 => Reply::Removed(bool::decode(d)?),
             kind => return Err(d.error(format!("unknown datastore reply {kind}"))),
         })

@@ -5,12 +5,12 @@ use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::node::NodeRunner;
 use crate::wire::keys::CoreFunction;
 
 /// How long [`info`] waits for its core node by default.
-pub const DEFAULT_RESPONSE_TIMEOUT: Duration = Duration::from_secs(10);
+pub use crate::core_functions::DEFAULT_RESPONSE_TIMEOUT;
 
 /// The container runtimes a core node knows (peppy starts none: empty).
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -48,13 +48,11 @@ pub async fn info(
     node_runner: &NodeRunner,
     response_timeout: impl Into<Option<Duration>> + Send,
 ) -> Result<InfoResponse> {
-    let body = crate::core_functions::ask(
+    crate::core_functions::ask_json(
         node_runner,
         CoreFunction::Info,
-        Vec::new(),
-        response_timeout.into().unwrap_or(DEFAULT_RESPONSE_TIMEOUT),
+        response_timeout.into(),
+        "info",
     )
-    .await?;
-    serde_json::from_slice(&body)
-        .map_err(|e| Error::Deserialization(format!("the core node's info: {e}")))
+    .await
 }

@@ -8,12 +8,12 @@ use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::node::NodeRunner;
 use crate::wire::keys::CoreFunction;
 
 /// How long [`list`] waits for its core node by default.
-pub const DEFAULT_RESPONSE_TIMEOUT: Duration = Duration::from_secs(10);
+pub use crate::core_functions::DEFAULT_RESPONSE_TIMEOUT;
 
 /// Where an instance is in its life.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -251,13 +251,11 @@ pub async fn list(
     node_runner: &NodeRunner,
     response_timeout: impl Into<Option<Duration>> + Send,
 ) -> Result<StackList> {
-    let body = crate::core_functions::ask(
+    crate::core_functions::ask_json(
         node_runner,
         CoreFunction::List,
-        Vec::new(),
-        response_timeout.into().unwrap_or(DEFAULT_RESPONSE_TIMEOUT),
+        response_timeout.into(),
+        "stack list",
     )
-    .await?;
-    serde_json::from_slice(&body)
-        .map_err(|e| Error::Deserialization(format!("the core node's stack list: {e}")))
+    .await
 }

@@ -333,34 +333,41 @@ impl StandaloneConfig {
     /// Pins pairing slot `link_id` to its peer: slot `peer_link_id` of
     /// instance `instance_id` (as `--link link_id@instance_id/peer_link_id`
     /// does). The pair forms once both sides run. Used when the command
-    /// line links no slot.
+    /// line links no slot. `core_node` is taken as PeppyOS takes it, and
+    /// not needed: a pair learns its peer's core node as it forms.
     pub fn with_peer_pin(
-        mut self,
+        self,
         link_id: impl Into<String>,
         core_node: impl Into<String>,
         instance_id: impl Into<String>,
         peer_link_id: impl Into<String>,
     ) -> Self {
         let _ = core_node.into();
-        let target = format!("{}/{}", instance_id.into(), peer_link_id.into());
-        self.links.push((link_id.into(), target));
-        self
+        self.with_pair_end(link_id.into(), instance_id.into(), peer_link_id.into())
     }
 
     /// Adds a source to observer slot `link_id`: slot `source_link_id` of
     /// instance `instance_id` (as `--link link_id@instance_id/source_link_id`
     /// does; repeat it for a slot of several sources, in order). Used when
-    /// the command line links no slot.
+    /// the command line links no slot. `core_node` is taken as PeppyOS
+    /// takes it, and not needed: an observer learns its sources' core nodes
+    /// from what they publish.
     pub fn with_observed_source(
-        mut self,
+        self,
         link_id: impl Into<String>,
         core_node: impl Into<String>,
         instance_id: impl Into<String>,
         source_link_id: impl Into<String>,
     ) -> Self {
         let _ = core_node.into();
-        let target = format!("{}/{}", instance_id.into(), source_link_id.into());
-        self.links.push((link_id.into(), target));
+        self.with_pair_end(link_id.into(), instance_id.into(), source_link_id.into())
+    }
+
+    /// Links pairing slot `link_id` to slot `end_link_id` of `instance_id`,
+    /// as `--link link_id@instance_id/end_link_id` does.
+    fn with_pair_end(mut self, link_id: String, instance_id: String, end_link_id: String) -> Self {
+        self.links
+            .push((link_id, format!("{instance_id}/{end_link_id}")));
         self
     }
 

@@ -187,6 +187,16 @@ pub fn upper_camel(s: &str) -> String {
     out
 }
 
+/// The instance id of a test harness's mock filling slot `link_id`
+/// (`mock-<link_id>`; `index` numbers the mocks of a slot of several,
+/// `mock-<link_id>-<n>`). Both generators and the harness name mocks so.
+pub fn mock_instance_id(link_id: &str, index: Option<usize>) -> String {
+    match index {
+        None => format!("mock-{link_id}"),
+        Some(n) => format!("mock-{link_id}-{n}"),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -479,7 +479,7 @@ pub(super) fn exposed_action(out: &mut Source, p: &Provided<ActionDecl>, today: 
     );
     // A goal response the action declares (the current `node/v1`
     // spelling): the decision's `response`, sent with it.
-    let response = match d.goal_response.as_ref().filter(|_| today) {
+    let response = match d.goal_response.as_ref() {
         Some(format) => message(
             out,
             "GoalResponse",
@@ -597,7 +597,7 @@ pub(super) fn consumed_action(out: &mut Source, node: &ResolvedNode, c: &Resolve
         d.result.as_ref(),
         &format!("The result of action `{}`.", d.name),
     );
-    let response = match d.goal_response.as_ref().filter(|_| today) {
+    let response = match d.goal_response.as_ref() {
         Some(format) => message(
             out,
             "GoalResponseData",

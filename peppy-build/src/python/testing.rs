@@ -166,11 +166,7 @@ fn mock_module(link_id: &str, target: &str, cardinality: Cardinality, surface: &
         "CARDINALITY = {}",
         py_string(cardinality.as_str())
     ));
-    out.line("MOCK_CORE_NODE = _testing.MOCK_CORE");
-    out.line(&format!(
-        "MOCK_INSTANCE_ID = {}",
-        py_string(&format!("mock-{link_id}"))
-    ));
+    mock_identity(&mut out, link_id);
     out.blank();
     out.blank();
     out.line(
@@ -259,11 +255,7 @@ fn pairing_mock_module(slot: &PairingSlot, topics: &[PairedTopic]) -> String {
     out.line(&format!("LINK_ID = {}", py_string(link_id)));
     out.line(&format!("PAIRING_NAME = {}", py_string(&slot.pairing.name)));
     out.line(&format!("PAIRING_TAG = {}", py_string(&slot.pairing.tag)));
-    out.line("MOCK_CORE_NODE = _testing.MOCK_CORE");
-    out.line(&format!(
-        "MOCK_INSTANCE_ID = {}",
-        py_string(&format!("mock-{link_id}"))
-    ));
+    mock_identity(&mut out, link_id);
     out.blank();
     out.blank();
     if slot.observer {
@@ -540,4 +532,13 @@ fn action_fixture(file: &Path, path: &str, has_goal: bool) -> String {
     ));
     out.dedent();
     out.finish()
+}
+
+/// A mock module's `MOCK_CORE_NODE` and `MOCK_INSTANCE_ID`.
+fn mock_identity(out: &mut Source, link_id: &str) {
+    out.line("MOCK_CORE_NODE = _testing.MOCK_CORE");
+    out.line(&format!(
+        "MOCK_INSTANCE_ID = {}",
+        py_string(&peppy_schema::names::mock_instance_id(link_id, None))
+    ));
 }

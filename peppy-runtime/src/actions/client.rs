@@ -322,6 +322,20 @@ impl GoalClient {
         &self.goal_id
     }
 
+    /// The action's declared goal response the server sent with its
+    /// decision, decoded; `None` when it sent none.
+    pub fn goal_response<T: Decode>(&self) -> Result<Option<T>> {
+        if self.response.is_empty() {
+            return Ok(None);
+        }
+        from_bytes::<T>(&self.response)
+            .map(Some)
+            .map_err(|source| Error::Decode {
+                what: format!("goal response of `{}`", self.action),
+                source,
+            })
+    }
+
     /// The next feedback message; [`Error::ActionFeedbackChannelClosed`]
     /// once the goal is terminal and every feedback message was read. Once this node stops
     /// it returns [`Error::ShuttingDown`]: at once if it was waiting, after

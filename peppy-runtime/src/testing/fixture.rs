@@ -257,10 +257,10 @@ impl<F: Decode, R: Decode> GoalHandle<F, R> {
         (&self.client.instance_id, &self.client.core_node)
     }
 
-    /// The declared goal response the node sent with its decision, as
-    /// encoded (empty when it sent none).
-    pub fn response_bytes(&self) -> &[u8] {
-        &self.client.response
+    /// The declared goal response the node sent with its decision,
+    /// decoded; `None` when it sent none.
+    pub fn goal_response<T: crate::wire::codec::Decode>(&self) -> Result<Option<T>> {
+        self.client.goal_response()
     }
 
     /// The node's next feedback message on this goal;

@@ -41,6 +41,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+use peppy_schema::names::mock_instance_id;
 use peppy_schema::{Cardinality, Identity, NodeModel, SlotKind};
 use serde_json::Value as Json;
 use tokio::task::JoinHandle;
@@ -417,7 +418,7 @@ impl Harness {
                 let ids = mock_ids(&slot.link_id, slot.cardinality, false, &wanted)?;
                 (ids, MOCK_SOURCE_SLOT)
             } else {
-                (vec![format!("mock-{}", slot.link_id)], MOCK_PEER_SLOT)
+                (vec![mock_instance_id(&slot.link_id, None)], MOCK_PEER_SLOT)
             };
             // An optional participant left unpaired: its mock peer runs
             // (the test may still read from it, and pair it later), but
@@ -695,7 +696,9 @@ fn mock_ids(
         )));
     }
     Ok(match (count, cardinality.is_scalar()) {
-        (1, true) => vec![format!("mock-{link_id}")],
-        _ => (0..count).map(|n| format!("mock-{link_id}-{n}")).collect(),
+        (1, true) => vec![mock_instance_id(link_id, None)],
+        _ => (0..count)
+            .map(|n| mock_instance_id(link_id, Some(n)))
+            .collect(),
     })
 }

@@ -533,6 +533,22 @@ impl<A: Encode, B: Encode> Encode for (A, B) {
     }
 }
 
+/// Three values, one after the other (a record of the core node's replies).
+impl<A: Encode, B: Encode, C: Encode> Encode for (A, B, C) {
+    fn encode(&self, out: &mut Writer<'_>) {
+        self.0.encode(out);
+        self.1.encode(out);
+        self.2.encode(out);
+    }
+}
+
+impl<A: Decode, B: Decode, C: Decode> Decode for (A, B, C) {
+    const MIN_SIZE: usize = A::MIN_SIZE + B::MIN_SIZE + C::MIN_SIZE;
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, DecodeError> {
+        Ok((A::decode(d)?, B::decode(d)?, C::decode(d)?))
+    }
+}
+
 /// A message with no payload.
 impl Encode for () {
     fn encode(&self, _: &mut Writer<'_>) {}

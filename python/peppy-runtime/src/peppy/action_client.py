@@ -16,7 +16,7 @@ from .action_states import (
     new_goal_id,
 )
 from .attachment import QueryHeader, QueryKind
-from .bridge import END, Mailbox
+from .bridge import END, Mailbox, undeclare
 from .errors import ActionFeedbackProducerGone, FeedbackEnded, ServiceError
 from .keys import ACTION, action_part_key, entry_key, feedback_key
 from .request import Request
@@ -91,11 +91,7 @@ class GoalClient:
     def close(self) -> None:
         """Stops following the goal's feedback (its result can still be asked)."""
         subscriber, self._subscriber = self._subscriber, None
-        if subscriber is not None:
-            try:
-                subscriber.undeclare()
-            except Exception:
-                pass
+        undeclare(subscriber)
         watch = getattr(self, "_server_watch", None)
         if watch is not None:
             watch.close()
@@ -197,11 +193,7 @@ class _ServerWatch:
 
     def close(self) -> None:
         subscriber, self._subscriber = self._subscriber, None
-        if subscriber is not None:
-            try:
-                subscriber.undeclare()
-            except Exception:
-                pass
+        undeclare(subscriber)
 
 
 async def fire_goal(

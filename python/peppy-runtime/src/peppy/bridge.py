@@ -144,6 +144,12 @@ class ReceivedReply(NamedTuple):
     payload: bytes
 
 
+class ReplyError(NamedTuple):
+    """A replier's `reply_err`: its reason, as UTF-8 text."""
+
+    reason: str
+
+
 END: Any = type("End", (), {"__repr__": lambda self: "END"})()
 """Queued by a `ReplyStream` once its query has no more replies."""
 
@@ -154,11 +160,19 @@ class ReplyStream:
     Pass `handler()` as the query's handler; then `await next(deadline)`
     gives each reply, `END` when the query is finished (its timeout or the
     last replier), `TIMED_OUT` at the deadline; `ShuttingDown` once the
-    node stops (`register` ties the stream to it).
+    node stops (`register` ties the stream to it). With `errors`, a
+    replier's `reply_err` comes as a `ReplyError`; without, it is dropped.
+    Zenoh's report of the query's own timeout is never one: `END` follows.
     """
 
-    def __init__(self, loop: asyncio.AbstractEventLoop, register: Callable[[Mailbox], None]) -> None:
+    def __init__(
+        self,
+        loop: asyncio.AbstractEventLoop,
+        register: Callable[[Mailbox], None],
+        errors: bool = False,
+    ) -> None:
         self._mailbox = Mailbox(loop)
+        self._errors = errors
         register(self._mailbox)
 
     def handler(self) -> Any:
@@ -170,7 +184,11 @@ class ReplyStream:
     def _on_reply(self, reply: Any) -> None:
         sample = reply.ok
         if sample is None:
-            return  # an error reply (Zenoh's timeout): the deadline decides
+            if self._errors:
+                reason = reply.err.payload.to_bytes().decode("utf-8", "replace")
+                if reason != "Timeout":
+                    self._mailbox.put(ReplyError(reason))
+            return
         attachment = sample.attachment
         self._mailbox.put(
             ReceivedReply(
@@ -190,3 +208,14 @@ class ReplyStream:
     def close(self) -> None:
         """Stops handing out replies (the query itself runs to its timeout)."""
         self._mailbox.close()
+
+
+def undeclare(entity: Any) -> None:
+    """Undeclares a Zenoh entity (a subscriber, queryable, token), if any;
+    a session already closed has undeclared it."""
+    if entity is None:
+        return
+    try:
+        entity.undeclare()
+    except Exception:
+        pass

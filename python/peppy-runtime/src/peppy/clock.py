@@ -27,7 +27,7 @@ import time
 from dataclasses import dataclass
 from typing import Any, List, Optional, Tuple
 
-from .bridge import END, TIMED_OUT, Mailbox
+from .bridge import END, TIMED_OUT, Mailbox, ReplyError, ReplyStream
 from .errors import ClockNotReady, ServiceUnreachable, ShuttingDown
 from .keys import CLOCK_SIM, CLOCK_WALL, clock_sync_key, clock_tick_key
 
@@ -264,18 +264,10 @@ async def _ask_clock(runner: Any, timeout: float) -> Optional[ClockSync]:
     key = clock_sync_key(runner.namespace)
     t0 = _client_now(runner)
     query = _U64.pack(t0) + bytes([1 if runner.use_sim_time() else 0])
-    replies = Mailbox(loop)
-    runner._track_mailbox(replies)
-
-    def on_reply(reply: Any) -> None:
-        if reply.ok is not None:
-            replies.put((True, reply.ok.payload.to_bytes()))
-        else:
-            replies.put((False, reply.err.payload.to_bytes()))
-
+    replies = ReplyStream(loop, runner._track_mailbox, errors=True)
     runner.session.get(
         key,
-        zenoh.handlers.Callback(on_reply, lambda: replies.put(END)),
+        replies.handler(),
         target=zenoh.QueryTarget.ALL,
         consolidation=zenoh.ConsolidationMode.NONE,
         timeout=max(timeout, 0.001),
@@ -284,17 +276,13 @@ async def _ask_clock(runner: Any, timeout: float) -> Optional[ClockSync]:
     deadline = loop.time() + timeout + 0.25
     try:
         while True:
-            item = await replies.get(deadline)
+            item = await replies.next(deadline)
             if item is END or item is TIMED_OUT:
                 return None
             t3 = _client_now(runner)
-            ok, payload = item
-            if not ok:
-                why = payload.decode("utf-8", "replace")
-                # Zenoh reports the query's own timeout as an error reply.
-                if why == "Timeout":
-                    return None
-                raise ClockNotReady(f"the launcher cannot synchronize: {why}")
+            if isinstance(item, ReplyError):
+                raise ClockNotReady(f"the launcher cannot synchronize: {item.reason}")
+            payload = item.payload
             if len(payload) != _REPLY.size:
                 log.debug("dropping a clock sync reply of %d bytes (expected 24)", len(payload))
                 continue

@@ -13,7 +13,7 @@ import struct
 import threading
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
-from .bridge import END, TIMED_OUT, Mailbox
+from .bridge import END, TIMED_OUT, ReplyError, ReplyStream, undeclare
 from .errors import ServiceError, ServiceUnreachable, ShuttingDown
 from .keys import core_function_key
 
@@ -54,37 +54,24 @@ async def _ask_once(runner: Any, function: str, payload: bytes, timeout: float) 
 
     loop = runner.loop
     key = core_function_key(runner.namespace, runner.core_node, function)
-    replies = Mailbox(loop)
-    runner._track_mailbox(replies)
-
-    def on_reply(reply: Any) -> None:
-        if reply.ok is not None:
-            replies.put((True, reply.ok.payload.to_bytes()))
-        else:
-            replies.put((False, reply.err.payload.to_bytes()))
-
+    stream = ReplyStream(loop, runner._track_mailbox, errors=True)
     runner.session.get(
         key,
-        zenoh.handlers.Callback(on_reply, lambda: replies.put(END)),
+        stream.handler(),
         target=zenoh.QueryTarget.BEST_MATCHING,
         consolidation=zenoh.ConsolidationMode.NONE,
         timeout=max(timeout, 0.001),
         payload=payload,
     )
     try:
-        item = await replies.get(loop.time() + timeout + 0.25)
+        item = await stream.next(loop.time() + timeout + 0.25)
         if item is END or item is TIMED_OUT:
             return None
-        ok, body = item
-        if ok:
-            return bytes(body)
-        why = bytes(body).decode("utf-8", "replace")
-        # Zenoh reports the query's own timeout as an error reply.
-        if why == "Timeout":
-            return None
-        raise ServiceError(function, runner.core_node, why)
+        if isinstance(item, ReplyError):
+            raise ServiceError(function, runner.core_node, item.reason)
+        return item.payload
     finally:
-        replies.close()
+        stream.close()
 
 
 class Store:
@@ -165,10 +152,7 @@ class CoreServer:
 
     def close(self) -> None:
         for d in self._declared:
-            try:
-                d.undeclare()
-            except Exception:
-                pass
+            undeclare(d)
         self._declared.clear()
 
 

@@ -27,6 +27,7 @@ from typing import Any, Dict, List, NamedTuple, Optional, Set, Tuple
 
 from . import attachment
 from .bridge import END, TIMED_OUT, Mailbox, ReplyStream, should_yield
+from .bridge import undeclare as _undeclare
 from .errors import ShuttingDown, StartupError, Undeclared, WrongTopic
 from .keys import (
     PairClaim,
@@ -105,15 +106,6 @@ class _Undeclare:
 
     def undeclare(self) -> None:
         self._slot.close()
-
-
-def _undeclare(entity: Any) -> None:
-    if entity is None:
-        return
-    try:
-        entity.undeclare()
-    except Exception:  # the session may be closed already
-        pass
 
 
 class _Inbox:
