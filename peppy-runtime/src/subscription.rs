@@ -57,7 +57,7 @@ pub async fn subscribe<M: Decode>(
     runner: &NodeRunner,
     topic: &'static ConsumedTopicSpec,
 ) -> Result<Subscription<M>> {
-    runner.inbox(topic)?;
+    runner.inbox(topic)?.mark_read();
     Ok(Subscription {
         runner: runner.arc()?,
         topic,

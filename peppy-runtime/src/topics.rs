@@ -70,6 +70,26 @@ pub(crate) struct Inbox {
     pub(crate) rx: flume::Receiver<Arrival>,
     pub(crate) backlog: Arc<Backlog>,
     admission: Arc<Admission>,
+    /// Whether the node's code has asked for the topic's messages
+    /// (`subscribe`, or a first `next`): what a test harness's mock
+    /// publisher waits for, as PeppyOS's waits for the subscription that
+    /// code opens.
+    read: std::sync::atomic::AtomicBool,
+}
+
+impl Inbox {
+    /// Records that the node's code reads this topic.
+    pub(crate) fn mark_read(&self) {
+        // A load first: the store happens once, not on every message.
+        if !self.read.load(Relaxed) {
+            self.read.store(true, Relaxed);
+        }
+    }
+
+    /// Whether the node's code has asked for this topic's messages.
+    pub(crate) fn is_read(&self) -> bool {
+        self.read.load(Relaxed)
+    }
 }
 
 /// What one inbox holds unread, shared by its intake and its reader, so a
@@ -245,6 +265,7 @@ impl Intake {
                 rx,
                 backlog,
                 admission,
+                read: std::sync::atomic::AtomicBool::new(false),
             },
         )
     }
@@ -574,6 +595,7 @@ async fn next_delivery(
     if runner.cancellation_token().is_cancelled() {
         return Err(stop::refused().await);
     }
+    inbox.mark_read();
     loop {
         // A message already queued is taken without parking the task.
         let arrival = match inbox.rx.try_recv() {

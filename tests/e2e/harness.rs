@@ -201,6 +201,46 @@ async fn a_message_in_another_format_is_dropped_not_delivered() -> Result<()> {
     harness.shutdown().await
 }
 
+/// A mock's publish returns once the node's code reads the topic, as
+/// PeppyOS's harness documents it: a setup that does slow work before it
+/// spawns its reader has returned by the time the publish does, though
+/// the node's subscription was on the router from its start.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_publish_returns_once_the_nodes_code_reads_the_topic() -> Result<()> {
+    use shapes_client::consumed_topics::shapes_video_stream;
+    use shapes_client::fixtures::harness::Harness;
+    let got = Arc::new(Mutex::new(Vec::new()));
+    let heard = got.clone();
+    let setup = move |_p: shapes_client::Parameters, runner: Arc<NodeRunner>| async move {
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        tokio::spawn(async move {
+            let Ok(mut frames) = shapes_video_stream::subscribe(&runner).await else {
+                return;
+            };
+            while let Ok(Some((_, m))) = frames.next().await {
+                heard.lock().unwrap().push(m.frame);
+            }
+        });
+        Ok(())
+    };
+    let (harness, mocks) = Harness::start(setup).await?;
+    let mock = &mocks.deps.shapes;
+    assert!(!harness.setup_finished(), "setup is still at its slow work");
+    mock.video_stream
+        .publish(&shapes_video_stream::Message { frame: vec![4] })
+        .await?;
+    assert!(
+        harness.setup_finished(),
+        "the read topic proves setup returned"
+    );
+    let deadline = tokio::time::Instant::now() + TIMEOUT;
+    while got.lock().unwrap().is_empty() && tokio::time::Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    assert_eq!(*got.lock().unwrap(), vec![vec![4]]);
+    harness.shutdown().await
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_wait_that_times_out_names_what_it_waited_for() -> Result<()> {
     use shapes_client::fixtures::harness::Harness;

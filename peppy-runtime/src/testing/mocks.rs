@@ -112,6 +112,9 @@ pub struct MockProducer {
     turned: &'static Turned,
     watch: Watch,
     pumps: Mutex<Vec<JoinHandle<()>>>,
+    /// The node under test, once the harness started it: a topic's first
+    /// publish waits until the node's code reads the topic.
+    subject: std::sync::OnceLock<Arc<NodeRunner>>,
 }
 
 impl std::fmt::Debug for MockProducer {
@@ -161,7 +164,13 @@ impl MockProducer {
             turned,
             watch,
             pumps: Mutex::new(Vec::new()),
+            subject: std::sync::OnceLock::new(),
         })
+    }
+
+    /// Names the node under test (the harness does, once it started it).
+    pub(crate) fn serve_subject(&self, node: &Arc<NodeRunner>) {
+        let _ = self.subject.set(node.clone());
     }
 
     /// The slot this mock fills.
@@ -195,6 +204,7 @@ impl MockProducer {
         TopicMock {
             runner: self.runner.clone(),
             spec: served,
+            subject: self.subject.get().map(|node| (node.clone(), spec)),
             matched: AtomicBool::new(false),
             watch: self.watch.clone(),
             _message: PhantomData,
@@ -317,6 +327,8 @@ impl std::future::Future for Stopping {
 pub struct TopicMock<M: ?Sized> {
     runner: Arc<NodeRunner>,
     spec: &'static TopicSpec,
+    /// The node under test and its side of the topic, when a harness runs it.
+    subject: Option<(Arc<NodeRunner>, &'static ConsumedTopicSpec)>,
     matched: AtomicBool,
     watch: Watch,
     _message: PhantomData<fn(&M)>,
@@ -332,9 +344,11 @@ impl<M: ?Sized> std::fmt::Debug for TopicMock<M> {
 
 impl<M: Encode + ?Sized> TopicMock<M> {
     /// Publishes one message to the node. The first call waits (up to
-    /// 10 s) until the node's subscription is known, so the first message
-    /// is never lost to a start-up race; a node that never subscribes is
-    /// an error naming the topic.
+    /// 10 s) until the node's subscription is known and its code reads the
+    /// topic (`subscribe`, or a first `next`), so the first message is
+    /// never lost to a start-up race and a returned publish means the
+    /// node's code got that far; a node that never subscribes is an error
+    /// naming the topic.
     pub async fn publish(&self, message: &M) -> Result<()> {
         if !self.matched.load(Ordering::Acquire)
             && !self.wait_for_subscriber(SUBSCRIBER_WAIT).await?
@@ -349,11 +363,29 @@ impl<M: Encode + ?Sized> TopicMock<M> {
     }
 
     /// Waits up to `timeout` until the node's subscription to the topic is
-    /// known here; whether it is.
+    /// known here and, under a harness, the node's code reads the topic;
+    /// whether it is so.
     pub async fn wait_for_subscriber(&self, timeout: Duration) -> Result<bool> {
-        let known = self
-            .watch
-            .unbounded(async { Ok(readers_known(&self.runner, self.spec, timeout).await) });
+        let deadline = tokio::time::Instant::now() + timeout;
+        let read = || {
+            self.subject
+                .as_ref()
+                .is_none_or(|(node, spec)| node.inbox(spec).is_ok_and(|i| i.is_read()))
+        };
+        let known = self.watch.unbounded(async {
+            if !readers_known(&self.runner, self.spec, timeout).await {
+                return Ok(false);
+            }
+            loop {
+                if read() {
+                    return Ok(true);
+                }
+                if tokio::time::Instant::now() >= deadline {
+                    return Ok(false);
+                }
+                tokio::time::sleep(Duration::from_millis(5)).await;
+            }
+        });
         let known = known.await?;
         if known {
             self.matched.store(true, Ordering::Release);

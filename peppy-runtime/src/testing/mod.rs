@@ -461,6 +461,9 @@ impl Harness {
             .start()
             .await?;
         clock.watch_node(&node);
+        for mock in mocks.by_slot.values().flatten() {
+            mock.serve_subject(&node);
+        }
 
         // Barriers: what the node emits reaches the taps from its first
         // message; what it calls answers from its first call; what the
@@ -511,14 +514,21 @@ impl Harness {
         .await?;
 
         let state = Arc::new(SetupState::default());
-        let task = tokio::spawn(setup(params, node.clone()));
+        // The flag is set by setup's own task as it returns, so a test that
+        // saw what setup's spawned work did sees it set.
+        let running = setup(params, node.clone());
+        let finished = state.clone();
+        let task = tokio::spawn(async move {
+            let returned = running.await;
+            if returned.is_ok() {
+                finished.finished.store(true, Ordering::Release);
+            }
+            returned
+        });
         let (done, failed) = (state.clone(), watch.clone());
         let setup = tokio::spawn(async move {
             let why = match task.await {
-                Ok(Ok(())) => {
-                    done.finished.store(true, Ordering::Release);
-                    return;
-                }
+                Ok(Ok(())) => return,
                 Ok(Err(e)) => {
                     let why = format!("setup failed: {e}");
                     *done.error.lock().unwrap_or_else(|p| p.into_inner()) = Some(e);

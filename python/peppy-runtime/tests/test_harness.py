@@ -93,6 +93,19 @@ class HarnessTests(unittest.IsolatedAsyncioTestCase):
             self.assertTrue(h.instance_id.startswith("test-"))
             self.assertEqual(await testing.poll_service(h, DOUBLE_SERVED, AddRequest(21, 0), WAIT), AddResponse(42))
 
+    async def test_a_publish_returns_once_the_nodes_code_reads_the_topic(self) -> None:
+        # The node's subscription is on the router from its start; the
+        # publish still waits until setup, after slow work, subscribes.
+        async def slow_setup(params: Any, node_runner: Any) -> List[Any]:
+            await asyncio.sleep(0.3)
+            return await relay_setup(params, node_runner)
+
+        async with testing.start(RELAY, slow_setup) as h:
+            self.assertFalse(h.setup_finished())
+            await h.mocks.deps.cam.readings.publish(Reading(7, "late"))
+            self.assertTrue(h.setup_finished())
+            self.assertEqual((await h.emitted.echo.next(WAIT)).seq, 7)
+
     async def test_two_harnesses_run_at_once_without_sharing_anything(self) -> None:
         async def one(label: str) -> Reading:
             async with testing.start(RELAY, relay_setup) as h:

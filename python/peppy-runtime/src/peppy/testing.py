@@ -250,15 +250,35 @@ class TopicMock(Generic[T]):
     async def wait_for_subscriber(self, timeout: float = READY_TIMEOUT) -> bool:
         """Whether the node's subscription to this topic is seen within `timeout` seconds."""
         runner = self._mock._runner
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + timeout
         matched = await _bounded(
             self._mock._failure,
             _matched(runner._publisher(self._spec), timeout),
             None,
             f"a subscriber of topic `{self._spec.name}`",
         )
+        # Under a harness, also until the node's code reads the topic
+        # (subscribe, or a first next): a returned publish then means the
+        # node's code got that far, as PeppyOS's harness has it.
+        inbox = self._subject_inbox()
+        while matched and inbox is not None and not inbox.read:
+            if loop.time() >= deadline:
+                return False
+            await _bounded(self._mock._failure, asyncio.sleep(0.005), None, f"the node to read topic `{self._spec.name}`")
         if matched:
             self._subscribed = True
         return matched
+
+    def _subject_inbox(self) -> Optional[Any]:
+        node = self._mock._subject
+        if node is None:
+            return None
+        link = self._mock.link_id or None
+        for c in node.descriptor.consumed_topics:
+            if (c.link_id or None) == link and c.name == self._spec.name:
+                return node._inbox(c)
+        return None
 
     async def publish(self, message: T) -> None:
         """Publishes `message` as the slot's producer. The first call waits
@@ -496,6 +516,8 @@ class SlotMock:
         self._failure = failure
         self.link_id = link_id
         self.instance_id = runner.instance_id
+        # The node under test, once the harness started it.
+        self._subject: Optional[Any] = None
         self._services: List[ServiceMock[Any, Any]] = []
         self._actions: List[ActionMock] = []
         d = runner.descriptor
@@ -1359,6 +1381,9 @@ async def _start(
             h.node_runner = await NodeBuilder(descriptor).with_runtime_config(path).with_args([]).start()
         finally:
             os.remove(path)
+        for m in h._mock_list:
+            if isinstance(m, SlotMock):
+                m._subject = h.node_runner
         await _barrier(h, wanted)
         await _pairs_barrier(h)
         cwd = os.getcwd()

@@ -122,6 +122,7 @@ class Subscription:
 
 async def subscribe(runner: Any, spec: ConsumedTopicSpec) -> Subscription:
     """Holds consumed topic `spec` (subscribed when the node started)."""
+    runner._inbox(spec).read = True
     return Subscription(runner, spec)
 
 

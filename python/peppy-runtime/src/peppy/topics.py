@@ -67,6 +67,9 @@ class Inbox:
         self.keep_newest = qos.keep_newest
         self.mailbox = Mailbox(loop, maxlen=self.keep_newest)
         self.backlog = Backlog()
+        # Whether the node's code asked for the topic's messages (subscribe,
+        # or a first next): what a test harness's mock waits for.
+        self.read = False
 
     def put(self, delivery: Delivery) -> None:
         """Queues a message; never blocks (a keep-all queue drops only past its byte bound)."""
@@ -235,6 +238,7 @@ async def next_message(
     `ShuttingDown` once the node stops.
     """
     inbox: Inbox = runner._inbox(spec)
+    inbox.read = True
     if runner.is_stopping():
         raise await refused()
     while True:
