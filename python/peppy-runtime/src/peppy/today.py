@@ -80,6 +80,8 @@ class Subscription:
         self._runner = runner
         self._spec = spec
         self._inbox = runner._inbox(spec)
+        # The node's code reads the topic (what a harness mock waits for).
+        self._inbox.read = True
 
     def __repr__(self) -> str:
         return f"Subscription(topic={self._spec.name!r})"
@@ -122,7 +124,6 @@ class Subscription:
 
 async def subscribe(runner: Any, spec: ConsumedTopicSpec) -> Subscription:
     """Holds consumed topic `spec` (subscribed when the node started)."""
-    runner._inbox(spec).read = True
     return Subscription(runner, spec)
 
 
