@@ -156,7 +156,7 @@ impl Gen<'_> {
             decision_types = structs.out;
         }
         let (decision_use, decider_bound, accepted, rejected, reason, accept_call, reject_call) =
-            match (self.today(), declared.is_some()) {
+            match (self.peppylib(), declared.is_some()) {
                 (true, true) => (
                     quote! {
                         #decision_types
@@ -439,7 +439,7 @@ impl Gen<'_> {
         let feedback_format = format_spec(decl.feedback.as_ref().map(|f| &f.format));
         let result_format = format_spec(decl.result.as_ref());
         let (response_use, handle_doc, handle_fields, fire_doc, target_param, send, decision) =
-            if self.today() {
+            if self.peppylib() {
                 (
                     quote!(),
                     quote!(#[doc = " A goal sent to the action's server. `accepted` says whether it was accepted (and `reason` why not)."]),

@@ -2,8 +2,8 @@
 //! out. Pure: no file system, no environment.
 
 use peppy_schema::{
-    Cardinality, Diagnostics, EntryKind, InterfaceRef, Loc, MessageFormat, Origin, Provided,
-    QosProfile, ResolvedCall, ResolvedNode, ResolvedTopic, ServiceDecl, Spelling, TopicDecl,
+    Cardinality, Diagnostics, EntryKind, InterfaceRef, Loc, MessageFormat, NodeApi, Origin,
+    Provided, QosProfile, ResolvedCall, ResolvedNode, ResolvedTopic, ServiceDecl, TopicDecl,
 };
 use proc_macro2::{Ident, TokenStream};
 use quote::quote;
@@ -107,7 +107,7 @@ const CATEGORIES: &[(&str, &str)] = &[
 
 /// The category docs of a `node/v1` node, where entries through a slot
 /// nest under the slot's link_id (PeppyOS's module paths).
-const TODAY_CATEGORIES: &[&str] = &[
+const LINK_CATEGORIES: &[&str] = &[
     "Topics this node emits, one module each with `Message`, `declare_publisher` and `build_message` (and `emit`): `<topic>` for its own, `<implements link_id>::<member>` for a contract's.",
     "Topics this node consumes: `<link_id>::<topic>` with `Message` and `subscribe`, and the slot's `bound_producer` / `bound_producers` next to its entries and in each of them.",
     "Services this node exposes, one module each with `Request`, `Response` and `handle_next_request`: `<service>` for its own, `<implements link_id>::<member>` for a contract's.",
@@ -229,13 +229,13 @@ impl Gen<'_> {
             exposed_actions,
             consumed_actions,
         ];
-        let today = self.today();
+        let peppylib = self.peppylib();
         let modules = CATEGORIES
             .iter()
             .zip(categories)
             .enumerate()
             .map(|(i, ((name, doc), c))| {
-                let doc = if today { TODAY_CATEGORIES[i] } else { doc };
+                let doc = if peppylib { LINK_CATEGORIES[i] } else { doc };
                 let id = ident(name);
                 let items = c.items;
                 let doc = crate::docs::Doc::new(format!(
@@ -271,15 +271,15 @@ impl Gen<'_> {
         }
     }
 
-    /// Whether the node is written in today's `node/v1` spelling, whose
+    /// Whether the node's code is on PeppyOS's `peppylib` API, whose
     /// entries through a slot nest under the slot's link_id.
-    pub(crate) fn today(&self) -> bool {
-        self.node.node.spelling == Spelling::Today
+    pub(crate) fn peppylib(&self) -> bool {
+        self.node.node.api == NodeApi::Peppylib
     }
 
     /// The module-name kind of this node's modules.
     fn module_kind(&self) -> NameKind {
-        NameKind::module_of(self.node.node.spelling)
+        NameKind::module_of(self.node.node.api)
     }
 
     fn emitted_topics(&mut self) -> Category {
@@ -334,7 +334,7 @@ impl Gen<'_> {
     }
 
     fn consumed_actions(&mut self) -> Category {
-        if self.today() {
+        if self.peppylib() {
             let node = self.node;
             let entries = node
                 .consumed_actions
@@ -354,7 +354,7 @@ impl Gen<'_> {
                     spec: false,
                 })
                 .collect();
-            return self.consumed_today(EntryKind::Action, entries);
+            return self.consumed_by_link(EntryKind::Action, entries);
         }
         let mut category = Category::default();
         let mut names = Names::default();
@@ -386,8 +386,8 @@ impl Gen<'_> {
     /// `<interface>::<tag>::<name>`, and also by name when no other entry
     /// of the category takes that name.
     fn provided(&mut self, offered: Vec<Offered>, kind: EntryKind) -> Category {
-        if self.today() {
-            return self.provided_today(offered, kind);
+        if self.peppylib() {
+            return self.provided_by_link(offered, kind);
         }
         let mut category = Category::default();
         let mut names = Names::default();
@@ -488,7 +488,7 @@ impl Gen<'_> {
     /// slot's link_id (`<link_id>::<member>`), with no flat aliases. Sibling
     /// modules that read the same once sanitised are a
     /// `ModuleNameCollision`.
-    fn provided_today(&mut self, offered: Vec<Offered>, kind: EntryKind) -> Category {
+    fn provided_by_link(&mut self, offered: Vec<Offered>, kind: EntryKind) -> Category {
         let mut category = Category::default();
         let mut names = Names::default();
         self.own_entries(&offered, kind, &mut names, &mut category);
@@ -506,7 +506,7 @@ impl Gen<'_> {
             let link_mod = module(link_id);
             let what = format!("implements slot `{link_id}` (contract `{}`)", slot.target);
             if !names.claim(
-                NameKind::TodayModule,
+                NameKind::PeppylibModule,
                 &link_mod,
                 &what,
                 &slot.loc,
@@ -520,7 +520,7 @@ impl Gen<'_> {
             for o in members {
                 let m = module(&o.name);
                 let what = format!("{kind} `{}` of implements slot `{link_id}`", o.name);
-                if !entries.claim(NameKind::TodayModule, &m, &what, &o.loc, &mut self.diags) {
+                if !entries.claim(NameKind::PeppylibModule, &m, &what, &o.loc, &mut self.diags) {
                     continue;
                 }
                 let id = ident(&m);
@@ -556,7 +556,7 @@ impl Gen<'_> {
     /// `<link_id>::<name>`, each slot's module holding its bound-producer
     /// accessor. Sibling modules that read the same once sanitised are a
     /// `ModuleNameCollision`.
-    fn consumed_today(&mut self, kind: EntryKind, entries: Vec<Consumed>) -> Category {
+    fn consumed_by_link(&mut self, kind: EntryKind, entries: Vec<Consumed>) -> Category {
         let mut category = Category::default();
         let mut links = Names::default();
         // Slots in the order of their first entry; entries in declaration order.
@@ -574,7 +574,13 @@ impl Gen<'_> {
                 // names a slot); laid out flat, like the seeds' external topics.
                 for e in group {
                     let m = module(&e.name);
-                    if !links.claim(NameKind::TodayModule, &m, &e.what, &e.loc, &mut self.diags) {
+                    if !links.claim(
+                        NameKind::PeppylibModule,
+                        &m,
+                        &e.what,
+                        &e.loc,
+                        &mut self.diags,
+                    ) {
                         continue;
                     }
                     let id = ident(&m);
@@ -598,7 +604,7 @@ impl Gen<'_> {
             let link_mod = module(&link_id);
             let what = format!("slot `{link_id}`");
             if !links.claim(
-                NameKind::TodayModule,
+                NameKind::PeppylibModule,
                 &link_mod,
                 &what,
                 &slot_loc,
@@ -611,7 +617,13 @@ impl Gen<'_> {
             let mut items = slot_accessor(&link_id, dependency.map(|d| d.cardinality));
             for e in group {
                 let m = module(&e.name);
-                if !names.claim(NameKind::TodayModule, &m, &e.what, &e.loc, &mut self.diags) {
+                if !names.claim(
+                    NameKind::PeppylibModule,
+                    &m,
+                    &e.what,
+                    &e.loc,
+                    &mut self.diags,
+                ) {
                     continue;
                 }
                 let id = ident(&m);
@@ -686,7 +698,7 @@ impl Gen<'_> {
     }
 
     fn consumed_topics(&mut self) -> Category {
-        if self.today() {
+        if self.peppylib() {
             let node = self.node;
             let entries = node
                 .consumed_topics
@@ -708,7 +720,7 @@ impl Gen<'_> {
                     spec: true,
                 })
                 .collect();
-            return self.consumed_today(EntryKind::Topic, entries);
+            return self.consumed_by_link(EntryKind::Topic, entries);
         }
         let mut category = Category::default();
         let mut names = Names::default();
@@ -738,7 +750,7 @@ impl Gen<'_> {
     }
 
     fn consumed_services(&mut self) -> Category {
-        if self.today() {
+        if self.peppylib() {
             let node = self.node;
             let entries = node
                 .consumed_services
@@ -758,7 +770,7 @@ impl Gen<'_> {
                     spec: false,
                 })
                 .collect();
-            return self.consumed_today(EntryKind::Service, entries);
+            return self.consumed_by_link(EntryKind::Service, entries);
         }
         let mut category = Category::default();
         let mut names = Names::default();
@@ -1177,7 +1189,7 @@ impl Gen<'_> {
         let request_format = format_spec(decl.request.as_ref());
         let response_format = format_spec(decl.response.as_ref());
         let errors = "Fails with `ServiceUnreachable` (nobody answered), `ServiceTimeout` (accepted, no reply in time) or `ServiceError` (the handler failed).";
-        let (poll_doc, target_param, call) = if self.today() {
+        let (poll_doc, target_param, call) = if self.peppylib() {
             (
                 format!(
                     "Calls `{name}` on `target`, one of the producers bound to slot `{link_id}` (`bound_producer` / `bound_producers`), and waits at most `timeout` for the response. `TargetNotBound` for any other target, before anything is sent. {errors}"
@@ -1202,7 +1214,7 @@ impl Gen<'_> {
         );
         // PeppyOS's current API answers a call without response data with
         // `()`; the older one with the server's identity.
-        let (poll_type, poll_answer) = if self.today() && decl.response.is_none() {
+        let (poll_type, poll_answer) = if self.peppylib() && decl.response.is_none() {
             (quote!(()), quote!(::core::result::Result::Ok(())))
         } else {
             (

@@ -118,17 +118,17 @@ pub(crate) enum NameKind {
     Type,
     /// A generated module.
     Module,
-    /// A generated module of a `node/v1` node, where PeppyOS names the
-    /// clash `ModuleNameCollision`.
-    TodayModule,
+    /// A generated module of a node on PeppyOS's `peppylib` API, where
+    /// PeppyOS names the clash `ModuleNameCollision`.
+    PeppylibModule,
 }
 
 impl NameKind {
-    /// The module kind for a node of `spelling`.
-    pub(crate) fn module_of(spelling: peppy_schema::Spelling) -> NameKind {
-        match spelling {
-            peppy_schema::Spelling::Today => NameKind::TodayModule,
-            _ => NameKind::Module,
+    /// The module kind for a node on `api`.
+    pub(crate) fn module_of(api: peppy_schema::NodeApi) -> NameKind {
+        match api {
+            peppy_schema::NodeApi::Peppylib => NameKind::PeppylibModule,
+            peppy_schema::NodeApi::Emit => NameKind::Module,
         }
     }
 }
@@ -151,10 +151,10 @@ fn clash(kind: NameKind, name: &str, what: &str, loc: &Loc, first: &Claim) -> Di
             .with_help(
                 "nested structs are named after their parent and field (`header` -> `MessageHeader`, parameter group `video.encoder` -> `VideoEncoder`, array items `...Item`); rename one of the two",
             ),
-        NameKind::Module | NameKind::TodayModule => loc
+        NameKind::Module | NameKind::PeppylibModule => loc
             .error(
                 match kind {
-                    NameKind::TodayModule => Code::ModuleNameCollision,
+                    NameKind::PeppylibModule => Code::ModuleNameCollision,
                     _ => Code::ConflictingDefinition,
                 },
                 format!(

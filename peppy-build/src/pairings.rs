@@ -52,7 +52,7 @@ impl Gen<'_> {
         let emitted = p.emitted.iter().map(|t| (t, true));
         for (t, sends) in emitted.chain(p.consumed.iter().map(|t| (t, false))) {
             if names.claim(
-                NameKind::module_of(self.node.node.spelling),
+                NameKind::module_of(self.node.node.api),
                 &t.topic.decl.name,
                 &what(t),
                 &t.loc,

@@ -464,7 +464,7 @@ impl Gen<'_> {
 
     fn fixtures_module(&mut self, layout: &Layout) -> TokenStream {
         let node = self.node;
-        let today = self.today();
+        let peppylib = self.peppylib();
         // Taps of what the node emits, named by topic (a contract's by
         // `<link_id>_<topic>` in today's spelling).
         let mut tap_names = Names::default();
@@ -474,7 +474,7 @@ impl Gen<'_> {
             let Some(path) = path_of(&layout.emitted_topics, i) else {
                 continue;
             };
-            let name = if today || path.len() == 1 {
+            let name = if peppylib || path.len() == 1 {
                 path.iter()
                     .map(ToString::to_string)
                     .collect::<Vec<_>>()

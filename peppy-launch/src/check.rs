@@ -287,14 +287,16 @@ pub(crate) fn render_plan(stack: &StackCheck) -> String {
             .max()
             .unwrap_or(0);
         let mut rows = Vec::new();
-        // Named in the consumer's own spelling: today's calls them contracts.
-        let today = stack.deployments[inst.deployment].resolved.node.spelling
-            == peppy_schema::Spelling::Today;
+        // Named in the consumer's own words: `contract/v1` or `interface_v1`.
+        let contract = stack.deployments[inst.deployment]
+            .resolved
+            .node
+            .spelling
+            .contract_word();
         for slot in &inst.slots {
-            let kind = match (slot.kind, today) {
-                (SlotKind::Node, _) => "node",
-                (SlotKind::Interface, false) => "interface",
-                (SlotKind::Interface, true) => "contract",
+            let kind = match slot.kind {
+                SlotKind::Node => "node",
+                SlotKind::Interface => contract,
             };
             let (mode, fill) = match (&slot.binding, &slot.filter) {
                 (SlotBinding::Pinned { producer }, _) => ("pinned", producer.clone()),

@@ -353,13 +353,13 @@ impl BindError {
         match self {
             BindError::TargetMismatch { .. } => Code::BindingTargetMismatch,
             BindError::NotConformed {
-                spelling: Spelling::Seeds,
+                spelling: Spelling::UnderscoreIds,
                 ..
             } => Code::BindingInterfaceNotConformed,
             BindError::NotConformed { .. } => Code::BindingContractNotImplemented,
             BindError::DeadKey { .. } | BindError::AmbiguousKey { .. } => Code::DeadBindingKey,
             BindError::PinnedUnbound {
-                spelling: Spelling::Seeds,
+                spelling: Spelling::UnderscoreIds,
                 ..
             } => Code::PinnedSlotUnbound,
             BindError::PinnedUnbound { .. }
@@ -368,7 +368,7 @@ impl BindError {
             } => Code::BindingSlotUnfulfilled,
             BindError::Unfulfilled { .. } => Code::BindingCardinalityUnmet,
             BindError::PinnedTwice {
-                spelling: Spelling::Seeds,
+                spelling: Spelling::UnderscoreIds,
                 ..
             } => Code::DuplicateBindingKey,
             BindError::PinnedTwice { .. } => Code::BindingSingleSlotMultipleTargets,
@@ -394,8 +394,8 @@ impl BindError {
                 ..
             } => {
                 let key = match spelling {
-                    Spelling::Seeds => "bindings",
-                    Spelling::Today => "links",
+                    Spelling::UnderscoreIds => "bindings",
+                    Spelling::SlashIds => "links",
                 };
                 match fit.first() {
                     None => format!(
@@ -467,7 +467,7 @@ impl BindError {
     pub fn command_line_help(&self) -> String {
         match self {
             BindError::PinnedUnbound {
-                spelling: Spelling::Seeds,
+                spelling: Spelling::UnderscoreIds,
                 link_id,
                 ..
             } => {
@@ -512,7 +512,7 @@ impl BindError {
                     .join(" or ")
             ),
             BindError::PinnedTwice {
-                spelling: Spelling::Seeds,
+                spelling: Spelling::UnderscoreIds,
                 link_id,
                 ..
             } => {
@@ -528,13 +528,13 @@ impl BindError {
     fn common_help(&self) -> String {
         match self {
             BindError::TargetMismatch {
-                spelling: Spelling::Seeds,
+                spelling: Spelling::UnderscoreIds,
                 wanted,
                 ..
             } => format!("bind an instance of `{wanted}`"),
             BindError::TargetMismatch { wanted, .. } => format!("link an instance of `{wanted}`"),
             BindError::NotConformed {
-                spelling: Spelling::Today,
+                spelling: Spelling::SlashIds,
                 producer_node,
                 wanted,
                 ..
@@ -634,12 +634,12 @@ impl fmt::Display for BindError {
                 f,
                 "{} `{key}` on instance `{consumer}`: `{instance}` deploys node `{producer_node}`, but slot `{key}` expects node `{wanted}`",
                 match spelling {
-                    Spelling::Seeds => "binding",
-                    Spelling::Today => "link",
+                    Spelling::UnderscoreIds => "binding",
+                    Spelling::SlashIds => "link",
                 }
             ),
             BindError::NotConformed {
-                spelling: Spelling::Seeds,
+                spelling: Spelling::UnderscoreIds,
                 consumer,
                 key,
                 instance,
@@ -685,7 +685,7 @@ impl fmt::Display for BindError {
                     .join(", ")
             ),
             BindError::PinnedUnbound {
-                spelling: Spelling::Seeds,
+                spelling: Spelling::UnderscoreIds,
                 consumer,
                 link_id,
                 kind,
@@ -707,7 +707,7 @@ impl fmt::Display for BindError {
                 describe(*kind, target)
             ),
             BindError::PinnedTwice {
-                spelling: Spelling::Seeds,
+                spelling: Spelling::UnderscoreIds,
                 consumer,
                 link_id,
                 first,
@@ -904,7 +904,7 @@ pub fn assign(
             }
             continue;
         }
-        if b.form != BindForm::Key || spelling == Spelling::Today || !b.names_producer() {
+        if b.form != BindForm::Key || spelling == Spelling::SlashIds || !b.names_producer() {
             let mut declared: Vec<String> =
                 dependencies.iter().map(|d| d.link_id.clone()).collect();
             declared.sort();

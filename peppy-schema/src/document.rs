@@ -78,8 +78,8 @@ impl Spelling {
     /// The spelling of a document whose root is `root`.
     pub(crate) fn of(root: &Node) -> Spelling {
         match root.get("peppy_schema").and_then(Node::as_str) {
-            Some(s) if s.contains('/') => Spelling::Today,
-            _ => Spelling::Seeds,
+            Some(s) if s.contains('/') => Spelling::SlashIds,
+            _ => Spelling::UnderscoreIds,
         }
     }
 }

@@ -265,7 +265,7 @@ pub(crate) fn parse_service(r: &mut Reader<'_>, node: &Node, path: &str) -> Opti
 
 /// An action as the seeds spell it.
 pub(crate) fn parse_action(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<ActionDecl> {
-    parse_action_in(r, node, path, Spelling::Seeds)
+    parse_action_in(r, node, path, Spelling::UnderscoreIds)
 }
 
 /// An action as today's `contract/v1` spells it: a result request takes no
@@ -276,7 +276,7 @@ pub(crate) fn parse_contract_action(
     node: &Node,
     path: &str,
 ) -> Option<ActionDecl> {
-    parse_action_in(r, node, path, Spelling::Today)
+    parse_action_in(r, node, path, Spelling::SlashIds)
 }
 
 fn parse_action_in(
@@ -285,7 +285,7 @@ fn parse_action_in(
     path: &str,
     spelling: Spelling,
 ) -> Option<ActionDecl> {
-    let today = spelling == Spelling::Today;
+    let today = spelling == Spelling::SlashIds;
     let obj = r.object(
         node,
         path,

@@ -84,8 +84,8 @@ pub(crate) fn parse_interface(
             EntryKind::Action,
             &mut ok,
             match spelling {
-                Spelling::Seeds => parse_action,
-                Spelling::Today => parse_contract_action,
+                Spelling::UnderscoreIds => parse_action,
+                Spelling::SlashIds => parse_contract_action,
             },
             action_name,
         );

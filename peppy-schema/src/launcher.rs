@@ -299,7 +299,7 @@ pub(crate) fn parse_launcher(
     cross_check: bool,
 ) -> Option<LauncherDoc> {
     let spelling = Spelling::of(root);
-    let today = spelling == Spelling::Today;
+    let today = spelling == Spelling::SlashIds;
     let mut r = Reader::new(file, diags);
     let keys: &[&str] = if today {
         &[
@@ -323,7 +323,7 @@ pub(crate) fn parse_launcher(
         .map(|n| crate::core_nodes::parse_core_nodes(&mut r, n))
         .unwrap_or_default();
     if today {
-        check_todays_core_node_names(&mut r, &core_nodes);
+        check_core_node_names(&mut r, &core_nodes);
     }
     let security = obj.get("security").and_then(|n| {
         r.bool(n, "security")
@@ -367,7 +367,7 @@ pub(crate) fn parse_launcher(
 /// Today's core node names are placeholders wired to machines at launch:
 /// `self` already means the daemon a command is sent to, and a name is at
 /// most 63 characters.
-fn check_todays_core_node_names(r: &mut Reader<'_>, core_nodes: &[crate::core_nodes::CoreNode]) {
+fn check_core_node_names(r: &mut Reader<'_>, core_nodes: &[crate::core_nodes::CoreNode]) {
     for c in core_nodes {
         if c.name == "self" {
             let d = c
@@ -670,7 +670,7 @@ fn repository_source(r: &mut Reader<'_>, obj: &Obj<'_>, spelling: Spelling) -> O
         ok = false;
     }
     // Dotted tags exist in legacy documents; the repository lookup decides.
-    if let Err(why) = check_tag(&identity.tag, spelling == Spelling::Seeds) {
+    if let Err(why) = check_tag(&identity.tag, spelling == Spelling::UnderscoreIds) {
         r.error(
             Code::InvalidTag,
             name_node.span,
@@ -690,7 +690,7 @@ fn parse_instance(
 ) -> Option<Instance> {
     // `restart` is peppy's extension, accepted in both spellings.
     let obj = match spelling {
-        Spelling::Seeds => object_except(
+        Spelling::UnderscoreIds => object_except(
             r,
             node,
             path,
@@ -705,7 +705,7 @@ fn parse_instance(
             "links",
             "`links` is today's spelling (`launcher/v1`); a `launcher_v1` file writes `bindings`",
         ),
-        Spelling::Today => object_except(
+        Spelling::SlashIds => object_except(
             r,
             node,
             path,
@@ -740,12 +740,12 @@ fn parse_instance(
         }
     });
     let (bindings, links, framework) = match spelling {
-        Spelling::Seeds => (
+        Spelling::UnderscoreIds => (
             parse_bindings(r, &obj, id.as_ref().map(|(i, _)| i.as_str()), &mut ok),
             Vec::new(),
             Framework::default(),
         ),
-        Spelling::Today => (
+        Spelling::SlashIds => (
             Vec::new(),
             parse_links(r, &obj, &mut ok),
             parse_framework(r, &obj, &mut ok),
@@ -899,7 +899,7 @@ fn parse_env_vars(
                 for m in members {
                     let kpath = format!("{epath}.{}", m.key);
                     let upper = m.key.to_ascii_uppercase();
-                    if spelling == Spelling::Today && !is_shell_identifier(&m.key) {
+                    if spelling == Spelling::SlashIds && !is_shell_identifier(&m.key) {
                         r.error_help(
                             Code::ForbiddenEnvVar,
                             m.key_span,
@@ -927,7 +927,7 @@ fn parse_env_vars(
                         *ok = false;
                     }
                     match r.string(&m.value, &kpath) {
-                        Some(v) if spelling == Spelling::Today && !is_shell_safe_value(&v) => {
+                        Some(v) if spelling == Spelling::SlashIds && !is_shell_safe_value(&v) => {
                             r.error_help(
                                 Code::ForbiddenEnvVar,
                                 m.value.span,

@@ -92,7 +92,9 @@ pub use binding::{
 };
 pub use diag::{Code, Diagnostic, Diagnostics, Severity, did_you_mean};
 pub use loc::Loc;
-pub use model::{Cardinality, Dependency, Identity, NodeModel, PairingSlot, SlotKind, Spelling};
+pub use model::{
+    Cardinality, Dependency, Identity, NodeApi, NodeModel, PairingSlot, SlotKind, Spelling,
+};
 pub use pairs::{PairEnd, PairPlan, PairPlanError, check_pair_plan, fit_pair_plans};
 pub use params::{
     ParamError, ParamErrorKind, ParamField, ParamItem, ParamKind, ParameterSchema, check_leaf,

@@ -11,18 +11,56 @@ use serde::{Deserialize, Serialize};
 use crate::loc::Loc;
 use crate::params::ParameterSchema;
 
-/// Which spelling a document is written in: the seeds' (`node_v1`,
-/// `interface_v1`, `launcher_v1`) or today's PeppyOS (`contract/v1`, ...).
-/// Both are read into one model; the spelling decides only what each
-/// document may say and how.
+/// Which spelling a document is written in, named by its `peppy_schema`
+/// ids: underscored (`node_v1`, `interface_v1`, `launcher_v1`: PeppyOS up
+/// to v0.12) or slashed (`node/v1`, `contract/v1`, `launcher/v1`, ...:
+/// PeppyOS v0.13 on, read as of v0.25.7). Both are read into one model;
+/// the spelling decides only what each document may say and how.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Spelling {
-    /// The seeds' spelling, underscores in `peppy_schema`.
+    /// `<kind>_v1` ids (`node_v1`, `interface_v1`, `launcher_v1`).
     #[default]
-    Seeds,
-    /// Today's PeppyOS spelling, `<kind>/v1` in `peppy_schema`.
-    Today,
+    UnderscoreIds,
+    /// `<kind>/v1` ids (`node/v1`, `contract/v1`, `pairing/v1`, ...).
+    SlashIds,
+}
+
+impl Spelling {
+    /// The generated API a node document of this spelling is written
+    /// against: the reader's one decision, stored in the model.
+    pub fn node_api(self) -> NodeApi {
+        match self {
+            Spelling::UnderscoreIds => NodeApi::Emit,
+            Spelling::SlashIds => NodeApi::Peppylib,
+        }
+    }
+
+    /// What this spelling calls a shared contract (`interface_v1`
+    /// documents or `contract/v1` ones), for messages and listings.
+    pub fn contract_word(self) -> &'static str {
+        match self {
+            Spelling::UnderscoreIds => "interface",
+            Spelling::SlashIds => "contract",
+        }
+    }
+}
+
+/// Which generated API a node's code is written against. The reader
+/// decides it (from the document's spelling) and the model carries it, so
+/// the code generators and the launcher ask this and never the spelling.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NodeApi {
+    /// Positional `emit`, `on_next_message_received`,
+    /// `ActionHandle::expose`; a conformed interface's entries live under
+    /// `<interface>::<tag>::<name>` (and by name when unambiguous).
+    #[default]
+    Emit,
+    /// PeppyOS's `peppylib` API (`declare_publisher`, `subscribe`,
+    /// `GoalDecision`, calls aimed at a bound producer); entries reached
+    /// through a slot or an `implements` link live under its link_id.
+    Peppylib,
 }
 
 /// How many producers a slot takes (today's `cardinality`). The seeds'
@@ -210,10 +248,13 @@ impl PairingSlot {
 /// order) and parameter schema.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct NodeModel {
-    /// The spelling of the document it was read from: it decides the names
-    /// errors are reported under and the generated module paths.
+    /// The spelling of the document it was read from: the names binding
+    /// errors are reported under.
     #[serde(default)]
     pub spelling: Spelling,
+    /// The generated API the node's code uses.
+    #[serde(default)]
+    pub api: NodeApi,
     /// `name:tag`.
     pub identity: Identity,
     /// The slots.
@@ -253,6 +294,7 @@ impl NodeModel {
     pub fn of(doc: &crate::node::NodeDoc) -> NodeModel {
         NodeModel {
             spelling: doc.spelling,
+            api: doc.api,
             identity: doc.identity(),
             dependencies: doc.dependencies.clone(),
             parameters: doc.execution.parameters.clone(),
@@ -279,7 +321,7 @@ mod tests {
         let json = NodeModel::of(&doc).to_json();
         // The shape hand-written descriptors (the latency bench) rely on.
         assert!(
-            json.starts_with(r#"{"spelling":"seeds","identity":{"name":"pinger","tag":"v1"},"dependencies":[{"kind":"node","target":{"name":"ponger","tag":"v1"},"link_id":"ponger","from_any":false,"cardinality":"one","sha256":null}],"#),
+            json.starts_with(r#"{"spelling":"underscore_ids","api":"emit","identity":{"name":"pinger","tag":"v1"},"dependencies":[{"kind":"node","target":{"name":"ponger","tag":"v1"},"link_id":"ponger","from_any":false,"cardinality":"one","sha256":null}],"#),
             "{json}"
         );
         let back = NodeModel::from_json(&json).unwrap();

@@ -199,7 +199,7 @@ pub fn resolve_node(
                     continue;
                 };
                 files.push(entry.path.clone());
-                let natives_only = node.spelling == Spelling::Today;
+                let natives_only = node.spelling == Spelling::SlashIds;
                 match producer_offer(&entry.doc, index, dep, natives_only, &mut files, &mut diags) {
                     Some(o) => o,
                     None => continue,

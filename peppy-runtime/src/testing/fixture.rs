@@ -99,7 +99,8 @@ pub(crate) async fn open(
     port: u16,
 ) -> Result<Arc<NodeRunner>> {
     let doc = NodeModel {
-        spelling: Spelling::Today,
+        spelling: Spelling::SlashIds,
+        api: Spelling::SlashIds.node_api(),
         identity: Identity::new(FIXTURE_NAME, "v1"),
         dependencies: vec![Dependency {
             kind: SlotKind::Node,

@@ -138,7 +138,8 @@ impl MockProducer {
     ) -> Result<MockProducer> {
         let turned = turned(slot);
         let doc = NodeModel {
-            spelling: Spelling::Seeds,
+            spelling: Spelling::UnderscoreIds,
+            api: Spelling::UnderscoreIds.node_api(),
             identity,
             dependencies: Vec::new(),
             parameters: ParameterSchema::default(),

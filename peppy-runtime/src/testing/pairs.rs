@@ -120,7 +120,8 @@ impl PairMock {
             loc: Default::default(),
         };
         let doc = NodeModel {
-            spelling: Spelling::Seeds,
+            spelling: Spelling::UnderscoreIds,
+            api: Spelling::UnderscoreIds.node_api(),
             identity: Identity::new(format!("mock_{}", node_slot.link_id), "v1"),
             dependencies: Vec::new(),
             parameters: ParameterSchema::default(),

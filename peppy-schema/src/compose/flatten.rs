@@ -260,7 +260,7 @@ pub(super) fn resolve(c: &Composition, selection: &Selection) -> Result<Resolved
                 .err()
                 .unwrap_or_default());
         }
-        let text = if Spelling::of(&c.root) == Spelling::Today {
+        let text = if Spelling::of(&c.root) == Spelling::SlashIds {
             flat_of_root(&c.root, &c.file).render()
         } else {
             c.file.text().to_string()

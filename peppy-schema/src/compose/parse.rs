@@ -20,7 +20,8 @@ pub(crate) const COMPOSITION_KEYS: &[&str] = &["components", "adjustments", "con
 /// Whether `root` is a composed launcher (today's spelling with any of
 /// [`COMPOSITION_KEYS`]).
 pub(crate) fn is_composed(root: &Node) -> bool {
-    Spelling::of(root) == Spelling::Today && COMPOSITION_KEYS.iter().any(|k| root.get(k).is_some())
+    Spelling::of(root) == Spelling::SlashIds
+        && COMPOSITION_KEYS.iter().any(|k| root.get(k).is_some())
 }
 
 /// Reads `file` as a launcher: composed (fragments loaded) or flat.
@@ -93,7 +94,7 @@ fn read_composed(
         && let Some(items) = r.array(list, "deployments")
     {
         for (i, item) in items.iter().enumerate() {
-            parse_deployment(&mut r, item, &index("deployments", i), Spelling::Today);
+            parse_deployment(&mut r, item, &index("deployments", i), Spelling::SlashIds);
             base_deployments.push(item.clone());
         }
     }
@@ -552,7 +553,7 @@ fn read_fragment_body(
         let dpath = obj.path_of("deployments");
         if let Some(items) = r.array(list, &dpath) {
             for (i, item) in items.iter().enumerate() {
-                parse_deployment(r, item, &index(&dpath, i), Spelling::Today);
+                parse_deployment(r, item, &index(&dpath, i), Spelling::SlashIds);
                 deployments.push(item.clone());
             }
         }

@@ -7,15 +7,15 @@
 mod consumes;
 mod execution;
 mod refine;
+mod slash_ids;
 mod slots;
-mod today;
 
 pub(crate) use crate::model::PairingSlot;
 pub use execution::{Container, Execution, Launch};
 pub use refine::{FieldRefine, FormatRefine, Pin, Refine, RefinedMessage};
 pub(crate) use refine::{action_message, check_refine};
+pub use slash_ids::MemberRef;
 pub(crate) use slots::read_sha256;
-pub use today::MemberRef;
 
 use std::sync::Arc;
 
@@ -38,8 +38,10 @@ use crate::source::SourceFile;
 
 use consumes::{parse_consumed_refs, parse_consumed_topics};
 use execution::{parse_execution, parse_legacy_process};
+use slash_ids::{
+    check_member_links, parse_consumed_by_link, parse_implements_manifest, parse_produced,
+};
 use slots::{parse_conforms_to, parse_depends_on, read_identity_part};
-use today::{check_today_links, parse_consumed_today, parse_produced, parse_today_manifest};
 
 /// A parsed, validated node document.
 #[derive(Debug, Clone)]
@@ -48,8 +50,10 @@ pub struct NodeDoc {
     pub file: Arc<SourceFile>,
     /// Written in the legacy `schema_version: 1` form.
     pub legacy: bool,
-    /// The seeds' `node_v1` (and legacy) spelling, or today's `node/v1`.
+    /// `node_v1` (and the legacy `schema_version: 1`), or `node/v1`.
     pub spelling: Spelling,
+    /// The generated API its code uses (decided by the spelling).
+    pub api: crate::NodeApi,
     /// `manifest.name`.
     pub name: String,
     /// `manifest.tag`.
@@ -185,7 +189,7 @@ pub(crate) fn parse_node(
 ) -> Option<NodeDoc> {
     let mut r = Reader::new(file, diags);
     let spelling = Spelling::of(root);
-    let today = spelling == Spelling::Today;
+    let slash_ids = spelling == Spelling::SlashIds;
     let legacy = root.get("schema_version").is_some() && root.get("peppy_schema").is_none();
     let top_keys: &[&str] = if legacy {
         &["schema_version", "manifest", "process", "interfaces"]
@@ -203,7 +207,7 @@ pub(crate) fn parse_node(
             "write `peppy_schema: \"node_v1\"`",
         );
     }
-    let manifest = parse_manifest(&mut r, &root_obj, legacy, today, &mut ok);
+    let manifest = parse_manifest(&mut r, &root_obj, legacy, slash_ids, &mut ok);
     if manifest.name.is_none() || manifest.tag.is_none() {
         ok = false;
     }
@@ -216,12 +220,12 @@ pub(crate) fn parse_node(
     if execution.is_none() {
         ok = false;
     }
-    let mut i = if today {
-        parse_today_interfaces(&mut r, &root_obj, &mut ok)
+    let mut i = if slash_ids {
+        parse_link_interfaces(&mut r, &root_obj, &mut ok)
     } else {
         parse_interfaces(&mut r, &root_obj, legacy, &mut ok)
     };
-    if !today {
+    if !slash_ids {
         ok &= check_consumed_links(&mut r, root, legacy, &i);
     }
     // two consumed entries generating the same module
@@ -232,7 +236,7 @@ pub(crate) fn parse_node(
         &i.consumed_services,
         &i.consumed_actions,
     );
-    if today {
+    if slash_ids {
         i.conforms_to = manifest.implements;
     }
 
@@ -245,6 +249,7 @@ pub(crate) fn parse_node(
         file: file.clone(),
         legacy,
         spelling,
+        api: spelling.node_api(),
         name,
         tag,
         name_loc,
@@ -261,8 +266,8 @@ pub(crate) fn parse_node(
         exposed_actions: i.exposed_actions,
         consumed_actions: i.consumed_actions,
     };
-    if today {
-        check_today_links(r.diags, &doc);
+    if slash_ids {
+        check_member_links(r.diags, &doc);
         if r.diags.has_errors() {
             return None;
         }
@@ -289,7 +294,7 @@ fn parse_manifest(
     r: &mut Reader<'_>,
     root_obj: &Obj<'_>,
     legacy: bool,
-    today: bool,
+    slash_ids: bool,
     ok: &mut bool,
 ) -> Manifest {
     let mut name = None;
@@ -302,7 +307,7 @@ fn parse_manifest(
     if let Some(m) = r.required(root_obj, "manifest") {
         let keys: &[&str] = if legacy {
             &["name", "tag", "labels", "depends_on", "language"]
-        } else if today {
+        } else if slash_ids {
             &["name", "tag", "labels", "implements", "depends_on"]
         } else {
             &["name", "tag", "labels", "depends_on"]
@@ -313,8 +318,8 @@ fn parse_manifest(
             if let Some(l) = mobj.get("labels") {
                 labels = r.string_list(l, "manifest.labels").unwrap_or_default();
             }
-            if today {
-                let t = parse_today_manifest(r, &mobj, ok);
+            if slash_ids {
+                let t = parse_implements_manifest(r, &mobj, ok);
                 dependencies = t.dependencies;
                 implements = t.implements;
                 pairings = t.pairings;
@@ -462,7 +467,7 @@ fn parse_interfaces(
 
 /// Today's `interfaces`: natives and slot members in `emits` / `exposes`,
 /// `{ link_id, name, refine? }` in `consumes`.
-fn parse_today_interfaces(r: &mut Reader<'_>, root_obj: &Obj<'_>, ok: &mut bool) -> Interfaces {
+fn parse_link_interfaces(r: &mut Reader<'_>, root_obj: &Obj<'_>, ok: &mut bool) -> Interfaces {
     let mut out = Interfaces::default();
     let Some(i) = root_obj.get("interfaces") else {
         return out;
@@ -498,7 +503,7 @@ fn parse_today_interfaces(r: &mut Reader<'_>, root_obj: &Obj<'_>, ok: &mut bool)
         );
         out.emits = natives;
         out.members.extend(members);
-        let consumed = parse_consumed_today(
+        let consumed = parse_consumed_by_link(
             r,
             consumes,
             "interfaces.topics.consumes",
@@ -560,7 +565,7 @@ fn calls_section<T>(
     let path = format!("interfaces.{key}.exposes");
     let (natives, members) = parse_produced(r, exposes, &path, kind, native, name_of, ok);
     let consumed =
-        parse_consumed_today(r, consumes, &format!("interfaces.{key}.consumes"), kind, ok)
+        parse_consumed_by_link(r, consumes, &format!("interfaces.{key}.consumes"), kind, ok)
             .into_iter()
             .map(|(c, refine)| ConsumedRef { refine, ..c })
             .collect();
@@ -666,8 +671,8 @@ fn check_consumed_modules(
 /// spelling, `<link>::<name>` in today's.
 fn linked_module(spelling: Spelling, link_id: &str, name: &str) -> String {
     match spelling {
-        Spelling::Seeds => consumed_module(Some(link_id), name),
-        Spelling::Today => format!("{}::{}", module_name(link_id), module_name(name)),
+        Spelling::UnderscoreIds => consumed_module(Some(link_id), name),
+        Spelling::SlashIds => format!("{}::{}", module_name(link_id), module_name(name)),
     }
 }
 

@@ -40,7 +40,7 @@ fn parse(text: &str) -> peppy_schema::Parsed<InterfaceDoc> {
 #[test]
 fn a_contract_is_read_as_an_interface() {
     let (doc, warnings) = parse(ARM).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(doc.spelling, Spelling::Today);
+    assert_eq!(doc.spelling, Spelling::SlashIds);
     assert_eq!(doc.identity, Identity::new("arm_control", "v1"));
     assert_eq!(doc.labels, ["manipulation"]);
     assert_eq!(
@@ -82,7 +82,7 @@ fn an_empty_contract_is_valid_and_the_seeds_interface_keeps_its_spelling() {
         r#"{ peppy_schema: "interface_v1", manifest: { name: "empty", tag: "v1" }, interfaces: {} }"#,
     )
     .unwrap();
-    assert_eq!(seeds.spelling, Spelling::Seeds);
+    assert_eq!(seeds.spelling, Spelling::UnderscoreIds);
 }
 
 #[test]

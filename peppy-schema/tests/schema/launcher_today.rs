@@ -66,7 +66,7 @@ const RUST_ROBOT: &str = r#"{
 #[test]
 fn a_flat_launcher_like_the_hubs_rust_robot_reads() {
     let l = launcher_ok(RUST_ROBOT);
-    assert_eq!(l.spelling, Spelling::Today);
+    assert_eq!(l.spelling, Spelling::SlashIds);
     assert!(l.core_nodes.is_empty());
     let sources: Vec<&Source> = l.deployments.iter().map(|d| &d.source).collect();
     assert_eq!(
@@ -367,7 +367,7 @@ fn each_spelling_refuses_the_others_slot_key() {
         r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "cam:v1" }, instances: [
             { instance_id: "a" }, { instance_id: "b", bindings: { left: "a" } } ] }] }"#,
     );
-    assert_eq!(l.spelling, Spelling::Seeds);
+    assert_eq!(l.spelling, Spelling::UnderscoreIds);
     let b = &l.deployments[0].instances[1];
     assert_eq!(b.bindings.len(), 1);
     assert!(b.links.is_empty());

@@ -94,7 +94,7 @@ const HUB_NODE: &str = r#"{
 fn a_node_shaped_like_the_hubs_reads_into_the_model() {
     let (node, warnings) = node_ok(HUB_NODE);
     assert!(warnings.is_empty(), "{warnings}");
-    assert_eq!(node.spelling, Spelling::Today);
+    assert_eq!(node.spelling, Spelling::SlashIds);
     assert_eq!(node.identity(), Identity::new("arm_driver", "v1"));
     assert_eq!(node.labels, ["manipulation"]);
     // `implements` is conformance, with its slot name.

@@ -32,7 +32,7 @@ from peppy_testing import (
 from peppy import ResultStatus, clock, testing
 from peppy import spec as s
 from peppy.spec import QoSProfile
-from peppy.today import Subscription, declare_publisher, poll, subscribe
+from peppy.peppylib_api import Subscription, declare_publisher, poll, subscribe
 
 # relay:v1: reads `readings` (reliable) from its `cam` slot and re-emits
 # each on its own `echo`; calls `add` and `move` on the same slot; serves
@@ -176,7 +176,7 @@ class HarnessTests(unittest.IsolatedAsyncioTestCase):
         results: List[Any] = []
 
         async def mover(params: Any, node_runner: Any) -> List[Any]:
-            from peppy.today import fire_goal_at
+            from peppy.peppylib_api import fire_goal_at
 
             async def go() -> None:
                 target = node_runner.bound_producer("cam")
@@ -207,7 +207,7 @@ class HarnessTests(unittest.IsolatedAsyncioTestCase):
         ended: List[Any] = []
 
         async def mover(params: Any, node_runner: Any) -> List[Any]:
-            from peppy.today import fire_goal_at
+            from peppy.peppylib_api import fire_goal_at
 
             async def go() -> None:
                 target = node_runner.bound_producer("cam")

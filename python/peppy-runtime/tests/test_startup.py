@@ -190,7 +190,7 @@ class ConfigFileTest(unittest.TestCase):
             self.assertIn(words, str(caught.exception))
             self.assertIn("another peppy.json5", str(caught.exception))
 
-    def test_todays_set_bindings_are_applied_as_they_are(self):
+    def test_cardinality_sets_are_applied_as_they_are(self):
         slots = [
             slot(
                 "cameras",
@@ -330,7 +330,7 @@ class FlagsTest(unittest.TestCase):
         # `name=123` is a string because `name` is declared one.
         self.assertEqual(NodeBuilder(RECON)._parameters(st), Parameters("123", Video(24, 3.0), [0.5, 1.0], True, b"k"))
 
-    def test_todays_link_flags(self):
+    def test_link_flags(self):
         st = load(
             VIEWER,
             ["--link", "cameras@rs_b", "--link", "cameras@rs_a", "--vacant-link", "overhead=bench run: none", "name=n"],

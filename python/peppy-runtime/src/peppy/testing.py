@@ -62,7 +62,7 @@ from .spec import (
     TopicSpec,
 )
 from .startup import Endpoints, Startup, plan_text_from_flags
-from .today import Subscription
+from .peppylib_api import Subscription
 
 log = logging.getLogger("peppy")
 

@@ -28,19 +28,19 @@ pub struct MemberRef {
 
 /// What today's `manifest` adds to the seeds' one.
 #[derive(Default)]
-pub(super) struct TodayManifest {
+pub(super) struct ImplementsManifest {
     pub implements: Vec<InterfaceRef>,
     pub dependencies: Vec<Dependency>,
     pub pairings: Vec<PairingSlot>,
 }
 
 /// `manifest.implements` and `manifest.depends_on` of a `node/v1` document.
-pub(super) fn parse_today_manifest(
+pub(super) fn parse_implements_manifest(
     r: &mut Reader<'_>,
     mobj: &Obj<'_>,
     ok: &mut bool,
-) -> TodayManifest {
-    let mut out = TodayManifest::default();
+) -> ImplementsManifest {
+    let mut out = ImplementsManifest::default();
     if let Some(n) = mobj.get("implements") {
         out.implements = parse_implements(r, n, ok);
     }
@@ -347,7 +347,7 @@ fn parse_implements(r: &mut Reader<'_>, node: &Node, ok: &mut bool) -> Vec<Inter
 
 /// One link_id namespace across `implements`, `nodes`, `contracts`,
 /// `pairings` and `pairing_observers`.
-fn check_link_namespace(r: &mut Reader<'_>, m: &TodayManifest) -> bool {
+fn check_link_namespace(r: &mut Reader<'_>, m: &ImplementsManifest) -> bool {
     let all: Vec<(&str, &Loc)> = m
         .implements
         .iter()
@@ -498,7 +498,7 @@ fn parse_member(
 
 /// Today's consumed entries: `{ link_id, name, refine? }` only (external
 /// topics are gone).
-pub(super) fn parse_consumed_today(
+pub(super) fn parse_consumed_by_link(
     r: &mut Reader<'_>,
     node: Option<&Node>,
     path: &str,
@@ -604,7 +604,7 @@ fn declared(doc: &NodeDoc) -> Vec<&str> {
 /// for topics, a participant pairing slot), consumed entries a `depends_on`
 /// slot, `refine` only where a contract or pairing shapes the entry, and
 /// every observer slot is consumed.
-pub(super) fn check_today_links(diags: &mut Diagnostics, doc: &NodeDoc) {
+pub(super) fn check_member_links(diags: &mut Diagnostics, doc: &NodeDoc) {
     for m in &doc.members {
         let section = produced_section(m.kind);
         let found = match slot_of(doc, &m.link_id) {

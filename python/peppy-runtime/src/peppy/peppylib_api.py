@@ -1,8 +1,8 @@
-"""Today's node API (`node/v1` nodes): what their generated `peppygen`
+"""PeppyOS's `peppylib` node API (`node/v1` nodes): what their generated `peppygen`
 calls. Built messages and held publishers (`build_message`,
 `declare_publisher`), held subscriptions yielding `(ProducerRef, message)`,
 and service calls and goals sent to a named producer of a slot. The wire
-is the one the seeds' API speaks (docs/WIRE.md)."""
+is the one the `emit` API speaks (docs/WIRE.md)."""
 
 from __future__ import annotations
 

@@ -13,7 +13,7 @@ use super::source::{Source, py_string};
 
 /// The imports today's modules add to the common header.
 pub(super) const IMPORTS: &str =
-    "from peppy import today as _today\nfrom peppy.producer import ProducerRef";
+    "from peppy import peppylib_api as _peppylib\nfrom peppy.producer import ProducerRef";
 
 /// The slot `link_id`'s accessor: `bound_producer(node_runner)` for `one`
 /// (a `ProducerRef`) and `zero_or_one` (`Optional[ProducerRef]`),
@@ -66,19 +66,19 @@ pub(super) fn slot_accessor(out: &mut Source, node: &ResolvedNode, link_id: &str
 
 /// `declare_publisher`: the held publisher of topic `name`.
 pub(super) fn declare_publisher(out: &mut Source, name: &str) {
-    out.line("async def declare_publisher(node_runner: NodeRunner) -> _today.Publisher:");
+    out.line("async def declare_publisher(node_runner: NodeRunner) -> _peppylib.Publisher:");
     out.indent();
     out.docstring(&format!(
         "The publisher of `{name}`: `await publisher.publish(build_message(...))`."
     ));
-    out.line("return await _today.declare_publisher(node_runner, SPEC)");
+    out.line("return await _peppylib.declare_publisher(node_runner, SPEC)");
     out.dedent();
 }
 
 /// `Subscription` and `subscribe`: topic `name`, held.
 pub(super) fn subscription(out: &mut Source, name: &str) {
     out.line(&format!(
-        r#"class Subscription(_today.Subscription):
+        r#"class Subscription(_peppylib.Subscription):
     """Topic `{name}`, held: messages are queued from the node's start, so
     none is lost between calls. `await sub.next()` gives `(producer, message)`,
     None once the node stops; `async for producer, message in sub` reads until then."""
@@ -141,7 +141,7 @@ pub(super) const GOAL_SERVER: GoalServerShape = GoalServerShape {
         def decision(instance_id: str, core_node: str, data: GoalRequestData) -> Any:
             return decide(GoalRequest(instance_id, core_node, data))
 
-        inner = await _today.next_accepted_goal(self._server, decision)"#,
+        inner = await _peppylib.next_accepted_goal(self._server, decision)"#,
 };
 
 /// Today's goal client: a goal aimed at a bound producer, with the
@@ -194,7 +194,7 @@ class ActionHandle:
         """Sends the goal to `target`, a producer bound to slot `{link}` (`timeout` in
         seconds), and returns once the server decided. Raises `ValueError` (target
         not bound), `ConnectionError` (no server answered) or `TimeoutError`."""
-        return cls(await _today.fire_goal_at(node_runner, SPEC, target, {goal_value}, timeout, feedback_qos))
+        return cls(await _peppylib.fire_goal_at(node_runner, SPEC, target, {goal_value}, timeout, feedback_qos))
 
     def goal_id(self) -> str:
         return self._client.goal_id

@@ -1,5 +1,5 @@
-"""Today's node API (`node/v1` documents) on the code `peppy-launch sync`
-generates for tests/today/{tcam,tviewer}: publishers and held
+"""PeppyOS's peppylib node API (`node/v1` documents) on the code `peppy-launch sync`
+generates for tests/peppylib_api/{tcam,tviewer}: publishers and held
 subscriptions, polls and goals aimed at a bound producer, GoalDecision,
 shutdown hooks and their grace window, the stack clock (wall and sim) and
 the runtime config's `use_sim_time` and `shutdown_grace_secs`. Real Zenoh
@@ -36,13 +36,13 @@ _generated: Optional[str] = None
 
 
 def setUpModule() -> None:
-    """Generates the two packages once, in a copy of tests/today."""
+    """Generates the two packages once, in a copy of tests/peppylib_api."""
     global _generated
     program = peppy_launch()
     if program is None:
-        raise unittest.SkipTest("the tests of today's API generate their packages with peppy-launch: set PEPPY_LAUNCH")
-    _generated = tempfile.mkdtemp(prefix="peppy-today-")
-    shutil.copytree(os.path.join(HERE, "today"), _generated, dirs_exist_ok=True)
+        raise unittest.SkipTest("the tests of the peppylib API generate their packages with peppy-launch: set PEPPY_LAUNCH")
+    _generated = tempfile.mkdtemp(prefix="peppy-peppylib-")
+    shutil.copytree(os.path.join(HERE, "peppylib_api"), _generated, dirs_exist_ok=True)
     for node in ("tcam", "tviewer"):
         subprocess.run(
             [program, "sync", os.path.join(_generated, node), "--repo", _generated],
@@ -82,7 +82,7 @@ def entry(node: str, dotted: str) -> Any:
 
 
 class TodayTest(t.LiveTest):
-    async def today(
+    async def start(
         self,
         node: str,
         instance: str,
@@ -90,7 +90,7 @@ class TodayTest(t.LiveTest):
         core: str = "lab",
         **config: Any,
     ) -> Any:
-        """Starts a node of today's spelling from a runtime config planned
+        """Starts a `node/v1` node from a runtime config planned
         with `--link` (extra top-level `config` fields as given)."""
         gen = package(node)
         args = ["--instance-id", instance]
@@ -114,8 +114,8 @@ class TodayTest(t.LiveTest):
         return runner
 
     async def pair(self) -> Any:
-        cam = await self.today("tcam", "cam_a")
-        viewer = await self.today("tviewer", "viewer_1", {"camera": ["cam_a"]})
+        cam = await self.start("tcam", "cam_a")
+        viewer = await self.start("tviewer", "viewer_1", {"camera": ["cam_a"]})
         await self.sees(viewer, "tcam", "cam_a")
         return cam, viewer
 
@@ -151,13 +151,13 @@ class TopicTest(TodayTest):
         self.assertEqual([m async for m in sub], [])
 
     async def test_a_message_built_for_another_topic_is_refused(self):
-        from peppy import today
+        from peppy import peppylib_api
 
         frames = entry("tcam", "emitted_topics.frames")
-        cam = await self.today("tcam", "cam_a")
+        cam = await self.start("tcam", "cam_a")
         publisher = await frames.declare_publisher(cam)
         with self.assertRaises(ValueError) as caught:
-            await publisher.publish(today.build_message(t.READINGS_OUT, t.Reading(1, "x")))
+            await publisher.publish(peppylib_api.build_message(t.READINGS_OUT, t.Reading(1, "x")))
         self.assertIn("topic `readings` cannot be published on topic `frames`", str(caught.exception))
 
 
@@ -197,9 +197,9 @@ class ServiceTest(TodayTest):
     async def test_an_absent_target_is_unreachable_and_a_silent_one_times_out(self):
         info = entry("tviewer", "consumed_services.camera.info")
         # cam_b is up but never serves: its queue acks the request.
-        cam_b = await self.today("tcam", "cam_b")
-        lonely = await self.today("tviewer", "viewer_2", {"camera": ["ghost"]})
-        silent = await self.today("tviewer", "viewer_3", {"camera": ["cam_b"]})
+        cam_b = await self.start("tcam", "cam_b")
+        lonely = await self.start("tviewer", "viewer_2", {"camera": ["ghost"]})
+        silent = await self.start("tviewer", "viewer_3", {"camera": ["cam_b"]})
         await self.sees(silent, "tcam", "cam_b")
         with self.assertRaises(ConnectionError):
             await info.poll(lonely, info.bound_producer(lonely), info.Request(scale=1), 1.0)
@@ -324,7 +324,7 @@ class ShutdownTest(TodayTest):
             await publisher.publish(frames.build_message(frames.MessageHeader(stamp=1.0, frame_id=1), b""))
 
     async def test_a_hook_overrunning_the_grace_window_is_cut_off_and_the_rest_skipped(self):
-        cam = await self.today("tcam", "cam_a", shutdown_grace_secs=0.5)
+        cam = await self.start("tcam", "cam_a", shutdown_grace_secs=0.5)
         ran: List[str] = []
 
         async def never_called() -> None:
@@ -347,14 +347,14 @@ class ShutdownTest(TodayTest):
 
     async def test_the_grace_window_is_checked_and_the_environment_overrides_it(self):
         with self.assertRaises(StartupError) as caught:
-            await self.today("tcam", "cam_a", shutdown_grace_secs=0)
+            await self.start("tcam", "cam_a", shutdown_grace_secs=0)
         self.assertIn("`shutdown_grace_secs` must be a number of seconds above 0", str(caught.exception))
         with self.assertRaises(StartupError) as caught:
-            await self.today("tcam", "cam_b", use_sim_time="yes")
+            await self.start("tcam", "cam_b", use_sim_time="yes")
         self.assertIn("`use_sim_time` must be true or false", str(caught.exception))
         os.environ[SHUTDOWN_GRACE_ENV] = "0.25"
         try:
-            cam = await self.today("tcam", "cam_c", shutdown_grace_secs=3)
+            cam = await self.start("tcam", "cam_c", shutdown_grace_secs=3)
         finally:
             del os.environ[SHUTDOWN_GRACE_ENV]
         self.assertEqual(cam.shutdown_grace, 0.25)
@@ -482,7 +482,7 @@ class ClockTest(TodayTest):
         clock = entry("tcam", "clock")
         with self.assertRaises(RuntimeError):
             clock.now_ns()
-        cam = await self.today("tcam", "cam_a")
+        cam = await self.start("tcam", "cam_a")
         self.assertFalse(cam.use_sim_time())
         await clock.init(cam)
         await clock.init(cam)
@@ -493,8 +493,8 @@ class ClockTest(TodayTest):
 
     async def test_sim_time_is_not_ready_before_the_first_tick_then_is_the_published_one(self):
         clock = entry("tcam", "clock")
-        sim = await self.today("tcam", "cam_sim", use_sim_time=True)
-        simulator = await self.today("tcam", "simulator")
+        sim = await self.start("tcam", "cam_sim", use_sim_time=True)
+        simulator = await self.start("tcam", "simulator")
         await self.sees(simulator, "tcam", "cam_sim")
         self.assertTrue(sim.use_sim_time())
         await clock.init(sim)
@@ -513,8 +513,8 @@ class ClockTest(TodayTest):
                 await asyncio.sleep(0.02)
 
     async def test_ticks_of_the_nodes_mode_and_malformed_ones_dropped(self):
-        cam = await self.today("tcam", "cam_a")
-        launcher = await self.today("tcam", "launcher")
+        cam = await self.start("tcam", "cam_a")
+        launcher = await self.start("tcam", "launcher")
         await self.sees(launcher, "tcam", "cam_a")
         sub = await peppy_clock.subscribe(cam)
         key = clock_tick_key(self.namespace, "wall")
@@ -562,10 +562,10 @@ class ClockTest(TodayTest):
         return queryable
 
     async def test_synchronize_against_a_sync_queryable(self):
-        cam = await self.today("tcam", "cam_a")
+        cam = await self.start("tcam", "cam_a")
         with self.assertRaises(ConnectionError):
             await peppy_clock.synchronize(cam, 0.5)
-        launcher = await self.today("tcam", "launcher")
+        launcher = await self.start("tcam", "launcher")
         await self.sees(cam, "tcam", "launcher")
         self.serve_sync(launcher, [None])
         sync = await peppy_clock.synchronize(cam)
@@ -574,8 +574,8 @@ class ClockTest(TodayTest):
         self.assertLessEqual(sync.raw.server_recv_time, sync.raw.server_send_time)
 
     async def test_synchronize_in_sim_mode_is_not_ready_without_a_tick(self):
-        sim = await self.today("tcam", "cam_sim", use_sim_time=True)
-        launcher = await self.today("tcam", "launcher")
+        sim = await self.start("tcam", "cam_sim", use_sim_time=True)
+        launcher = await self.start("tcam", "launcher")
         await self.sees(sim, "tcam", "launcher")
         latest: List[Optional[int]] = [None]
         self.serve_sync(launcher, latest)
