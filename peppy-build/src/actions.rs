@@ -139,8 +139,8 @@ impl Gen<'_> {
                 " (the action takes no goal data)"
             }
         ));
-        // Today's spelling decides with `GoalDecision` (the action's own
-        // when it declares a goal response); the seeds' with `GoalResponse`.
+        // The peppylib API decides with `GoalDecision` (the action's own
+        // when it declares a goal response); the emit API with `GoalResponse`.
         // Both hand the decider the request by reference, as PeppyOS does.
         let declared = decl.goal_response.as_ref();
         let mut decision_types = TokenStream::new();

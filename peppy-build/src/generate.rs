@@ -156,8 +156,8 @@ struct Offered {
 struct Consumed {
     /// Its index in the node's list of its category.
     index: usize,
-    /// The slot (`None` only for an external topic, which today's
-    /// spelling cannot write).
+    /// The slot (`None` only for an external topic, which `node/v1`
+    /// cannot write).
     link_id: Option<String>,
     name: String,
     loc: Loc,
@@ -494,7 +494,7 @@ impl Gen<'_> {
         self.own_entries(&offered, kind, &mut names, &mut category);
         let node = self.node;
         for slot in &node.node.conforms_to {
-            // Today's `implements` entries always carry their link_id.
+            // `node/v1`'s `implements` entries always carry their link_id.
             let Some(link_id) = &slot.link_id else {
                 continue;
             };
@@ -570,8 +570,8 @@ impl Gen<'_> {
         let node = self.node;
         for (link_id, group) in groups {
             let Some(link_id) = link_id else {
-                // Not written in today's spelling (every consumed entry
-                // names a slot); laid out flat, like the seeds' external topics.
+                // Not written in `node/v1` (every consumed entry names a
+                // slot); laid out flat, like `node_v1`'s external topics.
                 for e in group {
                     let m = module(&e.name);
                     if !links.claim(
@@ -1399,8 +1399,8 @@ fn slot_accessor(link_id: &str, cardinality: Option<Cardinality>) -> TokenStream
 }
 
 /// The slot's accessor, repeated in each entry module of the slot
-/// (`consumed_actions::<slot>::<action>::bound_producer`), where today's
-/// code reaches for it.
+/// (`consumed_actions::<slot>::<action>::bound_producer`), where
+/// peppylib-API code reaches for it.
 fn entry_accessor(cardinality: Option<Cardinality>) -> TokenStream {
     match cardinality {
         None => TokenStream::new(),

@@ -82,12 +82,13 @@
 //! their own name too. Generated code reaches the runtime only through
 //! `::peppy::codegen`, by absolute paths.
 //!
-//! Today's node API is generated beside the seeds' (`declare_publisher` and
-//! `build_message`, `subscribe`); where the two name one thing differently,
-//! a `node/v1` document gets today's form (`poll` and `fire_goal` to an
-//! explicit target, `GoalDecision`) and nests its entries under slot and
-//! `implements` link_ids. [`rust_libs`] writes the same items as the
-//! `.peppy/libs` crates today's node crates depend on (docs/MOVING.md).
+//! The peppylib node API is generated beside the emit API
+//! (`declare_publisher` and `build_message`, `subscribe`); where the two
+//! name one thing differently, a `node/v1` document gets the peppylib form
+//! (`poll` and `fire_goal` to an explicit target, `GoalDecision`) and nests
+//! its entries under slot and `implements` link_ids. [`rust_libs`] writes
+//! the same items as the `.peppy/libs` crates that `node/v1` node crates
+//! depend on (docs/MOVING.md).
 
 mod actions;
 mod config;

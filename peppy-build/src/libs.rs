@@ -1,4 +1,4 @@
-//! The `.peppy/libs` layout of today's Rust nodes: instead of a build
+//! The `.peppy/libs` layout of PeppyOS's Rust nodes: instead of a build
 //! script or the attribute, a node's `Cargo.toml` depends on two path
 //! crates, `peppygen = { path = ".peppy/libs/peppygen" }` and
 //! `peppylib = { path = ".peppy/libs/peppylib" }`, which
@@ -6,7 +6,7 @@
 //!
 //! `peppygen` holds the generated modules (the same items `build.rs` and
 //! `#[peppy::node]` generate) and the `clock` module; `peppylib` re-exports
-//! the peppy runtime under the names today's node code imports
+//! the peppy runtime under the names PeppyOS's node code imports
 //! (`peppylib::runtime::CancellationToken`, `peppylib::clock`, ...). Both
 //! depend on the `peppy` crate only: there is no second runtime.
 //!
@@ -121,7 +121,11 @@ pub fn rust_libs(
         },
         LibFile {
             path: PathBuf::from("peppylib/Cargo.toml"),
-            text: manifest("peppylib", "0.1.0", "The peppy runtime under today's names"),
+            text: manifest(
+                "peppylib",
+                "0.1.0",
+                "The peppy runtime under PeppyOS's names",
+            ),
         },
         LibFile {
             path: PathBuf::from("peppylib/src/lib.rs"),

@@ -40,8 +40,8 @@ pub(crate) struct Layout {
     pub(crate) consumed_services: Vec<(usize, Vec<Ident>)>,
     pub(crate) exposed_actions: Vec<(usize, Vec<Ident>)>,
     pub(crate) consumed_actions: Vec<(usize, Vec<Ident>)>,
-    /// The exposed services re-exported under their own name too (a seeds'
-    /// node's conformed entries), by full path below the category.
+    /// The exposed services re-exported under their own name too (an
+    /// emit-API node's conformed entries), by full path below the category.
     pub(crate) exposed_services_flat: Vec<Vec<Ident>>,
     /// The same for the exposed actions.
     pub(crate) exposed_actions_flat: Vec<Vec<Ident>>,
@@ -466,7 +466,7 @@ impl Gen<'_> {
         let node = self.node;
         let peppylib = self.peppylib();
         // Taps of what the node emits, named by topic (a contract's by
-        // `<link_id>_<topic>` in today's spelling).
+        // `<link_id>_<topic>` for the peppylib API).
         let mut tap_names = Names::default();
         let mut tap_fields = TokenStream::new();
         let mut tap_builds = TokenStream::new();
@@ -480,7 +480,7 @@ impl Gen<'_> {
                     .collect::<Vec<_>>()
                     .join("_")
             } else {
-                // The seeds' `<interface>::<tag>::<topic>`: by topic when
+                // The emit API's `<interface>::<tag>::<topic>`: by topic when
                 // no other emitted topic takes the name.
                 let last = path[path.len() - 1].to_string();
                 let clashes = layout

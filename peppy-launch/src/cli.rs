@@ -79,10 +79,11 @@ pub(crate) enum Command {
     /// `peppygen` package beside its `peppy.json5`. A Rust node using
     /// build.rs or `#[peppy::node]` generates its API when it builds.
     Sync(SyncArgs),
-    /// Rewrite documents of the seeds' spelling (`node_v1`, `interface_v1`,
-    /// `launcher_v1`) in today's (`node/v1`, `contract/v1`, `launcher/v1`):
-    /// printed on stdout, or in place with `--write`. What today's spelling
-    /// cannot say is reported on stderr, located. Comments are kept.
+    /// Rewrite documents of the underscored spelling (`node_v1`,
+    /// `interface_v1`, `launcher_v1`) in the slashed one (`node/v1`,
+    /// `contract/v1`, `launcher/v1`): printed on stdout, or in place with
+    /// `--write`. What the slashed spelling cannot say is reported on
+    /// stderr, located. Comments are kept.
     Migrate(MigrateArgs),
     /// Run a bare Zenoh router for core nodes to meet at, where they cannot
     /// reach each other directly (give each launch `--connect` to it); a

@@ -129,6 +129,10 @@ pub enum UsageError {
     /// running stacks do not have.
     #[error(transparent)]
     Select(#[from] SelectError),
+    /// This process's `PEPPY_SHUTDOWN_GRACE_SECS`, which every node it
+    /// starts inherits, is not a grace window.
+    #[error("invalid PEPPY_SHUTDOWN_GRACE_SECS: {0}")]
+    ShutdownGrace(peppy_schema::GraceError),
     /// `plan` was given neither a node nor a model.
     #[error("give a NODE or --model")]
     NoNodeOrModel,

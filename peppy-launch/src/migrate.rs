@@ -1,11 +1,11 @@
-//! `peppy-launch migrate FILE... [--write]`: the seeds' spelling
+//! `peppy-launch migrate FILE... [--write]`: the underscored spelling
 //! (`node_v1` and its legacy `schema_version: 1` form, `interface_v1`,
-//! `launcher_v1`) rewritten in today's (`node/v1`, `contract/v1`,
+//! `launcher_v1`) rewritten in the slashed one (`node/v1`, `contract/v1`,
 //! `launcher/v1`).
 //!
 //! The rewrite is a list of text edits on the original, placed with the
 //! JSON5 reader's spans, so comments, key order and layout survive; only
-//! what changes is touched. What today's spelling cannot say is not
+//! what changes is touched. What the slashed spelling cannot say is not
 //! guessed away silently: each such loss is a [`Note`], located in the
 //! original where it can be.
 
@@ -34,9 +34,10 @@ pub(crate) struct Note {
 /// What migrating one file gives.
 #[derive(Debug)]
 pub(crate) enum Outcome {
-    /// Already in today's spelling (or not a kind that changed): left alone.
+    /// Already in the slashed spelling (or not a kind that changed): left
+    /// alone.
     Today(&'static str),
-    /// The text in today's spelling and what it could not carry.
+    /// The text in the slashed spelling and what it could not carry.
     Migrated {
         /// The new text.
         text: String,
@@ -295,7 +296,8 @@ fn env(options: &RepoOptions) -> Option<std::ffi::OsString> {
 }
 
 /// Finishes a migration: applies the edits and checks the result reads in
-/// today's spelling; what does not is reported, located in the new text.
+/// the slashed spelling; what does not is reported, located in the new
+/// text.
 fn finish(file: &SourceFile, edits: Edits<'_>, mut ctx: Ctx<'_>) -> Outcome {
     let text = edits.apply();
     let new = SourceFile::new(file.path(), text.clone());
@@ -332,8 +334,8 @@ pub(crate) fn migrate_interface(file: &SourceFile, root: &Node) -> Outcome {
     finish(file, e, ctx)
 }
 
-/// Today's action endpoints: no `qos_profile` on the goal and result
-/// services, no request format on the result service.
+/// Action endpoints in the slashed spelling: no `qos_profile` on the goal
+/// and result services, no request format on the result service.
 fn action_endpoints(e: &mut Edits<'_>, ctx: &mut Ctx<'_>, action: &Node) {
     for svc in ["goal_service", "result_service"] {
         let Some(s) = action.get(svc) else { continue };
@@ -344,7 +346,7 @@ fn action_endpoints(e: &mut Edits<'_>, ctx: &mut Ctx<'_>, action: &Node) {
                 ctx.note(
                     Some(m.key_span.start),
                     format!(
-                        "`{svc}.{}` has no equivalent in today's spelling: removed",
+                        "`{svc}.{}` has no equivalent in the slashed spelling: removed",
                         m.key
                     ),
                 );
@@ -357,7 +359,7 @@ fn action_endpoints(e: &mut Edits<'_>, ctx: &mut Ctx<'_>, action: &Node) {
     {
         ctx.note(
             Some(f.span.start),
-            "`feedback_topic.message_format` is required in today's spelling: add one",
+            "`feedback_topic.message_format` is required in the slashed spelling: add one",
         );
     }
 }
@@ -471,7 +473,7 @@ pub(crate) fn migrate_node(
                         ctx.note(
                             Some(native.span.start),
                             format!(
-                                "`{n}` is both declared here and inherited from `{id}`: today they are two entries (the native one and `{{ link_id: \"{link}\", name: \"{n}\" }}`); keep one"
+                                "`{n}` is both declared here and inherited from `{id}`: in `node/v1` they are two entries (the native one and `{{ link_id: \"{link}\", name: \"{n}\" }}`); keep one"
                             ),
                         );
                     }
@@ -529,7 +531,7 @@ pub(crate) fn migrate_node(
                 ctx.note(
                     Some(t.span.start),
                     format!(
-                        "external consumed topic `{name}` (any emitter, own `message_format`) has no equivalent in today's spelling: removed; consume it through a `depends_on` slot instead"
+                        "external consumed topic `{name}` (any emitter, own `message_format`) has no equivalent in `node/v1`: removed; consume it through a `depends_on` slot instead"
                     ),
                 );
                 e.remove_node(t);
@@ -637,7 +639,7 @@ pub(crate) fn migrate_launcher(
                         ctx.note(
                             Some(inst.span.start),
                             format!(
-                                "from_any slot `{}` of `{id}` is unbound (it takes any producer; today's `zero_or_more` left empty takes none): wrote the producers it takes in this stack, {}",
+                                "from_any slot `{}` of `{id}` is unbound (it takes any producer; `node/v1`'s `zero_or_more` left empty takes none): wrote the producers it takes in this stack, {}",
                                 slot.link_id,
                                 list_of(&producers)
                             ),
@@ -716,7 +718,7 @@ pub(crate) fn run(args: &MigrateArgs) -> Result {
         let shown = path.display();
         match outcome {
             Outcome::Today(kind) => {
-                eprintln!("{shown}: already in today's spelling ({kind}): left alone")
+                eprintln!("{shown}: already in the slashed spelling ({kind}): left alone")
             }
             Outcome::Unreadable(why) => {
                 failed += 1;
@@ -734,7 +736,7 @@ pub(crate) fn run(args: &MigrateArgs) -> Result {
                         failed += 1;
                         eprintln!("{shown}: cannot write: {e}");
                     } else {
-                        eprintln!("{shown}: rewritten in today's spelling");
+                        eprintln!("{shown}: rewritten in the slashed spelling");
                     }
                 } else {
                     if args.files.len() > 1 {
@@ -866,8 +868,8 @@ mod tests {
 }"#,
         );
         let (text, notes) = migrated(migrate_file(&l, &options()));
-        // `a` is claimed by the pinned slot; the seeds' routing gave the
-        // from_any slot every other camera.
+        // `a` is claimed by the pinned slot; `launcher_v1`'s routing gave
+        // the from_any slot every other camera.
         assert!(
             text.contains(r#"links: { main: "a", extra: ["b", "c"] }"#),
             "{text}"
@@ -875,7 +877,7 @@ mod tests {
         assert_eq!(notes.len(), 1, "{notes:?}");
         assert_eq!(notes[0].at, Some((6, 7)));
         assert!(
-            notes[0].message.starts_with("from_any slot `extra` of `v` is unbound (it takes any producer; today's `zero_or_more` left empty takes none): wrote the producers it takes in this stack, [\"b\", \"c\"]"),
+            notes[0].message.starts_with("from_any slot `extra` of `v` is unbound (it takes any producer; `node/v1`'s `zero_or_more` left empty takes none): wrote the producers it takes in this stack, [\"b\", \"c\"]"),
             "{}",
             notes[0].message
         );
@@ -1008,11 +1010,11 @@ mod tests {
             vec![
                 (
                     Some((3, 58)),
-                    "`goal_service.qos_profile` has no equivalent in today's spelling: removed"
+                    "`goal_service.qos_profile` has no equivalent in the slashed spelling: removed"
                 ),
                 (
                     Some((4, 23)),
-                    "`result_service.request_message_format` has no equivalent in today's spelling: removed"
+                    "`result_service.request_message_format` has no equivalent in the slashed spelling: removed"
                 ),
             ],
             "{text}"

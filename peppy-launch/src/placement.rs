@@ -6,8 +6,8 @@
 //! filters on.
 
 //!
-//! `--place LINK@CORE_NODE` binds the launcher's core nodes (today's
-//! placeholders) to machines first ([`place`]): the machines become the
+//! `--place LINK@CORE_NODE` binds the launcher's core nodes (placeholders
+//! in `launcher/v1`) to machines first ([`place`]): the machines become the
 //! stack's core nodes, and everything after sees only them.
 
 use peppy_schema::{LauncherDoc, Placement, StackCheck, did_you_mean};
@@ -113,8 +113,8 @@ pub enum PlaceError {
     },
 }
 
-/// Whether `name` may name a machine: a core node name of today's rules
-/// (a name of at most 63 characters) that is not `self`.
+/// Whether `name` may name a machine: a core node name as `launcher/v1`
+/// takes one (a name of at most 63 characters) that is not `self`.
 fn check_machine(name: &str) -> Result<(), String> {
     peppy_schema::names::check_name(name)?;
     if name.chars().count() > 63 {

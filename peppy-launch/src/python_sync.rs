@@ -8,7 +8,7 @@
 //! (a `[tool.uv.sources]` path, as PeppyOS's nodes do), or that runs in a
 //! container (`execution.container`: its image copies them), gets two small
 //! projects there instead: `.peppy/libs/peppygen` (the generated package)
-//! and `.peppy/libs/peppylib` (`peppylib`, today's name for the `peppy`
+//! and `.peppy/libs/peppylib` (`peppylib`, PeppyOS's name for the `peppy`
 //! runtime: a thin package re-exporting it). Both depend on the runtime
 //! project `python/peppy-runtime` by path (see [`runtime_dir`]).
 
@@ -155,7 +155,7 @@ pub(crate) fn write_package(
     changed += write_tree(&lib.join(PEPPYLIB), &peppylib_files(), true)?;
     let project = libs_project(
         PEPPYLIB,
-        "peppylib: the peppy runtime under the name today's node code imports",
+        "peppylib: the peppy runtime under the name PeppyOS's node code imports",
         &runtime,
         None,
     );
@@ -329,7 +329,7 @@ fn libs_project(
     text
 }
 
-/// The `peppylib` package: today's name for the `peppy` runtime, and its
+/// The `peppylib` package: PeppyOS's name for the `peppy` runtime, and its
 /// clock module. It holds no runtime of its own.
 fn peppylib_files() -> Vec<(PathBuf, String)> {
     let init = "\"\"\"peppylib: the `peppy` runtime (python/peppy-runtime) under the names PeppyOS's\n\

@@ -1,5 +1,5 @@
-//! `peppy-launch run NODE`: one node, as in the seed's command-line example,
-//! with the same checks of its bindings and parameters as a launcher.
+//! `peppy-launch run NODE`: one node started from the command line, with
+//! the same checks of its bindings and parameters as a launcher.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -111,6 +111,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
     let model = NodeModel::of(doc);
     let mut config = peppy_runtime::startup_from_flags(&model, flags)?;
     config.core_node = format!("run-{:x}", std::process::id());
+    config.shutdown_grace_secs = crate::up::inherited_grace()?.or(config.shutdown_grace_secs);
     if let Launch::Container(_) = doc.execution.launch() {
         return Err(UsageError::Container {
             node: doc.identity().to_string(),

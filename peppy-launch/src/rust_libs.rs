@@ -1,4 +1,4 @@
-//! Writes the `.peppy/libs` crates of a Rust node in today's layout (its
+//! Writes the `.peppy/libs` crates of a Rust node in PeppyOS's layout (its
 //! `Cargo.toml` depends on `.peppy/libs/peppygen` and
 //! `.peppy/libs/peppylib`): `sync`, and `up` / `run` before a build.
 //!

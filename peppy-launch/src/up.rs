@@ -434,6 +434,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         .collect();
     let out = Arc::new(Output::new(&ids));
     let namespace = launch_namespace(args)?;
+    let inherited_grace = inherited_grace()?;
     let run_dir = create_run_dir(&stack)?;
     out.note(&format!(
         "namespace {namespace}; logs in {}",
@@ -502,6 +503,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         })
         .collect();
     let instances = Instances {
+        inherited_grace,
         namespace: &namespace,
         connect: links.node_endpoints(),
         local: local_links.as_ref(),
@@ -777,6 +779,9 @@ async fn announce_core_node(
 
 /// What every instance of this launch shares in its plan.
 struct Instances<'a> {
+    /// The grace window this process's environment sets (every instance
+    /// inherits it), for instances whose `env_vars` set none.
+    inherited_grace: Option<f64>,
     namespace: &'a str,
     /// Where instances connect (the launch's router).
     connect: Vec<String>,
@@ -885,9 +890,9 @@ impl Instances<'_> {
                 login,
             },
             use_sim_time,
-            // The node's own (its code's, else 5 s): `start_instance`
-            // waits for that window, whatever it is, before escalating.
-            shutdown_grace_secs: None,
+            // The one the instance's environment sets, which the node reads
+            // too; none leaves it to the node's code (else 5 s).
+            shutdown_grace_secs: inst.shutdown_grace_secs.or(self.inherited_grace),
             // Secured, every message goes through the router, which checks
             // it: no link past it.
             direct_links: match self.secured {
@@ -1149,7 +1154,7 @@ fn start_instance(
     // Never SIGTERM a node while its shutdown hooks may still run: the
     // node would take it as a second signal and exit at once.
     let grace = if p.has_hooks {
-        grace.max(hooks_window(&p.config, &p.env) + HOOKS_MARGIN)
+        grace.max(hooks_window(&p.config) + HOOKS_MARGIN)
     } else {
         grace
     };
@@ -1195,25 +1200,24 @@ fn start_instance(
 /// messaging and exit.
 pub(crate) const HOOKS_MARGIN: Duration = Duration::from_secs(2);
 
-/// The window a node's shutdown hooks may take, as the node will read it:
-/// `PEPPY_SHUTDOWN_GRACE_SECS` (the instance's `env_vars`, else this
-/// process's environment, which the node inherits), else its runtime
-/// config's, else 5 s. A value the node would refuse counts as 5 s: such
-/// a node does not start.
-pub(crate) fn hooks_window(config: &StartupConfig, env: &[(String, String)]) -> Duration {
-    let set = env
-        .iter()
-        .rev()
-        .find(|(k, _)| k == peppy_runtime::SHUTDOWN_GRACE_ENV)
-        .map(|(_, v)| v.clone())
-        .or_else(|| std::env::var(peppy_runtime::SHUTDOWN_GRACE_ENV).ok())
-        .and_then(|v| v.trim().parse::<f64>().ok())
-        .or(config.shutdown_grace_secs);
-    set.filter(|s| s.is_finite() && *s > 0.0 && *s <= 3600.0)
-        .map_or(
-            peppy_runtime::DEFAULT_SHUTDOWN_GRACE,
-            Duration::from_secs_f64,
-        )
+/// The window a node's shutdown hooks may take, as its plan carries it
+/// (decided by [`peppy_schema::grace_window`] from the instance's
+/// `env_vars` or this process's environment), else 5 s. A window set only
+/// in the node's code is not known here: `--grace` covers it.
+pub(crate) fn hooks_window(config: &StartupConfig) -> Duration {
+    config.shutdown_grace_secs.map_or(
+        peppy_runtime::DEFAULT_SHUTDOWN_GRACE,
+        Duration::from_secs_f64,
+    )
+}
+
+/// This process's `PEPPY_SHUTDOWN_GRACE_SECS`, which every node it starts
+/// inherits: checked once, before anything starts.
+pub(crate) fn inherited_grace() -> Result<Option<f64>, UsageError> {
+    let set = std::env::var(peppy_schema::SHUTDOWN_GRACE_ENV).ok();
+    peppy_schema::grace_window_env(set.as_deref())
+        .map(|window| window.map(|w| w.as_secs_f64()))
+        .map_err(UsageError::ShutdownGrace)
 }
 
 async fn wait_for_interrupt() {
@@ -1340,23 +1344,10 @@ mod tests {
             direct_links: None,
             producer_cores: Default::default(),
         };
-        let env = |v: &str| vec![(peppy_runtime::SHUTDOWN_GRACE_ENV.to_string(), v.to_string())];
-        if std::env::var_os(peppy_runtime::SHUTDOWN_GRACE_ENV).is_none() {
-            assert_eq!(hooks_window(&config(None), &[]), Duration::from_secs(5));
-            assert_eq!(
-                hooks_window(&config(Some(1.5)), &[]),
-                Duration::from_millis(1500)
-            );
-        }
-        // The instance's env_vars win, as they do in the node.
+        assert_eq!(hooks_window(&config(None)), Duration::from_secs(5));
         assert_eq!(
-            hooks_window(&config(Some(1.5)), &env("12")),
-            Duration::from_secs(12)
-        );
-        // A value the node refuses: it does not start, 5 s is as good as any.
-        assert_eq!(
-            hooks_window(&config(None), &env("-3")),
-            Duration::from_secs(5)
+            hooks_window(&config(Some(7200.0))),
+            Duration::from_secs(7200)
         );
         assert!(has_hooks("rust") && has_hooks("Python") && !has_hooks("shell"));
     }

@@ -71,7 +71,7 @@ pub enum Error {
     #[error("zenoh: {0}")]
     Transport(String),
     /// A service or action was called on a producer its slot is not bound
-    /// to (today's API takes the target explicitly: one of the slot's
+    /// to (the peppylib API takes the target explicitly: one of the slot's
     /// `bound_producer(s)`).
     #[error("`{target}` is not bound to slot `{slot}`{}", bound_list(.bound))]
     TargetNotBound {

@@ -366,10 +366,10 @@ pub struct NodeRunner {
     /// Started with the first exposed service or action.
     acker: Option<Acker>,
     request_keys: RequestKeys,
-    /// Each slot's bound producers as today's API hands them out.
+    /// Each slot's bound producers as the peppylib API hands them out.
     bound: HashMap<String, Vec<ProducerRef>>,
-    /// This runner, for what today's API hands out that outlives a borrow
-    /// of it (a declared publisher, a held subscription).
+    /// This runner, for what the peppylib API hands out that outlives a
+    /// borrow of it (a declared publisher, a held subscription).
     me: std::sync::OnceLock<std::sync::Weak<NodeRunner>>,
     /// Fires when messaging closes, after the shutdown hooks: outgoing
     /// calls keep working until then.

@@ -1,5 +1,5 @@
-//! Which producer a message came from, or a request goes to, as today's
-//! node API names it: [`ProducerRef`], and the never-empty bound set of a
+//! Which producer a message came from, or a request goes to, as the
+//! peppylib node API names it: [`ProducerRef`], and the never-empty bound set of a
 //! `one_or_more` slot.
 
 use std::fmt;

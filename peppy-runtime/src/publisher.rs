@@ -1,4 +1,4 @@
-//! Today's publishing API: a message built ahead of time
+//! The peppylib publishing API: a message built ahead of time
 //! (`build_message`) and a declared publisher that sends it
 //! (`declare_publisher` then `publish`).
 //!

@@ -224,8 +224,8 @@ where
     }
 }
 
-/// Calls a consumed service on one producer bound to its slot, as today's
-/// API does (`poll(&runner, target, timeout, request)`): a target the slot
+/// Calls a consumed service on one producer bound to its slot, as the
+/// peppylib API does (`poll(&runner, target, timeout, request)`): a target the slot
 /// is not bound to fails with [`Error::TargetNotBound`] before anything is
 /// sent.
 pub fn call_to<'a, Req, Resp>(

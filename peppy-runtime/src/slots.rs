@@ -17,8 +17,9 @@ pub fn bound_producers<'a>(runner: &'a NodeRunner, link_id: &str) -> &'a [Produc
     runner.bound_producer_refs(link_id)
 }
 
-/// Whether `target` is one of the producers bound to `link_id`: today's
-/// calls go to an explicit target, checked before anything is sent.
+/// Whether `target` is one of the producers bound to `link_id`: the
+/// peppylib API's calls go to an explicit target, checked before anything
+/// is sent.
 pub(crate) fn check_target(
     runner: &NodeRunner,
     link_id: &str,
@@ -39,9 +40,9 @@ pub(crate) fn check_target(
     })
 }
 
-/// The one producer of a `one` slot, for today's API. Start-up refuses a
-/// plan that binds the slot to anything else; were it bypassed, the
-/// accessor hands out a producer no call reaches (`Error::TargetNotBound`)
+/// The one producer of a `one` slot, for the peppylib API. Start-up
+/// refuses a plan that binds the slot to anything else; were it bypassed,
+/// the accessor hands out a producer no call reaches (`Error::TargetNotBound`)
 /// rather than panicking.
 pub fn sole_bound_producer<'a>(runner: &'a NodeRunner, link_id: &str) -> &'a ProducerRef {
     runner

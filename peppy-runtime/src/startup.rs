@@ -80,24 +80,12 @@ pub struct StartupConfig {
     pub producer_cores: std::collections::BTreeMap<String, String>,
 }
 
-/// The environment variable that overrides a node's shutdown grace window
-/// (seconds, above 0), whatever its runtime config or code say.
-pub const SHUTDOWN_GRACE_ENV: &str = "PEPPY_SHUTDOWN_GRACE_SECS";
+pub use peppy_schema::{DEFAULT_SHUTDOWN_GRACE, SHUTDOWN_GRACE_ENV};
 
-/// The shutdown grace window of a node that sets none.
-pub const DEFAULT_SHUTDOWN_GRACE: Duration = Duration::from_secs(5);
-
-/// `secs` as a grace window: a finite number of seconds above 0 (and
-/// below a year, so the deadline fits any clock). `what` names where the
-/// value came from, for the error.
+/// `secs` as a grace window, by the one rule ([`peppy_schema::grace_window`]).
+/// `what` names where the value came from, for the error.
 fn grace_window(secs: f64, what: &str) -> Result<Duration> {
-    if secs.is_finite() && secs > 0.0 && secs < 3.2e7 {
-        Ok(Duration::from_secs_f64(secs))
-    } else {
-        Err(Error::Startup(format!(
-            "invalid {what}: {secs} is not a number of seconds above 0"
-        )))
-    }
+    peppy_schema::grace_window(secs).map_err(|why| Error::Startup(format!("invalid {what}: {why}")))
 }
 
 /// The shutdown grace window of a node: `PEPPY_SHUTDOWN_GRACE_SECS`, else
@@ -106,21 +94,16 @@ pub(crate) fn shutdown_grace(
     config: &StartupConfig,
     builder: Option<Duration>,
 ) -> Result<Duration> {
-    if let Some(raw) = std::env::var_os(SHUTDOWN_GRACE_ENV) {
-        let raw = raw.to_string_lossy();
-        let what = format!("{SHUTDOWN_GRACE_ENV} `{raw}`");
-        let secs: f64 = raw
-            .trim()
-            .parse()
-            .map_err(|_| Error::Startup(format!("invalid {what}: not a number of seconds")))?;
-        return grace_window(secs, &what);
+    let set = std::env::var_os(SHUTDOWN_GRACE_ENV);
+    let set = set.as_ref().map(|raw| raw.to_string_lossy());
+    if let Some(window) = peppy_schema::grace_window_env(set.as_deref())
+        .map_err(|why| Error::Startup(format!("invalid {SHUTDOWN_GRACE_ENV}: {why}")))?
+    {
+        return Ok(window);
     }
     match (config.shutdown_grace_secs, builder) {
         (Some(secs), _) => grace_window(secs, "runtime config: `shutdown_grace_secs`"),
-        (None, Some(grace)) if grace.is_zero() => Err(Error::Startup(
-            "invalid NodeBuilder::shutdown_grace: the window must be longer than 0".into(),
-        )),
-        (None, Some(grace)) => Ok(grace),
+        (None, Some(grace)) => grace_window(grace.as_secs_f64(), "NodeBuilder::shutdown_grace"),
         (None, None) => Ok(DEFAULT_SHUTDOWN_GRACE),
     }
 }
@@ -531,8 +514,9 @@ fn read_config_file(path: &Path) -> Result<StartupConfig> {
     })
 }
 
-/// One slot flag, in the order given: `--bind` (the seeds' grammar,
-/// free-form keys allowed), `--link` or `--vacant-link` (today's).
+/// One slot flag, in the order given: `--bind` (the `bindings` grammar,
+/// free-form keys allowed), `--link` or `--vacant-link` (the `links`
+/// grammar).
 #[derive(Debug, Clone)]
 struct FlagBind {
     key: String,
@@ -1070,7 +1054,7 @@ mod tests {
         );
         assert!(e.contains("--vacant-link 'extra=<why>'"), "{e}");
         assert!(e.contains("slot `scans`"), "{e}");
-        // A key naming no slot: no free-form keys in today's spelling.
+        // A key naming no slot: no free-form keys in `node/v1`.
         let e = text(&[
             "--link",
             "scna@a",

@@ -1,4 +1,4 @@
-//! Today's receiving API: `subscribe` once, then `next` in a loop.
+//! The peppylib receiving API: `subscribe` once, then `next` in a loop.
 //!
 //! A consumed topic's messages are queued from node start-up in the node's
 //! inbox for that topic (as for `on_next_message_received`), so nothing is

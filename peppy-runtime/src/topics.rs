@@ -514,8 +514,8 @@ pub async fn next_message_from<M: Decode>(
 }
 
 /// The next message of a consumed topic with the producer that sent it,
-/// for today's held subscriptions. Messages that do not decode are dropped
-/// with a warning.
+/// for the peppylib API's held subscriptions. Messages that do not
+/// decode are dropped with a warning.
 pub(crate) async fn next_from_producer<M: Decode>(
     runner: &NodeRunner,
     spec: &'static ConsumedTopicSpec,

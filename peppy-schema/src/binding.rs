@@ -35,7 +35,7 @@ pub enum SlotBinding {
     },
     /// A `from_any` slot without bindings: any unclaimed producer of its kind.
     FromAnyUnbound,
-    /// A slot of today's cardinality (`zero_or_one`, `one_or_more`,
+    /// A slot of `node/v1`'s cardinality (`zero_or_one`, `one_or_more`,
     /// `zero_or_more`): exactly these producers, in link order, fixed for
     /// the instance's life. Empty: nothing flows in (an empty
     /// `zero_or_more` slot, or a vacated `zero_or_one` one).
@@ -156,26 +156,28 @@ pub struct BindRequest<'a> {
 /// How a binding is written: the grammar decides which slots it may fill.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum BindForm<'a> {
-    /// The seeds' `bindings: { key: "inst" }` or `--bind key@inst`: one
+    /// `launcher_v1`'s `bindings: { key: "inst" }` or `--bind key@inst`: one
     /// producer, possibly under a free-form key; repeating a key adds
     /// producers to a slot that takes several.
     #[default]
     Key,
-    /// Today's `links: { slot: "inst" }`: for a slot that takes one.
+    /// `launcher/v1`'s `links: { slot: "inst" }`: for a slot that takes one.
     Scalar,
-    /// One item of today's `links: { slot: ["a", "b"] }`: for a slot that
-    /// takes a list.
+    /// One item of `launcher/v1`'s `links: { slot: ["a", "b"] }`: for a
+    /// slot that takes a list.
     Item,
-    /// Today's `--link slot@inst`, which may repeat for a list slot.
+    /// `--link slot@inst` (the `links` grammar), which may repeat for a
+    /// list slot.
     Flag,
-    /// Today's `links: { slot: [] }`.
+    /// `launcher/v1`'s `links: { slot: [] }`.
     EmptyList,
-    /// Today's `links: { slot: { vacant: "why" } }` or `--vacant-link slot=why`.
+    /// `launcher/v1`'s `links: { slot: { vacant: "why" } }` or
+    /// `--vacant-link slot=why`.
     Vacant(&'a str),
 }
 
 impl<'a> BindRequest<'a> {
-    /// A binding in the seeds' grammar ([`BindForm::Key`]).
+    /// A binding in the `bindings` grammar ([`BindForm::Key`]).
     pub fn key(key: &'a str, instance: &'a str, producer: Option<Producer<'a>>) -> Self {
         BindRequest {
             key,
@@ -211,7 +213,8 @@ pub enum BindError {
         wanted: Identity,
     },
     /// A key names an interface slot, and the producer's node does not
-    /// conform to the interface (today: does not implement the contract).
+    /// conform to the interface (`node/v1`: does not implement the
+    /// contract).
     NotConformed {
         /// The consumer's spelling (names the error).
         spelling: Spelling,
@@ -254,7 +257,8 @@ pub enum BindError {
         /// The candidate `from_any` slots: `(link_id, kind, target)`.
         candidates: Vec<(String, SlotKind, Identity)>,
     },
-    /// A pinned slot (today: a slot of cardinality `one`) has no binding.
+    /// A pinned slot (`node/v1`: a slot of cardinality `one`) has no
+    /// binding.
     PinnedUnbound {
         /// The consumer's spelling (names the error).
         spelling: Spelling,
@@ -267,8 +271,8 @@ pub enum BindError {
         /// What it wants.
         target: Identity,
     },
-    /// A pinned slot (today: one of cardinality `one` or `zero_or_one`) is
-    /// bound twice.
+    /// A pinned slot (`node/v1`: one of cardinality `one` or
+    /// `zero_or_one`) is bound twice.
     PinnedTwice {
         /// The consumer's spelling (names the error).
         spelling: Spelling,
@@ -281,8 +285,8 @@ pub enum BindError {
         /// The producer bound again.
         second: String,
     },
-    /// Today's spelling: a link key that names no slot (free-form keys
-    /// are the seeds' `from_any`).
+    /// The `links` grammar: a link key that names no slot (free-form keys
+    /// are `node_v1`'s `from_any`).
     UnknownSlot {
         /// The consumer instance.
         consumer: String,
@@ -293,7 +297,8 @@ pub enum BindError {
         /// Every slot's link_id, sorted.
         declared: Vec<String>,
     },
-    /// A slot of today's cardinality linked in a shape it does not take.
+    /// A slot of `node/v1`'s cardinality linked in a shape it does not
+    /// take.
     Shape {
         /// The consumer instance.
         consumer: String,
@@ -463,7 +468,7 @@ impl BindError {
     }
 
     /// What would fix it, in the words of a command line (`--bind`, or
-    /// today's `--link` and `--vacant-link`).
+    /// `--link` and `--vacant-link`).
     pub fn command_line_help(&self) -> String {
         match self {
             BindError::PinnedUnbound {
@@ -802,16 +807,16 @@ pub struct Assignment {
 
 /// Fills the slots of `consumer` (an instance of `node`, written in
 /// `spelling`, whose slots are `dependencies`) from `binds`, in order
-/// (SPEC 6.1 rules 2-4, and today's link rules):
+/// (SPEC 6.1 rules 2-4, and `launcher/v1`'s link rules):
 ///
 /// - a key equal to a slot's link_id binds that slot, in a shape its
 ///   cardinality takes ([`BindForm`]), and the producer must fit it when
 ///   its node is known;
-/// - any other key is free-form in the seeds' grammar and joins the first
+/// - any other key is free-form in the `bindings` grammar and joins the first
 ///   `from_any` slot, in link_id order, that the producer fits; when the
 ///   producer's node is not known, that is the first `from_any` slot if all
 ///   of them want the same thing, and an [`BindError::AmbiguousKey`]
-///   otherwise. In today's grammar (or for a node of today's spelling)
+///   otherwise. In the `links` grammar (or for a `node/v1` node)
 ///   every key must name a slot ([`BindError::UnknownSlot`]);
 /// - every slot ends within its cardinality: a pinned (`one`) slot bound,
 ///   a `one_or_more` slot given a producer, a `zero_or_one` slot linked or
@@ -840,7 +845,7 @@ pub fn assign(
         let mut refuse = |e: BindError| errors.push((Some(index), e));
         if let Some(slot) = dependencies.iter().position(|d| d.link_id == b.key) {
             let dep = &dependencies[slot];
-            // The seeds' `from_any` slot takes any number: a list, `[]` or
+            // `node_v1`'s `from_any` slot takes any number: a list, `[]` or
             // a flag, and no vacancy (it may simply stay empty).
             let shape = if dep.from_any {
                 matches!(b.form, BindForm::Vacant(_)).then_some(ShapeProblem::VacantInvalid)
@@ -1252,7 +1257,8 @@ pub fn compute_filters(slots: &mut [SlotPlan]) {
                         .collect(),
                 )
             }
-            // Today's slots take exactly their set: siblings do not matter.
+            // `node/v1`'s slots take exactly their set: siblings do not
+            // matter.
             SlotBinding::Set { producers, .. } => {
                 RouteFilter::OnlyFrom(producers.iter().cloned().collect())
             }

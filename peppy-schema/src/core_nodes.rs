@@ -194,8 +194,8 @@ pub(crate) fn check_placement(
 }
 
 /// Where each of a launcher's core nodes runs, as `--place LINK@MACHINE`
-/// says: the launcher's core node names (today's placeholders) each bound
-/// to a machine, several possibly to one.
+/// says: the launcher's core node names (placeholders in `launcher/v1`)
+/// each bound to a machine, several possibly to one.
 ///
 /// Placing renames: the machines become the core nodes, so an instance's
 /// `<core>` key segment, what `from_core_node` filters on, the security

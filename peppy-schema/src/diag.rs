@@ -155,10 +155,10 @@ codes! {
     UnknownCoreNode,
     /// The same core node twice in `core_nodes`.
     DuplicateCoreNode,
-    /// A link target names an instance no deployment declares (today's
-    /// spelling, `launcher/v1`; the seeds' is `UnknownBindingTarget`).
+    /// A link target names an instance no deployment declares
+    /// (`launcher/v1`; `launcher_v1`'s is `UnknownBindingTarget`).
     UnknownInstanceId,
-    /// The reserved link key `_` (today's spelling).
+    /// The reserved link key `_` (`launcher/v1`).
     LinkSentinelKey,
     /// A link target that is not `instance` or `instance/peer_slot`.
     InvalidLinkTarget,
@@ -227,7 +227,7 @@ codes! {
     LegacySpelling,
     /// A key that is accepted but has no effect (warning).
     IgnoredKey,
-    // Today's `node/v1` rules, named as PeppyOS names them.
+    // `node/v1`'s rules, named as PeppyOS names them.
     /// A malformed `refine` block.
     InvalidRefine,
     /// `refine` on a native entry (one without a `link_id`).

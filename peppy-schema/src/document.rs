@@ -23,13 +23,13 @@ use crate::source::{SourceFile, sha256_hex};
 pub enum DocumentKind {
     /// `node_v1` (or legacy `schema_version: 1`).
     Node,
-    /// `interface_v1`, or today's `contract/v1` (the same content).
+    /// `interface_v1`, or `contract/v1` (the same content).
     Interface,
-    /// `launcher_v1`, or today's `launcher/v1` (flat launchers only).
+    /// `launcher_v1`, or `launcher/v1` (flat launchers only).
     Launcher,
     /// `peppy_repositories.json5`: a list of repositories.
     Repositories,
-    /// Today's `pairing/v1`: two roles and the topics between them.
+    /// `pairing/v1`: two roles and the topics between them.
     Pairing,
     /// `repository/v1` (`peppy_repository.json5`): the index of one
     /// repository.
@@ -247,8 +247,8 @@ fn parse_kind(
     }
 }
 
-/// Today's PeppyOS document kinds peppy does not read yet, each with the
-/// seeds' kind that says the same today.
+/// PeppyOS document kinds (slashed schema ids) peppy does not read yet,
+/// each with the underscored kind that says the same (empty if none does).
 const NOT_YET_READ: &[(&str, &str)] = &[("mcp_exposure/v1", "")];
 
 fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
@@ -269,12 +269,12 @@ fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
         };
         return Diagnostic::error(
             Code::UnknownSchema,
-            format!("`{kind}` is today's PeppyOS spelling, which peppy does not read yet"),
+            format!("`{kind}` is a PeppyOS document kind peppy does not read yet"),
         )
         .at(file, n.span)
         .with_key_path("peppy_schema")
         .with_help(format!(
-            "of today's spelling peppy reads {} so far{instead} (docs/DOCUMENTS.md)",
+            "the slashed schema ids peppy reads are {}{instead} (docs/DOCUMENTS.md)",
             list(SCHEMAS.iter().copied().filter(|s| s.contains('/')))
         ));
     }

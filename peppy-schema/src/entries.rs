@@ -263,14 +263,14 @@ pub(crate) fn parse_service(r: &mut Reader<'_>, node: &Node, path: &str) -> Opti
     })
 }
 
-/// An action as the seeds spell it.
+/// An action as `node_v1` and `interface_v1` spell it.
 pub(crate) fn parse_action(r: &mut Reader<'_>, node: &Node, path: &str) -> Option<ActionDecl> {
     parse_action_in(r, node, path, Spelling::UnderscoreIds)
 }
 
-/// An action as today's `contract/v1` spells it: a result request takes no
-/// format (an unknown key, not an ignored one), and the feedback topic may
-/// carry a `type` and a `name`, which peppy does not use.
+/// An action as `contract/v1` and `node/v1` spell it: a result request
+/// takes no format (an unknown key, not an ignored one), and the feedback
+/// topic may carry a `type` and a `name`, which peppy does not use.
 pub(crate) fn parse_contract_action(
     r: &mut Reader<'_>,
     node: &Node,

@@ -1,4 +1,4 @@
-//! Interface documents (`peppy_schema: "interface_v1"`, and today's
+//! Interface documents (`peppy_schema: "interface_v1"`, and
 //! `"contract/v1"`, which holds the same content): a named contract of
 //! topics, services and actions that nodes conform to.
 

@@ -1,10 +1,10 @@
 //! Launcher documents: which nodes to run, how many instances, and how
 //! their slots are filled. Two spellings are read into one model: the
-//! seeds' (`peppy_schema: "launcher_v1"`, slots filled by `bindings`) and
-//! today's PeppyOS (`"launcher/v1"`, slots filled by `links`, plus
-//! `framework`). A composed launcher (components, fragments, adjustments,
-//! constraints) is read through `crate::compose`: parsed on its own, it
-//! is the flat launcher of its default selection.
+//! underscored one (`peppy_schema: "launcher_v1"`, slots filled by
+//! `bindings`) and the slashed one (`"launcher/v1"`, slots filled by
+//! `links`, plus `framework`). A composed launcher (components,
+//! fragments, adjustments, constraints) is read through `crate::compose`:
+//! parsed on its own, it is the flat launcher of its default selection.
 
 use std::fmt;
 use std::path::PathBuf;
@@ -42,10 +42,10 @@ pub const FORBIDDEN_ENV_VARS: &[&str] = &[
     "GLOBIGNORE",
 ];
 
-/// `peppy_schema` of today's launcher fragments.
+/// `peppy_schema` of PeppyOS's launcher fragments.
 pub(crate) const FRAGMENT_SCHEMA: &str = "launcher_fragment/v1";
 
-/// Longest core node name today's spelling accepts (PeppyOS's limit).
+/// Longest core node name `launcher/v1` accepts (PeppyOS's limit).
 const MAX_CORE_NODE_NAME: usize = 63;
 
 /// A `launcher_fragment/v1` document read on its own: it is only a part of
@@ -67,8 +67,8 @@ pub(crate) fn fragment_refused(file: &Arc<SourceFile>, schema: &Node) -> Diagnos
 pub struct LauncherDoc {
     /// The document's text.
     pub file: Arc<SourceFile>,
-    /// How the document is spelled: `launcher_v1` (seeds) or `launcher/v1`
-    /// (today); it decides whether instances say `bindings` or `links`.
+    /// How the document is spelled: `launcher_v1` or `launcher/v1`; it
+    /// decides whether instances say `bindings` or `links`.
     pub spelling: Spelling,
     /// `core_nodes`: the machines the stack runs on, in order (empty: one
     /// machine, wherever it is launched).
@@ -144,14 +144,14 @@ pub struct Instance {
     pub instance_id: String,
     /// Where `instance_id` is.
     pub id_loc: Loc,
-    /// `bindings` (the seeds' spelling), in document order; empty in a
+    /// `bindings` (`launcher_v1`), in document order; empty in a
     /// `launcher/v1` file.
     pub bindings: Vec<Binding>,
-    /// `links` (today's spelling), in document order; empty in a
+    /// `links` (`launcher/v1`), in document order; empty in a
     /// `launcher_v1` file. Only their shape is checked here: whether a key
     /// names a slot and the value fits it is the plan's business.
     pub links: Vec<Link>,
-    /// `framework` (today's spelling); all unset in a `launcher_v1` file.
+    /// `framework` (`launcher/v1`); all unset in a `launcher_v1` file.
     pub framework: Framework,
     /// `arguments` as written (checked against the node's parameters when planning).
     pub arguments: Option<Node>,
@@ -178,7 +178,7 @@ pub struct Binding {
     pub target_loc: Loc,
 }
 
-/// Per-instance framework knobs (`framework`, today's spelling): fixed,
+/// Per-instance framework knobs (`framework`, `launcher/v1`): fixed,
 /// owned by the runtime rather than the node's parameters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 pub struct Framework {
@@ -186,7 +186,7 @@ pub struct Framework {
     pub use_sim_time: Option<bool>,
 }
 
-/// One `links` entry (today's spelling): a slot's link_id and what fills it.
+/// One `links` entry (`launcher/v1`): a slot's link_id and what fills it.
 #[derive(Debug, Clone)]
 pub struct Link {
     /// The slot's link_id as written.
@@ -364,9 +364,9 @@ pub(crate) fn parse_launcher(
     Some(doc)
 }
 
-/// Today's core node names are placeholders wired to machines at launch:
-/// `self` already means the daemon a command is sent to, and a name is at
-/// most 63 characters.
+/// `launcher/v1`'s core node names are placeholders wired to machines at
+/// launch: `self` already means the daemon a command is sent to, and a
+/// name is at most 63 characters.
 fn check_core_node_names(r: &mut Reader<'_>, core_nodes: &[crate::core_nodes::CoreNode]) {
     for c in core_nodes {
         if c.name == "self" {
@@ -454,7 +454,7 @@ pub fn stack_rules(doc: &LauncherDoc) -> Diagnostics {
                 );
             }
         }
-        // Today's spelling: the instance part of every target (a peer slot
+        // `launcher/v1`: the instance part of every target (a peer slot
         // after `/` is the plan's to check).
         for link in &inst.links {
             for t in link.value.targets() {
@@ -526,7 +526,7 @@ pub(crate) fn parse_deployment(
     })
 }
 
-/// A deployment's source. Today's PeppyOS reads only `{ name, tag }` and
+/// A deployment's source. PeppyOS reads only `{ name, tag }` and
 /// `{ name: "n:t" }`; peppy keeps `local`, git and archive sources in both
 /// spellings (documented extension).
 fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str, spelling: Spelling) -> Option<Source> {
@@ -630,8 +630,8 @@ fn parse_source(r: &mut Reader<'_>, node: &Node, path: &str, spelling: Spelling)
 }
 
 /// `{ name: "n:t" }` or `{ name: "n", tag: "t" }`: a node found in the
-/// repositories. Today's spelling checks the tag as PeppyOS does (a
-/// letter first, no dots); the seeds' also takes dotted versions.
+/// repositories. `launcher/v1` checks the tag as PeppyOS does (a
+/// letter first, no dots); `launcher_v1` also takes dotted versions.
 fn repository_source(r: &mut Reader<'_>, obj: &Obj<'_>, spelling: Spelling) -> Option<Source> {
     let name_node = obj.get("name")?;
     let name = r.string(name_node, &obj.path_of("name"))?;
@@ -703,7 +703,7 @@ fn parse_instance(
                 "core_node",
             ],
             "links",
-            "`links` is today's spelling (`launcher/v1`); a `launcher_v1` file writes `bindings`",
+            "`links` is the slashed spelling (`launcher/v1`); a `launcher_v1` file writes `bindings`",
         ),
         Spelling::SlashIds => object_except(
             r,
@@ -719,7 +719,7 @@ fn parse_instance(
                 "core_node",
             ],
             "bindings",
-            "`bindings` is the seeds' spelling (`launcher_v1`); write `links`",
+            "`bindings` is the underscored spelling (`launcher_v1`); write `links`",
         ),
     }?;
     let mut ok = true;
@@ -881,8 +881,8 @@ fn parse_bindings(
     bindings
 }
 
-/// `env_vars`, refusing loader and shell start-up variables. Today's
-/// spelling also takes PeppyOS's stricter shape: a name is a shell
+/// `env_vars`, refusing loader and shell start-up variables.
+/// `launcher/v1` also takes PeppyOS's stricter shape: a name is a shell
 /// identifier and a value holds only characters a shell leaves alone (a
 /// container node gets them through a script the shell sources).
 fn parse_env_vars(
@@ -939,6 +939,20 @@ fn parse_env_vars(
                                 "a value may hold letters, digits and `_ - . / : , = @ + %` (no whitespace, quotes or shell metacharacters)",
                             );
                             *ok = false;
+                        }
+                        Some(v) if m.key == crate::SHUTDOWN_GRACE_ENV => {
+                            match crate::grace_window_text(&v) {
+                                Ok(_) => env_vars.push((m.key.clone(), v)),
+                                Err(why) => {
+                                    r.error(
+                                        Code::InvalidValue,
+                                        m.value.span,
+                                        &kpath,
+                                        format!("invalid shutdown grace window: {why}"),
+                                    );
+                                    *ok = false;
+                                }
+                            }
                         }
                         Some(v) => env_vars.push((m.key.clone(), v)),
                         None => *ok = false,
@@ -1043,7 +1057,7 @@ fn object_except<'n>(
     })
 }
 
-/// `framework: { use_sim_time?: bool }` (today's spelling).
+/// `framework: { use_sim_time?: bool }` (`launcher/v1`).
 fn parse_framework(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> Framework {
     let Some(n) = obj.get("framework") else {
         return Framework::default();
@@ -1064,7 +1078,7 @@ fn parse_framework(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> Framewor
     Framework { use_sim_time }
 }
 
-/// `links` (today's spelling): link_id -> `"inst"`, `"inst/peer_slot"`,
+/// `links` (`launcher/v1`): link_id -> `"inst"`, `"inst/peer_slot"`,
 /// `[targets]` or `{ vacant: "<why>" }`. Only the shape is checked: which
 /// keys and values fit the node's slots is decided when planning.
 fn parse_links(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> Vec<Link> {

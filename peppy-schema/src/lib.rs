@@ -43,6 +43,7 @@ mod pairs;
 mod params;
 mod primitive;
 mod qos;
+mod shutdown;
 mod source;
 
 // The documents: parsing, resolution, launchers and repositories (the
@@ -102,6 +103,10 @@ pub use params::{
 };
 pub use primitive::{MAX_FIXED_LENGTH, Primitive, TYPE_NAMES};
 pub use qos::{QOS_NAMES, QosProfile};
+pub use shutdown::{
+    DEFAULT_SHUTDOWN_GRACE, GraceError, MAX_SHUTDOWN_GRACE_SECS, SHUTDOWN_GRACE_ENV, grace_window,
+    grace_window_env, grace_window_text,
+};
 pub use source::{LineCol, MAX_DOCUMENT_BYTES, SourceFile, Span};
 
 #[cfg(feature = "documents")]

@@ -63,9 +63,9 @@ pub enum NodeApi {
     Peppylib,
 }
 
-/// How many producers a slot takes (today's `cardinality`). The seeds'
-/// pinned slot is `one`; their `from_any` slot is `zero_or_more` that also
-/// takes free-form binding keys and, left unbound, any producer.
+/// How many producers a slot takes (`node/v1`'s `cardinality`). A
+/// `node_v1` pinned slot is `one`; its `from_any` slot is `zero_or_more`
+/// that also takes free-form binding keys and, left unbound, any producer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Cardinality {
@@ -185,7 +185,7 @@ pub struct Dependency {
     pub target: Identity,
     /// The slot's name.
     pub link_id: String,
-    /// The seeds' `from_any`: any number of producers, free-form binding
+    /// `node_v1`'s `from_any`: any number of producers, free-form binding
     /// keys, and any producer of the slot's kind while unbound.
     pub from_any: bool,
     /// How many producers the slot takes (`zero_or_more` for `from_any`).
@@ -261,7 +261,7 @@ pub struct NodeModel {
     pub dependencies: Vec<Dependency>,
     /// `execution.parameters`.
     pub parameters: ParameterSchema,
-    /// Today's pairing slots, participants and observers, in order.
+    /// `node/v1`'s pairing slots, participants and observers, in order.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub pairings: Vec<PairingSlot>,
 }

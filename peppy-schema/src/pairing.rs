@@ -1,4 +1,4 @@
-//! Pairing documents (today's `peppy_schema: "pairing/v1"`): the whole
+//! Pairing documents (`peppy_schema: "pairing/v1"`): the whole
 //! conversation between two node instances that pair one to one, as a flat
 //! list of topics, each emitted by one of two named roles and consumed by
 //! the other.

@@ -30,6 +30,11 @@ pub struct InstancePlan {
     pub parameters: serde_json::Value,
     /// `env_vars`.
     pub env_vars: Vec<(String, String)>,
+    /// The shutdown grace window its `env_vars` set
+    /// ([`SHUTDOWN_GRACE_ENV`](crate::SHUTDOWN_GRACE_ENV), checked when the
+    /// launcher was read); `None` leaves it to the launch's environment and
+    /// the node.
+    pub shutdown_grace_secs: Option<f64>,
     /// Restart policy.
     pub restart: RestartPolicy,
     /// The core node it runs on: its `core_node`, or the first core node
@@ -98,6 +103,13 @@ pub fn plan_bindings(
             pairs: pairs.remove(&inst.instance_id).unwrap_or_default(),
             parameters,
             env_vars: inst.env_vars.clone(),
+            shutdown_grace_secs: inst
+                .env_vars
+                .iter()
+                .rev()
+                .find(|(k, _)| k == crate::SHUTDOWN_GRACE_ENV)
+                .and_then(|(_, v)| crate::grace_window_text(v).ok())
+                .map(|window| window.as_secs_f64()),
             restart: inst.restart,
             core_node: launcher
                 .core_node_of(inst.core_node.as_ref().map(|(name, _)| name.as_str()))
@@ -127,8 +139,8 @@ fn candidates(dep: &Dependency, launcher: &LauncherDoc, nodes: &[Option<&NodeDoc
 }
 
 /// One binding as the launcher writes it, for the engine and for locating
-/// its errors: a seeds' binding or one target (or an empty list, or a
-/// vacancy) of today's links.
+/// its errors: a `launcher_v1` binding or one target (or an empty list,
+/// or a vacancy) of `launcher/v1`'s links.
 struct Written<'a> {
     key: &'a str,
     instance: &'a str,

@@ -123,7 +123,7 @@ struct Offer {
     services: Vec<Provided<ServiceDecl>>,
     actions: Vec<Provided<ActionDecl>>,
     /// What a producer provides only through a contract, hidden from a
-    /// node slot of today's spelling: `(kind, name, implements link_id)`.
+    /// node slot of a `node/v1` node: `(kind, name, implements link_id)`.
     contract_backed: Vec<(EntryKind, String, String)>,
 }
 
@@ -467,7 +467,7 @@ fn resolve_calls<T: Clone + Named>(
 }
 
 /// A producer node's offer: own entries win a name clash with conformed
-/// ones. A consumer of today's spelling sees only the producer's own
+/// ones. A `node/v1` consumer sees only the producer's own
 /// entries through a node slot (`natives_only`): what a contract shapes is
 /// consumed through a contract slot.
 fn producer_offer(
@@ -572,7 +572,7 @@ fn missing_on_producer(
     .with_help(help)
 }
 
-/// Today's explicit member list of one `implements` slot against the
+/// `node/v1`'s explicit member list of one `implements` slot against the
 /// contract: each member exactly once, in the section of its kind
 /// (`ContractCoverageMismatch`); then every `refine` of those members
 /// lands on an open array (`RefinementMismatch`).

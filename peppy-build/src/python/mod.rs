@@ -196,7 +196,7 @@ struct Specs {
 }
 
 struct Files {
-    /// Whether the node is in today's spelling (today's API).
+    /// Whether the node gets the peppylib API (`NodeApi::Peppylib`).
     peppylib: bool,
     document: String,
     list: Vec<PythonFile>,
@@ -241,7 +241,7 @@ impl Files {
     ) -> String {
         match origin {
             Origin::Node(_) => self.entry(category, &[module(name)], &format!("`{name}`."), body),
-            // Today's spelling nests a contract's members under the
+            // The peppylib API nests a contract's members under the
             // `implements` slot's link_id, with no flat alias.
             Origin::Interface(id) if node.node.api == NodeApi::Peppylib => {
                 let link_id = node
@@ -267,8 +267,9 @@ impl Files {
     }
 
     /// The module path (below the category) of a consumed entry: the
-    /// seeds' `<link_id>_<name>`, today's `<link_id>/<name>` (whose slot
-    /// package holds the slot's bound-producer accessor).
+    /// emit API's `<link_id>_<name>`, the peppylib API's
+    /// `<link_id>/<name>` (whose slot package holds the slot's
+    /// bound-producer accessor).
     fn consumed_parts(
         &mut self,
         node: &ResolvedNode,
@@ -557,8 +558,8 @@ fn clock_module() -> String {
 }
 
 /// The name of an emitted topic's tap (`h.emitted.<name>`): its own name,
-/// or `<link_id>_<name>` (today's spelling) / `<interface>_<name>` (the
-/// seeds') for a contract's topic, as the Rust harness names them.
+/// or `<link_id>_<name>` (the peppylib API) / `<interface>_<name>` (the
+/// emit API) for a contract's topic, as the Rust harness names them.
 fn tap_name(node: &ResolvedNode, name: &str, origin: &Origin) -> String {
     match origin {
         Origin::Node(_) => module(name),

@@ -1,9 +1,9 @@
 //! One Python module per entry, with the same names and call shapes as the
 //! Rust API (`emit`, `on_next_message_received`, `handle_next_request`,
 //! `poll`, `ActionHandle`), on the `peppy` runtime package. One function
-//! per entry kind writes both the seeds' API and today's (`node/v1`),
-//! branching only where their shapes differ; today's own blocks are in
-//! [`super::today`].
+//! per entry kind writes both the emit API (`node_v1`) and the peppylib
+//! API (`node/v1`), branching only where their shapes differ; the
+//! peppylib API's own blocks are in [`super::peppylib_api`].
 
 use peppy_schema::names::type_prefix;
 use peppy_schema::{ActionDecl, Origin, Provided, QosProfile, ResolvedCall, ResolvedTopic};
@@ -164,7 +164,7 @@ pub(super) fn action_types(name: &str) -> ActionTypes {
     }
 }
 
-/// Whether `node` is in today's spelling, so gets today's API.
+/// Whether `node` gets the peppylib API (`NodeApi::Peppylib`).
 fn is_peppylib_api(node: &ResolvedNode) -> bool {
     node.node.api == NodeApi::Peppylib
 }
@@ -191,8 +191,8 @@ pub(super) fn emitted_topic(out: &mut Source, p: &Provided<TopicDecl>, peppylib:
     }
     out.blank();
     out.blank();
-    // Today's API builds the message for a held publisher; the seeds'
-    // publishes it in one call.
+    // The peppylib API builds the message for a held publisher; the emit
+    // API publishes it in one call.
     let fixed: &[&str] = if peppylib {
         &[]
     } else {
@@ -270,7 +270,7 @@ pub(super) fn consumed_topic(
     }
 }
 
-/// The seeds' `on_next_message_received`: one call waits for one message.
+/// The emit API's `on_next_message_received`: one call waits for one message.
 fn next_message_received(out: &mut Source, by_instance: bool) {
     let (extra, pass) = if by_instance {
         (
@@ -354,7 +354,8 @@ pub(super) fn consumed_service(
     } else {
         ("", "Request()")
     };
-    // Today's call is aimed at one bound producer, the timeout last.
+    // The peppylib API's call is aimed at one bound producer, the timeout
+    // last.
     let (def, doc, call) = if peppylib {
         (
             format!(
@@ -391,8 +392,8 @@ pub(super) fn consumed_service(
     out.dedent();
 }
 
-/// The parts of an exposed action's module that differ between the seeds'
-/// API and today's; the rest of the module is the same text.
+/// The parts of an exposed action's module that differ between the emit
+/// API and the peppylib API; the rest of the module is the same text.
 pub(super) struct GoalServerShape {
     /// The class the decider returns.
     pub(super) decision: &'static str,
@@ -408,7 +409,7 @@ pub(super) struct GoalServerShape {
     pub(super) next_goal: &'static str,
 }
 
-/// The seeds' exposed action: the decider returns a `GoalResponse`, and a
+/// The emit API's exposed action: the decider returns a `GoalResponse`, and a
 /// rejected goal ends `handle_goal_next_request` with None.
 const CLASSIC_GOAL_SERVER: GoalServerShape = GoalServerShape {
     decision: r#"class GoalResponse:
@@ -643,9 +644,9 @@ pub(super) fn consumed_action(out: &mut Source, node: &ResolvedNode, c: &Resolve
     }
 }
 
-/// The seeds' goal client: results and cancels wrap their outcome with the
-/// server's identity, and a module-level `fire_goal` keeps the original
-/// argument order.
+/// The emit API's goal client: results and cancels wrap their outcome
+/// with the server's identity, and a module-level `fire_goal` keeps the
+/// original argument order.
 fn goal_client(out: &mut Source, c: &ResolvedCall<ActionDecl>, goal_value: &str) {
     let d = &c.decl;
     out.line(&format!(

@@ -1,17 +1,17 @@
-//! The parts of today's Python node API, for `node/v1` documents, that
-//! have no seeds' counterpart: held publishers, held subscriptions
+//! The parts of the peppylib Python node API, for `node/v1` documents,
+//! that have no emit-API counterpart: held publishers, held subscriptions
 //! yielding `(ProducerRef, Message)`, goals aimed at a bound producer,
 //! `GoalDecision`, and the slot's `bound_producer(s)` in every consumed
-//! module, on the `peppy` runtime's `peppy.today`. Each entry's module is
-//! written by one function in [`super::modules`], for both APIs; it calls
-//! these where today's shape differs.
+//! module, on the `peppy` runtime's `peppy.peppylib_api`. Each entry's
+//! module is written by one function in [`super::modules`], for both
+//! APIs; it calls these where the peppylib API's shape differs.
 
 use peppy_schema::{ActionDecl, Cardinality, ResolvedCall, ResolvedNode};
 
 use super::modules::GoalServerShape;
 use super::source::{Source, py_string};
 
-/// The imports today's modules add to the common header.
+/// The imports the peppylib API's modules add to the common header.
 pub(super) const IMPORTS: &str =
     "from peppy import peppylib_api as _peppylib\nfrom peppy.producer import ProducerRef";
 
@@ -93,7 +93,7 @@ async def subscribe(node_runner: NodeRunner) -> Subscription:
     ));
 }
 
-/// Today's exposed action: the decider returns a `GoalDecision`, rejected
+/// The peppylib API's exposed action: the decider returns a `GoalDecision`, rejected
 /// goals are skipped, and `cancel_signal` is awaited.
 pub(super) const GOAL_SERVER: GoalServerShape = GoalServerShape {
     decision: r#"class GoalDecision:
@@ -144,7 +144,7 @@ pub(super) const GOAL_SERVER: GoalServerShape = GoalServerShape {
         inner = await _peppylib.next_accepted_goal(self._server, decision)"#,
 };
 
-/// Today's goal client: a goal aimed at a bound producer, with the
+/// The peppylib API's goal client: a goal aimed at a bound producer, with the
 /// decision's `accepted` and `reason` on the handle.
 pub(super) fn goal_client(out: &mut Source, c: &ResolvedCall<ActionDecl>, goal_value: &str) {
     let d = &c.decl;

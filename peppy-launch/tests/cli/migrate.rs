@@ -164,7 +164,7 @@ fn a_document_of_today_is_left_alone() {
     assert_eq!(run.code, 0, "{}", run.stderr);
     assert!(
         run.stderr
-            .contains("c.json5: already in today's spelling (interface): left alone"),
+            .contains("c.json5: already in the slashed spelling (interface): left alone"),
         "{}",
         run.stderr
     );

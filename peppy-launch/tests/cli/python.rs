@@ -544,3 +544,56 @@ fn python_examples_pass_their_harness_tests() {
         );
     }
 }
+
+/// The shutdown grace window is read by one rule everywhere: with
+/// `PEPPY_SHUTDOWN_GRACE_SECS=7200` in an instance's `env_vars`, the
+/// launcher waits for a hook that takes 8 s instead of signalling the node
+/// again after its own default, and the node stops cleanly.
+#[test]
+fn a_long_grace_window_is_waited_for_by_the_launcher() {
+    let dir = tempfile::tempdir().unwrap();
+    let launcher = dir.path().join("grace.json5");
+    std::fs::write(
+        &launcher,
+        r#"{
+  peppy_schema: "launcher/v1",
+  deployments: [
+    {
+      source: { name: "py_today_camera", tag: "v1" },
+      instances: [{
+        instance_id: "slow_cam",
+        env_vars: { PEPPY_SHUTDOWN_GRACE_SECS: "7200" },
+        arguments: { close_secs: 8.0 },
+      }],
+    },
+  ],
+}"#,
+    )
+    .unwrap();
+    let examples = root().join("examples");
+    let mut launch = Launch::up(
+        launcher.to_str().unwrap(),
+        &["--repo", examples.to_str().unwrap()],
+    );
+    launch.expect("with slow_cam streaming", BUILD_AND_START, |l| {
+        l.starts_with("[slow_cam] frame ")
+    });
+    let stopping = std::time::Instant::now();
+    let (code, seen) = launch.stop_seen();
+    assert_eq!(code, 0, "{}", seen.join("\n"));
+    assert!(
+        stopping.elapsed() >= Duration::from_secs(8),
+        "the hook's 8 s were waited for"
+    );
+    assert!(
+        seen.iter()
+            .any(|l| l.starts_with("[slow_cam] py_today_camera: stopping after")),
+        "the hook ran to its end:\n{}",
+        seen.join("\n")
+    );
+    assert!(
+        seen.iter().any(|l| l == "peppy-launch: `slow_cam` stopped"),
+        "{}",
+        seen.join("\n")
+    );
+}

@@ -98,8 +98,8 @@ pub fn send_goal<'a, G: Encode + ?Sized>(
     goal_through(runner, spec, None, timeout, body)
 }
 
-/// [`send_goal`] to one producer bound to the action's slot, as today's API
-/// does (`fire_goal(&runner, target, ...)`): a target the slot is not bound
+/// [`send_goal`] to one producer bound to the action's slot, as the
+/// peppylib API does (`fire_goal(&runner, target, ...)`): a target the slot is not bound
 /// to fails with [`Error::TargetNotBound`] before anything is sent.
 pub fn send_goal_to<'a, G: Encode + ?Sized>(
     runner: &'a NodeRunner,

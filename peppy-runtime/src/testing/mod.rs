@@ -99,8 +99,8 @@ static NEXT_INSTANCE: AtomicU64 = AtomicU64::new(0);
 /// How many mocks one slot gets.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub enum SlotMocks {
-    /// One for a `one`, `zero_or_one` or `one_or_more` slot (and a seeds'
-    /// `from_any` slot), none for `zero_or_more`.
+    /// One for a `one`, `zero_or_one` or `one_or_more` slot (and a
+    /// `node_v1` `from_any` slot), none for `zero_or_more`.
     #[default]
     Default,
     /// This many (`mock-<link_id>-<n>`, n from 0).

@@ -437,3 +437,19 @@ fn the_datastore_speaks_the_golden_steps() {
         );
     }
 }
+
+/// `PEPPY_SHUTDOWN_GRACE_SECS` as every reader takes it (the node, the
+/// launcher, Python): one rule, the same windows.
+#[test]
+fn grace_windows_are_read_as_the_vectors_say() {
+    let cases = golden()["grace"].as_array().expect("grace vectors").clone();
+    assert!(cases.len() >= 8);
+    for case in cases {
+        let text = case["text"].as_str().expect("text");
+        let got = peppy_schema::grace_window_text(text).ok();
+        let want = case["secs"]
+            .as_f64()
+            .map(std::time::Duration::from_secs_f64);
+        assert_eq!(got, want, "{case}");
+    }
+}

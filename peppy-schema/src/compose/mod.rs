@@ -236,8 +236,8 @@ pub struct Resolved {
     /// The flat launcher (rules 7 and 8 of the whole stack are left to the
     /// binding plan, as for any launcher read for a plan).
     pub launcher: LauncherDoc,
-    /// The flat launcher as `launcher/v1` JSON5 (a seeds' launcher: its own
-    /// text); it parses again as the same flat launcher.
+    /// The flat launcher as `launcher/v1` JSON5 (a `launcher_v1` launcher:
+    /// its own text); it parses again as the same flat launcher.
     pub text: String,
     /// What composing did.
     pub report: ResolveReport,

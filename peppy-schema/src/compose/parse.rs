@@ -14,10 +14,10 @@ use crate::names::{check_link_id, check_name};
 use crate::read::{Loc, Obj, Reader, index, join};
 use crate::source::{SourceFile, Span};
 
-/// Today's top-level keys that make a launcher composed.
+/// `launcher/v1`'s top-level keys that make a launcher composed.
 pub(crate) const COMPOSITION_KEYS: &[&str] = &["components", "adjustments", "constraints"];
 
-/// Whether `root` is a composed launcher (today's spelling with any of
+/// Whether `root` is a composed launcher (`launcher/v1` with any of
 /// [`COMPOSITION_KEYS`]).
 pub(crate) fn is_composed(root: &Node) -> bool {
     Spelling::of(root) == Spelling::SlashIds

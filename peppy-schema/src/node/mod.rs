@@ -66,13 +66,14 @@ pub struct NodeDoc {
     pub dependencies: Vec<Dependency>,
     /// `execution`.
     pub execution: Execution,
-    /// `interfaces.conforms_to` (seeds) or `manifest.implements` (today).
+    /// `interfaces.conforms_to` (`node_v1`) or `manifest.implements`
+    /// (`node/v1`).
     pub conforms_to: Vec<InterfaceRef>,
-    /// Today's members provided through a slot (`{ link_id, name }` in
-    /// `emits` / `exposes`); empty in the seeds' spelling, where conforming
+    /// `node/v1`'s members provided through a slot (`{ link_id, name }` in
+    /// `emits` / `exposes`); empty in `node_v1`, where conforming
     /// provides every member of the interface implicitly.
     pub members: Vec<MemberRef>,
-    /// Today's `depends_on.pairings` and `.pairing_observers`.
+    /// `node/v1`'s `depends_on.pairings` and `.pairing_observers`.
     pub pairings: Vec<PairingSlot>,
     /// `interfaces.topics.emits`.
     pub emits: Vec<TopicDecl>,
@@ -88,14 +89,14 @@ pub struct NodeDoc {
     pub consumed_actions: Vec<ConsumedRef>,
 }
 
-/// One `conforms_to` (or today's `implements`) entry.
+/// One `conforms_to` (or `node/v1`'s `implements`) entry.
 #[derive(Debug, Clone)]
 pub struct InterfaceRef {
     /// The interface.
     pub target: Identity,
     /// Revision pin.
     pub sha256: Option<String>,
-    /// Today's `implements` slot name (`None` in the seeds' spelling).
+    /// `node/v1`'s `implements` slot name (`None` in `node_v1`).
     pub link_id: Option<String>,
     /// Where the entry is.
     pub loc: Loc,
@@ -108,7 +109,7 @@ pub struct ConsumedTopic {
     pub name: String,
     /// Linked or external.
     pub source: TopicSource,
-    /// Today's pinned lengths (`refine`).
+    /// `node/v1`'s pinned lengths (`refine`).
     pub refine: Option<Refine>,
     /// Where the entry is.
     pub loc: Loc,
@@ -133,7 +134,7 @@ pub struct ConsumedRef {
     pub link_id: String,
     /// Service or action name on the producer.
     pub name: String,
-    /// Today's pinned lengths (`refine`).
+    /// `node/v1`'s pinned lengths (`refine`).
     pub refine: Option<Refine>,
     /// Where the entry is.
     pub loc: Loc,
@@ -281,9 +282,9 @@ struct Manifest {
     tag: Option<(String, Loc)>,
     labels: Vec<String>,
     dependencies: Vec<Dependency>,
-    /// Today's `manifest.implements`.
+    /// `node/v1`'s `manifest.implements`.
     implements: Vec<InterfaceRef>,
-    /// Today's pairing slots.
+    /// `node/v1`'s pairing slots.
     pairings: Vec<PairingSlot>,
     /// The legacy form's `manifest.language`.
     legacy_language: Option<String>,
@@ -465,7 +466,7 @@ fn parse_interfaces(
     }
 }
 
-/// Today's `interfaces`: natives and slot members in `emits` / `exposes`,
+/// `node/v1`'s `interfaces`: natives and slot members in `emits` / `exposes`,
 /// `{ link_id, name, refine? }` in `consumes`.
 fn parse_link_interfaces(r: &mut Reader<'_>, root_obj: &Obj<'_>, ok: &mut bool) -> Interfaces {
     let mut out = Interfaces::default();
@@ -551,8 +552,8 @@ fn parse_link_interfaces(r: &mut Reader<'_>, root_obj: &Obj<'_>, ok: &mut bool) 
     out
 }
 
-/// Today's `services` or `actions` section: what it `exposes` (natives and
-/// slot members) and what it `consumes`.
+/// `node/v1`'s `services` or `actions` section: what it `exposes`
+/// (natives and slot members) and what it `consumes`.
 fn calls_section<T>(
     r: &mut Reader<'_>,
     (exposes, consumes): (Option<&Node>, Option<&Node>),
@@ -667,8 +668,8 @@ fn check_consumed_modules(
     }
 }
 
-/// The module a consumed entry generates: `<link>_<name>` in the seeds'
-/// spelling, `<link>::<name>` in today's.
+/// The module a consumed entry generates: `<link>_<name>` in `node_v1`,
+/// `<link>::<name>` in `node/v1`.
 fn linked_module(spelling: Spelling, link_id: &str, name: &str) -> String {
     match spelling {
         Spelling::UnderscoreIds => consumed_module(Some(link_id), name),

@@ -1,4 +1,4 @@
-//! `refine` (today's `node/v1`): pinning lengths a contract or pairing
+//! `refine` (`node/v1`): pinning lengths a contract or pairing
 //! leaves open. A refinement mirrors the member's structure down to the
 //! array: a field maps to `{ $length: N }`, `{ $items: { ... } }` (into an
 //! array of objects) or a map of nested refinements (into an object).

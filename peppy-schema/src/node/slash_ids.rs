@@ -1,5 +1,5 @@
-//! Today's PeppyOS spelling of a node (`peppy_schema: "node/v1"`), read
-//! into the same model as the seeds' `node_v1`: `manifest.implements`
+//! The slashed spelling of a node (`peppy_schema: "node/v1"`), read
+//! into the same model as `node_v1`: `manifest.implements`
 //! becomes conformance (with the slot's link_id), `depends_on.contracts`
 //! interface slots, `cardinality` the slot's [`Cardinality`], and every
 //! contract member is listed explicitly as `{ link_id, name }` (checked
@@ -26,7 +26,7 @@ pub struct MemberRef {
     pub loc: Loc,
 }
 
-/// What today's `manifest` adds to the seeds' one.
+/// What `node/v1`'s `manifest` adds to `node_v1`'s.
 #[derive(Default)]
 pub(super) struct ImplementsManifest {
     pub implements: Vec<InterfaceRef>,
@@ -144,7 +144,7 @@ fn parse_slot(r: &mut Reader<'_>, node: &Node, path: &str, kind: SlotKind) -> Op
             Code::UnknownKey,
             m.key_span,
             &crate::read::join(path, "from_any"),
-            "`from_any` is the seeds' spelling; `node/v1` writes `cardinality`",
+            "`from_any` is `node_v1`'s spelling; `node/v1` writes `cardinality`",
             "write `cardinality: \"zero_or_more\"` (any number, bound explicitly in the launcher's `links`)",
         );
         return None;
@@ -372,7 +372,7 @@ fn check_link_namespace(r: &mut Reader<'_>, m: &ImplementsManifest) -> bool {
     ok
 }
 
-/// Today's produced entries of one section: natives (the node owns the
+/// `node/v1`'s produced entries of one section: natives (the node owns the
 /// shape) and members (`{ link_id, name, refine? }`, shaped by a contract
 /// or a pairing).
 pub(super) fn parse_produced<T>(
@@ -496,8 +496,8 @@ fn parse_member(
     })
 }
 
-/// Today's consumed entries: `{ link_id, name, refine? }` only (external
-/// topics are gone).
+/// `node/v1`'s consumed entries: `{ link_id, name, refine? }` only (no
+/// external topics).
 pub(super) fn parse_consumed_by_link(
     r: &mut Reader<'_>,
     node: Option<&Node>,
@@ -521,7 +521,7 @@ pub(super) fn parse_consumed_by_link(
                 Code::UnknownKey,
                 m.key_span,
                 &crate::read::join(&ipath, "message_format"),
-                "external consumed topics are the seeds' spelling; `node/v1` consumes through a slot",
+                "external consumed topics are `node_v1`'s spelling; `node/v1` consumes through a slot",
                 "declare the producer (`depends_on.nodes` or `.contracts`) and write `{ link_id, name }`",
             );
             *ok = false;
@@ -559,7 +559,7 @@ pub(super) fn parse_consumed_by_link(
     out
 }
 
-/// The slot a link_id names, for today's cross-reference rules.
+/// The slot a link_id names, for `node/v1`'s cross-reference rules.
 enum SlotOf {
     Implements,
     Node,

@@ -155,7 +155,7 @@ fn parse_dependency(
         target: Identity::new(name, tag),
         link_id,
         from_any,
-        // The seeds' `from_any` slot takes any number; a pinned one, one.
+        // `node_v1`'s `from_any` slot takes any number; a pinned one, one.
         cardinality: if from_any {
             crate::model::Cardinality::ZeroOrMore
         } else {

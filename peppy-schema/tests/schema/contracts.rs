@@ -191,7 +191,7 @@ fn todays_kinds_not_read_yet_say_so() {
     );
     assert_eq!(
         d.message,
-        "`mcp_exposure/v1` is today's PeppyOS spelling, which peppy does not read yet"
+        "`mcp_exposure/v1` is a PeppyOS document kind peppy does not read yet"
     );
     assert!(!help(d).contains("did you mean"), "{}", help(d));
 }

@@ -318,7 +318,7 @@ fn each_spelling_refuses_the_others_slot_key() {
     );
     assert_eq!(
         help(found[0]),
-        "`links` is today's spelling (`launcher/v1`); a `launcher_v1` file writes `bindings`"
+        "`links` is the slashed spelling (`launcher/v1`); a `launcher_v1` file writes `bindings`"
     );
     // `framework` is today's only: the seeds' usual unknown-key error.
     assert_at(
@@ -351,7 +351,7 @@ fn each_spelling_refuses_the_others_slot_key() {
     );
     assert_eq!(
         help(d),
-        "`bindings` is the seeds' spelling (`launcher_v1`); write `links`"
+        "`bindings` is the underscored spelling (`launcher_v1`); write `links`"
     );
 
     // Typos still get a did-you-mean against the spelling's own keys.

@@ -21,7 +21,7 @@ from peppy import spec as s
 from peppy.node import NodeBuilder
 from peppy.params import array, group, leaf
 from peppy.routing import fit_plan, slot_from_json
-from peppy.startup import PEPPY_LAUNCH_ENV, load, peppy_launch
+from peppy.startup import PEPPY_LAUNCH_ENV, SHUTDOWN_GRACE_ENV, grace_from_env, load, peppy_launch
 import golden
 from peppy_testing import model_of
 
@@ -279,6 +279,27 @@ class GoldenPlansTest(unittest.TestCase):
                 except StartupError:
                     fits = False
                 self.assertEqual(fits, case["fits"])
+
+    def test_golden_grace_windows(self):
+        """PEPPY_SHUTDOWN_GRACE_SECS as peppy_schema::grace_window_text
+        reads it: the same vectors, the same windows."""
+        cases = golden.load()["grace"]
+        self.assertGreaterEqual(len(cases), 8)
+        saved = os.environ.get(SHUTDOWN_GRACE_ENV)
+        try:
+            for case in cases:
+                os.environ[SHUTDOWN_GRACE_ENV] = case["text"]
+                with self.subTest(case=case):
+                    if case["secs"] is None:
+                        with self.assertRaises(StartupError):
+                            grace_from_env()
+                    else:
+                        self.assertEqual(grace_from_env(), case["secs"])
+        finally:
+            if saved is None:
+                os.environ.pop(SHUTDOWN_GRACE_ENV, None)
+            else:
+                os.environ[SHUTDOWN_GRACE_ENV] = saved
 
 
 class FlagsTest(unittest.TestCase):

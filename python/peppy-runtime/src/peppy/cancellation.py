@@ -1,5 +1,5 @@
-"""`CancellationToken`: the node's stop, as today's node API hands it out
-(`node_runner.cancellation_token()`)."""
+"""`CancellationToken`: the node's stop, as the peppylib node API hands it
+out (`node_runner.cancellation_token()`)."""
 
 from __future__ import annotations
 

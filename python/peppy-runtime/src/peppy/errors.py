@@ -90,7 +90,7 @@ class Undeclared(PeppyError):
 
 class TargetNotBound(PeppyError, ValueError):
     """A service or action was called on a producer its slot is not bound
-    to (a `ValueError`): today's API names the target, one of the slot's
+    to (a `ValueError`): the peppylib API names the target, one of the slot's
     `bound_producer(s)`."""
 
     def __init__(self, slot: str, target: str, bound: "list[str]") -> None:

@@ -1,5 +1,5 @@
 """`ProducerRef`: which producer a message came from, or a request goes
-to, as today's node API names it."""
+to, as the peppylib node API names it."""
 
 from __future__ import annotations
 

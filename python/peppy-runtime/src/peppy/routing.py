@@ -21,7 +21,7 @@ SET = "set"
 @dataclass(frozen=True)
 class SlotBinding:
     """What fills one slot: a pinned producer, listed producers, or none;
-    `set` is a slot of today's cardinality, with exactly its producers
+    `set` is a slot of `node/v1`'s cardinality, with exactly its producers
     (none when it is empty, `vacant` saying why when it was vacated)."""
 
     kind: str
@@ -222,7 +222,7 @@ def fit_plan(slots: Sequence[SlotPlan], declared: Sequence[SlotSpec]) -> List[Sl
 
 def _binding_fits(binding: SlotBinding, d: SlotSpec) -> bool:
     """As peppy-schema's `fit_plan`: pinned for a `one` slot, from_any for a
-    from_any slot, a set within its cardinality for today's other slots."""
+    from_any slot, a set within its cardinality for `node/v1`'s slots."""
     if binding.kind == PINNED:
         return not d.from_any and d.cardinality == "one"
     if binding.kind in (FROM_ANY_BOUND, FROM_ANY_UNBOUND):

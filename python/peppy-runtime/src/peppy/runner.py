@@ -38,7 +38,7 @@ class NodeRunner:
 
     `stopped` is set once the node begins stopping (a signal, `stop()`,
     `shutdown()`, its cancellation token cancelled); waits for what arrives
-    then raise `ShuttingDown` (today's API: return None). The node's own
+    then raise `ShuttingDown` (the peppylib API: return None). The node's own
     calls (publish, services, actions) go on while its shutdown hooks run,
     until messaging closes.
     """

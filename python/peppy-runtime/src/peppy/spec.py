@@ -61,7 +61,7 @@ class QoSProfile(enum.Enum):
     STANDARD = "standard"
     RELIABLE = "reliable"
     CRITICAL = "critical"
-    # Today's API spells them so (`QoSProfile.Standard`): the same members.
+    # The peppylib API spells them so (`QoSProfile.Standard`): the same members.
     SensorData = "sensor_data"
     Standard = "standard"
     Reliable = "reliable"

@@ -24,6 +24,9 @@ SHUTDOWN_GRACE_ENV = "PEPPY_SHUTDOWN_GRACE_SECS"
 """Overrides the shutdown grace window (seconds) of the plan and of the code."""
 DEFAULT_SHUTDOWN_GRACE = 5.0
 """How long shutdown hooks have, together, when nothing says otherwise (seconds)."""
+MAX_SHUTDOWN_GRACE = 31_536_000.0
+"""The longest window (a year), as `peppy_schema::MAX_SHUTDOWN_GRACE_SECS`:
+both runtimes check the vectors of tests/golden/wire.json's `grace`."""
 PEPPY_LAUNCH_ENV = "PEPPY_LAUNCH"
 """The `peppy-launch` program a node started by hand asks for its plan
 (else `peppy-launch` on `PATH`)."""
@@ -177,6 +180,8 @@ def grace_secs(value: Any, where: str) -> float:
         raise StartupError(f"{where}: `shutdown_grace_secs` must be a number of seconds above 0, got {value!r}")
     if value == float("inf"):
         raise StartupError(f"{where}: `shutdown_grace_secs` must be finite")
+    if value > MAX_SHUTDOWN_GRACE:
+        raise StartupError(f"{where}: `shutdown_grace_secs` must be at most a year ({MAX_SHUTDOWN_GRACE:g} s), got {value!r}")
     return float(value)
 
 

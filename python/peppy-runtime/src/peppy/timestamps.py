@@ -12,7 +12,7 @@ NANOS_PER_SECOND = 1_000_000_000
 class Time(float):
     """Seconds since the Unix epoch, usable wherever a float is (`time.time()`).
 
-    A float cannot hold nanoseconds for today's dates, so the exact wire
+    A float cannot hold nanoseconds for current dates, so the exact wire
     value travels beside it: `seconds` (floor, also before the epoch) and
     `nanoseconds` (0 <= ns < 1e9). A time received from a Rust node is
     sent on unchanged.

@@ -56,6 +56,9 @@ async def setup(params: Parameters, node_runner: NodeRunner) -> list:
     sent = [0]
 
     async def report() -> None:
+        if params.close_secs > 0:
+            print(f"py_today_camera: closing the device ({params.close_secs:g} s)", flush=True)
+            await asyncio.sleep(params.close_secs)
         print(f"py_today_camera: stopping after {sent[0]} frames", flush=True)
 
     node_runner.on_shutdown(report)

@@ -34,7 +34,7 @@ pub mod parameters {
     impl ::peppy::codegen::NodeParameters for Parameters {
         fn descriptor() -> &'static ::peppy::codegen::NodeDescriptor {
             static DESCRIPTOR: ::peppy::codegen::NodeDescriptor = ::peppy::codegen::NodeDescriptor {
-                model: "{\"spelling\":\"today\",\"identity\":{\"name\":\"today_camera\",\"tag\":\"v1\"},\"dependencies\":[],\"parameters\":{\"fields\":[{\"name\":\"width\",\"kind\":{\"leaf\":{\"ty\":\"u32\",\"default\":96}}},{\"name\":\"height\",\"kind\":{\"leaf\":{\"ty\":\"u32\",\"default\":72}}},{\"name\":\"frames_per_second\",\"kind\":{\"leaf\":{\"ty\":\"u8\",\"default\":10}}}]}}",
+                model: "{\"spelling\":\"slash_ids\",\"api\":\"peppylib\",\"identity\":{\"name\":\"today_camera\",\"tag\":\"v1\"},\"dependencies\":[],\"parameters\":{\"fields\":[{\"name\":\"width\",\"kind\":{\"leaf\":{\"ty\":\"u32\",\"default\":96}}},{\"name\":\"height\",\"kind\":{\"leaf\":{\"ty\":\"u32\",\"default\":72}}},{\"name\":\"frames_per_second\",\"kind\":{\"leaf\":{\"ty\":\"u8\",\"default\":10}}}]}}",
                 document_path: "peppy.json5",
                 emitted_topics: &[&super::emitted_topics::camera::video_stream::SPEC],
                 consumed_topics: &[],
