@@ -61,6 +61,7 @@
 pub use peppy_macros::node;
 pub use peppy_runtime as runtime;
 pub use peppy_runtime::clock;
+#[cfg(feature = "testing")]
 pub use peppy_runtime::testing;
 pub use peppy_runtime::{
     CancellationToken, Error, NodeBuilder, NodeRunner, NonEmptyProducers, OutgoingMessage, Payload,

@@ -1338,8 +1338,9 @@ impl HasDeclLoc for peppy_schema::ActionDecl {
 }
 
 /// The bound-producer accessor of a `node/v1` slot, by cardinality:
-/// `bound_producer` for `one` (the instance id) and `zero_or_one` (an
-/// `Option`), `bound_producers` (a slice, in link order) for the others.
+/// `bound_producer` for `one` (`&ProducerRef`) and `zero_or_one` (an
+/// `Option`), `bound_producers` for the others (`NonEmptyProducers` for
+/// `one_or_more`, a slice for `zero_or_more`, in link order).
 fn slot_accessor(link_id: &str, cardinality: Option<Cardinality>) -> TokenStream {
     let Some(cardinality) = cardinality else {
         return TokenStream::new();

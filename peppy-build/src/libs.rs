@@ -97,9 +97,9 @@ pub fn rust_libs(
              peppy = {{ path = {peppy}, default-features = false }}\n\
              \n\
              [features]\n\
-             # The test surfaces (`mock`, `fixtures`): a node crate asks for it in\n\
-             # its dev-dependencies.\n\
-             testing = []\n"
+             # The test surfaces (`mock`, `fixtures`, the runtime's mocks): a node\n\
+             # crate asks for it in its dev-dependencies, so its binary goes without.\n\
+             testing = [\"peppy/testing\"]\n"
         )
     };
     Ok(vec![

@@ -159,6 +159,7 @@ pub fn now_ns() -> Result<u64> {
 /// The latest sim tick the clock bound to `runner` has seen: `None` when
 /// the process's clock is not bound to that node following sim time (a
 /// test harness's tick waits on this).
+#[cfg(feature = "testing")]
 pub(crate) fn sim_time_seen_by(runner: &NodeRunner) -> Option<Option<u64>> {
     let node = node_of(runner);
     match &*BOUND.lock().unwrap_or_else(|p| p.into_inner()) {

@@ -104,7 +104,7 @@ pub enum Error {
     ClockNotReady,
     /// A test harness's wait that ran out of time (naming what it waited
     /// for), or the node under test failing while the test waited
-    /// ([`crate::testing`]).
+    /// (the `testing` module).
     #[error("{0}")]
     Testing(String),
     /// An error of the node's own code, kept as it is (its text is shown;

@@ -64,6 +64,10 @@ mod startup;
 mod stop;
 mod subscription;
 mod target;
+// Mocks, the fixture session and the harness's plumbing: only for a node's
+// tests (generated `peppygen` asks for them under its own `testing`
+// feature), so no node binary compiles them.
+#[cfg(feature = "testing")]
 pub mod testing;
 pub mod threads;
 pub mod tool;

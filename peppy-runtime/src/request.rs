@@ -42,7 +42,7 @@ const DECLARED_KEYS: usize = 1024;
 /// a wildcard is compared as text where one with a wildcard is walked chunk
 /// by chunk, and it can be asked with target `AllComplete` ([`target_of`]),
 /// which leaves the node's other queryables out before matching
-/// (docs/PERFORMANCE.md has the instruction counts). A call that finds
+/// (docs/PERFORMANCE_HISTORY.md has the instruction counts). A call that finds
 /// nobody at that key (the instance runs under another launch now) forgets
 /// it and asks again with the wildcard, in what is left of its budget.
 #[derive(Default)]

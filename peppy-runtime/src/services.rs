@@ -125,6 +125,7 @@ where
 /// A request taken off an exposed service's queue, to be answered later
 /// (the test mocks' pull-style serving): the caller, the request's bytes,
 /// and the reply handle.
+#[cfg(feature = "testing")]
 pub(crate) async fn take_request(
     runner: &NodeRunner,
     spec: &'static ServiceSpec,
@@ -153,12 +154,14 @@ pub(crate) async fn take_request(
 
 /// The reply handle of a request taken with [`take_request`]. Held, the
 /// request stays acknowledged, so its caller keeps waiting for the answer.
+#[cfg(feature = "testing")]
 pub(crate) struct Answer {
     query: Held,
     key: zenoh::key_expr::KeyExpr<'static>,
     fingerprint: u64,
 }
 
+#[cfg(feature = "testing")]
 impl Answer {
     /// Answers with an encoded response.
     pub(crate) async fn respond(self, body: Vec<u8>) -> Result<()> {

@@ -87,6 +87,7 @@ impl Inbox {
     }
 
     /// Whether the node's code has asked for this topic's messages.
+    #[cfg(feature = "testing")]
     pub(crate) fn is_read(&self) -> bool {
         self.read.load(Relaxed)
     }

@@ -319,6 +319,7 @@ impl<G> IncomingGoal<G> {
 
     /// The goal's data apart from the goal: the test mocks hand a goal's
     /// request out as a field and keep the decision for later.
+    #[cfg(feature = "testing")]
     pub(crate) fn into_parts(self) -> (IncomingGoal<()>, G) {
         let IncomingGoal {
             pending,
