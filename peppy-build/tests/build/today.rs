@@ -224,7 +224,10 @@ fn the_libs_crates_of_two_nodes_differ_only_where_they_must() {
         manifest.contains("peppy = { path = \"../../../peppy\", default-features = false }"),
         "{manifest}"
     );
-    assert!(manifest.contains("testing = []"), "{manifest}");
+    assert!(
+        manifest.contains("testing = [\"peppy/testing\"]"),
+        "{manifest}"
+    );
     assert!(file(&planner, "peppygen/Cargo.toml").contains("0.1.0+grasp-planner-v1"));
     assert_eq!(
         file(&driver, "peppylib/src/lib.rs"),

@@ -11,6 +11,7 @@
 /// the same node identity": a `from_any` slot's consumer keeping state per
 /// producer. A fragment; it runs inside a node's async code.
 #[rustfmt::skip]
+#[allow(dead_code)] // compiled, not run: the pages' code is the check
 mod seed_000_from_any_consumer {
     #[peppy::node("tests/e2e/api/video_reconstruction.json5")]
     mod peppygen {}
@@ -37,17 +38,13 @@ mod seed_000_from_any_consumer {
         }
         // seed 000: end
     }
-
-    #[test]
-    fn compiles() {
-        let _ = consume;
-    }
 }
 
 /// Seed 002 (bidirectional communication), "Receiving external messages":
 /// `robot_arm`, a legacy `schema_version: 1` node reading the external
 /// topic `joint_commands` (three arguments: core node and instance).
 #[rustfmt::skip]
+#[allow(dead_code)] // compiled, not run: the pages' code is the check
 mod seed_002_robot_arm {
     #[peppy::node("tests/e2e/api/legacy_robot_arm.json5")]
     mod peppygen {}
@@ -90,18 +87,13 @@ mod seed_002_robot_arm {
         })
     }
     // seed 002: end
-
-    #[test]
-    fn compiles() {
-        let _ = main;
-    }
 }
 
 /// Seed 002, the other side: `arm_controller`, a legacy node reading its
 /// linked topic `robot_arm_joint_states` with the legacy three arguments.
 /// (The page's loop leaves `instance_id` unused.)
 #[rustfmt::skip]
-#[allow(unused_variables)]
+#[allow(unused_variables, dead_code)] // compiled, not run: the pages' code is the check
 mod seed_002_arm_controller {
     #[peppy::node("tests/e2e/api/legacy_arm_controller.json5")]
     mod peppygen {}
@@ -146,11 +138,6 @@ mod seed_002_arm_controller {
         [current[0] + 0.1, current[1], current[2]]
     }
     // seed 002: end
-
-    #[test]
-    fn compiles() {
-        let _ = main;
-    }
 }
 
 /// The Python snippets, beside their seed documents in `tests/seeds/python`
