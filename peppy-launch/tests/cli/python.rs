@@ -302,6 +302,15 @@ fn a_python_node_in_todays_api_and_layout_runs_under_up() {
     );
 }
 
+/// This process's `PATH` without any directory holding a `peppy-launch`.
+fn path_without_peppy_launch() -> std::ffi::OsString {
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    let kept: Vec<_> = std::env::split_paths(&path)
+        .filter(|dir| !dir.join("peppy-launch").exists())
+        .collect();
+    std::env::join_paths(kept).unwrap()
+}
+
 /// Every file below `dir`, with its modification time.
 fn mtimes(dir: &std::path::Path) -> Vec<(std::path::PathBuf, std::time::SystemTime)> {
     let mut out: Vec<_> = walkdir::WalkDir::new(dir)
@@ -521,8 +530,10 @@ fn python_examples_pass_their_harness_tests() {
             ])
             .current_dir(&node)
             // The harness asks `peppy-launch plan` for the node's plan,
-            // and finds the one that synced it with nothing set up.
+            // and finds the one that synced it with nothing set up: not
+            // on PATH either.
             .env_remove("PEPPY_LAUNCH")
+            .env("PATH", path_without_peppy_launch())
             .stdout(std::process::Stdio::piped())
             .stderr(std::process::Stdio::piped())
             .spawn()
