@@ -15,7 +15,7 @@ use peppy_schema::{LauncherDoc, Placement, StackCheck, did_you_mean};
 use crate::cli::UpArgs;
 
 /// The target of `--place LINK@self`: the machine running the command.
-pub(crate) const SELF: &str = "self";
+pub(crate) const SELF: &str = peppy_schema::names::SELF_CORE_NODE;
 
 /// Why `--place` does not fit the launcher or is not understood.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -113,17 +113,10 @@ pub enum PlaceError {
     },
 }
 
-/// Whether `name` may name a machine: a core node name as `launcher/v1`
-/// takes one (a name of at most 63 characters) that is not `self`.
+/// Whether `name` may name a machine: the core node name rule a
+/// launcher's `core_nodes` follow.
 fn check_machine(name: &str) -> Result<(), String> {
-    peppy_schema::names::check_name(name)?;
-    if name.chars().count() > 63 {
-        return Err("longer than 63 characters".into());
-    }
-    if name == SELF {
-        return Err("`self` stands for this machine".into());
-    }
-    Ok(())
+    peppy_schema::names::check_core_node_name(name)
 }
 
 /// This machine's name: its host name up to the first dot.

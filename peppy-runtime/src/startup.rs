@@ -534,15 +534,11 @@ enum FlagKind {
 
 type Binds = Vec<FlagBind>;
 
-/// `--link KEY@TARGET` / `--vacant-link KEY=WHY`: a key names a slot, so
-/// the characters a link target reserves are refused in it.
+/// `--link KEY@TARGET` / `--vacant-link KEY=WHY`: a key names a slot, by
+/// the rule a launcher's `links` keys follow.
 fn link_key(flag: &str, key: &str) -> Result<()> {
-    if key.is_empty() || ["_", "*", "**"].contains(&key) || key.contains(['/', '@']) {
-        return Err(Error::Startup(format!(
-            "invalid {flag} key `{key}`: a slot's link_id, not empty and without `/`, `@`, `*` or `_` alone"
-        )));
-    }
-    Ok(())
+    peppy_schema::names::check_link_key(key)
+        .map_err(|why| Error::Startup(format!("invalid {flag} key `{key}`: {why}")))
 }
 
 fn standalone_config(

@@ -9,7 +9,6 @@ use serde::Serialize;
 
 use crate::diag::{Code, Diagnostics, did_you_mean, list};
 use crate::json::{Node, Value};
-use crate::names::check_name;
 use crate::read::{Loc, Reader, index, join};
 use crate::source::Span;
 
@@ -30,7 +29,17 @@ pub struct CoreNode {
 
 /// Reads `core_nodes`, reporting every mistake; the core nodes that are
 /// valid are returned either way.
-pub(crate) fn parse_core_nodes(r: &mut Reader<'_>, node: &Node) -> Vec<CoreNode> {
+pub(crate) fn parse_core_nodes(
+    r: &mut Reader<'_>,
+    node: &Node,
+    spelling: crate::Spelling,
+) -> Vec<CoreNode> {
+    // `launcher_v1` named core nodes before `--place link@self` took
+    // `self` and names were bounded by a machine's: it keeps its names.
+    let rule = match spelling {
+        crate::Spelling::SlashIds => crate::names::check_core_node_name,
+        crate::Spelling::UnderscoreIds => crate::names::check_name,
+    };
     let path = "core_nodes";
     let mut out: Vec<CoreNode> = Vec::new();
     match &node.value {
@@ -38,7 +47,7 @@ pub(crate) fn parse_core_nodes(r: &mut Reader<'_>, node: &Node) -> Vec<CoreNode>
             for (i, item) in items.iter().enumerate() {
                 let p = index(path, i);
                 if let Some(name) = r.string(item, &p)
-                    && let Some(core) = named(r, name, item.span, &p)
+                    && let Some(core) = named(r, rule, name, item.span, &p)
                 {
                     push_unique(r, &mut out, core);
                 }
@@ -47,7 +56,7 @@ pub(crate) fn parse_core_nodes(r: &mut Reader<'_>, node: &Node) -> Vec<CoreNode>
         Value::Object(members) => {
             for m in members {
                 let p = join(path, &m.key);
-                let Some(core) = named(r, m.key.clone(), m.key_span, &p) else {
+                let Some(core) = named(r, rule, m.key.clone(), m.key_span, &p) else {
                     continue;
                 };
                 if let Some(core) = endpoints(r, &m.value, &p, core) {
@@ -82,8 +91,14 @@ pub(crate) fn parse_core_nodes(r: &mut Reader<'_>, node: &Node) -> Vec<CoreNode>
 }
 
 /// A core node named `name`, written at `span`.
-fn named(r: &mut Reader<'_>, name: String, span: Span, path: &str) -> Option<CoreNode> {
-    match check_name(&name) {
+fn named(
+    r: &mut Reader<'_>,
+    rule: fn(&str) -> Result<(), String>,
+    name: String,
+    span: Span,
+    path: &str,
+) -> Option<CoreNode> {
+    match rule(&name) {
         Ok(()) => Some(CoreNode {
             loc: r.loc(span, path),
             name,

@@ -16,7 +16,7 @@ use crate::core_nodes::CoreNode;
 use crate::diag::{Code, Diagnostic, Diagnostics, list};
 use crate::document::Spelling;
 use crate::json::{Node, Value};
-use crate::names::{check_link_id, check_name, check_tag};
+use crate::names::{check_name, check_tag};
 use crate::node::{Identity, read_sha256};
 use crate::read::{Loc, Obj, Reader, display_path, index, join};
 use crate::source::{SourceFile, Span};
@@ -46,7 +46,6 @@ pub const FORBIDDEN_ENV_VARS: &[&str] = &[
 pub(crate) const FRAGMENT_SCHEMA: &str = "launcher_fragment/v1";
 
 /// Longest core node name `launcher/v1` accepts (PeppyOS's limit).
-const MAX_CORE_NODE_NAME: usize = 63;
 
 /// A `launcher_fragment/v1` document read on its own: it is only a part of
 /// the launchers whose `components` name it.
@@ -320,11 +319,8 @@ pub(crate) fn parse_launcher(
     let obj = r.object(root, "", keys)?;
     let core_nodes = obj
         .get("core_nodes")
-        .map(|n| crate::core_nodes::parse_core_nodes(&mut r, n))
+        .map(|n| crate::core_nodes::parse_core_nodes(&mut r, n, spelling))
         .unwrap_or_default();
-    if today {
-        check_core_node_names(&mut r, &core_nodes);
-    }
     let security = obj.get("security").and_then(|n| {
         r.bool(n, "security")
             .map(|on| (on, r.loc(n.span, "security")))
@@ -362,32 +358,6 @@ pub(crate) fn parse_launcher(
         }
     }
     Some(doc)
-}
-
-/// `launcher/v1`'s core node names are placeholders wired to machines at
-/// launch: `self` already means the daemon a command is sent to, and a
-/// name is at most 63 characters.
-fn check_core_node_names(r: &mut Reader<'_>, core_nodes: &[crate::core_nodes::CoreNode]) {
-    for c in core_nodes {
-        if c.name == "self" {
-            let d = c
-                .loc
-                .error(Code::InvalidName, "`self` cannot name a core node")
-                .with_help(
-                    "`self` stands for the daemon a command is sent to (`--place link@self`); choose another name",
-                );
-            r.diags.push(d);
-        } else if c.name.chars().count() > MAX_CORE_NODE_NAME {
-            let d = c.loc.error(
-                Code::InvalidName,
-                format!(
-                    "core node name `{}` is longer than {MAX_CORE_NODE_NAME} characters",
-                    c.name
-                ),
-            );
-            r.diags.push(d);
-        }
-    }
 }
 
 /// Rules 7 and 8 of SPEC 6.1, which need the whole launcher: unique
@@ -815,24 +785,7 @@ fn parse_bindings(
             Value::Object(members) => {
                 for m in members {
                     let kpath = format!("{bpath}.{}", m.key);
-                    if m.key == "_" {
-                        r.error_help(
-                            Code::ReservedBindingKey,
-                            m.key_span,
-                            &kpath,
-                            "binding key `_` is reserved",
-                            "use a slot's link_id to pin it, or any other label to feed a from_any slot",
-                        );
-                        *ok = false;
-                        continue;
-                    }
-                    if let Err(why) = check_link_id(&m.key) {
-                        r.error(
-                            Code::InvalidName,
-                            m.key_span,
-                            &kpath,
-                            format!("invalid binding key `{}`: {why}", m.key),
-                        );
+                    if !r.link_key(&m.key, m.key_span, &kpath, true) {
                         *ok = false;
                         continue;
                     }
@@ -1102,26 +1055,7 @@ fn parse_links(r: &mut Reader<'_>, obj: &Obj<'_>, ok: &mut bool) -> Vec<Link> {
     };
     for m in members {
         let kpath = join(&lpath, &m.key);
-        let key_ok = if m.key == "_" {
-            r.error_help(
-                Code::LinkSentinelKey,
-                m.key_span,
-                &kpath,
-                "link key `_` is reserved",
-                "a link key is the link_id of one of the node's slots",
-            );
-            false
-        } else if let Err(why) = check_link_id(&m.key) {
-            r.error(
-                Code::InvalidName,
-                m.key_span,
-                &kpath,
-                format!("invalid link key `{}`: {why}", m.key),
-            );
-            false
-        } else {
-            true
-        };
+        let key_ok = r.link_key(&m.key, m.key_span, &kpath, false);
         let value = parse_link_value(r, &m.value, &kpath, &m.key);
         match value {
             Some(value) if key_ok => links.push(Link {

@@ -75,6 +75,57 @@ pub fn check_link_id(s: &str) -> Result<(), String> {
     Ok(())
 }
 
+/// Why a key of a launcher's `links`, a composition's `set_links` /
+/// `add_links`, or a `--link` / `--vacant-link` flag is refused: the one
+/// rule for all of them.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum LinkKeyError {
+    /// `_`, which stands for "every slot" in PeppyOS's selectors.
+    Reserved,
+    /// Not a link_id ([`check_link_id`]).
+    Invalid(String),
+}
+
+impl std::fmt::Display for LinkKeyError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LinkKeyError::Reserved => {
+                f.write_str("`_` is reserved; a link key is the link_id of one of the node's slots")
+            }
+            LinkKeyError::Invalid(why) => f.write_str(why),
+        }
+    }
+}
+
+/// Checks a link key: a slot's link_id ([`check_link_id`]), not `_`.
+pub fn check_link_key(s: &str) -> Result<(), LinkKeyError> {
+    if s == "_" {
+        return Err(LinkKeyError::Reserved);
+    }
+    check_link_id(s).map_err(LinkKeyError::Invalid)
+}
+
+/// The longest core node name: a machine's name.
+pub const MAX_CORE_NODE_NAME: usize = 63;
+
+/// The name `--place LINK@self` gives the machine a command runs on, so no
+/// core node may take it.
+pub const SELF_CORE_NODE: &str = "self";
+
+/// Checks a core node name, in a launcher's `core_nodes` or given on the
+/// command line (`--place`, `--core-node`): a name ([`check_name`]) of at
+/// most [`MAX_CORE_NODE_NAME`] characters that is not `self`.
+pub fn check_core_node_name(s: &str) -> Result<(), String> {
+    check_name(s)?;
+    if s.chars().count() > MAX_CORE_NODE_NAME {
+        return Err(format!("longer than {MAX_CORE_NODE_NAME} characters"));
+    }
+    if s == SELF_CORE_NODE {
+        return Err("`self` stands for the machine a command runs on (`--place link@self`)".into());
+    }
+    Ok(())
+}
+
 /// Checks a topic, service or action name: it is a key segment on the wire
 /// and a Rust module name, so [`NAME_CHARS`] with at least one letter or digit.
 pub fn check_entry_name(s: &str) -> Result<(), String> {
@@ -200,6 +251,22 @@ pub fn mock_instance_id(link_id: &str, index: Option<usize>) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn link_keys_and_core_node_names_have_one_rule_each() {
+        assert_eq!(check_link_key("left_cam"), Ok(()));
+        assert_eq!(check_link_key("_"), Err(LinkKeyError::Reserved));
+        for bad in ["", "a/b", "a@b", "*", "--"] {
+            assert!(
+                matches!(check_link_key(bad), Err(LinkKeyError::Invalid(_))),
+                "{bad}"
+            );
+        }
+        assert_eq!(check_core_node_name("robot-1"), Ok(()));
+        for bad in ["self", "a.b", "", &"m".repeat(64)] {
+            assert!(check_core_node_name(bad).is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn tags_are_labels_not_versions() {

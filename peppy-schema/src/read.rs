@@ -81,6 +81,41 @@ impl<'a> Reader<'a> {
         self.diags.push(d);
     }
 
+    /// Checks a key of `links` (or, `binding`, of `launcher_v1`'s
+    /// `bindings`) by the one link-key rule
+    /// ([`check_link_key`](crate::names::check_link_key)), reporting why
+    /// not; true when it is one.
+    pub(crate) fn link_key(&mut self, key: &str, span: Span, path: &str, binding: bool) -> bool {
+        let word = if binding { "binding key" } else { "link key" };
+        match crate::names::check_link_key(key) {
+            Ok(()) => true,
+            Err(crate::names::LinkKeyError::Reserved) => {
+                let (code, help) = if binding {
+                    (
+                        Code::ReservedBindingKey,
+                        "use a slot's link_id to pin it, or any other label to feed a from_any slot",
+                    )
+                } else {
+                    (
+                        Code::LinkSentinelKey,
+                        "a link key is the link_id of one of the node's slots",
+                    )
+                };
+                self.error_help(code, span, path, format!("{word} `_` is reserved"), help);
+                false
+            }
+            Err(crate::names::LinkKeyError::Invalid(why)) => {
+                self.error(
+                    Code::InvalidName,
+                    span,
+                    path,
+                    format!("invalid {word} `{key}`: {why}"),
+                );
+                false
+            }
+        }
+    }
+
     pub(crate) fn error_help(
         &mut self,
         code: Code,

@@ -10,7 +10,7 @@ use crate::diag::{Code, Diagnostic, Diagnostics, did_you_mean, list};
 use crate::document::{DocumentKind, Spelling, detect_kind};
 use crate::json::{Node, Value};
 use crate::launcher::{FRAGMENT_SCHEMA, parse_deployment, parse_link_value};
-use crate::names::{check_link_id, check_name};
+use crate::names::check_name;
 use crate::read::{Loc, Obj, Reader, index, join};
 use crate::source::{SourceFile, Span};
 
@@ -99,7 +99,7 @@ fn read_composed(
         }
     }
     if let Some(n) = obj.get("core_nodes") {
-        crate::core_nodes::parse_core_nodes(&mut r, n);
+        crate::core_nodes::parse_core_nodes(&mut r, n, crate::Spelling::SlashIds);
     }
     if let Some(n) = obj.get("security") {
         r.bool(n, "security");
@@ -559,7 +559,7 @@ fn read_fragment_body(
         }
     }
     if let Some(n) = obj.get("core_nodes") {
-        crate::core_nodes::parse_core_nodes(r, n);
+        crate::core_nodes::parse_core_nodes(r, n, crate::Spelling::SlashIds);
     }
     let adjustments = obj
         .get("adjustments")
@@ -1008,12 +1008,5 @@ impl Composition {
 
 /// Checks a slot key of `set_links` / `add_links`.
 fn link_key(r: &mut Reader<'_>, m: &crate::json::Member, path: &str) {
-    if let Err(why) = check_link_id(&m.key) {
-        r.error(
-            Code::InvalidName,
-            m.key_span,
-            path,
-            format!("invalid link key `{}`: {why}", m.key),
-        );
-    }
+    r.link_key(&m.key, m.key_span, path, false);
 }

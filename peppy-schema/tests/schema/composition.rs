@@ -628,3 +628,34 @@ proptest! {
         }
     }
 }
+
+/// A composed launcher names core nodes and link keys by the rules a flat
+/// `launcher/v1` file follows (one rule each, in `peppy_schema::names`).
+#[test]
+fn composed_launchers_follow_the_flat_core_node_and_link_key_rules() {
+    let tree = Tree::new();
+    let text = MAPPING.replace(
+        r#"peppy_schema: "launcher/v1","#,
+        r#"peppy_schema: "launcher/v1", core_nodes: ["self"],"#,
+    );
+    let path = mapping(&tree, &text);
+    let errors = resolve_err(&path, &[]);
+    let d = errors
+        .iter()
+        .find(|d| d.code == Code::InvalidName)
+        .unwrap_or_else(|| panic!("{errors}"));
+    assert!(d.message.contains("`self` stands for"), "{d}");
+    at(d, &text, r#""self""#);
+
+    let text = MAPPING.replace(
+        "set_arguments: { max_range_m: 30 }",
+        "set_links: { _: \"front_lidar\" }",
+    );
+    let path = mapping(&tree, &text);
+    let errors = resolve_err(&path, &["sensor=sim"]);
+    let d = errors
+        .iter()
+        .find(|d| d.code == Code::LinkSentinelKey)
+        .unwrap_or_else(|| panic!("{errors}"));
+    assert_eq!(d.message, "link key `_` is reserved");
+}

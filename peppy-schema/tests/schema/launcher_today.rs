@@ -784,8 +784,10 @@ fn core_node_placeholders_are_names_other_than_self() {
         &text,
         r#""self""#,
     );
-    assert_eq!(found[0].message, "`self` cannot name a core node");
-    assert!(help(found[0]).contains("--place link@self"), "{}", found[0]);
+    assert_eq!(
+        found[0].message,
+        "invalid core node name `self`: `self` stands for the machine a command runs on (`--place link@self`)"
+    );
     assert_at(
         found[1],
         Code::InvalidName,
@@ -795,7 +797,7 @@ fn core_node_placeholders_are_names_other_than_self() {
     );
     assert_eq!(
         found[1].message,
-        format!("core node name `{long}` is longer than 63 characters")
+        format!("invalid core node name `{long}`: longer than 63 characters")
     );
 
     // Placement on an undeclared placeholder, as in the seeds' spelling.
