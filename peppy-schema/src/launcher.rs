@@ -143,12 +143,10 @@ pub struct Instance {
     pub instance_id: String,
     /// Where `instance_id` is.
     pub id_loc: Loc,
-    /// `bindings` (`launcher_v1`), in document order; empty in a
-    /// `launcher/v1` file.
-    pub bindings: Vec<Binding>,
-    /// `links` (`launcher/v1`), in document order; empty in a
-    /// `launcher_v1` file. Only their shape is checked here: whether a key
-    /// names a slot and the value fits it is the plan's business.
+    /// `links` (`launcher/v1`) or `bindings` (`launcher_v1`, read as
+    /// [`LinkValue::Bound`] links), in document order. Only their shape is
+    /// checked here: whether a key names a slot and the value fits it is
+    /// the plan's business.
     pub links: Vec<Link>,
     /// `framework` (`launcher/v1`); all unset in a `launcher_v1` file.
     pub framework: Framework,
@@ -162,19 +160,6 @@ pub struct Instance {
     pub restart: RestartPolicy,
     /// `core_node`: the machine it runs on, and where that is written.
     pub core_node: Option<(String, Loc)>,
-}
-
-/// One `key: "producer_instance_id"` binding.
-#[derive(Debug, Clone)]
-pub struct Binding {
-    /// A pinned slot's link_id, or a free-form label.
-    pub key: String,
-    /// The producer instance.
-    pub target: String,
-    /// Where the key is.
-    pub key_loc: Loc,
-    /// Where the target is.
-    pub target_loc: Loc,
 }
 
 /// Per-instance framework knobs (`framework`, `launcher/v1`): fixed,
@@ -199,6 +184,9 @@ pub struct Link {
 /// What a link says about its slot.
 #[derive(Debug, Clone)]
 pub enum LinkValue {
+    /// `launcher_v1`'s `bindings: { key: "inst" }`: one target, under a
+    /// slot's link_id or (for a `from_any` slot) a free-form label.
+    Bound(LinkTarget),
     /// `"inst"` or `"inst/peer_slot"`: one target.
     One(LinkTarget),
     /// `["a", "b"]`: targets in order, no repeats, maybe none; with where
@@ -217,7 +205,7 @@ impl LinkValue {
     /// The targets, in order (none for a vacancy).
     pub fn targets(&self) -> &[LinkTarget] {
         match self {
-            LinkValue::One(t) => std::slice::from_ref(t),
+            LinkValue::One(t) | LinkValue::Bound(t) => std::slice::from_ref(t),
             LinkValue::Many(ts, _) => ts,
             LinkValue::Vacant { .. } => &[],
         }
@@ -226,7 +214,7 @@ impl LinkValue {
     /// Where the value is.
     pub fn loc(&self) -> &Loc {
         match self {
-            LinkValue::One(t) => &t.loc,
+            LinkValue::One(t) | LinkValue::Bound(t) => &t.loc,
             LinkValue::Many(_, loc) | LinkValue::Vacant { loc, .. } => loc,
         }
     }
@@ -401,31 +389,8 @@ pub fn stack_rules(doc: &LauncherDoc) -> Diagnostics {
         }
     }
     for inst in &all {
-        for b in &inst.bindings {
-            if !ids.contains(&b.target.as_str()) {
-                let suggestion = crate::diag::did_you_mean(&b.target, ids.iter().copied());
-                let help = match suggestion {
-                    Some(s) => format!(
-                        "did you mean `{s}`? instances in this launcher: {}",
-                        list(ids.iter().copied())
-                    ),
-                    None => format!("instances in this launcher: {}", list(ids.iter().copied())),
-                };
-                diags.push(
-                    b.target_loc
-                        .error(
-                            Code::UnknownBindingTarget,
-                            format!(
-                                "binding `{}` on instance `{}` names `{}`, which no deployment declares",
-                                b.key, inst.instance_id, b.target
-                            ),
-                        )
-                        .with_help(help),
-                );
-            }
-        }
-        // `launcher/v1`: the instance part of every target (a peer slot
-        // after `/` is the plan's to check).
+        // The instance part of every target (a peer slot after `/` is the
+        // plan's to check).
         for link in &inst.links {
             for t in link.value.targets() {
                 if ids.contains(&t.instance.as_str()) {
@@ -438,17 +403,23 @@ pub fn stack_rules(doc: &LauncherDoc) -> Diagnostics {
                     ),
                     None => format!("instances in this launcher: {}", list(ids.iter().copied())),
                 };
-                diags.push(
-                    t.loc
-                        .error(
-                            Code::UnknownInstanceId,
-                            format!(
-                                "link `{}` on instance `{}` names instance `{}`, which no deployment declares",
-                                link.key, inst.instance_id, t.instance
-                            ),
-                        )
-                        .with_help(help),
-                );
+                let (code, message) = match link.value {
+                    LinkValue::Bound(_) => (
+                        Code::UnknownBindingTarget,
+                        format!(
+                            "binding `{}` on instance `{}` names `{}`, which no deployment declares",
+                            link.key, inst.instance_id, t.instance
+                        ),
+                    ),
+                    _ => (
+                        Code::UnknownInstanceId,
+                        format!(
+                            "link `{}` on instance `{}` names instance `{}`, which no deployment declares",
+                            link.key, inst.instance_id, t.instance
+                        ),
+                    ),
+                };
+                diags.push(t.loc.error(code, message).with_help(help));
             }
         }
     }
@@ -709,14 +680,12 @@ fn parse_instance(
             }
         }
     });
-    let (bindings, links, framework) = match spelling {
+    let (links, framework) = match spelling {
         Spelling::UnderscoreIds => (
             parse_bindings(r, &obj, id.as_ref().map(|(i, _)| i.as_str()), &mut ok),
-            Vec::new(),
             Framework::default(),
         ),
         Spelling::SlashIds => (
-            Vec::new(),
             parse_links(r, &obj, &mut ok),
             parse_framework(r, &obj, &mut ok),
         ),
@@ -759,7 +728,6 @@ fn parse_instance(
     ok.then_some(Instance {
         instance_id,
         id_loc,
-        bindings,
         links,
         framework,
         arguments,
@@ -772,12 +740,7 @@ fn parse_instance(
 
 /// `bindings`: keys (slot link_ids or free-form labels) and producer
 /// instances; a repeated key is `DuplicateBindingKey` (rule 6).
-fn parse_bindings(
-    r: &mut Reader<'_>,
-    obj: &Obj<'_>,
-    id: Option<&str>,
-    ok: &mut bool,
-) -> Vec<Binding> {
+fn parse_bindings(r: &mut Reader<'_>, obj: &Obj<'_>, id: Option<&str>, ok: &mut bool) -> Vec<Link> {
     let mut bindings = Vec::new();
     if let Some(b) = obj.get("bindings") {
         let bpath = obj.path_of("bindings");
@@ -793,11 +756,14 @@ fn parse_bindings(
                         *ok = false;
                         continue;
                     };
-                    bindings.push(Binding {
+                    bindings.push(Link {
                         key: m.key.clone(),
-                        target,
                         key_loc: r.loc(m.key_span, &kpath),
-                        target_loc: r.loc(m.value.span, &kpath),
+                        value: LinkValue::Bound(LinkTarget {
+                            instance: target,
+                            peer_slot: None,
+                            loc: r.loc(m.value.span, &kpath),
+                        }),
                     });
                 }
             }

@@ -134,8 +134,8 @@ pub use format::{CanonicalError, Field, FieldType, MessageFormat};
 pub use interface::InterfaceDoc;
 #[cfg(feature = "documents")]
 pub use launcher::{
-    Binding, Deployment, FORBIDDEN_ENV_VARS, Framework, Instance, LauncherDoc, Link, LinkTarget,
-    LinkValue, RestartPolicy, Source, stack_rules,
+    Deployment, FORBIDDEN_ENV_VARS, Framework, Instance, LauncherDoc, Link, LinkTarget, LinkValue,
+    RestartPolicy, Source, stack_rules,
 };
 #[cfg(feature = "documents")]
 pub use node::{

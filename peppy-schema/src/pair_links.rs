@@ -47,7 +47,11 @@ pub(crate) fn plan_pairs(
 
     for (d, inst) in launcher.instances() {
         let Some(node) = nodes[d] else { continue };
-        for link in &inst.links {
+        for link in inst
+            .links
+            .iter()
+            .filter(|l| !matches!(l.value, LinkValue::Bound(_)))
+        {
             let Some(slot) = node.pairings.iter().find(|p| p.link_id == link.key) else {
                 continue;
             };
@@ -74,7 +78,7 @@ pub(crate) fn plan_pairs(
                     }
                     continue;
                 }
-                LinkValue::One(t) => vec![t],
+                LinkValue::One(t) | LinkValue::Bound(t) => vec![t],
                 LinkValue::Many(ts, loc) => {
                     if !slot.observer || slot.cardinality.is_scalar() {
                         diags.push(

@@ -149,23 +149,21 @@ struct Written<'a> {
     value_loc: &'a Loc,
 }
 
-/// The bindings (`launcher_v1`) or links (`launcher/v1`) of an instance, one
+/// The links of an instance (`launcher_v1` bindings among them), one
 /// [`Written`] per target. Targets no deployment declares were reported by
 /// [`crate::launcher::stack_rules`]; their keys are returned apart, so the
 /// slot they name is not also reported unbound.
 fn written(inst: &Instance) -> Vec<Written<'_>> {
     let mut out = Vec::new();
-    for b in &inst.bindings {
-        out.push(Written {
-            key: &b.key,
-            instance: &b.target,
-            form: BindForm::Key,
-            key_loc: &b.key_loc,
-            value_loc: &b.target_loc,
-        });
-    }
     for l in &inst.links {
         match &l.value {
+            LinkValue::Bound(t) => out.push(Written {
+                key: &l.key,
+                instance: &t.instance,
+                form: BindForm::Key,
+                key_loc: &l.key_loc,
+                value_loc: &t.loc,
+            }),
             LinkValue::One(t) => out.push(Written {
                 key: &l.key,
                 instance: &t.instance,
@@ -208,7 +206,13 @@ fn links_outside_the_engine<'a>(
     diags: &mut Diagnostics,
 ) -> Vec<&'a str> {
     let mut skipped = Vec::new();
-    for l in &inst.links {
+    // A `launcher_v1` binding never names a pairing slot: the engine
+    // reports it like any key that names no producer slot.
+    for l in inst
+        .links
+        .iter()
+        .filter(|l| !matches!(l.value, LinkValue::Bound(_)))
+    {
         if crate::pair_links::is_pairing_link(node, &l.key) {
             skipped.push(l.key.as_str());
             continue;

@@ -87,7 +87,12 @@ fn a_flat_launcher_like_the_hubs_rust_robot_reads() {
         ]
     );
     let brain = &l.deployments[0].instances[0];
-    assert!(brain.bindings.is_empty());
+    assert!(
+        brain
+            .links
+            .iter()
+            .all(|l| !matches!(l.value, peppy_schema::LinkValue::Bound(_)))
+    );
     assert_eq!(brain.framework.use_sim_time, None);
     let links: Vec<(&str, String)> = brain
         .links
@@ -362,15 +367,20 @@ fn each_spelling_refuses_the_others_slot_key() {
         "{errors}"
     );
 
-    // The seeds' spelling keeps its model: bindings, no links.
+    // `launcher_v1`'s bindings are links of the binding form.
     let l = launcher_ok(
         r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "cam:v1" }, instances: [
             { instance_id: "a" }, { instance_id: "b", bindings: { left: "a" } } ] }] }"#,
     );
     assert_eq!(l.spelling, Spelling::UnderscoreIds);
     let b = &l.deployments[0].instances[1];
-    assert_eq!(b.bindings.len(), 1);
-    assert!(b.links.is_empty());
+    assert_eq!(b.links.len(), 1);
+    assert_eq!(b.links[0].key, "left");
+    assert!(
+        matches!(&b.links[0].value, peppy_schema::LinkValue::Bound(t) if t.instance == "a"),
+        "{:?}",
+        b.links[0].value
+    );
 }
 
 #[test]
