@@ -575,45 +575,73 @@ fn calls_section<T>(
 
 /// Every link_id a consumed entry uses must be declared; `false` if one is not.
 fn check_consumed_links(r: &mut Reader<'_>, root: &Node, legacy: bool, i: &Interfaces) -> bool {
-    let mut ok = true;
-    let consumed_links = i
-        .consumed_topics
-        .iter()
-        .filter_map(|t| match &t.source {
-            TopicSource::Linked { link_id } => Some((link_id.as_str(), &t.loc, EntryKind::Topic)),
-            TopicSource::External(_) => None,
-        })
-        .chain(
-            i.consumed_services
-                .iter()
-                .map(|s| (s.link_id.as_str(), &s.loc, EntryKind::Service)),
-        )
-        .chain(
-            i.consumed_actions
-                .iter()
-                .map(|a| (a.link_id.as_str(), &a.loc, EntryKind::Action)),
-        );
     // Judged against every link_id written in `depends_on`, so that an error
     // in one of its entries does not also make every consumer of it "undeclared".
     let written = written_link_ids(root, legacy);
-    for (link_id, loc, kind) in consumed_links {
-        if !written.iter().any(|w| w == link_id) {
-            let declared: Vec<&str> = written.iter().map(String::as_str).collect();
-            r.diags.push(
-                loc.error(
-                    Code::UndeclaredLinkId,
-                    format!("consumed {kind} uses link_id `{link_id}`, which `manifest.depends_on` does not declare"),
-                )
-                .with_help(format!(
-                    "declare it under `manifest.depends_on.nodes` or `.interfaces`; declared link_ids: {}",
-                    crate::diag::list(declared)
-                )),
-            );
+    let declared: Vec<&str> = written.iter().map(String::as_str).collect();
+    let mut ok = true;
+    for (kind, link_id, loc) in consumed_links(
+        &i.consumed_topics,
+        &i.consumed_services,
+        &i.consumed_actions,
+    ) {
+        if !declared.contains(&link_id) {
+            r.diags.push(undeclared_link(kind, link_id, loc, &declared));
             ok = false;
         }
     }
-
     ok
+}
+
+/// The slot link_id of every consumed entry, with its kind and place.
+fn consumed_links<'a>(
+    topics: &'a [ConsumedTopic],
+    services: &'a [ConsumedRef],
+    actions: &'a [ConsumedRef],
+) -> impl Iterator<Item = (EntryKind, &'a str, &'a Loc)> {
+    topics
+        .iter()
+        .filter_map(|t| match &t.source {
+            TopicSource::Linked { link_id } => Some((EntryKind::Topic, link_id.as_str(), &t.loc)),
+            TopicSource::External(_) => None,
+        })
+        .chain(
+            services
+                .iter()
+                .map(|c| (EntryKind::Service, c.link_id.as_str(), &c.loc)),
+        )
+        .chain(
+            actions
+                .iter()
+                .map(|c| (EntryKind::Action, c.link_id.as_str(), &c.loc)),
+        )
+}
+
+/// The error of a consumed entry whose link_id no slot declares: one rule
+/// for both spellings.
+fn undeclared_link(
+    kind: EntryKind,
+    link_id: &str,
+    loc: &Loc,
+    declared: &[&str],
+) -> crate::Diagnostic {
+    let help = match crate::diag::did_you_mean(link_id, declared.iter().copied()) {
+        Some(s) => format!(
+            "did you mean `{s}`? declared link_ids: {}",
+            crate::diag::list(declared.iter().copied())
+        ),
+        None => format!(
+            "declare it under `manifest.depends_on`; declared link_ids: {}",
+            crate::diag::list(declared.iter().copied())
+        ),
+    };
+    loc.error(
+        Code::UndeclaredLinkId,
+        format!(
+            "consumed {kind} uses link_id `{link_id}`, which `manifest.depends_on` does not declare"
+        ),
+    )
+    .with_help(help)
 }
 
 /// Every `link_id` written in `manifest.depends_on` (and legacy `local_id`),

@@ -655,23 +655,11 @@ pub(super) fn check_member_links(diags: &mut Diagnostics, doc: &NodeDoc) {
                 }),
         );
     }
-    let consumed = doc
-        .consumed_topics
-        .iter()
-        .filter_map(|t| match &t.source {
-            TopicSource::Linked { link_id } => Some((EntryKind::Topic, link_id.as_str(), &t.loc)),
-            TopicSource::External(_) => None,
-        })
-        .chain(
-            doc.consumed_services
-                .iter()
-                .map(|c| (EntryKind::Service, c.link_id.as_str(), &c.loc)),
-        )
-        .chain(
-            doc.consumed_actions
-                .iter()
-                .map(|c| (EntryKind::Action, c.link_id.as_str(), &c.loc)),
-        );
+    let consumed = consumed_links(
+        &doc.consumed_topics,
+        &doc.consumed_services,
+        &doc.consumed_actions,
+    );
     for (kind, link_id, loc) in consumed {
         match slot_of(doc, link_id) {
             SlotOf::Implements => diags.push(
@@ -688,20 +676,7 @@ pub(super) fn check_member_links(diags: &mut Diagnostics, doc: &NodeDoc) {
                 )
                 .with_help("pairings are topics-only"),
             ),
-            SlotOf::None => {
-                let ids = declared(doc);
-                let help = match crate::diag::did_you_mean(link_id, ids.iter().copied()) {
-                    Some(s) => format!("did you mean `{s}`? declared link_ids: {}", list(ids)),
-                    None => format!("declare it under `manifest.depends_on`; declared link_ids: {}", list(ids)),
-                };
-                diags.push(
-                    loc.error(
-                        Code::UndeclaredLinkId,
-                        format!("consumed {kind} uses link_id `{link_id}`, which `manifest.depends_on` does not declare"),
-                    )
-                    .with_help(help),
-                );
-            }
+            SlotOf::None => diags.push(undeclared_link(kind, link_id, loc, &declared(doc))),
             _ => {}
         }
     }

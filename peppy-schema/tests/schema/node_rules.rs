@@ -916,6 +916,6 @@ fn a_broken_depends_on_does_not_make_its_link_ids_undeclared() {
     );
     assert_eq!(
         help(d),
-        "declare it under `manifest.depends_on.nodes` or `.interfaces`; declared link_ids: `imu`, `clk`"
+        "declare it under `manifest.depends_on`; declared link_ids: `imu`, `clk`"
     );
 }

@@ -112,15 +112,27 @@ class PairKeysTest(unittest.TestCase):
         plan = pair_plan_from_json({"link_id": "arms", "peers": [{"instance": "a"}, {"instance": "b", "link_id": "x"}]})
         self.assertEqual(plan.peers, (PairEnd("a"), PairEnd("b", "x")))
         self.assertEqual(plan.to_json()["peers"][1], {"instance": "b", "link_id": "x"})
+        # A slot the plan leaves out starts empty: no peer, not vacant.
         self.assertEqual(fit_pair_plans([], COMMANDER.pairings), [PairPlan("arm")])
-        with self.assertRaises(StartupError):
-            fit_pair_plans([PairPlan("nope")], COMMANDER.pairings)
-        with self.assertRaises(StartupError):
-            fit_pair_plans([PairPlan("arm", (PairEnd("a"), PairEnd("b")))], COMMANDER.pairings)
-        with self.assertRaises(StartupError):
-            fit_pair_plans([PairPlan("arms")], WATCHER.pairings)
-        with self.assertRaises(StartupError):
-            fit_pair_plans([PairPlan("arm", vacant="bench")], COMMANDER.pairings)
+        self.assertEqual(fit_pair_plans([], WATCHER.pairings), [PairPlan("arms")])
+        # In the node's slot order, whatever the plan's.
+        both = (*COMMANDER.pairings, *WATCHER.pairings)
+        planned = [PairPlan("arms", (PairEnd("a"), PairEnd("b", "x"))), PairPlan("arm", (PairEnd("a", "commander"),))]
+        self.assertEqual(fit_pair_plans(planned, both), planned[::-1])
+        self.assertEqual(fit_pair_plans(planned[:1], both), [PairPlan("arm"), planned[0]])
+        # What a plan holds the launcher decided (peppy_schema::check_pair_plan):
+        # the node takes it as it is.
+        vacant = PairPlan("arm", vacant="bench")
+        self.assertEqual(fit_pair_plans([vacant], COMMANDER.pairings), [vacant])
+        # A plan for other slots: the node was generated from another document.
+        for plans, words in (
+            ([PairPlan("nope")], "fills pairing slot `nope`, which this node does not declare"),
+            ([PairPlan("arm"), PairPlan("arm", (PairEnd("a"),))], "fills pairing slot `arm` twice"),
+        ):
+            with self.assertRaises(StartupError) as caught:
+                fit_pair_plans(plans, COMMANDER.pairings)
+            self.assertIn(words, str(caught.exception))
+            self.assertIn("another peppy.json5", str(caught.exception))
 
 
 class PairingTest(t.LiveTest):
