@@ -783,15 +783,8 @@ fn pairs_from_flags(doc: &NodeModel, binds: Binds) -> Result<(Vec<PairPlan>, Bin
             }
         }
     }
-    if let Some(p) = plans
-        .iter()
-        .find(|p| p.vacant.is_some() && !p.peers.is_empty())
-    {
-        return Err(Error::Startup(format!(
-            "pairing slot `{}` is both linked and left vacant",
-            p.link_id
-        )));
-    }
+    // Whether the plans fit their slots (a slot linked and left vacant at
+    // once among them) is `fit_pair_plans`'s to say, as for a launcher's.
     Ok((plans, rest))
 }
 

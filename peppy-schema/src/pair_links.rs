@@ -209,12 +209,26 @@ pub(crate) fn plan_pairs(
                     .into_iter()
                     .collect()
             };
-            uncovered(inst, slot, ends.len(), vacancy.is_some(), diags);
-            plans.push(PairPlan {
+            let plan = PairPlan {
                 link_id: slot.link_id.clone(),
                 peers: ends,
                 vacant: vacancy,
-            });
+            };
+            // What the node will check of its plan, checked before anything
+            // starts (a peer linking to a slot this instance left vacant).
+            if !uncovered(inst, slot, plan.peers.len(), plan.vacant.is_some(), diags)
+                && let Err(e) = crate::pairs::check_pair_plan(slot, &plan)
+            {
+                diags.push(
+                    inst.id_loc
+                        .error(
+                            Code::LinkVacantInvalid,
+                            format!("instance `{}`: {e}", inst.instance_id),
+                        )
+                        .with_help("a slot is either linked to peers or left vacant"),
+                );
+            }
+            plans.push(plan);
         }
         out.insert(inst.instance_id.clone(), plans);
     }
@@ -406,14 +420,14 @@ fn observed_slot(
 }
 
 /// A participant left without a peer, or an observer without the sources
-/// its cardinality asks for.
+/// its cardinality asks for; true when it reported one.
 fn uncovered(
     inst: &Instance,
     slot: &PairingSlot,
     count: usize,
     vacant: bool,
     diags: &mut Diagnostics,
-) {
+) -> bool {
     if slot.observer {
         let short = match slot.cardinality {
             Cardinality::One | Cardinality::OneOrMore => count == 0,
@@ -435,9 +449,10 @@ fn uncovered(
                     )),
             );
         }
-        return;
+        return short;
     }
-    if count == 0 && !vacant && !slot.optional {
+    let short = count == 0 && !vacant && !slot.optional;
+    if short {
         diags.push(
             inst.id_loc
                 .error(
@@ -453,4 +468,5 @@ fn uncovered(
                 )),
         );
     }
+    short
 }

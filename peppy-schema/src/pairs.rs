@@ -91,6 +91,12 @@ pub enum PairPlanError {
         /// The slot.
         link_id: String,
     },
+    /// A slot given peers and a vacancy at once.
+    #[error("pairing slot `{link_id}` is both linked and left vacant")]
+    LinkedAndVacant {
+        /// The slot.
+        link_id: String,
+    },
     /// A plan for a slot the node does not have.
     #[error("the node has no pairing slot `{link_id}`")]
     UnknownSlot {
@@ -113,6 +119,11 @@ pub enum PairPlanError {
 /// to link to it.
 pub fn check_pair_plan(slot: &PairingSlot, plan: &PairPlan) -> Result<(), PairPlanError> {
     let count = plan.peers.len();
+    if plan.vacant.is_some() && count > 0 {
+        return Err(PairPlanError::LinkedAndVacant {
+            link_id: slot.link_id.clone(),
+        });
+    }
     if plan.vacant.is_some() && !slot.admits_empty() {
         return Err(PairPlanError::VacantRequired {
             link_id: slot.link_id.clone(),
@@ -239,6 +250,16 @@ mod tests {
             Err(PairPlanError::VacantRequired { .. })
         ));
         assert!(check_pair_plan(&slot("cmd", false, Cardinality::One, true), &vacant).is_ok());
+        let both = PairPlan {
+            vacant: Some("bench".into()),
+            ..plan("cmd", &["a"])
+        };
+        assert_eq!(
+            check_pair_plan(&slot("cmd", false, Cardinality::One, true), &both),
+            Err(PairPlanError::LinkedAndVacant {
+                link_id: "cmd".into()
+            })
+        );
     }
 
     #[test]

@@ -416,6 +416,26 @@ fn every_pairing_rule_is_located_in_the_launcher() {
     }
 }
 
+/// A slot an instance leaves vacant while a peer links to it: one rule
+/// (`check_pair_plan`) for the launcher and the command line, refused here
+/// before anything starts.
+#[test]
+fn a_slot_left_vacant_and_linked_by_a_peer_is_refused() {
+    let (result, text) = plan([
+        "",
+        r#"{ instance_id: "a1", links: { commander: "d/right" } }, { instance_id: "a2", links: { commander: "d/left" } }"#,
+        "",
+        r#"{ instance_id: "d", links: { right: { vacant: "one-armed bench" } } }"#,
+    ]);
+    let errors = result.expect_err("linked and vacant");
+    let d = one(&errors, Code::LinkVacantInvalid);
+    assert_eq!(
+        d.message,
+        "instance `d`: pairing slot `right` is both linked and left vacant"
+    );
+    assert_eq!(lc(d), pos(&text, r#""d", links"#));
+}
+
 #[test]
 fn a_peer_with_several_fitting_slots_is_named_with_its_slot() {
     let (result, _) = plan([
