@@ -1,14 +1,15 @@
 //! The generator: a resolved node in, the items of its `peppygen` module
 //! out. Pure: no file system, no environment.
 
+use peppy_schema::layout::{CategoryLayout, ModuleNode, ModuleRole};
 use peppy_schema::{
-    Cardinality, Diagnostics, EntryKind, InterfaceRef, Loc, MessageFormat, NodeApi, Origin,
-    Provided, QosProfile, ResolvedCall, ResolvedNode, ResolvedTopic, ServiceDecl, TopicDecl,
+    Cardinality, Diagnostics, EntryKind, Loc, MessageFormat, NodeApi, Origin, Provided, QosProfile,
+    ResolvedCall, ResolvedNode, ResolvedTopic, ServiceDecl, TopicDecl,
 };
 use proc_macro2::{Ident, TokenStream};
 use quote::quote;
 
-use crate::naming::{NameKind, Names, consumed_module, ident, module, short_location, type_prefix};
+use crate::naming::{Names, ident, short_location, type_prefix};
 use crate::params;
 use crate::testing::{Layout, TestGate};
 use crate::types::{Structs, args, format_spec, many_args_allow, snake_allow};
@@ -142,49 +143,17 @@ pub(crate) struct Category {
     pub(crate) flat: Vec<Vec<Ident>>,
 }
 
-/// One provided entry, as the module-tree builder sees it.
-struct Offered {
-    /// Its index in the node's list of its category.
-    index: usize,
-    name: String,
-    loc: Loc,
-    origin: Origin,
-    body: TokenStream,
-}
-
-/// One consumed entry of a `node/v1` node, as the layout builder sees it.
-struct Consumed {
-    /// Its index in the node's list of its category.
-    index: usize,
-    /// The slot (`None` only for an external topic, which `node/v1`
-    /// cannot write).
-    link_id: Option<String>,
-    name: String,
-    loc: Loc,
-    /// How a name clash describes it.
-    what: String,
-    doc: String,
-    body: TokenStream,
-    /// Whether the node descriptor lists its `SPEC`.
-    spec: bool,
-}
-
-/// A conformed entry that also gets its flat name.
-struct Flat {
-    module: String,
-    name: String,
-    interface: String,
-    path: Vec<Ident>,
-}
-
 impl Gen<'_> {
     fn tree(&mut self) -> TokenStream {
-        let emitted = self.emitted_topics();
-        let consumed_topics = self.consumed_topics();
-        let exposed = self.exposed_services();
-        let consumed_services = self.consumed_services();
-        let exposed_actions = self.exposed_actions();
-        let consumed_actions = self.consumed_actions();
+        let layout = peppy_schema::layout::layout(self.node, &mut self.diags);
+        let [
+            emitted,
+            consumed_topics,
+            exposed,
+            consumed_services,
+            exposed_actions,
+            consumed_actions,
+        ] = std::array::from_fn(|i| self.category(&layout.categories[i], i));
 
         let spec_refs = |category: &str, c: &Category| -> Vec<TokenStream> {
             let cat = ident(category);
@@ -271,531 +240,163 @@ impl Gen<'_> {
         }
     }
 
+    /// One category's module, walking the layout peppy-schema decided:
+    /// each entry's module, the modules that group them, and the aliases.
+    fn category(&mut self, layout: &CategoryLayout, category_index: usize) -> Category {
+        let mut category = Category::default();
+        let kind = layout.kind;
+        category.items = self.modules(
+            &layout.modules,
+            kind,
+            category_index,
+            &mut Vec::new(),
+            None,
+            &mut category,
+        );
+        for alias in &layout.aliases {
+            let path: Vec<Ident> = alias.path.iter().map(|m| ident(m)).collect();
+            let doc = crate::docs::Doc::new(format!(
+                "The {kind} `{}` of interface `{}` under its own name (no other {kind} of this node generates module `{}`).",
+                alias.name, alias.interface, alias.module
+            ));
+            category.items.extend(quote! {
+                #doc
+                pub use self::#(#path)::*;
+            });
+            category.flat.push(path);
+        }
+        category
+    }
+
+    /// The modules `nodes` (below `path`); `slot` is the cardinality of the
+    /// slot they are consumed through, when there is one.
+    fn modules(
+        &mut self,
+        nodes: &[ModuleNode],
+        kind: EntryKind,
+        category_index: usize,
+        path: &mut Vec<Ident>,
+        slot: Option<Option<Cardinality>>,
+        category: &mut Category,
+    ) -> TokenStream {
+        let mut out = TokenStream::new();
+        for n in nodes {
+            let id = ident(&n.name);
+            path.push(id.clone());
+            let (doc, items) = match &n.role {
+                ModuleRole::Entry(index) => {
+                    let (doc, body, listed) = self.entry(category_index, *index);
+                    category.modules.push((*index, path.clone()));
+                    if listed {
+                        category.specs.push(path.clone());
+                    }
+                    let accessor = slot.map(entry_accessor).unwrap_or_default();
+                    (doc, quote!(#accessor #body))
+                }
+                ModuleRole::Interface(name) => (
+                    format!("The {kind}s of interface `{name}`, by tag."),
+                    self.modules(&n.children, kind, category_index, path, slot, category),
+                ),
+                ModuleRole::InterfaceTag(interface) => (
+                    format!("The {kind}s of interface `{interface}`, which this node conforms to."),
+                    self.modules(&n.children, kind, category_index, path, slot, category),
+                ),
+                ModuleRole::Implements {
+                    link_id,
+                    contract,
+                    loc,
+                } => (
+                    format!(
+                        "The {kind}s of contract `{contract}`, which this node implements as slot `{link_id}` (`{}`).",
+                        short_location(loc)
+                    ),
+                    self.modules(&n.children, kind, category_index, path, slot, category),
+                ),
+                ModuleRole::Slot {
+                    link_id,
+                    cardinality,
+                    loc,
+                } => {
+                    let mut items = slot_accessor(link_id, *cardinality);
+                    items.extend(self.modules(
+                        &n.children,
+                        kind,
+                        category_index,
+                        path,
+                        Some(*cardinality),
+                        category,
+                    ));
+                    let shown = cardinality
+                        .map(|c| format!(", cardinality `{c}`"))
+                        .unwrap_or_default();
+                    (
+                        format!(
+                            "The {kind}s this node consumes through slot `{link_id}` (`{}`{shown}).",
+                            short_location(loc)
+                        ),
+                        items,
+                    )
+                }
+            };
+            path.pop();
+            let doc = crate::docs::Doc::new(doc);
+            out.extend(quote! {
+                #doc
+                pub mod #id {
+                    #items
+                }
+            });
+        }
+        out
+    }
+
+    /// Entry `index` of category `category_index`: its doc, its body, and
+    /// whether the node descriptor lists its `SPEC`.
+    fn entry(&mut self, category_index: usize, index: usize) -> (String, TokenStream, bool) {
+        let node = self.node;
+        match category_index {
+            0 => {
+                let p = &node.emitted_topics[index];
+                let doc = entry_doc(EntryKind::Topic, &p.decl.name, &p.origin, &p.decl.loc);
+                (doc, self.emitted_topic(p), true)
+            }
+            1 => {
+                let t = &node.consumed_topics[index];
+                (consumed_topic_doc(t), self.consumed_topic(t), true)
+            }
+            2 => {
+                let p = &node.exposed_services[index];
+                let doc = entry_doc(EntryKind::Service, &p.decl.name, &p.origin, &p.decl.loc);
+                (doc, self.exposed_service(p), true)
+            }
+            3 => {
+                let c = &node.consumed_services[index];
+                (
+                    call_doc(EntryKind::Service, c),
+                    self.consumed_service(c),
+                    false,
+                )
+            }
+            4 => {
+                let p = &node.exposed_actions[index];
+                let doc = entry_doc(EntryKind::Action, &p.decl.name, &p.origin, &p.decl.loc);
+                (doc, self.exposed_action(p), true)
+            }
+            _ => {
+                let c = &node.consumed_actions[index];
+                (
+                    call_doc(EntryKind::Action, c),
+                    self.consumed_action(c),
+                    false,
+                )
+            }
+        }
+    }
+
     /// Whether the node's code is on PeppyOS's `peppylib` API, whose
     /// entries through a slot nest under the slot's link_id.
     pub(crate) fn peppylib(&self) -> bool {
         self.node.node.api == NodeApi::Peppylib
-    }
-
-    /// The module-name kind of this node's modules.
-    fn module_kind(&self) -> NameKind {
-        NameKind::module_of(self.node.node.api)
-    }
-
-    fn emitted_topics(&mut self) -> Category {
-        let node = self.node;
-        let offered: Vec<Offered> = node
-            .emitted_topics
-            .iter()
-            .enumerate()
-            .map(|(index, p)| Offered {
-                index,
-                name: p.decl.name.clone(),
-                loc: p.decl.loc.clone(),
-                origin: p.origin.clone(),
-                body: self.emitted_topic(p),
-            })
-            .collect();
-        self.provided(offered, EntryKind::Topic)
-    }
-
-    fn exposed_services(&mut self) -> Category {
-        let node = self.node;
-        let offered: Vec<Offered> = node
-            .exposed_services
-            .iter()
-            .enumerate()
-            .map(|(index, p)| Offered {
-                index,
-                name: p.decl.name.clone(),
-                loc: p.decl.loc.clone(),
-                origin: p.origin.clone(),
-                body: self.exposed_service(p),
-            })
-            .collect();
-        self.provided(offered, EntryKind::Service)
-    }
-
-    fn exposed_actions(&mut self) -> Category {
-        let node = self.node;
-        let offered: Vec<Offered> = node
-            .exposed_actions
-            .iter()
-            .enumerate()
-            .map(|(index, p)| Offered {
-                index,
-                name: p.decl.name.clone(),
-                loc: p.decl.loc.clone(),
-                origin: p.origin.clone(),
-                body: self.exposed_action(p),
-            })
-            .collect();
-        self.provided(offered, EntryKind::Action)
-    }
-
-    fn consumed_actions(&mut self) -> Category {
-        if self.peppylib() {
-            let node = self.node;
-            let entries = node
-                .consumed_actions
-                .iter()
-                .enumerate()
-                .map(|(index, a)| Consumed {
-                    index,
-                    link_id: Some(a.slot.link_id.clone()),
-                    name: a.decl.name.clone(),
-                    loc: a.loc.clone(),
-                    what: format!(
-                        "consumed action `{}` of slot `{}`",
-                        a.decl.name, a.slot.link_id
-                    ),
-                    doc: call_doc(EntryKind::Action, a),
-                    body: self.consumed_action(a),
-                    spec: false,
-                })
-                .collect();
-            return self.consumed_by_link(EntryKind::Action, entries);
-        }
-        let mut category = Category::default();
-        let mut names = Names::default();
-        let node = self.node;
-        for (index, a) in node.consumed_actions.iter().enumerate() {
-            let m = consumed_module(Some(&a.slot.link_id), &a.decl.name);
-            let what = format!(
-                "consumed action `{}` of slot `{}`",
-                a.decl.name, a.slot.link_id
-            );
-            if !names.claim(NameKind::Module, &m, &what, &a.loc, &mut self.diags) {
-                continue;
-            }
-            let id = ident(&m);
-            category.modules.push((index, vec![id.clone()]));
-            let body = self.consumed_action(a);
-            let doc = crate::docs::Doc::new(call_doc(EntryKind::Action, a));
-            category.items.extend(quote! {
-                #doc
-                pub mod #id {
-                    #body
-                }
-            });
-        }
-        category
-    }
-
-    /// Lays out provided entries: own entries by name; conformed ones under
-    /// `<interface>::<tag>::<name>`, and also by name when no other entry
-    /// of the category takes that name.
-    fn provided(&mut self, offered: Vec<Offered>, kind: EntryKind) -> Category {
-        if self.peppylib() {
-            return self.provided_by_link(offered, kind);
-        }
-        let mut category = Category::default();
-        let mut names = Names::default();
-        let own_modules = self.own_entries(&offered, kind, &mut names, &mut category);
-        let node = self.node;
-        let groups = conformed_groups(&node.node.conforms_to, &offered);
-        let iface_modules: Vec<String> = groups.iter().map(|(m, _)| m.clone()).collect();
-        let conformed_modules: Vec<String> = offered
-            .iter()
-            .filter(|o| matches!(o.origin, Origin::Interface(_)))
-            .map(|o| module(&o.name))
-            .collect();
-        let mut flat: Vec<Flat> = Vec::new();
-        for (iface_mod, refs) in &groups {
-            let first = refs[0];
-            let what = format!("interface `{}`", first.target.name);
-            if !names.claim(
-                NameKind::Module,
-                iface_mod,
-                &what,
-                &first.loc,
-                &mut self.diags,
-            ) {
-                continue;
-            }
-            let iface_id = ident(iface_mod);
-            let mut tags = Names::default();
-            let mut tag_items = TokenStream::new();
-            for r in refs {
-                let tag_mod = module(&r.target.tag);
-                let what = format!("interface `{}`", r.target);
-                if !tags.claim(NameKind::Module, &tag_mod, &what, &r.loc, &mut self.diags) {
-                    continue;
-                }
-                let tag_id = ident(&tag_mod);
-                let mut entries = Names::default();
-                let mut entry_items = TokenStream::new();
-                let origin = Origin::Interface(r.target.clone());
-                for o in offered.iter().filter(|o| o.origin == origin) {
-                    let m = module(&o.name);
-                    let what = format!("{kind} `{}` of interface `{}`", o.name, r.target);
-                    if !entries.claim(NameKind::Module, &m, &what, &o.loc, &mut self.diags) {
-                        continue;
-                    }
-                    let id = ident(&m);
-                    let body = &o.body;
-                    let doc = crate::docs::Doc::new(entry_doc(kind, &o.name, &o.origin, &o.loc));
-                    entry_items.extend(quote! {
-                        #doc
-                        pub mod #id {
-                            #body
-                        }
-                    });
-                    let path = vec![iface_id.clone(), tag_id.clone(), id];
-                    category.specs.push(path.clone());
-                    category.modules.push((o.index, path.clone()));
-                    let unambiguous = !own_modules.contains(&m)
-                        && conformed_modules.iter().filter(|c| **c == m).count() == 1
-                        && !iface_modules.contains(&m);
-                    if unambiguous {
-                        flat.push(Flat {
-                            module: m,
-                            name: o.name.clone(),
-                            interface: r.target.to_string(),
-                            path,
-                        });
-                    }
-                }
-                let doc = crate::docs::Doc::new(format!(
-                    "The {kind}s of interface `{}`, which this node conforms to.",
-                    r.target
-                ));
-                tag_items.extend(quote! {
-                    #doc
-                    pub mod #tag_id {
-                        #entry_items
-                    }
-                });
-            }
-            let doc = crate::docs::Doc::new(format!(
-                "The {kind}s of interface `{}`, by tag.",
-                first.target.name
-            ));
-            category.items.extend(quote! {
-                #doc
-                pub mod #iface_id {
-                    #tag_items
-                }
-            });
-        }
-        category.flat = flat.iter().map(|f| f.path.clone()).collect();
-        category.items.extend(flat_reexports(kind, flat));
-        category
-    }
-
-    /// Lays out the provided entries of a `node/v1` node as PeppyOS does:
-    /// own entries by name, a contract's members under the `implements`
-    /// slot's link_id (`<link_id>::<member>`), with no flat aliases. Sibling
-    /// modules that read the same once sanitised are a
-    /// `ModuleNameCollision`.
-    fn provided_by_link(&mut self, offered: Vec<Offered>, kind: EntryKind) -> Category {
-        let mut category = Category::default();
-        let mut names = Names::default();
-        self.own_entries(&offered, kind, &mut names, &mut category);
-        let node = self.node;
-        for slot in &node.node.conforms_to {
-            // `node/v1`'s `implements` entries always carry their link_id.
-            let Some(link_id) = &slot.link_id else {
-                continue;
-            };
-            let origin = Origin::Interface(slot.target.clone());
-            let members: Vec<&Offered> = offered.iter().filter(|o| o.origin == origin).collect();
-            if members.is_empty() {
-                continue;
-            }
-            let link_mod = module(link_id);
-            let what = format!("implements slot `{link_id}` (contract `{}`)", slot.target);
-            if !names.claim(
-                NameKind::PeppylibModule,
-                &link_mod,
-                &what,
-                &slot.loc,
-                &mut self.diags,
-            ) {
-                continue;
-            }
-            let link_ident = ident(&link_mod);
-            let mut entries = Names::default();
-            let mut items = TokenStream::new();
-            for o in members {
-                let m = module(&o.name);
-                let what = format!("{kind} `{}` of implements slot `{link_id}`", o.name);
-                if !entries.claim(NameKind::PeppylibModule, &m, &what, &o.loc, &mut self.diags) {
-                    continue;
-                }
-                let id = ident(&m);
-                let body = &o.body;
-                let doc = crate::docs::Doc::new(entry_doc(kind, &o.name, &o.origin, &o.loc));
-                items.extend(quote! {
-                    #doc
-                    pub mod #id {
-                        #body
-                    }
-                });
-                category
-                    .modules
-                    .push((o.index, vec![link_ident.clone(), id.clone()]));
-                category.specs.push(vec![link_ident.clone(), id]);
-            }
-            let doc = crate::docs::Doc::new(format!(
-                "The {kind}s of contract `{}`, which this node implements as slot `{link_id}` (`{}`).",
-                slot.target,
-                short_location(&slot.loc)
-            ));
-            category.items.extend(quote! {
-                #doc
-                pub mod #link_ident {
-                    #items
-                }
-            });
-        }
-        category
-    }
-
-    /// Lays out the consumed entries of one category of a `node/v1` node:
-    /// `<link_id>::<name>`, each slot's module holding its bound-producer
-    /// accessor. Sibling modules that read the same once sanitised are a
-    /// `ModuleNameCollision`.
-    fn consumed_by_link(&mut self, kind: EntryKind, entries: Vec<Consumed>) -> Category {
-        let mut category = Category::default();
-        let mut links = Names::default();
-        // Slots in the order of their first entry; entries in declaration order.
-        let mut groups: Vec<(Option<String>, Vec<Consumed>)> = Vec::new();
-        for e in entries {
-            match groups.iter_mut().find(|(l, _)| *l == e.link_id) {
-                Some((_, list)) => list.push(e),
-                None => groups.push((e.link_id.clone(), vec![e])),
-            }
-        }
-        let node = self.node;
-        for (link_id, group) in groups {
-            let Some(link_id) = link_id else {
-                // Not written in `node/v1` (every consumed entry names a
-                // slot); laid out flat, like `node_v1`'s external topics.
-                for e in group {
-                    let m = module(&e.name);
-                    if !links.claim(
-                        NameKind::PeppylibModule,
-                        &m,
-                        &e.what,
-                        &e.loc,
-                        &mut self.diags,
-                    ) {
-                        continue;
-                    }
-                    let id = ident(&m);
-                    let doc = crate::docs::Doc::new(e.doc);
-                    let body = e.body;
-                    category.items.extend(quote! {
-                        #doc
-                        pub mod #id {
-                            #body
-                        }
-                    });
-                    category.modules.push((e.index, vec![id.clone()]));
-                    if e.spec {
-                        category.specs.push(vec![id]);
-                    }
-                }
-                continue;
-            };
-            let dependency = node.node.dependency(&link_id);
-            let slot_loc = dependency.map_or_else(|| group[0].loc.clone(), |d| d.loc.clone());
-            let link_mod = module(&link_id);
-            let what = format!("slot `{link_id}`");
-            if !links.claim(
-                NameKind::PeppylibModule,
-                &link_mod,
-                &what,
-                &slot_loc,
-                &mut self.diags,
-            ) {
-                continue;
-            }
-            let link_ident = ident(&link_mod);
-            let mut names = Names::default();
-            let mut items = slot_accessor(&link_id, dependency.map(|d| d.cardinality));
-            for e in group {
-                let m = module(&e.name);
-                if !names.claim(
-                    NameKind::PeppylibModule,
-                    &m,
-                    &e.what,
-                    &e.loc,
-                    &mut self.diags,
-                ) {
-                    continue;
-                }
-                let id = ident(&m);
-                let doc = crate::docs::Doc::new(e.doc);
-                let body = e.body;
-                let accessor = entry_accessor(dependency.map(|d| d.cardinality));
-                items.extend(quote! {
-                    #doc
-                    pub mod #id {
-                        #accessor
-                        #body
-                    }
-                });
-                category
-                    .modules
-                    .push((e.index, vec![link_ident.clone(), id.clone()]));
-                if e.spec {
-                    category.specs.push(vec![link_ident.clone(), id]);
-                }
-            }
-            let cardinality = dependency
-                .map(|d| format!(", cardinality `{}`", d.cardinality))
-                .unwrap_or_default();
-            let doc = crate::docs::Doc::new(format!(
-                "The {kind}s this node consumes through slot `{link_id}` (`{}`{cardinality}).",
-                short_location(&slot_loc)
-            ));
-            category.items.extend(quote! {
-                #doc
-                pub mod #link_ident {
-                    #items
-                }
-            });
-        }
-        category
-    }
-
-    /// The node's own entries of one category, one module each; returns
-    /// their module names.
-    fn own_entries(
-        &mut self,
-        offered: &[Offered],
-        kind: EntryKind,
-        names: &mut Names,
-        category: &mut Category,
-    ) -> Vec<String> {
-        let mut own_modules = Vec::new();
-        for o in offered
-            .iter()
-            .filter(|o| matches!(o.origin, Origin::Node(_)))
-        {
-            let m = module(&o.name);
-            let what = format!("{kind} `{}`", o.name);
-            let module_kind = self.module_kind();
-            if !names.claim(module_kind, &m, &what, &o.loc, &mut self.diags) {
-                continue;
-            }
-            let id = ident(&m);
-            let body = &o.body;
-            let doc = crate::docs::Doc::new(entry_doc(kind, &o.name, &o.origin, &o.loc));
-            category.items.extend(quote! {
-                #doc
-                pub mod #id {
-                    #body
-                }
-            });
-            category.modules.push((o.index, vec![id.clone()]));
-            category.specs.push(vec![id]);
-            own_modules.push(m);
-        }
-        own_modules
-    }
-
-    fn consumed_topics(&mut self) -> Category {
-        if self.peppylib() {
-            let node = self.node;
-            let entries = node
-                .consumed_topics
-                .iter()
-                .enumerate()
-                .map(|(index, t)| Consumed {
-                    index,
-                    link_id: t.slot.as_ref().map(|s| s.link_id.clone()),
-                    name: t.name.clone(),
-                    loc: t.loc.clone(),
-                    what: match &t.slot {
-                        Some(slot) => {
-                            format!("consumed topic `{}` of slot `{}`", t.name, slot.link_id)
-                        }
-                        None => format!("external consumed topic `{}`", t.name),
-                    },
-                    doc: consumed_topic_doc(t),
-                    body: self.consumed_topic(t),
-                    spec: true,
-                })
-                .collect();
-            return self.consumed_by_link(EntryKind::Topic, entries);
-        }
-        let mut category = Category::default();
-        let mut names = Names::default();
-        let node = self.node;
-        for (index, t) in node.consumed_topics.iter().enumerate() {
-            let m = consumed_module(t.slot.as_ref().map(|s| s.link_id.as_str()), &t.name);
-            let what = match &t.slot {
-                Some(slot) => format!("consumed topic `{}` of slot `{}`", t.name, slot.link_id),
-                None => format!("external consumed topic `{}`", t.name),
-            };
-            if !names.claim(NameKind::Module, &m, &what, &t.loc, &mut self.diags) {
-                continue;
-            }
-            let id = ident(&m);
-            category.modules.push((index, vec![id.clone()]));
-            let body = self.consumed_topic(t);
-            let doc = crate::docs::Doc::new(consumed_topic_doc(t));
-            category.items.extend(quote! {
-                #doc
-                pub mod #id {
-                    #body
-                }
-            });
-            category.specs.push(vec![id]);
-        }
-        category
-    }
-
-    fn consumed_services(&mut self) -> Category {
-        if self.peppylib() {
-            let node = self.node;
-            let entries = node
-                .consumed_services
-                .iter()
-                .enumerate()
-                .map(|(index, s)| Consumed {
-                    index,
-                    link_id: Some(s.slot.link_id.clone()),
-                    name: s.decl.name.clone(),
-                    loc: s.loc.clone(),
-                    what: format!(
-                        "consumed service `{}` of slot `{}`",
-                        s.decl.name, s.slot.link_id
-                    ),
-                    doc: call_doc(EntryKind::Service, s),
-                    body: self.consumed_service(s),
-                    spec: false,
-                })
-                .collect();
-            return self.consumed_by_link(EntryKind::Service, entries);
-        }
-        let mut category = Category::default();
-        let mut names = Names::default();
-        let node = self.node;
-        for (index, s) in node.consumed_services.iter().enumerate() {
-            let m = consumed_module(Some(&s.slot.link_id), &s.decl.name);
-            let what = format!(
-                "consumed service `{}` of slot `{}`",
-                s.decl.name, s.slot.link_id
-            );
-            if !names.claim(NameKind::Module, &m, &what, &s.loc, &mut self.diags) {
-                continue;
-            }
-            let id = ident(&m);
-            category.modules.push((index, vec![id.clone()]));
-            let body = self.consumed_service(s);
-            let doc = crate::docs::Doc::new(call_doc(EntryKind::Service, s));
-            category.items.extend(quote! {
-                #doc
-                pub mod #id {
-                    #body
-                }
-            });
-        }
-        category
     }
 
     /// `emitted_topics::<topic>`: `Message`, `SPEC`, `emit`, `set_shm_threshold`.
@@ -1455,43 +1056,4 @@ pub(crate) fn qos(q: QosProfile) -> TokenStream {
         QosProfile::Reliable => quote!(::peppy::codegen::QosProfile::Reliable),
         QosProfile::Critical => quote!(::peppy::codegen::QosProfile::Critical),
     }
-}
-
-/// `pub use` of each conformed entry under its own name, where that name
-/// is unambiguous.
-fn flat_reexports(kind: EntryKind, flat: Vec<Flat>) -> TokenStream {
-    let mut out = TokenStream::new();
-    for f in flat {
-        let doc = crate::docs::Doc::new(format!(
-            "The {kind} `{}` of interface `{}` under its own name (no other {kind} of this node generates module `{}`).",
-            f.name, f.interface, f.module
-        ));
-        let path = &f.path;
-        out.extend(quote! {
-            #doc
-            pub use self::#(#path)::*;
-        });
-    }
-    out
-}
-
-/// The conformed interfaces that offer entries of this category, grouped
-/// by interface module name (then by tag, in order).
-fn conformed_groups<'n>(
-    conforms_to: &'n [InterfaceRef],
-    offered: &[Offered],
-) -> Vec<(String, Vec<&'n InterfaceRef>)> {
-    let mut groups: Vec<(String, Vec<&InterfaceRef>)> = Vec::new();
-    for c in conforms_to {
-        let origin = Origin::Interface(c.target.clone());
-        if !offered.iter().any(|o| o.origin == origin) {
-            continue;
-        }
-        let m = module(&c.target.name);
-        match groups.iter_mut().find(|(g, _)| *g == m) {
-            Some((_, list)) => list.push(c),
-            None => groups.push((m, vec![c])),
-        }
-    }
-    groups
 }

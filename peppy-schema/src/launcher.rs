@@ -45,8 +45,6 @@ pub const FORBIDDEN_ENV_VARS: &[&str] = &[
 /// `peppy_schema` of PeppyOS's launcher fragments.
 pub(crate) const FRAGMENT_SCHEMA: &str = "launcher_fragment/v1";
 
-/// Longest core node name `launcher/v1` accepts (PeppyOS's limit).
-
 /// A `launcher_fragment/v1` document read on its own: it is only a part of
 /// the launchers whose `components` name it.
 pub(crate) fn fragment_refused(file: &Arc<SourceFile>, schema: &Node) -> Diagnostic {

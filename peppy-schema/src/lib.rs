@@ -67,6 +67,8 @@ pub mod json;
 #[cfg(feature = "documents")]
 mod launcher;
 #[cfg(feature = "documents")]
+pub mod layout;
+#[cfg(feature = "documents")]
 mod node;
 #[cfg(feature = "documents")]
 mod pair_links;

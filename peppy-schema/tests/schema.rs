@@ -21,16 +21,16 @@ mod formats;
 mod json5_syntax;
 #[path = "schema/launcher_rules.rs"]
 mod launcher_rules;
-#[path = "schema/launcher_today.rs"]
-mod launcher_today;
+#[path = "schema/launcher_slash_ids.rs"]
+mod launcher_slash_ids;
 #[path = "schema/legacy.rs"]
 mod legacy;
-#[path = "schema/links_today.rs"]
-mod links_today;
+#[path = "schema/links_slash_ids.rs"]
+mod links_slash_ids;
 #[path = "schema/node_rules.rs"]
 mod node_rules;
-#[path = "schema/node_today.rs"]
-mod node_today;
+#[path = "schema/node_slash_ids.rs"]
+mod node_slash_ids;
 #[path = "schema/pair_plans.rs"]
 mod pair_plans;
 #[path = "schema/pairings.rs"]
@@ -45,7 +45,7 @@ mod repositories;
 mod repository_index;
 #[path = "schema/resolution.rs"]
 mod resolution;
-#[path = "schema/resolution_today.rs"]
-mod resolution_today;
+#[path = "schema/resolution_slash_ids.rs"]
+mod resolution_slash_ids;
 #[path = "schema/robustness.rs"]
 mod robustness;

@@ -17,8 +17,18 @@ mod testing;
 
 use std::path::PathBuf;
 
-use peppy_schema::names::{consumed_module, module};
+use peppy_schema::layout::{CATEGORY_NAMES, Layout, ModuleRole};
+use peppy_schema::names::module;
 use peppy_schema::{Cardinality, Diagnostics, NodeApi, Origin, ResolvedNode};
+
+/// The module path (below `category`) the layout gave entry `index`.
+fn parts(layout: &Layout, category: &str, index: usize) -> Vec<String> {
+    layout
+        .category(category)
+        .entry(index)
+        .expect("the Rust generator placed every entry")
+        .path
+}
 
 use source::{Source, py_string};
 
@@ -36,19 +46,20 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
     );
     let identity = node.node.identity().to_string();
     let peppylib = node.node.api == NodeApi::Peppylib;
+    // The Rust generator above reported every clash of this layout.
+    let layout = peppy_schema::layout::layout(node, &mut Diagnostics::new());
     let mut files = Files {
         peppylib,
         document: document.clone(),
         list: Vec::new(),
-        specs: Vec::new(),
         slot_packages: Vec::new(),
     };
     let by_instance_default = node.node.legacy;
 
     let mut specs = Specs::default();
     let mut surface = testing::Surface::default();
-    for p in &node.emitted_topics {
-        let path = files.provided("emitted_topics", &p.decl.name, &p.origin, node, |out| {
+    for (i, p) in node.emitted_topics.iter().enumerate() {
+        let path = files.provided(&layout, "emitted_topics", i, &p.decl.name, |out| {
             modules::emitted_topic(out, p, peppylib)
         });
         surface
@@ -56,9 +67,8 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
             .push((tap_name(node, &p.decl.name, &p.origin), path.clone()));
         specs.emitted.push(path);
     }
-    for t in &node.consumed_topics {
-        let link_id = t.slot.as_ref().map(|s| s.link_id.as_str());
-        let parts = files.consumed_parts(node, "consumed_topics", link_id, &t.name);
+    for (i, t) in node.consumed_topics.iter().enumerate() {
+        let parts = parts(&layout, "consumed_topics", i);
         let by_instance = t.slot.is_none() || by_instance_default;
         let path = files.entry(
             "consumed_topics",
@@ -76,8 +86,8 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
         }
         specs.consumed.push(path);
     }
-    for p in &node.exposed_services {
-        let path = files.provided("exposed_services", &p.decl.name, &p.origin, node, |out| {
+    for (i, p) in node.exposed_services.iter().enumerate() {
+        let path = files.provided(&layout, "exposed_services", i, &p.decl.name, |out| {
             modules::exposed_service(out, p)
         });
         surface
@@ -85,13 +95,8 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
             .push((path.clone(), p.decl.request.is_some()));
         specs.services.push(path);
     }
-    for c in &node.consumed_services {
-        let parts = files.consumed_parts(
-            node,
-            "consumed_services",
-            Some(&c.slot.link_id),
-            &c.decl.name,
-        );
+    for (i, c) in node.consumed_services.iter().enumerate() {
+        let parts = parts(&layout, "consumed_services", i);
         let path = files.entry(
             "consumed_services",
             &parts,
@@ -109,20 +114,15 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
         ));
         specs.consumed_services.push(path);
     }
-    for p in &node.exposed_actions {
-        let path = files.provided("exposed_actions", &p.decl.name, &p.origin, node, |out| {
+    for (i, p) in node.exposed_actions.iter().enumerate() {
+        let path = files.provided(&layout, "exposed_actions", i, &p.decl.name, |out| {
             modules::exposed_action(out, p, peppylib)
         });
         surface.actions.push((path.clone(), p.decl.goal.is_some()));
         specs.actions.push(path);
     }
-    for c in &node.consumed_actions {
-        let parts = files.consumed_parts(
-            node,
-            "consumed_actions",
-            Some(&c.slot.link_id),
-            &c.decl.name,
-        );
+    for (i, c) in node.consumed_actions.iter().enumerate() {
+        let parts = parts(&layout, "consumed_actions", i);
         let path = files.entry(
             "consumed_actions",
             &parts,
@@ -162,9 +162,7 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
         }
         surface.pairings.push((slot.clone(), topics));
     }
-    if !peppylib {
-        files.flat_reexports();
-    }
+    files.layout_packages(&layout);
     files.packages();
     // After `packages`: the test surfaces write their own `__init__.py`s.
     files.list.extend(testing::files(node, &surface));
@@ -200,10 +198,8 @@ struct Files {
     peppylib: bool,
     document: String,
     list: Vec<PythonFile>,
-    /// Conformed entries: (category, flat module, nested dotted path).
-    specs: Vec<(String, String, String)>,
-    /// The `__init__.py` of each slot package of a `node/v1` node, with
-    /// the slot's bound-producer accessor.
+    /// The `__init__.py` of each slot package (peppylib API), with the
+    /// slot's bound-producer accessor.
     slot_packages: Vec<PythonFile>,
 }
 
@@ -228,100 +224,55 @@ impl Files {
         format!("{category}.{}", parts.join("."))
     }
 
-    /// A provided entry: own ones under their name; conformed ones under
-    /// `<interface>/<tag>/<name>`, and under their name as well when that
-    /// is unambiguous (as the Rust API lays them out).
+    /// A provided entry, where the layout put it, with a docstring saying
+    /// where it comes from.
     fn provided(
         &mut self,
+        layout: &Layout,
         category: &str,
+        index: usize,
         name: &str,
-        origin: &Origin,
-        node: &ResolvedNode,
         body: impl FnOnce(&mut Source),
     ) -> String {
-        match origin {
-            Origin::Node(_) => self.entry(category, &[module(name)], &format!("`{name}`."), body),
-            // The peppylib API nests a contract's members under the
-            // `implements` slot's link_id, with no flat alias.
-            Origin::Interface(id) if node.node.api == NodeApi::Peppylib => {
-                let link_id = node
-                    .node
-                    .conforms_to
-                    .iter()
-                    .find(|c| &c.target == id)
-                    .and_then(|c| c.link_id.as_deref())
-                    .unwrap_or(&id.name);
-                let parts = [module(link_id), module(name)];
-                let doc = format!("`{name}` of contract `{id}`, implemented as slot `{link_id}`.");
-                self.entry(category, &parts, &doc, body)
+        let placed = layout
+            .category(category)
+            .entry(index)
+            .expect("the Rust generator placed every entry");
+        let doc = match placed.parent {
+            Some(ModuleRole::Implements {
+                link_id, contract, ..
+            }) => format!("`{name}` of contract `{contract}`, implemented as slot `{link_id}`."),
+            Some(ModuleRole::InterfaceTag(interface)) => {
+                format!("`{name}` of interface `{interface}`.")
             }
-            Origin::Interface(id) => {
-                let parts = [module(&id.name), module(&id.tag), module(name)];
-                let doc = format!("`{name}` of interface `{id}`.");
-                let path = self.entry(category, &parts, &doc, body);
-                self.specs
-                    .push((category.to_string(), module(name), path.clone()));
-                path
-            }
-        }
+            _ => format!("`{name}`."),
+        };
+        self.entry(category, &placed.path, &doc, body)
     }
 
-    /// The module path (below the category) of a consumed entry: the
-    /// emit API's `<link_id>_<name>`, the peppylib API's
-    /// `<link_id>/<name>` (whose slot package holds the slot's
-    /// bound-producer accessor).
-    fn consumed_parts(
-        &mut self,
-        node: &ResolvedNode,
-        category: &str,
-        link_id: Option<&str>,
-        name: &str,
-    ) -> Vec<String> {
-        match link_id {
-            Some(link_id) if node.node.api == NodeApi::Peppylib => {
-                let init = PathBuf::from(category)
-                    .join(module(link_id))
-                    .join("__init__.py");
-                if !self.slot_packages.iter().any(|(p, _)| *p == init) {
-                    let cardinality = node.node.dependency(link_id).map(|d| d.cardinality);
-                    let text = slot_package(category, link_id, cardinality);
-                    self.slot_packages.push((init, text));
-                }
-                vec![module(link_id), module(name)]
+    /// What the layout adds around the entries: each slot package (with
+    /// its bound-producer accessor) and each conformed entry's module
+    /// under its own name.
+    fn layout_packages(&mut self, layout: &Layout) {
+        for (category, c) in CATEGORY_NAMES.iter().zip(&layout.categories) {
+            for (name, link_id, cardinality) in c.slots() {
+                let init = PathBuf::from(category).join(name).join("__init__.py");
+                let text = slot_package(category, link_id, cardinality);
+                self.slot_packages.push((init, text));
             }
-            _ => vec![consumed_module(link_id, name)],
-        }
-    }
-
-    /// `<category>/<name>.py` re-exporting a conformed entry when no other
-    /// module of the category takes that name.
-    fn flat_reexports(&mut self) {
-        let taken: Vec<PathBuf> = self.list.iter().map(|(p, _)| p.clone()).collect();
-        let mut add = Vec::new();
-        for (category, flat, nested) in &self.specs {
-            let path = PathBuf::from(category).join(format!("{flat}.py"));
-            let interface_dir = PathBuf::from(category).join(flat);
-            let clash = taken.contains(&path)
-                || taken.iter().any(|t| t.starts_with(&interface_dir))
-                || self
-                    .specs
-                    .iter()
-                    .filter(|(c, f, _)| c == category && f == flat)
-                    .count()
-                    > 1;
-            if clash {
-                continue;
+            for alias in &c.aliases {
+                let path = PathBuf::from(category).join(format!("{}.py", alias.module));
+                let relative = alias.path.join(".");
+                let text = format!(
+                    "\"\"\"`{}` of a conformed interface, under its own name.\"\"\"\n\
+                     # Generated by peppy; `peppy-launch sync` rewrites it. Do not edit.\n\
+                     from .{relative} import *  # noqa: F401,F403\n\
+                     from .{relative} import SPEC  # noqa: F401\n",
+                    alias.module
+                );
+                self.list.push((path, text));
             }
-            let relative = nested.trim_start_matches(&format!("{category}."));
-            let text = format!(
-                "\"\"\"`{flat}` of a conformed interface, under its own name.\"\"\"\n\
-                 # Generated by peppy; `peppy-launch sync` rewrites it. Do not edit.\n\
-                 from .{relative} import *  # noqa: F401,F403\n\
-                 from .{relative} import SPEC  # noqa: F401\n"
-            );
-            add.push((path, text));
         }
-        self.list.extend(add);
     }
 
     /// An `__init__.py` in every directory that holds modules.

@@ -1,4 +1,4 @@
-//! Today's `launcher/v1` launchers (current_peppyos.md §5.1-§5.3, §3
+//! `launcher/v1` launchers (current_peppyos.md §5.1-§5.3, §3
 //! "Vacancy"): read into the launcher model with `links` instead of
 //! `bindings`, parse-time rules only; a composed launcher reads as its
 //! default selection (composition itself: composition.rs).
@@ -301,9 +301,9 @@ fn a_fragment_is_not_a_document_on_its_own() {
 /// spelling it belongs to.
 #[test]
 fn each_spelling_refuses_the_others_slot_key() {
-    let seeds = r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "cam:v1" }, instances: [
+    let underscored = r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "cam:v1" }, instances: [
         { instance_id: "a", links: { cam: "a" }, framework: {} } ] }] }"#;
-    let errors = launcher_err(seeds);
+    let errors = launcher_err(underscored);
     assert_eq!(
         codes(&errors),
         [Code::UnknownKey, Code::UnknownKey],
@@ -314,7 +314,7 @@ fn each_spelling_refuses_the_others_slot_key() {
         found[0],
         Code::UnknownKey,
         "deployments[0].instances[0].links",
-        seeds,
+        underscored,
         "links:",
     );
     assert_eq!(
@@ -325,12 +325,13 @@ fn each_spelling_refuses_the_others_slot_key() {
         help(found[0]),
         "`links` is the slashed spelling (`launcher/v1`); a `launcher_v1` file writes `bindings`"
     );
-    // `framework` is today's only: the seeds' usual unknown-key error.
+    // `framework` is the slashed spelling's only: the underscored one's usual
+    // unknown-key error.
     assert_at(
         found[1],
         Code::UnknownKey,
         "deployments[0].instances[0].framework",
-        seeds,
+        underscored,
         "framework:",
     );
     assert!(
@@ -339,15 +340,15 @@ fn each_spelling_refuses_the_others_slot_key() {
         found[1]
     );
 
-    let today = with_instances(r#"{ instance_id: "c", bindings: { cam: "a" } }"#);
-    let errors = launcher_err(&today);
+    let slashed = with_instances(r#"{ instance_id: "c", bindings: { cam: "a" } }"#);
+    let errors = launcher_err(&slashed);
     assert_eq!(codes(&errors), [Code::UnknownKey], "{errors}");
     let d = one(&errors, Code::UnknownKey);
     assert_at(
         d,
         Code::UnknownKey,
         "deployments[1].instances[0].bindings",
-        &today,
+        &slashed,
         "bindings:",
     );
     assert_eq!(
@@ -645,7 +646,7 @@ fn link_targets_name_instances_of_the_launcher() {
 }
 
 #[test]
-fn instance_ids_are_unique_in_todays_spelling_too() {
+fn instance_ids_are_unique_in_the_slashed_spelling_too() {
     let text = with_instances(r#"{ instance_id: "a" }"#);
     let errors = launcher_err(&text);
     assert_eq!(codes(&errors), [Code::DuplicateInstanceId], "{errors}");
@@ -704,11 +705,11 @@ fn framework_holds_only_use_sim_time() {
     );
 }
 
-/// Today's `env_vars`: PeppyOS's stricter shape (a shell identifier, the
-/// same forbidden hooks, a shell-safe value). The seeds' spelling keeps its
-/// own, looser rules.
+/// `env_vars` in `launcher/v1`: PeppyOS's stricter shape (a shell
+/// identifier, the same forbidden hooks, a shell-safe value). The
+/// underscored spelling keeps its own, looser rules.
 #[test]
-fn env_vars_take_todays_stricter_shape() {
+fn env_vars_take_the_slashed_spellings_stricter_shape() {
     let text = with_instances(
         r#"{ instance_id: "c", env_vars: { "has-dash": "x", "1X": "x", ld_preload: "/tmp/e.so", GREETING: "hello world", CMD: "$(whoami)",
            OK_1: "info,my_node=debug", _PATH: "/opt/.venv/bin:/usr/bin", EMPTY: "", URL: "https://example.com/a%20b+c@d" } }"#,
@@ -762,7 +763,7 @@ fn env_vars_take_todays_stricter_shape() {
         "a value may hold letters, digits and `_ - . / : , = @ + %` (no whitespace, quotes or shell metacharacters)"
     );
 
-    // The seeds' spelling is unchanged.
+    // The underscored spelling is unchanged.
     let l = launcher_ok(
         r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "cam:v1" }, instances: [
             { instance_id: "a", env_vars: { "has-dash": "hello world" } } ] }] }"#,
@@ -810,7 +811,7 @@ fn core_node_placeholders_are_names_other_than_self() {
         format!("invalid core node name `{long}`: longer than 63 characters")
     );
 
-    // Placement on an undeclared placeholder, as in the seeds' spelling.
+    // Placement on an undeclared placeholder, as in the underscored spelling.
     let text = r#"{ peppy_schema: "launcher/v1", core_nodes: ["robot_onboard"],
   deployments: [{ source: { name: "cam:v1" }, instances: [{ instance_id: "cam", core_node: "robot_onbaord" }] }] }"#;
     let errors = launcher_err(text);
@@ -825,7 +826,7 @@ fn core_node_placeholders_are_names_other_than_self() {
     );
     assert!(help(d).starts_with("did you mean `robot_onboard`?"), "{d}");
 
-    // The seeds' spelling keeps accepting what it accepted.
+    // The underscored spelling keeps accepting what it accepted.
     let l = launcher_ok(
         r#"{ peppy_schema: "launcher_v1", core_nodes: ["self"],
             deployments: [{ source: { name: "cam:v1" }, instances: [{ instance_id: "cam", core_node: "self" }] }] }"#,
@@ -833,10 +834,10 @@ fn core_node_placeholders_are_names_other_than_self() {
     assert_eq!(l.core_nodes[0].name, "self");
 }
 
-/// Today's tag rule (a letter first, no dots) on repository sources;
-/// peppy's own source kinds stay available (documented extension).
+/// The slashed spelling's tag rule (a letter first, no dots) on repository
+/// sources; peppy's own source kinds stay available (documented extension).
 #[test]
-fn sources_in_todays_spelling() {
+fn sources_in_the_slashed_spelling() {
     let text = r#"{ peppy_schema: "launcher/v1", deployments: [
     { source: { name: "cam:0.1.0" }, instances: [{ instance_id: "a" }] },
     { source: { name: "lidar", tag: "v1", url: "x" }, instances: [{ instance_id: "b" }] },
@@ -883,7 +884,7 @@ fn sources_in_todays_spelling() {
     );
     assert!(matches!(l.deployments[1].source, Source::Git { .. }));
     assert!(matches!(l.deployments[2].source, Source::Archive { .. }));
-    // The seeds' spelling still takes dotted versions.
+    // The underscored spelling still takes dotted versions.
     launcher_ok(
         r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "cam:0.1.0" }, instances: [{ instance_id: "a" }] }] }"#,
     );
