@@ -891,7 +891,7 @@ mod tests {
     }
 
     /// A `node/v1` consumer with one slot of each cardinality.
-    fn today() -> NodeModel {
+    fn slashed_node() -> NodeModel {
         model(
             r#"{ peppy_schema: "node/v1",
                 manifest: { name: "mapper", tag: "v1", depends_on: {
@@ -916,7 +916,7 @@ mod tests {
             .with_vacant_producer_slot("extra")
             .with_bound_producer("scans", "lab", "lidar_b")
             .with_messaging("192.0.2.7", 7447);
-        let s = load(&today(), args(&[]), None, &code).unwrap();
+        let s = load(&slashed_node(), args(&[]), None, &code).unwrap();
         let slot = |id: &str| {
             s.slots
                 .iter()
@@ -945,7 +945,7 @@ mod tests {
         assert!(!s.zenoh.multicast_scouting);
         // A command line that links anything replaces the code's links whole.
         let s = load(
-            &today(),
+            &slashed_node(),
             args(&[
                 "--link",
                 "scan@lidar_c",
@@ -974,16 +974,16 @@ mod tests {
         );
         // And the code's links go through the same rules as flags.
         let wrong = StandaloneConfig::new().with_vacant_producer_slot("scan");
-        let e = load(&today(), args(&[]), None, &wrong)
+        let e = load(&slashed_node(), args(&[]), None, &wrong)
             .unwrap_err()
             .to_string();
         assert!(e.contains("LinkVacantInvalid"), "{e}");
     }
 
     #[test]
-    fn link_flags_fill_todays_slots_in_order() {
+    fn link_flags_fill_cardinality_slots_in_order() {
         let s = start(
-            &today(),
+            &slashed_node(),
             &[
                 "--link",
                 "scan@lidar_a",
@@ -1033,8 +1033,8 @@ mod tests {
     }
 
     #[test]
-    fn link_flags_refuse_what_todays_rules_refuse() {
-        let text = |a: &[&str]| start(&today(), a).unwrap_err().to_string();
+    fn link_flags_refuse_what_the_links_rules_refuse() {
+        let text = |a: &[&str]| start(&slashed_node(), a).unwrap_err().to_string();
         // zero_or_one left out, one_or_more unlinked: both named.
         let e = text(&["--link", "scan@a"]);
         assert!(

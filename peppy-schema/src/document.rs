@@ -257,15 +257,15 @@ fn unknown_schema(file: &Arc<SourceFile>, root: &Node) -> Diagnostic {
     {
         return crate::launcher::fragment_refused(file, n);
     }
-    let today = root
+    let not_yet_read = root
         .get("peppy_schema")
         .and_then(Node::as_str)
         .and_then(|s| NOT_YET_READ.iter().find(|(k, _)| *k == s));
-    if let (Some((kind, seeds)), Some(n)) = (today, root.get("peppy_schema")) {
-        let instead = if seeds.is_empty() {
+    if let (Some((kind, underscored)), Some(n)) = (not_yet_read, root.get("peppy_schema")) {
+        let instead = if underscored.is_empty() {
             String::new()
         } else {
-            format!("; write this document as `{seeds}` meanwhile")
+            format!("; write this document as `{underscored}` meanwhile")
         };
         return Diagnostic::error(
             Code::UnknownSchema,

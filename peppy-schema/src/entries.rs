@@ -285,7 +285,7 @@ fn parse_action_in(
     path: &str,
     spelling: Spelling,
 ) -> Option<ActionDecl> {
-    let today = spelling == Spelling::SlashIds;
+    let slashed = spelling == Spelling::SlashIds;
     let obj = r.object(
         node,
         path,
@@ -308,7 +308,7 @@ fn parse_action_in(
                 &gobj.path_of("request_message_format"),
                 &mut ok,
             );
-            if today {
+            if slashed {
                 goal_response = parse_optional_format(
                     r,
                     gobj.get("response_message_format"),
@@ -331,7 +331,7 @@ fn parse_action_in(
     let mut feedback = None;
     if let Some(f) = obj.get("feedback_topic") {
         let fpath = obj.path_of("feedback_topic");
-        let keys: &[&str] = if today {
+        let keys: &[&str] = if slashed {
             &["qos_profile", "message_format", "type", "name"]
         } else {
             &["qos_profile", "message_format"]
@@ -370,7 +370,7 @@ fn parse_action_in(
     let mut result = None;
     if let Some(s) = obj.get("result_service") {
         let spath = obj.path_of("result_service");
-        let keys: &[&str] = if today {
+        let keys: &[&str] = if slashed {
             &["response_message_format"]
         } else {
             &["request_message_format", "response_message_format"]

@@ -284,9 +284,9 @@ pub(crate) fn parse_launcher(
     cross_check: bool,
 ) -> Option<LauncherDoc> {
     let spelling = Spelling::of(root);
-    let today = spelling == Spelling::SlashIds;
+    let slashed = spelling == Spelling::SlashIds;
     let mut r = Reader::new(file, diags);
-    let keys: &[&str] = if today {
+    let keys: &[&str] = if slashed {
         &[
             "peppy_schema",
             "core_nodes",
@@ -299,7 +299,7 @@ pub(crate) fn parse_launcher(
     } else {
         &["peppy_schema", "core_nodes", "security", "deployments"]
     };
-    if today && crate::compose::is_composed(root) {
+    if slashed && crate::compose::is_composed(root) {
         return crate::compose::default_flat(file, r.diags, cross_check);
     }
     let obj = r.object(root, "", keys)?;

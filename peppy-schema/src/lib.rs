@@ -69,6 +69,8 @@ mod launcher;
 #[cfg(feature = "documents")]
 pub mod layout;
 #[cfg(feature = "documents")]
+pub mod migrate;
+#[cfg(feature = "documents")]
 mod node;
 #[cfg(feature = "documents")]
 mod pair_links;
@@ -171,5 +173,5 @@ pub use source::sha256_hex;
 pub use stack::{
     DeployedNode, FetchError, FetchSource, NoFetch, NodeCheck, RepoOptions, StackCheck,
     check_launcher, check_launcher_selection, check_launcher_with, check_node, check_resolved,
-    node_file,
+    fills, node_file,
 };

@@ -96,6 +96,58 @@ pub struct StackCheck {
     pub warnings: Diagnostics,
 }
 
+impl StackCheck {
+    /// The resolved node instance `id` runs.
+    pub fn node_of(&self, id: &str) -> Option<&ResolvedNode> {
+        self.plan
+            .instance(id)
+            .map(|i| &self.deployments[i.deployment].resolved)
+    }
+
+    /// The instances of the stack whose messages `slot` of `consumer`
+    /// takes: its pinned producer, its bound producers, or, for an unbound
+    /// `from_any` slot, every other instance that fits it (the binding
+    /// engine's rule) and its filter accepts.
+    pub fn slot_producers(
+        &self,
+        consumer: &crate::plan::InstancePlan,
+        slot: &crate::binding::SlotPlan,
+    ) -> Vec<String> {
+        use crate::binding::{RouteFilter, SlotBinding};
+        match &slot.binding {
+            SlotBinding::Pinned { producer } => vec![producer.clone()],
+            SlotBinding::Set { producers, .. } => producers.clone(),
+            SlotBinding::FromAnyBound { .. } => match &slot.filter {
+                RouteFilter::OnlyFrom(set) => set.iter().cloned().collect(),
+                _ => Vec::new(),
+            },
+            SlotBinding::FromAnyUnbound => self
+                .plan
+                .instances
+                .iter()
+                .filter(|p| p.instance_id != consumer.instance_id)
+                .filter(|p| {
+                    self.node_of(&p.instance_id)
+                        .is_some_and(|r| fills(slot.kind, &slot.target, &r.node))
+                })
+                .filter(|p| slot.filter.accepts(&p.instance_id))
+                .map(|p| p.instance_id.clone())
+                .collect(),
+        }
+    }
+}
+
+/// Whether `producer` can fill a slot of `kind` wanting `target`: the
+/// binding engine's rule.
+pub fn fills(kind: crate::SlotKind, target: &crate::Identity, producer: &NodeDoc) -> bool {
+    let conforms = crate::binding::conformances(producer);
+    crate::binding::Producer {
+        node: &producer.identity(),
+        conforms_to: &conforms,
+    }
+    .fits(kind, target)
+}
+
 /// Brings the files of a remote source (`{ repo, path, ref }` or
 /// `{ url, sha256 }`) to a local directory. The schema only describes
 /// sources; a launcher that fetches them (git, downloads, a cache)

@@ -6,7 +6,7 @@ mod equivalence;
 mod errors;
 mod pairings;
 mod scale;
+mod slash_ids;
 mod snapshots;
 mod support;
 mod sync;
-mod today;

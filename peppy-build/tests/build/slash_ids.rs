@@ -1,4 +1,4 @@
-//! Today's `node/v1` nodes get PeppyOS's module paths: a contract's members
+//! `node/v1` nodes get PeppyOS's module paths: a contract's members
 //! under the `implements` link_id, consumed entries under their slot's
 //! link_id with the slot's bound-producer accessor; sibling modules that
 //! read the same once sanitised are a located `ModuleNameCollision`.
@@ -56,7 +56,7 @@ fn an_implementer_nests_contract_members_under_its_link_id() {
     ] {
         assert!(has(&paths, p), "{p} missing from {paths:#?}");
     }
-    // No seeds-style `<interface>::<tag>` nesting and no flat aliases.
+    // No `node_v1`-style `<interface>::<tag>` nesting and no flat aliases.
     assert!(
         !paths.iter().any(|p| p.contains("gripper::v1")),
         "{paths:#?}"
@@ -102,8 +102,8 @@ fn a_consumer_nests_by_slot_with_typed_bound_producers() {
         text.contains(") -> &[::peppy::codegen::ProducerRef] {"),
         "{text}"
     );
-    // Every entry module of a slot repeats its accessor, where today's
-    // code reaches for it, and today's calls name their target.
+    // Every entry module of a slot repeats its accessor, where `peppylib`
+    // API code reaches for it, and its calls name their target.
     for p in [
         "consumed_topics::main_hand::joint_state::bound_producer",
         "consumed_topics::main_hand::joint_state::subscribe()",
@@ -116,7 +116,7 @@ fn a_consumer_nests_by_slot_with_typed_bound_producers() {
         text.contains("target: &::peppy::codegen::ProducerRef,"),
         "{text}"
     );
-    // A node/v1 server decides with `GoalDecision`, the seeds' `GoalResponse` is not offered.
+    // A node/v1 server decides with `GoalDecision`; the `emit` API's `GoalResponse` is not offered.
     let server = config(&fixtures().join("gripper_driver"))
         .generate()
         .unwrap();
@@ -197,7 +197,7 @@ fn sibling_modules_that_sanitise_alike_are_a_module_name_collision() {
 }
 
 /// The `.peppy/libs` crates of a node: the generated items, the clock, and
-/// the runtime under today's names; nothing of this machine in them but the
+/// the runtime under PeppyOS's names; nothing of this machine in them but the
 /// peppy path given; each node's `peppygen` named apart (nodes built into
 /// one target directory must not take each other's).
 #[test]

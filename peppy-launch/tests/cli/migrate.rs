@@ -1,4 +1,4 @@
-//! `peppy-launch migrate`: every example document, rewritten in today's
+//! `peppy-launch migrate`: every example document, rewritten in the slashed
 //! spelling, still reads, and every example launcher still plans the same
 //! producers into the same slots.
 
@@ -34,7 +34,7 @@ fn documents(dir: &Path) -> Vec<PathBuf> {
     out
 }
 
-/// Each slot's producers, the way the seeds' routing and today's links
+/// Each slot's producers, the way `launcher_v1` routing and `launcher/v1` links
 /// both mean them: a bound from_any slot's producers are a set's.
 fn producers(b: &SlotBinding) -> Vec<String> {
     match b {
@@ -94,13 +94,13 @@ fn every_example_migrates_to_a_valid_document_and_the_same_plan() {
         let text = std::fs::read_to_string(tmp.path().join(doc)).unwrap();
         assert!(
             !text.contains("_v1\""),
-            "{} still names a seeds' schema:\n{text}",
+            "{} still names an underscored schema id:\n{text}",
             doc.display()
         );
         let file = SourceFile::new(tmp.path().join(doc), text.clone());
         match parse_document(&file, &peppy_schema::sha256_hex(text.as_bytes())) {
             Ok(_) => {}
-            // A version-like tag (`0.1.0`) is not a tag today; renaming it
+            // A version-like tag (`0.1.0`) is not a slashed-spelling tag; renaming it
             // would break every reference, so it is reported, not rewritten.
             Err(d) if doc.starts_with("nodes/gripper") => {
                 assert!(
@@ -155,7 +155,7 @@ fn every_example_migrates_to_a_valid_document_and_the_same_plan() {
 }
 
 #[test]
-fn a_document_of_today_is_left_alone() {
+fn a_document_in_the_slashed_spelling_is_left_alone() {
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("c.json5");
     let text = "// kept\n{ peppy_schema: \"contract/v1\", manifest: { name: \"c\", tag: \"v1\" }, interfaces: {} }\n";

@@ -1,5 +1,5 @@
 //! Placement by `--place LINK@CORE_NODE` and launchers found by name: a
-//! launcher's core nodes (today's placeholders) bound to machines, which
+//! launcher's core nodes (`launcher/v1` placeholders) bound to machines, which
 //! then name the instances' keys; every misuse refused before anything
 //! starts; `up NAME` finding the launcher through the repositories.
 
@@ -194,7 +194,7 @@ fn check_and_graph_show_the_stack_on_its_machines() {
     }
 }
 
-/// Three core nodes of a today's launcher on two machines of one host:
+/// Three core nodes of a `launcher/v1` launcher on two machines of one host:
 /// `sensors` and `compute` share machine `bench`, `display` is on `desk`.
 /// Each `up` starts what is placed on it (`@self`, named by
 /// `--core-node`), the two routers link, the viewer on `desk` receives

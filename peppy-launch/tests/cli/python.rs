@@ -260,13 +260,14 @@ fn seed_000_python_consumer_keys_frames_by_producer() {
     assert_eq!(launch.stop(), 0);
 }
 
-/// A Python node in today's API and layout (`examples/nodes/py_today_camera`:
-/// `node/v1`, `.peppy/libs`, `uv sync --no-editable`, run from its own
-/// `.venv`) under `up`: the Rust viewer hears its frames, which the stack
-/// clock stamps, and its shutdown hook runs on Ctrl-C before it exits 0.
+/// A Python node in PeppyOS's `peppylib` API and layout
+/// (`examples/nodes/py_peppylib_camera`: `node/v1`, `.peppy/libs`,
+/// `uv sync --no-editable`, run from its own `.venv`) under `up`: the Rust
+/// viewer hears its frames, which the stack clock stamps, and its shutdown
+/// hook runs on Ctrl-C before it exits 0.
 #[test]
-fn a_python_node_in_todays_api_and_layout_runs_under_up() {
-    let mut launch = Launch::up("examples/launchers/py_today_camera.json5", &[]);
+fn a_python_node_in_the_peppylib_api_and_libs_layout_runs_under_up() {
+    let mut launch = Launch::up("examples/launchers/py_peppylib_camera.json5", &[]);
     launch.expect("with the viewer hearing py_cam", BUILD_AND_START, |l| {
         l.starts_with("[viewer]") && l.contains("first frame from py_cam")
     });
@@ -291,7 +292,7 @@ fn a_python_node_in_todays_api_and_layout_runs_under_up() {
     assert_eq!(code, 0, "{}", seen.join("\n"));
     assert!(
         seen.iter()
-            .any(|l| l.starts_with("[py_cam] py_today_camera: stopping after")),
+            .any(|l| l.starts_with("[py_cam] py_peppylib_camera: stopping after")),
         "the shutdown hook ran:\n{}",
         seen.join("\n")
     );
@@ -352,9 +353,9 @@ fn a_container_node_is_synced_into_the_libs_layout() {
     let dir = tempfile::tempdir().unwrap();
     let node = dir.path().join("engine");
     std::fs::create_dir_all(&node).unwrap();
-    let example = root().join("examples/nodes/py_today_camera/peppy.json5");
+    let example = root().join("examples/nodes/py_peppylib_camera/peppy.json5");
     let text = std::fs::read_to_string(example).unwrap();
-    let commands = "build_cmd: [\"uv\", \"sync\", \"--no-editable\"],\n    run_cmd: [\"./.venv/bin/python\", \"-m\", \"py_today_camera\"],";
+    let commands = "build_cmd: [\"uv\", \"sync\", \"--no-editable\"],\n    run_cmd: [\"./.venv/bin/python\", \"-m\", \"py_peppylib_camera\"],";
     assert!(text.contains(commands), "{text}");
     let text = text.replace(commands, "container: { def_file: \"apptainer.def\" },");
     std::fs::write(node.join("peppy.json5"), text).unwrap();
@@ -391,13 +392,13 @@ fn a_container_node_is_synced_into_the_libs_layout() {
 fn sync_writes_the_libs_projects_and_uv_reinstalls_what_changed() {
     let dir = tempfile::tempdir().unwrap();
     let node = dir.path().join("cam");
-    let example = root().join("examples/nodes/py_today_camera");
-    std::fs::create_dir_all(node.join("src/py_today_camera")).unwrap();
+    let example = root().join("examples/nodes/py_peppylib_camera");
+    std::fs::create_dir_all(node.join("src/py_peppylib_camera")).unwrap();
     for file in [
         "peppy.json5",
         "pyproject.toml",
-        "src/py_today_camera/__init__.py",
-        "src/py_today_camera/__main__.py",
+        "src/py_peppylib_camera/__init__.py",
+        "src/py_peppylib_camera/__main__.py",
     ] {
         std::fs::copy(example.join(file), node.join(file)).unwrap();
     }
@@ -472,7 +473,7 @@ fn sync_writes_the_libs_projects_and_uv_reinstalls_what_changed() {
         .unwrap();
     assert_eq!(
         String::from_utf8_lossy(&probe.stdout).trim(),
-        "peppy.clock py_today_camera",
+        "peppy.clock py_peppylib_camera",
         "{}",
         String::from_utf8_lossy(&probe.stderr)
     );
@@ -504,7 +505,7 @@ fn python_examples_pass_their_harness_tests() {
     for example in [
         "py_arm_controller",
         "py_depth_camera",
-        "py_today_camera",
+        "py_peppylib_camera",
         "py_joint_follower",
     ] {
         let node = repo.join("nodes").join(example);
@@ -570,7 +571,7 @@ fn a_long_grace_window_is_waited_for_by_the_launcher() {
   peppy_schema: "launcher/v1",
   deployments: [
     {
-      source: { name: "py_today_camera", tag: "v1" },
+      source: { name: "py_peppylib_camera", tag: "v1" },
       instances: [{
         instance_id: "slow_cam",
         env_vars: { PEPPY_SHUTDOWN_GRACE_SECS: "7200" },
@@ -598,7 +599,7 @@ fn a_long_grace_window_is_waited_for_by_the_launcher() {
     );
     assert!(
         seen.iter()
-            .any(|l| l.starts_with("[slow_cam] py_today_camera: stopping after")),
+            .any(|l| l.starts_with("[slow_cam] py_peppylib_camera: stopping after")),
         "the hook ran to its end:\n{}",
         seen.join("\n")
     );

@@ -1,6 +1,7 @@
-//! Today's PeppyOS spelling end to end: a `node/v1` node linked by a
-//! `launcher/v1` file to nodes of the seeds' spelling is checked, planned
-//! and run like any stack, its slots filled exactly as linked.
+//! The slashed-id spelling (PeppyOS v0.13 on) end to end: a `node/v1` node
+//! linked by a `launcher/v1` file to `node_v1` nodes is checked, planned
+//! and run like any stack, its slots filled exactly as linked; nodes in
+//! PeppyOS's `peppylib` API sync, build and run beside `emit` API ones.
 
 use std::time::Duration;
 
@@ -10,7 +11,7 @@ use crate::support::{peppy_launch, root};
 const VIEWER: &str = "examples/launchers/camera_viewer.json5";
 
 #[test]
-fn check_prints_todays_links_as_planned() {
+fn check_prints_the_links_of_a_slashed_launcher_as_planned() {
     let run = peppy_launch(&root(), &["check", VIEWER]);
     assert_eq!(run.code, 0, "{}", run.stderr);
     // A `node/v1` consumer's slots are named as it names them: contracts.
@@ -29,7 +30,7 @@ fn check_prints_todays_links_as_planned() {
 }
 
 #[test]
-fn a_todays_stack_runs_with_its_slots_as_linked() {
+fn a_slashed_launcher_runs_with_its_slots_as_linked() {
     let mut launch = Launch::up(VIEWER, &[]);
     launch.expect(
         "naming the cameras slot's producers",
@@ -86,40 +87,41 @@ fn run_takes_link_flags_and_refuses_what_the_links_rules_refuse() {
     );
 }
 
-const TODAY_CAMERA: &str = "examples/nodes/today_camera";
+const PEPPYLIB_CAMERA: &str = "examples/nodes/peppylib_camera";
 
-/// `sync` of a node in today's `.peppy/libs` layout is deterministic: the
+/// `sync` of a node in the `.peppy/libs` layout is deterministic: the
 /// example's committed crates are exactly what it writes (so a second run,
 /// and this one, write nothing), and cargo then has nothing to rebuild.
 #[test]
 fn sync_writes_nothing_twice_and_cargo_rebuilds_nothing() {
-    let crates = root().join(TODAY_CAMERA).join(".peppy/libs");
+    let crates = root().join(PEPPYLIB_CAMERA).join(".peppy/libs");
     let before = snapshot(&crates);
     for _ in 0..2 {
-        let run = peppy_launch(&root(), &["sync", TODAY_CAMERA]);
+        let run = peppy_launch(&root(), &["sync", PEPPYLIB_CAMERA]);
         assert_eq!(run.code, 0, "{}", run.stderr);
         assert!(
-            run.stdout.contains("today_camera:v1: ") && run.stdout.contains("(0 file(s) changed)"),
-            "the committed crates differ from what sync writes (run `peppy-launch sync {TODAY_CAMERA}` and commit):\n{}",
+            run.stdout.contains("peppylib_camera:v1: ")
+                && run.stdout.contains("(0 file(s) changed)"),
+            "the committed crates differ from what sync writes (run `peppy-launch sync {PEPPYLIB_CAMERA}` and commit):\n{}",
             run.stdout
         );
     }
     assert_eq!(snapshot(&crates), before, "sync touched a file");
     // Built once (cargo test built it already, or this does), a build after
     // sync finds every unit fresh.
-    crate::support::cargo(&["build", "--quiet", "-p", "today_camera"]);
-    let out = crate::support::cargo(&["build", "-p", "today_camera", "--message-format=json"]);
+    crate::support::cargo(&["build", "--quiet", "-p", "peppylib_camera"]);
+    let out = crate::support::cargo(&["build", "-p", "peppylib_camera", "--message-format=json"]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     let units: Vec<&str> = stdout
         .lines()
         .filter(|l| l.contains("\"reason\":\"compiler-artifact\""))
         .filter(|l| {
-            ["peppygen", "peppylib", "today_camera"]
+            ["peppygen", "peppylib", "peppylib_camera"]
                 .iter()
                 .any(|c| l.contains(&format!("\"name\":\"{c}\"")))
         })
         .collect();
-    // peppygen, peppylib, and today_camera's library and binary.
+    // peppygen, peppylib, and peppylib_camera's library and binary.
     assert_eq!(units.len(), 4, "{stdout}");
     for unit in units {
         assert!(
@@ -156,17 +158,21 @@ fn walk(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
     out
 }
 
-/// Today's node code and the seeds' in one stack: the Rust and the Python
-/// camera in today's API and layout and the seeds' RealSense all feed the
-/// viewer's held subscription; Ctrl-C runs the cameras' shutdown hooks and
-/// every node stops cleanly.
+/// Both node APIs in one stack: the Rust and the Python camera in PeppyOS's
+/// `peppylib` API and `.peppy/libs` layout and the RealSense (`node_v1`, the
+/// `emit` API) all feed the viewer's held subscription; Ctrl-C runs the
+/// cameras' shutdown hooks and every node stops cleanly.
 #[test]
-fn todays_node_code_runs_beside_the_seeds() {
-    let mut launch = Launch::up("examples/launchers/today_stack.json5", &[]);
-    launch.expect("from today's camera", BUILD_AND_START, |l| {
-        l.starts_with("[today_cam]") && l.contains("today_camera: first frame (96x72)")
+fn peppylib_api_nodes_run_beside_an_emit_api_node() {
+    let mut launch = Launch::up("examples/launchers/peppylib_stack.json5", &[]);
+    launch.expect("from the peppylib camera", BUILD_AND_START, |l| {
+        l.starts_with("[peppylib_cam]") && l.contains("peppylib_camera: first frame (96x72)")
     });
-    for camera in ["today_cam (96x72)", "py_cam (64x48)", "rs_left (160x120)"] {
+    for camera in [
+        "peppylib_cam (96x72)",
+        "py_cam (64x48)",
+        "rs_left (160x120)",
+    ] {
         launch.expect("with a first frame", Duration::from_secs(30), |l| {
             l.starts_with("[viewer]") && l.contains(&format!("cameras: first frame from {camera}"))
         });
@@ -174,8 +180,8 @@ fn todays_node_code_runs_beside_the_seeds() {
     let (code, seen) = launch.stop_seen();
     assert_eq!(code, 0, "{}", seen.join("\n"));
     for (instance, hook) in [
-        ("[today_cam]", "today_camera: stopping after"),
-        ("[py_cam]", "py_today_camera: stopping after"),
+        ("[peppylib_cam]", "peppylib_camera: stopping after"),
+        ("[py_cam]", "py_peppylib_camera: stopping after"),
     ] {
         assert!(
             seen.iter()
@@ -186,15 +192,15 @@ fn todays_node_code_runs_beside_the_seeds() {
     }
 }
 
-/// `today_camera` restarted when it fails.
+/// `peppylib_camera` restarted when it fails.
 const RESTARTING_CAMERA: &str = r#"{ peppy_schema: "launcher/v1",
     deployments: [
-      { source: { name: "today_camera:v1" },
+      { source: { name: "peppylib_camera:v1" },
         instances: [{ instance_id: "cam", restart: "on-failure" }] } ] }"#;
 
 /// The datastore lives in the launch, the node's core node: a camera
 /// SIGKILLed and restarted under `on-failure` reads back the count of its
-/// starts it stored before (`today_camera` counts them there), written by
+/// starts it stored before (`peppylib_camera` counts them there), written by
 /// itself.
 #[test]
 fn a_restarted_node_reads_back_what_it_stored_in_the_datastore() {
@@ -216,7 +222,7 @@ fn a_restarted_node_reads_back_what_it_stored_in_the_datastore() {
         &[("PEPPY_STATE_DIR", state.path())],
     );
     launch.expect("with its first start counted", BUILD_AND_START, |l| {
-        l == "[cam] today_camera: start 1"
+        l == "[cam] peppylib_camera: start 1"
     });
     let info = crate::support::peppy_launch_with(
         &root(),
@@ -239,7 +245,7 @@ fn a_restarted_node_reads_back_what_it_stored_in_the_datastore() {
         mark,
         "with its second start counted",
         Duration::from_secs(60),
-        |l| l == "[cam] today_camera: start 2 (the count was last written by cam)",
+        |l| l == "[cam] peppylib_camera: start 2 (the count was last written by cam)",
     );
     assert_eq!(launch.stop(), 0);
 }

@@ -1,5 +1,5 @@
 //! One binding engine: a node started on its own with `--bind` (or
-//! today's `--link` / `--vacant-link`) flags (as
+//! the slashed spelling's `--link` / `--vacant-link`) flags (as
 //! `peppy-launch run` and `peppy-launch plan` start it) gets exactly the
 //! plan `up` gives it from the launcher file (slots, filters, parameters),
 //! for every example launcher.
@@ -47,12 +47,13 @@ fn run_bind_and_up_bind_every_example_launcher_identically() {
                 "--params".into(),
                 params.display().to_string(),
             ];
-            for b in &inst.bindings {
-                args.extend(["--bind".into(), format!("{}@{}", b.key, b.target)]);
-            }
-            // Today's links: a flag per target, in order; a vacancy by its reason.
+            // A `launcher_v1` binding is `--bind`; a `launcher/v1` link a flag
+            // per target, in order; a vacancy by its reason.
             for l in &inst.links {
                 match &l.value {
+                    LinkValue::Bound(t) => {
+                        args.extend(["--bind".into(), format!("{}@{}", l.key, t.instance)]);
+                    }
                     LinkValue::Vacant { reason, .. } => {
                         args.extend(["--vacant-link".into(), format!("{}={reason}", l.key)]);
                     }
@@ -72,7 +73,7 @@ fn run_bind_and_up_bind_every_example_launcher_identically() {
         }
     }
     // Every valid example launcher took part, consumers with free-form keys
-    // and today's links (a list and a vacancy) among them.
+    // and `launcher/v1` links (a list and a vacancy) among them.
     assert!(compared.len() >= 12, "{compared:?}");
     assert!(compared.iter().any(|i| i == "mosaic_1"), "{compared:?}");
     assert!(compared.iter().any(|i| i == "viewer"), "{compared:?}");

@@ -1,6 +1,8 @@
 //! The golden vectors the Rust and Python runtimes share
 //! (`tests/golden/wire.json`, docs/WIRE.md): every key, attachment and
-//! format fingerprint there, built and read back by this runtime. The
+//! format fingerprint there, built and read back by this runtime; and the
+//! rules both runtimes apply (plans, route filters, named servers, grace
+//! windows, instance descriptions, `info` answers), from the same vectors. The
 //! message vectors are encoded and decoded from their format text by the
 //! launcher's `inspect::dynamic` (its tests read the same file), the codec
 //! walk that needs no generated type.
@@ -451,5 +453,275 @@ fn grace_windows_are_read_as_the_vectors_say() {
             .as_f64()
             .map(std::time::Duration::from_secs_f64);
         assert_eq!(got, want, "{case}");
+    }
+}
+
+/// Which producers a slot's route filter lets through, the filter as the
+/// plan writes it (§8), as the Python runtime judges it from the same
+/// vectors; and the filters neither runtime reads.
+#[test]
+fn golden_route_filters_accept_as_written() {
+    let golden = golden();
+    let vectors = &golden["route_filters"];
+    let cases = vectors["accepts"]
+        .as_array()
+        .expect("route_filters.accepts");
+    assert!(cases.len() >= 12, "{} route filter vectors", cases.len());
+    for case in cases {
+        let filter: peppy_schema::RouteFilter = serde_json::from_value(case["filter"].clone())
+            .unwrap_or_else(|e| panic!("{case}: {e}"));
+        let accepts = filter.accepts(text(case, "instance"));
+        assert_eq!(Some(accepts), case["accepts"].as_bool(), "{case}");
+    }
+    let rejected = vectors["rejected"]
+        .as_array()
+        .expect("route_filters.rejected");
+    assert!(rejected.len() >= 5, "{} rejected filters", rejected.len());
+    for bad in rejected {
+        assert!(
+            serde_json::from_value::<peppy_schema::RouteFilter>(bad.clone()).is_err(),
+            "{bad} was read"
+        );
+    }
+}
+
+/// The server a request through a slot goes to without probing (`null`:
+/// it probes), as the Python runtime's `target.named_server` says from the
+/// same vectors.
+#[test]
+fn golden_named_servers_are_as_written() {
+    let golden = golden();
+    let cases = golden["named_servers"].as_array().expect("named_servers");
+    assert!(cases.len() >= 10, "{} named-server vectors", cases.len());
+    for case in cases {
+        let plan: peppy_schema::SlotPlan = serde_json::from_value(json!({
+            "link_id": "s",
+            "kind": "interface",
+            "target": { "name": "cam", "tag": "v1" },
+            "binding": case["binding"],
+            "filter": case["filter"],
+        }))
+        .unwrap_or_else(|e| panic!("{case}: {e}"));
+        assert_eq!(plan.named_server(), case["server"].as_str(), "{case}");
+    }
+}
+
+/// The description an instance answers on its describe key (§9): built
+/// from the vector's inputs as `NodeRunner::describe` and the node's
+/// consumed routes build it, written byte for byte as the Python runtime
+/// writes it, read back, and trusted by `InstanceInfo::check`.
+#[test]
+fn golden_descriptions_are_built_as_written() {
+    use peppy_runtime::describe::{
+        ConsumedTopic, DESCRIBE_VERSION, EmittedTopic, FormatInfo, InstanceInfo, OwnerInfo,
+        ServedAction, ServedService, SlotInfo,
+    };
+    use peppy_schema::{Identity, QosProfile, RouteFilter, SlotKind, SlotPlan};
+
+    let golden = golden();
+    let vectors = golden["describe"].as_array().expect("describe");
+    assert!(vectors.len() >= 2, "{} description vectors", vectors.len());
+    for v in vectors {
+        let about = text(v, "about");
+        let (ns, core, instance) = (text(v, "namespace"), text(v, "core"), text(v, "instance"));
+        let node: Identity = serde_json::from_value(v["node"].clone()).expect("node");
+        let plans: Vec<SlotPlan> =
+            serde_json::from_value(v["slots"].clone()).unwrap_or_else(|e| panic!("{about}: {e}"));
+        let list = |name: &str| {
+            v[name]
+                .as_array()
+                .unwrap_or_else(|| panic!("`{name}` of {about}"))
+        };
+        // An entry's owner: the node's own, anyone's (`None`), or a node's
+        // or an interface's.
+        let owner_of = |o: &Value| -> Option<OwnerInfo> {
+            let kind = match text(o, "kind") {
+                "own" => {
+                    return Some(OwnerInfo {
+                        kind: SlotKind::Node,
+                        name: node.name.clone(),
+                        tag: node.tag.clone(),
+                    });
+                }
+                "any" => return None,
+                "node" => SlotKind::Node,
+                "interface" => SlotKind::Interface,
+                other => panic!("owner kind `{other}`"),
+            };
+            Some(OwnerInfo {
+                kind,
+                name: text(o, "name").into(),
+                tag: text(o, "tag").into(),
+            })
+        };
+        let served =
+            |o: &Value| owner_of(o).unwrap_or_else(|| panic!("a served entry has an owner: {o}"));
+        let format_info = |f: &Value| FormatInfo {
+            canonical: text(f, "canonical").into(),
+            fingerprint: fingerprint(&f["fingerprint"]),
+        };
+        let qos = |q: &Value| -> QosProfile {
+            serde_json::from_value(q.clone()).unwrap_or_else(|e| panic!("qos {q}: {e}"))
+        };
+        let key = |channel: Channel, o: &OwnerInfo, name: &str| -> String {
+            keys::entry_key(ns, channel, &o.as_owner(), name, core, instance)
+        };
+
+        let emits: Vec<EmittedTopic> = list("emits")
+            .iter()
+            .map(|t| {
+                let owner = served(&t["owner"]);
+                EmittedTopic {
+                    key: key(Channel::Topic, &owner, text(t, "name")),
+                    owner,
+                    name: text(t, "name").into(),
+                    qos: qos(&t["qos"]),
+                    format: format_info(&t["format"]),
+                }
+            })
+            .collect();
+        let consumes: Vec<ConsumedTopic> = list("consumes")
+            .iter()
+            .map(|c| {
+                let slot = c["slot"].as_str().map(|link| {
+                    plans
+                        .iter()
+                        .find(|p| p.link_id == link)
+                        .unwrap_or_else(|| panic!("no slot `{link}` in {about}"))
+                });
+                let owner = owner_of(&c["owner"]);
+                // The slot's filter (any for an external topic); a pinned
+                // slot subscribes to its producer only.
+                let filter = slot.map_or(RouteFilter::Any, |p| p.filter.clone());
+                let pinned = match &filter {
+                    RouteFilter::Pin(p) => Some(p.as_str()),
+                    _ => None,
+                };
+                let resolved = owner.as_ref().map(OwnerInfo::as_owner);
+                let selector = keys::entry_selector(
+                    ns,
+                    Channel::Topic,
+                    resolved.as_ref(),
+                    text(c, "name"),
+                    None,
+                    pinned,
+                );
+                // A node slot read on an interface's key keeps its node's
+                // instances only.
+                let members_of = match (slot, &owner) {
+                    (Some(p), Some(o))
+                        if p.kind == SlotKind::Node && o.kind == SlotKind::Interface =>
+                    {
+                        Some(p.target.clone())
+                    }
+                    _ => None,
+                };
+                ConsumedTopic {
+                    slot: slot.map(|p| p.link_id.clone()),
+                    owner,
+                    name: text(c, "name").into(),
+                    qos: qos(&c["qos"]),
+                    format: format_info(&c["format"]),
+                    selector,
+                    filter,
+                    members_of,
+                }
+            })
+            .collect();
+        let services: Vec<ServedService> = list("services")
+            .iter()
+            .map(|s| {
+                let owner = served(&s["owner"]);
+                ServedService {
+                    key: key(Channel::Service, &owner, text(s, "name")),
+                    owner,
+                    name: text(s, "name").into(),
+                    request: format_info(&s["request"]),
+                    response: format_info(&s["response"]),
+                }
+            })
+            .collect();
+        let actions: Vec<ServedAction> = list("actions")
+            .iter()
+            .map(|a| {
+                let owner = served(&a["owner"]);
+                ServedAction {
+                    key: key(Channel::Action, &owner, text(a, "name")),
+                    owner,
+                    name: text(a, "name").into(),
+                    goal: format_info(&a["goal"]),
+                    feedback: format_info(&a["feedback"]),
+                    result: format_info(&a["result"]),
+                }
+            })
+            .collect();
+        let info = InstanceInfo {
+            version: DESCRIBE_VERSION,
+            instance_id: instance.into(),
+            core_node: core.into(),
+            namespace: ns.into(),
+            node: node.clone(),
+            pid: v["pid"]
+                .as_u64()
+                .and_then(|p| u32::try_from(p).ok())
+                .expect("pid"),
+            started_at_ms: v["started_at_ms"].as_u64().expect("started_at_ms"),
+            slots: plans
+                .iter()
+                .map(|p| SlotInfo {
+                    link_id: p.link_id.clone(),
+                    kind: p.kind,
+                    target: p.target.clone(),
+                    binding: p.binding.clone(),
+                    filter: p.filter.clone(),
+                })
+                .collect(),
+            emits,
+            consumes,
+            services,
+            actions,
+            pairings: Vec::new(),
+        };
+        let written = text(v, "json");
+        assert_eq!(info.to_json(), written, "{about}");
+        assert_eq!(
+            InstanceInfo::from_json(written.as_bytes()).unwrap_or_else(|e| panic!("{about}: {e}")),
+            info,
+            "{about}"
+        );
+        assert_eq!(
+            info.check(ns, &keys::describe_key(ns, core, instance)),
+            Ok(()),
+            "{about}"
+        );
+    }
+}
+
+/// A core node's `info` answer, read as the Python runtime's
+/// `info_from_json` reads it (`null`: refused); a `written` one is the
+/// text this runtime's core node writes for those fields.
+#[test]
+fn golden_info_answers_are_read_as_written() {
+    use peppy_runtime::info::InfoResponse;
+
+    let golden = golden();
+    let vectors = golden["info"].as_array().expect("info");
+    assert!(vectors.len() >= 5, "{} info vectors", vectors.len());
+    for v in vectors {
+        let about = text(v, "about");
+        let body = text(v, "json");
+        let read = serde_json::from_str::<InfoResponse>(body).ok();
+        let fields = read
+            .as_ref()
+            .map(|r| serde_json::to_value(r).expect("an info answer serializes"));
+        assert_eq!(fields.unwrap_or(Value::Null), v["reads"], "{about}");
+        if v["written"].as_bool() == Some(true) {
+            let read = read.as_ref().unwrap_or_else(|| panic!("{about}: not read"));
+            assert_eq!(
+                serde_json::to_string(read).expect("an info answer serializes"),
+                body,
+                "{about}"
+            );
+        }
     }
 }

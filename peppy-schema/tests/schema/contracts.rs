@@ -1,6 +1,6 @@
-//! Today's `contract/v1` documents: the content of an `interface_v1`, read
-//! into the same model, so a seeds'-spelling node conforms to or consumes a
-//! contract written today exactly as it does an interface.
+//! `contract/v1` documents: the content of an `interface_v1`, read into
+//! the same model, so a `node_v1` node conforms to or consumes a
+//! `contract/v1` contract exactly as it does an `interface_v1` interface.
 
 use peppy_schema::{
     Code, Document, DocumentKind, Identity, InterfaceDoc, Origin, SlotKind, Spelling, check_node,
@@ -9,7 +9,7 @@ use peppy_schema::{
 
 use crate::support::*;
 
-/// A contract as today's hubs write one: labels, all three kinds of
+/// A contract as PeppyOS's hubs write one: labels, all three kinds of
 /// members, an action whose feedback topic names itself.
 const ARM: &str = r#"{
   peppy_schema: "contract/v1",
@@ -72,17 +72,17 @@ fn a_contract_is_read_as_an_interface() {
 }
 
 #[test]
-fn an_empty_contract_is_valid_and_the_seeds_interface_keeps_its_spelling() {
+fn an_empty_contract_is_valid_and_an_interface_v1_keeps_its_spelling() {
     let (doc, _) = parse(
         r#"{ peppy_schema: "contract/v1", manifest: { name: "empty", tag: "v1" }, interfaces: {} }"#,
     )
     .unwrap();
     assert!(doc.topics.is_empty() && doc.services.is_empty() && doc.actions.is_empty());
-    let (seeds, _) = parse(
+    let (interface, _) = parse(
         r#"{ peppy_schema: "interface_v1", manifest: { name: "empty", tag: "v1" }, interfaces: {} }"#,
     )
     .unwrap();
-    assert_eq!(seeds.spelling, Spelling::UnderscoreIds);
+    assert_eq!(interface.spelling, Spelling::UnderscoreIds);
 }
 
 #[test]
@@ -124,11 +124,11 @@ fn contract_rules_are_located_errors() {
     );
 }
 
-/// A seeds'-spelling node conforms to a `contract/v1` contract and another
+/// A `node_v1` node conforms to a `contract/v1` contract and another
 /// consumes it through an interface slot: the contract resolves from the
 /// repository like an interface, pins included.
 #[test]
-fn seeds_nodes_conform_to_and_consume_a_contract() {
+fn underscored_nodes_conform_to_and_consume_a_contract() {
     let tree = Tree::new();
     tree.write("repo/contracts/arm.json5", ARM);
     tree.write(
@@ -174,10 +174,10 @@ fn seeds_nodes_conform_to_and_consume_a_contract() {
     assert_eq!(panel.resolved.consumed_actions.len(), 1);
 }
 
-/// Today's kinds peppy does not read yet are named as such, not guessed at
-/// as a typo of the seeds' spelling.
+/// PeppyOS's slashed kinds peppy does not read yet are named as such, not
+/// guessed at as a typo of the underscored spelling.
 #[test]
-fn todays_kinds_not_read_yet_say_so() {
+fn slashed_kinds_not_read_yet_say_so() {
     let text = r#"{ peppy_schema: "mcp_exposure/v1", manifest: { name: "a", tag: "v1" } }"#;
     let errors = peppy_schema::parse_document(&peppy_schema::SourceFile::new("n.json5", text), "")
         .expect_err("not read yet");

@@ -20,7 +20,7 @@ const CAM_CONTRACT: &str = r#"{
 "#;
 
 /// A `node/v1` document.
-fn today(name: &str, manifest: &str, interfaces: &str) -> String {
+fn slashed_node(name: &str, manifest: &str, interfaces: &str) -> String {
     format!(
         r#"{{
   peppy_schema: "node/v1",
@@ -58,18 +58,18 @@ fn stack() -> Tree {
     for name in ["cam_a", "cam_b"] {
         tree.write(
             &format!("repo/{name}/peppy.json5"),
-            &today(name, IMPLEMENTS_CAM, CAM_MEMBERS),
+            &slashed_node(name, IMPLEMENTS_CAM, CAM_MEMBERS),
         );
     }
     tree.write(
         "repo/lidar/peppy.json5",
-        &today(
+        &slashed_node(
             "lidar",
             "",
             r#"topics: { emits: [{ name: "frame", message_format: { width: "u32" } }] }"#,
         ),
     );
-    tree.write("repo/hub/peppy.json5", &today("hub", HUB_SLOTS, ""));
+    tree.write("repo/hub/peppy.json5", &slashed_node("hub", HUB_SLOTS, ""));
     tree
 }
 
@@ -437,11 +437,11 @@ fn both_spellings_plan_the_same_pinned_slots() {
     for name in ["cam_a", "cam_b"] {
         tree.write(
             &format!("repo/{name}/peppy.json5"),
-            &today(name, IMPLEMENTS_CAM, CAM_MEMBERS),
+            &slashed_node(name, IMPLEMENTS_CAM, CAM_MEMBERS),
         );
     }
     tree.write(
-        "repo/fusion_seeds/peppy.json5",
+        "repo/fusion_underscored/peppy.json5",
         &node_text(
             "fusion",
             r#"nodes: [{ name: "cam_a", tag: "v1", link_id: "leader" }],
@@ -454,9 +454,9 @@ fn both_spellings_plan_the_same_pinned_slots() {
         ),
     );
     tree.write(
-        "repo/fusion_today/peppy.json5",
-        &today(
-            "fusion_today",
+        "repo/fusion_slashed/peppy.json5",
+        &slashed_node(
+            "fusion_slashed",
             r#"depends_on: {
     nodes: [{ name: "cam_a", tag: "v1", link_id: "leader" }],
     contracts: [{ name: "cam", tag: "v1", link_id: "left" }, { name: "cam", tag: "v1", link_id: "right", cardinality: "one" }],
@@ -482,18 +482,23 @@ fn both_spellings_plan_the_same_pinned_slots() {
             ),
         )
     };
-    let seeds = stack_ok(&write("seeds.json5", "launcher_v1", "fusion", "bindings"));
-    let today = stack_ok(&write(
-        "today.json5",
+    let underscored = stack_ok(&write(
+        "underscored.json5",
+        "launcher_v1",
+        "fusion",
+        "bindings",
+    ));
+    let slashed = stack_ok(&write(
+        "slashed.json5",
         "launcher/v1",
-        "fusion_today",
+        "fusion_slashed",
         "links",
     ));
     let slots =
         |s: &StackCheck| -> Vec<SlotPlan> { s.plan.instance("f").expect("f").slots.clone() };
-    let (seeds, today) = (slots(&seeds), slots(&today));
-    assert_eq!(seeds, today);
-    let got: Vec<(&str, &SlotBinding, &RouteFilter)> = today
+    let (underscored, slashed) = (slots(&underscored), slots(&slashed));
+    assert_eq!(underscored, slashed);
+    let got: Vec<(&str, &SlotBinding, &RouteFilter)> = slashed
         .iter()
         .map(|s| (s.link_id.as_str(), &s.binding, &s.filter))
         .collect();
@@ -508,11 +513,11 @@ fn both_spellings_plan_the_same_pinned_slots() {
     );
 }
 
-/// Today's links on a node of the seeds' spelling: its `from_any` slot
+/// `launcher/v1` links on a `node_v1` node's `from_any` slot: the slot
 /// takes a list (exactly those), `[]` (exactly none, never "any"), and no
-/// vacancy; left out, it keeps the seeds' meaning (any producer).
+/// vacancy; left out, it keeps its `node_v1` meaning (any producer).
 #[test]
-fn todays_links_on_a_seeds_from_any_slot() {
+fn slashed_links_on_an_underscored_from_any_slot() {
     let tree = stack();
     tree.write(
         "repo/mosaic/peppy.json5",
@@ -584,7 +589,7 @@ fn calls_round_a_loop_are_refused_and_topics_both_ways_are_not() {
     tree.write("repo/contracts/ping.json5", PING_CONTRACT);
     tree.write("repo/contracts/cam.json5", CAM_CONTRACT);
     let pinger = |name: &str, calls: &str| {
-        today(
+        slashed_node(
             name,
             &format!(
                 r#"implements: [{{ name: "ping", tag: "v1", link_id: "me" }}],
@@ -625,7 +630,7 @@ fn calls_round_a_loop_are_refused_and_topics_both_ways_are_not() {
 
     // Topics both ways: no loop.
     let cam = |name: &str, other: &str| {
-        today(
+        slashed_node(
             name,
             &format!(
                 r#"{IMPLEMENTS_CAM} depends_on: {{ nodes: [{{ name: "{other}", tag: "v1", link_id: "peer" }}] }},"#

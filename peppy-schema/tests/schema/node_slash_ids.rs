@@ -1,6 +1,6 @@
-//! Today's `node/v1` documents (current_peppyos.md §1.1, §2, §3): read into
-//! the seeds' model, and every parse-time rule a located error with
-//! PeppyOS's name.
+//! `node/v1` documents (current_peppyos.md §1.1, §2, §3): read into the
+//! model `node_v1` documents are read into, and every parse-time rule a
+//! located error with PeppyOS's name.
 
 use peppy_schema::{
     Cardinality, Code, Diagnostics, EntryKind, Identity, Launch, SlotKind, Spelling,
@@ -193,7 +193,7 @@ fn an_unknown_cardinality_suggests_the_closest() {
 }
 
 #[test]
-fn from_any_is_the_seeds_spelling_and_points_to_cardinality() {
+fn from_any_is_the_underscored_spelling_and_points_to_cardinality() {
     let text = doc(
         r#"depends_on: { nodes: [{ name: "cam", tag: "v1", link_id: "cams", from_any: true }] },"#,
         "",
@@ -216,7 +216,7 @@ fn from_any_is_the_seeds_spelling_and_points_to_cardinality() {
 }
 
 #[test]
-fn conforms_to_is_not_a_key_of_todays_interfaces() {
+fn conforms_to_is_not_a_key_of_slashed_interfaces() {
     let text = doc("", r#"conforms_to: [{ name: "cam", tag: "v1" }],"#);
     let errors = node_err(&text);
     let d = only(&errors, Code::UnknownKey);

@@ -1,4 +1,4 @@
-//! Today's `pairing/v1` documents: two roles and the topics between them,
+//! `pairing/v1` documents: two roles and the topics between them,
 //! each topic read with a contract's topic grammar plus `emitted_by`.
 
 use peppy_schema::{

@@ -377,9 +377,9 @@ fn unknown_schema_versions_are_refused() {
 
 // ---- Reading a repository through its index ----
 
-const NODE_V1_BROKEN: &str = r#"{ peppy_schema: "node/v1", manifest: { name: "today_cam", tag: "v1", bogus: 1 }, execution: { language: "rust", run_cmd: ["x"] } }"#;
+const NODE_V1_BROKEN: &str = r#"{ peppy_schema: "node/v1", manifest: { name: "slashed_cam", tag: "v1", bogus: 1 }, execution: { language: "rust", run_cmd: ["x"] } }"#;
 
-/// A repository whose index lists a seeds' node, a contract, a launcher, a
+/// A repository whose index lists a `node_v1` node, a contract, a launcher, a
 /// pairing and a broken `node/v1` node, next to an unlisted node.
 fn indexed_repo(tree: &Tree) {
     tree.write("repo/cam/peppy.json5", &node_text("cam", "", "", ""));
@@ -407,14 +407,14 @@ fn indexed_repo(tree: &Tree) {
         "repo/robot/joint_link.json5",
         r#"{ peppy_schema: "pairing/v1", manifest: { name: "joint_link", tag: "v1" }, roles: ["a", "b"], topics: [{ emitted_by: "a", name: "t", message_format: { x: "u8" } }] }"#,
     );
-    tree.write("repo/today/peppy.json5", NODE_V1_BROKEN);
+    tree.write("repo/slashed/peppy.json5", NODE_V1_BROKEN);
     tree.write(
         &format!("repo/{REPOSITORY_INDEX_FILE}"),
         r#"{
   peppy_schema: "repository/v1",
   nodes: {
     cam: { v1: { path: "cam/peppy.json5" } },
-    today_cam: { v1: { path: "today/peppy.json5" } },
+    slashed_cam: { v1: { path: "slashed/peppy.json5" } },
   },
   launchers: { demo: { path: "stacks/demo.json5" } },
   contracts: { rgb: { v1: { path: "contracts/rgb.json5" } } },
@@ -448,9 +448,9 @@ fn a_repository_with_an_index_is_read_through_it() {
     // A listed document that does not parse is kept as broken, saying why,
     // without failing the rest of the index or warning on every scan.
     let broken = index
-        .broken(DocumentKind::Node, &Identity::new("today_cam", "v1"))
+        .broken(DocumentKind::Node, &Identity::new("slashed_cam", "v1"))
         .expect("kept under its listed identity");
-    assert_eq!(broken.path, tree.path("repo/today/peppy.json5"));
+    assert_eq!(broken.path, tree.path("repo/slashed/peppy.json5"));
     let d = one(&broken.diagnostics, Code::UnknownKey);
     assert_eq!(d.message, "unknown key `bogus` in `manifest`");
     assert!(index.findings().is_empty(), "{}", index.findings());
@@ -460,7 +460,7 @@ fn a_repository_with_an_index_is_read_through_it() {
 fn a_launcher_deploying_a_broken_listed_node_says_why() {
     let tree = Tree::new();
     indexed_repo(&tree);
-    let text = r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "today_cam:v1" }, instances: [{ instance_id: "c" }] }] }"#;
+    let text = r#"{ peppy_schema: "launcher_v1", deployments: [{ source: { name: "slashed_cam:v1" }, instances: [{ instance_id: "c" }] }] }"#;
     let path = tree.write("stack.json5", text);
     let errors =
         peppy_schema::check_launcher(&path, &options(vec![tree.path("repo")])).unwrap_err();
@@ -630,9 +630,9 @@ fn the_written_index_lists_every_kind_from_raw_trees() {
         path: "cam/peppy.json5"
       }
     },
-    today_cam: {
+    slashed_cam: {
       v1: {
-        path: "today/peppy.json5"
+        path: "slashed/peppy.json5"
       }
     },
     unlisted: {

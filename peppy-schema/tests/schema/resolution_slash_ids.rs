@@ -1,4 +1,4 @@
-//! Resolving today's `node/v1` documents against a repository of
+//! Resolving `node/v1` documents against a repository of
 //! `contract/v1` and node documents (current_peppyos.md §1.1
 //! "Document-resolution errors", §2): contract coverage, refinements,
 //! natives-only node slots and both spellings meeting on one contract
@@ -42,7 +42,7 @@ const GRIPPER_CONTRACT: &str = r#"{
 "#;
 
 /// A `node/v1` document.
-fn today(name: &str, manifest: &str, interfaces: &str) -> String {
+fn slashed_node(name: &str, manifest: &str, interfaces: &str) -> String {
     format!(
         r#"{{
   peppy_schema: "node/v1",
@@ -75,7 +75,7 @@ fn repo() -> Tree {
     tree.write("repo/contracts/gripper.json5", GRIPPER_CONTRACT);
     tree.write(
         "repo/nodes/arm_driver/peppy.json5",
-        &today("arm_driver", IMPLEMENTS_ARM, ARM_MEMBERS),
+        &slashed_node("arm_driver", IMPLEMENTS_ARM, ARM_MEMBERS),
     );
     tree
 }
@@ -142,7 +142,7 @@ fn coverage_lists_every_problem_of_a_slot_in_one_error() {
     let (rel, text) = write(
         &tree,
         "partial",
-        today(
+        slashed_node(
             "partial",
             r#"implements: [
       { name: "arm_control", tag: "v1", link_id: "arm" },
@@ -204,7 +204,7 @@ fn refinements_are_checked_against_the_contract() {
     let (rel, text) = write(
         &tree,
         "refiner",
-        today(
+        slashed_node(
             "refiner",
             IMPLEMENTS_ARM,
             r#"topics: { emits: [{ link_id: "arm", name: "joint_states", refine: { message_format: {
@@ -265,7 +265,7 @@ fn refinements_that_land_resolve() {
     write(
         &tree,
         "pinned",
-        today(
+        slashed_node(
             "pinned",
             IMPLEMENTS_ARM,
             r#"topics: { emits: [{ link_id: "arm", name: "joint_states", refine: { message_format: {
@@ -290,7 +290,7 @@ fn refinements_that_land_resolve() {
     write(
         &tree,
         "clean",
-        today(
+        slashed_node(
             "clean",
             IMPLEMENTS_ARM,
             r#"topics: { emits: [{ link_id: "arm", name: "joint_states", refine: { message_format: { positions: { $length: 6 } } } }] },
@@ -312,7 +312,7 @@ fn refinements_that_land_resolve() {
     let (rel, text) = write(
         &tree,
         "viewer",
-        today(
+        slashed_node(
             "viewer",
             r#"depends_on: { contracts: [{ name: "arm_control", tag: "v1", link_id: "arm" }] },"#,
             r#"topics: { consumes: [{ link_id: "arm", name: "joint_states", refine: { message_format: { frame: { $length: 2 } } } }] },
@@ -342,7 +342,7 @@ fn a_node_slot_sees_only_the_producers_own_entries() {
     let (rel, text) = write(
         &tree,
         "watcher",
-        today(
+        slashed_node(
             "watcher",
             r#"depends_on: { nodes: [{ name: "arm_driver", tag: "v1", link_id: "driver" }] },"#,
             r#"topics: { consumes: [
@@ -390,7 +390,7 @@ fn a_node_slot_sees_only_the_producers_own_entries() {
     write(
         &tree,
         "thermo",
-        today(
+        slashed_node(
             "thermo",
             r#"depends_on: { nodes: [{ name: "arm_driver", tag: "v1", link_id: "driver" }] },"#,
             r#"topics: { consumes: [{ link_id: "driver", name: "temperature" }] },"#,
@@ -405,7 +405,7 @@ fn a_node_slot_sees_only_the_producers_own_entries() {
 }
 
 #[test]
-fn a_seeds_consumer_meets_a_todays_implementer_on_the_contract() {
+fn an_underscored_consumer_meets_a_slashed_implementer_on_the_contract() {
     let tree = repo();
     tree.write(
         "repo/nodes/panel/peppy.json5",
@@ -443,12 +443,12 @@ fn a_seeds_consumer_meets_a_todays_implementer_on_the_contract() {
 }
 
 #[test]
-fn a_todays_consumer_meets_a_seeds_conformer_on_the_contract() {
+fn a_slashed_consumer_meets_an_underscored_conformer_on_the_contract() {
     let tree = repo();
     tree.write(
-        "repo/nodes/old_arm/peppy.json5",
+        "repo/nodes/underscored_arm/peppy.json5",
         &node_text(
-            "old_arm",
+            "underscored_arm",
             "",
             r#"conforms_to: [{ name: "arm_control", tag: "v1" }]"#,
             "",
@@ -457,14 +457,14 @@ fn a_todays_consumer_meets_a_seeds_conformer_on_the_contract() {
     write(
         &tree,
         "console",
-        today(
+        slashed_node(
             "console",
             r#"depends_on: { contracts: [{ name: "arm_control", tag: "v1", link_id: "arm", cardinality: "zero_or_more" }] },"#,
             r#"topics: { consumes: [{ link_id: "arm", name: "joint_states" }] },
     services: { consumes: [{ link_id: "arm", name: "get_limits" }] },"#,
         ),
     );
-    let producer = check(&tree, "repo/nodes/old_arm");
+    let producer = check(&tree, "repo/nodes/underscored_arm");
     let consumer = check(&tree, "repo/nodes/console");
     let emitted = producer
         .resolved

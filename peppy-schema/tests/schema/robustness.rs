@@ -1,6 +1,6 @@
 //! Bad input of every shape, in both spellings: each value of a valid
 //! document replaced by values of every other kind, each member removed,
-//! random byte edits, and today's launcher links rewritten into every
+//! random byte edits, and `launcher/v1` links rewritten into every
 //! shape and planned against real nodes. Whatever the input, the outcome
 //! is a document or located errors inside the file: never a panic, never a
 //! failure without a reason.
@@ -12,10 +12,10 @@ use peppy_schema::{Diagnostics, Document, NodeDoc, SourceFile, parse_document, p
 use proptest::prelude::*;
 
 /// One document of each kind and spelling, shaped like the files people
-/// write (today's like the public hubs').
+/// write (the slashed ones like the public hubs').
 const FIXTURES: &[(&str, &str)] = &[
     (
-        "node_today.json5",
+        "node_slashed.json5",
         r#"{
   peppy_schema: "node/v1",
   manifest: {
@@ -51,7 +51,7 @@ const FIXTURES: &[(&str, &str)] = &[
 }"#,
     ),
     (
-        "node_seeds.json5",
+        "node_underscored.json5",
         r#"{
   peppy_schema: "node_v1",
   manifest: {
@@ -105,9 +105,9 @@ const FIXTURES: &[(&str, &str)] = &[
   ],
 }"#,
     ),
-    ("launcher_today.json5", LAUNCHER_TODAY),
+    ("launcher_slashed.json5", LAUNCHER_SLASHED),
     (
-        "launcher_seeds.json5",
+        "launcher_underscored.json5",
         r#"{
   peppy_schema: "launcher_v1",
   deployments: [
@@ -119,7 +119,7 @@ const FIXTURES: &[(&str, &str)] = &[
     ),
 ];
 
-const LAUNCHER_TODAY: &str = r#"{
+const LAUNCHER_SLASHED: &str = r#"{
   peppy_schema: "launcher/v1",
   core_nodes: ["robot", "workstation"],
   deployments: [
@@ -137,7 +137,7 @@ const LAUNCHER_TODAY: &str = r#"{
   ],
 }"#;
 
-/// The nodes [`LAUNCHER_TODAY`] deploys: one slot of each cardinality.
+/// The nodes [`LAUNCHER_SLASHED`] deploys: one slot of each cardinality.
 const CONSUMER: &str = r#"{ peppy_schema: "node/v1",
   manifest: { name: "consumer", tag: "v1", depends_on: {
     nodes: [
@@ -151,7 +151,7 @@ const PRODUCER: &str = r#"{ peppy_schema: "node/v1", manifest: { name: "producer
   interfaces: { topics: { emits: [{ name: "data" }] } },
   execution: { language: "rust", run_cmd: ["x"] } }"#;
 
-/// Values of every kind (and of the shapes today's documents give
+/// Values of every kind (and of the shapes slashed documents give
 /// meaning to) that any value may be replaced by.
 const REPLACEMENTS: &[&str] = &[
     "null",
@@ -288,7 +288,7 @@ fn node(text: &str) -> NodeDoc {
 
 #[test]
 fn every_link_shape_on_every_cardinality_plans_or_is_located() {
-    let links_at = LAUNCHER_TODAY.find("links:").unwrap();
+    let links_at = LAUNCHER_SLASHED.find("links:").unwrap();
     let values = [
         "\"prod_a\"",
         "\"prod_b\"",
@@ -325,13 +325,13 @@ fn every_link_shape_on_every_cardinality_plans_or_is_located() {
                 } else {
                     format!("{slot}: {v}")
                 };
-                let end = LAUNCHER_TODAY[links_at..].find('}').unwrap() + links_at;
+                let end = LAUNCHER_SLASHED[links_at..].find('}').unwrap() + links_at;
                 // The vacancy fixture's braces: cut at the links map's end.
-                let end = LAUNCHER_TODAY[end + 1..].find('}').unwrap() + end + 1;
+                let end = LAUNCHER_SLASHED[end + 1..].find('}').unwrap() + end + 1;
                 let text = format!(
                     "{}links: {{ {links} }}{}",
-                    &LAUNCHER_TODAY[..links_at],
-                    &LAUNCHER_TODAY[end + 1..]
+                    &LAUNCHER_SLASHED[..links_at],
+                    &LAUNCHER_SLASHED[end + 1..]
                 );
                 plan(&text);
                 planned += 1;
@@ -366,7 +366,7 @@ proptest! {
         }
         let text: String = s.into_iter().collect();
         check(name, &text);
-        if name == "launcher_today.json5" {
+        if name == "launcher_slashed.json5" {
             plan(&text);
         }
     }

@@ -81,7 +81,7 @@ def entry(node: str, dotted: str) -> Any:
     return importlib.import_module(f"gen_{node}.{dotted}")
 
 
-class TodayTest(t.LiveTest):
+class PeppylibTest(t.LiveTest):
     async def start(
         self,
         node: str,
@@ -120,7 +120,7 @@ class TodayTest(t.LiveTest):
         return cam, viewer
 
 
-class TopicTest(TodayTest):
+class TopicTest(PeppylibTest):
     async def test_published_messages_reach_a_held_subscription_with_their_producer(self):
         frames = entry("tcam", "emitted_topics.frames")
         frames_in = entry("tviewer", "consumed_topics.camera.frames")
@@ -161,7 +161,7 @@ class TopicTest(TodayTest):
         self.assertIn("topic `readings` cannot be published on topic `frames`", str(caught.exception))
 
 
-class ServiceTest(TodayTest):
+class ServiceTest(PeppylibTest):
     async def serve(self, cam: Any) -> "asyncio.Task[None]":
         info = entry("tcam", "exposed_services.info")
 
@@ -208,7 +208,7 @@ class ServiceTest(TodayTest):
         del cam_b
 
 
-class ActionTest(TodayTest):
+class ActionTest(PeppylibTest):
     async def test_goal_decision_feedback_result_and_cancel_with_a_target(self):
         move = entry("tcam", "exposed_actions.move")
         move_c = entry("tviewer", "consumed_actions.camera.move")
@@ -282,7 +282,7 @@ class ActionTest(TodayTest):
         self.assertIsNone(await asyncio.wait_for(waiting, t.WAIT))
 
 
-class ShutdownTest(TodayTest):
+class ShutdownTest(PeppylibTest):
     async def test_hooks_run_last_first_with_messaging_still_up(self):
         frames = entry("tcam", "emitted_topics.frames")
         frames_in = entry("tviewer", "consumed_topics.camera.frames")
@@ -361,7 +361,7 @@ class ShutdownTest(TodayTest):
         self.assertFalse(cam.use_sim_time())
 
 
-class StandaloneTest(TodayTest):
+class StandaloneTest(PeppylibTest):
     async def standalone(self, node: str, config: Any, args: List[str], grace: Optional[float] = None) -> Any:
         gen = package(node)
         builder = gen.NodeBuilder().with_runtime_config(None).standalone(config)
@@ -473,7 +473,7 @@ class ProcessTest(unittest.TestCase):
         self.assertNotIn("hook first", out)
 
 
-class ClockTest(TodayTest):
+class ClockTest(PeppylibTest):
     def setUp(self) -> None:
         # The clock binds one node per process; each test starts unbound.
         peppy_clock._bound = None

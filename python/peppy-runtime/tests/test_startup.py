@@ -20,8 +20,9 @@ from peppy import StartupError
 from peppy import spec as s
 from peppy.node import NodeBuilder
 from peppy.params import array, group, leaf
-from peppy.routing import fit_plan, slot_from_json
+from peppy.routing import RouteFilter, fit_plan, slot_from_json
 from peppy.startup import PEPPY_LAUNCH_ENV, SHUTDOWN_GRACE_ENV, grace_from_env, load, peppy_launch
+from peppy.target import named_server
 import golden
 from peppy_testing import model_of
 
@@ -89,7 +90,7 @@ ARMS = s.SlotSpec("arms", "node", "robot_arm", "v1", True)
 CAMERAS = s.SlotSpec("cameras", "interface", "depth_camera", "v1", False, "one_or_more")
 OVERHEAD = s.SlotSpec("overhead", "interface", "depth_camera", "v1", False, "zero_or_one")
 VIEWER = descriptor("viewer", CAMERAS, OVERHEAD)
-"""Today's cardinalities: a list slot and an optional one."""
+"""`node/v1`'s cardinalities: a list slot and an optional one."""
 
 RECON = descriptor("recon", LEFT, BACKUP)
 """A pinned slot and a from_any slot: a free-form key joins `backup`."""
@@ -279,6 +280,32 @@ class GoldenPlansTest(unittest.TestCase):
                 except StartupError:
                     fits = False
                 self.assertEqual(fits, case["fits"])
+
+    def test_golden_route_filters_accept_as_written(self):
+        """Which producers a slot's filter lets through, as the plan writes
+        the filter: the vectors peppy_schema::RouteFilter::accepts is
+        checked against too; and the filters neither runtime reads."""
+        vectors = golden.load()["route_filters"]
+        self.assertGreaterEqual(len(vectors["accepts"]), 12)
+        for case in vectors["accepts"]:
+            with self.subTest(case=case):
+                route_filter = RouteFilter.from_json(case["filter"], "s")
+                self.assertEqual(route_filter.accepts(case["instance"]), case["accepts"])
+        self.assertGreaterEqual(len(vectors["rejected"]), 5)
+        for bad in vectors["rejected"]:
+            with self.subTest(bad=bad):
+                with self.assertRaises(StartupError):
+                    RouteFilter.from_json(bad, "s")
+
+    def test_golden_named_servers(self):
+        """The server a request through a slot goes to without probing
+        (null: it probes), as peppy_schema::SlotPlan::named_server says."""
+        cases = golden.load()["named_servers"]
+        self.assertGreaterEqual(len(cases), 10)
+        for case in cases:
+            with self.subTest(case=case):
+                planned = slot_from_json(slot("s", case["binding"], case["filter"], name="cam"))
+                self.assertEqual(named_server(planned), case["server"])
 
     def test_golden_grace_windows(self):
         """PEPPY_SHUTDOWN_GRACE_SECS as peppy_schema::grace_window_text

@@ -1,9 +1,12 @@
-"""Attachments (WIRE.md §2) and key expressions (§1): the golden bytes and
-keys shared with the Rust runtime (tests/golden/wire.json), and what only
-this runtime's API does."""
+"""Attachments (WIRE.md §2), key expressions (§1), instance descriptions
+(§9) and core node answers: the golden bytes, keys and documents shared
+with the Rust runtime (tests/golden/wire.json), and what only this
+runtime's API does."""
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import unittest
 
 import golden
@@ -17,7 +20,20 @@ from peppy.action_states import (
     goal_id_of,
     split_goal_id,
 )
-from peppy.spec import Owner
+from peppy.describe import consumed_topic, instance_info
+from peppy.formats import Format
+from peppy.info import info_from_json
+from peppy.routing import ANY, slot_from_json
+from peppy.spec import (
+    ActionSpec,
+    ConsumedTopicSpec,
+    NodeDescriptor,
+    Owner,
+    QoSProfile,
+    ServiceSpec,
+    TopicSpec,
+)
+from peppy.topics import subscription_selector
 
 ATTACHMENTS = golden.load()["attachments"]
 KEYS = golden.load()["keys"]
@@ -220,10 +236,6 @@ class KeyTest(unittest.TestCase):
             self.assertFalse(k.is_segment(s), repr(s))
 
 
-if __name__ == "__main__":
-    unittest.main()
-
-
 class DatastoreGoldenTest(unittest.TestCase):
     """The datastore's requests encode, and a store answers them, as the
     golden steps say (the Rust runtime's tests check the same steps)."""
@@ -247,3 +259,86 @@ class DatastoreGoldenTest(unittest.TestCase):
         for step in steps:
             with self.subTest(step["about"]):
                 self.assertEqual(store.answer(bytes.fromhex(step["request"])).hex(), step["reply"])
+
+
+def _spec_owner(v):
+    """An entry's owner as a vector writes it: `own`, `any`, or a node or interface."""
+    return Owner(v["kind"], v.get("name"), v.get("tag"))
+
+
+def _format(v):
+    return Format(None, v["canonical"], golden.fingerprint(v["fingerprint"]))
+
+
+def described(v) -> str:
+    """The description an instance answers, built from a `describe` vector's
+    inputs as the runtime builds it (`declare`: consumed routes, then
+    `instance_info`)."""
+    name, tag = v["node"]["name"], v["node"]["tag"]
+    slots = [slot_from_json(s) for s in v["slots"]]
+    by_id = {s.link_id: s for s in slots}
+    descriptor = NodeDescriptor(
+        name,
+        tag,
+        emitted_topics=tuple(
+            TopicSpec(_spec_owner(t["owner"]), t["name"], QoSProfile(t["qos"]), _format(t["format"]))
+            for t in v["emits"]
+        ),
+        consumed_topics=tuple(
+            ConsumedTopicSpec(c["slot"], _spec_owner(c["owner"]), c["name"], QoSProfile(c["qos"]), _format(c["format"]))
+            for c in v["consumes"]
+        ),
+        exposed_services=tuple(
+            ServiceSpec(_spec_owner(s["owner"]), s["name"], _format(s["request"]), _format(s["response"]))
+            for s in v["services"]
+        ),
+        exposed_actions=tuple(
+            ActionSpec(
+                _spec_owner(a["owner"]), a["name"], _format(a["goal"]), _format(a["feedback"]), _format(a["result"])
+            )
+            for a in v["actions"]
+        ),
+    )
+    consumes = []
+    for spec in descriptor.consumed_topics:
+        slot = by_id[spec.link_id] if spec.link_id is not None else None
+        route_filter = slot.filter if slot is not None else ANY
+        members_of = slot if slot is not None and slot.kind == "node" and spec.owner.kind == "interface" else None
+        selector = subscription_selector(v["namespace"], spec.owner.segments(name, tag), spec, route_filter)
+        consumes.append(consumed_topic(spec, name, tag, selector, route_filter, members_of))
+    return instance_info(
+        descriptor, v["namespace"], v["core"], v["instance"], v["pid"], v["started_at_ms"], slots, consumes
+    )
+
+
+class DescribeGoldenTest(unittest.TestCase):
+    """The description an instance answers (WIRE §9), byte for byte as the
+    Rust runtime's `InstanceInfo` writes it from the same inputs."""
+
+    def test_golden_descriptions_are_built_as_written(self):
+        vectors = golden.load()["describe"]
+        self.assertGreaterEqual(len(vectors), 2)
+        for v in vectors:
+            with self.subTest(v["about"]):
+                self.assertEqual(described(v), v["json"])
+
+
+class InfoGoldenTest(unittest.TestCase):
+    """A core node's `info` answer, read as the Rust runtime's
+    `InfoResponse` reads it (null: refused)."""
+
+    def test_golden_info_answers_are_read_as_written(self):
+        vectors = golden.load()["info"]
+        self.assertGreaterEqual(len(vectors), 5)
+        for v in vectors:
+            with self.subTest(v["about"]):
+                data = json.loads(v["json"])
+                if v["reads"] is None:
+                    with self.assertRaises((KeyError, TypeError, ValueError)):
+                        info_from_json(data)
+                else:
+                    self.assertEqual(dataclasses.asdict(info_from_json(data)), v["reads"])
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,5 +1,5 @@
-//! `camera_viewer`: a node in today's spelling (`node/v1`) and today's node
-//! API. Its module paths nest consumed entries under their slot
+//! `camera_viewer`: a node in the `node/v1` spelling and PeppyOS's `peppylib`
+//! node API. Its module paths nest consumed entries under their slot
 //! (`consumed_topics::cameras::video_stream`), each slot says what the
 //! launcher linked to it, and frames arrive through held subscriptions.
 

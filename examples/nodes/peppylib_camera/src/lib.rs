@@ -1,9 +1,9 @@
-//! `today_camera`: a `depth_camera:v1` written in today's node API. It
-//! declares its publisher once and publishes built messages, answers
-//! `video_stream_info`, stamps frames with the stack's clock (sim time when
-//! the launcher says `framework.use_sim_time`), counts its starts in its
-//! core node's datastore (so a restarted camera knows it restarted), and
-//! says goodbye from a shutdown hook.
+//! `peppylib_camera`: a `depth_camera:v1` written in PeppyOS's `peppylib`
+//! node API. It declares its publisher once and publishes built messages,
+//! answers `video_stream_info`, stamps frames with the stack's clock (sim
+//! time when the launcher says `framework.use_sim_time`), counts its starts
+//! in its core node's datastore (so a restarted camera knows it
+//! restarted), and says goodbye from a shutdown hook.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -61,7 +61,7 @@ async fn stream(
         publisher.publish(message).await?;
         if n == 0 {
             println!(
-                "today_camera: first frame ({}x{})",
+                "peppylib_camera: first frame ({}x{})",
                 params.width, params.height
             );
         }
@@ -93,7 +93,7 @@ const DATASTORE_TIMEOUT: Duration = Duration::from_secs(2);
 /// Counts this start in the core node's datastore, under a key of this
 /// instance: the count survives the camera's restarts, not the stack's.
 async fn count_start(runner: &NodeRunner) -> Result<u64> {
-    let key = format!("today_camera/{}/starts", runner.instance_id());
+    let key = format!("peppylib_camera/{}/starts", runner.instance_id());
     let before = datastore::get(runner, key.as_str(), DATASTORE_TIMEOUT).await?;
     let starts = before
         .as_ref()
@@ -110,10 +110,10 @@ async fn count_start(runner: &NodeRunner) -> Result<u64> {
     .await?;
     match before {
         Some(v) => println!(
-            "today_camera: start {starts} (the count was last written by {})",
+            "peppylib_camera: start {starts} (the count was last written by {})",
             v.last_modified_by
         ),
-        None => println!("today_camera: start {starts}"),
+        None => println!("peppylib_camera: start {starts}"),
     }
     Ok(starts)
 }
@@ -123,7 +123,7 @@ async fn count_start(runner: &NodeRunner) -> Result<u64> {
 pub async fn setup(params: Parameters, node_runner: Arc<NodeRunner>) -> Result<()> {
     peppygen::clock::init(&node_runner).await?;
     if let Err(e) = count_start(&node_runner).await {
-        eprintln!("today_camera: starts not counted: {e}");
+        eprintln!("peppylib_camera: starts not counted: {e}");
     }
     let token = node_runner.cancellation_token().clone();
     let sent = Arc::new(AtomicU64::new(0));
@@ -131,7 +131,7 @@ pub async fn setup(params: Parameters, node_runner: Arc<NodeRunner>) -> Result<(
     let counted = sent.clone();
     node_runner.on_shutdown(async move {
         println!(
-            "today_camera: stopping after {} frames",
+            "peppylib_camera: stopping after {} frames",
             counted.load(Ordering::Relaxed)
         );
     });
@@ -140,7 +140,7 @@ pub async fn setup(params: Parameters, node_runner: Arc<NodeRunner>) -> Result<(
     tokio::spawn(async move {
         let (runner, params, token) = streaming;
         if let Err(e) = stream(runner, params, sent, token).await {
-            eprintln!("today_camera: streaming stopped: {e}");
+            eprintln!("peppylib_camera: streaming stopped: {e}");
         }
     });
     tokio::spawn(serve_info(node_runner.clone(), params, token));

@@ -1,8 +1,8 @@
-//! `today_camera`'s binary: the node's tasks are in the library
-//! (`today_camera::setup`), where its tests reach them too.
+//! `peppylib_camera`'s binary: the node's tasks are in the library
+//! (`peppylib_camera::setup`), where its tests reach them too.
 
 use peppygen::{NodeBuilder, Parameters, Result};
 
 fn main() -> Result<()> {
-    NodeBuilder::<Parameters>::new().run(today_camera::setup)
+    NodeBuilder::<Parameters>::new().run(peppylib_camera::setup)
 }

@@ -1,4 +1,4 @@
-//! `today_camera` in-process against its generated harness
+//! `peppylib_camera` in-process against its generated harness
 //! (`peppygen::fixtures`, from the `testing` feature): what it streams,
 //! what it answers, and the clock it stamps frames with.
 
@@ -26,7 +26,7 @@ fn small_camera(use_sim_time: bool) -> Config {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn frames_are_numbered_and_their_bytes_move_with_the_number() -> Result<()> {
     let (mut harness, _mocks) =
-        Harness::start_with(small_camera(false), today_camera::setup).await?;
+        Harness::start_with(small_camera(false), peppylib_camera::setup).await?;
     let mut last = None;
     for _ in 0..3 {
         let frame = harness
@@ -53,14 +53,15 @@ async fn frames_are_numbered_and_their_bytes_move_with_the_number() -> Result<()
 #[test]
 fn the_harness_names_the_node_and_finds_its_document() {
     use peppygen::fixtures::harness::{NODE_NAME, NODE_TAG, PEPPY_CONFIG_PATH};
-    assert_eq!((NODE_NAME, NODE_TAG), ("today_camera", "v1"));
+    assert_eq!((NODE_NAME, NODE_TAG), ("peppylib_camera", "v1"));
     let document = std::fs::read_to_string(PEPPY_CONFIG_PATH).expect("the node's peppy.json5");
-    assert!(document.contains("name: \"today_camera\""), "{document}");
+    assert!(document.contains("name: \"peppylib_camera\""), "{document}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn stream_info_tells_the_configured_stream() -> Result<()> {
-    let (harness, _mocks) = Harness::start_with(small_camera(false), today_camera::setup).await?;
+    let (harness, _mocks) =
+        Harness::start_with(small_camera(false), peppylib_camera::setup).await?;
     let info = video_stream_info::poll(&harness, TIMEOUT).await?;
     assert_eq!(
         (info.width, info.height, info.frames_per_second),
@@ -73,7 +74,7 @@ async fn stream_info_tells_the_configured_stream() -> Result<()> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn with_sim_time_frames_carry_the_stack_clock() -> Result<()> {
     let (mut harness, _mocks) =
-        Harness::start_with(small_camera(true), today_camera::setup).await?;
+        Harness::start_with(small_camera(true), peppylib_camera::setup).await?;
     let sim = UNIX_EPOCH + Duration::from_secs(42);
     harness.clock.tick(42_000_000_000).await?;
     // Frames sent before the tick carry the OS clock; from the tick on,
@@ -101,9 +102,10 @@ async fn with_sim_time_frames_carry_the_stack_clock() -> Result<()> {
 async fn the_camera_counts_its_start_in_the_datastore() -> Result<()> {
     use peppylib::datastore;
 
-    let (harness, _mocks) = Harness::start_with(small_camera(false), today_camera::setup).await?;
+    let (harness, _mocks) =
+        Harness::start_with(small_camera(false), peppylib_camera::setup).await?;
     let runner = harness.node_runner().clone();
-    let key = format!("today_camera/{}/starts", harness.instance_id());
+    let key = format!("peppylib_camera/{}/starts", harness.instance_id());
     let deadline = tokio::time::Instant::now() + TIMEOUT;
     let stored = loop {
         if let Some(v) = datastore::get(&runner, key.as_str(), TIMEOUT).await? {

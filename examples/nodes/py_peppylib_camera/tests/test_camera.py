@@ -1,4 +1,4 @@
-"""py_today_camera booted through its generated harness: frames stamped by
+"""py_peppylib_camera booted through its generated harness: frames stamped by
 the stack clock, and the stream info it serves, as a consumer of
 depth_camera:v1 sees them."""
 
@@ -7,7 +7,7 @@ import time
 from peppygen.fixtures import harness
 from peppygen.fixtures.exposed_services.camera import video_stream_info
 
-from py_today_camera.__main__ import setup
+from py_peppylib_camera.__main__ import setup
 
 WAIT = 10.0
 

@@ -34,7 +34,11 @@ class InfoResponse:
 
 async def info(node_runner: Any, response_timeout: Optional[float] = None) -> InfoResponse:
     """Asks this node's core node what it is; `response_timeout` in seconds (None: 10)."""
-    data = json.loads(await ask(node_runner, "info", b"", response_timeout))
+    return info_from_json(json.loads(await ask(node_runner, "info", b"", response_timeout)))
+
+
+def info_from_json(data: Any) -> InfoResponse:
+    """A core node's `info` answer, parsed (`peppy_runtime::info::InfoResponse`)."""
     return InfoResponse(
         uptime_secs=int(data["uptime_secs"]),
         core_node_name=data["core_node_name"],

@@ -17,7 +17,7 @@ from .bridge import END, TIMED_OUT, ReplyStream
 from .errors import ServiceUnreachable
 from .keys import action_part_key, entry_selector, parse_entry_key
 from .members import live_instances
-from .routing import PINNED
+from .routing import PINNED, SlotPlan
 from .spec import Owner
 
 PROBE_TIMEOUT = 0.5
@@ -52,15 +52,26 @@ def header(runner: Any, kind: QueryKind, fingerprint: int) -> bytes:
     return QueryHeader(kind, fingerprint, runner.core_node, runner.instance_id).encode()
 
 
+def named_server(slot: SlotPlan) -> Optional[str]:
+    """The server a request through `slot` goes to without asking anyone
+    (`peppy_schema::SlotPlan::named_server`): the pinned producer, or the
+    one producer an `only_from` filter lets through. None: requests probe
+    every server and take the first the filter accepts."""
+    if slot.binding.kind == PINNED:
+        return slot.binding.producers[0]
+    if slot.filter.kind == "only_from" and len(slot.filter.producers) == 1:
+        return next(iter(slot.filter.producers))
+    return None
+
+
 async def choose(runner: Any, entry: Entry, deadline: float) -> str:
     """The server instance a request through `entry`'s slot goes to."""
     import zenoh
 
     slot = runner.slot(entry.link_id)
-    if slot.binding.kind == PINNED:
-        return slot.binding.producers[0]
-    if slot.filter.kind == "only_from" and len(slot.filter.producers) == 1:
-        return next(iter(slot.filter.producers))
+    server = named_server(slot)
+    if server is not None:
+        return server
     loop = runner.loop
     budget = min(max(deadline - loop.time(), 0.0), PROBE_TIMEOUT)
     # An interface's key is shared by every conforming node: a node slot

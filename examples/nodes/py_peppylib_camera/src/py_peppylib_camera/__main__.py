@@ -1,7 +1,7 @@
-"""`py_today_camera`: a depth_camera:v1 driver written as today's PeppyOS
-Python nodes are: a publisher declared once and fed built messages, a
-service answered in a loop, the cancellation token ending both, a shutdown
-hook, and frames stamped by the stack clock."""
+"""`py_peppylib_camera`: a depth_camera:v1 driver written as Python nodes
+are in PeppyOS's `peppylib` API: a publisher declared once and fed built
+messages, a service answered in a loop, the cancellation token ending both,
+a shutdown hook, and frames stamped by the stack clock."""
 
 import asyncio
 import sys
@@ -57,13 +57,13 @@ async def setup(params: Parameters, node_runner: NodeRunner) -> list:
 
     async def report() -> None:
         if params.close_secs > 0:
-            print(f"py_today_camera: closing the device ({params.close_secs:g} s)", flush=True)
+            print(f"py_peppylib_camera: closing the device ({params.close_secs:g} s)", flush=True)
             await asyncio.sleep(params.close_secs)
-        print(f"py_today_camera: stopping after {sent[0]} frames", flush=True)
+        print(f"py_peppylib_camera: stopping after {sent[0]} frames", flush=True)
 
     node_runner.on_shutdown(report)
     print(
-        f"py_today_camera `{node_runner.instance_id}`: "
+        f"py_peppylib_camera `{node_runner.instance_id}`: "
         f"{params.width}x{params.height} @ {params.frames_per_second} fps",
         file=sys.stderr,
         flush=True,

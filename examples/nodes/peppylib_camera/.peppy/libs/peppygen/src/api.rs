@@ -11,10 +11,10 @@ pub type NodeBuilder<P = self::parameters::Parameters> = ::peppy::codegen::NodeB
 >;
 /// This node's parameters.
 pub use self::parameters::Parameters;
-/// The parameters of node `today_camera:v1` (`execution.parameters`), and the node's descriptor.
+/// The parameters of node `peppylib_camera:v1` (`execution.parameters`), and the node's descriptor.
 #[allow(dead_code)]
 pub mod parameters {
-    /// The parameters of node `today_camera:v1`: `execution.parameters` of `peppy.json5:8:11`, with defaults filled in by the runtime. Deserialize it from JSON to supply values in standalone runs.
+    /// The parameters of node `peppylib_camera:v1`: `execution.parameters` of `peppy.json5:8:11`, with defaults filled in by the runtime. Deserialize it from JSON to supply values in standalone runs.
     #[derive(
         ::core::fmt::Debug,
         ::core::clone::Clone,
@@ -34,7 +34,7 @@ pub mod parameters {
     impl ::peppy::codegen::NodeParameters for Parameters {
         fn descriptor() -> &'static ::peppy::codegen::NodeDescriptor {
             static DESCRIPTOR: ::peppy::codegen::NodeDescriptor = ::peppy::codegen::NodeDescriptor {
-                model: "{\"spelling\":\"slash_ids\",\"api\":\"peppylib\",\"identity\":{\"name\":\"today_camera\",\"tag\":\"v1\"},\"dependencies\":[],\"parameters\":{\"fields\":[{\"name\":\"width\",\"kind\":{\"leaf\":{\"ty\":\"u32\",\"default\":96}}},{\"name\":\"height\",\"kind\":{\"leaf\":{\"ty\":\"u32\",\"default\":72}}},{\"name\":\"frames_per_second\",\"kind\":{\"leaf\":{\"ty\":\"u8\",\"default\":10}}}]}}",
+                model: "{\"spelling\":\"slash_ids\",\"api\":\"peppylib\",\"identity\":{\"name\":\"peppylib_camera\",\"tag\":\"v1\"},\"dependencies\":[],\"parameters\":{\"fields\":[{\"name\":\"width\",\"kind\":{\"leaf\":{\"ty\":\"u32\",\"default\":96}}},{\"name\":\"height\",\"kind\":{\"leaf\":{\"ty\":\"u32\",\"default\":72}}},{\"name\":\"frames_per_second\",\"kind\":{\"leaf\":{\"ty\":\"u8\",\"default\":10}}}]}}",
                 document_path: "peppy.json5",
                 emitted_topics: &[&super::emitted_topics::camera::video_stream::SPEC],
                 consumed_topics: &[],
@@ -49,7 +49,7 @@ pub mod parameters {
 }
 /// Topics this node emits, one module each with `Message`, `declare_publisher` and `build_message` (and `emit`): `<topic>` for its own, `<implements link_id>::<member>` for a contract's.
 ///
-/// Generated from node `today_camera:v1` (`peppy.json5:8:11`).
+/// Generated from node `peppylib_camera:v1` (`peppy.json5:8:11`).
 #[allow(dead_code)]
 pub mod emitted_topics {
     /// The topics of contract `depth_camera:v1`, which this node implements as slot `camera` (`peppy.json5:11:7`).
@@ -155,12 +155,12 @@ pub mod emitted_topics {
 }
 /// Topics this node consumes: `<link_id>::<topic>` with `Message` and `subscribe`, and the slot's `bound_producer` / `bound_producers` next to its entries and in each of them.
 ///
-/// Generated from node `today_camera:v1` (`peppy.json5:8:11`).
+/// Generated from node `peppylib_camera:v1` (`peppy.json5:8:11`).
 #[allow(dead_code)]
 pub mod consumed_topics {}
 /// Services this node exposes, one module each with `Request`, `Response` and `handle_next_request`: `<service>` for its own, `<implements link_id>::<member>` for a contract's.
 ///
-/// Generated from node `today_camera:v1` (`peppy.json5:8:11`).
+/// Generated from node `peppylib_camera:v1` (`peppy.json5:8:11`).
 #[allow(dead_code)]
 pub mod exposed_services {
     /// The services of contract `depth_camera:v1`, which this node implements as slot `camera` (`peppy.json5:11:7`).
@@ -244,17 +244,17 @@ pub mod exposed_services {
 }
 /// Services this node calls: `<link_id>::<service>` with `Request`, `Response` and `poll`, and the slot's `bound_producer` / `bound_producers`.
 ///
-/// Generated from node `today_camera:v1` (`peppy.json5:8:11`).
+/// Generated from node `peppylib_camera:v1` (`peppy.json5:8:11`).
 #[allow(dead_code)]
 pub mod consumed_services {}
 /// Actions this node exposes, one module each with `ActionHandle` (`expose`, `handle_goal_next_request`) and `GoalContext`: `<action>` for its own, `<implements link_id>::<member>` for a contract's.
 ///
-/// Generated from node `today_camera:v1` (`peppy.json5:8:11`).
+/// Generated from node `peppylib_camera:v1` (`peppy.json5:8:11`).
 #[allow(dead_code)]
 pub mod exposed_actions {}
 /// Actions this node calls: `<link_id>::<action>` with `GoalRequest` and `ActionHandle` (`fire_goal`, `on_next_feedback_message`, `get_result`, `cancel_goal`), and the slot's `bound_producer` / `bound_producers`.
 ///
-/// Generated from node `today_camera:v1` (`peppy.json5:8:11`).
+/// Generated from node `peppylib_camera:v1` (`peppy.json5:8:11`).
 #[allow(dead_code)]
 pub mod consumed_actions {}
 /// Typed mock producers, one module per slot (`mock::deps::<link_id>`): what the node consumes, published; what it calls, served. Built by `fixtures::harness::Harness::start`. Test builds only.
@@ -296,7 +296,7 @@ pub mod fixtures {
         /// The fixture session's instance id.
         pub const FIXTURE_INSTANCE_ID: &str = ::peppy::testing::FIXTURE_INSTANCE_ID;
         /// The node's name, as its document declares it.
-        pub const NODE_NAME: &str = "today_camera";
+        pub const NODE_NAME: &str = "peppylib_camera";
         /// The node's tag, as its document declares it.
         pub const NODE_TAG: &str = "v1";
         /// The node's `peppy.json5`.
