@@ -50,7 +50,12 @@ pub enum SlotBinding {
 
 /// Which producers' messages a consumer keeps for one slot (SPEC 5).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", tag = "kind", content = "producers", deny_unknown_fields)]
+#[serde(
+    rename_all = "snake_case",
+    tag = "kind",
+    content = "producers",
+    deny_unknown_fields
+)]
 pub enum RouteFilter {
     /// Only this producer.
     Pin(String),

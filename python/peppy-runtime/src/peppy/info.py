@@ -3,10 +3,10 @@ answers it."""
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Any, Optional, Union
 
+from . import strict_json
 from .core_functions import ask
 
 
@@ -33,19 +33,58 @@ class InfoResponse:
 
 
 async def info(node_runner: Any, response_timeout: Optional[float] = None) -> InfoResponse:
-    """Asks this node's core node what it is; `response_timeout` in seconds (None: 10)."""
-    return info_from_json(json.loads(await ask(node_runner, "info", b"", response_timeout)))
+    """Asks this node's core node what it is; `response_timeout` in seconds
+    (None: 10). `ValueError` when its answer is not one the Rust runtime
+    reads (Rust's `Error::Deserialization`; `datastore` raises `ValueError`
+    for a reply it cannot read too)."""
+    return info_from_body(await ask(node_runner, "info", b"", response_timeout))
+
+
+def info_from_body(body: Union[bytes, bytearray, memoryview, str]) -> InfoResponse:
+    """A core node's `info` answer, its JSON text read as the Rust runtime
+    reads it (`serde_json::from_slice::<peppy_runtime::info::InfoResponse>`);
+    `ValueError` for any answer Rust refuses."""
+    try:
+        return _read(strict_json.loads(body))
+    except ValueError as e:
+        raise ValueError(f"the core node's info: {e}") from None
 
 
 def info_from_json(data: Any) -> InfoResponse:
-    """A core node's `info` answer, parsed (`peppy_runtime::info::InfoResponse`)."""
-    return InfoResponse(
-        uptime_secs=int(data["uptime_secs"]),
-        core_node_name=data["core_node_name"],
-        core_node_instance_id=data["core_node_instance_id"],
-        host_name=data["host_name"],
-        node_count=int(data["node_count"]),
-        git_version=data["git_version"],
-        container_info=ContainerInfo(**data["container_info"]),
-        messaging_port=int(data["messaging_port"]),
+    """A core node's `info` answer, parsed, read as the Rust runtime reads
+    it (`peppy_runtime::info::InfoResponse`): an object of its fields
+    (others passed over) or an array of them in that order; integers are
+    JSON integers in their Rust type's range (`uptime_secs` u64,
+    `node_count` u32, `messaging_port` u16), text fields strings.
+    `ValueError` for any value Rust refuses. Parsed by plain `json.loads`,
+    a repeated field, `-0` or `NaN` no longer shows: `info_from_body`
+    refuses those too."""
+    try:
+        return _read(data)
+    except ValueError as e:
+        raise ValueError(f"the core node's info: {e}") from None
+
+
+_container_info = strict_json.struct(
+    (
+        ("apptainer_version", strict_json.string),
+        ("lima_version", strict_json.string),
     )
+)
+
+_info = strict_json.struct(
+    (
+        ("uptime_secs", strict_json.u64),
+        ("core_node_name", strict_json.string),
+        ("core_node_instance_id", strict_json.string),
+        ("host_name", strict_json.string),
+        ("node_count", strict_json.u32),
+        ("git_version", strict_json.string),
+        ("container_info", lambda v: ContainerInfo(*_container_info(v))),
+        ("messaging_port", strict_json.u16),
+    )
+)
+
+
+def _read(data: Any) -> InfoResponse:
+    return InfoResponse(*_info(data))
