@@ -68,6 +68,25 @@ pub use peppy_runtime::{
     ProducerRef, QoSProfile, Result, SharedMemory, StandaloneConfig, Subscription, TopicPublisher,
 };
 
+/// Expands to the items it is given when peppy's test surfaces (the
+/// `testing` feature) are built, and to nothing otherwise: the test
+/// modules generated for `#[cfg(test)]` then compile in a node built with
+/// `default-features = false` whose tests do not use them.
+#[cfg(feature = "testing")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __with_testing {
+    ($($item:item)*) => { $($item)* };
+}
+
+/// Without the `testing` feature: nothing (see the other definition).
+#[cfg(not(feature = "testing"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __with_testing {
+    ($($item:item)*) => {};
+}
+
 /// Declares `pub mod peppygen` holding the code `peppy_build::sync()` wrote
 /// to `OUT_DIR/peppygen.rs` from the build script.
 #[macro_export]

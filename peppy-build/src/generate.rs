@@ -814,7 +814,7 @@ impl Gen<'_> {
             decl.response.as_ref(),
         );
         // PeppyOS's current API answers a call without response data with
-        // `()`; the older one with the server's identity.
+        // `()`; the emit API with the server's identity.
         let (poll_type, poll_answer) = if self.peppylib() && decl.response.is_none() {
             (quote!(()), quote!(::core::result::Result::Ok(())))
         } else {

@@ -22,10 +22,27 @@ pub(crate) enum TestGate {
 }
 
 impl TestGate {
+    /// The attribute each test module carries: the crate's `testing`
+    /// feature, which turns peppy's on too (`.peppy/libs/peppygen`).
     fn attr(self) -> TokenStream {
         match self {
-            TestGate::CfgTest => quote!(#[cfg(test)]),
+            TestGate::CfgTest => TokenStream::new(),
             TestGate::Feature => quote!(#[cfg(feature = "testing")]),
+        }
+    }
+
+    /// `items` (the test modules) as this gate compiles them. Under
+    /// `#[cfg(test)]` they also need peppy's `testing` feature (its test
+    /// surfaces): `__with_testing!` drops them when peppy is built without
+    /// it, so a node with `default-features = false` whose tests do not
+    /// use the mocks still builds its tests.
+    fn wrap(self, items: TokenStream) -> TokenStream {
+        match self {
+            TestGate::CfgTest => quote! {
+                #[cfg(test)]
+                ::peppy::__with_testing! { #items }
+            },
+            TestGate::Feature => items,
         }
     }
 }
@@ -78,21 +95,21 @@ impl Gen<'_> {
     pub(crate) fn test_surfaces(&mut self, layout: &Layout, gate: TestGate) -> TokenStream {
         let mock = self.mock_module(layout);
         let fixtures = self.fixtures_module(layout);
-        let gate = gate.attr();
-        quote! {
+        let feature = gate.attr();
+        gate.wrap(quote! {
             #[doc = " Typed mock producers, one module per slot (`mock::deps::<link_id>`): what the node consumes, published; what it calls, served. Built by `fixtures::harness::Harness::start`. Test builds only."]
-            #gate
+            #feature
             #[allow(dead_code, unused_imports, unreachable_pub)]
             pub mod mock {
                 #mock
             }
             #[doc = " The test harness (`fixtures::harness::Harness`) and typed callers of what the node serves (`fixtures::exposed_services`, `fixtures::exposed_actions`). Test builds only."]
-            #gate
+            #feature
             #[allow(dead_code, unused_imports, unreachable_pub)]
             pub mod fixtures {
                 #fixtures
             }
-        }
+        })
     }
 
     /// The consumed entries of slot `link_id`, each with its mock member.

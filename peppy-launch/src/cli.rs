@@ -658,9 +658,10 @@ pub(crate) struct PlaceArgs {
     pub(crate) place: Vec<String>,
 }
 
-/// The longest grace period accepted: an hour is already longer than any
-/// node should need to stop.
-const MAX_GRACE_SECONDS: f64 = 3600.0;
+/// The longest grace period accepted: the longest shutdown window a node
+/// may have (`peppy_schema::MAX_SHUTDOWN_GRACE_SECS`), so `--grace` can
+/// always cover a window set in a node's code.
+const MAX_GRACE_SECONDS: f64 = peppy_schema::MAX_SHUTDOWN_GRACE_SECS;
 
 /// A number of seconds on the command line that clap refuses.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -703,7 +704,7 @@ fn parse_wait(s: &str) -> Result<Duration, SecondsError> {
     parse_seconds(s, 0.001, 86400.0)
 }
 
-/// `--grace`: a finite number of seconds from 0 to an hour.
+/// `--grace`: a finite number of seconds from 0 to a year.
 fn parse_grace(s: &str) -> Result<Duration, SecondsError> {
     parse_seconds(s, 0.0, MAX_GRACE_SECONDS)
 }
@@ -719,9 +720,10 @@ mod tests {
         for bad in ["-1", "NaN", "inf", "-inf", "1e300", "soon", ""] {
             assert!(parse_grace(bad).is_err(), "{bad}");
         }
+        assert_eq!(parse_grace("7202"), Ok(Duration::from_secs(7202)));
         assert_eq!(
-            parse_grace("3601").unwrap_err().to_string(),
-            "`3601` is out of range: give seconds from 0 to 3600"
+            parse_grace("31536001").unwrap_err().to_string(),
+            "`31536001` is out of range: give seconds from 0 to 31536000"
         );
         assert_eq!(
             parse_grace("soon").unwrap_err(),

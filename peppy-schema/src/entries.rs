@@ -53,7 +53,7 @@ pub struct ActionDecl {
     /// The declared goal response (`goal_service.response_message_format`,
     /// the current `node/v1` and `contract/v1` spelling): data the server
     /// sends with its decision, beside the framework's accepted flag and
-    /// reason. The older spelling has none.
+    /// reason. `node_v1` and `interface_v1` have none.
     pub goal_response: Option<MessageFormat>,
     /// Feedback topic, if the action publishes feedback.
     pub feedback: Option<FeedbackDecl>,

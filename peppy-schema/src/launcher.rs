@@ -858,7 +858,7 @@ fn parse_env_vars(
                             *ok = false;
                         }
                         Some(v) if m.key == crate::SHUTDOWN_GRACE_ENV => {
-                            match crate::grace_window_text(&v) {
+                            match crate::grace_window_env(Some(&v)) {
                                 Ok(_) => env_vars.push((m.key.clone(), v)),
                                 Err(why) => {
                                     r.error(

@@ -20,9 +20,13 @@ use crate::params::ParameterSchema;
 #[serde(rename_all = "snake_case")]
 pub enum Spelling {
     /// `<kind>_v1` ids (`node_v1`, `interface_v1`, `launcher_v1`).
+    // Models embedded by earlier builds name it `seeds`.
     #[default]
+    #[serde(alias = "seeds")]
     UnderscoreIds,
     /// `<kind>/v1` ids (`node/v1`, `contract/v1`, `pairing/v1`, ...).
+    // Models embedded by earlier builds name it `today`.
+    #[serde(alias = "today")]
     SlashIds,
 }
 
@@ -282,9 +286,20 @@ impl NodeModel {
         serde_json::to_string(self).expect("a node model serializes")
     }
 
-    /// Reads a model embedded by [`NodeModel::to_json`].
+    /// Reads a model embedded by [`NodeModel::to_json`]. A model embedded
+    /// before `api` was written gets the API its spelling decides.
     pub fn from_json(text: &str) -> Result<NodeModel, serde_json::Error> {
-        serde_json::from_str(text)
+        let mut value: serde_json::Value = serde_json::from_str(text)?;
+        if let Some(fields) = value.as_object_mut()
+            && !fields.contains_key("api")
+        {
+            let spelling: Spelling = match fields.get("spelling") {
+                Some(s) => serde_json::from_value(s.clone())?,
+                None => Spelling::default(),
+            };
+            fields.insert("api".into(), serde_json::to_value(spelling.node_api())?);
+        }
+        serde_json::from_value(value)
     }
 }
 
@@ -333,5 +348,37 @@ mod tests {
             Ok(serde_json::json!({ "rate": 10, "frame": "map" }))
         );
         assert!(NodeModel::from_json("{}").is_err());
+    }
+}
+
+#[cfg(test)]
+mod embedded_by_earlier_builds {
+    use super::*;
+
+    /// A model a binary built before the spellings were named by schema
+    /// id (and before `api` was written) still reads, its API following
+    /// its spelling.
+    #[test]
+    fn earlier_models_read_with_the_api_of_their_spelling() {
+        let model = |spelling: &str| {
+            NodeModel::from_json(&format!(
+                r#"{{"spelling":"{spelling}","identity":{{"name":"n","tag":"v1"}},"dependencies":[],"parameters":{{"fields":[]}}}}"#
+            ))
+            .unwrap()
+        };
+        let slashed = model("today");
+        assert_eq!(
+            (slashed.spelling, slashed.api),
+            (Spelling::SlashIds, NodeApi::Peppylib)
+        );
+        let underscored = model("seeds");
+        assert_eq!(
+            (underscored.spelling, underscored.api),
+            (Spelling::UnderscoreIds, NodeApi::Emit)
+        );
+        let current = model("slash_ids");
+        assert_eq!(current.api, NodeApi::Peppylib);
+        assert!(NodeModel::from_json(r#"{"spelling":"tomorrow"}"#).is_err());
+        assert!(NodeModel::from_json("[]").is_err());
     }
 }

@@ -216,8 +216,11 @@ pub(crate) fn plan_pairs(
             };
             // What the node will check of its plan, checked before anything
             // starts (a peer linking to a slot this instance left vacant).
+            // The other rules of `check_pair_plan` were reported above, each
+            // where it is written.
             if !uncovered(inst, slot, plan.peers.len(), plan.vacant.is_some(), diags)
-                && let Err(e) = crate::pairs::check_pair_plan(slot, &plan)
+                && let Err(e @ crate::pairs::PairPlanError::LinkedAndVacant { .. }) =
+                    crate::pairs::check_pair_plan(slot, &plan)
             {
                 diags.push(
                     inst.id_loc

@@ -108,7 +108,7 @@ pub fn plan_bindings(
                 .iter()
                 .rev()
                 .find(|(k, _)| k == crate::SHUTDOWN_GRACE_ENV)
-                .and_then(|(_, v)| crate::grace_window_text(v).ok())
+                .and_then(|(_, v)| crate::grace_window_env(Some(v)).ok().flatten())
                 .map(|window| window.as_secs_f64()),
             restart: inst.restart,
             core_node: launcher

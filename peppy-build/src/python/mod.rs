@@ -26,7 +26,7 @@ fn parts(layout: &Layout, category: &str, index: usize) -> Vec<String> {
     layout
         .category(category)
         .entry(index)
-        .expect("the Rust generator placed every entry")
+        .expect("a layout without errors places every entry")
         .path
 }
 
@@ -46,8 +46,13 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
     );
     let identity = node.node.identity().to_string();
     let peppylib = node.node.api == NodeApi::Peppylib;
-    // The Rust generator above reported every clash of this layout.
-    let layout = peppy_schema::layout::layout(node, &mut Diagnostics::new());
+    let mut clashes = Diagnostics::new();
+    let layout = peppy_schema::layout::layout(node, &mut clashes);
+    // Reported by the Rust generator above already; an entry the layout
+    // left out is never looked up below.
+    if clashes.has_errors() {
+        return Err(clashes);
+    }
     let mut files = Files {
         peppylib,
         document: document.clone(),
@@ -237,7 +242,7 @@ impl Files {
         let placed = layout
             .category(category)
             .entry(index)
-            .expect("the Rust generator placed every entry");
+            .expect("a layout without errors places every entry");
         let doc = match placed.parent {
             Some(ModuleRole::Implements {
                 link_id, contract, ..

@@ -68,6 +68,15 @@ fn alive(pid: &str) -> bool {
     }
 }
 
+/// Whether process `pid` is alive and still the one that ran in `dir`: the
+/// machine's pids wrap (32768 here), and a busy test run may hand a dead
+/// instance's pid to another process at once.
+fn alive_in(pid: &str, dir: &Path) -> bool {
+    alive(pid)
+        && std::fs::read_link(format!("/proc/{}/cwd", pid.trim()))
+            .is_ok_and(|cwd| cwd == dir || cwd.canonicalize().ok() == dir.canonicalize().ok())
+}
+
 fn interrupt(child: &Child) {
     assert!(
         Command::new("kill")
@@ -291,10 +300,14 @@ fn a_start_failure_stops_what_was_started_and_names_the_instance() {
     // kernel may take a moment to finish it.
     if let Ok(pid) = std::fs::read_to_string(dir.path().join("fine/pid")) {
         let deadline = Instant::now() + Duration::from_secs(5);
-        while alive(&pid) && Instant::now() < deadline {
+        let fine = dir.path().join("fine");
+        while alive_in(&pid, &fine) && Instant::now() < deadline {
             std::thread::sleep(Duration::from_millis(20));
         }
-        assert!(!alive(&pid), "the started instance is gone: {stderr}");
+        assert!(
+            !alive_in(&pid, &fine),
+            "the started instance is gone: {stderr}"
+        );
     }
 }
 

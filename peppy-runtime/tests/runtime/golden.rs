@@ -698,7 +698,7 @@ fn golden_descriptions_are_built_as_written() {
 }
 
 /// A core node's `info` answer, read as the Python runtime's
-/// `info_from_json` reads it (`null`: refused); a `written` one is the
+/// `info_from_body` reads it (`null`: refused); a `written` one is the
 /// text this runtime's core node writes for those fields.
 #[test]
 fn golden_info_answers_are_read_as_written() {

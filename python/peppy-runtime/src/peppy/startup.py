@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 from dataclasses import dataclass, field
@@ -185,16 +186,20 @@ def grace_secs(value: Any, where: str) -> float:
     return float(value)
 
 
+# A number as Rust's `f64::from_str` reads it: Python's `float` also takes
+# `1_000` and digits of other scripts, which the node's launcher refuses.
+_RUST_FLOAT = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf|infinity|nan)", re.ASCII | re.IGNORECASE)
+
+
 def grace_from_env() -> Optional[float]:
-    """`PEPPY_SHUTDOWN_GRACE_SECS`, when set."""
+    """`PEPPY_SHUTDOWN_GRACE_SECS`, when set (as `peppy_schema::grace_window_env`
+    reads it: blank is unset)."""
     text = os.environ.get(SHUTDOWN_GRACE_ENV)
     if text is None or text.strip() == "":
         return None
-    try:
-        value = float(text)
-    except ValueError:
-        raise StartupError(f"{SHUTDOWN_GRACE_ENV}: `shutdown_grace_secs` must be a number, got {text!r}") from None
-    return grace_secs(value, SHUTDOWN_GRACE_ENV)
+    if not _RUST_FLOAT.fullmatch(text.strip()):
+        raise StartupError(f"{SHUTDOWN_GRACE_ENV}: `shutdown_grace_secs` must be a number, got {text!r}")
+    return grace_secs(float(text), SHUTDOWN_GRACE_ENV)
 
 
 def plan_from_text(text: str, where: str, descriptor: NodeDescriptor) -> Startup:
