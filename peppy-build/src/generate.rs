@@ -182,6 +182,7 @@ impl Gen<'_> {
             consumed_services: consumed_services.modules.clone(),
             exposed_actions: exposed_actions.modules.clone(),
             consumed_actions: consumed_actions.modules.clone(),
+            emitted_taps: layout.categories[0].tap_names(),
             exposed_services_flat: exposed.flat.clone(),
             exposed_actions_flat: exposed_actions.flat.clone(),
         };

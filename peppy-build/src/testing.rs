@@ -57,6 +57,8 @@ pub(crate) struct Layout {
     pub(crate) consumed_services: Vec<(usize, Vec<Ident>)>,
     pub(crate) exposed_actions: Vec<(usize, Vec<Ident>)>,
     pub(crate) consumed_actions: Vec<(usize, Vec<Ident>)>,
+    /// Each emitted topic's tap name, by index (`peppy_schema::layout`).
+    pub(crate) emitted_taps: Vec<(usize, String)>,
     /// The exposed services re-exported under their own name too (an
     /// emit-API node's conformed entries), by full path below the category.
     pub(crate) exposed_services_flat: Vec<Vec<Ident>>,
@@ -481,44 +483,23 @@ impl Gen<'_> {
 
     fn fixtures_module(&mut self, layout: &Layout) -> TokenStream {
         let node = self.node;
-        let peppylib = self.peppylib();
-        // Taps of what the node emits, named by topic (a contract's by
-        // `<link_id>_<topic>` for the peppylib API).
+        // Taps of what the node emits, named by the layout's rule (the
+        // Python harness names them alike).
         let mut tap_names = Names::default();
         let mut tap_fields = TokenStream::new();
         let mut tap_builds = TokenStream::new();
         for (i, t) in node.emitted_topics.iter().enumerate() {
-            let Some(path) = path_of(&layout.emitted_topics, i) else {
+            let (Some(path), Some((_, name))) = (
+                path_of(&layout.emitted_topics, i),
+                layout.emitted_taps.iter().find(|(index, _)| *index == i),
+            ) else {
                 continue;
-            };
-            let name = if peppylib || path.len() == 1 {
-                path.iter()
-                    .map(ToString::to_string)
-                    .collect::<Vec<_>>()
-                    .join("_")
-            } else {
-                // The emit API's `<interface>::<tag>::<topic>`: by topic when
-                // no other emitted topic takes the name.
-                let last = path[path.len() - 1].to_string();
-                let clashes = layout
-                    .emitted_topics
-                    .iter()
-                    .filter(|(_, p)| p.last().map(ToString::to_string) == Some(last.clone()))
-                    .count();
-                if clashes == 1 {
-                    last
-                } else {
-                    path.iter()
-                        .map(ToString::to_string)
-                        .collect::<Vec<_>>()
-                        .join("_")
-                }
             };
             let what = format!("emitted topic `{}`", t.decl.name);
             if !tap_names.claim(NameKind::Module, &name, &what, &t.decl.loc, &mut self.diags) {
                 continue;
             }
-            let field = format_ident!("{}", name);
+            let field = ident(name);
             let up = root(2);
             let doc = crate::docs::Doc::new(format!(
                 "Every message the node emits on topic `{}`, in order.",

@@ -137,6 +137,32 @@ impl CategoryLayout {
         self.entries().into_iter().find(|e| e.index == index)
     }
 
+    /// The harness's tap name of each placed entry (`h.emitted.<name>`),
+    /// by index: the entry's module path joined with `_`, except that an
+    /// `emit`-API interface entry (`<interface>::<tag>::<topic>`) is named
+    /// by its topic alone when no other entry's module ends so.
+    pub fn tap_names(&self) -> Vec<(usize, String)> {
+        let entries = self.entries();
+        entries
+            .iter()
+            .map(|e| {
+                let last = &e.path[e.path.len() - 1];
+                let by_interface = matches!(e.parent, Some(ModuleRole::InterfaceTag(_)));
+                let unique = entries
+                    .iter()
+                    .filter(|o| o.path.last() == Some(last))
+                    .count()
+                    == 1;
+                let name = if by_interface && unique {
+                    last.clone()
+                } else {
+                    e.path.join("_")
+                };
+                (e.index, name)
+            })
+            .collect()
+    }
+
     /// Every slot module (`peppylib` API): its name, link_id and the
     /// slot's cardinality.
     pub fn slots(&self) -> impl Iterator<Item = (&str, &str, Option<Cardinality>)> {

@@ -63,15 +63,17 @@ pub fn python_package(node: &ResolvedNode) -> Result<Vec<PythonFile>, Diagnostic
 
     let mut specs = Specs::default();
     let mut surface = testing::Surface::default();
+    let taps = layout.category("emitted_topics").tap_names();
     for (i, p) in node.emitted_topics.iter().enumerate() {
         let path = files.provided(&layout, "emitted_topics", i, &p.decl.name, |out| {
             modules::emitted_topic(out, p, peppylib)
         });
-        surface
-            .emitted
-            .push((tap_name(node, &p.decl.name, &p.origin), path.clone()));
+        if let Some((_, tap)) = taps.iter().find(|(index, _)| *index == i) {
+            surface.emitted.push((tap.clone(), path.clone()));
+        }
         specs.emitted.push(path);
     }
+    surface.emitted_aliases = interface_tap_aliases(node, &taps, &specs.emitted);
     for (i, t) in node.consumed_topics.iter().enumerate() {
         let parts = parts(&layout, "consumed_topics", i);
         let by_instance = t.slot.is_none() || by_instance_default;
@@ -513,24 +515,37 @@ fn clock_module() -> String {
     out.finish()
 }
 
-/// The name of an emitted topic's tap (`h.emitted.<name>`): its own name,
-/// or `<link_id>_<name>` (the peppylib API) / `<interface>_<name>` (the
-/// emit API) for a contract's topic, as the Rust harness names them.
-fn tap_name(node: &ResolvedNode, name: &str, origin: &Origin) -> String {
-    match origin {
-        Origin::Node(_) => module(name),
-        Origin::Interface(id) => {
-            let link = node
-                .node
-                .conforms_to
-                .iter()
-                .find(|c| &c.target == id)
-                .and_then(|c| c.link_id.as_deref())
-                .filter(|_| node.node.api == NodeApi::Peppylib)
-                .unwrap_or(&id.name);
-            module(&format!("{}_{}", module(link), module(name)))
-        }
+/// The taps an `emit`-API node's interface topics also answer to,
+/// `<interface>_<topic>`, as the Python harness named them before it named
+/// taps by the layout's rule: each where no tap takes the name and no other
+/// topic (another tag of the interface) would share it.
+fn interface_tap_aliases(
+    node: &ResolvedNode,
+    taps: &[(usize, String)],
+    paths: &[String],
+) -> Vec<(String, String)> {
+    if node.node.api != NodeApi::Emit {
+        return Vec::new();
     }
+    let candidates: Vec<(usize, String)> = taps
+        .iter()
+        .filter_map(|(index, _)| {
+            let p = &node.emitted_topics[*index];
+            let Origin::Interface(id) = &p.origin else {
+                return None;
+            };
+            let alias = module(&format!("{}_{}", module(&id.name), module(&p.decl.name)));
+            Some((*index, alias))
+        })
+        .collect();
+    candidates
+        .iter()
+        .filter(|(_, alias)| {
+            !taps.iter().any(|(_, t)| t == alias)
+                && candidates.iter().filter(|(_, a)| a == alias).count() == 1
+        })
+        .map(|(index, alias)| (alias.clone(), paths[*index].clone()))
+        .collect()
 }
 
 /// A private alias for a module's `SPEC` in `__init__.py`.

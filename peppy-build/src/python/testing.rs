@@ -19,6 +19,8 @@ pub(super) struct Surface {
     pub(super) consumed: Vec<(String, String, String, Kind)>,
     /// Emitted topics: (tap name, dotted module path).
     pub(super) emitted: Vec<(String, String)>,
+    /// More names for some of those taps: (tap name, dotted module path).
+    pub(super) emitted_aliases: Vec<(String, String)>,
     /// Exposed services: (dotted module path, whether a request is declared).
     pub(super) services: Vec<(String, bool)>,
     /// Exposed actions: (dotted module path, whether a goal is declared).
@@ -387,6 +389,10 @@ fn harness(node: &ResolvedNode, mocks: &[(String, String)], surface: &Surface) -
         .iter()
         .enumerate()
         .map(|(i, (tap, _))| format!("{}: _emitted_{i}.SPEC", py_string(tap)))
+        .chain(surface.emitted_aliases.iter().filter_map(|(tap, path)| {
+            let i = surface.emitted.iter().position(|(_, p)| p == path)?;
+            Some(format!("{}: _emitted_{i}.SPEC", py_string(tap)))
+        }))
         .collect();
     out.line(&format!("EMITTED = {{{}}}", taps.join(", ")));
     out.line("\"\"\"Each tap's name (`h.emitted.<name>`) and the topic it taps.\"\"\"");
