@@ -496,7 +496,7 @@ impl Gen<'_> {
                 continue;
             };
             let what = format!("emitted topic `{}`", t.decl.name);
-            if !tap_names.claim(NameKind::Module, &name, &what, &t.decl.loc, &mut self.diags) {
+            if !tap_names.claim(NameKind::Module, name, &what, &t.decl.loc, &mut self.diags) {
                 continue;
             }
             let field = ident(name);
