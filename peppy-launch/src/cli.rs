@@ -497,6 +497,10 @@ pub(crate) struct UpArgs {
     /// repositories.
     #[arg(value_name = "LAUNCHER")]
     pub(crate) launcher: PathBuf,
+    /// Set when `up` was not written (`peppy-launch LAUNCHER`): a word that
+    /// names no launcher may be a mistyped command.
+    #[arg(long = "as-default-command", hide = true)]
+    pub(crate) as_default_command: bool,
     /// Choose options of a composed launcher's axes: `option` or
     /// `axis=option`, comma-separated, repeatable (`--with mujoco,cameras=sim_cameras`).
     #[arg(long = "with", value_name = "OPTIONS")]

@@ -23,6 +23,45 @@ pub enum LauncherLookupError {
     /// No single launcher answers to the name.
     #[error(transparent)]
     Lookup(#[from] LauncherLookup),
+    /// `peppy-launch WORD` where WORD is neither a command nor a launcher.
+    #[error("`{word}` is no command, and {lookup}{}", match nearest {
+        Some(c) => format!("; did you mean `peppy-launch {c}`?"),
+        None => " (`peppy-launch --help` lists the commands)".to_string(),
+    })]
+    NotACommand {
+        /// The word given.
+        word: String,
+        /// The command closest to it, if one is close.
+        nearest: Option<String>,
+        /// Why no launcher answers to it.
+        lookup: LauncherLookup,
+    },
+}
+
+/// `error` of a word written where a command goes (`peppy-launch WORD`):
+/// when no launcher has that name either, it says so, with the nearest of
+/// `commands`.
+pub(crate) fn maybe_a_command(
+    error: LauncherLookupError,
+    commands: &[String],
+) -> LauncherLookupError {
+    match error {
+        LauncherLookupError::Lookup(LauncherLookup::NotFound {
+            name,
+            suggestion,
+            searched,
+        }) => LauncherLookupError::NotACommand {
+            nearest: peppy_schema::did_you_mean(&name, commands.iter().map(String::as_str))
+                .map(str::to_string),
+            word: name.clone(),
+            lookup: LauncherLookup::NotFound {
+                name,
+                suggestion,
+                searched,
+            },
+        },
+        other => other,
+    }
 }
 
 /// Whether `arg` is a launcher's name rather than a path: it is no file or

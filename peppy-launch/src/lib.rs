@@ -54,7 +54,13 @@ pub fn run(cli: Cli) -> Result {
             check::run(&args)
         }
         cli::Command::Up(mut args) => {
-            args.launcher = find_launcher::locate(&args.launcher, &args.repos)?;
+            args.launcher = find_launcher::locate(&args.launcher, &args.repos).map_err(|e| {
+                if args.as_default_command {
+                    find_launcher::maybe_a_command(e, &command_names())
+                } else {
+                    e
+                }
+            })?;
             up::run(&args)
         }
         cli::Command::Graph(mut args) => {
@@ -114,6 +120,15 @@ pub fn with_default_command(mut args: Vec<std::ffi::OsString>) -> Vec<std::ffi::
         && !known(first)
     {
         args.insert(1, "up".into());
+        args.insert(2, "--as-default-command".into());
     }
     args
+}
+
+/// The subcommands' names, for a mistyped one.
+fn command_names() -> Vec<String> {
+    <Cli as clap::CommandFactory>::command()
+        .get_subcommands()
+        .map(|c| c.get_name().to_string())
+        .collect()
 }

@@ -387,6 +387,33 @@ fn a_launcher_name_must_find_exactly_one_file() {
     );
     // A path is never looked up.
     refused(&["check", "./demo", "--repo", one], &["demo"]);
+    // A word where a command goes that names no launcher either: a
+    // mistyped command, named as one (`up` written, it is a launcher's name).
+    refused(
+        &["chek", "--repo", one],
+        &[
+            "`chek` is no command, and no repository provides launcher `chek`",
+            "did you mean `peppy-launch check`?",
+        ],
+    );
+    refused(
+        &["stauts", "--repo", one],
+        &[
+            "`stauts` is no command, and no repository provides launcher `stauts`",
+            "`peppy-launch --help` lists the commands",
+        ],
+    );
+    let written = peppy_launch(&root(), &["up", "chek", "--repo", one]);
+    assert!(
+        written
+            .stderr
+            .contains("no repository provides launcher `chek`")
+            && !written.stderr.contains("is no command"),
+        "{}",
+        written.stderr
+    );
+    // A word that names a launcher still runs it (`demo` is found and read).
+    refused(&["demo", "--repo", one], &["`deployments` is empty"]);
 }
 
 /// Two hosts (network namespaces joined by a veth link) and a launcher's
