@@ -34,7 +34,7 @@ pub enum LauncherLookupError {
         /// The command closest to it, if one is close.
         nearest: Option<String>,
         /// Why no launcher answers to it.
-        lookup: LauncherLookup,
+        lookup: Box<LauncherLookup>,
     },
 }
 
@@ -54,11 +54,11 @@ pub(crate) fn maybe_a_command(
             nearest: peppy_schema::did_you_mean(&name, commands.iter().map(String::as_str))
                 .map(str::to_string),
             word: name.clone(),
-            lookup: LauncherLookup::NotFound {
+            lookup: Box::new(LauncherLookup::NotFound {
                 name,
                 suggestion,
                 searched,
-            },
+            }),
         },
         other => other,
     }
