@@ -3,8 +3,8 @@
 
 use peppy_schema::layout::{CategoryLayout, ModuleNode, ModuleRole};
 use peppy_schema::{
-    Cardinality, Diagnostics, EntryKind, Loc, MessageFormat, NodeApi, Origin, Provided, QosProfile,
-    ResolvedCall, ResolvedNode, ResolvedTopic, ServiceDecl, TopicDecl,
+    Cardinality, Declared, Diagnostics, EntryKind, Loc, MessageFormat, NodeApi, Origin, Provided,
+    QosProfile, ResolvedCall, ResolvedNode, ResolvedTopic, ServiceDecl, TopicDecl,
 };
 use proc_macro2::{Ident, TokenStream};
 use quote::quote;
@@ -904,7 +904,7 @@ fn entry_doc(kind: EntryKind, name: &str, origin: &Origin, loc: &Loc) -> String 
 }
 
 /// The doc of a consumed service or action module.
-fn call_doc<T: HasDeclLoc>(kind: EntryKind, c: &ResolvedCall<T>) -> String {
+fn call_doc<T: Declared>(kind: EntryKind, c: &ResolvedCall<T>) -> String {
     format!(
         "Calls {kind} `{}` of {}, through slot `{}` (declared at `{}`; the {kind} is declared at `{}`).",
         c.decl.name(),
@@ -913,30 +913,6 @@ fn call_doc<T: HasDeclLoc>(kind: EntryKind, c: &ResolvedCall<T>) -> String {
         short_location(&c.loc),
         short_location(c.decl.decl_loc())
     )
-}
-
-/// The name and location of a service or action declaration.
-trait HasDeclLoc {
-    fn name(&self) -> &str;
-    fn decl_loc(&self) -> &Loc;
-}
-
-impl HasDeclLoc for ServiceDecl {
-    fn name(&self) -> &str {
-        &self.name
-    }
-    fn decl_loc(&self) -> &Loc {
-        &self.loc
-    }
-}
-
-impl HasDeclLoc for peppy_schema::ActionDecl {
-    fn name(&self) -> &str {
-        &self.name
-    }
-    fn decl_loc(&self) -> &Loc {
-        &self.loc
-    }
 }
 
 /// The bound-producer accessor of a `node/v1` slot, by cardinality:

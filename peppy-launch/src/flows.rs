@@ -1,22 +1,8 @@
-//! Who sends to whom in a checked stack, from its binding plan: the one
-//! place `graph` and the security policy read the plan's flows from.
+//! Who sends to whom in a checked stack, beside what peppy-schema answers
+//! (`StackCheck::slot_producers`): the emitters an external consumed topic
+//! takes, for `graph` and the security policy.
 
-use peppy_schema::{InstancePlan, Origin, ResolvedNode, SlotPlan, StackCheck};
-
-/// The resolved node of an instance.
-pub(crate) fn node_of<'a>(stack: &'a StackCheck, id: &str) -> Option<&'a ResolvedNode> {
-    stack.node_of(id)
-}
-
-/// The instances of the stack whose messages `slot` of `consumer` takes
-/// ([`StackCheck::slot_producers`]).
-pub(crate) fn slot_producers(
-    stack: &StackCheck,
-    consumer: &InstancePlan,
-    slot: &SlotPlan,
-) -> Vec<String> {
-    stack.slot_producers(consumer, slot)
-}
+use peppy_schema::{InstancePlan, Origin, StackCheck};
 
 /// Every other instance emitting a topic named `topic` (an external
 /// consumed topic takes any owner's), with the owner it emits under.
@@ -30,7 +16,7 @@ pub(crate) fn external_emitters(
         if p.instance_id == consumer.instance_id {
             continue;
         }
-        if let Some(r) = node_of(stack, &p.instance_id) {
+        if let Some(r) = stack.node_of(&p.instance_id) {
             for e in r.emitted_topics.iter().filter(|e| e.decl.name == topic) {
                 out.push((p.instance_id.clone(), e.origin.clone()));
             }

@@ -184,7 +184,7 @@ fn slot_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &m
                 }
             }
             SlotBinding::FromAnyUnbound => {
-                let takers = flows::slot_producers(stack, inst, slot);
+                let takers = stack.slot_producers(inst, slot);
                 let label = format!("{} (any)", slot.link_id);
                 if takers.is_empty() {
                     let any = format!("{}.{}.any", inst.instance_id, slot.link_id);
@@ -213,7 +213,7 @@ fn slot_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &m
 /// plan, labelled with both slots), and a dotted edge from each source to
 /// the observer watching it.
 fn pair_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &mut Drawing) {
-    let Some(resolved) = flows::node_of(stack, &inst.instance_id) else {
+    let Some(resolved) = stack.node_of(&inst.instance_id) else {
         return;
     };
     for plan in &inst.pairs {
@@ -249,7 +249,7 @@ fn pair_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &m
 }
 
 fn external_edges(stack: &StackCheck, inst: &peppy_schema::InstancePlan, picture: &mut Drawing) {
-    let Some(resolved) = flows::node_of(stack, &inst.instance_id) else {
+    let Some(resolved) = stack.node_of(&inst.instance_id) else {
         return;
     };
     for topic in resolved.consumed_topics.iter().filter(|t| t.slot.is_none()) {

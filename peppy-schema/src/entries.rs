@@ -84,6 +84,30 @@ pub enum EntryKind {
     Action,
 }
 
+/// A topic, service or action declaration: its name and where it is
+/// written, for what lays out or describes any of the three alike.
+pub trait Declared {
+    /// The entry's name.
+    fn name(&self) -> &str;
+    /// Where the declaration is.
+    fn decl_loc(&self) -> &Loc;
+}
+
+macro_rules! declared {
+    ($($decl:ty),*) => {$(
+        impl Declared for $decl {
+            fn name(&self) -> &str {
+                &self.name
+            }
+            fn decl_loc(&self) -> &Loc {
+                &self.loc
+            }
+        }
+    )*};
+}
+
+declared!(TopicDecl, ServiceDecl, ActionDecl);
+
 impl EntryKind {
     /// `topic`, `service`, `action`.
     pub fn as_str(self) -> &'static str {

@@ -154,6 +154,9 @@ pub struct Instance {
     pub arguments_loc: Option<Loc>,
     /// `env_vars`, in document order.
     pub env_vars: Vec<(String, String)>,
+    /// The shutdown grace window its `env_vars` set
+    /// (`PEPPY_SHUTDOWN_GRACE_SECS`, checked as it was read).
+    pub shutdown_grace_secs: Option<f64>,
     /// `restart`.
     pub restart: RestartPolicy,
     /// `core_node`: the machine it runs on, and where that is written.
@@ -707,7 +710,7 @@ fn parse_instance(
         }
         None => (None, None),
     };
-    let env_vars = parse_env_vars(r, &obj, spelling, &mut ok);
+    let (env_vars, shutdown_grace_secs) = parse_env_vars(r, &obj, spelling, &mut ok);
     let restart = parse_restart(r, &obj, &mut ok);
     let core_node = match obj.get("core_node") {
         Some(n) => {
@@ -731,6 +734,7 @@ fn parse_instance(
         arguments,
         arguments_loc,
         env_vars,
+        shutdown_grace_secs,
         restart,
         core_node,
     })
@@ -807,8 +811,9 @@ fn parse_env_vars(
     obj: &Obj<'_>,
     spelling: Spelling,
     ok: &mut bool,
-) -> Vec<(String, String)> {
+) -> (Vec<(String, String)>, Option<f64>) {
     let mut env_vars = Vec::new();
+    let mut grace = None;
     if let Some(e) = obj.get("env_vars") {
         let epath = obj.path_of("env_vars");
         match &e.value {
@@ -859,7 +864,10 @@ fn parse_env_vars(
                         }
                         Some(v) if m.key == crate::SHUTDOWN_GRACE_ENV => {
                             match crate::grace_window_env(Some(&v)) {
-                                Ok(_) => env_vars.push((m.key.clone(), v)),
+                                Ok(window) => {
+                                    grace = window.map(|w| w.as_secs_f64());
+                                    env_vars.push((m.key.clone(), v));
+                                }
                                 Err(why) => {
                                     r.error(
                                         Code::InvalidValue,
@@ -890,7 +898,7 @@ fn parse_env_vars(
             }
         }
     }
-    env_vars
+    (env_vars, grace)
 }
 
 /// `restart`: `no` (default), `on-failure` or `always`.

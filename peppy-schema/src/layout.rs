@@ -19,11 +19,11 @@
 use std::collections::HashMap;
 
 use crate::diag::{Code, Diagnostic, Diagnostics};
-use crate::entries::EntryKind;
+use crate::entries::{Declared, EntryKind};
 use crate::loc::Loc;
 use crate::model::{Cardinality, Identity, NodeApi};
 use crate::names::{consumed_module, module};
-use crate::resolve::{Origin, ResolvedNode};
+use crate::resolve::{Origin, Provided, ResolvedCall, ResolvedNode};
 
 /// The six entry categories, in the order they are generated.
 pub const CATEGORY_NAMES: [&str; 6] = [
@@ -210,82 +210,54 @@ impl Layout {
 /// Lays out `node`'s entries; clashes go to `diags` and leave the later
 /// entry out.
 pub fn layout(node: &ResolvedNode, diags: &mut Diagnostics) -> Layout {
-    let api = node.node.api;
-    let provided = |kind: EntryKind, entries: Vec<(&str, &Loc, &Origin)>, diags: &mut _| match api {
+    fn offered<T: Declared>(list: &[Provided<T>]) -> Vec<(&str, &Loc, &Origin)> {
+        list.iter()
+            .map(|p| (p.decl.name(), p.decl.decl_loc(), &p.origin))
+            .collect()
+    }
+    fn called<T: Declared>(list: &[ResolvedCall<T>]) -> Vec<Consumed<'_>> {
+        list.iter()
+            .map(|c| Consumed {
+                link_id: Some(&c.slot.link_id),
+                name: c.decl.name(),
+                loc: &c.loc,
+            })
+            .collect()
+    }
+    let mut provided = |kind: EntryKind, entries: Vec<(&str, &Loc, &Origin)>| match node.node.api {
         NodeApi::Emit => provided_by_interface(node, kind, &entries, diags),
         NodeApi::Peppylib => provided_by_link(node, kind, &entries, diags),
     };
-    let emitted = provided(
-        EntryKind::Topic,
-        node.emitted_topics
-            .iter()
-            .map(|p| (p.decl.name.as_str(), &p.decl.loc, &p.origin))
-            .collect(),
-        diags,
-    );
-    let exposed_services = provided(
-        EntryKind::Service,
-        node.exposed_services
-            .iter()
-            .map(|p| (p.decl.name.as_str(), &p.decl.loc, &p.origin))
-            .collect(),
-        diags,
-    );
-    let exposed_actions = provided(
-        EntryKind::Action,
-        node.exposed_actions
-            .iter()
-            .map(|p| (p.decl.name.as_str(), &p.decl.loc, &p.origin))
-            .collect(),
-        diags,
-    );
-    let consumed_topics = consumed(
-        node,
-        EntryKind::Topic,
-        node.consumed_topics
-            .iter()
-            .map(|t| Consumed {
-                link_id: t.slot.as_ref().map(|s| s.link_id.as_str()),
-                name: &t.name,
-                loc: &t.loc,
-            })
-            .collect(),
-        diags,
-    );
-    let consumed_services = consumed(
-        node,
-        EntryKind::Service,
-        node.consumed_services
-            .iter()
-            .map(|c| Consumed {
-                link_id: Some(&c.slot.link_id),
-                name: &c.decl.name,
-                loc: &c.loc,
-            })
-            .collect(),
-        diags,
-    );
-    let consumed_actions = consumed(
-        node,
-        EntryKind::Action,
-        node.consumed_actions
-            .iter()
-            .map(|c| Consumed {
-                link_id: Some(&c.slot.link_id),
-                name: &c.decl.name,
-                loc: &c.loc,
-            })
-            .collect(),
-        diags,
-    );
+    let emitted = provided(EntryKind::Topic, offered(&node.emitted_topics));
+    let exposed_services = provided(EntryKind::Service, offered(&node.exposed_services));
+    let exposed_actions = provided(EntryKind::Action, offered(&node.exposed_actions));
+    let topics = node
+        .consumed_topics
+        .iter()
+        .map(|t| Consumed {
+            link_id: t.slot.as_ref().map(|s| s.link_id.as_str()),
+            name: &t.name,
+            loc: &t.loc,
+        })
+        .collect();
     Layout {
         categories: vec![
             emitted,
-            consumed_topics,
+            consumed(node, EntryKind::Topic, topics, diags),
             exposed_services,
-            consumed_services,
+            consumed(
+                node,
+                EntryKind::Service,
+                called(&node.consumed_services),
+                diags,
+            ),
             exposed_actions,
-            consumed_actions,
+            consumed(
+                node,
+                EntryKind::Action,
+                called(&node.consumed_actions),
+                diags,
+            ),
         ],
     }
 }

@@ -130,7 +130,7 @@ pub use document::{
 };
 #[cfg(feature = "documents")]
 pub use entries::{
-    ActionDecl, EntryKind, FeedbackDecl, RESERVED_SERVICE_NAMES, ServiceDecl, TopicDecl,
+    ActionDecl, Declared, EntryKind, FeedbackDecl, RESERVED_SERVICE_NAMES, ServiceDecl, TopicDecl,
 };
 #[cfg(feature = "documents")]
 pub use format::{CanonicalError, Field, FieldType, MessageFormat};

@@ -47,11 +47,7 @@ pub(crate) fn plan_pairs(
 
     for (d, inst) in launcher.instances() {
         let Some(node) = nodes[d] else { continue };
-        for link in inst
-            .links
-            .iter()
-            .filter(|l| !matches!(l.value, LinkValue::Bound(_)))
-        {
+        for link in &inst.links {
             let Some(slot) = node.pairings.iter().find(|p| p.link_id == link.key) else {
                 continue;
             };
@@ -78,7 +74,10 @@ pub(crate) fn plan_pairs(
                     }
                     continue;
                 }
-                LinkValue::One(t) | LinkValue::Bound(t) => vec![t],
+                LinkValue::One(t) => vec![t],
+                // A `launcher_v1` binding never names a pairing slot: the
+                // engine reports it like any key naming no producer slot.
+                LinkValue::Bound(_) => continue,
                 LinkValue::Many(ts, loc) => {
                     if !slot.observer || slot.cardinality.is_scalar() {
                         diags.push(

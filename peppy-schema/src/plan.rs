@@ -31,9 +31,8 @@ pub struct InstancePlan {
     /// `env_vars`.
     pub env_vars: Vec<(String, String)>,
     /// The shutdown grace window its `env_vars` set
-    /// ([`SHUTDOWN_GRACE_ENV`](crate::SHUTDOWN_GRACE_ENV), checked when the
-    /// launcher was read); `None` leaves it to the launch's environment and
-    /// the node.
+    /// ([`SHUTDOWN_GRACE_ENV`](crate::SHUTDOWN_GRACE_ENV), read with the
+    /// launcher); `None` leaves it to the launch's environment and the node.
     pub shutdown_grace_secs: Option<f64>,
     /// Restart policy.
     pub restart: RestartPolicy,
@@ -103,13 +102,7 @@ pub fn plan_bindings(
             pairs: pairs.remove(&inst.instance_id).unwrap_or_default(),
             parameters,
             env_vars: inst.env_vars.clone(),
-            shutdown_grace_secs: inst
-                .env_vars
-                .iter()
-                .rev()
-                .find(|(k, _)| k == crate::SHUTDOWN_GRACE_ENV)
-                .and_then(|(_, v)| crate::grace_window_env(Some(v)).ok().flatten())
-                .map(|window| window.as_secs_f64()),
+            shutdown_grace_secs: inst.shutdown_grace_secs,
             restart: inst.restart,
             core_node: launcher
                 .core_node_of(inst.core_node.as_ref().map(|(name, _)| name.as_str()))

@@ -142,7 +142,7 @@ pub(crate) fn derive(
                             .slots
                             .iter()
                             .find(|s| s.link_id == slot.link_id)
-                            .map(|s| flows::slot_producers(stack, inst, s))
+                            .map(|s| stack.slot_producers(inst, s))
                             .unwrap_or_default();
                         let o = owner(origin);
                         receives.push(Grant {
@@ -226,7 +226,7 @@ pub(crate) fn derive(
             for (channel, slot, origin, name) in services.chain(actions) {
                 let plan = inst.slots.iter().find(|s| s.link_id == slot.link_id);
                 let peers = plan
-                    .map(|s| flows::slot_producers(stack, inst, s))
+                    .map(|s| stack.slot_producers(inst, s))
                     .unwrap_or_default();
                 // Requests name their server by instance only (any core);
                 // a slot that does not name one server probes them all.

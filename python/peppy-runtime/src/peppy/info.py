@@ -42,25 +42,13 @@ async def info(node_runner: Any, response_timeout: Optional[float] = None) -> In
 
 def info_from_body(body: Union[bytes, bytearray, memoryview, str]) -> InfoResponse:
     """A core node's `info` answer, its JSON text read as the Rust runtime
-    reads it (`serde_json::from_slice::<peppy_runtime::info::InfoResponse>`);
-    `ValueError` for any answer Rust refuses."""
+    reads it (`serde_json::from_slice::<peppy_runtime::info::InfoResponse>`):
+    an object of its fields (others passed over) or an array of them in that
+    order; integers are JSON integers in their Rust type's range
+    (`uptime_secs` u64, `node_count` u32, `messaging_port` u16), text fields
+    strings. `ValueError` for any answer Rust refuses."""
     try:
         return _read(strict_json.loads(body))
-    except ValueError as e:
-        raise ValueError(f"the core node's info: {e}") from None
-
-
-def info_from_json(data: Any) -> InfoResponse:
-    """A core node's `info` answer, parsed, read as the Rust runtime reads
-    it (`peppy_runtime::info::InfoResponse`): an object of its fields
-    (others passed over) or an array of them in that order; integers are
-    JSON integers in their Rust type's range (`uptime_secs` u64,
-    `node_count` u32, `messaging_port` u16), text fields strings.
-    `ValueError` for any value Rust refuses. Parsed by plain `json.loads`,
-    a repeated field, `-0` or `NaN` no longer shows: `info_from_body`
-    refuses those too."""
-    try:
-        return _read(data)
     except ValueError as e:
         raise ValueError(f"the core node's info: {e}") from None
 
