@@ -28,3 +28,30 @@ pub(crate) fn config(dir: &Path) -> peppy_build::Config {
 pub(crate) fn redact(text: &str) -> String {
     text.replace(&fixtures().display().to_string(), "[fixtures]")
 }
+
+/// Generated tokens with machine paths replaced in their string literals,
+/// before pretty-printing: the printer wraps a macro call's body by its
+/// length, so a path redacted only afterwards would make the layout depend
+/// on where the checkout lives.
+pub(crate) fn redact_tokens(tokens: &proc_macro2::TokenStream) -> proc_macro2::TokenStream {
+    use proc_macro2::{Group, Literal, TokenTree};
+    let fixtures = fixtures().display().to_string();
+    tokens
+        .clone()
+        .into_iter()
+        .map(|tree| match tree {
+            TokenTree::Group(group) => {
+                let mut redacted = Group::new(group.delimiter(), redact_tokens(&group.stream()));
+                redacted.set_span(group.span());
+                TokenTree::Group(redacted)
+            }
+            TokenTree::Literal(literal) if literal.to_string().contains(&fixtures) => {
+                let text = literal.to_string().replace(&fixtures, "[fixtures]");
+                let mut redacted: Literal = text.parse().expect("a literal stays a literal");
+                redacted.set_span(literal.span());
+                TokenTree::Literal(redacted)
+            }
+            other => other,
+        })
+        .collect()
+}
