@@ -247,6 +247,7 @@ impl Config {
                 .repositories_env
                 .as_ref()
                 .map(|v| v.clone().unwrap_or_default()),
+            last: Vec::new(),
         };
         let schema_error = |diagnostics| Error::Schema {
             manifest: manifest.clone(),

@@ -59,10 +59,7 @@ fn security_report(stack: &StackCheck, args: &CheckArgs) -> SecurityReport {
 }
 
 pub(crate) fn run(args: &CheckArgs) -> Result {
-    let options = RepoOptions {
-        explicit: args.repos.clone(),
-        env: None,
-    };
+    let options = crate::repositories::options(args.repos.clone())?;
     if args.all_selections {
         return all_selections(args, &options);
     }

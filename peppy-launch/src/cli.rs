@@ -164,6 +164,58 @@ pub(crate) enum RepoCommand {
     /// Exit code 0 when written (or current), 2 when DIR cannot be indexed
     /// or `--check` finds drift, 1 when the file cannot be written.
     Index(RepoIndexArgs),
+    /// Every repository a command run here searches, in order: `--repo`
+    /// folders, `PEPPY_REPOSITORIES`, the nearest
+    /// `peppy_repositories.json5`, then the user's list (the public hubs
+    /// while the user has no list); who listed each and what it holds.
+    /// Reads the cache only.
+    List(RepoListArgs),
+    /// Add a folder or a git repository (`URL [--ref REF]`, fetched now)
+    /// to the user's list.
+    Add(RepoAddArgs),
+    /// Take repositories off the user's list (a public hub too: that turns
+    /// it off), by short name (`nodes-hub`), URL or folder.
+    Remove(RepoRemoveArgs),
+    /// Fetch every git repository a command run here searches, and say
+    /// which commit each is read at. One that cannot be reached keeps its
+    /// cached copy.
+    Refresh(RepoRefreshArgs),
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct RepoListArgs {
+    /// An extra repository directory (repeatable), searched first.
+    #[arg(long = "repo", value_name = "DIR")]
+    pub(crate) repos: Vec<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct RepoAddArgs {
+    /// A folder, or anything `git clone` takes (a URL, a bare
+    /// repository's path).
+    #[arg(value_name = "LOCATION")]
+    pub(crate) location: String,
+    /// The branch, tag or full commit id to read (a git repository; the
+    /// default branch when not given).
+    #[arg(long = "ref", value_name = "REF")]
+    pub(crate) reference: Option<String>,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct RepoRemoveArgs {
+    /// Repositories to remove: short names, URLs or folders.
+    #[arg(value_name = "NAME", required_unless_present = "all")]
+    pub(crate) names: Vec<String>,
+    /// Empty the list (the public hubs included).
+    #[arg(long)]
+    pub(crate) all: bool,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct RepoRefreshArgs {
+    /// An extra repository directory (repeatable).
+    #[arg(long = "repo", value_name = "DIR")]
+    pub(crate) repos: Vec<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -208,6 +260,36 @@ pub(crate) enum NodeCommand {
     List(ListArgs),
     /// One instance in full: slots and bindings, topics, services, actions.
     Info(NodeInfoArgs),
+    /// Create a node: a folder NAME with its `peppy.json5` (`node/v1`), a
+    /// node that greets and hears its peers, its `.peppy/libs`, and a test
+    /// under the generated harness (`cargo test`, or `uv run --group dev
+    /// pytest`). Never overwrites.
+    #[command(visible_alias = "create")]
+    Init(InitArgs),
+}
+
+/// What `node init` writes a node with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub(crate) enum Toolchain {
+    /// A Rust node: a cargo project.
+    #[default]
+    Cargo,
+    /// A Python node: a uv project.
+    Uv,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct InitArgs {
+    /// The node's name, and its folder's: a letter first, then letters,
+    /// digits, `_` and `-`.
+    #[arg(value_name = "NAME")]
+    pub(crate) name: String,
+    /// The toolchain the node is built and tested with.
+    #[arg(long, value_enum, default_value_t)]
+    pub(crate) toolchain: Toolchain,
+    /// Where the node's folder goes (default: here).
+    #[arg(long, value_name = "DIR")]
+    pub(crate) to_dir: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]

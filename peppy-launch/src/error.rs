@@ -13,8 +13,10 @@ use std::time::Duration;
 use crate::executable::ExecutableError;
 use crate::find_launcher::LauncherLookupError;
 use crate::inspect::SelectError;
+use crate::node_init::InitError;
 use crate::placement::{PlaceError, PlacementError};
 use crate::python_sync::PackageError;
+use crate::repositories::RepoListError;
 use crate::run_node::{LocateError, PairLinkRefused};
 use crate::runs::LogsError;
 use crate::security::keys::KeysError;
@@ -94,6 +96,17 @@ launch_error_from!(
     RouterError => Setup,
 );
 
+impl From<InitError> for LaunchError {
+    /// A name or folder `init` refuses is a usage error; a file it cannot
+    /// write is a setup failure.
+    fn from(e: InitError) -> Self {
+        match e {
+            InitError::Write { .. } => LaunchError::Setup(SetupError::Init(e)),
+            other => LaunchError::Usage(UsageError::Init(other)),
+        }
+    }
+}
+
 impl From<PackageError> for LaunchError {
     /// Invalid documents stay [`LaunchError::Invalid`] (their diagnostics
     /// are printed); a file that cannot be written is a setup failure.
@@ -133,6 +146,12 @@ pub enum UsageError {
     /// starts inherits, is not a grace window.
     #[error("invalid PEPPY_SHUTDOWN_GRACE_SECS: {0}")]
     ShutdownGrace(peppy_schema::GraceError),
+    /// `node init` refuses the name or the folder.
+    #[error(transparent)]
+    Init(InitError),
+    /// `repo add` / `repo remove` name what the user's list cannot take.
+    #[error(transparent)]
+    RepoList(RepoListError),
     /// `plan` was given neither a node nor a model.
     #[error("give a NODE or --model")]
     NoNodeOrModel,
@@ -215,6 +234,13 @@ pub enum UsageError {
 /// The launch could not set itself up. Exit code 1.
 #[derive(Debug, thiserror::Error)]
 pub enum SetupError {
+    /// The user's repository list cannot be written, or a git repository
+    /// cannot be fetched.
+    #[error(transparent)]
+    RepoList(RepoListError),
+    /// `node init` could not write the node's files.
+    #[error(transparent)]
+    Init(InitError),
     /// The tokio runtime did not start.
     #[error("cannot start the tokio runtime: {0}")]
     Runtime(#[source] std::io::Error),

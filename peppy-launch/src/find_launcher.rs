@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use peppy_schema::{Diagnostics, LauncherLookup, RepoIndex, RepositoryList};
+use peppy_schema::{Diagnostics, LauncherLookup};
 
 /// Why a LAUNCHER argument names no launcher.
 #[derive(Debug, thiserror::Error)]
@@ -77,20 +77,35 @@ pub(crate) fn is_name(arg: &Path) -> bool {
 /// missing file is its reader's to report), else the one launcher of that
 /// name in the repositories.
 pub(crate) fn locate(arg: &Path, repos: &[PathBuf]) -> Result<PathBuf, LauncherLookupError> {
+    let mut repos = repos.to_vec();
+    locate_searching(arg, &mut repos)
+}
+
+/// [`locate`], for a command that goes on to read the launcher's nodes: a
+/// launcher found by name has them looked up where it was found, so every
+/// repository searched (git repositories' trees among them) is added to
+/// `repos`, after the ones given.
+pub(crate) fn locate_searching(
+    arg: &Path,
+    repos: &mut Vec<PathBuf>,
+) -> Result<PathBuf, LauncherLookupError> {
     if !is_name(arg) {
         return Ok(arg.to_path_buf());
     }
     let name = arg.to_string_lossy().into_owned();
     let cwd = std::env::current_dir().unwrap_or_default();
-    let env = std::env::var_os(peppy_schema::REPOSITORIES_ENV);
-    let list = RepositoryList::discover(repos, env.as_deref(), &cwd).map_err(|diagnostics| {
+    let index = crate::repositories::index(repos, &cwd).map_err(|diagnostics| {
         crate::report::print_human(&diagnostics);
         LauncherLookupError::Repositories {
             name: name.clone(),
             diagnostics,
         }
     })?;
-    let index = RepoIndex::scan(&list.paths);
-    let found = index.find_launcher(&name).map(Path::to_path_buf);
-    Ok(found?)
+    let found = index.find_launcher(&name).map(Path::to_path_buf)?;
+    for searched in index.repositories() {
+        if !repos.contains(searched) {
+            repos.push(searched.clone());
+        }
+    }
+    Ok(found)
 }

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use peppy_schema::{RepoOptions, SlotBinding, StackCheck, check_launcher_selection};
+use peppy_schema::{SlotBinding, StackCheck, check_launcher_selection};
 
 use crate::cli::GraphArgs;
 use crate::drawing::{self, DrawEdge, DrawNode, Drawing, EdgeStyle, NodeState};
@@ -26,10 +26,7 @@ pub(crate) fn run(args: &GraphArgs) -> Result {
     let Some(launcher) = &args.file else {
         return Err(UsageError::NothingToDraw.into());
     };
-    let options = RepoOptions {
-        explicit: args.repos.clone(),
-        env: None,
-    };
+    let options = crate::repositories::options(args.repos.clone())?;
     let stack = check_launcher_selection(
         launcher,
         &args.with,

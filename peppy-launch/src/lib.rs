@@ -17,12 +17,14 @@ mod graph;
 mod inspect;
 mod local_links;
 mod migrate;
+mod node_init;
 mod output;
 mod placement;
 mod presence;
 mod python_sync;
 mod repo_index;
 mod report;
+mod repositories;
 mod resolve;
 mod run_node;
 mod runs;
@@ -38,8 +40,10 @@ pub use error::{InspectError, LaunchError, Result, SetupError, UsageError, exit}
 pub use executable::{ExecutableError, FindError};
 pub use find_launcher::LauncherLookupError;
 pub use inspect::SelectError;
+pub use node_init::InitError;
 pub use placement::{PlaceError, PlacementError};
 pub use python_sync::{PackageError, RUNTIME_ENV, UV_VERSION, UvError, runtime_dir, uv};
+pub use repositories::RepoListError;
 pub use run_node::LocateError;
 pub use runs::LogsError;
 pub use security::keys::KeysError;
@@ -50,32 +54,35 @@ pub fn run(cli: Cli) -> Result {
     match cli.command {
         cli::Command::Validate(args) => validate::run(&args),
         cli::Command::Check(mut args) => {
-            args.launcher = find_launcher::locate(&args.launcher, &args.repos)?;
+            args.launcher = find_launcher::locate_searching(&args.launcher, &mut args.repos)?;
             check::run(&args)
         }
         cli::Command::Up(mut args) => {
-            args.launcher = find_launcher::locate(&args.launcher, &args.repos).map_err(|e| {
-                if args.as_default_command {
-                    find_launcher::maybe_a_command(e, &command_names())
-                } else {
-                    e
-                }
-            })?;
+            args.launcher = find_launcher::locate_searching(&args.launcher, &mut args.repos)
+                .map_err(|e| {
+                    if args.as_default_command {
+                        find_launcher::maybe_a_command(e, &command_names())
+                    } else {
+                        e
+                    }
+                })?;
             up::run(&args)
         }
         cli::Command::Graph(mut args) => {
             if let Some(file) = &args.file {
-                args.file = Some(find_launcher::locate(file, &args.repos)?);
+                args.file = Some(find_launcher::locate_searching(file, &mut args.repos)?);
             }
             graph::run(&args)
         }
         cli::Command::Resolve(mut args) => {
-            args.launcher = find_launcher::locate(&args.launcher, &args.repos)?;
+            args.launcher = find_launcher::locate_searching(&args.launcher, &mut args.repos)?;
             resolve::run(&args)
         }
         cli::Command::Run(args) => run_node::run(&args),
         cli::Command::Plan(args) => run_node::plan(&args),
-        cli::Command::Node(cmd) => inspect::node(cmd),
+        cli::Command::Node(cli::NodeCommand::Init(args)) => node_init::run(&args),
+        cli::Command::Node(cli::NodeCommand::List(args)) => inspect::node_list(args),
+        cli::Command::Node(cli::NodeCommand::Info(args)) => inspect::node_info(args),
         cli::Command::Topic(cmd) => inspect::topic(cmd),
         cli::Command::Service(cmd) => inspect::service(cmd),
         cli::Command::Action(cmd) => inspect::action(cmd),

@@ -4,7 +4,6 @@
 
 use std::path::PathBuf;
 
-use peppy_schema::RepoOptions;
 use peppy_schema::migrate::{Outcome, migrate_file};
 
 use crate::cli::MigrateArgs;
@@ -13,10 +12,7 @@ use crate::error::{LaunchError, Result};
 /// `peppy-launch migrate`: every file is migrated from the originals before
 /// any is written, so a launcher is planned against its nodes as they were.
 pub(crate) fn run(args: &MigrateArgs) -> Result {
-    let options = RepoOptions {
-        explicit: args.repos.clone(),
-        env: None,
-    };
+    let options = crate::repositories::options(args.repos.clone())?;
     let outcomes: Vec<(PathBuf, Outcome)> = args
         .files
         .iter()

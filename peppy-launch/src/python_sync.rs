@@ -14,7 +14,7 @@
 
 use std::path::{Path, PathBuf};
 
-use peppy_schema::{RepoOptions, ResolvedNode, check_node};
+use peppy_schema::{ResolvedNode, check_node_with};
 
 use crate::cli::SyncArgs;
 use crate::error::{LaunchError, Result};
@@ -31,17 +31,15 @@ pub(crate) const LIBS: &str = ".peppy/libs";
 pub const RUNTIME_ENV: &str = "PEPPY_PYTHON_RUNTIME";
 
 pub(crate) fn run(args: &SyncArgs) -> Result {
-    let options = RepoOptions {
-        explicit: args.repos.clone(),
-        env: None,
-    };
+    let options = crate::repositories::options(args.repos.clone())?;
     let file = crate::run_node::locate(&args.node.display().to_string(), &options)?;
-    let check = check_node(&file, &options).map_err(|diags| {
-        report::print_human(&diags);
-        LaunchError::Invalid {
-            errors: diags.error_count(),
-        }
-    })?;
+    let check =
+        check_node_with(&file, &options, &crate::sources::Fetcher::new()).map_err(|diags| {
+            report::print_human(&diags);
+            LaunchError::Invalid {
+                errors: diags.error_count(),
+            }
+        })?;
     let node = &check.resolved;
     if crate::rust_libs::wants_libs(node, file.parent().unwrap_or(Path::new("."))) {
         let dir = file.parent().unwrap_or(Path::new("."));
@@ -532,7 +530,7 @@ pub fn uv() -> std::result::Result<PathBuf, UvError> {
     Ok(exe)
 }
 
-fn on_path(program: &str) -> Option<PathBuf> {
+pub(crate) fn on_path(program: &str) -> Option<PathBuf> {
     std::env::split_paths(&std::env::var_os("PATH")?)
         .map(|d| d.join(program))
         .find(|p| p.is_file())

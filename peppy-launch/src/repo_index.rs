@@ -18,6 +18,10 @@ use crate::report;
 pub(crate) fn run(cmd: &RepoCommand) -> Result {
     match cmd {
         RepoCommand::Index(args) => index(args),
+        RepoCommand::List(args) => crate::repositories::list(args),
+        RepoCommand::Add(args) => crate::repositories::add(args),
+        RepoCommand::Remove(args) => crate::repositories::remove(args),
+        RepoCommand::Refresh(args) => crate::repositories::refresh(args),
     }
 }
 

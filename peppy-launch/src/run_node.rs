@@ -8,8 +8,8 @@ use std::time::Duration;
 use peppy_runtime::StartupConfig;
 use peppy_runtime::wire::keys::{Claim, claim_selector};
 use peppy_schema::{
-    DocumentKind, Identity, Launch, NodeCheck, NodeDoc, NodeModel, PairEnd, PairingSlot, RepoIndex,
-    RepoOptions, RepositoryList, check_node, node_file,
+    DocumentKind, Identity, Launch, NodeCheck, NodeDoc, NodeModel, PairEnd, PairingSlot,
+    RepoOptions, check_node_with, node_file,
 };
 
 use crate::cli::{PlanArgs, RunArgs};
@@ -26,12 +26,9 @@ use crate::inspect::LOCAL_HUB;
 /// The node `node` names (a path or a `name:tag`), its documents checked;
 /// its diagnostics are printed when they are not valid.
 fn checked_node(node: &str, repos: &[PathBuf]) -> Result<(PathBuf, NodeCheck)> {
-    let options = RepoOptions {
-        explicit: repos.to_vec(),
-        env: None,
-    };
+    let options = crate::repositories::options(repos.to_vec())?;
     let file = locate(node, &options)?;
-    match check_node(&file, &options) {
+    match check_node_with(&file, &options, &crate::sources::Fetcher::new()) {
         Ok(check) => Ok((file, check)),
         Err(diags) => {
             report::print_human(&diags);
@@ -413,6 +410,9 @@ pub(crate) fn locate(
 ) -> std::result::Result<PathBuf, LocateError> {
     let as_path = PathBuf::from(node);
     if as_path.exists() {
+        // Absolute: the node's commands run in its own directory, where a
+        // path relative to ours would name something else.
+        let as_path = std::path::absolute(&as_path).unwrap_or(as_path);
         return Ok(node_file(&as_path));
     }
     let Some(id) = Identity::parse(node) else {
@@ -421,10 +421,8 @@ pub(crate) fn locate(
         });
     };
     let cwd = std::env::current_dir().unwrap_or_default();
-    let env = std::env::var_os(peppy_schema::REPOSITORIES_ENV);
-    let repos = RepositoryList::discover(&options.explicit, env.as_deref(), &cwd)
-        .map_err(LocateError::Repositories)?;
-    let index = RepoIndex::scan(&repos.paths);
+    let index =
+        crate::repositories::index(&options.explicit, &cwd).map_err(LocateError::Repositories)?;
     if let Some(e) = index.node(&id) {
         return Ok(e.path.clone());
     }

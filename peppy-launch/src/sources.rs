@@ -22,7 +22,7 @@ use std::process::Command;
 use std::time::Duration;
 
 use peppy_schema::Source;
-use peppy_schema::{FetchError, FetchSource, sha256_hex};
+use peppy_schema::{FetchError, FetchSource, GitRepository, ListedBy, sha256_hex};
 use sha2::{Digest, Sha256};
 
 /// Overrides where fetched sources are cached (tests, shared caches).
@@ -277,6 +277,48 @@ impl FetchSource for Fetcher {
     fn fetch(&self, source: &Source) -> Result<PathBuf, FetchError> {
         Ok(self.fetch_source(source)?)
     }
+
+    /// A project's list (a `peppy_repositories.json5`) fetches a git
+    /// repository the first time it is needed; the user's list and the
+    /// default one are read from the cache only (`repo add` and `repo
+    /// refresh` fetch them), so no command reaches the network for them.
+    fn repository(
+        &self,
+        repository: &GitRepository,
+        by: &ListedBy,
+    ) -> Result<Option<PathBuf>, FetchError> {
+        let how = match by {
+            ListedBy::Defaults => RepoFetch::CachedOnly,
+            ListedBy::File(list) if *list == crate::repositories::user_list_path() => {
+                RepoFetch::CachedOnly
+            }
+            _ => RepoFetch::FirstUse,
+        };
+        Ok(self.git_repository(repository, how)?.map(|f| f.tree))
+    }
+}
+
+/// How [`Fetcher::git_repository`] may use the network.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum RepoFetch {
+    /// Never: the cached copy or nothing.
+    CachedOnly,
+    /// To clone it (or fetch a ref the cache lacks); a cached ref is used
+    /// as it is.
+    FirstUse,
+    /// Ask the remote for its branches and tags first.
+    Refresh,
+}
+
+/// A git repository brought to a local tree.
+#[derive(Debug)]
+pub(crate) struct FetchedRepository {
+    /// The commit's files.
+    pub(crate) tree: PathBuf,
+    /// The commit.
+    pub(crate) commit: String,
+    /// Why a refresh failed (the cached commit is used).
+    pub(crate) stale: Option<String>,
 }
 
 impl Fetcher {
@@ -297,24 +339,7 @@ impl Fetcher {
         let sub = relative(sub).ok_or_else(|| SourceError::PathOutside {
             path: sub.to_string(),
         })?;
-        let mirror = self
-            .cache
-            .join("git")
-            .join(format!("{}.git", &sha256_hex(repo.as_bytes())[..16]));
-        if !mirror.join("HEAD").is_file() {
-            let tmp = fresh(&mirror)?;
-            git(
-                None,
-                &["clone", "--quiet", "--mirror", repo, &path_arg(&tmp)],
-            )
-            .map_err(|source| SourceError::Clone {
-                repo: repo.to_string(),
-                source,
-            })?;
-            publish(&tmp, &mirror)?;
-            // Just cloned: as fresh as a fetch would make it.
-            self.first_time(repo);
-        }
+        let mirror = self.mirror(repo)?;
         let commit = if is_commit_id(reference) {
             if resolve(&mirror, reference).is_none() {
                 // A commit the mirror has not seen yet: the remote may have it.
@@ -340,23 +365,7 @@ impl Fetcher {
             eprintln!("peppy-launch: {repo} `{reference}` is commit {commit}");
             commit
         };
-        let tree = self.cache.join("git-trees").join(&commit);
-        if !tree.is_dir() {
-            let tar = git_output(Some(&mirror), &["archive", "--format=tar", &commit]).map_err(
-                |source| SourceError::ReadCommit {
-                    commit: commit.clone(),
-                    repo: repo.to_string(),
-                    source,
-                },
-            )?;
-            let tmp = fresh(&tree)?;
-            unpack(tar.as_slice(), &tmp).map_err(|source| SourceError::UnpackCommit {
-                commit: commit.clone(),
-                repo: repo.to_string(),
-                source,
-            })?;
-            publish(&tmp, &tree)?;
-        }
+        let tree = self.tree(repo, &commit)?;
         let dir = tree.join(&sub);
         if !dir.exists() {
             return Err(SourceError::NoPath {
@@ -366,6 +375,106 @@ impl Fetcher {
             });
         }
         Ok(dir)
+    }
+
+    /// Where `repo`'s mirror is kept (whether or not it is there yet).
+    fn mirror_path(&self, repo: &str) -> PathBuf {
+        self.cache
+            .join("git")
+            .join(format!("{}.git", &sha256_hex(repo.as_bytes())[..16]))
+    }
+
+    /// `repo`'s mirror, cloned first if it is not cached yet.
+    fn mirror(&self, repo: &str) -> Result<PathBuf, SourceError> {
+        let mirror = self.mirror_path(repo);
+        if !mirror.join("HEAD").is_file() {
+            let tmp = fresh(&mirror)?;
+            git(
+                None,
+                &["clone", "--quiet", "--mirror", repo, &path_arg(&tmp)],
+            )
+            .map_err(|source| SourceError::Clone {
+                repo: repo.to_string(),
+                source,
+            })?;
+            publish(&tmp, &mirror)?;
+            // Just cloned: as fresh as a fetch would make it.
+            self.first_time(repo);
+        }
+        Ok(mirror)
+    }
+
+    /// The files of `commit` of `repo`, unpacked once into the cache.
+    fn tree(&self, repo: &str, commit: &str) -> Result<PathBuf, SourceError> {
+        let mirror = self.mirror_path(repo);
+        let tree = self.cache.join("git-trees").join(commit);
+        if !tree.is_dir() {
+            let tar = git_output(Some(&mirror), &["archive", "--format=tar", commit]).map_err(
+                |source| SourceError::ReadCommit {
+                    commit: commit.to_string(),
+                    repo: repo.to_string(),
+                    source,
+                },
+            )?;
+            let tmp = fresh(&tree)?;
+            unpack(tar.as_slice(), &tmp).map_err(|source| SourceError::UnpackCommit {
+                commit: commit.to_string(),
+                repo: repo.to_string(),
+                source,
+            })?;
+            publish(&tmp, &tree)?;
+        }
+        Ok(tree)
+    }
+
+    /// A git repository of a repository list, as `how` says: its tree and
+    /// commit, or `None` when `how` is [`RepoFetch::CachedOnly`] and it is
+    /// not cached. A branch or tag is read from the cached mirror, asked
+    /// of the remote only when refreshing or when the mirror lacks it;
+    /// a refresh that fails keeps the cached commit and says why.
+    pub(crate) fn git_repository(
+        &self,
+        repository: &GitRepository,
+        how: RepoFetch,
+    ) -> Result<Option<FetchedRepository>, SourceError> {
+        let url = repository.url.as_str();
+        if how == RepoFetch::CachedOnly && !self.mirror_path(url).join("HEAD").is_file() {
+            return Ok(None);
+        }
+        let mirror = self.mirror(url)?;
+        let reference = repository.reference.as_deref().unwrap_or("HEAD");
+        let mut stale = None;
+        if how == RepoFetch::Refresh
+            && let Err(e) = self.refresh(url, &mirror)
+        {
+            stale = Some(e.to_string().trim().to_string());
+        }
+        let mut commit = resolve(&mirror, reference);
+        if commit.is_none() && how != RepoFetch::CachedOnly {
+            // A commit or branch the mirror has not seen yet.
+            let _ = self.refresh(url, &mirror);
+            commit = resolve(&mirror, reference);
+        }
+        let Some(commit) = commit else {
+            return Err(if is_commit_id(reference) {
+                SourceError::NoCommit {
+                    commit: reference.to_string(),
+                    repo: url.to_string(),
+                }
+            } else {
+                SourceError::NoRef {
+                    reference: reference.to_string(),
+                    repo: url.to_string(),
+                    refs: refs_of(&mirror),
+                }
+            });
+        };
+        let tree = self.tree(url, &commit)?;
+        Ok(Some(FetchedRepository {
+            tree,
+            commit,
+            stale,
+        }))
     }
 
     fn archive(&self, url: &str, sha256: &str) -> Result<PathBuf, SourceError> {

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use peppy_runtime::{Endpoints, StartupConfig};
-use peppy_schema::{Identity, RepoOptions, StackCheck, check_launcher_selection};
+use peppy_schema::{Identity, StackCheck, check_launcher_selection};
 
 use crate::cli::UpArgs;
 use crate::error::{LaunchError, SetupError, UsageError};
@@ -32,10 +32,7 @@ pub(crate) fn run(args: &UpArgs) -> Outcome {
         };
         &placed_args
     };
-    let options = RepoOptions {
-        explicit: args.repos.clone(),
-        env: None,
-    };
+    let options = crate::repositories::options(args.repos.clone())?;
     let stack = match check_launcher_selection(
         &args.launcher,
         &args.with,

@@ -13,7 +13,7 @@ use crate::launcher::{LauncherDoc, parse_launcher};
 pub(crate) use crate::model::Spelling;
 use crate::node::{NodeDoc, parse_node};
 use crate::pairing::{PairingDoc, parse_pairing};
-use crate::read::{Reader, index};
+use crate::read::{Loc, Reader, index};
 use crate::repository_index::{RepositoryIndexDoc, parse_repository_index};
 use crate::source::{SourceFile, sha256_hex};
 
@@ -127,8 +127,51 @@ impl Document {
 pub struct RepositoriesDoc {
     /// The document's text.
     pub file: Arc<SourceFile>,
-    /// Repository directories, resolved against the file's directory, in priority order.
-    pub paths: Vec<PathBuf>,
+    /// The repositories, in priority order: by `id` where entries give one
+    /// (lower first, as PeppyOS orders them), else as written.
+    pub entries: Vec<RepositoryEntry>,
+}
+
+/// One repository of a repository list.
+#[derive(Debug, Clone)]
+pub enum RepositoryEntry {
+    /// `{ type: "fs", path }`: a folder, resolved against the list's
+    /// directory.
+    Folder(PathBuf),
+    /// `{ type: "git", url, ref? }`: a git repository, read from a local
+    /// cache its fetcher keeps.
+    Git(GitRepository),
+}
+
+/// A git repository a list names.
+#[derive(Debug, Clone)]
+pub struct GitRepository {
+    /// `url`: anything `git clone` takes. A relative file path is resolved
+    /// against the list's directory.
+    pub url: String,
+    /// `ref`: a branch, a tag or a full commit id; `None` is the
+    /// repository's default branch.
+    pub reference: Option<String>,
+    /// Where the list names it, for messages.
+    pub loc: Loc,
+}
+
+impl GitRepository {
+    /// A short name for messages and `repo remove`: the URL's last
+    /// segment without `.git` (`nodes-hub`).
+    pub fn short_name(&self) -> &str {
+        let trimmed = self.url.trim_end_matches('/');
+        let last = trimmed.rsplit(['/', ':']).next().unwrap_or(trimmed);
+        last.strip_suffix(".git").unwrap_or(last)
+    }
+
+    /// `url` or `url@ref`.
+    pub fn describe(&self) -> String {
+        match &self.reference {
+            Some(r) => format!("{}@{r}", self.url),
+            None => self.url.clone(),
+        }
+    }
 }
 
 /// Reads a document's kind without validating the rest.
@@ -437,49 +480,115 @@ fn parse_repositories(
         .parent()
         .map(Path::to_path_buf)
         .unwrap_or_default();
-    let mut paths = Vec::new();
+    let mut entries: Vec<(Option<u64>, RepositoryEntry)> = Vec::new();
     for (i, item) in items.iter().enumerate() {
         let ipath = index("", i);
-        let Some(obj) = r.object(item, &ipath, &["type", "path"]) else {
+        let Some(obj) = r.object(item, &ipath, &["id", "type", "path", "url", "ref"]) else {
             continue;
         };
-        let ty = r
+        let id = obj
+            .get("id")
+            .and_then(|n| r.uint(n, &obj.path_of("id"), u64::from(u32::MAX)));
+        let Some((ty, ty_span)) = r
             .required(&obj, "type")
-            .and_then(|t| r.string(t, &obj.path_of("type")).map(|s| (s, t.span)));
-        let path = r
-            .required(&obj, "path")
-            .and_then(|p| r.string(p, &obj.path_of("path")));
-        match ty {
-            Some((t, _)) if t == "fs" => {}
-            Some((t, span)) if t == "git" || t == "url" => {
-                r.error_help(
-                    Code::UnsupportedSource,
-                    span,
-                    &obj.path_of("type"),
-                    format!("`{t}` repositories are not supported yet"),
-                    "check the repository out yourself and list it as `{ type: \"fs\", path: \"...\" }`",
-                );
-                continue;
+            .and_then(|t| r.string(t, &obj.path_of("type")).map(|s| (s, t.span)))
+        else {
+            continue;
+        };
+        // A field of the other type is a mistake worth naming, not ignoring.
+        let stray = |r: &mut Reader, keys: &[&str], ty: &str| {
+            for key in keys {
+                if let Some(m) = obj.member(key) {
+                    r.error(
+                        Code::InvalidValue,
+                        m.key_span,
+                        &obj.path_of(key),
+                        format!("a `{ty}` repository has no `{key}`"),
+                    );
+                }
             }
-            Some((t, span)) => {
+        };
+        match ty.as_str() {
+            "fs" => {
+                stray(&mut r, &["url", "ref"], "fs");
+                if let Some(p) = r
+                    .required(&obj, "path")
+                    .and_then(|p| r.string(p, &obj.path_of("path")))
+                {
+                    let p = PathBuf::from(p);
+                    let p = if p.is_absolute() { p } else { base.join(p) };
+                    entries.push((id, RepositoryEntry::Folder(p)));
+                }
+            }
+            "git" => {
+                stray(&mut r, &["path"], "git");
+                let Some(url_node) = r.required(&obj, "url") else {
+                    continue;
+                };
+                let Some(url) = r.string(url_node, &obj.path_of("url")) else {
+                    continue;
+                };
+                if url.trim().is_empty() {
+                    r.error(
+                        Code::InvalidValue,
+                        url_node.span,
+                        &obj.path_of("url"),
+                        "`url` must not be empty",
+                    );
+                    continue;
+                }
+                let reference = match obj.get("ref") {
+                    Some(n) => match r.string(n, &obj.path_of("ref")) {
+                        Some(s) if !s.trim().is_empty() && !s.starts_with('-') => Some(s),
+                        Some(_) => {
+                            r.error(
+                                Code::InvalidValue,
+                                n.span,
+                                &obj.path_of("ref"),
+                                "`ref` must be a branch, a tag or a commit id",
+                            );
+                            continue;
+                        }
+                        None => continue,
+                    },
+                    None => None,
+                };
+                let loc = r.loc(item.span, &ipath);
+                entries.push((
+                    id,
+                    RepositoryEntry::Git(GitRepository {
+                        url: git_url(&url, &base),
+                        reference,
+                        loc,
+                    }),
+                ));
+            }
+            other => {
                 r.error_help(
                     Code::InvalidValue,
-                    span,
+                    ty_span,
                     &obj.path_of("type"),
-                    format!("unknown repository type `{t}`"),
-                    "accepted: `fs`",
+                    format!("unknown repository type `{other}`"),
+                    "accepted: `fs` (`{ type: \"fs\", path }`) and `git` (`{ type: \"git\", url, ref? }`)",
                 );
-                continue;
             }
-            None => continue,
-        }
-        if let Some(p) = path {
-            let p = PathBuf::from(p);
-            paths.push(if p.is_absolute() { p } else { base.join(p) });
         }
     }
+    // Lower ids first; entries without one keep their place after them.
+    entries.sort_by_key(|(id, _)| id.unwrap_or(u64::MAX));
     (!r.diags.has_errors()).then(|| RepositoriesDoc {
         file: file.clone(),
-        paths,
+        entries: entries.into_iter().map(|(_, e)| e).collect(),
     })
+}
+
+/// A git URL as the list means it: a relative path is a repository next to
+/// the list (`../hub.git`), which git would otherwise read against
+/// whatever directory the command runs in.
+fn git_url(url: &str, base: &Path) -> String {
+    let is_path = !url.contains("://") && !url.contains('@') && !Path::new(url).is_absolute();
+    if is_path && (url.starts_with('.') || !url.contains(':')) {
+        return base.join(url).display().to_string();
+    }
+    url.to_string()
 }

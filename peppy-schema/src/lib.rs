@@ -125,8 +125,8 @@ pub use compose::{
 pub use core_nodes::{CoreNode, Placement};
 #[cfg(feature = "documents")]
 pub use document::{
-    Document, DocumentKind, Parsed, REPOSITORIES_FILE, RepositoriesDoc, SCHEMAS, detect_kind,
-    load_as, load_document, parse_as, parse_document,
+    Document, DocumentKind, GitRepository, Parsed, REPOSITORIES_FILE, RepositoriesDoc,
+    RepositoryEntry, SCHEMAS, detect_kind, load_as, load_document, parse_as, parse_document,
 };
 #[cfg(feature = "documents")]
 pub use entries::{
@@ -154,8 +154,8 @@ pub use pairing_slots::{PairingTopicUse, ResolvedPairing};
 pub use plan::{BindingPlan, InstancePlan, plan_bindings};
 #[cfg(feature = "documents")]
 pub use repos::{
-    Broken, Entry, LauncherLookup, REPOSITORIES_ENV, RepoIndex, RepositoryList, SKIPPED_DIRS,
-    json5_files,
+    Broken, Entry, LauncherLookup, ListedBy, ListedRepository, REPOSITORIES_ENV, RepoIndex,
+    RepositoryList, SKIPPED_DIRS, json5_files,
 };
 #[cfg(feature = "documents")]
 pub use repository_index::{
@@ -172,6 +172,6 @@ pub use source::sha256_hex;
 #[cfg(feature = "documents")]
 pub use stack::{
     DeployedNode, FetchError, FetchSource, NoFetch, NodeCheck, RepoOptions, StackCheck,
-    check_launcher, check_launcher_selection, check_launcher_with, check_node, check_resolved,
-    fills, node_file,
+    check_launcher, check_launcher_selection, check_launcher_with, check_node, check_node_with,
+    check_resolved, fills, node_file,
 };

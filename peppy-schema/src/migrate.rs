@@ -16,8 +16,8 @@ use std::sync::Arc;
 
 use crate::json::{Member, Node, Value};
 use crate::{
-    Identity, InterfaceDoc, RepoIndex, RepoOptions, RepositoryList, SlotBinding, SourceFile,
-    StackCheck, check_launcher, detect_kind, parse_document,
+    Identity, InterfaceDoc, RepoIndex, RepoOptions, SlotBinding, SourceFile, StackCheck,
+    check_launcher, detect_kind, parse_document,
 };
 
 /// Something the migration could not carry, or carried only approximately.
@@ -266,9 +266,7 @@ pub fn migrate_file(path: &Path, options: &RepoOptions) -> Outcome {
     match (schema, legacy) {
         (Some("node_v1"), _) | (None, true) => {
             let dir = path.parent().unwrap_or(Path::new("."));
-            let index = RepositoryList::discover(&options.explicit, env(options).as_deref(), dir)
-                .map(|l| RepoIndex::scan(&l.paths))
-                .ok();
+            let index = options.discover(dir).map(|l| RepoIndex::of(&l)).ok();
             let lookup = |id: &Identity| -> Option<Arc<InterfaceDoc>> {
                 index.as_ref()?.interface(id).map(|e| e.doc.clone())
             };
@@ -284,13 +282,6 @@ pub fn migrate_file(path: &Path, options: &RepoOptions) -> Outcome {
             None => Outcome::Unreadable("not a peppy document".into()),
         },
     }
-}
-
-fn env(options: &RepoOptions) -> Option<std::ffi::OsString> {
-    options
-        .env
-        .clone()
-        .or_else(|| std::env::var_os(crate::REPOSITORIES_ENV))
 }
 
 /// Finishes a migration: applies the edits and checks the result reads in
@@ -711,6 +702,7 @@ mod tests {
         RepoOptions {
             explicit: Vec::new(),
             env: Some(Default::default()),
+            last: Vec::new(),
         }
     }
 

@@ -10,7 +10,8 @@ use std::sync::Arc;
 
 use crate::diag::{Code, Diagnostic, Diagnostics, Severity};
 use crate::document::{
-    Document, DocumentKind, REPOSITORIES_FILE, RepositoriesDoc, detect_kind, parse_tree,
+    Document, DocumentKind, GitRepository, REPOSITORIES_FILE, RepositoriesDoc, RepositoryEntry,
+    detect_kind, parse_tree,
 };
 use crate::interface::InterfaceDoc;
 use crate::node::{Identity, NodeDoc};
@@ -20,6 +21,7 @@ use crate::repository_index::{
     peek_identity,
 };
 use crate::source::SourceFile;
+use crate::stack::FetchSource;
 
 /// The environment variable listing extra repositories (separated like `PATH`).
 pub const REPOSITORIES_ENV: &str = "PEPPY_REPOSITORIES";
@@ -38,10 +40,51 @@ pub const SKIPPED_DIRS: &[&str] = &[
 /// find them (for rebuild tracking).
 #[derive(Debug, Clone, Default)]
 pub struct RepositoryList {
-    /// Repository directories, highest priority first, without duplicates.
+    /// Repository directories, highest priority first, without duplicates:
+    /// the folders listed and, once [`fetch_git`](Self::fetch_git) ran, the
+    /// git repositories' trees in their places.
     pub paths: Vec<PathBuf>,
+    /// Every repository listed, highest priority first, as listed.
+    pub listed: Vec<ListedRepository>,
     /// `peppy_repositories.json5` files that were read.
     pub files_read: Vec<PathBuf>,
+}
+
+/// One repository of a [`RepositoryList`] and who listed it.
+#[derive(Debug, Clone)]
+pub struct ListedRepository {
+    /// The repository.
+    pub entry: RepositoryEntry,
+    /// Who listed it.
+    pub by: ListedBy,
+    /// A git repository's tree once fetched; a folder's path.
+    pub local: Option<PathBuf>,
+}
+
+/// Who put a repository on the list.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ListedBy {
+    /// A `--repo` argument.
+    CommandLine,
+    /// `PEPPY_REPOSITORIES`.
+    Environment,
+    /// A repository list file: the nearest `peppy_repositories.json5`, a
+    /// node's own, or the user's list.
+    File(PathBuf),
+    /// The built-in default list, used while the user has no list of
+    /// their own.
+    Defaults,
+}
+
+impl std::fmt::Display for ListedBy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ListedBy::CommandLine => f.write_str("--repo"),
+            ListedBy::Environment => f.write_str(REPOSITORIES_ENV),
+            ListedBy::File(p) => write!(f, "{}", p.display()),
+            ListedBy::Defaults => f.write_str("the default list"),
+        }
+    }
 }
 
 impl RepositoryList {
@@ -55,11 +98,11 @@ impl RepositoryList {
     ) -> Result<RepositoryList, Diagnostics> {
         let mut list = RepositoryList::default();
         for p in explicit {
-            list.add(p.clone());
+            list.add(RepositoryEntry::Folder(p.clone()), ListedBy::CommandLine);
         }
         if let Some(value) = env {
             for p in std::env::split_paths(value).filter(|p| !p.as_os_str().is_empty()) {
-                list.add(p);
+                list.add(RepositoryEntry::Folder(p), ListedBy::Environment);
             }
         }
         list.add_nearest_file(start_dir)?;
@@ -73,24 +116,98 @@ impl RepositoryList {
         for ancestor in dir.ancestors() {
             let candidate = ancestor.join(REPOSITORIES_FILE);
             if candidate.is_file() {
-                if self.files_read.contains(&candidate) {
-                    return Ok(());
-                }
-                let (doc, _) = RepositoriesDoc::load(&candidate)?;
-                self.files_read.push(candidate);
-                for p in doc.paths {
-                    self.add(p);
-                }
-                return Ok(());
+                return self.add_file(&candidate);
             }
         }
         Ok(())
     }
 
-    fn add(&mut self, p: PathBuf) {
-        let p = absolute(&p);
-        if !self.paths.contains(&p) {
-            self.paths.push(p);
+    /// Appends the repositories of the list file `path` (once).
+    pub fn add_file(&mut self, path: &Path) -> Result<(), Diagnostics> {
+        if self.files_read.iter().any(|f| f == path) {
+            return Ok(());
+        }
+        let (doc, _) = RepositoriesDoc::load(path)?;
+        self.files_read.push(path.to_path_buf());
+        for entry in doc.entries {
+            self.add(entry, ListedBy::File(path.to_path_buf()));
+        }
+        Ok(())
+    }
+
+    /// Appends `entry`, listed by `by`, unless it is listed already.
+    pub fn add(&mut self, entry: RepositoryEntry, by: ListedBy) {
+        let entry = match entry {
+            RepositoryEntry::Folder(p) => RepositoryEntry::Folder(absolute(&p)),
+            git => git,
+        };
+        let same = |l: &ListedRepository| match (&l.entry, &entry) {
+            (RepositoryEntry::Folder(a), RepositoryEntry::Folder(b)) => a == b,
+            (RepositoryEntry::Git(a), RepositoryEntry::Git(b)) => {
+                a.url == b.url && a.reference == b.reference
+            }
+            _ => false,
+        };
+        if self.listed.iter().any(same) {
+            return;
+        }
+        let local = match &entry {
+            RepositoryEntry::Folder(p) => Some(p.clone()),
+            RepositoryEntry::Git(_) => None,
+        };
+        self.listed.push(ListedRepository { entry, by, local });
+        self.update_paths();
+    }
+
+    /// The git repositories listed and not fetched yet.
+    pub fn unfetched(&self) -> impl Iterator<Item = &GitRepository> {
+        self.listed.iter().filter_map(|l| match &l.entry {
+            RepositoryEntry::Git(g) if l.local.is_none() => Some(g),
+            _ => None,
+        })
+    }
+
+    /// Brings every listed git repository to a local tree with `fetcher`,
+    /// each in its place in [`paths`](Self::paths). One that cannot be
+    /// had is skipped with a warning at its entry, naming it and why.
+    pub fn fetch_git(&mut self, fetcher: &dyn FetchSource) -> Diagnostics {
+        let mut warnings = Diagnostics::new();
+        for listed in &mut self.listed {
+            let RepositoryEntry::Git(git) = &listed.entry else {
+                continue;
+            };
+            if listed.local.is_some() {
+                continue;
+            }
+            match fetcher.repository(git, &listed.by) {
+                Ok(tree) => listed.local = tree,
+                Err(why) => warnings.push(
+                    git.loc
+                        .warning(
+                            Code::DependencyNotFound,
+                            format!(
+                                "git repository `{}` cannot be had: {why}; skipped",
+                                git.describe()
+                            ),
+                        )
+                        .with_help(
+                            "`peppy-launch repo refresh` fetches every git repository again",
+                        ),
+                ),
+            }
+        }
+        self.update_paths();
+        warnings
+    }
+
+    fn update_paths(&mut self) {
+        self.paths.clear();
+        for listed in &self.listed {
+            if let Some(p) = &listed.local
+                && !self.paths.contains(p)
+            {
+                self.paths.push(p.clone());
+            }
         }
     }
 }
@@ -176,9 +293,23 @@ pub struct RepoIndex {
     missing_launchers: BTreeMap<String, Vec<PathBuf>>,
     broken: BTreeMap<(DocumentKind, Identity), Broken>,
     findings: Diagnostics,
+    /// Git repositories listed but not fetched: named where a lookup
+    /// finds nothing.
+    unfetched: Vec<String>,
 }
 
 impl RepoIndex {
+    /// Scans the local repositories of `list` ([`scan`](Self::scan)),
+    /// remembering the git repositories it names that are not fetched.
+    pub fn of(list: &RepositoryList) -> RepoIndex {
+        let mut index = RepoIndex::scan(&list.paths);
+        index.unfetched = list
+            .unfetched()
+            .map(|g| g.short_name().to_string())
+            .collect();
+        index
+    }
+
     /// Scans `repositories` in order. Problems that do not stop the scan
     /// (duplicates, missing directories, unreadable files) become warnings
     /// in [`findings`](Self::findings).
@@ -609,15 +740,25 @@ impl RepoIndex {
 
     /// `` `a`, `b` `` list of repositories for "not found" messages.
     pub fn searched(&self) -> String {
+        let unfetched = if self.unfetched.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; not fetched yet: {} (`peppy-launch repo refresh` fetches them)",
+                self.unfetched.join(", ")
+            )
+        };
         if self.repositories.is_empty() {
-            return "no repositories are configured (pass a path, set PEPPY_REPOSITORIES, or add a peppy_repositories.json5)".to_string();
+            return format!(
+                "no repositories are configured (pass a path, set PEPPY_REPOSITORIES, or add a peppy_repositories.json5){unfetched}"
+            );
         }
         let list: Vec<String> = self
             .repositories
             .iter()
             .map(|p| format!("`{}`", p.display()))
             .collect();
-        format!("searched {}", list.join(", "))
+        format!("searched {}{unfetched}", list.join(", "))
     }
 }
 

@@ -195,12 +195,21 @@ pub fn resolve_node(
                 interface_offer(&entry.doc, &dep.target)
             }
             SlotKind::Node => {
-                let Some(entry) = find_node(index, &dep.target, &dep.loc, &mut diags) else {
-                    continue;
+                // A node that hears peers of its own kind (a swarm, a
+                // scaffold greeting its neighbours) is its own producer:
+                // its document answers for its `name:tag` before any
+                // repository, so it resolves where no repository lists it.
+                let producer: &NodeDoc = if is_itself(&node, &dep.target) {
+                    &node
+                } else {
+                    let Some(entry) = find_node(index, &dep.target, &dep.loc, &mut diags) else {
+                        continue;
+                    };
+                    files.push(entry.path.clone());
+                    &entry.doc
                 };
-                files.push(entry.path.clone());
                 let natives_only = node.spelling == Spelling::SlashIds;
-                match producer_offer(&entry.doc, index, dep, natives_only, &mut files, &mut diags) {
+                match producer_offer(producer, index, dep, natives_only, &mut files, &mut diags) {
                     Some(o) => o,
                     None => continue,
                 }
@@ -695,6 +704,10 @@ fn refinement_problems(name: &str, problems: Vec<(Loc, String)>, diags: &mut Dia
             .with_help("a pin lands on an array the document leaves open (no `$length`) whose items are scalars"),
         );
     }
+}
+
+fn is_itself(node: &NodeDoc, id: &Identity) -> bool {
+    node.name == id.name && node.tag == id.tag
 }
 
 fn find_node<'i>(

@@ -7,10 +7,11 @@ use std::sync::Arc;
 
 use crate::compose::{Resolved, Selection};
 use crate::diag::{Code, Diagnostics};
+use crate::document::{GitRepository, RepositoryEntry};
 use crate::launcher::{Deployment, LauncherDoc, Source};
 use crate::node::{Launch, NodeDoc};
 use crate::plan::{BindingPlan, plan_bindings};
-use crate::repos::{REPOSITORIES_ENV, RepoIndex, RepositoryList, absolute};
+use crate::repos::{ListedBy, REPOSITORIES_ENV, RepoIndex, RepositoryList, absolute};
 use crate::resolve::{ResolvedNode, resolve_node};
 
 /// Where to look for repositories besides the nearest
@@ -21,6 +22,9 @@ pub struct RepoOptions {
     pub explicit: Vec<PathBuf>,
     /// The value of `PEPPY_REPOSITORIES`; `None` reads the process environment.
     pub env: Option<OsString>,
+    /// Repositories searched last, after the nearest list: the user's own
+    /// list, which `peppy-launch repo` keeps (none for a build script).
+    pub last: Vec<(RepositoryEntry, ListedBy)>,
 }
 
 impl RepoOptions {
@@ -28,6 +32,19 @@ impl RepoOptions {
         self.env
             .clone()
             .or_else(|| std::env::var_os(REPOSITORIES_ENV))
+    }
+
+    /// The repositories these options name from `start_dir`, in priority
+    /// order: explicit paths, `PEPPY_REPOSITORIES`, the nearest
+    /// `peppy_repositories.json5`, then [`last`](Self::last). Git
+    /// repositories are not fetched yet ([`RepositoryList::fetch_git`]).
+    pub fn discover(&self, start_dir: &Path) -> Result<RepositoryList, Diagnostics> {
+        let mut list =
+            RepositoryList::discover(&self.explicit, self.env_value().as_deref(), start_dir)?;
+        for (entry, by) in &self.last {
+            list.add(entry.clone(), by.clone());
+        }
+        Ok(list)
     }
 }
 
@@ -45,12 +62,24 @@ pub struct NodeCheck {
 /// Loads and resolves the node document at `path` (a `peppy.json5` or its
 /// directory).
 pub fn check_node(path: &Path, options: &RepoOptions) -> Result<NodeCheck, Diagnostics> {
+    check_node_with(path, options, &NoFetch)
+}
+
+/// [`check_node`], with `fetcher` bringing the git repositories the lists
+/// name to local trees first.
+pub fn check_node_with(
+    path: &Path,
+    options: &RepoOptions,
+    fetcher: &dyn FetchSource,
+) -> Result<NodeCheck, Diagnostics> {
     let file = node_file(path);
     let (doc, mut warnings) = NodeDoc::load(&file)?;
     let dir = file.parent().map(Path::to_path_buf).unwrap_or_default();
-    let repositories =
-        RepositoryList::discover(&options.explicit, options.env_value().as_deref(), &dir)?;
-    let index = RepoIndex::scan(&repositories.paths);
+    let mut repositories = options.discover(&dir)?;
+    if repositories.unfetched().next().is_some() {
+        warnings.extend(repositories.fetch_git(fetcher));
+    }
+    let index = RepoIndex::of(&repositories);
     let (resolved, more) = resolve_node(Arc::new(doc), absolute(&file), &index)?;
     warnings.extend(more);
     Ok(NodeCheck {
@@ -157,6 +186,20 @@ pub trait FetchSource {
     /// it cannot be had (its text becomes the deployment's diagnostic).
     /// Called only for [`Source::Git`] and [`Source::Archive`].
     fn fetch(&self, source: &Source) -> Result<PathBuf, FetchError>;
+
+    /// The local tree of a git repository a repository list names, or why
+    /// it cannot be had. By default there is none: only a launcher that
+    /// keeps a cache of git repositories reads them (`peppy-launch`).
+    /// `Ok(None)`: not fetched on purpose (a list read from the cache
+    /// only); it is named where a lookup finds nothing.
+    fn repository(
+        &self,
+        repository: &GitRepository,
+        by: &ListedBy,
+    ) -> Result<Option<PathBuf>, FetchError> {
+        let _ = (repository, by);
+        Ok(None)
+    }
 }
 
 /// Why a remote source could not be fetched: the fetcher's own error.
@@ -223,8 +266,7 @@ pub fn check_resolved(
     let selection = resolved.report.selection.clone();
     let (launcher, mut diags) = (resolved.launcher, resolved.warnings);
     let base = absolute(&launcher.base_dir());
-    let mut repositories =
-        RepositoryList::discover(&options.explicit, options.env_value().as_deref(), &base)?;
+    let mut repositories = options.discover(&base)?;
     // Remote sources become local directories before anything looks at them.
     let fetched: Vec<Option<PathBuf>> = launcher
         .deployments
@@ -260,7 +302,10 @@ pub fn check_resolved(
             diags.extend(e);
         }
     }
-    let mut index = RepoIndex::scan(&repositories.paths);
+    if repositories.unfetched().next().is_some() {
+        diags.extend(repositories.fetch_git(fetcher));
+    }
+    let mut index = RepoIndex::of(&repositories);
 
     // Load every deployment's node.
     let loaded: Vec<Option<(Arc<NodeDoc>, PathBuf)>> = launcher

@@ -26,7 +26,7 @@ use peppy_runtime::wire::keys::describe_selector;
 use tokio_util::sync::CancellationToken;
 use zenoh::query::{ConsolidationMode, QueryTarget};
 
-use crate::cli::{ActionCommand, NodeCommand, ServiceCommand, StackArgs, TopicCommand};
+use crate::cli::{ActionCommand, ListArgs, NodeInfoArgs, ServiceCommand, StackArgs, TopicCommand};
 use crate::error::{InspectError, LaunchError, Result, SetupError, UsageError};
 use crate::runs::{self, LaunchRecord};
 
@@ -39,12 +39,14 @@ const ROUND_PAUSE: Duration = Duration::from_millis(100);
 /// Where `peppy-launch run` nodes meet when no endpoint is given.
 pub(crate) const LOCAL_HUB: &str = "tcp/127.0.0.1:7447";
 
-/// `node ...`.
-pub(crate) fn node(cmd: NodeCommand) -> Result {
-    match cmd {
-        NodeCommand::List(args) => block_on_value(nodes::list(args)),
-        NodeCommand::Info(args) => block_on_value(nodes::info(args)),
-    }
+/// `node list`.
+pub(crate) fn node_list(args: ListArgs) -> Result {
+    block_on_value(nodes::list(args))
+}
+
+/// `node info`.
+pub(crate) fn node_info(args: NodeInfoArgs) -> Result {
+    block_on_value(nodes::info(args))
 }
 
 /// `topic ...`.

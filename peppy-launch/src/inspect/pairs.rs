@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use peppy_runtime::describe::{InstanceInfo, PairingSlotInfo};
 use peppy_runtime::wire::keys::{Sender, pairing_topic_selector, parse_pairing_topic_key};
-use peppy_schema::{Identity, RepoIndex, RepositoryList};
+use peppy_schema::Identity;
 
 use super::SelectError;
 use super::stream::Selection;
@@ -214,11 +214,7 @@ fn pairing_document(
     pairing: &Identity,
 ) -> Result<Arc<peppy_schema::PairingDoc>> {
     let cwd = std::env::current_dir().unwrap_or_default();
-    let env = std::env::var_os(peppy_schema::REPOSITORIES_ENV);
-    let paths = RepositoryList::discover(repos, env.as_deref(), &cwd)
-        .map(|l| l.paths)
-        .unwrap_or_default();
-    let index = RepoIndex::scan(&paths);
+    let index = crate::repositories::index(repos, &cwd).unwrap_or_default();
     match index.pairing(pairing) {
         Some(e) => Ok(e.doc.clone()),
         None => Err(SelectError::from(PairSelectError::NoDocument {

@@ -62,6 +62,7 @@ fn every_example_migrates_to_a_valid_document_and_the_same_plan() {
     let options = RepoOptions {
         explicit: Vec::new(),
         env: Some(Default::default()),
+        last: Vec::new(),
     };
     let launchers: Vec<&PathBuf> = docs.iter().filter(|p| p.starts_with("launchers")).collect();
     let before: Vec<_> = launchers

@@ -62,14 +62,24 @@ pub(crate) fn peppy_launch_in(
 /// must exec into it so that signals reach it.
 pub(crate) fn peppy_launch_command(wrapper: &[&str]) -> Command {
     let program = env!("CARGO_BIN_EXE_peppy-launch");
-    match wrapper.split_first() {
+    let mut c = match wrapper.split_first() {
         Some((first, rest)) => {
             let mut c = Command::new(first);
             c.args(rest).arg(program);
             c
         }
         None => Command::new(program),
-    }
+    };
+    // The user's repository list is empty: no test searches what a `repo
+    // add` or `repo refresh` on this machine left in the cache. A test of
+    // the list sets its own.
+    c.env("PEPPY_CONFIG_DIR", empty_user_config());
+    c
+}
+
+/// A configuration directory whose repository list is empty.
+pub(crate) fn empty_user_config() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/empty_user_config")
 }
 
 /// The longest a single command of a test may take.

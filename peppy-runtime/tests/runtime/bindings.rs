@@ -25,6 +25,7 @@ fn run_bind_and_up_bind_every_example_launcher_identically() {
     let options = RepoOptions {
         explicit: vec![examples()],
         env: None,
+        last: Vec::new(),
     };
     let mut compared = Vec::new();
     for launcher in &launchers {

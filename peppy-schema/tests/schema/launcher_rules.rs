@@ -403,6 +403,7 @@ fn stack_rules_join_the_binding_plan_errors() {
     let options = peppy_schema::RepoOptions {
         explicit: vec![examples],
         env: Some(Default::default()),
+        last: Vec::new(),
     };
     let err = peppy_schema::check_launcher(&path, &options).unwrap_err();
     let mut codes: Vec<peppy_schema::Code> = err.errors().map(|d| d.code).collect();

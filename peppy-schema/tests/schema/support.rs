@@ -147,6 +147,7 @@ pub(crate) fn options(explicit: Vec<PathBuf>) -> RepoOptions {
     RepoOptions {
         explicit,
         env: Some(OsString::new()),
+        last: Vec::new(),
     }
 }
 

@@ -1,0 +1,1 @@
+"""`{{name}}`, a peppy node: see `__main__.py`."""
