@@ -4,8 +4,8 @@ use std::ffi::OsString;
 use std::sync::Arc;
 
 use peppy_schema::{
-    Code, DocumentKind, Identity, NodeDoc, REPOSITORIES_FILE, RepoIndex, RepositoryList,
-    SKIPPED_DIRS, Severity, check_node, resolve_node,
+    Code, DocumentKind, Identity, NodeDoc, REPOSITORIES_FILE, RepoIndex, RepositoryEntry,
+    RepositoryList, SKIPPED_DIRS, Severity, check_node, resolve_node,
 };
 
 use crate::support::*;
@@ -66,6 +66,10 @@ fn repositories_file_is_validated() {
   { type: "svn", path: "x" },
   { type: "fs" },
   { type: "fs", path: "y", branch: "main" },
+  { type: "fs", path: "z", ref: "main" },
+  { type: "git", url: "" },
+  { type: "git", url: "https://example.invalid/r.git", ref: "--upload-pack=x" },
+  { id: -1, type: "fs", path: "w" },
 ]"#;
     tree.write(REPOSITORIES_FILE, text);
     let errors = RepositoryList::discover(&[], None, &tree.root()).unwrap_err();
@@ -73,17 +77,66 @@ fn repositories_file_is_validated() {
     assert_eq!(
         got,
         [
-            (Code::UnsupportedSource, "[1].type"),
+            (Code::MissingKey, "[1]"),
+            (Code::InvalidValue, "[1].path"),
             (Code::InvalidValue, "[2].type"),
             (Code::MissingKey, "[3]"),
             (Code::UnknownKey, "[4].branch"),
+            (Code::InvalidValue, "[5].ref"),
+            (Code::InvalidValue, "[6].url"),
+            (Code::InvalidValue, "[7].ref"),
+            (Code::InvalidValue, "[8].id"),
         ]
     );
-    assert_eq!(
-        lc(one(&errors, Code::UnsupportedSource)),
-        pos(text, r#""git""#)
+    let unknown_type = errors
+        .sorted()
+        .into_iter()
+        .find(|d| key(d) == "[2].type")
+        .unwrap();
+    assert_eq!(lc(unknown_type), pos(text, r#""svn""#));
+    assert!(
+        help(unknown_type).contains("`git`"),
+        "{}",
+        help(unknown_type)
     );
-    assert_eq!(help(one(&errors, Code::InvalidValue)), "accepted: `fs`");
+}
+
+/// Git repositories beside folders: in `id` order where ids are given
+/// (lower first), as written otherwise; a relative URL is a repository
+/// next to the list; none is fetched by discovery.
+#[test]
+fn git_repositories_are_listed_in_id_order_and_not_fetched() {
+    let tree = Tree::new();
+    tree.write(
+        REPOSITORIES_FILE,
+        r#"[
+  { type: "fs", path: "local" },
+  { id: 2, type: "git", url: "https://example.invalid/second.git" },
+  { id: 1, type: "git", url: "../hubs/first.git", ref: "v2" },
+]"#,
+    );
+    std::fs::create_dir_all(tree.path("local")).unwrap();
+    let list = RepositoryList::discover(&[], Some(&OsString::new()), &tree.root()).unwrap();
+    let described: Vec<String> = list
+        .listed
+        .iter()
+        .map(|l| match &l.entry {
+            RepositoryEntry::Git(g) => format!("{} {}", g.short_name(), g.describe()),
+            RepositoryEntry::Folder(p) => p.display().to_string(),
+        })
+        .collect();
+    let first = tree.root().join("../hubs/first.git");
+    assert_eq!(
+        described,
+        [
+            format!("first {}@v2", first.display()),
+            "second https://example.invalid/second.git".to_string(),
+            tree.path("local").display().to_string(),
+        ]
+    );
+    // Only the folder is local until a fetcher brings the git ones.
+    assert_eq!(list.paths, [tree.path("local")]);
+    assert_eq!(list.unfetched().count(), 2);
 }
 
 #[test]

@@ -471,3 +471,36 @@ fn conformance_is_explicit() {
     assert_eq!(r.emitted_topics.len(), 1);
     assert_eq!(r.emitted_topics[0].origin, Origin::Node(cam()));
 }
+
+/// A node that hears peers of its own kind (`node init`'s greeter, a
+/// swarm) is its own producer: it resolves where no repository lists it.
+#[test]
+fn a_node_that_hears_its_own_kind_needs_no_repository() {
+    let tree = Tree::new();
+    tree.write(
+        "swarm/peppy.json5",
+        r#"{
+  peppy_schema: "node/v1",
+  manifest: {
+    name: "swarm", tag: "v1",
+    depends_on: { nodes: [{ name: "swarm", tag: "v1", link_id: "peers", cardinality: "zero_or_more" }] },
+  },
+  interfaces: {
+    topics: {
+      emits: [{ name: "hello", message_format: { n: "u32" } }],
+      consumes: [{ link_id: "peers", name: "hello" }],
+    },
+  },
+  execution: { language: "rust", build_cmd: ["cargo", "build"] },
+}"#,
+    );
+    let check = check_node(&tree.path("swarm"), &options(Vec::new())).unwrap();
+    let consumed = &check.resolved.consumed_topics;
+    assert_eq!(consumed.len(), 1);
+    assert_eq!(consumed[0].name, "hello");
+    // The peer's format is its own emitted one.
+    assert_eq!(
+        consumed[0].format,
+        check.resolved.emitted_topics[0].decl.format
+    );
+}
