@@ -92,6 +92,10 @@ pub(crate) enum Command {
     /// Create the keys a secured stack's core nodes link with (once, on one
     /// machine; then copy the printed directory to every machine).
     Keys(KeysArgs),
+    /// Stop a running launch as Ctrl-C in its terminal does (consumers
+    /// first, shutdown hooks within their window), and wait until it has
+    /// ended. A detached launch's output is shown meanwhile.
+    Stop(StopArgs),
     /// The launches running on this machine, with their instances.
     Ps(PsArgs),
     /// An instance's output, from its launch's run directory.
@@ -260,12 +264,42 @@ pub(crate) enum NodeCommand {
     List(ListArgs),
     /// One instance in full: slots and bindings, topics, services, actions.
     Info(NodeInfoArgs),
+    /// Stop one instance of a running launch (as the launch would stop
+    /// it: its hooks get their window); the launch goes on, and `node
+    /// start` starts it again.
+    Stop(NodeControlArgs),
+    /// Start an instance `node stop` stopped.
+    Start(NodeControlArgs),
+    /// Stop an instance and start it again.
+    Restart(NodeControlArgs),
     /// Create a node: a folder NAME with its `peppy.json5` (`node/v1`), a
     /// node that greets and hears its peers, its `.peppy/libs`, and a test
     /// under the generated harness (`cargo test`, or `uv run --group dev
     /// pytest`). Never overwrites.
     #[command(visible_alias = "create")]
     Init(InitArgs),
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct NodeControlArgs {
+    /// The instance id.
+    #[arg(value_name = "INSTANCE")]
+    pub(crate) instance: String,
+    /// The launch that runs it, when several have one of that id: its pid,
+    /// namespace, launcher path or launcher name.
+    #[arg(long, value_name = "LAUNCH")]
+    pub(crate) launch: Option<String>,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct StopArgs {
+    /// The launch: its pid, namespace, launcher path or launcher name
+    /// (default: the only one running).
+    #[arg(value_name = "LAUNCH")]
+    pub(crate) launch: Option<String>,
+    /// How long to wait for it to end.
+    #[arg(long, value_name = "SECONDS", default_value = "120", value_parser = parse_wait)]
+    pub(crate) timeout: Duration,
 }
 
 /// What `node init` writes a node with.
@@ -593,6 +627,12 @@ pub(crate) struct UpArgs {
     /// Skip the nodes' build commands.
     #[arg(long)]
     pub(crate) no_build: bool,
+    /// Run in the background: return once every instance has started
+    /// (or with the reason it could not), leaving the launch running with
+    /// its output in its run directory. `ps`, `logs`, `node stop|start`
+    /// and `stop` reach it.
+    #[arg(short = 'd', long)]
+    pub(crate) detach: bool,
     /// The namespace to run in (default: derived from the launcher path).
     #[arg(long, value_name = "NS")]
     pub(crate) namespace: Option<String>,

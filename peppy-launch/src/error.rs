@@ -70,6 +70,13 @@ pub enum LaunchError {
     /// Ctrl-C stopped a command that had nothing to finish cleanly.
     #[error("interrupted")]
     Interrupted,
+    /// `up --detach`: the launch ended before it had started every
+    /// instance, with this exit code; its output above says why.
+    #[error("the launch ended with exit code {code} before it started")]
+    Detached {
+        /// The launch's exit code.
+        code: u8,
+    },
 }
 
 /// `From` a module's own error into [`LaunchError`], through the kind of
@@ -149,6 +156,10 @@ pub enum UsageError {
     /// `node init` refuses the name or the folder.
     #[error(transparent)]
     Init(InitError),
+    /// `stop` or `node stop|start|restart` names no running launch or
+    /// instance, or the launch refused the request.
+    #[error(transparent)]
+    Manage(crate::manage::ManageError),
     /// `repo add` / `repo remove` name what the user's list cannot take.
     #[error(transparent)]
     RepoList(RepoListError),
@@ -234,6 +245,13 @@ pub enum UsageError {
 /// The launch could not set itself up. Exit code 1.
 #[derive(Debug, thiserror::Error)]
 pub enum SetupError {
+    /// A running launch did not stop in time, or its control socket did
+    /// not answer.
+    #[error(transparent)]
+    Manage(crate::manage::ManageError),
+    /// `up --detach` could not start the launch in the background.
+    #[error(transparent)]
+    Detach(crate::detach::DetachError),
     /// The user's repository list cannot be written, or a git repository
     /// cannot be fetched.
     #[error(transparent)]
@@ -442,6 +460,7 @@ impl LaunchError {
             | LaunchError::InstanceFailed
             | LaunchError::Inspect(_) => exit::FAILED,
             LaunchError::Interrupted => exit::INTERRUPTED,
+            LaunchError::Detached { code } => *code,
         }
     }
 
@@ -451,7 +470,9 @@ impl LaunchError {
     pub fn already_reported(&self) -> bool {
         matches!(
             self,
-            LaunchError::Invalid { .. } | LaunchError::InstanceFailed
+            LaunchError::Invalid { .. }
+                | LaunchError::InstanceFailed
+                | LaunchError::Detached { .. }
         )
     }
 }

@@ -7,7 +7,9 @@
 mod build_progress;
 mod check;
 mod cli;
+mod control;
 mod core_view;
+mod detach;
 mod drawing;
 mod error;
 mod executable;
@@ -16,6 +18,7 @@ mod flows;
 mod graph;
 mod inspect;
 mod local_links;
+mod manage;
 mod migrate;
 mod node_init;
 mod output;
@@ -36,10 +39,13 @@ mod up;
 mod validate;
 
 pub use cli::Cli;
+pub use control::ControlError;
+pub use detach::DetachError;
 pub use error::{InspectError, LaunchError, Result, SetupError, UsageError, exit};
 pub use executable::{ExecutableError, FindError};
 pub use find_launcher::LauncherLookupError;
 pub use inspect::SelectError;
+pub use manage::ManageError;
 pub use node_init::InitError;
 pub use placement::{PlaceError, PlacementError};
 pub use python_sync::{PackageError, RUNTIME_ENV, UV_VERSION, UvError, runtime_dir, uv};
@@ -83,6 +89,16 @@ pub fn run(cli: Cli) -> Result {
         cli::Command::Node(cli::NodeCommand::Init(args)) => node_init::run(&args),
         cli::Command::Node(cli::NodeCommand::List(args)) => inspect::node_list(args),
         cli::Command::Node(cli::NodeCommand::Info(args)) => inspect::node_info(args),
+        cli::Command::Node(cli::NodeCommand::Stop(args)) => {
+            manage::node(&args, |instance| control::Request::NodeStop { instance })
+        }
+        cli::Command::Node(cli::NodeCommand::Start(args)) => {
+            manage::node(&args, |instance| control::Request::NodeStart { instance })
+        }
+        cli::Command::Node(cli::NodeCommand::Restart(args)) => {
+            manage::node(&args, |instance| control::Request::NodeRestart { instance })
+        }
+        cli::Command::Stop(args) => manage::stop(&args),
         cli::Command::Topic(cmd) => inspect::topic(cmd),
         cli::Command::Service(cmd) => inspect::service(cmd),
         cli::Command::Action(cmd) => inspect::action(cmd),

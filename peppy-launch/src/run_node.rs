@@ -164,6 +164,13 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             config.namespace,
             run_dir.display()
         ));
+        let control = crate::control::Listener::bind()
+            .map_err(|e| {
+                out.note(&format!(
+                    "no control socket (`stop` and `node stop` cannot reach this run): {e}"
+                ))
+            })
+            .ok();
         let record = LaunchRecord {
             pid: std::process::id(),
             launcher: std::fs::canonicalize(&file).unwrap_or_else(|_| file.clone()),
@@ -174,6 +181,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             started_at_ms: runs::now_ms(),
             instances: vec![(config.instance_id.clone(), doc.identity().to_string())],
             login: None,
+            control: control.as_ref().map(|c| c.path().to_path_buf()),
         };
         let _registration = runs::register(&record)
             .map_err(|e| out.note(&e.to_string()))
@@ -207,7 +215,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             _core = crate::up::serve_core(hub, &namespace, &core, &[&planned], &v, &out).await;
             view = Some(v);
         }
-        run_instances(vec![Ok(planned)], &run_dir, args.grace, out, view).await
+        run_instances(vec![Ok(planned)], &run_dir, args.grace, out, view, control).await
     })
 }
 

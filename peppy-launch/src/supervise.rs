@@ -14,13 +14,14 @@ use std::time::Duration;
 
 use peppy_schema::RestartPolicy;
 use tokio::process::{Child, Command};
+use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
 use tokio_util::sync::CancellationToken;
 
 use crate::output::{Output, open_log, pump};
 
 /// How long after SIGTERM before SIGKILL.
-const TERM_TIMEOUT: Duration = Duration::from_secs(5);
+pub(crate) const TERM_TIMEOUT: Duration = Duration::from_secs(5);
 /// Restarts allowed in a row before the instance is given up.
 const RESTART_BUDGET: u32 = 5;
 /// A run at least this long resets the restart budget.
@@ -56,6 +57,18 @@ impl Ended {
     pub(crate) fn is_failure(&self) -> bool {
         matches!(self, Ended::Failed(_) | Ended::BudgetExhausted(_))
     }
+}
+
+/// A request for one instance from the launch's control socket; each
+/// carries where to say what came of it.
+#[derive(Debug)]
+pub(crate) enum InstanceCommand {
+    /// Stop it (as the launch would) and hold it stopped.
+    Stop(oneshot::Sender<String>),
+    /// Start it again if it is held stopped.
+    Start(oneshot::Sender<String>),
+    /// Stop it and start it again.
+    Restart(oneshot::Sender<String>),
 }
 
 /// Stop requests shared by every instance.
@@ -192,8 +205,19 @@ async fn stop_child(
     Ended::ForceKilled
 }
 
+/// What woke a supervisor up.
+enum Event {
+    /// The instance's process exited.
+    Exited(std::io::Result<ExitStatus>),
+    /// The launch asked it to stop for good.
+    LaunchStop,
+    /// The control socket asked for something.
+    Command(InstanceCommand),
+}
+
 /// Runs an already started instance until it ends for good (restarting it
-/// per its policy) or a stop is requested.
+/// per its policy) or a stop is requested. Commands from the control
+/// socket stop it and hold it stopped, start it again, or restart it.
 pub(crate) async fn supervise(
     spec: InstanceSpec,
     mut child: Child,
@@ -201,81 +225,164 @@ pub(crate) async fn supervise(
     grace: Duration,
     signals: StopSignals,
     out: Arc<Output>,
+    mut commands: mpsc::UnboundedReceiver<InstanceCommand>,
 ) -> Ended {
     let mut failures_in_a_row = 0u32;
     let mut started = Instant::now();
     // Taken now: once `wait` has returned, the child no longer knows its pid.
     let mut group = child.id();
     loop {
-        let status = tokio::select! {
-            s = child.wait() => s,
-            () = signals.stop.cancelled() => {
+        let event = tokio::select! {
+            s = child.wait() => Event::Exited(s),
+            () = signals.stop.cancelled() => Event::LaunchStop,
+            Some(command) = commands.recv() => Event::Command(command),
+        };
+        // Who asked for the start that follows, if anyone did.
+        let requested = match event {
+            Event::Exited(status) => {
+                // The instance's main process is gone: clear anything it
+                // left in its group.
+                if let Some(pid) = group {
+                    signal_group(pid, libc::SIGKILL);
+                }
+                drain(&mut pumps).await;
+                let (ok, what) = match status {
+                    Ok(s) => (s.success(), describe(s)),
+                    Err(e) => (false, format!("could not be waited for: {e}")),
+                };
+                let restart = match spec.restart {
+                    RestartPolicy::Always => true,
+                    RestartPolicy::OnFailure => !ok,
+                    RestartPolicy::No => false,
+                };
+                if !restart || signals.stop.is_cancelled() || signals.stopping.is_cancelled() {
+                    return if ok {
+                        out.note(&format!("`{}` {what}", spec.id));
+                        Ended::Finished
+                    } else {
+                        out.note(&format!(
+                            "`{}` failed: {what} (log: {})",
+                            spec.id,
+                            spec.log.display()
+                        ));
+                        Ended::Failed(what)
+                    };
+                }
+                if started.elapsed() >= HEALTHY_RUN {
+                    failures_in_a_row = 0;
+                }
+                failures_in_a_row += 1;
+                if failures_in_a_row > RESTART_BUDGET {
+                    out.note(&format!(
+                        "`{}` {what}; restart budget of {RESTART_BUDGET} used up, giving up (log: {})",
+                        spec.id,
+                        spec.log.display()
+                    ));
+                    return Ended::BudgetExhausted(what);
+                }
+                let backoff = Duration::from_millis(250 * 2u64.pow(failures_in_a_row - 1))
+                    .min(Duration::from_secs(8));
+                out.note(&format!(
+                    "`{}` {what}; restarting in {backoff:.1?} ({failures_in_a_row}/{RESTART_BUDGET})",
+                    spec.id
+                ));
+                tokio::select! {
+                    () = tokio::time::sleep(backoff) => {}
+                    () = signals.stop.cancelled() => return if ok { Ended::Finished } else { Ended::Failed(what) },
+                    () = signals.stopping.cancelled() => return if ok { Ended::Finished } else { Ended::Failed(what) },
+                }
+                None
+            }
+            Event::LaunchStop => {
                 let ended = stop_child(&mut child, grace, &signals, &out, &spec.id).await;
                 drain(&mut pumps).await;
                 return ended;
             }
-        };
-        // The instance's main process is gone: clear anything it left in its group.
-        if let Some(pid) = group {
-            signal_group(pid, libc::SIGKILL);
-        }
-        drain(&mut pumps).await;
-        let (ok, what) = match status {
-            Ok(s) => (s.success(), describe(s)),
-            Err(e) => (false, format!("could not be waited for: {e}")),
-        };
-        let restart = match spec.restart {
-            RestartPolicy::Always => true,
-            RestartPolicy::OnFailure => !ok,
-            RestartPolicy::No => false,
-        };
-        if !restart || signals.stop.is_cancelled() || signals.stopping.is_cancelled() {
-            return if ok {
-                out.note(&format!("`{}` {what}", spec.id));
-                Ended::Finished
-            } else {
+            Event::Command(InstanceCommand::Start(reply)) => {
+                let _ = reply.send(format!("`{}` is running already", spec.id));
+                continue;
+            }
+            Event::Command(InstanceCommand::Stop(reply)) => {
+                let how = stop_child(&mut child, grace, &signals, &out, &spec.id).await;
+                drain(&mut pumps).await;
+                // `ps` shows it stopped.
+                let _ = std::fs::remove_file(spec.log.with_extension("pid"));
                 out.note(&format!(
-                    "`{}` failed: {what} (log: {})",
-                    spec.id,
-                    spec.log.display()
+                    "`{}` stopped on request (`node start` starts it again)",
+                    spec.id
                 ));
-                Ended::Failed(what)
-            };
-        }
-        if started.elapsed() >= HEALTHY_RUN {
-            failures_in_a_row = 0;
-        }
-        failures_in_a_row += 1;
-        if failures_in_a_row > RESTART_BUDGET {
-            out.note(&format!(
-                "`{}` {what}; restart budget of {RESTART_BUDGET} used up, giving up (log: {})",
-                spec.id,
-                spec.log.display()
-            ));
-            return Ended::BudgetExhausted(what);
-        }
-        let backoff = Duration::from_millis(250 * 2u64.pow(failures_in_a_row - 1))
-            .min(Duration::from_secs(8));
-        out.note(&format!(
-            "`{}` {what}; restarting in {backoff:.1?} ({failures_in_a_row}/{RESTART_BUDGET})",
-            spec.id
-        ));
-        tokio::select! {
-            () = tokio::time::sleep(backoff) => {}
-            () = signals.stop.cancelled() => return if ok { Ended::Finished } else { Ended::Failed(what) },
-            () = signals.stopping.cancelled() => return if ok { Ended::Finished } else { Ended::Failed(what) },
-        }
+                let _ = reply.send(match how {
+                    Ended::ForceKilled => {
+                        format!("`{}` did not stop in time: force-killed", spec.id)
+                    }
+                    _ => format!("`{}` stopped", spec.id),
+                });
+                let Some(reply) = held(&spec.id, &signals, &mut commands).await else {
+                    return Ended::Stopped;
+                };
+                Some(reply)
+            }
+            Event::Command(InstanceCommand::Restart(reply)) => {
+                stop_child(&mut child, grace, &signals, &out, &spec.id).await;
+                drain(&mut pumps).await;
+                Some(reply)
+            }
+        };
         match spawn(&spec, &out) {
             Ok((c, p)) => {
                 child = c;
                 group = child.id();
                 pumps = p;
                 started = Instant::now();
+                if let Some(reply) = requested {
+                    // Started on request: a fresh restart budget.
+                    failures_in_a_row = 0;
+                    let message =
+                        format!("`{}` started as pid {}", spec.id, group.unwrap_or_default());
+                    out.note(&format!("{message} (on request)"));
+                    let _ = reply.send(message);
+                }
             }
             Err(e) => {
-                out.note(&format!("`{}` could not be restarted: {e}", spec.id));
+                let message = format!("`{}` could not be restarted: {e}", spec.id);
+                out.note(&message);
+                if let Some(reply) = requested {
+                    let _ = reply.send(message);
+                }
                 return Ended::Failed(e.to_string());
             }
+        }
+    }
+}
+
+/// An instance held stopped by `node stop`: the reply channel of the
+/// `node start` (or `restart`) that starts it again, or `None` once the
+/// launch stops.
+async fn held(
+    id: &str,
+    signals: &StopSignals,
+    commands: &mut mpsc::UnboundedReceiver<InstanceCommand>,
+) -> Option<oneshot::Sender<String>> {
+    loop {
+        tokio::select! {
+            () = signals.stop.cancelled() => return None,
+            () = signals.stopping.cancelled() => return None,
+            command = commands.recv() => match command {
+                Some(InstanceCommand::Start(reply) | InstanceCommand::Restart(reply)) => {
+                    return Some(reply);
+                }
+                Some(InstanceCommand::Stop(reply)) => {
+                    let _ = reply.send(format!("`{id}` is stopped already"));
+                }
+                None => {
+                    // No one can start it again: wait for the launch's stop.
+                    tokio::select! {
+                        () = signals.stop.cancelled() => {}
+                        () = signals.stopping.cancelled() => {}
+                    }
+                    return None;
+                }
+            },
         }
     }
 }

@@ -20,6 +20,11 @@ use crate::runs::{self, LaunchRecord};
 use crate::supervise::{self, Ended, InstanceSpec, StopSignals};
 
 pub(crate) fn run(args: &UpArgs) -> Outcome {
+    // `--detach`: this process shows the launch start in the background
+    // and returns; the launch is this command again, as the supervisor.
+    if args.detach && !crate::detach::take_role() {
+        return crate::detach::launch();
+    }
     // Under `--place`, this launch is the machine `@self` names, and it
     // starts what is placed there.
     let placed_args;
@@ -508,7 +513,15 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         cores,
     };
     let planned = instances.plan(&stack, &share, &programs);
-    let record = launch_record(args, &share, &namespace, &instances, &run_dir, &planned);
+    let control = crate::control::Listener::bind()
+        .map_err(|e| {
+            out.note(&format!(
+                "no control socket (`stop` and `node stop` cannot reach this launch): {e}"
+            ))
+        })
+        .ok();
+    let mut record = launch_record(args, &share, &namespace, &instances, &run_dir, &planned);
+    record.control = control.as_ref().map(|c| c.path().to_path_buf());
     let _registration = runs::register(&record)
         .map_err(|e| out.note(&e.to_string()))
         .ok();
@@ -537,7 +550,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         out.note("done");
         Ok(())
     } else {
-        run_instances(planned, &run_dir, args.grace, out, Some(view)).await
+        run_instances(planned, &run_dir, args.grace, out, Some(view), control).await
     };
     let _ = router.close().await;
     code
@@ -923,6 +936,7 @@ fn launch_record(
             .map(|p| (p.config.instance_id.clone(), p.node.clone()))
             .collect(),
         login: instances.secured.map(|s| s.secrets.operator.clone()),
+        control: None,
     }
 }
 
@@ -986,25 +1000,31 @@ pub(crate) async fn run_instances(
     grace: Duration,
     out: Arc<Output>,
     view: Option<Arc<crate::core_view::LaunchView>>,
+    control: Option<crate::control::Listener>,
 ) -> Outcome {
     let signals = StopSignals::default();
     let ctrl_c = tokio::spawn(stop_on_interrupts(signals.clone(), out.clone()));
     let mut running = Vec::new();
     let mut order = Vec::new();
     let mut start_failure = None;
+    let mut commands = std::collections::BTreeMap::new();
+    let mut longest_grace = grace;
     for p in planned {
         let started = p.and_then(|p| {
             let takes_from = producers_of(&p.config);
             let own = signals.instance();
             let stop = own.stop.clone();
-            start_instance(p, run_dir, grace, &own, &out, view.clone()).map(
-                |(id, finished, task)| {
+            let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
+            start_instance(p, run_dir, grace, &own, &out, view.clone(), rx).map(
+                |(id, finished, task, instance_grace)| {
                     order.push(Stopping {
                         id: id.clone(),
                         takes_from,
                         stop,
                         finished,
                     });
+                    commands.insert(id.clone(), tx);
+                    longest_grace = longest_grace.max(instance_grace);
                     (id, task)
                 },
             )
@@ -1021,6 +1041,20 @@ pub(crate) async fn run_instances(
         }
     }
     let in_order = tokio::spawn(stop_in_order(signals.stopping.clone(), order));
+    let controlled = control.map(|listener| {
+        tokio::spawn(crate::control::serve(
+            listener,
+            Arc::new(crate::control::Controls {
+                signals: signals.clone(),
+                instances: commands,
+                stop_bound: longest_grace + supervise::TERM_TIMEOUT + Duration::from_secs(10),
+            }),
+        ))
+    });
+    if start_failure.is_none() {
+        // A detached launch's foreground process returns now.
+        crate::detach::started(run_dir);
+    }
     let mut failed = start_failure.is_some();
     for (id, task) in running {
         match task.await {
@@ -1038,6 +1072,9 @@ pub(crate) async fn run_instances(
     }
     ctrl_c.abort();
     in_order.abort();
+    if let Some(task) = controlled {
+        task.abort();
+    }
     if failed {
         out.note("done: an instance failed");
         Err(LaunchError::InstanceFailed)
@@ -1129,11 +1166,13 @@ fn start_instance(
     signals: &StopSignals,
     out: &Arc<Output>,
     view: Option<Arc<crate::core_view::LaunchView>>,
+    commands: tokio::sync::mpsc::UnboundedReceiver<supervise::InstanceCommand>,
 ) -> Result<
     (
         String,
         tokio_util::sync::CancellationToken,
         tokio::task::JoinHandle<Ended>,
+        Duration,
     ),
     StartError,
 > {
@@ -1178,7 +1217,15 @@ fn start_instance(
         p.node,
         child.id().unwrap_or(0)
     ));
-    let supervisor = supervise::supervise(spec, child, pumps, grace, signals.clone(), out.clone());
+    let supervisor = supervise::supervise(
+        spec,
+        child,
+        pumps,
+        grace,
+        signals.clone(),
+        out.clone(),
+        commands,
+    );
     let finished = tokio_util::sync::CancellationToken::new();
     let done = finished.clone();
     let ended_id = id.clone();
@@ -1190,7 +1237,7 @@ fn start_instance(
         done.cancel();
         ended
     });
-    Ok((id, finished, task))
+    Ok((id, finished, task, grace))
 }
 
 /// What a stopping node is given beyond its hooks' window, to close

@@ -632,6 +632,7 @@ mod tests {
             started_at_ms: 0,
             instances: Vec::new(),
             login: None,
+            control: None,
         }
     }
 
