@@ -747,6 +747,13 @@ pub(crate) struct RunArgs {
     /// An extra repository directory (repeatable).
     #[arg(long = "repo", value_name = "DIR")]
     pub(crate) repos: Vec<PathBuf>,
+    /// Add the instance to a running launch (its pid, namespace, launcher
+    /// path or launcher name; `-` for the only one running): built here,
+    /// its links checked against the instances the launch runs, then
+    /// started and supervised by the launch as one of its own (`ps`,
+    /// `node stop`, `stop` reach it). The command returns once it runs.
+    #[arg(long, value_name = "LAUNCH", conflicts_with = "connect")]
+    pub(crate) join: Option<String>,
     /// The namespace to join (default: `default`).
     #[arg(long, value_name = "NS")]
     pub(crate) namespace: Option<String>,

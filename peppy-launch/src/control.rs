@@ -23,9 +23,14 @@ use tokio::sync::{mpsc, oneshot};
 use crate::supervise::{InstanceCommand, StopSignals};
 
 /// One request.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(tag = "op", rename_all = "snake_case")]
 pub(crate) enum Request {
+    /// Start an instance in the launch and supervise it as its own.
+    Add {
+        /// The instance, ready to start.
+        addition: Box<Addition>,
+    },
     /// Stop one instance; the launch goes on, and it can be started again.
     NodeStop {
         /// The instance.
@@ -146,14 +151,64 @@ impl Drop for Listener {
     }
 }
 
-/// What the control socket acts on: the launch's stop signals and each
-/// running instance's command channel.
+/// An instance another command prepared (built, planned, checked) for
+/// the launch to start and supervise as its own: `run --join`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(crate) struct Addition {
+    /// Its plan; the launch writes it into its run directory.
+    pub(crate) config: peppy_runtime::StartupConfig,
+    /// Its node, `name:tag`.
+    pub(crate) node: String,
+    /// Where it runs.
+    pub(crate) dir: PathBuf,
+    /// Its program and arguments.
+    pub(crate) argv: Vec<String>,
+    /// Whether it runs on a peppy runtime (its hooks get their window).
+    pub(crate) has_hooks: bool,
+}
+
+/// Where the launch says what came of an addition.
+pub(crate) type AddReply = oneshot::Sender<Result<String, String>>;
+
+/// What the control socket acts on: the launch's stop signals, each
+/// running instance's command channel, and the launch's queue of
+/// additions.
 pub(crate) struct Controls {
     pub(crate) signals: StopSignals,
-    pub(crate) instances: BTreeMap<String, mpsc::UnboundedSender<InstanceCommand>>,
-    /// The longest an instance may take to stop (its grace, SIGTERM's
-    /// wait and a margin), how long a `node stop` is waited for.
-    pub(crate) stop_bound: Duration,
+    /// Each instance's command channel, and the longest it may take to
+    /// stop (its grace, SIGTERM's wait and a margin): how long a `node
+    /// stop` is waited for.
+    pub(crate) instances:
+        std::sync::Mutex<BTreeMap<String, (mpsc::UnboundedSender<InstanceCommand>, Duration)>>,
+    pub(crate) additions: mpsc::UnboundedSender<(Addition, AddReply)>,
+}
+
+impl Controls {
+    /// Records a started instance: its command channel, and a stop bound
+    /// that covers its grace.
+    pub(crate) fn add(
+        &self,
+        id: &str,
+        commands: mpsc::UnboundedSender<InstanceCommand>,
+        grace: Duration,
+    ) {
+        let bound = grace + crate::supervise::TERM_TIMEOUT + Duration::from_secs(10);
+        self.instances
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .insert(id.to_string(), (commands, bound));
+    }
+
+    fn channel(
+        &self,
+        id: &str,
+    ) -> Result<(mpsc::UnboundedSender<InstanceCommand>, Duration), Vec<String>> {
+        let instances = self.instances.lock().unwrap_or_else(|p| p.into_inner());
+        instances
+            .get(id)
+            .cloned()
+            .ok_or_else(|| instances.keys().cloned().collect())
+    }
 }
 
 /// Serves requests on `listener` until the task is dropped.
@@ -190,6 +245,7 @@ pub(crate) async fn serve(mut listener: Listener, controls: Arc<Controls>) {
 async fn handle(request: Request, controls: &Controls) -> Reply {
     let (instance, command): (String, fn(oneshot::Sender<String>) -> InstanceCommand) =
         match request {
+            Request::Add { addition } => return add(*addition, controls).await,
             Request::NodeStop { instance } => (instance, InstanceCommand::Stop),
             Request::NodeStart { instance } => (instance, InstanceCommand::Start),
             Request::NodeRestart { instance } => (instance, InstanceCommand::Restart),
@@ -197,12 +253,14 @@ async fn handle(request: Request, controls: &Controls) -> Reply {
     if controls.signals.stopping.is_cancelled() {
         return Reply::refused("the launch is stopping");
     }
-    let Some(channel) = controls.instances.get(&instance) else {
-        let known: Vec<&str> = controls.instances.keys().map(String::as_str).collect();
-        return Reply::refused(format!(
-            "no instance `{instance}` in this launch (it has: {})",
-            known.join(", ")
-        ));
+    let (channel, bound) = match controls.channel(&instance) {
+        Ok(found) => found,
+        Err(known) => {
+            return Reply::refused(format!(
+                "no instance `{instance}` in this launch (it has: {})",
+                known.join(", ")
+            ));
+        }
     };
     let (tx, rx) = oneshot::channel();
     if channel.send(command(tx)).is_err() {
@@ -210,13 +268,35 @@ async fn handle(request: Request, controls: &Controls) -> Reply {
             "`{instance}` has ended; it is no longer supervised"
         ));
     }
-    match tokio::time::timeout(controls.stop_bound, rx).await {
+    match tokio::time::timeout(bound, rx).await {
         Ok(Ok(message)) => Reply::ok(message),
         Ok(Err(_)) => Reply::refused(format!("`{instance}` ended before it could answer")),
-        Err(_) => Reply::refused(format!(
-            "`{instance}` did not answer within {:?}",
-            controls.stop_bound
-        )),
+        Err(_) => Reply::refused(format!("`{instance}` did not answer within {bound:?}")),
+    }
+}
+
+/// How long a launch may take to start an added instance.
+const ADD_TIMEOUT: Duration = Duration::from_secs(60);
+
+async fn add(addition: Addition, controls: &Controls) -> Reply {
+    if controls.signals.stopping.is_cancelled() {
+        return Reply::refused("the launch is stopping");
+    }
+    let id = addition.config.instance_id.clone();
+    if controls.channel(&id).is_ok() {
+        return Reply::refused(format!(
+            "the launch has an instance `{id}` already; give another `--instance-id`"
+        ));
+    }
+    let (tx, rx) = oneshot::channel();
+    if controls.additions.send((addition, tx)).is_err() {
+        return Reply::refused("the launch is ending");
+    }
+    match tokio::time::timeout(ADD_TIMEOUT, rx).await {
+        Ok(Ok(Ok(message))) => Reply::ok(message),
+        Ok(Ok(Err(why))) => Reply::refused(why),
+        Ok(Err(_)) => Reply::refused("the launch ended before it started the instance"),
+        Err(_) => Reply::refused(format!("`{id}` was not started within {ADD_TIMEOUT:?}")),
     }
 }
 
@@ -296,12 +376,10 @@ mod tests {
         })
         .unwrap();
         assert_eq!(stop, r#"{"op":"node_stop","instance":"cam"}"#);
-        assert_eq!(
+        assert!(matches!(
             serde_json::from_str::<Request>(r#"{"op":"node_start","instance":"a"}"#).unwrap(),
-            Request::NodeStart {
-                instance: "a".into()
-            }
-        );
+            Request::NodeStart { instance } if instance == "a"
+        ));
         assert!(serde_json::from_str::<Request>(r#"{"op":"rm -rf"}"#).is_err());
     }
 }

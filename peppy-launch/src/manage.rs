@@ -54,6 +54,47 @@ pub enum ManageError {
     /// The launch refused the request or did not answer.
     #[error(transparent)]
     Control(#[from] control::ControlError),
+    /// `run --join` of a secured launch: its instances' logins come from
+    /// its launcher.
+    #[error(
+        "launch {pid} is secured: its instances come from its launcher (`run --join` cannot give one a login)"
+    )]
+    Secured {
+        /// The launch's pid.
+        pid: u32,
+    },
+    /// `run --join` with a `--namespace` that is not the launch's.
+    #[error("launch {pid} runs in namespace `{launch}`, not `{given}`")]
+    OtherNamespace {
+        /// The launch's pid.
+        pid: u32,
+        /// Its namespace.
+        launch: String,
+        /// The one given.
+        given: String,
+    },
+    /// A slot is linked to an instance the stack does not run.
+    #[error("slot `{slot}` is linked to `{producer}`, which the launch does not run (it runs: {})", running.join(", "))]
+    NotInLaunch {
+        /// The slot.
+        slot: String,
+        /// The producer named.
+        producer: String,
+        /// The instances the stack runs.
+        running: Vec<String>,
+    },
+    /// A slot is linked to an instance of another node than it takes.
+    #[error("slot `{slot}` takes {wants}, but `{producer}` is {is}")]
+    WrongProducer {
+        /// The slot.
+        slot: String,
+        /// The producer named.
+        producer: String,
+        /// What the slot takes.
+        wants: String,
+        /// What the producer is.
+        is: String,
+    },
 }
 
 fn label(r: &LaunchRecord) -> String {
@@ -191,6 +232,115 @@ pub(crate) fn node(args: &NodeControlArgs, request: fn(String) -> Request) -> Re
         launch.control.as_deref(),
         &request(args.instance.clone()),
         Duration::from_secs(3600),
+    )
+    .map_err(|e| usage(e.into()))?;
+    println!("{message}");
+    Ok(())
+}
+
+/// The running launch `run --join WHICH` adds to (`-`: the only one).
+pub(crate) fn joinable(which: &str, namespace: Option<&str>) -> Result<LaunchRecord> {
+    let which = (which != "-").then_some(which);
+    let launch = select(&runs::running(), which).map_err(usage)?;
+    if launch.login.is_some() {
+        return Err(usage(ManageError::Secured { pid: launch.pid }));
+    }
+    if let Some(given) = namespace
+        && given != launch.namespace
+    {
+        return Err(usage(ManageError::OtherNamespace {
+            pid: launch.pid,
+            launch: launch.namespace.clone(),
+            given: given.to_string(),
+        }));
+    }
+    if launch.control.is_none() {
+        return Err(usage(
+            control::ControlError::NoSocket { pid: launch.pid }.into(),
+        ));
+    }
+    Ok(launch)
+}
+
+/// Checks a joining instance's slots against what the stack runs, as a
+/// launcher's links are checked: every producer a slot is linked to is
+/// an instance of the stack (this launch, and the launches sharing its
+/// namespace and network), of the node a node slot takes, or of a node
+/// that implements the contract a contract slot takes.
+pub(crate) fn check_links(
+    launch: &LaunchRecord,
+    config: &peppy_runtime::StartupConfig,
+    repos: &[std::path::PathBuf],
+) -> Result {
+    let live: Vec<(String, String)> = runs::running()
+        .into_iter()
+        .filter(|r| r.namespace == launch.namespace && r.connect == launch.connect)
+        .flat_map(|r| r.instances)
+        .collect();
+    let launcher_dir = launch
+        .launcher
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    let mut index = None;
+    for slot in &config.slots {
+        for producer in crate::core_view::producers(&slot.binding) {
+            let Some((_, node)) = live.iter().find(|(id, _)| id == producer) else {
+                return Err(usage(ManageError::NotInLaunch {
+                    slot: slot.link_id.clone(),
+                    producer: producer.clone(),
+                    running: live.iter().map(|(id, n)| format!("{id} ({n})")).collect(),
+                }));
+            };
+            let wants = slot.target.to_string();
+            let fits = match slot.kind {
+                peppy_schema::SlotKind::Node => *node == wants,
+                peppy_schema::SlotKind::Interface => {
+                    let index = index.get_or_insert_with(|| {
+                        crate::repositories::index(repos, &launcher_dir).unwrap_or_default()
+                    });
+                    match peppy_schema::Identity::parse(node).and_then(|id| index.node(&id)) {
+                        Some(entry) => entry
+                            .doc
+                            .conforms_to
+                            .iter()
+                            .any(|c| c.target == slot.target),
+                        None => {
+                            eprintln!(
+                                "peppy-launch: cannot check that `{producer}` ({node}) implements {wants}: no repository searched from {} provides {node}",
+                                launcher_dir.display()
+                            );
+                            true
+                        }
+                    }
+                }
+            };
+            if !fits {
+                let wants = match slot.kind {
+                    peppy_schema::SlotKind::Node => format!("node {wants}"),
+                    peppy_schema::SlotKind::Interface => format!("an implementation of {wants}"),
+                };
+                return Err(usage(ManageError::WrongProducer {
+                    slot: slot.link_id.clone(),
+                    producer: producer.clone(),
+                    wants,
+                    is: node.clone(),
+                }));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Asks `launch` to start and supervise `addition`.
+pub(crate) fn add(launch: &LaunchRecord, addition: control::Addition) -> Result {
+    let message = control::ask(
+        launch.pid,
+        launch.control.as_deref(),
+        &Request::Add {
+            addition: Box::new(addition),
+        },
+        Duration::from_secs(90),
     )
     .map_err(|e| usage(e.into()))?;
     println!("{message}");

@@ -83,9 +83,18 @@ fn read_model(path: &std::path::Path) -> Result<NodeModel> {
 }
 
 pub(crate) fn run(args: &RunArgs) -> Result {
+    let joined = match &args.join {
+        Some(which) => Some(crate::manage::joinable(which, args.namespace.as_deref())?),
+        None => None,
+    };
     let (file, check) = checked_node(&args.node, &args.repos)?;
     let doc: &NodeDoc = &check.resolved.node;
     let mut flags = vec!["peppy-launch".to_string()];
+    if let Some(launch) = &joined
+        && args.namespace.is_none()
+    {
+        flags.extend(["--namespace".into(), launch.namespace.clone()]);
+    }
     if let Some(id) = &args.instance_id {
         flags.extend(["--instance-id".into(), id.clone()]);
     }
@@ -122,6 +131,9 @@ pub(crate) fn run(args: &RunArgs) -> Result {
     } else if crate::rust_libs::wants_libs(&check.resolved, &dir) {
         crate::rust_libs::write_libs(&check.resolved, &dir)?;
     }
+    if let Some(launch) = &joined {
+        crate::manage::check_links(launch, &config, &args.repos)?;
+    }
     let runtime = crate::tokio_runtime(None)?;
     runtime.block_on(async move {
         let out = Arc::new(Output::new(&[config.instance_id.as_str()]));
@@ -138,6 +150,21 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             build,
         )
         .await?;
+        if let Some(launch) = joined {
+            // The launch starts and supervises it as one of its own.
+            config.core_node = launch.core_node.clone();
+            config.zenoh.connect = launch.connect.clone();
+            config.zenoh.listen = args.listen.clone();
+            refuse_held_peers(&model.pairings, &config).await?;
+            let addition = crate::control::Addition {
+                config,
+                node: doc.identity().to_string(),
+                dir,
+                argv,
+                has_hooks: crate::up::has_hooks(&doc.execution.language),
+            };
+            return crate::manage::add(&launch, addition);
+        }
         // Join the given endpoints, or the local hub: the first `run` on a
         // machine hosts it, later ones connect to it.
         let mut _hub = None;
@@ -183,7 +210,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             login: None,
             control: control.as_ref().map(|c| c.path().to_path_buf()),
         };
-        let _registration = runs::register(&record)
+        let registration = runs::Registered::new(record)
             .map_err(|e| out.note(&e.to_string()))
             .ok();
         let planned = Planned {
@@ -215,7 +242,16 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             _core = crate::up::serve_core(hub, &namespace, &core, &[&planned], &v, &out).await;
             view = Some(v);
         }
-        run_instances(vec![Ok(planned)], &run_dir, args.grace, out, view, control).await
+        run_instances(
+            vec![Ok(planned)],
+            &run_dir,
+            args.grace,
+            out,
+            view,
+            control,
+            registration,
+        )
+        .await
     })
 }
 

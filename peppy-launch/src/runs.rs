@@ -98,6 +98,42 @@ impl Drop for Registration {
     }
 }
 
+/// A registered launch and its record, kept current as instances join it.
+pub(crate) struct Registered {
+    registration: Registration,
+    record: LaunchRecord,
+}
+
+impl Registered {
+    /// Registers `record` ([`register`]).
+    pub(crate) fn new(record: LaunchRecord) -> Result<Registered, RegistryError> {
+        Ok(Registered {
+            registration: register(&record)?,
+            record,
+        })
+    }
+
+    /// Records that instance `id` of node `node` joined the launch, so
+    /// `ps`, `logs` and `node stop` find it; a failure is said in a note.
+    pub(crate) fn add_instance(&mut self, id: &str, node: &str, out: &crate::output::Output) {
+        self.record
+            .instances
+            .push((id.to_string(), node.to_string()));
+        let text = serde_json::to_vec_pretty(&self.record).expect("a launch record serializes");
+        let in_run = self.record.run_dir.join(RECORD_FILE);
+        let written = write_whole(&in_run, &text, false).and_then(|_| {
+            // The new entry replaces the old one, locked before it is in
+            // place, so the launch never looks ended to `ps`.
+            let lock = write_whole(&self.registration.entry, &text, true)?;
+            self.registration._lock = lock;
+            Ok(())
+        });
+        if let Err(e) = written {
+            out.note(&format!("`{id}` is not in the launch's record: {e}"));
+        }
+    }
+}
+
 /// The record's name in its run directory (instance ids hold no `.`, so no
 /// instance's `<id>.json` runtime config can take it).
 pub(crate) const RECORD_FILE: &str = "launch.record.json";

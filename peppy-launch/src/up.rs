@@ -522,7 +522,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         .ok();
     let mut record = launch_record(args, &share, &namespace, &instances, &run_dir, &planned);
     record.control = control.as_ref().map(|c| c.path().to_path_buf());
-    let _registration = runs::register(&record)
+    let registration = runs::Registered::new(record)
         .map_err(|e| out.note(&e.to_string()))
         .ok();
     // The launch is its instances' core node: the datastore, `info` and
@@ -550,7 +550,16 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         out.note("done");
         Ok(())
     } else {
-        run_instances(planned, &run_dir, args.grace, out, Some(view), control).await
+        run_instances(
+            planned,
+            &run_dir,
+            args.grace,
+            out,
+            Some(view),
+            control,
+            registration,
+        )
+        .await
     };
     let _ = router.close().await;
     code
@@ -993,7 +1002,9 @@ pub(crate) enum StartError {
 
 /// Starts every instance in order (stopping those started if one cannot
 /// start), supervises them until they end or Ctrl-C: clean, or
-/// `InstanceFailed`.
+/// `InstanceFailed`. With a control socket, instances can be stopped,
+/// started and added while the launch runs (`registration` then follows
+/// what it runs).
 pub(crate) async fn run_instances(
     planned: Vec<Result<Planned, StartError>>,
     run_dir: &Path,
@@ -1001,14 +1012,19 @@ pub(crate) async fn run_instances(
     out: Arc<Output>,
     view: Option<Arc<crate::core_view::LaunchView>>,
     control: Option<crate::control::Listener>,
+    mut registration: Option<runs::Registered>,
 ) -> Outcome {
     let signals = StopSignals::default();
     let ctrl_c = tokio::spawn(stop_on_interrupts(signals.clone(), out.clone()));
-    let mut running = Vec::new();
-    let mut order = Vec::new();
+    let (add_tx, mut additions) = tokio::sync::mpsc::unbounded_channel();
+    let controls = Arc::new(crate::control::Controls {
+        signals: signals.clone(),
+        instances: Default::default(),
+        additions: add_tx,
+    });
+    let order: Arc<std::sync::Mutex<Vec<Stopping>>> = Default::default();
+    let mut running = tokio::task::JoinSet::new();
     let mut start_failure = None;
-    let mut commands = std::collections::BTreeMap::new();
-    let mut longest_grace = grace;
     for p in planned {
         let started = p.and_then(|p| {
             let takes_from = producers_of(&p.config);
@@ -1017,20 +1033,21 @@ pub(crate) async fn run_instances(
             let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
             start_instance(p, run_dir, grace, &own, &out, view.clone(), rx).map(
                 |(id, finished, task, instance_grace)| {
-                    order.push(Stopping {
+                    lock(&order).push(Stopping {
                         id: id.clone(),
                         takes_from,
                         stop,
                         finished,
                     });
-                    commands.insert(id.clone(), tx);
-                    longest_grace = longest_grace.max(instance_grace);
+                    controls.add(&id, tx, instance_grace);
                     (id, task)
                 },
             )
         });
         match started {
-            Ok(instance) => running.push(instance),
+            Ok((id, task)) => {
+                running.spawn(async move { (id, task.await) });
+            }
             Err(why) => {
                 out.note(&why.to_string());
                 out.note("stopping the instances already started");
@@ -1040,33 +1057,70 @@ pub(crate) async fn run_instances(
             }
         }
     }
-    let in_order = tokio::spawn(stop_in_order(signals.stopping.clone(), order));
-    let controlled = control.map(|listener| {
-        tokio::spawn(crate::control::serve(
-            listener,
-            Arc::new(crate::control::Controls {
-                signals: signals.clone(),
-                instances: commands,
-                stop_bound: longest_grace + supervise::TERM_TIMEOUT + Duration::from_secs(10),
-            }),
-        ))
-    });
+    let in_order = tokio::spawn(stop_in_order(signals.stopping.clone(), order.clone()));
+    let controlled =
+        control.map(|listener| tokio::spawn(crate::control::serve(listener, controls.clone())));
     if start_failure.is_none() {
         // A detached launch's foreground process returns now.
         crate::detach::started(run_dir);
     }
     let mut failed = start_failure.is_some();
-    for (id, task) in running {
-        match task.await {
-            Ok(ended) => {
-                failed |= ended.is_failure();
-                if matches!(ended, Ended::Stopped) {
-                    out.note(&format!("`{id}` stopped"));
+    loop {
+        tokio::select! {
+            joined = running.join_next() => match joined {
+                None => break,
+                Some(Ok((id, Ok(ended)))) => {
+                    failed |= ended.is_failure();
+                    if matches!(ended, Ended::Stopped) {
+                        out.note(&format!("`{id}` stopped"));
+                    }
                 }
-            }
-            Err(e) => {
-                out.note(&format!("supervising `{id}` failed: {e}"));
-                failed = true;
+                Some(Ok((id, Err(e)))) => {
+                    out.note(&format!("supervising `{id}` failed: {e}"));
+                    failed = true;
+                }
+                Some(Err(e)) => {
+                    out.note(&format!("supervising an instance failed: {e}"));
+                    failed = true;
+                }
+            },
+            Some((addition, reply)) = additions.recv() => {
+                let addition: crate::control::Addition = addition;
+                let node = addition.node.clone();
+                let planned = Planned {
+                    config: addition.config,
+                    node: addition.node,
+                    dir: addition.dir,
+                    argv: addition.argv,
+                    env: Vec::new(),
+                    restart: peppy_schema::RestartPolicy::No,
+                    has_hooks: addition.has_hooks,
+                };
+                let takes_from = producers_of(&planned.config);
+                let own = signals.instance();
+                let stop = own.stop.clone();
+                let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
+                let answer = match start_instance(planned, run_dir, grace, &own, &out, view.clone(), rx) {
+                    Ok((id, finished, task, instance_grace)) => {
+                        lock(&order).push(Stopping {
+                            id: id.clone(),
+                            takes_from,
+                            stop,
+                            finished,
+                        });
+                        controls.add(&id, tx, instance_grace);
+                        if let Some(r) = registration.as_mut() {
+                            r.add_instance(&id, &node, &out);
+                        }
+                        let pid = std::fs::read_to_string(run_dir.join(format!("{id}.pid"))).unwrap_or_default();
+                        let message = format!("`{id}` ({node}) started in the launch as pid {}", pid.trim());
+                        let ended_id = id.clone();
+                        running.spawn(async move { (ended_id, task.await) });
+                        Ok(message)
+                    }
+                    Err(why) => Err(why.to_string()),
+                };
+                let _ = reply.send(answer);
             }
         }
     }
@@ -1075,6 +1129,7 @@ pub(crate) async fn run_instances(
     if let Some(task) = controlled {
         task.abort();
     }
+    drop(registration);
     if failed {
         out.note("done: an instance failed");
         Err(LaunchError::InstanceFailed)
@@ -1084,7 +1139,12 @@ pub(crate) async fn run_instances(
     }
 }
 
+fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
 /// One started instance, as the launch stops it.
+#[derive(Clone)]
 struct Stopping {
     id: String,
     /// The instances its slots take from.
@@ -1117,9 +1177,15 @@ fn producers_of(config: &StartupConfig) -> Vec<String> {
 /// arm it drives (to cancel a goal, to send a last command), as it would
 /// on a robot stopped by hand. Instances that take from each other stop
 /// together.
-async fn stop_in_order(stopping: tokio_util::sync::CancellationToken, mut left: Vec<Stopping>) {
+async fn stop_in_order(
+    stopping: tokio_util::sync::CancellationToken,
+    instances: Arc<std::sync::Mutex<Vec<Stopping>>>,
+) {
     stopping.cancelled().await;
     loop {
+        // Instances added while the launch ran are in the list too; none
+        // is added once it stops.
+        let mut left: Vec<Stopping> = lock(&instances).clone();
         left.retain(|i| !i.finished.is_cancelled());
         if left.is_empty() {
             return;
