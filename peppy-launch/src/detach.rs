@@ -10,7 +10,7 @@
 //! instances die with it (each has a parent-death signal), so a killed
 //! supervisor leaves no orphan nodes.
 
-use std::io::{Read, Seek, SeekFrom, Write};
+use std::io::{Read, Write};
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -170,7 +170,6 @@ fn copy_new(reader: &mut std::fs::File) {
     if reader.read_to_end(&mut buf).is_ok() && !buf.is_empty() {
         let _ = std::io::stderr().write_all(&buf);
     }
-    let _ = reader.seek(SeekFrom::Current(0));
 }
 
 fn say_where(pid: u32, run_dir: &Path) {

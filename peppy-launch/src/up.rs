@@ -1397,7 +1397,9 @@ mod tests {
         let stopping = tokio_util::sync::CancellationToken::new();
         let task = tokio::spawn(stop_in_order(
             stopping.clone(),
-            vec![left, brain, right, camera, controller, a, b],
+            Arc::new(std::sync::Mutex::new(vec![
+                left, brain, right, camera, controller, a, b,
+            ])),
         ));
         let settle = || tokio::time::sleep(Duration::from_millis(50));
         settle().await;

@@ -4,6 +4,7 @@
 mod check;
 mod clock;
 mod composed;
+mod detached;
 mod inspect;
 mod machines;
 mod migrate;
