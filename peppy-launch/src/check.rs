@@ -79,7 +79,13 @@ pub(crate) fn run(args: &CheckArgs) -> Result {
         Err(d) => Err(d),
     };
     let (diags, stack) = match &result {
-        Ok(stack) => (stack.warnings.clone(), Some(stack)),
+        Ok(stack) => {
+            // A container node that cannot run on this machine is a
+            // warning here (`up` refuses it).
+            let mut warnings = stack.warnings.clone();
+            warnings.extend(crate::container::assess(stack).1);
+            (warnings, Some(stack))
+        }
         Err(d) => (d.clone(), None),
     };
     match args.format {

@@ -182,12 +182,6 @@ pub enum UsageError {
         /// Why it does not parse.
         source: serde_json::Error,
     },
-    /// `run` was given a node that runs in a container.
-    #[error("`{node}` runs in a container, which peppy-launch does not start yet")]
-    Container {
-        /// The node (`name:tag`).
-        node: String,
-    },
     /// `--namespace` is not a valid name.
     #[error("invalid --namespace `{namespace}`: {why}")]
     Namespace {

@@ -68,9 +68,14 @@ pub enum ExecutableError {
         /// Why.
         source: crate::python_sync::PackageError,
     },
-    /// The node runs in a container (refused by `check` already).
-    #[error("`{0}` runs in a container, which peppy-launch does not start yet")]
-    Container(String),
+    /// The node's container cannot run here.
+    #[error("cannot run `{node}`: {source}")]
+    Container {
+        /// The node (`name:tag`).
+        node: String,
+        /// Why.
+        source: crate::container::ContainerError,
+    },
 }
 
 /// Why the executable of a Rust node without `run_cmd` cannot be told.
@@ -245,7 +250,28 @@ pub(crate) async fn prepare(
     };
     match execution.launch() {
         Launch::Command(argv) => crate::python_sync::with_uv(argv).map_err(tool),
-        Launch::Container(_) => Err(ExecutableError::Container(node.to_string())),
+        Launch::Container(container) => {
+            let plan = crate::container::plan(dir, container, node).map_err(|source| {
+                ExecutableError::Container {
+                    node: node.to_string(),
+                    source,
+                }
+            })?;
+            let (builds, run) = crate::container::commands(&plan, container);
+            if build && !crate::container::built(&plan) {
+                crate::container::make_image_dir(&plan).map_err(|source| {
+                    ExecutableError::Container {
+                        node: node.to_string(),
+                        source: crate::container::ContainerError::ImageDir(source),
+                    }
+                })?;
+                for cmd in builds {
+                    let cmd = crate::python_sync::with_uv(&cmd).map_err(tool)?;
+                    run_build(node, label, dir, &cmd, false).await?;
+                }
+            }
+            crate::python_sync::with_uv(&run).map_err(tool)
+        }
         Launch::CargoBinary => {
             let exe = match stdout {
                 Some(messages) => from_build_messages(&messages, dir, node_name),

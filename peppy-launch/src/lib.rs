@@ -7,6 +7,7 @@
 mod build_progress;
 mod check;
 mod cli;
+mod container;
 mod control;
 mod core_view;
 mod detach;
@@ -39,6 +40,7 @@ mod up;
 mod validate;
 
 pub use cli::Cli;
+pub use container::ContainerError;
 pub use control::ControlError;
 pub use detach::DetachError;
 pub use error::{InspectError, LaunchError, Result, SetupError, UsageError, exit};

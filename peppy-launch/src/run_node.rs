@@ -118,11 +118,15 @@ pub(crate) fn run(args: &RunArgs) -> Result {
     let mut config = peppy_runtime::startup_from_flags(&model, flags)?;
     config.core_node = format!("run-{:x}", std::process::id());
     config.shutdown_grace_secs = crate::up::inherited_grace()?.or(config.shutdown_grace_secs);
-    if let Launch::Container(_) = doc.execution.launch() {
-        return Err(UsageError::Container {
-            node: doc.identity().to_string(),
+    if let Launch::Container(container) = doc.execution.launch() {
+        let dir = file.parent().unwrap_or(std::path::Path::new("."));
+        let node = doc.identity().to_string();
+        match crate::container::plan(dir, container, &node) {
+            Ok(plan) => eprintln!("peppy-launch: {}", crate::container::describe(&node, &plan)),
+            Err(source) => {
+                return Err(crate::executable::ExecutableError::Container { node, source }.into());
+            }
         }
-        .into());
     }
     let dir = file.parent().map(PathBuf::from).unwrap_or_default();
     if crate::python_sync::is_python(&check.resolved) {

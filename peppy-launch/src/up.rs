@@ -60,7 +60,8 @@ pub(crate) fn run(args: &UpArgs) -> Outcome {
     // to start is an error here.
     let mut warnings = peppy_schema::Diagnostics::new();
     let mut unstartable = 0;
-    for d in stack.warnings.iter() {
+    let (container_notes, container_warnings) = crate::container::assess(&stack);
+    for d in stack.warnings.iter().chain(container_warnings.iter()) {
         let mut d = d.clone();
         if d.code == peppy_schema::Code::UnsupportedExecution {
             d.severity = peppy_schema::Severity::Error;
@@ -82,6 +83,9 @@ pub(crate) fn run(args: &UpArgs) -> Outcome {
     }
     if let Some(selection) = &stack.selection {
         eprintln!("components: {selection}");
+    }
+    for note in container_notes {
+        eprintln!("peppy-launch: {note}");
     }
     let stack = place(stack, args)?;
     let runtime = crate::tokio_runtime(None)?;

@@ -9,7 +9,7 @@ use crate::compose::{Resolved, Selection};
 use crate::diag::{Code, Diagnostics};
 use crate::document::{GitRepository, RepositoryEntry};
 use crate::launcher::{Deployment, LauncherDoc, Source};
-use crate::node::{Launch, NodeDoc};
+use crate::node::NodeDoc;
 use crate::plan::{BindingPlan, plan_bindings};
 use crate::repos::{ListedBy, REPOSITORIES_ENV, RepoIndex, RepositoryList, absolute};
 use crate::resolve::{ResolvedNode, resolve_node};
@@ -317,29 +317,6 @@ pub fn check_resolved(
             None => load_deployment(d, &base, &index, &mut diags),
         })
         .collect();
-    // `check` plans such a stack (a warning); `up` refuses it before
-    // building or opening the router: a launch that cannot start every
-    // node starts none.
-    for (d, (doc, _)) in launcher
-        .deployments
-        .iter()
-        .zip(&loaded)
-        .filter_map(|(d, l)| l.as_ref().map(|l| (d, l)))
-    {
-        if matches!(doc.execution.launch(), Launch::Container(_)) {
-            diags.push(
-                d.source_loc
-                    .warning(
-                        Code::UnsupportedExecution,
-                        format!(
-                            "`{}` runs in a container (`execution.container`), which peppy-launch does not start yet",
-                            doc.identity()
-                        ),
-                    )
-                    .with_help("`check` plans it; `up` refuses to start it: give the node an `execution.run_cmd` to run it as a process"),
-            );
-        }
-    }
     // Calls round a loop can deadlock: refused before anything runs.
     let mut stack_nodes: Vec<&NodeDoc> = Vec::new();
     for (doc, _) in loaded.iter().flatten() {

@@ -135,3 +135,73 @@ fn init_refuses_to_overwrite_or_to_take_a_bad_name() {
     );
     assert!(!dir.path().join("9lives").exists());
 }
+
+/// A node that declares `execution.container` runs natively where no
+/// container runtime is used: built by its definition's `%post` (`uv
+/// sync`), started by its `%runscript`, with a line saying so. Two such
+/// greeters in one launch hear each other.
+#[test]
+fn a_container_node_runs_natively_from_its_definition() {
+    let dir = tempfile::tempdir().unwrap();
+    let node = init(dir.path(), &["boxed", "--toolchain", "uv"]);
+    let doc = std::fs::read_to_string(node.join("peppy.json5")).unwrap();
+    let execution = doc.find("  execution: {").expect("an execution section");
+    let doc = format!(
+        "{}  execution: {{\n    language: \"python\",\n    container: {{ def_file: \"apptainer.def\" }},\n    parameters: {{ period_ms: {{ $type: \"u32\", $default: 100 }} }},\n  }},\n}}\n",
+        &doc[..execution]
+    );
+    std::fs::write(node.join("peppy.json5"), doc).unwrap();
+    std::fs::write(
+        node.join("apptainer.def"),
+        "Bootstrap: docker\nFrom: peppybot/python-uv-base:latest\n\n%files\n    . /opt/boxed\n\n%post\n    set -eux\n    export UV_PYTHON_INSTALL_DIR=/opt/uv-python\n    apt-get update && apt-get install -y --no-install-recommends ffmpeg\n    cd /opt/boxed\n    uv python install\n    uv sync --no-editable\n\n%runscript\n    cd /opt/boxed\n    exec ./.venv/bin/python -m boxed \"$@\"\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("stack.json5"),
+        r#"{ peppy_schema: "launcher/v1", deployments: [{
+              source: { local: "boxed" },
+              instances: [
+                { instance_id: "a", links: { peers: ["b"] } },
+                { instance_id: "b", links: { peers: ["a"] } },
+              ],
+            }] }"#,
+    )
+    .unwrap();
+    let output = dir.path().join("up.log");
+    let child = crate::support::peppy_launch_command(&[])
+        .args(["up", "stack.json5"])
+        .current_dir(dir.path())
+        .env("NO_COLOR", "1")
+        .env("PEPPY_CONTAINERS", "native")
+        .env_remove("PEPPY_REPOSITORIES")
+        .stdin(Stdio::null())
+        .stdout(std::fs::File::create(dir.path().join("up.out")).unwrap())
+        .stderr(std::fs::File::create(&output).unwrap())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + COMMAND_BOUND;
+    let log = || std::fs::read_to_string(&output).unwrap_or_default();
+    while !(log().contains("[a] b: hello from b") && log().contains("[b] a: hello from a")) {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the greeters did not hear each other:\n{}",
+            log()
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // SAFETY: kill only sends a signal to the test's own child.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+    }
+    let ended = wait_bounded(child, COMMAND_BOUND, "up of the container nodes");
+    let log = log();
+    assert!(ended.status.success(), "{log}");
+    assert!(
+        log.contains("`boxed:v1` declares a container; no container runtime is used here, so it runs natively: build `uv sync --no-editable`, run `./.venv/bin/python -m boxed`"),
+        "{log}"
+    );
+    assert!(
+        log.contains("apt-get update"),
+        "the skipped set-up is named: {log}"
+    );
+}

@@ -750,3 +750,101 @@ fn peppy_direct_links_off_keeps_topics_on_zenoh_alone() {
     assert!(connect.ends_with("/router.sock"), "{config}\n{stderr}");
     assert!(config.get("direct_links").is_none(), "{config}");
 }
+
+/// With a container runtime on PATH, a container node is built into an
+/// image under the cache (once per definition) and run in it. The runtime
+/// here is a stand-in script that records what it is asked.
+#[test]
+fn a_container_node_runs_in_its_image_where_apptainer_is_installed() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let (bin, cache, calls) = (
+        dir.path().join("bin"),
+        dir.path().join("cache"),
+        dir.path().join("calls"),
+    );
+    std::fs::create_dir_all(&bin).unwrap();
+    let fake = bin.join("apptainer");
+    std::fs::write(
+        &fake,
+        format!(
+            "#!/bin/sh\necho \"$@\" >> {calls}\ncase \"$1\" in\n  build) for last; do :; done; image=\"$3\"; : > \"$image\";;\n  run) echo \"running in $2\";;\nesac\n",
+            calls = calls.display()
+        ),
+    )
+    .unwrap();
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
+    std::fs::create_dir_all(dir.path().join("boxed")).unwrap();
+    std::fs::write(
+        dir.path().join("boxed/peppy.json5"),
+        r#"{ peppy_schema: "node_v1", manifest: { name: "boxed", tag: "v1" },
+             execution: { language: "shell", container: { def_file: "boxed.def" } } }"#,
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("boxed/boxed.def"),
+        "Bootstrap: docker\nFrom: nvcr.io/nvidia/isaac-sim:4.5.0\n%runscript\n    exec /isaac-sim/python.sh\n",
+    )
+    .unwrap();
+    launcher(dir.path(), &[("boxed", "b", "no")]);
+    let path = format!(
+        "{}:{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    for round in 0..2 {
+        let child = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+            .arg("stack.json5")
+            .current_dir(dir.path())
+            .env("NO_COLOR", "1")
+            .env("PATH", &path)
+            .env("PEPPY_CACHE_DIR", &cache)
+            .env_remove("PEPPY_CONTAINERS")
+            .env_remove("PEPPY_REPOSITORIES")
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let (code, stderr, _) = finish(child, Duration::from_secs(60));
+        assert_eq!(code, 0, "round {round}: {stderr}");
+        assert!(
+            stderr.contains("`boxed:v1` runs in its container image"),
+            "{stderr}"
+        );
+        assert!(stderr.contains("[b] running in"), "{stderr}");
+    }
+    let calls = std::fs::read_to_string(&calls).unwrap();
+    let lines: Vec<&str> = calls.lines().collect();
+    assert_eq!(lines.len(), 3, "one build, two runs: {calls}");
+    assert!(
+        lines[0].starts_with("build --force ") && lines[0].ends_with("boxed/boxed.def"),
+        "{calls}"
+    );
+    let image = lines[0].split_whitespace().nth(2).unwrap();
+    assert!(
+        image.starts_with(cache.join("containers").to_str().unwrap()),
+        "{calls}"
+    );
+    assert_eq!(lines[1], format!("run {image}"));
+    assert_eq!(lines[2], lines[1]);
+
+    // Without a runtime (or told so), what only the image has is named.
+    let child = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
+        .args(["check", "stack.json5"])
+        .current_dir(dir.path())
+        .env("NO_COLOR", "1")
+        .env("PEPPY_CONTAINERS", "native")
+        .env_remove("PEPPY_REPOSITORIES")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (code, stderr, _) = finish(child, Duration::from_secs(60));
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        stderr.contains("natively it would run `/isaac-sim/python.sh`, which its image (nvcr.io/nvidia/isaac-sim:4.5.0) brings and this machine lacks"),
+        "{stderr}"
+    );
+}
