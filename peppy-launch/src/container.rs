@@ -73,9 +73,9 @@ pub enum ContainerError {
     /// `PEPPY_CONTAINERS` names no way to run containers.
     #[error("PEPPY_CONTAINERS is `{0}`; use `native` or `apptainer`")]
     BadChoice(String),
-    /// The cache directory for images cannot be made.
-    #[error("cannot make the directory for its container image: {0}")]
-    ImageDir(std::io::Error),
+    /// The image cannot be put in the cache.
+    #[error("cannot put its container image in the cache: {0}")]
+    Image(std::io::Error),
     /// `PEPPY_CONTAINERS=apptainer`, and no runtime is installed.
     #[error("PEPPY_CONTAINERS=apptainer, but neither `apptainer` nor `singularity` is on PATH")]
     NoRuntime,
@@ -187,7 +187,14 @@ fn native(def: &Definition, path: &Path) -> Result<Plan, ContainerError> {
     let mut build = Vec::new();
     let mut skipped = Vec::new();
     let mut inside = false;
-    for line in &def.post {
+    // `cd /opt/x && cargo build`: each command of a line on its own.
+    let commands = def
+        .post
+        .iter()
+        .flat_map(|line| line.split("&&").flat_map(|part| part.split(';')))
+        .map(str::trim)
+        .filter(|c| !c.is_empty());
+    for line in commands {
         if in_project(line) {
             inside = true;
             continue;
@@ -202,7 +209,7 @@ fn native(def: &Definition, path: &Path) -> Result<Plan, ContainerError> {
         if inside && BUILD_TOOLS.contains(&program.as_str()) {
             build.push(w);
         } else if !matches!(program.as_str(), "set" | "export" | "cd") {
-            skipped.push(line.clone());
+            skipped.push(line.to_string());
         }
     }
     let exec = def
@@ -216,16 +223,19 @@ fn native(def: &Definition, path: &Path) -> Result<Plan, ContainerError> {
         .into_iter()
         .filter(|w| w != "$@" && w != "$*")
         .collect();
-    let Some(program) = run.first().cloned() else {
+    if run.is_empty() {
         return Err(ContainerError::NoRunscript {
             path: path.to_path_buf(),
         });
-    };
-    // The image's copy of the node is the node's own directory here.
-    if !project.is_empty()
-        && let Some(rest) = program.strip_prefix(&format!("{project}/"))
-    {
-        run[0] = format!("./{rest}");
+    }
+    // The image's copy of the node is the node's own directory here, in
+    // the program and in its arguments alike.
+    if !project.is_empty() {
+        for word in &mut run {
+            if let Some(rest) = word.strip_prefix(&format!("{project}/")) {
+                *word = format!("./{rest}");
+            }
+        }
     }
     let program = run[0].clone();
     let here = program.starts_with("./")
@@ -330,7 +340,10 @@ pub(crate) fn commands(plan: &Plan, container: &Container) -> (Vec<Vec<String>>,
             let runtime = runtime.display().to_string();
             let mut build = vec![runtime.clone(), "build".into(), "--force".into()];
             build.extend(container.apptainer_build_extra_args.iter().cloned());
-            build.push(image.display().to_string());
+            // Built beside its place and moved in once whole
+            // ([`finish_build`]): an interrupted build is never taken for
+            // an image.
+            build.push(partial(image).display().to_string());
             build.push(definition.display().to_string());
             let mut run = vec![runtime, "run".into()];
             run.extend(container.apptainer_run_extra_args.iter().cloned());
@@ -349,6 +362,18 @@ pub(crate) fn commands(plan: &Plan, container: &Container) -> (Vec<Vec<String>>,
 /// definition.
 pub(crate) fn built(plan: &Plan) -> bool {
     matches!(plan, Plan::Apptainer { image, .. } if image.is_file())
+}
+
+fn partial(image: &Path) -> PathBuf {
+    image.with_extension("sif.partial")
+}
+
+/// Moves a whole built image into its place.
+pub(crate) fn finish_build(plan: &Plan) -> std::io::Result<()> {
+    match plan {
+        Plan::Apptainer { image, .. } => std::fs::rename(partial(image), image),
+        Plan::Native { .. } => Ok(()),
+    }
 }
 
 /// Makes the directory `plan`'s image is built into.
@@ -420,6 +445,22 @@ From: peppybot/rust-cargo-base
     exec ./target/release/realsense_d4xx "$@"
 "#;
 
+    #[test]
+    fn commands_joined_on_one_line_are_each_taken() {
+        let def = "From: x\n%files\n  . /opt/n\n%post\n  cd /opt/n && cargo build --release; apt-get clean\n%runscript\n  exec python3 /opt/n/main.py\n";
+        let Plan::Native {
+            build,
+            run,
+            skipped,
+        } = native(&parse(def), Path::new("n.def")).unwrap()
+        else {
+            panic!("native")
+        };
+        assert_eq!(build, [["cargo", "build", "--release"]]);
+        assert_eq!(skipped, ["apt-get clean"]);
+        assert_eq!(run, ["python3", "./main.py"]);
+    }
+
     const PYTHON: &str = r#"Bootstrap: docker
 From: peppybot/python-uv-base:latest
 %files
@@ -452,7 +493,8 @@ From: peppybot/python-uv-base:latest
             [
                 "apt-get update -y",
                 "apt-get install -y --no-install-recommends libclang-dev librealsense2-dev",
-                "apt-get clean && rm -rf /var/lib/apt/lists/*",
+                "apt-get clean",
+                "rm -rf /var/lib/apt/lists/*",
             ]
         );
     }

@@ -73,8 +73,9 @@ impl Reply {
     }
 }
 
-/// The longest request line read: a request names one instance.
-const MAX_REQUEST: usize = 4096;
+/// The longest request line read: an addition carries a whole plan
+/// (every parameter, slot and pair of the instance).
+const MAX_REQUEST: usize = 1 << 20;
 
 /// How long a client may take to send its request.
 const REQUEST_TIMEOUT: Duration = Duration::from_secs(5);
@@ -192,7 +193,9 @@ impl Controls {
         commands: mpsc::UnboundedSender<InstanceCommand>,
         grace: Duration,
     ) {
-        let bound = grace + crate::supervise::TERM_TIMEOUT + Duration::from_secs(10);
+        // Grace, SIGTERM's wait, SIGKILL's, a restart's back-off and the
+        // output drained: a reply comes well within this.
+        let bound = grace + crate::supervise::TERM_TIMEOUT + Duration::from_secs(30);
         self.instances
             .lock()
             .unwrap_or_else(|p| p.into_inner())
@@ -218,6 +221,8 @@ pub(crate) async fn serve(mut listener: Listener, controls: Arc<Controls>) {
     };
     loop {
         let Ok((stream, _)) = socket.accept().await else {
+            // Out of file descriptors, say: try again, without spinning.
+            tokio::time::sleep(Duration::from_millis(100)).await;
             continue;
         };
         let controls = controls.clone();

@@ -61,8 +61,16 @@ pub(crate) fn started(run_dir: &Path) {
         return;
     };
     if let Some(log) = &detached.log {
+        let target = run_dir.join(LAUNCH_LOG);
         // The log stays open as this process's output; only its name moves.
-        let _ = std::fs::rename(log, run_dir.join(LAUNCH_LOG));
+        if std::fs::rename(log, &target).is_err()
+            && let Err(e) = move_output(log, &target)
+        {
+            eprintln!(
+                "peppy-launch: the launch's output stays in {} ({e})",
+                log.display()
+            );
+        }
     }
     let tmp = detached.status.with_extension("tmp");
     let written = std::fs::write(&tmp, run_dir.display().to_string())
@@ -73,6 +81,25 @@ pub(crate) fn started(run_dir: &Path) {
             detached.status.display()
         );
     }
+}
+
+/// Where the log cannot be renamed (another file system): what was
+/// written so far is copied to `to`, which this process writes on from
+/// now, and `from` goes.
+fn move_output(from: &Path, to: &Path) -> std::io::Result<()> {
+    use std::os::fd::AsRawFd;
+    let new = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(to)?;
+    std::io::copy(&mut std::fs::File::open(from)?, &mut &new)?;
+    for fd in [libc::STDOUT_FILENO, libc::STDERR_FILENO] {
+        // SAFETY: dup2 onto this process's own standard descriptors.
+        if unsafe { libc::dup2(new.as_raw_fd(), fd) } < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+    }
+    std::fs::remove_file(from)
 }
 
 /// A detached launch's own output, in its run directory.

@@ -262,13 +262,19 @@ pub(crate) async fn prepare(
                 crate::container::make_image_dir(&plan).map_err(|source| {
                     ExecutableError::Container {
                         node: node.to_string(),
-                        source: crate::container::ContainerError::ImageDir(source),
+                        source: crate::container::ContainerError::Image(source),
                     }
                 })?;
                 for cmd in builds {
                     let cmd = crate::python_sync::with_uv(&cmd).map_err(tool)?;
                     run_build(node, label, dir, &cmd, false).await?;
                 }
+                crate::container::finish_build(&plan).map_err(|source| {
+                    ExecutableError::Container {
+                        node: node.to_string(),
+                        source: crate::container::ContainerError::Image(source),
+                    }
+                })?;
             }
             crate::python_sync::with_uv(&run).map_err(tool)
         }

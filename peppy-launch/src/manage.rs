@@ -73,6 +73,16 @@ pub enum ManageError {
         /// The one given.
         given: String,
     },
+    /// The stack runs an instance of that id already.
+    #[error(
+        "the stack runs an instance `{instance}` ({node}) already; give another `--instance-id`"
+    )]
+    TakenId {
+        /// The instance id.
+        instance: String,
+        /// Its node.
+        node: String,
+    },
     /// A slot is linked to an instance the stack does not run.
     #[error("slot `{slot}` is linked to `{producer}`, which the launch does not run (it runs: {})", running.join(", "))]
     NotInLaunch {
@@ -115,8 +125,11 @@ fn names(r: &LaunchRecord, which: &str) -> bool {
     let path = Path::new(which);
     if path.exists() {
         let canonical = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
-        return r.launcher == canonical || r.launcher.parent() == Some(canonical.as_path());
+        if r.launcher == canonical || r.launcher.parent() == Some(canonical.as_path()) {
+            return true;
+        }
     }
+    // A name, also where a folder of that name happens to be here.
     r.launcher.file_stem().is_some_and(|s| s == which)
 }
 
@@ -282,6 +295,12 @@ pub(crate) fn check_links(
         .parent()
         .map(Path::to_path_buf)
         .unwrap_or_default();
+    if let Some((_, node)) = live.iter().find(|(id, _)| *id == config.instance_id) {
+        return Err(usage(ManageError::TakenId {
+            instance: config.instance_id.clone(),
+            node: node.clone(),
+        }));
+    }
     let mut index = None;
     for slot in &config.slots {
         for producer in crate::core_view::producers(&slot.binding) {

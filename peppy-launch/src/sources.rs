@@ -391,7 +391,7 @@ impl Fetcher {
             let tmp = fresh(&mirror)?;
             git(
                 None,
-                &["clone", "--quiet", "--mirror", repo, &path_arg(&tmp)],
+                &["clone", "--quiet", "--mirror", "--", repo, &path_arg(&tmp)],
             )
             .map_err(|source| SourceError::Clone {
                 repo: repo.to_string(),

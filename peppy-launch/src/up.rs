@@ -550,6 +550,7 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         // A machine with only a router still links the others: it stays up.
         let stop = interrupts_from_now();
         out.note("nothing to start here; the router runs until Ctrl-C");
+        crate::detach::started(&run_dir);
         stop.await;
         out.note("done");
         Ok(())
@@ -1090,6 +1091,20 @@ pub(crate) async fn run_instances(
             },
             Some((addition, reply)) = additions.recv() => {
                 let addition: crate::control::Addition = addition;
+                // Checked here, where additions are taken one at a time: two
+                // joiners of one id cannot both pass.
+                let id = addition.config.instance_id.clone();
+                let refusal = if signals.stopping.is_cancelled() {
+                    Some("the launch is stopping".to_string())
+                } else if lock(&order).iter().any(|i| i.id == id) {
+                    Some(format!("the launch has an instance `{id}` already; give another `--instance-id`"))
+                } else {
+                    None
+                };
+                if let Some(why) = refusal {
+                    let _ = reply.send(Err(why));
+                    continue;
+                }
                 let node = addition.node.clone();
                 let planned = Planned {
                     config: addition.config,

@@ -528,12 +528,13 @@ fn parse_repositories(
                 let Some(url) = r.string(url_node, &obj.path_of("url")) else {
                     continue;
                 };
-                if url.trim().is_empty() {
+                if url.trim().is_empty() || url.starts_with('-') {
+                    // A leading `-` would reach git as an option.
                     r.error(
                         Code::InvalidValue,
                         url_node.span,
                         &obj.path_of("url"),
-                        "`url` must not be empty",
+                        "`url` must be a repository's URL or path (not empty, not starting with `-`)",
                     );
                     continue;
                 }

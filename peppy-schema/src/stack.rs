@@ -39,12 +39,21 @@ impl RepoOptions {
     /// `peppy_repositories.json5`, then [`last`](Self::last). Git
     /// repositories are not fetched yet ([`RepositoryList::fetch_git`]).
     pub fn discover(&self, start_dir: &Path) -> Result<RepositoryList, Diagnostics> {
-        let mut list =
-            RepositoryList::discover(&self.explicit, self.env_value().as_deref(), start_dir)?;
+        let mut list = self.discover_first(start_dir)?;
+        self.add_last(&mut list);
+        Ok(list)
+    }
+
+    /// [`discover`](Self::discover) without [`last`](Self::last), for a
+    /// caller that adds lists of its own before them.
+    fn discover_first(&self, start_dir: &Path) -> Result<RepositoryList, Diagnostics> {
+        RepositoryList::discover(&self.explicit, self.env_value().as_deref(), start_dir)
+    }
+
+    fn add_last(&self, list: &mut RepositoryList) {
         for (entry, by) in &self.last {
             list.add(entry.clone(), by.clone());
         }
-        Ok(list)
     }
 }
 
@@ -266,7 +275,7 @@ pub fn check_resolved(
     let selection = resolved.report.selection.clone();
     let (launcher, mut diags) = (resolved.launcher, resolved.warnings);
     let base = absolute(&launcher.base_dir());
-    let mut repositories = options.discover(&base)?;
+    let mut repositories = options.discover_first(&base)?;
     // Remote sources become local directories before anything looks at them.
     let fetched: Vec<Option<PathBuf>> = launcher
         .deployments
@@ -302,6 +311,8 @@ pub fn check_resolved(
             diags.extend(e);
         }
     }
+    // The user's list last: after every list the stack's own files name.
+    options.add_last(&mut repositories);
     if repositories.unfetched().next().is_some() {
         diags.extend(repositories.fetch_git(fetcher));
     }

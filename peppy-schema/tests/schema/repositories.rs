@@ -70,6 +70,7 @@ fn repositories_file_is_validated() {
   { type: "git", url: "" },
   { type: "git", url: "https://example.invalid/r.git", ref: "--upload-pack=x" },
   { id: -1, type: "fs", path: "w" },
+  { type: "git", url: "--upload-pack=touch /tmp/x" },
 ]"#;
     tree.write(REPOSITORIES_FILE, text);
     let errors = RepositoryList::discover(&[], None, &tree.root()).unwrap_err();
@@ -86,6 +87,7 @@ fn repositories_file_is_validated() {
             (Code::InvalidValue, "[6].url"),
             (Code::InvalidValue, "[7].ref"),
             (Code::InvalidValue, "[8].id"),
+            (Code::InvalidValue, "[9].url"),
         ]
     );
     let unknown_type = errors
