@@ -60,7 +60,8 @@ pub(crate) enum Command {
     /// draws the running stack with measured rates. DOT on stdout, or
     /// `-o FILE` with `.svg` / `.html` (drawn without Graphviz) or `.dot`.
     Graph(GraphArgs),
-    /// Running instances: `node list`, `node info INSTANCE`.
+    /// Nodes: create one (`node init NAME`); the instances of running
+    /// stacks (`node list`, `node info`, `node stop|start|restart`).
     #[command(subcommand)]
     Node(NodeCommand),
     /// Topics of a running stack: list, echo, hz, bw, pub.
@@ -100,8 +101,9 @@ pub(crate) enum Command {
     Ps(PsArgs),
     /// An instance's output, from its launch's run directory.
     Logs(LogsArgs),
-    /// Repositories: `repo index DIR` writes a repository's
-    /// `peppy_repository.json5`, the index through which it is read.
+    /// Repositories: the ones searched (`repo list`), the user's list of
+    /// folders and git repositories (`repo add|remove|refresh`), and a
+    /// repository's index (`repo index DIR`).
     #[command(subcommand)]
     Repo(RepoCommand),
 }
