@@ -60,7 +60,8 @@ fn a_new_cargo_node_passes_its_harness_test() {
     let mut test = Command::new(env!("CARGO"));
     // One job: the tests beside this one (links between hosts, stacks
     // streaming frames) keep a core.
-    test.args(["test", "--quiet", "--jobs", "1"]).current_dir(&node);
+    test.args(["test", "--quiet", "--jobs", "1"])
+        .current_dir(&node);
     // The workspace's target directory: the runtime's dependencies are
     // built once for the workspace and the node alike (the node's
     // Cargo.lock is peppy's).
