@@ -265,13 +265,16 @@ pub(crate) fn add(args: &RepoAddArgs) -> Result {
             reference: args.reference.clone(),
             loc: Default::default(),
         };
+        let fetch_error = |source: Box<dyn std::error::Error + Send + Sync>| RepoListError::Fetch {
+            name: git.describe(),
+            source,
+        };
+        // A refresh always reaches for the repository: `None` is only
+        // what a read of the cache alone gives.
         let fetched = Fetcher::new()
             .git_repository(&git, RepoFetch::Refresh)
-            .map_err(|source| RepoListError::Fetch {
-                name: git.describe(),
-                source: source.into(),
-            })?
-            .expect("a refresh fetches");
+            .map_err(|e| fetch_error(e.into()))?
+            .ok_or_else(|| fetch_error("nothing was fetched".into()))?;
         println!(
             "peppy-launch: fetched {} ({}): commit {}",
             git.short_name(),
