@@ -191,7 +191,9 @@ pub(crate) fn launch() -> Result {
     }
 }
 
-/// Copies what the supervisor wrote since the last call to stderr.
+/// Copies what the supervisor wrote since the last call to stderr. Read
+/// through the handle opened at the start (not by path, as `logs` reads):
+/// the supervisor renames the file into its run directory meanwhile.
 fn copy_new(reader: &mut std::fs::File) {
     let mut buf = Vec::new();
     if reader.read_to_end(&mut buf).is_ok() && !buf.is_empty() {

@@ -4,7 +4,6 @@
 //! launches (`ps`): by pid, namespace, launcher path or launcher name, or
 //! as the only one running.
 
-use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -176,26 +175,24 @@ pub(crate) fn stop(args: &StopArgs) -> Result {
     unsafe {
         libc::kill(launch.pid as libc::pid_t, libc::SIGINT);
     }
-    let mut log = std::fs::File::open(launch.run_dir.join(crate::detach::LAUNCH_LOG))
-        .ok()
-        .map(|mut f| {
-            // Only what the launch says from now on.
-            let _ = f.seek(SeekFrom::End(0));
-            f
-        });
+    // A detached launch's own output, from now on.
+    let log_path = launch.run_dir.join(crate::detach::LAUNCH_LOG);
+    let mut log = runs::LogReader::at_end(&log_path);
+    let show = |lines: Vec<String>| {
+        for line in lines {
+            eprintln!("{line}");
+        }
+    };
     let deadline = Instant::now() + args.timeout;
     loop {
-        if let Some(f) = log.as_mut() {
-            let mut buf = Vec::new();
-            if f.read_to_end(&mut buf).is_ok() && !buf.is_empty() {
-                let _ = std::io::stderr().write_all(&buf);
-            }
-        }
+        show(log.read_new(&log_path).unwrap_or_default());
         // The registry, not the pid: a pid may be another process's by now.
         let alive = runs::running()
             .iter()
             .any(|r| r.pid == launch.pid && r.started_at_ms == launch.started_at_ms);
         if !alive {
+            show(log.read_new(&log_path).unwrap_or_default());
+            show(log.rest().into_iter().collect());
             eprintln!("peppy-launch: stopped pid {}", launch.pid);
             return Ok(());
         }

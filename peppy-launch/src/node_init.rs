@@ -172,21 +172,15 @@ fn check_name(name: &str) -> std::result::Result<(), InitError> {
         return Err(refuse("it must start with a letter".into()));
     }
     let module = crate_name(name);
-    if peppy_schema::names::is_rust_keyword(&module) || PYTHON_KEYWORDS.contains(&module.as_str()) {
+    if peppy_schema::names::is_rust_keyword(&module)
+        || peppy_schema::names::is_python_keyword(&module)
+    {
         return Err(refuse(format!(
             "`{module}` is a keyword, so no crate or package can be named after it"
         )));
     }
     Ok(())
 }
-
-/// Python's keywords: no package can be imported by one of these names.
-const PYTHON_KEYWORDS: &[&str] = &[
-    "False", "None", "True", "and", "as", "assert", "async", "await", "break", "class", "continue",
-    "def", "del", "elif", "else", "except", "finally", "for", "from", "global", "if", "import",
-    "in", "is", "lambda", "nonlocal", "not", "or", "pass", "raise", "return", "try", "while",
-    "with", "yield",
-];
 
 /// The crate (and Python package) a node's code is named: its name with
 /// `-` as `_`, as cargo names a crate's library.

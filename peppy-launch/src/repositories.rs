@@ -181,17 +181,22 @@ pub(crate) fn index(
     Ok(RepoIndex::of(&list))
 }
 
-/// `repo list`: every repository a command run here searches, in order,
-/// who listed it and what it holds.
-pub(crate) fn list(args: &RepoListArgs) -> Result {
-    let options = options(args.repos.clone())?;
+/// Every repository a command run here with `--repo` folders `explicit`
+/// searches, not fetched.
+fn searched_here(explicit: &[PathBuf]) -> Result<RepositoryList> {
     let cwd = std::env::current_dir().unwrap_or_default();
-    let mut repositories = options.discover(&cwd).map_err(|diags| {
+    options(explicit.to_vec())?.discover(&cwd).map_err(|diags| {
         crate::report::print_human(&diags);
         LaunchError::Invalid {
             errors: diags.error_count(),
         }
-    })?;
+    })
+}
+
+/// `repo list`: every repository a command run here searches, in order,
+/// who listed it and what it holds.
+pub(crate) fn list(args: &RepoListArgs) -> Result {
+    let mut repositories = searched_here(&args.repos)?;
     let fetcher = Fetcher::new();
     // Listing reads the cache; it never fetches.
     for listed in &mut repositories.listed {
@@ -382,14 +387,7 @@ fn short(entry: &RepositoryEntry) -> String {
 /// read at. One that cannot be reached keeps its cached copy (and says
 /// so); one with no cached copy fails the command, naming it.
 pub(crate) fn refresh(args: &RepoRefreshArgs) -> Result {
-    let options = options(args.repos.clone())?;
-    let cwd = std::env::current_dir().unwrap_or_default();
-    let repositories: RepositoryList = options.discover(&cwd).map_err(|diags| {
-        crate::report::print_human(&diags);
-        LaunchError::Invalid {
-            errors: diags.error_count(),
-        }
-    })?;
+    let repositories = searched_here(&args.repos)?;
     let fetcher = Fetcher::new();
     let mut failed = 0;
     let mut seen = 0;

@@ -505,6 +505,15 @@ pub(crate) struct LogReader {
 }
 
 impl LogReader {
+    /// A reader of what `path` gets from now on (nothing, when it does
+    /// not exist yet).
+    pub(crate) fn at_end(path: &Path) -> LogReader {
+        LogReader {
+            pos: std::fs::metadata(path).map_or(0, |m| m.len()),
+            partial: Vec::new(),
+        }
+    }
+
     /// A last line that has no newline yet (a log that ended mid-line).
     pub(crate) fn rest(&mut self) -> Option<String> {
         (!self.partial.is_empty())

@@ -1029,30 +1029,34 @@ pub(crate) async fn run_instances(
     });
     let order: Arc<std::sync::Mutex<Vec<Stopping>>> = Default::default();
     let mut running = tokio::task::JoinSet::new();
-    let mut start_failure = None;
-    for p in planned {
-        let started = p.and_then(|p| {
+    // One instance started and supervised: in the launch's stop order,
+    // reachable by the control socket, awaited with the others. Returns
+    // its id.
+    let start =
+        |p: Planned,
+         running: &mut tokio::task::JoinSet<(String, Result<Ended, tokio::task::JoinError>)>|
+         -> Result<String, StartError> {
             let takes_from = producers_of(&p.config);
             let own = signals.instance();
             let stop = own.stop.clone();
             let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
-            start_instance(p, run_dir, grace, &own, &out, view.clone(), rx).map(
-                |(id, finished, task, instance_grace)| {
-                    lock(&order).push(Stopping {
-                        id: id.clone(),
-                        takes_from,
-                        stop,
-                        finished,
-                    });
-                    controls.add(&id, tx, instance_grace);
-                    (id, task)
-                },
-            )
-        });
-        match started {
-            Ok((id, task)) => {
-                running.spawn(async move { (id, task.await) });
-            }
+            let (id, finished, task, instance_grace) =
+                start_instance(p, run_dir, grace, &own, &out, view.clone(), rx)?;
+            lock(&order).push(Stopping {
+                id: id.clone(),
+                takes_from,
+                stop,
+                finished,
+            });
+            controls.add(&id, tx, instance_grace);
+            let ended_id = id.clone();
+            running.spawn(async move { (ended_id, task.await) });
+            Ok(id)
+        };
+    let mut start_failure = None;
+    for p in planned {
+        match p.and_then(|p| start(p, &mut running)) {
+            Ok(_) => {}
             Err(why) => {
                 out.note(&why.to_string());
                 out.note("stopping the instances already started");
@@ -1115,30 +1119,16 @@ pub(crate) async fn run_instances(
                     restart: peppy_schema::RestartPolicy::No,
                     has_hooks: addition.has_hooks,
                 };
-                let takes_from = producers_of(&planned.config);
-                let own = signals.instance();
-                let stop = own.stop.clone();
-                let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
-                let answer = match start_instance(planned, run_dir, grace, &own, &out, view.clone(), rx) {
-                    Ok((id, finished, task, instance_grace)) => {
-                        lock(&order).push(Stopping {
-                            id: id.clone(),
-                            takes_from,
-                            stop,
-                            finished,
-                        });
-                        controls.add(&id, tx, instance_grace);
+                let answer = start(planned, &mut running)
+                    .map(|id| {
                         if let Some(r) = registration.as_mut() {
                             r.add_instance(&id, &node, &out);
                         }
-                        let pid = std::fs::read_to_string(run_dir.join(format!("{id}.pid"))).unwrap_or_default();
-                        let message = format!("`{id}` ({node}) started in the launch as pid {}", pid.trim());
-                        let ended_id = id.clone();
-                        running.spawn(async move { (ended_id, task.await) });
-                        Ok(message)
-                    }
-                    Err(why) => Err(why.to_string()),
-                };
+                        let pid = std::fs::read_to_string(run_dir.join(format!("{id}.pid")))
+                            .unwrap_or_default();
+                        format!("`{id}` ({node}) started in the launch as pid {}", pid.trim())
+                    })
+                    .map_err(|why| why.to_string());
                 let _ = reply.send(answer);
             }
         }

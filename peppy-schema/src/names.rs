@@ -157,6 +157,20 @@ pub fn is_rust_keyword(s: &str) -> bool {
     RUST_KEYWORDS.contains(&s)
 }
 
+/// Python's hard keywords: no identifier, module or package can be one.
+const PYTHON_KEYWORDS: &[&str] = &[
+    "False", "None", "True", "and", "as", "assert", "async", "await", "break", "class", "continue",
+    "def", "del", "elif", "else", "except", "finally", "for", "from", "global", "if", "import",
+    "in", "is", "lambda", "nonlocal", "not", "or", "pass", "raise", "return", "try", "while",
+    "with", "yield",
+];
+
+/// Whether `s` is a Python keyword (the Python generator gives such a
+/// name a trailing `_`; no package can be named like one).
+pub fn is_python_keyword(s: &str) -> bool {
+    PYTHON_KEYWORDS.contains(&s)
+}
+
 /// The Rust module name for a topic, service, action, link id or tag:
 /// lowercase, every run of other characters as one `_`, a leading digit
 /// prefixed with `_`. Keywords are left to the caller to escape.

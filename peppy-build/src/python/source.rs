@@ -1,19 +1,10 @@
 //! Building Python source text: indentation, docstrings, identifiers and
 //! string literals.
 
-/// Python's hard keywords: a field or module with one of these names gets
-/// a trailing `_`, as PEP 8 suggests.
-const KEYWORDS: &[&str] = &[
-    "False", "None", "True", "and", "as", "assert", "async", "await", "break", "class", "continue",
-    "def", "del", "elif", "else", "except", "finally", "for", "from", "global", "if", "import",
-    "in", "is", "lambda", "nonlocal", "not", "or", "pass", "raise", "return", "try", "while",
-    "with", "yield",
-];
-
 /// A Python identifier for a document name (names are ASCII identifiers
-/// already; keywords get a trailing `_`).
+/// already; keywords get a trailing `_`, as PEP 8 suggests).
 pub(crate) fn py_ident(name: &str) -> String {
-    if KEYWORDS.contains(&name) {
+    if peppy_schema::names::is_python_keyword(name) {
         format!("{name}_")
     } else {
         name.to_string()

@@ -792,21 +792,31 @@ fn a_container_node_runs_in_its_image_where_apptainer_is_installed() {
         bin.display(),
         std::env::var("PATH").unwrap_or_default()
     );
-    for round in 0..2 {
+    // `peppy-launch args...` in the test's directory: its exit code and stderr.
+    let peppy_launch = |args: &[&str], env: &[(&str, &std::ffi::OsStr)]| {
         let child = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
-            .arg("stack.json5")
+            .args(args)
             .current_dir(dir.path())
             .env("NO_COLOR", "1")
-            .env("PATH", &path)
-            .env("PEPPY_CACHE_DIR", &cache)
             .env_remove("PEPPY_CONTAINERS")
             .env_remove("PEPPY_REPOSITORIES")
+            .envs(env.iter().copied())
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
         let (code, stderr, _) = finish(child, Duration::from_secs(60));
+        (code, stderr)
+    };
+    for round in 0..2 {
+        let (code, stderr) = peppy_launch(
+            &["stack.json5"],
+            &[
+                ("PATH", path.as_ref()),
+                ("PEPPY_CACHE_DIR", cache.as_os_str()),
+            ],
+        );
         assert_eq!(code, 0, "round {round}: {stderr}");
         assert!(
             stderr.contains("`boxed:v1` runs in its container image"),
@@ -834,18 +844,10 @@ fn a_container_node_runs_in_its_image_where_apptainer_is_installed() {
     assert_eq!(lines[2], lines[1]);
 
     // Without a runtime (or told so), what only the image has is named.
-    let child = Command::new(env!("CARGO_BIN_EXE_peppy-launch"))
-        .args(["check", "stack.json5"])
-        .current_dir(dir.path())
-        .env("NO_COLOR", "1")
-        .env("PEPPY_CONTAINERS", "native")
-        .env_remove("PEPPY_REPOSITORIES")
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let (code, stderr, _) = finish(child, Duration::from_secs(60));
+    let (code, stderr) = peppy_launch(
+        &["check", "stack.json5"],
+        &[("PEPPY_CONTAINERS", "native".as_ref())],
+    );
     assert_eq!(code, 0, "{stderr}");
     assert!(
         stderr.contains("natively it would run `/isaac-sim/python.sh`, which its image (nvcr.io/nvidia/isaac-sim:4.5.0) brings and this machine lacks"),
