@@ -106,6 +106,71 @@ pub(crate) enum Command {
     /// repository's index (`repo index DIR`).
     #[command(subcommand)]
     Repo(RepoCommand),
+    /// Record a running stack's topics into an MCAP file, until Ctrl-C,
+    /// `--duration` or `--max-size`: every topic, or those named. Each
+    /// message is kept as JSON with a JSON Schema of its format, so
+    /// Foxglove and the MCAP tools read it without peppy, e.g.
+    /// `peppy-launch record -o run.mcap --duration 10 video_stream`.
+    Record(RecordArgs),
+    /// Publish a recording into a running stack as its recorded producers,
+    /// at the recorded pace, after checking that every consumer reads the
+    /// recorded formats, e.g. `peppy-launch replay run.mcap --rate 2`.
+    Replay(ReplayArgs),
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct RecordArgs {
+    /// Topics to record (default: every topic): `NAME`, or
+    /// `INSTANCE/NAME` for one producer's; `*` and `?` are wildcards
+    /// (`video_*`, `rs_*/video_stream`).
+    #[arg(value_name = "TOPIC")]
+    pub(crate) topics: Vec<String>,
+    /// The file to write (default: `<namespace>-<UTC time>.mcap` here).
+    #[arg(short = 'o', long, value_name = "FILE")]
+    pub(crate) output: Option<PathBuf>,
+    /// Overwrite the file if it exists.
+    #[arg(long)]
+    pub(crate) force: bool,
+    /// Stop after this many seconds.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_duration)]
+    pub(crate) duration: Option<Duration>,
+    /// Stop once the file reaches this size (`500M`, `2G`, bytes).
+    #[arg(long, value_name = "SIZE", value_parser = parse_size)]
+    pub(crate) max_size: Option<u64>,
+    #[command(flatten)]
+    pub(crate) stack: StackArgs,
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct ReplayArgs {
+    /// The recording (an MCAP file `record` wrote).
+    #[arg(value_name = "FILE")]
+    pub(crate) file: PathBuf,
+    /// Topics to replay (default: all), as `record` names them.
+    #[arg(value_name = "TOPIC")]
+    pub(crate) topics: Vec<String>,
+    /// Publish a recorded producer's messages as another instance:
+    /// `OLD=NEW` (repeatable).
+    #[arg(long = "as", value_name = "OLD=NEW")]
+    pub(crate) renames: Vec<String>,
+    /// Speed factor: 2 plays twice as fast, 0.5 at half speed.
+    #[arg(long, value_name = "FACTOR", default_value_t = 1.0)]
+    pub(crate) rate: f64,
+    /// Start this many seconds into the recording.
+    #[arg(long, value_name = "SECONDS", default_value = "0", value_parser = parse_offset)]
+    pub(crate) start: Duration,
+    /// End this many seconds into the recording.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_offset)]
+    pub(crate) end: Option<Duration>,
+    /// Play the recording again and again, until Ctrl-C.
+    #[arg(long = "loop", conflicts_with = "clock")]
+    pub(crate) r#loop: bool,
+    /// Drive the stack's sim time from the recording (nodes with
+    /// `use_sim_time` follow the recording's clock).
+    #[arg(long)]
+    pub(crate) clock: bool,
+    #[command(flatten)]
+    pub(crate) stack: StackArgs,
 }
 
 /// Which running stack to look at. Without any of these: the only launch
@@ -839,6 +904,45 @@ fn parse_wait(s: &str) -> Result<Duration, SecondsError> {
     parse_seconds(s, 0.001, 86400.0)
 }
 
+/// `record --duration`: a positive number of seconds up to a year.
+fn parse_duration(s: &str) -> Result<Duration, SecondsError> {
+    parse_seconds(s, 0.001, MAX_GRACE_SECONDS)
+}
+
+/// `replay --start/--end`: seconds into a recording, from 0.
+fn parse_offset(s: &str) -> Result<Duration, SecondsError> {
+    parse_seconds(s, 0.0, MAX_GRACE_SECONDS)
+}
+
+/// A size clap refuses.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("`{0}` is not a size: give bytes, or a number with K, M or G (powers of 1024), e.g. 500M")]
+pub(crate) struct SizeError(String);
+
+/// `--max-size`: bytes, or a number with a K/M/G suffix (`KiB`, `MB`
+/// read the same: powers of 1024).
+fn parse_size(s: &str) -> Result<u64, SizeError> {
+    let text = s.trim();
+    let split = text
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(text.len());
+    let (number, unit) = text.split_at(split);
+    let scale: u64 = match unit.trim().to_ascii_uppercase().as_str() {
+        "" | "B" => 1,
+        "K" | "KB" | "KIB" => 1 << 10,
+        "M" | "MB" | "MIB" => 1 << 20,
+        "G" | "GB" | "GIB" => 1 << 30,
+        "T" | "TB" | "TIB" => 1 << 40,
+        _ => return Err(SizeError(s.to_string())),
+    };
+    let value: f64 = number.parse().map_err(|_| SizeError(s.to_string()))?;
+    let bytes = value * scale as f64;
+    if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
+        return Err(SizeError(s.to_string()));
+    }
+    Ok(bytes as u64)
+}
+
 /// `--grace`: a finite number of seconds from 0 to a year.
 fn parse_grace(s: &str) -> Result<Duration, SecondsError> {
     parse_seconds(s, 0.0, MAX_GRACE_SECONDS)
@@ -847,6 +951,17 @@ fn parse_grace(s: &str) -> Result<Duration, SecondsError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sizes_take_units() {
+        assert_eq!(parse_size("1048576"), Ok(1 << 20));
+        assert_eq!(parse_size("500M"), Ok(500 << 20));
+        assert_eq!(parse_size("1.5GiB"), Ok(3 << 29));
+        assert_eq!(parse_size("2 kb"), Ok(2048));
+        for bad in ["", "M", "-1M", "0", "1X", "1e3", "NaN"] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn grace_takes_finite_seconds_in_range() {

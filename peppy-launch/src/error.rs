@@ -16,6 +16,7 @@ use crate::inspect::SelectError;
 use crate::node_init::InitError;
 use crate::placement::{PlaceError, PlacementError};
 use crate::python_sync::PackageError;
+use crate::recording::RecordingError;
 use crate::repositories::RepoListError;
 use crate::run_node::{LocateError, PairLinkRefused};
 use crate::runs::LogsError;
@@ -114,6 +115,23 @@ impl From<InitError> for LaunchError {
     }
 }
 
+impl From<RecordingError> for LaunchError {
+    /// A file that cannot be created, written or read is a setup failure;
+    /// a file or stack that does not fit, a usage error; a recording
+    /// damaged midway, a failed run.
+    fn from(e: RecordingError) -> Self {
+        match e {
+            RecordingError::Create { .. }
+            | RecordingError::Write { .. }
+            | RecordingError::Thread { .. }
+            | RecordingError::WriterPanicked { .. }
+            | RecordingError::Open { .. } => LaunchError::Setup(SetupError::Recording(e)),
+            RecordingError::Damaged { .. } => LaunchError::Inspect(InspectError::Recording(e)),
+            other => LaunchError::Usage(UsageError::Recording(other)),
+        }
+    }
+}
+
 impl From<PackageError> for LaunchError {
     /// Invalid documents stay [`LaunchError::Invalid`] (their diagnostics
     /// are printed); a file that cannot be written is a setup failure.
@@ -156,6 +174,10 @@ pub enum UsageError {
     /// `node init` refuses the name or the folder.
     #[error(transparent)]
     Init(InitError),
+    /// `record` or `replay` refuses its file or arguments, or the stack
+    /// cannot take the recording.
+    #[error(transparent)]
+    Recording(RecordingError),
     /// `stop` or `node stop|start|restart` names no running launch or
     /// instance, or the launch refused the request.
     #[error(transparent)]
@@ -253,6 +275,9 @@ pub enum SetupError {
     /// `node init` could not write the node's files.
     #[error(transparent)]
     Init(InitError),
+    /// `record` could not write its file (or `replay` read it).
+    #[error(transparent)]
+    Recording(RecordingError),
     /// The tokio runtime did not start.
     #[error("cannot start the tokio runtime: {0}")]
     Runtime(#[source] std::io::Error),
@@ -421,6 +446,9 @@ pub enum InspectError {
     /// `topic pub` could not publish.
     #[error("cannot publish: {0}")]
     Publish(#[source] zenoh::Error),
+    /// `replay` stopped at a damaged part of its recording.
+    #[error(transparent)]
+    Recording(RecordingError),
     /// `logs` cannot read an instance's log.
     #[error("cannot read {}: {source}", path.display())]
     ReadLog {

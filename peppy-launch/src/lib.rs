@@ -26,6 +26,7 @@ mod output;
 mod placement;
 mod presence;
 mod python_sync;
+mod recording;
 mod repo_index;
 mod report;
 mod repositories;
@@ -51,6 +52,7 @@ pub use manage::ManageError;
 pub use node_init::InitError;
 pub use placement::{PlaceError, PlacementError};
 pub use python_sync::{PackageError, RUNTIME_ENV, UV_VERSION, UvError, runtime_dir, uv};
+pub use recording::RecordingError;
 pub use repositories::RepoListError;
 pub use run_node::LocateError;
 pub use runs::LogsError;
@@ -114,6 +116,8 @@ pub fn run(cli: Cli) -> Result {
         cli::Command::Ps(args) => runs::ps(&args),
         cli::Command::Logs(args) => runs::logs(&args),
         cli::Command::Repo(cmd) => repo_index::run(&cmd),
+        cli::Command::Record(args) => inspect::block_on_stream(recording::record::run(args)),
+        cli::Command::Replay(args) => inspect::block_on_stream(recording::replay::run(args)),
     }
 }
 

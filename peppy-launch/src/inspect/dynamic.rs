@@ -345,6 +345,28 @@ fn type_name(ty: &FieldType) -> String {
 /// `time` takes `{secs, nanos}`, seconds since the epoch or `"now"`. A
 /// message with no fields takes `{}` or `null`.
 pub(crate) fn encode(format: &MessageFormat, value: &Value) -> Result<Vec<u8>, FieldError> {
+    encode_as(format, value, JsonForm::Cli)
+}
+
+/// Which JSON a message is written in: what a user types (and `topic echo
+/// --format json` prints), or what a recording holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum JsonForm {
+    /// `bytes` and `[u8]` as arrays of 0 to 255 or a string's UTF-8 bytes;
+    /// `time` as `{secs, nanos}`, seconds since the epoch or `"now"`.
+    Cli,
+    /// `bytes` and `[u8]` as base64 strings (arrays also read); `time` as
+    /// `{sec, nsec}`: the JSON Foxglove and the MCAP tools read
+    /// ([`to_recording_json`]).
+    Recording,
+}
+
+/// [`encode`] of a value written in `form`.
+pub(crate) fn encode_as(
+    format: &MessageFormat,
+    value: &Value,
+    form: JsonForm,
+) -> Result<Vec<u8>, FieldError> {
     let mut out = Vec::new();
     let empty_ok = matches!(value, Value::Null) || value.as_object().is_some_and(|m| m.is_empty());
     if format.fields.is_empty() && !empty_ok {
@@ -355,13 +377,18 @@ pub(crate) fn encode(format: &MessageFormat, value: &Value) -> Result<Vec<u8>, F
         .finish());
     }
     if !format.fields.is_empty() {
-        encode_fields(&format.fields, value, &mut Writer::new(&mut out))
+        encode_fields(&format.fields, value, &mut Writer::new(&mut out), form)
             .map_err(FieldError::finish)?;
     }
     Ok(out)
 }
 
-fn encode_fields(fields: &[Field], value: &Value, out: &mut Writer<'_>) -> Result<(), FieldError> {
+fn encode_fields(
+    fields: &[Field],
+    value: &Value,
+    out: &mut Writer<'_>,
+    form: JsonForm,
+) -> Result<(), FieldError> {
     let Value::Object(map) = value else {
         return Err(FieldError::wrong_type("an object", value));
     };
@@ -384,7 +411,7 @@ fn encode_fields(fields: &[Field], value: &Value, out: &mut Writer<'_>) -> Resul
                 if f.optional {
                     out.put_u8(1);
                 }
-                encode_type(&f.ty, v, out).map_err(|e| e.under_key(&f.name))?;
+                encode_type(&f.ty, v, out, form).map_err(|e| e.under_key(&f.name))?;
             }
         }
     }
@@ -406,11 +433,16 @@ fn unknown_field(key: &str, fields: &[Field]) -> FieldError {
     )
 }
 
-fn encode_type(ty: &FieldType, v: &Value, out: &mut Writer<'_>) -> Result<(), FieldError> {
+fn encode_type(
+    ty: &FieldType,
+    v: &Value,
+    out: &mut Writer<'_>,
+    form: JsonForm,
+) -> Result<(), FieldError> {
     match ty {
-        FieldType::Primitive(p) => encode_primitive(*p, v, out),
-        FieldType::Object(fields) => encode_fields(fields, v, out),
-        FieldType::Array { items, length, .. } => encode_array(items, *length, v, out),
+        FieldType::Primitive(p) => encode_primitive(*p, v, out, form),
+        FieldType::Object(fields) => encode_fields(fields, v, out, form),
+        FieldType::Array { items, length, .. } => encode_array(items, *length, v, out, form),
     }
 }
 
@@ -419,11 +451,13 @@ fn encode_array(
     length: Option<u32>,
     v: &Value,
     out: &mut Writer<'_>,
+    form: JsonForm,
 ) -> Result<(), FieldError> {
     let is_bytes = *items == FieldType::Primitive(Primitive::U8);
     if let (true, Value::String(s)) = (is_bytes, v) {
-        put_count(s.len(), length, out)?;
-        u8::encode_slice(s.as_bytes(), out);
+        let bytes = string_bytes(s, form)?;
+        put_count(bytes.len(), length, out)?;
+        u8::encode_slice(&bytes, out);
         return Ok(());
     }
     let Value::Array(list) = v else {
@@ -432,7 +466,7 @@ fn encode_array(
     };
     put_count(list.len(), length, out)?;
     for (i, item) in list.iter().enumerate() {
-        encode_type(items, item, out).map_err(|e| e.under(Step::Index(i)))?;
+        encode_type(items, item, out, form).map_err(|e| e.under(Step::Index(i)))?;
     }
     Ok(())
 }
@@ -454,7 +488,12 @@ fn put_count(n: usize, length: Option<u32>, out: &mut Writer<'_>) -> Result<(), 
     }
 }
 
-fn encode_primitive(p: Primitive, v: &Value, out: &mut Writer<'_>) -> Result<(), FieldError> {
+fn encode_primitive(
+    p: Primitive,
+    v: &Value,
+    out: &mut Writer<'_>,
+    form: JsonForm,
+) -> Result<(), FieldError> {
     match p {
         Primitive::Bool => match v {
             Value::Bool(b) => b.encode(out),
@@ -466,8 +505,8 @@ fn encode_primitive(p: Primitive, v: &Value, out: &mut Writer<'_>) -> Result<(),
             Value::String(s) => s.encode(out),
             _ => return Err(FieldError::wrong_type("`string`", v)),
         },
-        Primitive::Bytes => bytes(v)?.encode(out),
-        Primitive::Time => encode_time(v, out)?,
+        Primitive::Bytes => bytes(v, form)?.encode(out),
+        Primitive::Time => encode_time(v, out, form)?,
         _ => encode_int(p, v, out)?,
     }
     Ok(())
@@ -537,10 +576,11 @@ fn float(p: Primitive, v: &Value) -> Result<f64, FieldError> {
     Ok(x)
 }
 
-/// `bytes`: an array of 0 to 255, or a string's UTF-8 bytes.
-fn bytes(v: &Value) -> Result<Vec<u8>, FieldError> {
+/// `bytes`: an array of 0 to 255, or a string (its UTF-8 bytes, or in a
+/// recording its base64).
+fn bytes(v: &Value, form: JsonForm) -> Result<Vec<u8>, FieldError> {
     match v {
-        Value::String(s) => Ok(s.as_bytes().to_vec()),
+        Value::String(s) => string_bytes(s, form),
         Value::Array(items) => items
             .iter()
             .enumerate()
@@ -557,9 +597,21 @@ fn bytes(v: &Value) -> Result<Vec<u8>, FieldError> {
     }
 }
 
+/// The bytes a string stands for in `form`.
+fn string_bytes(s: &str, form: JsonForm) -> Result<Vec<u8>, FieldError> {
+    use base64::Engine as _;
+    match form {
+        JsonForm::Cli => Ok(s.as_bytes().to_vec()),
+        JsonForm::Recording => base64::engine::general_purpose::STANDARD
+            .decode(s)
+            .map_err(|e| FieldError::invalid(format!("not base64: {e}"))),
+    }
+}
+
 /// A `time`: `{secs, nanos}` (nanos may be left out), seconds since the
-/// Unix epoch (fractions are fine), or `"now"`.
-fn encode_time(v: &Value, out: &mut Writer<'_>) -> Result<(), FieldError> {
+/// Unix epoch (fractions are fine), or `"now"`; in a recording `{sec,
+/// nsec}`.
+fn encode_time(v: &Value, out: &mut Writer<'_>, form: JsonForm) -> Result<(), FieldError> {
     let (secs, nanos) = match v {
         Value::String(s) if s == "now" => {
             SystemTime::now().encode(out);
@@ -571,7 +623,7 @@ fn encode_time(v: &Value, out: &mut Writer<'_>) -> Result<(), FieldError> {
                 FieldError::invalid(format!("{n} seconds is out of range for `time`"))
             })?,
         },
-        Value::Object(_) => time_parts(v)?,
+        Value::Object(_) => time_parts(v, form)?,
         _ => {
             return Err(FieldError::wrong_type(
                 "`time` ({secs, nanos}, seconds since the Unix epoch, or \"now\")",
@@ -604,15 +656,19 @@ fn seconds(x: f64) -> Option<(i64, u32)> {
     Some((floor as i64, nanos))
 }
 
-/// `{secs, nanos}`, read with the field rules (unknown keys, ranges) of a
-/// `{secs: i64, nanos: u32?}` object.
-fn time_parts(v: &Value) -> Result<(i64, u32), FieldError> {
+/// `{secs, nanos}` (`{sec, nsec}` in a recording), read with the field
+/// rules (unknown keys, ranges) of a `{secs: i64, nanos: u32?}` object.
+fn time_parts(v: &Value, form: JsonForm) -> Result<(i64, u32), FieldError> {
+    let (secs_key, nanos_key) = match form {
+        JsonForm::Cli => ("secs", "nanos"),
+        JsonForm::Recording => ("sec", "nsec"),
+    };
     let fields = [
-        field("secs", Primitive::I64, false),
-        field("nanos", Primitive::U32, true),
+        field(secs_key, Primitive::I64, false),
+        field(nanos_key, Primitive::U32, true),
     ];
     let mut parts = Vec::new();
-    encode_fields(&fields, v, &mut Writer::new(&mut parts))?;
+    encode_fields(&fields, v, &mut Writer::new(&mut parts), form)?;
     let mut d = Decoder::new(&parts);
     let secs = i64::decode(&mut d).unwrap_or_default();
     let nanos = match presence(&mut d) {
@@ -621,7 +677,7 @@ fn time_parts(v: &Value) -> Result<(i64, u32), FieldError> {
     };
     if nanos >= 1_000_000_000 {
         let message = format!("{nanos} is out of range for nanoseconds (0..=999999999)");
-        return Err(FieldError::invalid(message).under_key("nanos"));
+        return Err(FieldError::invalid(message).under_key(nanos_key));
     }
     Ok((secs, nanos))
 }
@@ -914,7 +970,7 @@ fn bytes_summary(b: &[u8]) -> String {
 }
 
 /// RFC 3339 in UTC with nanoseconds, e.g. `2026-12-01T23:00:00.000000123Z`.
-fn rfc3339(secs: i64, nanos: u32) -> String {
+pub(crate) fn rfc3339(secs: i64, nanos: u32) -> String {
     let (y, m, d) = civil_from_days(secs.div_euclid(86_400));
     let s = secs.rem_euclid(86_400);
     format!(
@@ -970,6 +1026,25 @@ pub(crate) fn to_json(value: &Dyn) -> Value {
                 .collect(),
         ),
         Dyn::Absent => Value::Null,
+    }
+}
+
+/// A value as a recording holds it ([`JsonForm::Recording`]): as
+/// [`to_json`], but `bytes` and `[u8]` whole, in base64, and times as
+/// `{sec, nsec}`, which Foxglove reads as times.
+pub(crate) fn to_recording_json(value: &Dyn) -> Value {
+    use base64::Engine as _;
+    match value {
+        Dyn::Bytes(b) => Value::String(base64::engine::general_purpose::STANDARD.encode(b)),
+        Dyn::Time { secs, nanos } => serde_json::json!({ "sec": secs, "nsec": nanos }),
+        Dyn::Array(items) => items.iter().map(to_recording_json).collect(),
+        Dyn::Object(fields) => Value::Object(
+            fields
+                .iter()
+                .map(|(k, v)| (k.clone(), to_recording_json(v)))
+                .collect(),
+        ),
+        other => to_json(other),
     }
 }
 

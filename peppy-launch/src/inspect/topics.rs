@@ -375,7 +375,10 @@ pub(crate) async fn publish(args: PubArgs) -> Result {
 
 /// Waits (bounded) until some subscriber matches, so a single message is
 /// not published before the stack's routes reach this session.
-async fn wait_for_subscribers(publisher: &zenoh::pubsub::Publisher<'_>, bound: Duration) {
+pub(crate) async fn wait_for_subscribers(
+    publisher: &zenoh::pubsub::Publisher<'_>,
+    bound: Duration,
+) {
     let deadline = tokio::time::Instant::now() + bound;
     while tokio::time::Instant::now() < deadline {
         if publisher
