@@ -116,16 +116,15 @@ impl From<InitError> for LaunchError {
 }
 
 impl From<RecordingError> for LaunchError {
-    /// A file that cannot be created, written or read is a setup failure;
-    /// a file or stack that does not fit, a usage error; a recording
-    /// damaged midway, a failed run.
+    /// A recording that cannot be created or written is a setup failure;
+    /// a file (missing, or not a recording) or stack that does not fit, a
+    /// usage error; a recording damaged midway, a failed run.
     fn from(e: RecordingError) -> Self {
         match e {
             RecordingError::Create { .. }
             | RecordingError::Write { .. }
             | RecordingError::Thread { .. }
-            | RecordingError::WriterPanicked { .. }
-            | RecordingError::Open { .. } => LaunchError::Setup(SetupError::Recording(e)),
+            | RecordingError::WriterPanicked { .. } => LaunchError::Setup(SetupError::Recording(e)),
             RecordingError::Damaged { .. } => LaunchError::Inspect(InspectError::Recording(e)),
             other => LaunchError::Usage(UsageError::Recording(other)),
         }

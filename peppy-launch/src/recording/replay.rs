@@ -93,7 +93,13 @@ impl Recording {
                 let mut seen: BTreeMap<u16, Arc<mcap::Channel<'_>>> = BTreeMap::new();
                 let mut span: Option<(u64, u64)> = None;
                 for message in mcap::MessageStream::new(&map).map_err(unreadable)? {
-                    let Ok(message) = message else { break };
+                    // A file cut short ends at its last whole chunk; one
+                    // that is damaged before any message is no recording.
+                    let message = match message {
+                        Ok(m) => m,
+                        Err(e) if seen.is_empty() => return Err(unreadable(e)),
+                        Err(_) => break,
+                    };
                     seen.entry(message.channel.id)
                         .or_insert_with(|| message.channel.clone());
                     let t = message.log_time;

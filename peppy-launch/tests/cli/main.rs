@@ -15,6 +15,7 @@ mod one_engine;
 mod pairs;
 mod placement;
 mod python;
+mod recording;
 mod repo_index;
 mod repositories;
 mod security;

@@ -1,0 +1,470 @@
+//! `record` and `replay` on real stacks: the multi-camera example recorded
+//! into an MCAP file that the official `mcap` Python package reads and
+//! checks against each message's schema and the cameras' own frames; the
+//! file replayed into a reconstruction running alone, which sees what it
+//! saw live; a recorder killed with SIGKILL; and files replay refuses.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use crate::machines::free_port;
+use crate::seeds::{BUILD_AND_START, Launch};
+use crate::support::{Run, peppy_launch_with, root, wait_bounded};
+
+/// Reads a recording with the `mcap` package (and checks every message
+/// against its channel's JSON Schema with `jsonschema`), recomputes each
+/// camera's frame from its frame id as the example drivers draw it, and
+/// prints per channel: messages, first and last frame id, and whether the
+/// frame ids run without a gap.
+const CHECK_PY: &str = r#"
+import base64, json, sys
+import jsonschema
+from mcap.reader import make_reader
+
+def drawn(node, w, h, t):
+    if node.startswith("realsense_d405"):
+        return bytes((x + y + t) % 256 for y in range(h) for x in range(w))
+    return b"".join(bytes([((y + t) // 4 * 16) % 256]) * w for y in range(h))
+
+channels = {}
+with open(sys.argv[1], "rb") as f:
+    reader = make_reader(f)
+    assert reader.get_header().profile == "peppy"
+    summary = reader.get_summary()
+    assert summary is not None, "no summary"
+    for schema, channel, message in reader.iter_messages():
+        assert schema.encoding == "jsonschema" and channel.message_encoding == "json"
+        value = json.loads(message.data)
+        jsonschema.validate(value, json.loads(schema.data))
+        node = channel.metadata["peppy.node"]
+        frame = base64.b64decode(value["frame"])
+        t = value["header"]["frame_id"]
+        assert frame == drawn(node, value["width"], value["height"], t), (channel.topic, t)
+        channels.setdefault(channel.topic, []).append(t)
+    counts = summary.statistics.channel_message_counts
+for topic, ids in sorted(channels.items()):
+    gapless = ids == list(range(ids[0], ids[0] + len(ids)))
+    print(json.dumps({"topic": topic, "messages": len(ids), "first": ids[0], "last": ids[-1], "gapless": gapless}))
+print(json.dumps({"summary": sum(counts.values())}))
+"#;
+
+fn uv() -> std::path::PathBuf {
+    peppy_launch::uv().expect("uv")
+}
+
+/// Runs [`CHECK_PY`] on `file`: one JSON value per line.
+fn check_with_mcap_package(file: &Path) -> Vec<serde_json::Value> {
+    let script = file.with_extension("py");
+    std::fs::write(&script, CHECK_PY).unwrap();
+    let child = Command::new(uv())
+        .args(["run", "--quiet", "--no-project", "--with", "mcap==1.6.0"])
+        .args(["--with", "jsonschema==4.26.0", "python"])
+        .arg(&script)
+        .arg(file)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let out = wait_bounded(child, Duration::from_secs(300), "the mcap package's check");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect()
+}
+
+/// The channel of every message a recording without a summary holds up to
+/// its last whole record, read as the `mcap` package's stream reader reads
+/// a file being recovered.
+fn read_killed_recording(file: &Path) -> Vec<String> {
+    let script = r#"
+import sys
+from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Message, Footer
+channels, footer = {}, False
+try:
+    for record in StreamReader(open(sys.argv[1], "rb"), skip_magic=False).records:
+        if isinstance(record, Channel):
+            channels[record.id] = record.topic
+        elif isinstance(record, Message):
+            print(channels[record.channel_id])
+        elif isinstance(record, Footer):
+            footer = True
+except Exception as e:
+    print(f"stopped: {type(e).__name__}", file=sys.stderr)
+assert not footer, "a killed recorder wrote no footer"
+"#;
+    let child = Command::new(uv())
+        .args(["run", "--quiet", "--no-project", "--with", "mcap==1.6.0"])
+        .args(["python", "-c", script])
+        .arg(file)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let out = wait_bounded(child, Duration::from_secs(300), "the mcap stream reader");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(str::to_string)
+        .collect()
+}
+
+fn launch(state: &Path, args: &[&str]) -> Run {
+    peppy_launch_with(&root(), args, &[("PEPPY_STATE_DIR", state)])
+}
+
+/// The last `reconstructing from ...` counts of a reconstruction's output:
+/// frames per `slot<-producer`.
+fn reconstructed(lines: &[String]) -> BTreeMap<String, u64> {
+    let last = lines
+        .iter()
+        .rev()
+        .find_map(|l| l.split_once("reconstructing from "))
+        .map(|(_, counts)| counts.to_string())
+        .unwrap_or_default();
+    last.split_whitespace()
+        .filter_map(|c| c.rsplit_once(':'))
+        .map(|(slot, n)| (slot.to_string(), n.parse().unwrap()))
+        .collect()
+}
+
+/// Five seconds of the multi-camera stack: every frame the file holds is
+/// the frame its camera drew, no frame id is missing, and replayed into a
+/// reconstruction running alone, each slot receives exactly what was
+/// recorded from its camera.
+#[test]
+fn a_recorded_stack_replays_into_its_consumer() {
+    let state = tempfile::tempdir().unwrap();
+    let st = state.path();
+    let file = st.join("cameras.mcap");
+    let file_arg = file.to_str().unwrap();
+    let mut stack = Launch::up_with(
+        "examples/launchers/multi_camera.json5",
+        &["--namespace", "record-multi-camera"],
+        &[("PEPPY_STATE_DIR", st)],
+    );
+    stack.expect("with recon_1's summary", BUILD_AND_START, |l| {
+        l.starts_with("[recon_1]") && l.contains("reconstructing from")
+    });
+    let recorded = launch(
+        st,
+        &["record", "-o", file_arg, "--duration", "5", "--wait", "10"],
+    );
+    assert_eq!(recorded.code, 0, "{}", recorded.stderr);
+    assert!(
+        recorded.stderr.contains("on 3 channels"),
+        "{}",
+        recorded.stderr
+    );
+    // A recorder killed outright leaves the chunks it closed readable
+    // (one a second at least): only rs_left, by pattern.
+    let killed = st.join("killed.mcap");
+    let mut recorder = crate::support::peppy_launch_command(&[])
+        .args(["record", "rs_left/*", "-o", killed.to_str().unwrap()])
+        .env("PEPPY_STATE_DIR", st)
+        .current_dir(root())
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(5));
+    recorder.kill().unwrap();
+    recorder.wait().unwrap();
+    let recovered = read_killed_recording(&killed);
+    assert!(recovered.len() >= 15, "{recovered:?}");
+    assert!(
+        recovered.iter().all(|t| t == "/rs_left/video_stream"),
+        "{recovered:?}"
+    );
+    let again = launch(st, &["record", "-o", file_arg, "--duration", "1"]);
+    assert_eq!(again.code, 2, "an existing file is kept: {}", again.stderr);
+    assert!(again.stderr.contains("--force"), "{}", again.stderr);
+    assert_eq!(stack.stop(), 0);
+
+    let checked = check_with_mcap_package(&file);
+    let channels: BTreeMap<String, u64> = checked
+        .iter()
+        .filter(|v| v.get("topic").is_some())
+        .map(|v| {
+            assert_eq!(v["gapless"], true, "a frame is missing: {v}");
+            (
+                v["topic"].as_str().unwrap().to_string(),
+                v["messages"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        channels.keys().collect::<Vec<_>>(),
+        [
+            "/rs_left/video_stream",
+            "/rs_right/video_stream",
+            "/zed_overhead/video_stream"
+        ]
+    );
+    assert!(channels.values().all(|n| *n >= 30), "{channels:?}");
+    let total: u64 = channels.values().sum();
+    assert_eq!(checked.last().unwrap()["summary"], total);
+
+    // The reconstruction alone, its slots bound to the recorded cameras.
+    let port = free_port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let mut recon = Launch::start(
+        &[],
+        &[
+            "run",
+            "examples/nodes/video_reconstruction",
+            "--instance-id",
+            "recon_1",
+            "--bind",
+            "left_cam@rs_left,right_cam@rs_right",
+            "--namespace",
+            "replay-multi-camera",
+            "--listen",
+            &endpoint,
+        ],
+        &[("PEPPY_STATE_DIR", st)],
+    );
+    recon.expect("the node up", BUILD_AND_START, |l| l.contains("node up"));
+    let narrow = st.join("narrow.mcap");
+    write_recording(&narrow, "{width:u32}", &[r#"{"width":160}"#]);
+    let refused = launch(
+        st,
+        &[
+            "replay",
+            narrow.to_str().unwrap(),
+            "--connect",
+            &endpoint,
+            "--namespace",
+            "replay-multi-camera",
+            "--wait",
+            "10",
+        ],
+    );
+    assert_eq!(refused.code, 2, "{}", refused.stderr);
+    assert!(
+        refused
+            .stderr
+            .contains("recon_1.left_cam reads `video_stream` as {header:"),
+        "{}",
+        refused.stderr
+    );
+    let replayed = launch(
+        st,
+        &[
+            "replay",
+            file_arg,
+            "--connect",
+            &endpoint,
+            "--namespace",
+            "replay-multi-camera",
+            "--wait",
+            "10",
+        ],
+    );
+    assert_eq!(replayed.code, 0, "{}", replayed.stderr);
+    assert!(
+        replayed
+            .stderr
+            .contains(&format!("replayed {total} messages")),
+        "{}",
+        replayed.stderr
+    );
+    // The node prints its counts once a second.
+    recon.read_for(Duration::from_secs(3));
+    let (_, seen) = recon.stop_seen();
+    let counts = reconstructed(&seen);
+    assert_eq!(
+        counts,
+        BTreeMap::from([
+            (
+                "backup_cams<-zed_overhead".to_string(),
+                channels["/zed_overhead/video_stream"]
+            ),
+            (
+                "left_cam<-rs_left".to_string(),
+                channels["/rs_left/video_stream"]
+            ),
+            (
+                "right_cam<-rs_right".to_string(),
+                channels["/rs_right/video_stream"]
+            ),
+        ]),
+        "{seen:#?}"
+    );
+}
+
+/// A recording as `record` writes one: `rs_left`'s `video_stream` in
+/// `format`, one message per JSON text, a millisecond apart.
+fn write_recording(path: &Path, format: &str, messages: &[&str]) {
+    let fingerprint = peppy_schema::MessageFormat::from_canonical(format)
+        .unwrap()
+        .fingerprint();
+    // Plain and without checksums, so a test can forge its bytes.
+    let mut out = mcap::WriteOptions::new()
+        .profile("peppy")
+        .compression(None)
+        .calculate_chunk_crcs(false)
+        .calculate_data_section_crc(false)
+        .calculate_summary_section_crc(false)
+        .create(std::io::BufWriter::new(
+            std::fs::File::create(path).unwrap(),
+        ))
+        .unwrap();
+    let schema = out.add_schema("video_stream", "jsonschema", b"{}").unwrap();
+    let metadata = BTreeMap::from(
+        [
+            ("peppy.topic", "video_stream".to_string()),
+            ("peppy.owner", "interface/depth_camera:v1".into()),
+            ("peppy.core", "core".into()),
+            ("peppy.instance", "rs_left".into()),
+            ("peppy.format", format.into()),
+            ("peppy.fingerprint", format!("{fingerprint:016x}")),
+        ]
+        .map(|(k, v)| (k.to_string(), v)),
+    );
+    let channel = out
+        .add_channel(schema, "/rs_left/video_stream", "json", &metadata)
+        .unwrap();
+    for (i, m) in messages.iter().enumerate() {
+        let t = 1_000_000_000 + i as u64 * 1_000_000;
+        out.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: channel,
+                sequence: i as u32,
+                log_time: t,
+                publish_time: t,
+            },
+            m.as_bytes(),
+        )
+        .unwrap();
+    }
+    out.finish().unwrap();
+}
+
+/// Files replay cannot replay are refused before anything is published,
+/// each with its reason: not MCAP, another encoding, metadata that is not
+/// peppy's, a format that is not its fingerprint, nothing in the window,
+/// and a file cut before its first message.
+#[test]
+fn replay_refuses_files_it_cannot_replay() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let replay = |file: &Path, extra: &[&str]| {
+        let mut args = vec!["replay", file.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        // No stack is reached: every refusal comes first.
+        args.extend(["--connect", "tcp/127.0.0.1:9", "--wait", "1"]);
+        launch(d, &args)
+    };
+    let refused = |file: &Path, extra: &[&str], says: &str| {
+        let run = replay(file, extra);
+        assert_eq!(run.code, 2, "{says}: {}", run.stderr);
+        assert!(run.stderr.contains(says), "{says}: {}", run.stderr);
+        assert!(!run.stderr.contains("panicked"), "{}", run.stderr);
+    };
+
+    let text = d.join("notes.mcap");
+    std::fs::write(&text, "not a recording").unwrap();
+    refused(&text, &[], "is not an MCAP file");
+    refused(&d.join("missing.mcap"), &[], "cannot read");
+
+    let cdr = d.join("cdr.mcap");
+    {
+        let mut out = mcap::Writer::new(std::io::BufWriter::new(
+            std::fs::File::create(&cdr).unwrap(),
+        ))
+        .unwrap();
+        let schema = out.add_schema("Image", "ros2msg", b"uint32 width").unwrap();
+        let channel = out
+            .add_channel(schema, "/camera", "cdr", &BTreeMap::new())
+            .unwrap();
+        out.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: channel,
+                sequence: 0,
+                log_time: 1,
+                publish_time: 1,
+            },
+            &[0, 1, 0, 0, 160, 0, 0, 0],
+        )
+        .unwrap();
+        out.finish().unwrap();
+    }
+    refused(&cdr, &[], "channel `/camera` is encoded as `cdr`");
+
+    let good = d.join("good.mcap");
+    write_recording(&good, "{width:u32}", &[r#"{"width":1}"#, r#"{"width":2}"#]);
+    let bytes = std::fs::read(&good).unwrap();
+    let forged = d.join("forged.mcap");
+    let text = String::from_utf8_lossy(&bytes).into_owned();
+    assert!(text.contains("{width:u32}"));
+    // Same length, another format: the fingerprint no longer matches.
+    std::fs::write(
+        &forged,
+        replace_bytes(&bytes, b"{width:u32}", b"{width:u16}"),
+    )
+    .unwrap();
+    refused(&forged, &[], "its format's fingerprint is");
+    let unowned = d.join("unowned.mcap");
+    std::fs::write(
+        &unowned,
+        replace_bytes(
+            &bytes,
+            b"interface/depth_camera:v1",
+            b"interface/depth_camera/v1",
+        ),
+    )
+    .unwrap();
+    refused(
+        &unowned,
+        &[],
+        "`peppy.owner` is `interface/depth_camera/v1`",
+    );
+    refused(
+        &good,
+        &["--start", "5"],
+        "holds no message to replay in the chosen window",
+    );
+    refused(
+        &good,
+        &["no_such_topic"],
+        "holds no message to replay in the chosen window",
+    );
+    refused(&good, &["--as", "rs_left"], "expected OLD=NEW");
+    refused(&good, &["--rate", "0"], "--rate 0 is out of range");
+
+    // Cut inside its first chunk: the magic is there, no message is.
+    let cut = d.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() / 3]).unwrap();
+    let run = replay(&cut, &[]);
+    assert_ne!(run.code, 0, "{}", run.stderr);
+    assert!(!run.stderr.contains("panicked"), "{}", run.stderr);
+    assert!(run.stderr.contains("cut.mcap"), "{}", run.stderr);
+}
+
+fn replace_bytes(haystack: &[u8], from: &[u8], to: &[u8]) -> Vec<u8> {
+    assert_eq!(from.len(), to.len());
+    let mut out = haystack.to_vec();
+    let mut found = false;
+    for i in 0..=out.len() - from.len() {
+        if &out[i..i + from.len()] == from {
+            out[i..i + from.len()].copy_from_slice(to);
+            found = true;
+        }
+    }
+    assert!(found);
+    out
+}
