@@ -116,6 +116,26 @@ pub(crate) enum Command {
     /// at the recorded pace, after checking that every consumer reads the
     /// recorded formats, e.g. `peppy-launch replay run.mcap --rate 2`.
     Replay(ReplayArgs),
+    /// Serve a running stack live to Foxglove (the Foxglove WebSocket
+    /// protocol): every topic a channel, decoded as `record` writes it,
+    /// camera-like messages also as images, services callable.
+    View(ViewArgs),
+}
+
+#[derive(Debug, Args)]
+pub(crate) struct ViewArgs {
+    /// Topics to serve (default: every topic), as `record` names them.
+    #[arg(value_name = "TOPIC")]
+    pub(crate) topics: Vec<String>,
+    /// The address to serve on; `0.0.0.0` lets other machines connect.
+    #[arg(long, value_name = "HOST", default_value = "127.0.0.1")]
+    pub(crate) host: String,
+    /// The port to serve on (Foxglove's default is 8765; 0 picks a free
+    /// one, printed).
+    #[arg(long, value_name = "PORT", default_value_t = 8765)]
+    pub(crate) port: u16,
+    #[command(flatten)]
+    pub(crate) stack: StackArgs,
 }
 
 #[derive(Debug, Args)]

@@ -17,6 +17,7 @@ use crate::node_init::InitError;
 use crate::placement::{PlaceError, PlacementError};
 use crate::python_sync::PackageError;
 use crate::recording::RecordingError;
+use crate::recording::view::ViewError;
 use crate::repositories::RepoListError;
 use crate::run_node::{LocateError, PairLinkRefused};
 use crate::runs::LogsError;
@@ -101,6 +102,7 @@ launch_error_from!(
     LogsError => Usage,
     SelectError => Usage,
     KeysError => Setup,
+    ViewError => Setup,
     RouterError => Setup,
 );
 
@@ -274,9 +276,12 @@ pub enum SetupError {
     /// `node init` could not write the node's files.
     #[error(transparent)]
     Init(InitError),
-    /// `record` could not write its file (or `replay` read it).
+    /// `record` could not write its file.
     #[error(transparent)]
     Recording(RecordingError),
+    /// `view` could not serve.
+    #[error(transparent)]
+    View(#[from] ViewError),
     /// The tokio runtime did not start.
     #[error("cannot start the tokio runtime: {0}")]
     Runtime(#[source] std::io::Error),

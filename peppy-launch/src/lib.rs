@@ -53,6 +53,7 @@ pub use node_init::InitError;
 pub use placement::{PlaceError, PlacementError};
 pub use python_sync::{PackageError, RUNTIME_ENV, UV_VERSION, UvError, runtime_dir, uv};
 pub use recording::RecordingError;
+pub use recording::view::ViewError;
 pub use repositories::RepoListError;
 pub use run_node::LocateError;
 pub use runs::LogsError;
@@ -118,6 +119,7 @@ pub fn run(cli: Cli) -> Result {
         cli::Command::Repo(cmd) => repo_index::run(&cmd),
         cli::Command::Record(args) => inspect::block_on_stream(recording::record::run(args)),
         cli::Command::Replay(args) => inspect::block_on_stream(recording::replay::run(args)),
+        cli::Command::View(args) => inspect::block_on_stream(recording::view::run(args)),
     }
 }
 

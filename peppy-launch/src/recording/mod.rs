@@ -12,12 +12,17 @@
 pub(crate) mod record;
 pub(crate) mod replay;
 pub(crate) mod schema;
+pub(crate) mod view;
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
 use std::path::PathBuf;
+use std::time::Duration;
 
-use peppy_runtime::describe::OwnerInfo;
-use peppy_schema::{Identity, QosProfile, SlotKind};
+use peppy_runtime::describe::{InstanceInfo, OwnerInfo};
+use peppy_runtime::wire::keys::split_entry_key;
+use peppy_schema::{Identity, MessageFormat, QosProfile, SlotKind};
+
+use crate::inspect::Observer;
 
 /// The MCAP profile of peppy's recordings.
 pub(crate) const PROFILE: &str = "peppy";
@@ -175,6 +180,120 @@ impl ChannelMeta {
             fingerprint,
             qos,
         })
+    }
+}
+
+/// A topic sample as taken off the wire.
+pub(crate) struct Sampled {
+    /// Its key.
+    pub(crate) key: String,
+    /// The format fingerprint of its attachment (`None`: no valid one).
+    pub(crate) fingerprint: Option<u64>,
+    /// Its payload.
+    pub(crate) payload: Vec<u8>,
+    /// When it arrived, ns since the Unix epoch.
+    pub(crate) log_time: u64,
+    /// Its Zenoh timestamp, if it carries one (ns since the Unix epoch).
+    pub(crate) publish_time: Option<u64>,
+}
+
+impl Sampled {
+    /// Copies what a recording keeps of `sample`.
+    pub(crate) fn of(sample: &zenoh::sample::Sample) -> Sampled {
+        Sampled {
+            key: sample.key_expr().as_str().to_string(),
+            fingerprint: sample
+                .attachment()
+                .and_then(|a| peppy_runtime::wire::attachment::parse_topic(&a.to_bytes())),
+            payload: sample.payload().to_bytes().into_owned(),
+            log_time: peppy_runtime::clock::os_now_ns(),
+            publish_time: sample.timestamp().map(|t| {
+                let since = t
+                    .get_time()
+                    .to_system_time()
+                    .duration_since(std::time::UNIX_EPOCH);
+                since.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
+            }),
+        }
+    }
+}
+
+/// What the stack's instances said of themselves, and a new channel's
+/// metadata and format learnt from it.
+pub(crate) struct Learner {
+    described: BTreeMap<String, InstanceInfo>,
+    /// Instances already asked for their description after start.
+    asked: HashSet<String>,
+}
+
+impl Learner {
+    /// Starts from the descriptions gathered when the command joined.
+    pub(crate) fn new(described: BTreeMap<String, InstanceInfo>) -> Learner {
+        Learner {
+            described,
+            asked: HashSet::new(),
+        }
+    }
+
+    /// A new channel's metadata and format: from the producer's description
+    /// (asked for once if it started after the command), or its format
+    /// queryable for a format it does not describe.
+    pub(crate) async fn learn(
+        &mut self,
+        observer: &Observer,
+        key: &str,
+        fingerprint: u64,
+    ) -> Option<(ChannelMeta, MessageFormat)> {
+        let described = &mut self.described;
+        let sender = split_entry_key(key)?;
+        if !described.contains_key(sender.instance)
+            && self.asked.insert(sender.instance.into())
+            && let Some(info) = observer
+                .describe_instance(sender.core, sender.instance)
+                .await
+        {
+            described.insert(info.instance_id.clone(), info);
+        }
+        let emitted = described
+            .get(sender.instance)
+            .and_then(|i| i.emits.iter().find(|t| t.key == key));
+        let text = match emitted {
+            Some(t) if t.format.fingerprint == fingerprint => Some(t.format.canonical.clone()),
+            _ => {
+                peppy_runtime::describe::ask_format(
+                    &observer.session,
+                    &observer.reach.namespace,
+                    fingerprint,
+                    sender.instance,
+                    Duration::from_secs(1),
+                )
+                .await
+            }
+        }?;
+        let format = MessageFormat::from_canonical(&text).ok().filter(|f| {
+            f.fingerprint() == fingerprint || (fingerprint == 0 && f.fields.is_empty())
+        })?;
+        let owner = peppy_runtime::describe::OwnerInfo {
+            kind: match sender.kind {
+                "node" => peppy_schema::SlotKind::Node,
+                _ => peppy_schema::SlotKind::Interface,
+            },
+            name: sender.name.into(),
+            tag: sender.tag.into(),
+        };
+        Some((
+            ChannelMeta {
+                topic: sender.entry.into(),
+                owner,
+                core: sender.core.into(),
+                instance: sender.instance.into(),
+                node: described.get(sender.instance).map(|i| i.node.clone()),
+                format: text,
+                fingerprint,
+                qos: emitted.map(|t| t.qos),
+            },
+            format,
+        ))
     }
 }
 

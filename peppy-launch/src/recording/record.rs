@@ -14,7 +14,7 @@
 //!   [`CHUNK_PERIOD`] so that a killed recorder leaves a file readable up to
 //!   its last second.
 
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
 use std::io::{BufWriter, IsTerminal, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
@@ -22,14 +22,12 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-use peppy_runtime::describe::InstanceInfo;
-use peppy_runtime::wire::attachment;
 use peppy_runtime::wire::keys::{Space, space_selector, split_entry_key};
 use peppy_schema::MessageFormat;
 
 use super::{
-    ChannelMeta, MESSAGE_ENCODING, PROFILE, Patterns, RecordingError, SCHEMA_ENCODING,
-    STACK_METADATA,
+    ChannelMeta, Learner, MESSAGE_ENCODING, PROFILE, Patterns, RecordingError, SCHEMA_ENCODING,
+    STACK_METADATA, Sampled,
 };
 use crate::cli::RecordArgs;
 use crate::error::{Result, SetupError};
@@ -45,15 +43,6 @@ const CHUNK_PERIOD: Duration = Duration::from_secs(1);
 const PROGRESS_PERIOD: Duration = Duration::from_millis(500);
 /// How often a progress line is printed when stderr is not a terminal.
 const LOG_PERIOD: Duration = Duration::from_secs(5);
-
-/// A sample as the callback took it.
-struct Sampled {
-    key: String,
-    fingerprint: Option<u64>,
-    payload: Vec<u8>,
-    log_time: u64,
-    publish_time: Option<u64>,
-}
 
 /// What the command's task tells the writer thread.
 enum Op {
@@ -106,7 +95,7 @@ impl Progress {
 pub(crate) async fn run(args: RecordArgs) -> Result {
     let patterns = Patterns::new(args.topics.clone());
     let observer = Observer::open(&args.stack).await?;
-    let mut described = observer.describe_all().await?;
+    let mut learner = Learner::new(observer.describe_all().await?);
     let path = args
         .output
         .clone()
@@ -139,21 +128,7 @@ pub(crate) async fn run(args: RecordArgs) -> Result {
                     overflowed.fetch_add(1, Ordering::Relaxed);
                     return;
                 }
-                let _ = tx.send(Sampled {
-                    key: sample.key_expr().as_str().to_string(),
-                    fingerprint: sample
-                        .attachment()
-                        .and_then(|a| attachment::parse_topic(&a.to_bytes())),
-                    payload: sample.payload().to_bytes().into_owned(),
-                    log_time: peppy_runtime::clock::os_now_ns(),
-                    publish_time: sample.timestamp().map(|t| {
-                        let since = t
-                            .get_time()
-                            .to_system_time()
-                            .duration_since(std::time::UNIX_EPOCH);
-                        since.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
-                    }),
-                });
+                let _ = tx.send(Sampled::of(&sample));
             })
             .await
             .map_err(|source| SetupError::Subscribe { selector, source })?
@@ -187,7 +162,7 @@ pub(crate) async fn run(args: RecordArgs) -> Result {
             sample = rx.recv_async() => {
                 let Ok(sample) = sample else { break "the stack's session closed" };
                 let size = sample.payload.len() as u64;
-                let Some(op) = channels.take(sample, &patterns, &observer, &mut described, &ops).await else {
+                let Some(op) = channels.take(sample, &patterns, &observer, &mut learner, &ops).await else {
                     progress.backlog.fetch_sub(size, Ordering::Relaxed);
                     continue;
                 };
@@ -224,7 +199,7 @@ pub(crate) async fn run(args: RecordArgs) -> Result {
     drop(subscriber);
     while let Ok(sample) = rx.try_recv() {
         if let Some(op) = channels
-            .take(sample, &patterns, &observer, &mut described, &ops)
+            .take(sample, &patterns, &observer, &mut learner, &ops)
             .await
             && ops.send(op).is_err()
         {
@@ -496,8 +471,6 @@ enum Skip {
 struct Channels {
     ids: HashMap<(String, u64), u16>,
     next: u16,
-    /// Instances already asked for their description after start.
-    asked: HashSet<String>,
     skipped: BTreeMap<(String, u64), (Skip, u64)>,
 }
 
@@ -513,7 +486,7 @@ impl Channels {
         sample: Sampled,
         patterns: &Patterns,
         observer: &Observer,
-        described: &mut BTreeMap<String, InstanceInfo>,
+        learner: &mut Learner,
         ops: &flume::Sender<Op>,
     ) -> Option<Op> {
         let sender = split_entry_key(&sample.key)?;
@@ -527,9 +500,7 @@ impl Channels {
         let id = match self.ids.get(&(sample.key.clone(), fingerprint)) {
             Some(id) => *id,
             None => {
-                let Some((meta, format)) = self
-                    .learn(&sample.key, fingerprint, observer, described)
-                    .await
+                let Some((meta, format)) = learner.learn(observer, &sample.key, fingerprint).await
                 else {
                     self.skip(&sample.key, fingerprint, Skip::UnknownFormat);
                     return None;
@@ -547,67 +518,6 @@ impl Channels {
             publish_time: sample.publish_time.unwrap_or(sample.log_time),
             payload: sample.payload,
         })
-    }
-
-    /// A new channel's metadata and format: from the producer's description
-    /// (asked for once if it started after the recording), or its format
-    /// queryable for a format it does not describe.
-    async fn learn(
-        &mut self,
-        key: &str,
-        fingerprint: u64,
-        observer: &Observer,
-        described: &mut BTreeMap<String, InstanceInfo>,
-    ) -> Option<(ChannelMeta, MessageFormat)> {
-        let sender = split_entry_key(key)?;
-        if !described.contains_key(sender.instance)
-            && self.asked.insert(sender.instance.into())
-            && let Some(info) = observer
-                .describe_instance(sender.core, sender.instance)
-                .await
-        {
-            described.insert(info.instance_id.clone(), info);
-        }
-        let emitted = described
-            .get(sender.instance)
-            .and_then(|i| i.emits.iter().find(|t| t.key == key));
-        let text = match emitted {
-            Some(t) if t.format.fingerprint == fingerprint => Some(t.format.canonical.clone()),
-            _ => {
-                peppy_runtime::describe::ask_format(
-                    &observer.session,
-                    &observer.reach.namespace,
-                    fingerprint,
-                    sender.instance,
-                    Duration::from_secs(1),
-                )
-                .await
-            }
-        }?;
-        let format = MessageFormat::from_canonical(&text).ok().filter(|f| {
-            f.fingerprint() == fingerprint || (fingerprint == 0 && f.fields.is_empty())
-        })?;
-        let owner = peppy_runtime::describe::OwnerInfo {
-            kind: match sender.kind {
-                "node" => peppy_schema::SlotKind::Node,
-                _ => peppy_schema::SlotKind::Interface,
-            },
-            name: sender.name.into(),
-            tag: sender.tag.into(),
-        };
-        Some((
-            ChannelMeta {
-                topic: sender.entry.into(),
-                owner,
-                core: sender.core.into(),
-                instance: sender.instance.into(),
-                node: described.get(sender.instance).map(|i| i.node.clone()),
-                format: text,
-                fingerprint,
-                qos: emitted.map(|t| t.qos),
-            },
-            format,
-        ))
     }
 
     fn skip(&mut self, key: &str, fingerprint: u64, why: Skip) {

@@ -121,6 +121,99 @@ assert not footer, "a killed recorder wrote no footer"
         .collect()
 }
 
+/// Serves the stack of `namespace` with `view` and reads it with Foxglove's
+/// own WebSocket client (npm's `@foxglove/ws-protocol`): `per_channel`
+/// messages of every channel, and `calls` calls of services whose name ends
+/// with `suffix`. One JSON value per channel and call.
+fn foxglove_client(
+    state: &Path,
+    namespace: &str,
+    per_channel: u32,
+    suffix: &str,
+    calls: u32,
+) -> Vec<serde_json::Value> {
+    let (Some(node), Some(npm)) = (
+        crate::support::debian_tool("node", "nodejs"),
+        crate::support::debian_tool("npm", "npm"),
+    ) else {
+        return Vec::new();
+    };
+    let client = state.join("foxglove_client");
+    std::fs::create_dir_all(&client).unwrap();
+    let fixture = root().join("peppy-launch/tests/fixtures/foxglove_client");
+    for file in ["package.json", "client.js"] {
+        std::fs::copy(fixture.join(file), client.join(file)).unwrap();
+    }
+    let install = Command::new(&npm)
+        .args(["install", "--no-audit", "--no-fund", "--loglevel", "error"])
+        .current_dir(&client)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let installed = wait_bounded(install, Duration::from_secs(300), "npm install");
+    assert!(
+        installed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&installed.stderr)
+    );
+
+    let port = free_port().to_string();
+    let mut view = Launch::start(
+        &[],
+        &[
+            "view",
+            "--namespace",
+            namespace,
+            "--port",
+            &port,
+            "--wait",
+            "10",
+        ],
+        &[("PEPPY_STATE_DIR", state)],
+    );
+    view.expect("the view serving", Duration::from_secs(60), |l| {
+        l.starts_with("serving ")
+    });
+    let run = Command::new(node)
+        .arg("client.js")
+        .arg(format!("ws://127.0.0.1:{port}"))
+        .args([&per_channel.to_string(), suffix, &calls.to_string(), "60"])
+        // The subprotocol the Foxglove SDK's server speaks (the protocol
+        // of `foxglove.websocket.v1`, renamed).
+        .arg("foxglove.sdk.v1")
+        .current_dir(&client)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let out = wait_bounded(run, Duration::from_secs(120), "the Foxglove client");
+    assert_eq!(view.stop(), 0, "the view stops cleanly on Ctrl-C");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect()
+}
+
+/// The client's report of channel `topic`, with at least one message.
+fn channel<'a>(seen: &'a [serde_json::Value], topic: &str) -> &'a serde_json::Value {
+    let found = seen
+        .iter()
+        .find(|v| v["topic"] == topic)
+        .unwrap_or_else(|| panic!("no channel {topic}: {seen:#?}"));
+    assert!(
+        !found["messages"].as_array().unwrap().is_empty(),
+        "no message on {topic}: {found}"
+    );
+    found
+}
+
 fn launch(state: &Path, args: &[&str]) -> Run {
     peppy_launch_with(&root(), args, &[("PEPPY_STATE_DIR", state)])
 }
@@ -189,6 +282,52 @@ fn a_recorded_stack_replays_into_its_consumer() {
         recovered.iter().all(|t| t == "/rs_left/video_stream"),
         "{recovered:?}"
     );
+    // The same stack live in Foxglove's own client: every camera's topic
+    // as JSON and as an image, every camera's service callable.
+    let seen = foxglove_client(st, "record-multi-camera", 3, "/video_stream_info", 3);
+    for camera in ["rs_left", "rs_right", "zed_overhead"] {
+        let json = channel(&seen, &format!("/{camera}/video_stream"));
+        assert_eq!(
+            (json["encoding"].as_str(), json["schemaEncoding"].as_str()),
+            (Some("json"), Some("jsonschema"))
+        );
+        let frame = &json["messages"][0];
+        assert_eq!(frame["width"], 160, "{frame}");
+        assert_eq!(frame["frame"]["len"], 160 * 120, "{frame}");
+        assert!(
+            frame["header"]["stamp"]["sec"].as_u64().unwrap() > 0,
+            "{frame}"
+        );
+        let image = channel(&seen, &format!("/{camera}/video_stream/image"));
+        assert_eq!(
+            (image["encoding"].as_str(), image["schemaName"].as_str()),
+            (Some("protobuf"), Some("foxglove.RawImage"))
+        );
+        let picture = &image["messages"][0];
+        assert_eq!(
+            (
+                &picture["width"],
+                &picture["height"],
+                &picture["encoding"],
+                &picture["step"]
+            ),
+            (
+                &serde_json::json!(160),
+                &serde_json::json!(120),
+                &serde_json::json!("mono8"),
+                &serde_json::json!(160)
+            ),
+            "{picture}"
+        );
+        assert_eq!(picture["data"]["len"], 160 * 120, "{picture}");
+        let info = seen
+            .iter()
+            .find(|v| v["service"] == format!("/{camera}/video_stream_info"))
+            .unwrap_or_else(|| panic!("no call of {camera}'s service: {seen:#?}"));
+        let fps = if camera == "zed_overhead" { 10 } else { 15 };
+        assert_eq!(info["response"]["frames_per_second"], fps, "{info}");
+    }
+
     let again = launch(st, &["record", "-o", file_arg, "--duration", "1"]);
     assert_eq!(again.code, 2, "an existing file is kept: {}", again.stderr);
     assert!(again.stderr.contains("--force"), "{}", again.stderr);
@@ -467,4 +606,46 @@ fn replace_bytes(haystack: &[u8], from: &[u8], to: &[u8]) -> Vec<u8> {
     }
     assert!(found);
     out
+}
+
+/// The arm loop live in Foxglove's client: fixed arrays, times and an
+/// external topic decode with the schemas the view advertises.
+#[test]
+fn the_arm_loop_in_foxglove() {
+    let state = tempfile::tempdir().unwrap();
+    let st = state.path();
+    let mut stack = Launch::up_with(
+        "examples/launchers/robot_arm_loop.json5",
+        &["--namespace", "view-arm-loop"],
+        &[("PEPPY_STATE_DIR", st)],
+    );
+    stack.expect("the controller cycling", BUILD_AND_START, |l| {
+        l.starts_with("[controller]") && l.contains("cycle 20:")
+    });
+    let seen = foxglove_client(st, "view-arm-loop", 2, "-", 0);
+    assert_eq!(stack.stop(), 0);
+    if seen.is_empty() {
+        return;
+    }
+    let states = channel(&seen, "/arm/joint_states");
+    let joints = &states["messages"][0];
+    assert_eq!(joints["positions"].as_array().unwrap().len(), 3, "{joints}");
+    assert!(
+        joints["timestamp"]["nsec"].as_u64().unwrap() < 1_000_000_000,
+        "{joints}"
+    );
+    let commands = channel(&seen, "/controller/joint_commands");
+    let command = &commands["messages"][0];
+    assert_eq!(
+        command["target_positions"].as_array().unwrap().len(),
+        3,
+        "{command}"
+    );
+    assert!(command["max_velocity"].is_number(), "{command}");
+    assert!(
+        !seen
+            .iter()
+            .any(|v| v["topic"].as_str().is_some_and(|t| t.ends_with("/image"))),
+        "no image in the arm loop: {seen:#?}"
+    );
 }
