@@ -378,6 +378,7 @@ mod tests {
             started_at_ms: 0,
             instances: vec![("cam".into(), "cam:v1".into())],
             login: None,
+            recorder_login: None,
             control: None,
         }
     }

@@ -212,6 +212,7 @@ pub(crate) fn run(args: &RunArgs) -> Result {
             started_at_ms: runs::now_ms(),
             instances: vec![(config.instance_id.clone(), doc.identity().to_string())],
             login: None,
+            recorder_login: None,
             control: control.as_ref().map(|c| c.path().to_path_buf()),
         };
         let registration = runs::Registered::new(record)

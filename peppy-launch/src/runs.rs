@@ -51,6 +51,9 @@ pub(crate) struct LaunchRecord {
     /// why records are readable by that user only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub(crate) login: Option<peppy_runtime::Login>,
+    /// With security on: the read-only login of `record` and `view`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) recorder_login: Option<peppy_runtime::Login>,
     /// The launch's control socket (`stop`, `node stop|start|restart`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub(crate) control: Option<PathBuf>,
@@ -597,6 +600,7 @@ mod tests {
             started_at_ms: 1,
             instances: vec![("a".into(), "n:v1".into())],
             login: None,
+            recorder_login: None,
             control: None,
         };
         let registration = register(&record).unwrap();

@@ -950,6 +950,7 @@ fn launch_record(
             .map(|p| (p.config.instance_id.clone(), p.node.clone()))
             .collect(),
         login: instances.secured.map(|s| s.secrets.operator.clone()),
+        recorder_login: instances.secured.map(|s| s.secrets.recorder.clone()),
         control: None,
     }
 }

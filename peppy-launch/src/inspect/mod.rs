@@ -325,6 +325,8 @@ pub(crate) struct Reach {
     pub(crate) expected: Vec<(String, String)>,
     /// The tools' login of a secured stack, from its launch record.
     pub(crate) login: Option<peppy_runtime::Login>,
+    /// The read-only login `record` and `view` use in a secured stack.
+    pub(crate) recorder_login: Option<peppy_runtime::Login>,
 }
 
 /// Decides which stack the command looks at (see [`StackArgs`]).
@@ -353,6 +355,7 @@ pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach>
             connect: args.connect.clone(),
             expected: Vec::new(),
             login: None,
+            recorder_login: None,
         });
     }
     let matching: Vec<&LaunchRecord> = running
@@ -389,6 +392,7 @@ pub(crate) fn reach(args: &StackArgs, running: &[LaunchRecord]) -> Result<Reach>
                 connect: vec![LOCAL_HUB.to_string()],
                 expected: Vec::new(),
                 login: None,
+                recorder_login: None,
             })
         }
         (several, None) => Err(SelectError::SeveralStacks {
@@ -421,8 +425,19 @@ fn reach_of(launches: &[&LaunchRecord]) -> Reach {
             .flat_map(|r| r.instances.iter().cloned())
             .collect(),
         login: first.login.clone(),
+        recorder_login: first.recorder_login.clone(),
         what,
     }
+}
+
+/// Whose login an observer presents to a secured stack.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Role {
+    /// The launching user's tools: allowed everything in the namespace.
+    Operator,
+    /// `record` and `view`: allowed to read topics, descriptions and
+    /// formats only.
+    Recorder,
 }
 
 /// A connection to a running stack.
@@ -434,9 +449,18 @@ pub(crate) struct Observer {
 }
 
 impl Observer {
-    /// Joins the stack found from `args` as a peer that only connects.
+    /// Joins the stack found from `args` as a peer that only connects,
+    /// with the login of the launching user's tools.
     pub(crate) async fn open(args: &StackArgs) -> Result<Observer> {
-        let reach = reach(args, &runs::running())?;
+        Observer::open_as(args, Role::Operator).await
+    }
+
+    /// [`Observer::open`] with the login of `role`.
+    pub(crate) async fn open_as(args: &StackArgs, role: Role) -> Result<Observer> {
+        let mut reach = reach(args, &runs::running())?;
+        if role == Role::Recorder {
+            reach.login = reach.recorder_login.clone();
+        }
         // A client talks to the stack's router only: a peer would also open
         // direct links to every node, which they would see (and log) come
         // and go with each command.
@@ -632,6 +656,7 @@ mod tests {
             started_at_ms: 0,
             instances: Vec::new(),
             login: None,
+            recorder_login: None,
             control: None,
         }
     }

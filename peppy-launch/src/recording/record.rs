@@ -31,7 +31,7 @@ use super::{
 };
 use crate::cli::RecordArgs;
 use crate::error::{Result, SetupError};
-use crate::inspect::{Observer, dynamic, interrupted};
+use crate::inspect::{Observer, Role, dynamic, interrupted};
 
 /// Bytes of samples waiting for the writer beyond which new ones are
 /// dropped (and counted): a recorder that cannot keep up must not take the
@@ -94,7 +94,7 @@ impl Progress {
 /// `record`.
 pub(crate) async fn run(args: RecordArgs) -> Result {
     let patterns = Patterns::new(args.topics.clone());
-    let observer = Observer::open(&args.stack).await?;
+    let observer = Observer::open_as(&args.stack, Role::Recorder).await?;
     let mut learner = Learner::new(observer.describe_all().await?);
     let path = args
         .output

@@ -27,7 +27,7 @@ use super::{ChannelMeta, Learner, MESSAGE_ENCODING, Patterns, SCHEMA_ENCODING, S
 use crate::cli::ViewArgs;
 use crate::error::{Result, SetupError};
 use crate::inspect::dynamic::{self, Dyn, JsonForm};
-use crate::inspect::{Observer, interrupted};
+use crate::inspect::{Observer, Role, interrupted};
 
 /// Samples waiting to be decoded beyond which new ones are dropped (and
 /// counted): a view never holds the stack back.
@@ -165,7 +165,7 @@ struct Served {
 /// `view`.
 pub(crate) async fn run(args: ViewArgs) -> Result {
     let patterns = Patterns::new(args.topics.clone());
-    let observer = Observer::open(&args.stack).await?;
+    let observer = Observer::open_as(&args.stack, Role::Recorder).await?;
     let described = observer.describe_all().await?;
     let context = Context::new();
     let services = services(&observer, &described);

@@ -98,12 +98,14 @@ pub(crate) struct Secrets {
     pub(crate) instances: BTreeMap<String, Login>,
     /// The tools' login ([`policy::OPERATOR`]).
     pub(crate) operator: Login,
+    /// `record` and `view`'s read-only login ([`policy::RECORDER`]).
+    pub(crate) recorder: Login,
 }
 
 impl Secrets {
     /// The user names a launch keeps for itself: no instance may take one.
     pub(crate) fn reserved(user: &str) -> bool {
-        user == policy::OPERATOR || user.starts_with("peppy-router-")
+        user == policy::OPERATOR || user == policy::RECORDER || user.starts_with("peppy-router-")
     }
 
     /// New random credentials for `instances`.
@@ -122,6 +124,7 @@ impl Secrets {
                 .map(|id| Ok((id.to_string(), login(id)?)))
                 .collect::<std::io::Result<_>>()?,
             operator: login(policy::OPERATOR)?,
+            recorder: login(policy::RECORDER)?,
         })
     }
 
@@ -130,7 +133,7 @@ impl Secrets {
     pub(crate) fn dictionary(&self, extra: &[Login]) -> String {
         self.instances
             .values()
-            .chain(std::iter::once(&self.operator))
+            .chain([&self.operator, &self.recorder])
             .chain(extra)
             .map(|l| format!("{}:{}\n", l.user, l.password))
             .collect()
@@ -238,12 +241,14 @@ mod tests {
     }
 
     #[test]
-    fn the_operator_and_every_instance_are_in_the_dictionary() {
+    fn the_operator_the_recorder_and_every_instance_are_in_the_dictionary() {
         let s = Secrets::generate(["a", "b"]).unwrap();
         let d = s.dictionary(&[]);
-        assert_eq!(d.lines().count(), 3);
+        assert_eq!(d.lines().count(), 4);
         assert!(d.contains(&format!("a:{}", s.instances["a"].password)));
         assert!(d.contains(&format!("{}:", policy::OPERATOR)));
+        assert!(d.contains(&format!("{}:{}", policy::RECORDER, s.recorder.password)));
+        assert!(Secrets::reserved(policy::RECORDER));
         assert!(!format!("{:?}", s.operator).contains(&s.operator.password));
     }
 }

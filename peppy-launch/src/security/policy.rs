@@ -9,9 +9,9 @@ use std::collections::BTreeSet;
 use peppy_runtime::wire::keys::{
     ActionPart, Channel, Claim, ClockSource, EntrySelector, Owner, Space, action_part_key,
     action_parts_selector, clock_sync_key, clock_tick_key, clock_tick_selector,
-    core_functions_selector, describe_key, entry_key, entry_selector, feedback_selector,
-    format_selector, liveliness_key, namespace_prefix, namespace_selector, pairing_topic_key,
-    pairing_topic_selector, space_selector,
+    core_functions_selector, describe_key, describe_selector, entry_key, entry_selector,
+    feedback_selector, format_selector, liveliness_key, namespace_prefix, namespace_selector,
+    pairing_topic_key, pairing_topic_selector, space_selector,
 };
 use peppy_schema::{InstancePlan, Origin, StackCheck};
 use serde::Serialize;
@@ -407,6 +407,11 @@ fn owner(origin: &Origin) -> Owner<'_> {
 /// stack's namespace.
 pub(crate) const OPERATOR: &str = "peppy-operator";
 
+/// The Zenoh user name of `record` and `view`: they may read every topic
+/// and ask every instance for its description and formats, and nothing
+/// else (no publication, no service call).
+pub(crate) const RECORDER: &str = "peppy-recorder";
+
 impl Policy {
     /// Zenoh's `access_control` configuration enforcing this policy on a
     /// router: deny by default; each instance (by user name) gets its
@@ -517,10 +522,45 @@ impl Policy {
                 &[namespace_selector(ns)],
             ),
             rule("links", "both", &ALL_MESSAGES, &["**".to_string()]),
+            // The recorder reads: it subscribes to topics and receives
+            // their messages, and asks for descriptions and formats.
+            rule(
+                "recorder.subscribe",
+                "ingress",
+                &["declare_subscriber"],
+                &[space_selector(ns, Space::Topic)],
+            ),
+            rule(
+                "recorder.messages",
+                "egress",
+                &["put", "declare_subscriber", "declare_queryable"],
+                &[space_selector(ns, Space::Topic)],
+            ),
+            rule(
+                "recorder.ask",
+                "ingress",
+                &["query"],
+                &[describe_selector(ns), format_selector(ns, None)],
+            ),
+            rule(
+                "recorder.answers",
+                "egress",
+                &["reply", "declare_queryable"],
+                &[describe_selector(ns), format_selector(ns, None)],
+            ),
         ];
-        let mut subjects = vec![json!({ "id": "operator", "usernames": [OPERATOR] })];
-        let mut policies =
-            vec![json!({ "id": "operator", "rules": ["everything"], "subjects": ["operator"] })];
+        let mut subjects = vec![
+            json!({ "id": "operator", "usernames": [OPERATOR] }),
+            json!({ "id": "recorder", "usernames": [RECORDER] }),
+        ];
+        let mut policies = vec![
+            json!({ "id": "operator", "rules": ["everything"], "subjects": ["operator"] }),
+            json!({
+                "id": "recorder",
+                "rules": ["recorder.subscribe", "recorder.messages", "recorder.ask", "recorder.answers"],
+                "subjects": ["recorder"],
+            }),
+        ];
         if !core_nodes.is_empty() {
             subjects.push(json!({ "id": "routers", "cert_common_names": core_nodes }));
             policies.push(json!({ "id": "routers", "rules": ["links"], "subjects": ["routers"] }));
@@ -876,7 +916,7 @@ mod tests {
         );
         assert_eq!(rule("any.clock.in")["flows"], serde_json::json!(["egress"]));
         for policy in acl["policies"].as_array().unwrap() {
-            if policy["id"] == "operator" {
+            if policy["id"] == "operator" || policy["id"] == "recorder" {
                 continue;
             }
             let granted = policy["rules"].as_array().unwrap();

@@ -270,6 +270,68 @@ fn a_secured_stack_admits_only_what_its_bindings_name() {
     );
     assert_eq!(info.code, 0, "{}", info.stderr);
     assert!(info.stdout.contains(r#""width":160"#), "{}", info.stdout);
+
+    // `record` logs in as the recorder, which reads every topic...
+    let file = st.join("secured.mcap");
+    let recorded = peppy_launch_with(
+        &root(),
+        &[
+            "record",
+            "-o",
+            file.to_str().unwrap(),
+            "--duration",
+            "3",
+            "--wait",
+            "10",
+        ],
+        &[("PEPPY_STATE_DIR", st)],
+    );
+    assert_eq!(recorded.code, 0, "{}", recorded.stderr);
+    for camera in ["rs_left", "rs_right", "rs_spare", "zed_overhead"] {
+        assert!(
+            recorded
+                .stderr
+                .contains(&format!("/{camera}/video_stream ")),
+            "{camera} not recorded: {}",
+            recorded.stderr
+        );
+    }
+    // ...and may do nothing else: publish as a camera, or call a service.
+    let recorder = &record["recorder_login"];
+    let (user, password) = (
+        recorder["user"].as_str().unwrap(),
+        recorder["password"].as_str().unwrap(),
+    );
+    assert_eq!(user, "peppy-recorder");
+    rt.block_on(async {
+        let session = attacker(&endpoint, Some((user, password)))
+            .await
+            .expect("the recorder's login is accepted");
+        let info_key = entry_key(
+            ns,
+            Channel::Service,
+            &DEPTH_CAMERA,
+            "video_stream_info",
+            &core,
+            "rs_left",
+        );
+        let replies = session
+            .get(&info_key)
+            .timeout(Duration::from_secs(2))
+            .await
+            .unwrap();
+        assert!(
+            replies.recv_async().await.is_err(),
+            "the recorder got an answer from rs_left"
+        );
+        spoof_rs_left(&session, ns, &core).await;
+        session.close().await.unwrap();
+    });
+    launch.expect(
+        "with the recorder's publication refused",
+        Duration::from_secs(10),
+        |l| l.contains("denied: `peppy-recorder` may not publish on") && l.ends_with("/rs_left"),
+    );
     assert_eq!(launch.stop(), 0);
 
     // The control: the same forgery with security off reaches recon_1.
