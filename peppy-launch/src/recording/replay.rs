@@ -414,7 +414,9 @@ async fn play(
     let began = Instant::now();
     // When the message logged at `t` is due.
     let due = |t: u64| began + Duration::from_secs_f64(t.saturating_sub(from) as f64 / 1e9 / rate);
-    let mut next_tick = began;
+    // The sim clock never goes back: each tick is later than the last.
+    let mut next_tick = began + CLOCK_PERIOD;
+    let mut last_tick: Option<u64> = None;
     for message in mcap::MessageStream::new(&recording.map).map_err(unreadable)? {
         let message = match message {
             Ok(m) => m,
@@ -451,7 +453,11 @@ async fn play(
             while next_tick < at {
                 tokio::time::sleep_until(next_tick).await;
                 let played = next_tick.duration_since(began).as_secs_f64() * rate;
-                put_time(clock, from + (played * 1e9) as u64).await?;
+                let now = from + (played * 1e9) as u64;
+                if last_tick.is_none_or(|last| now > last) {
+                    put_time(clock, now).await?;
+                    last_tick = Some(now);
+                }
                 next_tick += CLOCK_PERIOD;
             }
         }
@@ -477,8 +483,11 @@ async fn play(
                 continue;
             }
         };
-        if let Some(clock) = clock {
+        if let Some(clock) = clock
+            && last_tick.is_none_or(|last| t > last)
+        {
             put_time(clock, t).await?;
+            last_tick = Some(t);
         }
         publisher
             .put(payload)
