@@ -750,6 +750,10 @@ pub(crate) struct UpArgs {
     /// and write every topic of the stack.
     #[arg(long)]
     pub(crate) insecure: bool,
+    /// Also serve the stack to Foxglove (as `peppy-launch view` does) on
+    /// this loopback port (default 8765).
+    #[arg(long, value_name = "PORT", num_args = 0..=1, default_missing_value = "8765")]
+    pub(crate) view: Option<u16>,
     // Placement (`--place`).
     #[command(flatten)]
     pub(crate) placing: PlaceArgs,

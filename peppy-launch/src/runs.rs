@@ -116,6 +116,11 @@ impl Registered {
         })
     }
 
+    /// The record as registered.
+    pub(crate) fn record(&self) -> &LaunchRecord {
+        &self.record
+    }
+
     /// Records that instance `id` of node `node` joined the launch, so
     /// `ps`, `logs` and `node stop` find it; a failure is said in a note.
     pub(crate) fn add_instance(&mut self, id: &str, node: &str, out: &crate::output::Output) {

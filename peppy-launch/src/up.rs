@@ -546,6 +546,9 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
         },
     ));
     let _core = serve_core(&router, &namespace, &share.name, &starting, &view, &out).await;
+    if let Some(port) = args.view {
+        serve_view(&registration, port, out.clone());
+    }
     let code = if planned.is_empty() {
         // A machine with only a router still links the others: it stays up.
         let stop = interrupts_from_now();
@@ -568,6 +571,32 @@ async fn launch(stack: StackCheck, args: &UpArgs) -> Outcome {
     };
     let _ = router.close().await;
     code
+}
+
+/// `up --view`: the launch served to Foxglove beside it, found through its
+/// own record (so a secured launch is viewed with its recorder's login).
+fn serve_view(registration: &Option<runs::Registered>, port: u16, out: Arc<Output>) {
+    let Some(registration) = registration else {
+        out.note("no Foxglove view: this launch is not registered, so the view cannot find it");
+        return;
+    };
+    let record = registration.record();
+    let args = crate::cli::ViewArgs {
+        topics: Vec::new(),
+        host: "127.0.0.1".into(),
+        port,
+        stack: crate::cli::StackArgs {
+            launcher: Some(record.launcher.clone()),
+            namespace: Some(record.namespace.clone()),
+            connect: Vec::new(),
+            wait: Duration::from_secs(10),
+        },
+    };
+    tokio::spawn(async move {
+        if let Err(e) = crate::recording::view::run(args).await {
+            out.note(&format!("the Foxglove view stopped: {e}"));
+        }
+    });
 }
 
 /// Serves the core node functions of `core` (and of any other core node

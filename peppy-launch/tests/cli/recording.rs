@@ -122,9 +122,7 @@ assert not footer, "a killed recorder wrote no footer"
 }
 
 /// Serves the stack of `namespace` with `view` and reads it with Foxglove's
-/// own WebSocket client (npm's `@foxglove/ws-protocol`): `per_channel`
-/// messages of every channel, and `calls` calls of services whose name ends
-/// with `suffix`. One JSON value per channel and call.
+/// own WebSocket client ([`read_with_foxglove`]).
 fn foxglove_client(
     state: &Path,
     namespace: &str,
@@ -132,12 +130,38 @@ fn foxglove_client(
     suffix: &str,
     calls: u32,
 ) -> Vec<serde_json::Value> {
-    let (Some(node), Some(npm)) = (
-        crate::support::debian_tool("node", "nodejs"),
-        crate::support::debian_tool("npm", "npm"),
-    ) else {
+    let Some(client) = foxglove_client_dir(state) else {
         return Vec::new();
     };
+    let port = free_port();
+    let port_arg = port.to_string();
+    let mut view = Launch::start(
+        &[],
+        &[
+            "view",
+            "--namespace",
+            namespace,
+            "--port",
+            &port_arg,
+            "--wait",
+            "10",
+        ],
+        &[("PEPPY_STATE_DIR", state)],
+    );
+    view.expect("the view serving", Duration::from_secs(60), |l| {
+        l.starts_with("serving ")
+    });
+    let seen = read_with_foxglove(&client, port, per_channel, suffix, calls);
+    assert_eq!(view.stop(), 0, "the view stops cleanly on Ctrl-C");
+    seen
+}
+
+/// Foxglove's own WebSocket protocol client (npm's
+/// `@foxglove/ws-protocol`), installed under `state`; `None` where Node.js
+/// cannot be had (outside CI only).
+fn foxglove_client_dir(state: &Path) -> Option<std::path::PathBuf> {
+    crate::support::debian_tool("node", "nodejs")?;
+    let npm = crate::support::debian_tool("npm", "npm")?;
     let client = state.join("foxglove_client");
     std::fs::create_dir_all(&client).unwrap();
     let fixture = root().join("peppy-launch/tests/fixtures/foxglove_client");
@@ -157,24 +181,20 @@ fn foxglove_client(
         "{}",
         String::from_utf8_lossy(&installed.stderr)
     );
+    Some(client)
+}
 
-    let port = free_port().to_string();
-    let mut view = Launch::start(
-        &[],
-        &[
-            "view",
-            "--namespace",
-            namespace,
-            "--port",
-            &port,
-            "--wait",
-            "10",
-        ],
-        &[("PEPPY_STATE_DIR", state)],
-    );
-    view.expect("the view serving", Duration::from_secs(60), |l| {
-        l.starts_with("serving ")
-    });
+/// Reads the view on `port` with the client in `client`: `per_channel`
+/// messages of every channel, and `calls` calls of services whose name ends
+/// with `suffix`. One JSON value per channel and call.
+fn read_with_foxglove(
+    client: &Path,
+    port: u16,
+    per_channel: u32,
+    suffix: &str,
+    calls: u32,
+) -> Vec<serde_json::Value> {
+    let node = crate::support::debian_tool("node", "nodejs").unwrap();
     let run = Command::new(node)
         .arg("client.js")
         .arg(format!("ws://127.0.0.1:{port}"))
@@ -182,13 +202,12 @@ fn foxglove_client(
         // The subprotocol the Foxglove SDK's server speaks (the protocol
         // of `foxglove.websocket.v1`, renamed).
         .arg("foxglove.sdk.v1")
-        .current_dir(&client)
+        .current_dir(client)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     let out = wait_bounded(run, Duration::from_secs(120), "the Foxglove client");
-    assert_eq!(view.stop(), 0, "the view stops cleanly on Ctrl-C");
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -608,25 +627,30 @@ fn replace_bytes(haystack: &[u8], from: &[u8], to: &[u8]) -> Vec<u8> {
     out
 }
 
-/// The arm loop live in Foxglove's client: fixed arrays, times and an
-/// external topic decode with the schemas the view advertises.
+/// The arm loop under `up --view`, in Foxglove's client: fixed arrays,
+/// times and an external topic decode with the schemas the view
+/// advertises.
 #[test]
 fn the_arm_loop_in_foxglove() {
     let state = tempfile::tempdir().unwrap();
     let st = state.path();
+    let Some(client) = foxglove_client_dir(st) else {
+        return;
+    };
+    let port = free_port().to_string();
     let mut stack = Launch::up_with(
         "examples/launchers/robot_arm_loop.json5",
-        &["--namespace", "view-arm-loop"],
+        &["--namespace", "view-arm-loop", "--view", &port],
         &[("PEPPY_STATE_DIR", st)],
     );
     stack.expect("the controller cycling", BUILD_AND_START, |l| {
         l.starts_with("[controller]") && l.contains("cycle 20:")
     });
-    let seen = foxglove_client(st, "view-arm-loop", 2, "-", 0);
+    stack.expect("the view serving", Duration::from_secs(60), |l| {
+        l.starts_with("serving ") && l.contains(&format!("ws://127.0.0.1:{port}"))
+    });
+    let seen = read_with_foxglove(&client, port.parse().unwrap(), 2, "-", 0);
     assert_eq!(stack.stop(), 0);
-    if seen.is_empty() {
-        return;
-    }
     let states = channel(&seen, "/arm/joint_states");
     let joints = &states["messages"][0];
     assert_eq!(joints["positions"].as_array().unwrap().len(), 3, "{joints}");
