@@ -15,7 +15,7 @@ use crate::workspace;
 
 /// How the launched programs are built.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Build {
+pub(crate) enum Build {
     /// The debug build `up` makes, as a newcomer's first launch runs.
     Debug,
     /// The same profile with every crate optimised, in its own target
@@ -32,7 +32,7 @@ impl Build {
     }
 
     /// The target directory (`None`: the workspace's own).
-    fn target_dir(self) -> Option<PathBuf> {
+    pub(crate) fn target_dir(self) -> Option<PathBuf> {
         match self {
             Build::Debug => None,
             Build::Optimised => Some(target().join("bench-optimised")),
@@ -197,7 +197,7 @@ pub(crate) fn target() -> PathBuf {
 }
 
 /// `cargo build -p peppy-launch -p realsense_d405`; the launcher's path.
-fn build_examples(build: Build) -> Res<PathBuf> {
+pub(crate) fn build_examples(build: Build) -> Res<PathBuf> {
     eprintln!("peppy-bench: building peppy-launch and realsense_d405 ({build:?})…");
     let mut cargo = Command::new(crate::cargo());
     cargo

@@ -22,6 +22,7 @@ mod peers;
 mod peppy_side;
 mod procs;
 mod raw_side;
+mod recording;
 mod roles;
 mod stats;
 mod transport;
@@ -85,6 +86,8 @@ enum Group {
     Launch,
     /// Code generation and cargo builds of an example node.
     Build,
+    /// `peppy-launch record` on three 1 MiB cameras at 30 Hz.
+    Record,
 }
 
 /// Measures one group (`true`: quickly).
@@ -121,7 +124,7 @@ fn main() -> std::process::ExitCode {
     let wanted = |g| cli.only.is_empty() || cli.only.contains(&g);
     let mut runs: Vec<Vec<Row>> = Vec::new();
     let mut failures = Vec::new();
-    let groups: [(Group, Measure); 7] = [
+    let groups: [(Group, Measure); 8] = [
         (Group::Roundtrip, transport::round_trips),
         (Group::Links, transport::links),
         (Group::Throughput, transport::throughput),
@@ -129,6 +132,7 @@ fn main() -> std::process::ExitCode {
         (Group::Service, transport::services),
         (Group::Launch, launch::launch),
         (Group::Build, build_times::build),
+        (Group::Record, recording::record),
     ];
     for run in 1..=cli.runs {
         let mut rows = Vec::new();

@@ -1030,8 +1030,9 @@ pub(crate) fn to_json(value: &Dyn) -> Value {
 }
 
 /// A value as a recording holds it ([`JsonForm::Recording`]): as
-/// [`to_json`], but `bytes` and `[u8]` whole, in base64, and times as
-/// `{sec, nsec}`, which Foxglove reads as times.
+/// [`to_json`], but `bytes` and `[u8]` whole, in base64, times as
+/// `{sec, nsec}` (which Foxglove reads as times), and absent optional
+/// fields left out (the schema does not require them).
 pub(crate) fn to_recording_json(value: &Dyn) -> Value {
     use base64::Engine as _;
     match value {
@@ -1041,10 +1042,75 @@ pub(crate) fn to_recording_json(value: &Dyn) -> Value {
         Dyn::Object(fields) => Value::Object(
             fields
                 .iter()
+                .filter(|(_, v)| *v != Dyn::Absent)
                 .map(|(k, v)| (k.clone(), to_recording_json(v)))
                 .collect(),
         ),
         other => to_json(other),
+    }
+}
+
+/// [`to_recording_json`]'s text, written straight into `out`: a camera
+/// frame's base64 goes into the buffer without a string of its own, and no
+/// JSON value is built (what a recorder does ninety times a second with a
+/// megabyte each time).
+pub(crate) fn write_recording_json(value: &Dyn, out: &mut Vec<u8>) {
+    use base64::Engine as _;
+    use std::io::Write as _;
+    match value {
+        Dyn::Bool(b) => out.extend_from_slice(if *b { b"true" } else { b"false" }),
+        Dyn::Int(i) => {
+            let _ = write!(out, "{i}");
+        }
+        Dyn::UInt(u) => {
+            let _ = write!(out, "{u}");
+        }
+        Dyn::Float(f) if f.is_finite() => {
+            let _ = serde_json::to_writer(&mut *out, f);
+        }
+        Dyn::Float(f) => {
+            let _ = write!(out, "\"{}\"", float_word(*f));
+        }
+        Dyn::Str(s) => {
+            let _ = serde_json::to_writer(&mut *out, s);
+        }
+        Dyn::Bytes(b) => {
+            let engine = base64::engine::general_purpose::STANDARD;
+            out.push(b'"');
+            let start = out.len();
+            out.resize(start + base64::encoded_len(b.len(), true).unwrap_or(0), 0);
+            let written = engine.encode_slice(b, &mut out[start..]).unwrap_or(0);
+            out.truncate(start + written);
+            out.push(b'"');
+        }
+        Dyn::Time { secs, nanos } => {
+            let _ = write!(out, "{{\"sec\":{secs},\"nsec\":{nanos}}}");
+        }
+        Dyn::Array(items) => {
+            out.push(b'[');
+            for (i, item) in items.iter().enumerate() {
+                if i > 0 {
+                    out.push(b',');
+                }
+                write_recording_json(item, out);
+            }
+            out.push(b']');
+        }
+        Dyn::Object(fields) => {
+            out.push(b'{');
+            let mut first = true;
+            for (name, v) in fields.iter().filter(|(_, v)| *v != Dyn::Absent) {
+                if !first {
+                    out.push(b',');
+                }
+                first = false;
+                let _ = serde_json::to_writer(&mut *out, name);
+                out.push(b':');
+                write_recording_json(v, out);
+            }
+            out.push(b'}');
+        }
+        Dyn::Absent => out.extend_from_slice(b"null"),
     }
 }
 
@@ -1664,5 +1730,48 @@ mod tests {
         assert_eq!(lines.len(), 1 + TEXT_ITEMS + 1, "{text}");
         assert_eq!(lines[1], "  - 0.5");
         assert_eq!(lines.last().unwrap(), &"  - … 984 more items (1000 in all)");
+    }
+
+    #[test]
+    fn a_recording_writes_the_json_it_describes() {
+        let value = object(vec![
+            ("flag", Dyn::Bool(true)),
+            ("n", Dyn::Int(-3)),
+            ("big", Dyn::UInt(u64::MAX)),
+            ("x", Dyn::Float(0.1)),
+            ("nan", Dyn::Float(f64::NAN)),
+            ("text", Dyn::Str("quote \" and \\ and \u{1}".into())),
+            ("frame", Dyn::Bytes(vec![0, 1, 2, 250, 255])),
+            ("stamp", Dyn::Time { secs: -1, nanos: 5 }),
+            ("list", Dyn::Array(vec![Dyn::UInt(1), object(vec![])])),
+            ("gone", Dyn::Absent),
+        ]);
+        let mut written = Vec::new();
+        write_recording_json(&value, &mut written);
+        let parsed: Value = serde_json::from_slice(&written).unwrap();
+        assert_eq!(parsed, to_recording_json(&value));
+        assert_eq!(parsed["frame"], "AAEC+v8=");
+        assert_eq!(parsed["stamp"], json!({ "sec": -1, "nsec": 5 }));
+        assert!(parsed.get("gone").is_none());
+    }
+
+    #[test]
+    fn a_recorded_message_encodes_back_to_its_bytes() {
+        let f = format(
+            "{flag:bool,n:i8,x:f64,nan:f32,text:string,frame:[u8],blob:bytes,stamp:time,list:[u32;2],inner:{y:f32},opt:u8?,none:u8?}",
+        );
+        let sent = encode(
+            &f,
+            &json!({
+                "flag": true, "n": -7, "x": 0.1, "nan": "NaN", "text": "h\u{e9}",
+                "frame": [0, 255, 7], "blob": "raw", "stamp": { "secs": 1_700_000_000, "nanos": 9 },
+                "list": [1, 2], "inner": { "y": 1.5 }, "opt": 3,
+            }),
+        )
+        .unwrap();
+        let mut written = Vec::new();
+        write_recording_json(&decode(&f, &sent).unwrap(), &mut written);
+        let read: Value = serde_json::from_slice(&written).unwrap();
+        assert_eq!(encode_as(&f, &read, JsonForm::Recording).unwrap(), sent);
     }
 }

@@ -39,7 +39,8 @@ use crate::inspect::{Observer, Role, dynamic, interrupted};
 const MAX_BACKLOG: u64 = 1 << 30;
 /// The longest a chunk stays open: what a `kill -9` can lose at most.
 const CHUNK_PERIOD: Duration = Duration::from_secs(1);
-/// How often the progress line is redrawn on a terminal.
+/// How often the progress line is redrawn on a terminal (and `--max-size`
+/// checked).
 const PROGRESS_PERIOD: Duration = Duration::from_millis(500);
 /// How often a progress line is printed when stderr is not a terminal.
 const LOG_PERIOD: Duration = Duration::from_secs(5);
@@ -149,12 +150,9 @@ pub(crate) async fn run(args: RecordArgs) -> Result {
     let deadline = args.duration.map(|d| tokio::time::Instant::now() + d);
     let stop = interrupted();
     let terminal = std::io::stderr().is_terminal();
-    let mut tick = tokio::time::interval(if terminal {
-        PROGRESS_PERIOD
-    } else {
-        LOG_PERIOD
-    });
+    let mut tick = tokio::time::interval(PROGRESS_PERIOD);
     tick.tick().await;
+    let mut logged = Instant::now();
     let mut enter = enter_presses();
     let mut rates = Rates::new(&progress);
     let why = loop {
@@ -174,8 +172,9 @@ pub(crate) async fn run(args: RecordArgs) -> Result {
                 let line = progress_line(started.elapsed(), &progress, channels.count());
                 if terminal {
                     eprint!("\r\x1b[K{line}");
-                } else {
+                } else if logged.elapsed() >= LOG_PERIOD {
                     eprintln!("{line}");
+                    logged = Instant::now();
                 }
                 if args.max_size.is_some_and(|max| progress.written.load(Ordering::Relaxed) >= max) {
                     break "the file reached --max-size";
@@ -355,6 +354,8 @@ fn write_all(
     };
     let mut formats: HashMap<u16, (MessageFormat, u32)> = HashMap::new();
     let mut chunk_opened: Option<Instant> = None;
+    // One buffer for every message's JSON, grown to the largest once.
+    let mut json = Vec::new();
     loop {
         let op = match rx.recv_timeout(CHUNK_PERIOD) {
             Ok(op) => op,
@@ -416,8 +417,8 @@ fn write_all(
                         continue;
                     }
                 };
-                let json =
-                    serde_json::to_vec(&dynamic::to_recording_json(&value)).unwrap_or_default();
+                json.clear();
+                dynamic::write_recording_json(&value, &mut json);
                 *sequence = sequence.wrapping_add(1);
                 out.write_to_known_channel(
                     &mcap::records::MessageHeader {
@@ -499,6 +500,15 @@ impl Channels {
         };
         let id = match self.ids.get(&(sample.key.clone(), fingerprint)) {
             Some(id) => *id,
+            // Learnt once: a format nobody describes is not asked for at
+            // every message.
+            None if self
+                .skipped
+                .contains_key(&(sample.key.clone(), fingerprint)) =>
+            {
+                self.skip(&sample.key, fingerprint, Skip::UnknownFormat);
+                return None;
+            }
             None => {
                 let Some((meta, format)) = learner.learn(observer, &sample.key, fingerprint).await
                 else {

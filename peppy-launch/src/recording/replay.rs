@@ -77,7 +77,8 @@ impl Recording {
             source,
         };
         let (channels, span) = match mcap::Summary::read(&map) {
-            Ok(Some(summary)) => {
+            // A summary with statistics (as `record` writes) says it all.
+            Ok(Some(summary)) if summary.stats.is_some() => {
                 let span = summary
                     .stats
                     .as_ref()
@@ -87,9 +88,10 @@ impl Recording {
                     summary.channels.values().cloned().collect();
                 (read_channels(path, &channels, renames, patterns)?, span)
             }
-            // No summary: a recording whose recorder was stopped hard.
-            // Every message is read once to find its channels and span.
-            Ok(None) | Err(_) => {
+            // No summary (a recording whose recorder was stopped hard), or
+            // none with statistics: every message is read once to find the
+            // channels and the span.
+            Ok(_) | Err(_) => {
                 let mut seen: BTreeMap<u16, Arc<mcap::Channel<'_>>> = BTreeMap::new();
                 let mut span: Option<(u64, u64)> = None;
                 for message in mcap::MessageStream::new(&map).map_err(unreadable)? {

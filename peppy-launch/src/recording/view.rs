@@ -211,6 +211,7 @@ pub(crate) async fn run(args: ViewArgs) -> Result {
     let mut served: HashMap<(String, u64), Option<Served>> = HashMap::new();
     let mut topics: BTreeMap<String, u64> = BTreeMap::new();
     let stop = interrupted();
+    let mut json = Vec::new();
     loop {
         let sample = tokio::select! {
             s = rx.recv_async() => match s { Ok(s) => s, Err(_) => break },
@@ -247,10 +248,9 @@ pub(crate) async fn run(args: ViewArgs) -> Result {
         };
         let meta = foxglove::PartialMetadata::with_log_time(sample.log_time);
         if channel.json.has_sinks() {
-            let json = dynamic::to_recording_json(&value);
-            channel
-                .json
-                .log_with_meta(json.to_string().as_bytes(), meta);
+            json.clear();
+            dynamic::write_recording_json(&value, &mut json);
+            channel.json.log_with_meta(&json, meta);
         }
         if let Some((layout, images)) = &channel.image
             && images.has_sinks()

@@ -785,3 +785,152 @@ fn replay_publishes_what_was_recorded() {
         session.close().await.unwrap();
     });
 }
+
+/// A producer that starts after the recording did is picked up, and one
+/// that changes format mid-run gets a channel of its own with its new
+/// schema: a bare Zenoh session plays the producer, answering its formats'
+/// texts as a node does, and sends something with no format nobody
+/// describes, which is skipped and counted.
+#[test]
+fn a_format_change_mid_run_gets_a_new_channel() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let file = d.join("changed.mcap");
+    let port = free_port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let ns = "record-format-change";
+    let formats = ["{width:u32}", "{width:u32,height:u32}"];
+    let fingerprints: Vec<u64> = formats
+        .iter()
+        .map(|f| {
+            peppy_schema::MessageFormat::from_canonical(f)
+                .unwrap()
+                .fingerprint()
+        })
+        .collect();
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let (session, _answers) = rt.block_on(async {
+        let mut config = zenoh::Config::default();
+        config
+            .insert_json5("listen/endpoints", &format!(r#"["{endpoint}"]"#))
+            .unwrap();
+        config
+            .insert_json5("scouting/multicast/enabled", "false")
+            .unwrap();
+        let session = zenoh::open(config).await.unwrap();
+        let mut answers = Vec::new();
+        for (format, fp) in formats.iter().zip(&fingerprints) {
+            let text = format.to_string();
+            answers.push(
+                session
+                    .declare_queryable(peppy_runtime::wire::keys::format_key(ns, *fp, "cam"))
+                    .callback(move |q| {
+                        let text = text.clone();
+                        tokio::spawn(async move {
+                            let _ = q.reply(q.key_expr().clone(), text).await;
+                        });
+                    })
+                    .await
+                    .unwrap(),
+            );
+        }
+        (session, answers)
+    });
+    let recorder = crate::support::peppy_launch_command(&[])
+        .args(["record", "-o", file.to_str().unwrap(), "--duration", "6"])
+        .args(["--connect", &endpoint, "--namespace", ns, "--wait", "1"])
+        .current_dir(d)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let key = peppy_runtime::wire::keys::entry_key(
+        ns,
+        peppy_runtime::wire::keys::Channel::Topic,
+        &peppy_runtime::wire::keys::Owner::Node {
+            name: "sensor",
+            tag: "v1",
+        },
+        "size",
+        "core",
+        "cam",
+    );
+    rt.block_on(async {
+        // The recorder joins, then the producer starts.
+        tokio::time::sleep(Duration::from_secs(2)).await;
+        let put = |payload: Vec<u8>, fp: Option<u64>| {
+            let (session, key) = (session.clone(), key.clone());
+            async move {
+                let mut put = session.put(&key, payload);
+                if let Some(fp) = fp {
+                    put = put.attachment(peppy_runtime::wire::attachment::topic(fp));
+                }
+                put.await.unwrap();
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+        };
+        for w in 1..=3u32 {
+            put(w.to_le_bytes().to_vec(), Some(fingerprints[0])).await;
+        }
+        for w in 4..=5u32 {
+            let mut both = w.to_le_bytes().to_vec();
+            both.extend(10u32.to_le_bytes());
+            put(both, Some(fingerprints[1])).await;
+        }
+        put(vec![1, 2, 3], Some(0x0bad)).await;
+        put(vec![1, 2, 3], None).await;
+    });
+    let out = wait_bounded(recorder, Duration::from_secs(60), "record");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("recorded 5 messages on 2 channels"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("format 0000000000000bad is described by nobody"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("no peppy attachment"), "{stderr}");
+
+    let bytes = std::fs::read(&file).unwrap();
+    let mut seen: Vec<(String, String, String)> = Vec::new();
+    for message in mcap::MessageStream::new(&bytes).unwrap() {
+        let message = message.unwrap();
+        let schema = message.channel.schema.as_ref().unwrap();
+        let schema: serde_json::Value = serde_json::from_slice(&schema.data).unwrap();
+        let fields: Vec<String> = schema["properties"]
+            .as_object()
+            .unwrap()
+            .keys()
+            .cloned()
+            .collect();
+        seen.push((
+            message.channel.topic.clone(),
+            fields.join(","),
+            String::from_utf8(message.data.to_vec()).unwrap(),
+        ));
+    }
+    let expected: Vec<(String, String, String)> = [
+        ("width", r#"{"width":1}"#),
+        ("width", r#"{"width":2}"#),
+        ("width", r#"{"width":3}"#),
+        ("width,height", r#"{"width":4,"height":10}"#),
+        ("width,height", r#"{"width":5,"height":10}"#),
+    ]
+    .map(|(fields, json)| {
+        (
+            "/cam/size".to_string(),
+            fields.to_string(),
+            json.to_string(),
+        )
+    })
+    .into();
+    assert_eq!(seen, expected);
+    rt.block_on(async { session.close().await.unwrap() });
+}
