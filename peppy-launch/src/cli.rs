@@ -127,7 +127,9 @@ pub(crate) struct ViewArgs {
     /// Topics to serve (default: every topic), as `record` names them.
     #[arg(value_name = "TOPIC")]
     pub(crate) topics: Vec<String>,
-    /// The address to serve on; `0.0.0.0` lets other machines connect.
+    /// The address to serve on. The protocol has no login: another
+    /// address than loopback (`0.0.0.0`) shows the stack to whoever reaches
+    /// it, which a secured stack refuses.
     #[arg(long, value_name = "HOST", default_value = "127.0.0.1")]
     pub(crate) host: String,
     /// The port to serve on (Foxglove's default is 8765; 0 picks a free
@@ -751,8 +753,14 @@ pub(crate) struct UpArgs {
     #[arg(long)]
     pub(crate) insecure: bool,
     /// Also serve the stack to Foxglove (as `peppy-launch view` does) on
-    /// this loopback port (default 8765).
-    #[arg(long, value_name = "PORT", num_args = 0..=1, default_missing_value = "8765")]
+    /// a loopback port: `--view` (8765) or `--view=PORT`.
+    #[arg(
+        long,
+        value_name = "PORT",
+        num_args = 0..=1,
+        require_equals = true,
+        default_missing_value = "8765"
+    )]
     pub(crate) view: Option<u16>,
     // Placement (`--place`).
     #[command(flatten)]

@@ -127,7 +127,9 @@ impl From<RecordingError> for LaunchError {
             | RecordingError::Write { .. }
             | RecordingError::Thread { .. }
             | RecordingError::WriterPanicked { .. } => LaunchError::Setup(SetupError::Recording(e)),
-            RecordingError::Damaged { .. } => LaunchError::Inspect(InspectError::Recording(e)),
+            RecordingError::Damaged { .. } | RecordingError::Unfit { .. } => {
+                LaunchError::Inspect(InspectError::Recording(e))
+            }
             other => LaunchError::Usage(UsageError::Recording(other)),
         }
     }

@@ -459,7 +459,15 @@ impl Observer {
     pub(crate) async fn open_as(args: &StackArgs, role: Role) -> Result<Observer> {
         let mut reach = reach(args, &runs::running())?;
         if role == Role::Recorder {
-            reach.login = reach.recorder_login.clone();
+            match (&reach.login, &reach.recorder_login) {
+                (_, Some(recorder)) => reach.login = Some(recorder.clone()),
+                // A secured launch whose record names no recorder (started
+                // by an older peppy-launch) admits its tools' login only.
+                (Some(_), None) => eprintln!(
+                    "note: this launch keeps no recorder login (restart it to have one); reading it with its tools' login"
+                ),
+                (None, None) => {}
+            }
         }
         // A client talks to the stack's router only: a peer would also open
         // direct links to every node, which they would see (and log) come

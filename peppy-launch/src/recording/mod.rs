@@ -380,10 +380,19 @@ pub enum RecordingError {
         mismatches: Vec<String>,
     },
     /// `replay --rate` is out of range.
-    #[error("--rate {rate} is out of range: give a speed factor above 0, at most 1000")]
+    #[error("--rate {rate} is out of range: give a speed factor from 0.001 to 1000")]
     Rate {
         /// The rate given.
         rate: f64,
+    },
+    /// Messages of the recording did not fit their own channel's format
+    /// (the rest was replayed).
+    #[error(
+        "{messages} messages of the recording do not fit their channel's format; the rest was replayed"
+    )]
+    Unfit {
+        /// How many were skipped.
+        messages: u64,
     },
     /// `--as` is not `OLD=NEW` with two instance ids.
     #[error("--as `{arg}`: expected OLD=NEW, two instance ids")]

@@ -95,13 +95,22 @@ impl Progress {
 /// `record`.
 pub(crate) async fn run(args: RecordArgs) -> Result {
     let patterns = Patterns::new(args.topics.clone());
+    // A file that may not be written is said before the stack is looked
+    // for; a default name needs the stack's namespace first.
+    let mut file = match &args.output {
+        Some(path) => Some((path.clone(), open_output(path, args.force)?)),
+        None => None,
+    };
     let observer = Observer::open_as(&args.stack, Role::Recorder).await?;
     let mut learner = Learner::new(observer.describe_all().await?);
-    let path = args
-        .output
-        .clone()
-        .unwrap_or_else(|| default_path(&observer.reach.namespace));
-    let file = open_output(&path, args.force)?;
+    let (path, file) = match file.take() {
+        Some(opened) => opened,
+        None => {
+            let path = default_path(&observer.reach.namespace);
+            let file = open_output(&path, args.force)?;
+            (path, file)
+        }
+    };
     let progress = Arc::new(Progress::default());
     let stack = BTreeMap::from([
         ("namespace".to_string(), observer.reach.namespace.clone()),
@@ -160,7 +169,14 @@ pub(crate) async fn run(args: RecordArgs) -> Result {
             sample = rx.recv_async() => {
                 let Ok(sample) = sample else { break "the stack's session closed" };
                 let size = sample.payload.len() as u64;
-                let Some(op) = channels.take(sample, &patterns, &observer, &mut learner, &ops).await else {
+                // Learning a new producer asks the stack (up to --wait):
+                // Ctrl-C and the limits do not wait behind it.
+                let taken = tokio::select! {
+                    op = channels.take(sample, &patterns, &observer, &mut learner, &ops) => op,
+                    () = until(deadline) => break "--duration is over",
+                    () = stop.cancelled() => break "interrupted",
+                };
+                let Some(op) = taken else {
                     progress.backlog.fetch_sub(size, Ordering::Relaxed);
                     continue;
                 };
@@ -357,7 +373,10 @@ fn write_all(
     // One buffer for every message's JSON, grown to the largest once.
     let mut json = Vec::new();
     loop {
-        let op = match rx.recv_timeout(CHUNK_PERIOD) {
+        // An open chunk is closed a period after it opened, whether or not
+        // more messages come.
+        let wake = chunk_opened.map_or_else(|| Instant::now() + CHUNK_PERIOD, |t| t + CHUNK_PERIOD);
+        let op = match rx.recv_deadline(wake) {
             Ok(op) => op,
             Err(flume::RecvTimeoutError::Timeout) => {
                 if chunk_opened.take().is_some() {
@@ -465,6 +484,8 @@ enum Skip {
     NoAttachment,
     /// A format nobody describes.
     UnknownFormat,
+    /// MCAP's 65 535 channels are all taken.
+    TooManyChannels,
 }
 
 /// The channels opened so far, by key and fingerprint.
@@ -501,7 +522,7 @@ impl Channels {
         let id = match self.ids.get(&(sample.key.clone(), fingerprint)) {
             Some(id) => *id,
             // Learnt once: a format nobody describes is not asked for at
-            // every message.
+            // every message (the skip keeps its first reason).
             None if self
                 .skipped
                 .contains_key(&(sample.key.clone(), fingerprint)) =>
@@ -516,7 +537,11 @@ impl Channels {
                     return None;
                 };
                 let id = self.next;
-                self.next = self.next.checked_add(1)?;
+                let Some(next) = self.next.checked_add(1) else {
+                    self.skip(&sample.key, fingerprint, Skip::TooManyChannels);
+                    return None;
+                };
+                self.next = next;
                 self.ids.insert((sample.key.clone(), fingerprint), id);
                 ops.send(Op::Channel { id, meta, format }).ok()?;
                 id
@@ -543,6 +568,9 @@ impl Channels {
                 Skip::UnknownFormat => eprintln!(
                     "\nnote: not recording samples on {key}: format {fingerprint:016x} is described by nobody"
                 ),
+                Skip::TooManyChannels => eprintln!(
+                    "\nnote: not recording samples on {key}: the file holds as many channels as MCAP allows"
+                ),
             }
         }
         entry.1 += 1;
@@ -553,6 +581,7 @@ impl Channels {
             let why = match why {
                 Skip::NoAttachment => "without a peppy attachment",
                 Skip::UnknownFormat => "in a format nobody describes",
+                Skip::TooManyChannels => "beyond MCAP's channel limit",
             };
             eprintln!("note: {n} samples on {key} were not recorded: {why}");
         }

@@ -16,7 +16,7 @@ use std::time::Duration;
 use peppy_runtime::clock::ClockSource;
 use peppy_runtime::describe::InstanceInfo;
 use peppy_runtime::wire::attachment;
-use peppy_runtime::wire::keys::{Channel as KeyChannel, clock_tick_key, entry_key};
+use peppy_runtime::wire::keys::{Channel as KeyChannel, clock_tick_key, entry_key, liveliness_key};
 use peppy_schema::{MessageFormat, QosProfile};
 use tokio::time::Instant;
 
@@ -45,6 +45,15 @@ pub(crate) struct Recording {
     channels: BTreeMap<u16, Replayed>,
     /// First and last log time of the whole file.
     span: Option<(u64, u64)>,
+    /// The file has no summary (its recorder was stopped hard): it ends
+    /// inside its last chunk, which is expected, not damage.
+    truncated: bool,
+}
+
+/// How the file's messages are read: chunk checksums checked, so a damaged
+/// chunk is an error rather than wrong messages.
+fn messages(map: &[u8]) -> mcap::McapResult<mcap::MessageStream<'_>> {
+    mcap::MessageStream::new_with_options(map, mcap::read::Options::ValidateChunkCrcs.into())
 }
 
 impl Recording {
@@ -60,9 +69,11 @@ impl Recording {
             path: path.to_path_buf(),
             source,
         })?;
-        // SAFETY: the map is only read; a file truncated meanwhile by
-        // another process could fault, which a recording being replayed
-        // while it is rewritten would deserve.
+        // SAFETY: the map is only read, and nothing in this process writes
+        // the file. Another process truncating it meanwhile (`record
+        // --force` onto the file being replayed) would make reads past the
+        // new end fault: replaying a file while it is rewritten is not
+        // supported, as with any memory-mapped reader.
         let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|source| RecordingError::Open {
             path: path.to_path_buf(),
             source,
@@ -76,6 +87,7 @@ impl Recording {
             path: path.to_path_buf(),
             source,
         };
+        let mut truncated = false;
         let (channels, span) = match mcap::Summary::read(&map) {
             // A summary with statistics (as `record` writes) says it all.
             Ok(Some(summary)) if summary.stats.is_some() => {
@@ -92,9 +104,10 @@ impl Recording {
             // none with statistics: every message is read once to find the
             // channels and the span.
             Ok(_) | Err(_) => {
+                truncated = true;
                 let mut seen: BTreeMap<u16, Arc<mcap::Channel<'_>>> = BTreeMap::new();
                 let mut span: Option<(u64, u64)> = None;
-                for message in mcap::MessageStream::new(&map).map_err(unreadable)? {
+                for message in messages(&map).map_err(unreadable)? {
                     // A file cut short ends at its last whole chunk; one
                     // that is damaged before any message is no recording.
                     let message = match message {
@@ -116,6 +129,7 @@ impl Recording {
             map,
             channels,
             span,
+            truncated,
         })
     }
 }
@@ -194,6 +208,9 @@ fn renames(args: &[String]) -> std::result::Result<BTreeMap<String, String>, Rec
         .collect()
 }
 
+/// One line per consumer that reads a channel in another format.
+type Mismatches = Vec<String>;
+
 /// Every consumer entry in the stack that would receive `meta`'s messages
 /// and reads them in another format, one line each.
 fn mismatches(meta: &ChannelMeta, all: &BTreeMap<String, InstanceInfo>) -> Vec<String> {
@@ -239,7 +256,9 @@ fn mismatches(meta: &ChannelMeta, all: &BTreeMap<String, InstanceInfo>) -> Vec<S
 
 /// `replay`.
 pub(crate) async fn run(args: ReplayArgs) -> Result {
-    if !(args.rate.is_finite() && args.rate > 0.0 && args.rate <= 1000.0) {
+    // Below a thousandth a day of recording would take years, and the due
+    // times would overflow.
+    if !(args.rate.is_finite() && (0.001..=1000.0).contains(&args.rate)) {
         return Err(RecordingError::Rate { rate: args.rate }.into());
     }
     let renames = renames(&args.renames)?;
@@ -267,10 +286,32 @@ pub(crate) async fn run(args: ReplayArgs) -> Result {
 
     let observer = Observer::open(&args.stack).await?;
     let all = observer.describe_all().await?;
-    let problems: Vec<String> = taken
-        .iter()
-        .flat_map(|c| mismatches(&c.meta, &all))
-        .collect();
+    // A producer whose format changed mid-recording has a channel per
+    // format: the stack must read one of them, and the others are left out.
+    let mut refused: BTreeMap<(&str, &str), Vec<(u16, Mismatches)>> = BTreeMap::new();
+    for (id, c) in recording.channels.iter().filter(|(_, c)| c.taken) {
+        refused
+            .entry((c.meta.instance.as_str(), c.meta.topic.as_str()))
+            .or_default()
+            .push((*id, mismatches(&c.meta, &all)));
+    }
+    let mut problems = Vec::new();
+    let mut skipped = BTreeSet::new();
+    for formats in refused.values() {
+        if formats.iter().all(|(_, m)| !m.is_empty()) {
+            problems.extend(formats.iter().flat_map(|(_, m)| m.iter().cloned()));
+        } else {
+            for (id, m) in formats.iter().filter(|(_, m)| !m.is_empty()) {
+                skipped.insert(*id);
+                eprintln!(
+                    "note: leaving out {} in its format {:016x}: the stack reads another format of it, which is replayed\n{}",
+                    recording.channels[id].meta.channel_topic(),
+                    recording.channels[id].meta.fingerprint,
+                    m.join("\n")
+                );
+            }
+        }
+    }
     if !problems.is_empty() {
         return Err(RecordingError::FormatMismatch {
             mismatches: problems,
@@ -296,7 +337,35 @@ pub(crate) async fn run(args: ReplayArgs) -> Result {
 
     let namespace = observer.reach.namespace.clone();
     let mut publishers = HashMap::new();
-    for (id, c) in recording.channels.iter().filter(|(_, c)| c.taken) {
+    // A node slot on an interface's key keeps only the instances of its
+    // node that are alive: each replayed producer whose node is known holds
+    // the liveliness token its node would.
+    let mut tokens = Vec::new();
+    let mut alive = BTreeSet::new();
+    for (id, c) in recording
+        .channels
+        .iter()
+        .filter(|(id, c)| c.taken && !skipped.contains(*id))
+    {
+        let m = &c.meta;
+        if let Some(node) = &m.node
+            && alive.insert((m.core.as_str(), m.instance.as_str()))
+            && !live.contains(m.instance.as_str())
+        {
+            let token = observer
+                .session
+                .liveliness()
+                .declare_token(liveliness_key(
+                    &namespace,
+                    &m.core,
+                    &m.instance,
+                    &node.name,
+                    &node.tag,
+                ))
+                .await
+                .map_err(|e| SetupError::Publisher(e.into()))?;
+            tokens.push(token);
+        }
         let m = &c.meta;
         let key = entry_key(
             &namespace,
@@ -315,9 +384,7 @@ pub(crate) async fn run(args: ReplayArgs) -> Result {
         .map_err(SetupError::Publisher)?;
         publishers.insert(*id, publisher);
     }
-    for publisher in publishers.values() {
-        crate::inspect::topics::wait_for_subscribers(publisher, Duration::from_secs(2)).await;
-    }
+    wait_for_consumers(&recording, &publishers).await;
     let clock = if args.clock {
         Some(
             observer
@@ -362,15 +429,22 @@ pub(crate) async fn run(args: ReplayArgs) -> Result {
             break;
         }
     }
-    for (channel, n) in &totals.unencodable {
-        eprintln!("warning: {n} messages of {channel} were skipped: they do not fit its format");
-    }
+    drop(tokens);
     eprintln!(
         "replayed {} messages in {:.1} s",
         totals.published,
         started.elapsed().as_secs_f64()
     );
-    if totals.published == 0 {
+    let unfit: u64 = totals.unencodable.values().sum();
+    if unfit > 0 {
+        for (channel, n) in &totals.unencodable {
+            eprintln!(
+                "warning: {n} messages of {channel} were skipped: they do not fit its format"
+            );
+        }
+        return Err(RecordingError::Unfit { messages: unfit }.into());
+    }
+    if totals.published == 0 && !stop.is_cancelled() {
         return Err(RecordingError::Empty {
             path: recording.path.clone(),
             narrowed: true,
@@ -378,6 +452,44 @@ pub(crate) async fn run(args: ReplayArgs) -> Result {
         .into());
     }
     Ok(())
+}
+
+/// Waits (2 s at most, for all of them together) until every channel's
+/// key has a subscriber, so the first messages are not published before
+/// the stack's routes reach this session; names the channels nobody
+/// consumes.
+async fn wait_for_consumers(
+    recording: &Recording,
+    publishers: &HashMap<u16, zenoh::pubsub::Publisher<'static>>,
+) {
+    let deadline = Instant::now() + Duration::from_secs(2);
+    let mut waiting: Vec<u16> = publishers.keys().copied().collect();
+    while !waiting.is_empty() && Instant::now() < deadline {
+        let mut still = Vec::new();
+        for id in waiting {
+            let matched = publishers[&id]
+                .matching_status()
+                .await
+                .is_ok_and(|s| s.matching());
+            if !matched {
+                still.push(id);
+            }
+        }
+        waiting = still;
+        if !waiting.is_empty() {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    }
+    if !waiting.is_empty() {
+        let names: Vec<String> = waiting
+            .iter()
+            .map(|id| recording.channels[id].meta.channel_topic())
+            .collect();
+        eprintln!(
+            "note: nothing in the stack consumes {} yet; publishing anyway",
+            names.join(", ")
+        );
+    }
 }
 
 fn nanos(d: Duration) -> u64 {
@@ -414,16 +526,18 @@ async fn play(
         source,
     };
     let began = Instant::now();
-    // When the message logged at `t` is due.
+    // Due times come from the recording's log times, not from how long
+    // publishing took, so a slow put does not shift every later message.
     let due = |t: u64| began + Duration::from_secs_f64(t.saturating_sub(from) as f64 / 1e9 / rate);
     // The sim clock never goes back: each tick is later than the last.
     let mut next_tick = began + CLOCK_PERIOD;
     let mut last_tick: Option<u64> = None;
-    for message in mcap::MessageStream::new(&recording.map).map_err(unreadable)? {
+    for message in messages(&recording.map).map_err(unreadable)? {
         let message = match message {
             Ok(m) => m,
-            // A recording cut short ends where its last whole chunk does.
-            Err(mcap::McapError::UnexpectedEof | mcap::McapError::BadFooter) => {
+            // A recording cut short ends inside its last chunk: what
+            // precedes it is whole.
+            Err(_) if recording.truncated => {
                 eprintln!(
                     "note: {} ends early (its recorder was stopped hard); replayed up to its last whole chunk",
                     recording.path.display()

@@ -22,10 +22,7 @@ pub(crate) fn json_schema(format: &MessageFormat, title: &str, fingerprint: u64)
         head.insert("title".into(), title.into());
         head.insert(
             "description".into(),
-            format!(
-                "peppy format {fingerprint:016x}; non-finite floats are the strings \"NaN\", \"Infinity\" and \"-Infinity\""
-            )
-            .into(),
+            format!("peppy format {fingerprint:016x}").into(),
         );
         head.append(map);
         *map = head;
@@ -79,7 +76,13 @@ fn of_type(ty: &FieldType) -> Value {
 fn primitive(p: Primitive) -> Value {
     match p {
         Primitive::Bool => json!({ "type": "boolean" }),
-        Primitive::F32 | Primitive::F64 => json!({ "type": "number" }),
+        // JSON has no NaN or infinity: a recording writes them as words.
+        Primitive::F32 | Primitive::F64 => json!({
+            "anyOf": [
+                { "type": "number" },
+                { "enum": ["NaN", "Infinity", "-Infinity"] },
+            ],
+        }),
         Primitive::String => json!({ "type": "string" }),
         Primitive::Bytes => json!({ "type": "string", "contentEncoding": "base64" }),
         Primitive::Time => json!({
@@ -139,5 +142,15 @@ mod tests {
                 .unwrap()
                 .contains(&json!("note"))
         );
+    }
+
+    #[test]
+    fn floats_may_be_the_words_json_has_for_non_finite_numbers() {
+        let format = MessageFormat::from_canonical("{x:f64,y:[f32;3]}").unwrap();
+        let schema = json_schema(&format, "t", 0);
+        let words = json!({ "enum": ["NaN", "Infinity", "-Infinity"] });
+        assert_eq!(schema["properties"]["x"]["anyOf"][1], words);
+        assert_eq!(schema["properties"]["y"]["items"]["anyOf"][1], words);
+        assert_eq!(schema["properties"]["y"]["minItems"], 3);
     }
 }

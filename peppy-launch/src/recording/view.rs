@@ -9,7 +9,7 @@
 //! so a camera shows as a picture. Every service the stack serves when the
 //! view starts can be called from Foxglove, with JSON requests.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
@@ -32,6 +32,9 @@ use crate::inspect::{Observer, Role, interrupted};
 /// Samples waiting to be decoded beyond which new ones are dropped (and
 /// counted): a view never holds the stack back.
 const BACKLOG: usize = 1024;
+/// How often the view looks for instances that started after it, to offer
+/// their services.
+const DISCOVERY_PERIOD: Duration = Duration::from_secs(5);
 /// How long a service called from Foxglove may take.
 const CALL_TIMEOUT: Duration = Duration::from_secs(10);
 
@@ -47,6 +50,14 @@ pub enum ViewError {
         port: u16,
         /// Why.
         source: foxglove::FoxgloveError,
+    },
+    /// `--host` is not loopback, and the stack is secured.
+    #[error(
+        "the stack is secured and the Foxglove protocol has no login: serve it on loopback (127.0.0.1), not `{host}`, and reach it through an SSH tunnel"
+    )]
+    Exposed {
+        /// The host given.
+        host: String,
     },
 }
 
@@ -165,11 +176,27 @@ struct Served {
 /// `view`.
 pub(crate) async fn run(args: ViewArgs) -> Result {
     let patterns = Patterns::new(args.topics.clone());
-    let observer = Observer::open_as(&args.stack, Role::Recorder).await?;
+    let observer = Arc::new(Observer::open_as(&args.stack, Role::Recorder).await?);
+    // A secured stack admits only its logins; the protocol has none, so
+    // its view stays on this machine.
+    let secured = observer.reach.login.is_some();
+    if secured && !is_loopback(&args.host) {
+        return Err(ViewError::Exposed {
+            host: args.host.clone(),
+        }
+        .into());
+    }
     let described = observer.describe_all().await?;
     let context = Context::new();
-    let services = services(&observer, &described);
-    let service_count = services.len();
+    let mut offered = BTreeSet::new();
+    let services = if secured {
+        eprintln!(
+            "note: services are not offered to Foxglove: the view's login in a secured stack may not call them"
+        );
+        Vec::new()
+    } else {
+        services(&observer, &described, &mut offered)
+    };
     let server = WebSocketServer::new()
         .name(format!("peppy {}", observer.reach.namespace))
         .bind(args.host.clone(), args.port)
@@ -185,11 +212,22 @@ pub(crate) async fn run(args: ViewArgs) -> Result {
             source,
         })?;
     eprintln!(
-        "serving {} to Foxglove on ws://{}:{} ({service_count} services callable); in Foxglove: Open connection, Foxglove WebSocket, that address. Ctrl-C ends it",
+        "serving {} to Foxglove on ws://{}:{} ({} services callable); in Foxglove: Open connection, Foxglove WebSocket, that address. Ctrl-C ends it",
         observer.reach.what,
         args.host,
-        server.port()
+        server.port(),
+        offered.len()
     );
+    let server = Arc::new(server);
+    // Instances that start later (all of them, under `up --view`) have
+    // their services offered as they appear.
+    let discovery = (!secured).then(|| {
+        tokio::spawn(offer_new_services(
+            observer.clone(),
+            server.clone(),
+            offered,
+        ))
+    });
 
     let (tx, rx) = flume::bounded::<Sampled>(BACKLOG);
     let dropped = Arc::new(AtomicU64::new(0));
@@ -243,6 +281,14 @@ pub(crate) async fn run(args: ViewArgs) -> Result {
         let Some(Some(channel)) = served.get(&key) else {
             continue;
         };
+        let images = channel
+            .image
+            .as_ref()
+            .filter(|(_, images)| images.has_sinks());
+        // Nothing is decoded for a channel no viewer subscribed to.
+        if !channel.json.has_sinks() && images.is_none() {
+            continue;
+        }
         let Ok(value) = dynamic::decode(&channel.format, &sample.payload) else {
             continue;
         };
@@ -252,8 +298,7 @@ pub(crate) async fn run(args: ViewArgs) -> Result {
             dynamic::write_recording_json(&value, &mut json);
             channel.json.log_with_meta(&json, meta);
         }
-        if let Some((layout, images)) = &channel.image
-            && images.has_sinks()
+        if let Some((layout, images)) = images
             && let Some(image) = to_image(&value, layout)
         {
             images.log_with_meta(&image, meta);
@@ -264,8 +309,43 @@ pub(crate) async fn run(args: ViewArgs) -> Result {
     if lost > 0 {
         eprintln!("note: {lost} messages were not shown because the view fell behind the stack");
     }
-    server.stop().wait().await;
+    if let Some(discovery) = discovery {
+        discovery.abort();
+        let _ = discovery.await;
+    }
+    if let Ok(server) = Arc::try_unwrap(server) {
+        server.stop().wait().await;
+    }
     Ok(())
+}
+
+/// Whether `host` is this machine only.
+fn is_loopback(host: &str) -> bool {
+    host == "localhost"
+        || host
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback())
+}
+
+/// Offers the services of instances described after the view started,
+/// every few seconds, until the view ends.
+async fn offer_new_services(
+    observer: Arc<Observer>,
+    server: Arc<foxglove::WebSocketServerHandle>,
+    mut offered: BTreeSet<(String, String)>,
+) {
+    loop {
+        tokio::time::sleep(DISCOVERY_PERIOD).await;
+        let Ok(described) = observer.describe_all().await else {
+            continue;
+        };
+        let new = services(&observer, &described, &mut offered);
+        if !new.is_empty()
+            && let Err(e) = server.add_services(new)
+        {
+            eprintln!("note: services not offered to Foxglove: {e}");
+        }
+    }
 }
 
 /// The channels of one producer's topic in one format: JSON, and an image
@@ -318,11 +398,19 @@ fn open_channel(
     })
 }
 
-/// Every service the described instances serve, callable with JSON.
-fn services(observer: &Observer, described: &BTreeMap<String, InstanceInfo>) -> Vec<Service> {
+/// Every service the described instances serve that is not `offered`
+/// yet, callable with JSON; each is added to `offered`.
+fn services(
+    observer: &Observer,
+    described: &BTreeMap<String, InstanceInfo>,
+    offered: &mut BTreeSet<(String, String)>,
+) -> Vec<Service> {
     let mut out = Vec::new();
     for info in described.values() {
         for service in &info.services {
+            if !offered.insert((info.instance_id.clone(), service.name.clone())) {
+                continue;
+            }
             match callable(observer, &info.instance_id, service) {
                 Some(s) => out.push(s),
                 None => eprintln!(

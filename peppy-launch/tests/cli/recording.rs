@@ -126,7 +126,7 @@ assert not footer, "a killed recorder wrote no footer"
 fn foxglove_client(
     state: &Path,
     namespace: &str,
-    per_channel: u32,
+    wanted: (u32, u32),
     suffix: &str,
     calls: u32,
 ) -> Vec<serde_json::Value> {
@@ -151,7 +151,7 @@ fn foxglove_client(
     view.expect("the view serving", Duration::from_secs(60), |l| {
         l.starts_with("serving ")
     });
-    let seen = read_with_foxglove(&client, port, per_channel, suffix, calls);
+    let seen = read_with_foxglove(&client, port, wanted, suffix, calls);
     assert_eq!(view.stop(), 0, "the view stops cleanly on Ctrl-C");
     seen
 }
@@ -185,12 +185,13 @@ fn foxglove_client_dir(state: &Path) -> Option<std::path::PathBuf> {
 }
 
 /// Reads the view on `port` with the client in `client`: `per_channel`
-/// messages of every channel, and `calls` calls of services whose name ends
-/// with `suffix`. One JSON value per channel and call.
+/// messages of each of (at least) `channels` channels, and `calls` calls of
+/// services whose name ends with `suffix`. One JSON value per channel and
+/// call.
 fn read_with_foxglove(
     client: &Path,
     port: u16,
-    per_channel: u32,
+    (channels, per_channel): (u32, u32),
     suffix: &str,
     calls: u32,
 ) -> Vec<serde_json::Value> {
@@ -198,7 +199,13 @@ fn read_with_foxglove(
     let run = Command::new(node)
         .arg("client.js")
         .arg(format!("ws://127.0.0.1:{port}"))
-        .args([&per_channel.to_string(), suffix, &calls.to_string(), "60"])
+        .args([
+            &per_channel.to_string(),
+            suffix,
+            &calls.to_string(),
+            &channels.to_string(),
+            "60",
+        ])
         // The subprotocol the Foxglove SDK's server speaks (the protocol
         // of `foxglove.websocket.v1`, renamed).
         .arg("foxglove.sdk.v1")
@@ -303,8 +310,14 @@ fn a_recorded_stack_replays_into_its_consumer() {
     );
     // The same stack live in Foxglove's own client: every camera's topic
     // as JSON and as an image, every camera's service callable.
-    let seen = foxglove_client(st, "record-multi-camera", 3, "/video_stream_info", 3);
-    for camera in ["rs_left", "rs_right", "zed_overhead"] {
+    let seen = foxglove_client(st, "record-multi-camera", (6, 3), "/video_stream_info", 3);
+    // Without Node.js (outside CI only: debian_tool says so) nothing is seen.
+    let cameras = if seen.is_empty() {
+        Vec::new()
+    } else {
+        vec!["rs_left", "rs_right", "zed_overhead"]
+    };
+    for camera in cameras {
         let json = channel(&seen, &format!("/{camera}/video_stream"));
         assert_eq!(
             (json["encoding"].as_str(), json["schemaEncoding"].as_str()),
@@ -467,6 +480,12 @@ fn a_recorded_stack_replays_into_its_consumer() {
 /// A recording as `record` writes one: `rs_left`'s `video_stream` in
 /// `format`, one message per JSON text, a millisecond apart.
 fn write_recording(path: &Path, format: &str, messages: &[&str]) {
+    write_recording_in_chunks(path, format, messages, 1 << 20);
+}
+
+/// [`write_recording`], starting a new chunk once one holds `chunk_size`
+/// bytes.
+fn write_recording_in_chunks(path: &Path, format: &str, messages: &[&str], chunk_size: u64) {
     let fingerprint = peppy_schema::MessageFormat::from_canonical(format)
         .unwrap()
         .fingerprint();
@@ -477,6 +496,7 @@ fn write_recording(path: &Path, format: &str, messages: &[&str]) {
         .calculate_chunk_crcs(false)
         .calculate_data_section_crc(false)
         .calculate_summary_section_crc(false)
+        .chunk_size(Some(chunk_size))
         .create(std::io::BufWriter::new(
             std::fs::File::create(path).unwrap(),
         ))
@@ -613,6 +633,14 @@ fn replay_refuses_files_it_cannot_replay() {
     assert!(run.stderr.contains("cut.mcap"), "{}", run.stderr);
 }
 
+/// Where `needle` first is in `haystack`.
+fn find_bytes(haystack: &[u8], needle: &[u8]) -> usize {
+    haystack
+        .windows(needle.len())
+        .position(|w| w == needle)
+        .expect("the bytes are there")
+}
+
 fn replace_bytes(haystack: &[u8], from: &[u8], to: &[u8]) -> Vec<u8> {
     assert_eq!(from.len(), to.len());
     let mut out = haystack.to_vec();
@@ -640,7 +668,7 @@ fn the_arm_loop_in_foxglove() {
     let port = free_port().to_string();
     let mut stack = Launch::up_with(
         "examples/launchers/robot_arm_loop.json5",
-        &["--namespace", "view-arm-loop", "--view", &port],
+        &["--namespace", "view-arm-loop", &format!("--view={port}")],
         &[("PEPPY_STATE_DIR", st)],
     );
     stack.expect("the controller cycling", BUILD_AND_START, |l| {
@@ -649,7 +677,7 @@ fn the_arm_loop_in_foxglove() {
     stack.expect("the view serving", Duration::from_secs(60), |l| {
         l.starts_with("serving ") && l.contains(&format!("ws://127.0.0.1:{port}"))
     });
-    let seen = read_with_foxglove(&client, port.parse().unwrap(), 2, "-", 0);
+    let seen = read_with_foxglove(&client, port.parse().unwrap(), (2, 2), "-", 0);
     assert_eq!(stack.stop(), 0);
     let states = channel(&seen, "/arm/joint_states");
     let joints = &states["messages"][0];
@@ -764,6 +792,47 @@ fn replay_publishes_what_was_recorded() {
     }
     assert_eq!(seen, expected);
 
+    // A recording whose recorder was killed ends inside a chunk and has
+    // no summary: what precedes its last chunk is replayed, with a note.
+    let chunked = d.join("chunked.mcap");
+    write_recording_in_chunks(
+        &chunked,
+        "{width:u32}",
+        &widths.iter().map(String::as_str).collect::<Vec<_>>(),
+        1,
+    );
+    let whole = std::fs::read(&chunked).unwrap();
+    let killed = d.join("killed.mcap");
+    // The fourth message's chunk starts after the third's: cut inside it.
+    let fourth = find_bytes(&whole, br#"{"width":4}"#);
+    std::fs::write(&killed, &whole[..fourth]).unwrap();
+    let run = launch(
+        d,
+        &[
+            "replay",
+            killed.to_str().unwrap(),
+            "--connect",
+            &endpoint,
+            "--namespace",
+            ns,
+            "--wait",
+            "1",
+        ],
+    );
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    assert!(run.stderr.contains("ends early"), "{}", run.stderr);
+    std::thread::sleep(Duration::from_millis(300));
+    let replayed: Vec<Vec<u8>> = everything
+        .drain()
+        .map(|s| s.payload().to_bytes().into_owned())
+        .collect();
+    assert_eq!(
+        replayed,
+        [1u32, 2, 3].map(|w| w.to_le_bytes().to_vec()),
+        "{}",
+        run.stderr
+    );
+
     let seen = replay(&[
         "--as",
         "rs_left=cam_a",
@@ -840,15 +909,25 @@ fn a_format_change_mid_run_gets_a_new_channel() {
         }
         (session, answers)
     });
-    let recorder = crate::support::peppy_launch_command(&[])
-        .args(["record", "-o", file.to_str().unwrap(), "--duration", "6"])
-        .args(["--connect", &endpoint, "--namespace", ns, "--wait", "1"])
-        .current_dir(d)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut recorder = Launch::start(
+        &[],
+        &[
+            "record",
+            "-o",
+            file.to_str().unwrap(),
+            "--connect",
+            &endpoint,
+            "--namespace",
+            ns,
+            "--wait",
+            "1",
+        ],
+        &[],
+    );
+    // Subscribed once it says where it records.
+    recorder.expect("the recorder started", Duration::from_secs(60), |l| {
+        l.starts_with("recording ")
+    });
     let key = peppy_runtime::wire::keys::entry_key(
         ns,
         peppy_runtime::wire::keys::Channel::Topic,
@@ -861,8 +940,7 @@ fn a_format_change_mid_run_gets_a_new_channel() {
         "cam",
     );
     rt.block_on(async {
-        // The recorder joins, then the producer starts.
-        tokio::time::sleep(Duration::from_secs(2)).await;
+        // The producer starts after the recorder.
         let put = |payload: Vec<u8>, fp: Option<u64>| {
             let (session, key) = (session.clone(), key.clone());
             async move {
@@ -885,9 +963,13 @@ fn a_format_change_mid_run_gets_a_new_channel() {
         put(vec![1, 2, 3], Some(0x0bad)).await;
         put(vec![1, 2, 3], None).await;
     });
-    let out = wait_bounded(recorder, Duration::from_secs(60), "record");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
+    // The last samples reach the recorder before Ctrl-C ends it.
+    recorder.expect("the last message counted", Duration::from_secs(30), |l| {
+        l.contains("recording ") && l.contains(" 5 messages")
+    });
+    let (code, lines) = recorder.stop_seen();
+    let stderr = lines.join("\n");
+    assert_eq!(code, 0, "{stderr}");
     assert!(
         stderr.contains("recorded 5 messages on 2 channels"),
         "{stderr}"
