@@ -101,8 +101,23 @@ pub(crate) async fn run(args: RecordArgs) -> Result {
         Some(path) => Some((path.clone(), open_output(path, args.force)?)),
         None => None,
     };
-    let observer = Observer::open_as(&args.stack, Role::Recorder).await?;
-    let mut learner = Learner::new(observer.describe_all().await?);
+    let reached = async {
+        let observer = Observer::open_as(&args.stack, Role::Recorder).await?;
+        let described = observer.describe_all().await?;
+        Ok::<_, crate::error::LaunchError>((observer, described))
+    }
+    .await;
+    let (observer, described) = match reached {
+        Ok(reached) => reached,
+        Err(e) => {
+            // Nothing was recorded: the empty file just made goes too.
+            if let Some((path, _)) = file.take() {
+                let _ = std::fs::remove_file(path);
+            }
+            return Err(e);
+        }
+    };
+    let mut learner = Learner::new(described);
     let (path, file) = match file.take() {
         Some(opened) => opened,
         None => {

@@ -624,6 +624,24 @@ fn replay_refuses_files_it_cannot_replay() {
     refused(&good, &["--as", "rs_left"], "expected OLD=NEW");
     refused(&good, &["--rate", "0"], "--rate 0 is out of range");
 
+    // A recorder that cannot reach its stack leaves no empty file behind.
+    let nowhere = d.join("nowhere.mcap");
+    let run = launch(
+        d,
+        &[
+            "record",
+            "-o",
+            nowhere.to_str().unwrap(),
+            "--connect",
+            "tcp/127.0.0.1:9",
+            "--wait",
+            "1",
+        ],
+    );
+    assert_ne!(run.code, 0, "{}", run.stderr);
+    assert!(run.stderr.contains("cannot reach"), "{}", run.stderr);
+    assert!(!nowhere.exists());
+
     // Cut inside its first chunk: the magic is there, no message is.
     let cut = d.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() / 3]).unwrap();
@@ -940,17 +958,26 @@ fn a_format_change_mid_run_gets_a_new_channel() {
         "cam",
     );
     rt.block_on(async {
-        // The producer starts after the recorder.
-        let put = |payload: Vec<u8>, fp: Option<u64>| {
-            let (session, key) = (session.clone(), key.clone());
-            async move {
-                let mut put = session.put(&key, payload);
-                if let Some(fp) = fp {
-                    put = put.attachment(peppy_runtime::wire::attachment::topic(fp));
-                }
-                put.await.unwrap();
-                tokio::time::sleep(Duration::from_millis(50)).await;
+        // The producer starts after the recorder, once the recorder's
+        // subscription has reached it (as a node's first message would
+        // wait for its route).
+        let publisher = session.declare_publisher(key.clone()).await.unwrap();
+        let deadline = tokio::time::Instant::now() + Duration::from_secs(30);
+        while !publisher.matching_status().await.unwrap().matching() {
+            assert!(
+                tokio::time::Instant::now() < deadline,
+                "the recorder never subscribed"
+            );
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        let publisher = &publisher;
+        let put = |payload: Vec<u8>, fp: Option<u64>| async move {
+            let mut put = publisher.put(payload);
+            if let Some(fp) = fp {
+                put = put.attachment(peppy_runtime::wire::attachment::topic(fp));
             }
+            put.await.unwrap();
+            tokio::time::sleep(Duration::from_millis(50)).await;
         };
         for w in 1..=3u32 {
             put(w.to_le_bytes().to_vec(), Some(fingerprints[0])).await;
