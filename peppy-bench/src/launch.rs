@@ -229,15 +229,15 @@ pub(crate) fn build_examples(build: Build) -> Res<PathBuf> {
         .join("peppy-launch"))
 }
 
-/// One launch of `n` cameras: ms to the first message, to one from each,
-/// and the median camera's resident memory (MiB) once all are heard.
-fn launch_once(launcher: &Path, build: Build, n: usize) -> Res<(f64, Option<f64>, Option<f64>)> {
-    let dir = tempfile::tempdir()?;
+/// A launcher of `n` `realsense_d405` instances (`cam_0`, ...), each given
+/// `arguments` (a JSON5 object's fields; empty for the defaults), written
+/// in `dir`.
+pub(crate) fn cameras_launcher(dir: &Path, n: usize, arguments: &str) -> Res<PathBuf> {
     let node = workspace().join("examples/nodes/realsense_d405");
     let instances: Vec<String> = (0..n)
-        .map(|i| format!("{{ instance_id: \"cam_{i}\" }}"))
+        .map(|i| format!("{{ instance_id: \"cam_{i}\", arguments: {{ {arguments} }} }}"))
         .collect();
-    let file = dir.path().join("cameras.json5");
+    let file = dir.join("cameras.json5");
     std::fs::write(
         &file,
         format!(
@@ -246,6 +246,14 @@ fn launch_once(launcher: &Path, build: Build, n: usize) -> Res<(f64, Option<f64>
             instances.join(", ")
         ),
     )?;
+    Ok(file)
+}
+
+/// One launch of `n` cameras: ms to the first message, to one from each,
+/// and the median camera's resident memory (MiB) once all are heard.
+fn launch_once(launcher: &Path, build: Build, n: usize) -> Res<(f64, Option<f64>, Option<f64>)> {
+    let dir = tempfile::tempdir()?;
+    let file = cameras_launcher(dir.path(), n, "")?;
     let (router, watch_port) = (free_port()?, free_port()?);
     let ns = format!("launch-{n}-{router}");
     let watch_at = format!("tcp/127.0.0.1:{watch_port}");

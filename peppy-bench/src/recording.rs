@@ -11,30 +11,19 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use crate::launch::{Build, build_examples};
+use crate::launch::{Build, build_examples, cameras_launcher};
 use crate::procs::{Proc, free_port};
 use crate::roles::Res;
 use crate::stats::{Figure, Row};
-use crate::workspace;
 
 const GROUP: &str = "record: 3 cameras, 1 MiB frames at 30 Hz (optimised nodes)";
 const CAMERAS: usize = 3;
 const SIDE: u32 = 1024;
 const HZ: u32 = 30;
 
-/// CPU seconds (user + system) `pid` has used, from `/proc/<pid>/stat`.
+/// CPU seconds (user + system) `pid` has used.
 fn cpu_seconds(pid: u32) -> f64 {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-    let after = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
-    let fields: Vec<&str> = after.split_whitespace().collect();
-    let ticks = |i: usize| {
-        fields
-            .get(i)
-            .and_then(|f| f.parse::<f64>().ok())
-            .unwrap_or(0.0)
-    };
-    // utime and stime, in USER_HZ ticks (100 a second on Linux).
-    (ticks(11) + ticks(12)) / 100.0
+    crate::roles::cpu_ms_of(&pid.to_string()) / 1e3
 }
 
 /// CPU of `pids` over `window`, as % of one core.
@@ -56,22 +45,10 @@ pub(crate) fn record(quick: bool) -> Res<Vec<Row>> {
     let window = Duration::from_secs(if quick { 4 } else { 10 });
     let launcher = build_examples(Build::Optimised)?;
     let dir = tempfile::tempdir()?;
-    let node = workspace().join("examples/nodes/realsense_d405");
-    let instances: Vec<String> = (0..CAMERAS)
-        .map(|i| {
-            format!(
-                "{{ instance_id: \"cam_{i}\", arguments: {{ width: {SIDE}, height: {SIDE}, frames_per_second: {HZ} }} }}"
-            )
-        })
-        .collect();
-    let file = dir.path().join("cameras.json5");
-    std::fs::write(
-        &file,
-        format!(
-            "{{ peppy_schema: \"launcher_v1\", deployments: [{{ source: {{ local: {:?} }}, instances: [{}] }}] }}",
-            node.display().to_string(),
-            instances.join(", ")
-        ),
+    let file = cameras_launcher(
+        dir.path(),
+        CAMERAS,
+        &format!("width: {SIDE}, height: {SIDE}, frames_per_second: {HZ}"),
     )?;
     let state = dir.path().join("state");
     let router = free_port()?;

@@ -120,9 +120,15 @@ pub(crate) fn now_ns() -> u64 {
 
 /// CPU time this process has used (user + system), in milliseconds.
 pub(crate) fn cpu_ms() -> f64 {
-    // Fields 14 and 15 of /proc/self/stat, after the parenthesised name,
+    cpu_ms_of("self")
+}
+
+/// CPU time process `pid` (a number, or `self`) has used (user + system),
+/// in milliseconds; 0 for one that is gone.
+pub(crate) fn cpu_ms_of(pid: &str) -> f64 {
+    // Fields 14 and 15 of /proc/<pid>/stat, after the parenthesised name,
     // in clock ticks of USER_HZ (100 on Linux).
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
     let after = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
     let fields: Vec<&str> = after.split_whitespace().collect();
     let ticks = |i: usize| {

@@ -72,6 +72,14 @@ impl ChannelMeta {
         format!("/{}/{}", self.instance, self.topic)
     }
 
+    /// The channel's JSON Schema for `format`: its title (`owner:tag/topic`)
+    /// and its text.
+    pub(crate) fn schema(&self, format: &MessageFormat) -> (String, String) {
+        let title = format!("{}:{}/{}", self.owner.name, self.owner.tag, self.topic);
+        let text = schema::json_schema(format, &title, self.fingerprint).to_string();
+        (title, text)
+    }
+
     /// `kind/name:tag` of the owner.
     fn owner_text(&self) -> String {
         format!(
@@ -216,6 +224,24 @@ impl Sampled {
             }),
         }
     }
+}
+
+/// Subscribes to every topic of the observer's stack; `on_sample` runs in
+/// Zenoh's callback, so it must not block.
+pub(crate) async fn subscribe_topics(
+    observer: &Observer,
+    on_sample: impl Fn(zenoh::sample::Sample) + Send + Sync + 'static,
+) -> Result<zenoh::pubsub::Subscriber<()>, crate::error::SetupError> {
+    let selector = peppy_runtime::wire::keys::space_selector(
+        &observer.reach.namespace,
+        peppy_runtime::wire::keys::Space::Topic,
+    );
+    observer
+        .session
+        .declare_subscriber(selector.clone())
+        .callback(on_sample)
+        .await
+        .map_err(|source| crate::error::SetupError::Subscribe { selector, source })
 }
 
 /// What the stack's instances said of themselves, and a new channel's

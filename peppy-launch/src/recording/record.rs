@@ -22,15 +22,15 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-use peppy_runtime::wire::keys::{Space, space_selector, split_entry_key};
+use peppy_runtime::wire::keys::split_entry_key;
 use peppy_schema::MessageFormat;
 
 use super::{
     ChannelMeta, Learner, MESSAGE_ENCODING, PROFILE, Patterns, RecordingError, SCHEMA_ENCODING,
-    STACK_METADATA, Sampled,
+    STACK_METADATA, Sampled, subscribe_topics,
 };
 use crate::cli::RecordArgs;
-use crate::error::{Result, SetupError};
+use crate::error::Result;
 use crate::inspect::{Observer, Role, dynamic, interrupted};
 
 /// Bytes of samples waiting for the writer beyond which new ones are
@@ -139,24 +139,19 @@ pub(crate) async fn run(args: RecordArgs) -> Result {
 
     let (tx, rx) = flume::unbounded::<Sampled>();
     let overflowed = Arc::new(AtomicU64::new(0));
-    let selector = space_selector(&observer.reach.namespace, Space::Topic);
     let subscriber = {
         let (progress, overflowed) = (progress.clone(), overflowed.clone());
-        observer
-            .session
-            .declare_subscriber(selector.clone())
-            .callback(move |sample| {
-                let size = sample.payload().len() as u64;
-                let backlog = &progress.backlog;
-                if backlog.fetch_add(size, Ordering::Relaxed) + size > MAX_BACKLOG {
-                    backlog.fetch_sub(size, Ordering::Relaxed);
-                    overflowed.fetch_add(1, Ordering::Relaxed);
-                    return;
-                }
-                let _ = tx.send(Sampled::of(&sample));
-            })
-            .await
-            .map_err(|source| SetupError::Subscribe { selector, source })?
+        subscribe_topics(&observer, move |sample| {
+            let size = sample.payload().len() as u64;
+            let backlog = &progress.backlog;
+            if backlog.fetch_add(size, Ordering::Relaxed) + size > MAX_BACKLOG {
+                backlog.fetch_sub(size, Ordering::Relaxed);
+                overflowed.fetch_add(1, Ordering::Relaxed);
+                return;
+            }
+            let _ = tx.send(Sampled::of(&sample));
+        })
+        .await?
     };
 
     eprintln!(
@@ -403,10 +398,9 @@ fn write_all(
         };
         match op {
             Op::Channel { id, meta, format } => {
-                let title = format!("{}:{}/{}", meta.owner.name, meta.owner.tag, meta.topic);
-                let schema = super::schema::json_schema(&format, &title, meta.fingerprint);
+                let (title, schema) = meta.schema(&format);
                 let schema_id = out
-                    .add_schema(&title, SCHEMA_ENCODING, schema.to_string().as_bytes())
+                    .add_schema(&title, SCHEMA_ENCODING, schema.as_bytes())
                     .map_err(failed)?;
                 out.add_channel_with_id(
                     id,

@@ -366,7 +366,6 @@ pub(crate) async fn run(args: ReplayArgs) -> Result {
                 .map_err(|e| SetupError::Publisher(e.into()))?;
             tokens.push(token);
         }
-        let m = &c.meta;
         let key = entry_key(
             &namespace,
             KeyChannel::Topic,

@@ -20,12 +20,13 @@ use foxglove::websocket::service::{Service, ServiceSchema};
 use foxglove::{ChannelBuilder, Context, RawChannel, Schema, WebSocketServer};
 use peppy_runtime::describe::{InstanceInfo, ServedService};
 use peppy_runtime::tool::ToolCaller;
-use peppy_runtime::wire::keys::{Space, space_selector};
 use peppy_schema::{FieldType, MessageFormat, Primitive};
 
-use super::{ChannelMeta, Learner, MESSAGE_ENCODING, Patterns, SCHEMA_ENCODING, Sampled};
+use super::{
+    ChannelMeta, Learner, MESSAGE_ENCODING, Patterns, SCHEMA_ENCODING, Sampled, subscribe_topics,
+};
 use crate::cli::ViewArgs;
-use crate::error::{Result, SetupError};
+use crate::error::Result;
 use crate::inspect::dynamic::{self, Dyn, JsonForm};
 use crate::inspect::{Observer, Role, interrupted};
 
@@ -231,19 +232,14 @@ pub(crate) async fn run(args: ViewArgs) -> Result {
 
     let (tx, rx) = flume::bounded::<Sampled>(BACKLOG);
     let dropped = Arc::new(AtomicU64::new(0));
-    let selector = space_selector(&observer.reach.namespace, Space::Topic);
     let subscriber = {
         let dropped = dropped.clone();
-        observer
-            .session
-            .declare_subscriber(selector.clone())
-            .callback(move |sample| {
-                if tx.try_send(Sampled::of(&sample)).is_err() {
-                    dropped.fetch_add(1, Ordering::Relaxed);
-                }
-            })
-            .await
-            .map_err(|source| SetupError::Subscribe { selector, source })?
+        subscribe_topics(&observer, move |sample| {
+            if tx.try_send(Sampled::of(&sample)).is_err() {
+                dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        })
+        .await?
     };
     let mut learner = Learner::new(described);
     let mut served: HashMap<(String, u64), Option<Served>> = HashMap::new();
@@ -365,16 +361,11 @@ fn open_channel(
         _ => {}
     }
     topics.insert(topic.clone(), meta.fingerprint);
-    let title = format!("{}:{}/{}", meta.owner.name, meta.owner.tag, meta.topic);
-    let schema = super::schema::json_schema(&format, &title, meta.fingerprint);
+    let (title, schema) = meta.schema(&format);
     let json = ChannelBuilder::new(topic.clone())
         .context(context)
         .message_encoding(MESSAGE_ENCODING)
-        .schema(Schema::new(
-            title,
-            SCHEMA_ENCODING,
-            schema.to_string().into_bytes(),
-        ))
+        .schema(Schema::new(title, SCHEMA_ENCODING, schema.into_bytes()))
         .metadata(meta.to_map())
         .build_raw();
     let json = match json {

@@ -54,24 +54,19 @@ fn uv() -> std::path::PathBuf {
     peppy_launch::uv().expect("uv")
 }
 
-/// Runs [`CHECK_PY`] on `file`: one JSON value per line.
-fn check_with_mcap_package(file: &Path) -> Vec<serde_json::Value> {
-    let script = file.with_extension("py");
-    std::fs::write(&script, CHECK_PY).unwrap();
-    let child = Command::new(uv())
-        .args(["run", "--quiet", "--no-project", "--with", "mcap==1.6.0"])
-        .args(["--with", "jsonschema==4.26.0", "python"])
-        .arg(&script)
-        .arg(file)
+/// Runs `command` (bounded by `bound`), which must succeed, and reads its
+/// stdout as one JSON value per line.
+fn json_lines_of(mut command: Command, bound: Duration, what: &str) -> Vec<serde_json::Value> {
+    let child = command
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .unwrap();
-    let out = wait_bounded(child, Duration::from_secs(300), "the mcap package's check");
+        .unwrap_or_else(|e| panic!("{what}: {e}"));
+    let out = wait_bounded(child, bound, what);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
-        "{stdout}\n{}",
+        "{what}: {stdout}\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
     stdout
@@ -80,12 +75,46 @@ fn check_with_mcap_package(file: &Path) -> Vec<serde_json::Value> {
         .collect()
 }
 
+/// A bare Zenoh peer listening on `endpoint`: a stand-in for a stack that
+/// replay publishes into or a recorder reads, on a runtime of its own.
+fn bare_stack(endpoint: &str) -> (tokio::runtime::Runtime, zenoh::Session) {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let session = rt.block_on(async {
+        let mut config = zenoh::Config::default();
+        config
+            .insert_json5("listen/endpoints", &format!(r#"["{endpoint}"]"#))
+            .unwrap();
+        config
+            .insert_json5("scouting/multicast/enabled", "false")
+            .unwrap();
+        zenoh::open(config).await.unwrap()
+    });
+    (rt, session)
+}
+
+/// Runs [`CHECK_PY`] on `file`: one JSON value per line.
+fn check_with_mcap_package(file: &Path) -> Vec<serde_json::Value> {
+    let script = file.with_extension("py");
+    std::fs::write(&script, CHECK_PY).unwrap();
+    let mut check = Command::new(uv());
+    check
+        .args(["run", "--quiet", "--no-project", "--with", "mcap==1.6.0"])
+        .args(["--with", "jsonschema==4.26.0", "python"])
+        .arg(&script)
+        .arg(file);
+    json_lines_of(check, Duration::from_secs(300), "the mcap package's check")
+}
+
 /// The channel of every message a recording without a summary holds up to
 /// its last whole record, read as the `mcap` package's stream reader reads
 /// a file being recovered.
 fn read_killed_recording(file: &Path) -> Vec<String> {
     let script = r#"
-import sys
+import json, sys
 from mcap.stream_reader import StreamReader
 from mcap.records import Channel, Message, Footer
 channels, footer = {}, False
@@ -94,30 +123,20 @@ try:
         if isinstance(record, Channel):
             channels[record.id] = record.topic
         elif isinstance(record, Message):
-            print(channels[record.channel_id])
+            print(json.dumps(channels[record.channel_id]))
         elif isinstance(record, Footer):
             footer = True
 except Exception as e:
     print(f"stopped: {type(e).__name__}", file=sys.stderr)
 assert not footer, "a killed recorder wrote no footer"
 "#;
-    let child = Command::new(uv())
-        .args(["run", "--quiet", "--no-project", "--with", "mcap==1.6.0"])
+    let mut read = Command::new(uv());
+    read.args(["run", "--quiet", "--no-project", "--with", "mcap==1.6.0"])
         .args(["python", "-c", script])
-        .arg(file)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let out = wait_bounded(child, Duration::from_secs(300), "the mcap stream reader");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(str::to_string)
+        .arg(file);
+    json_lines_of(read, Duration::from_secs(300), "the mcap stream reader")
+        .into_iter()
+        .map(|topic| topic.as_str().unwrap_or_default().to_string())
         .collect()
 }
 
@@ -196,7 +215,8 @@ fn read_with_foxglove(
     calls: u32,
 ) -> Vec<serde_json::Value> {
     let node = crate::support::debian_tool("node", "nodejs").unwrap();
-    let run = Command::new(node)
+    let mut client_run = Command::new(node);
+    client_run
         .arg("client.js")
         .arg(format!("ws://127.0.0.1:{port}"))
         .args([
@@ -209,22 +229,8 @@ fn read_with_foxglove(
         // The subprotocol the Foxglove SDK's server speaks (the protocol
         // of `foxglove.websocket.v1`, renamed).
         .arg("foxglove.sdk.v1")
-        .current_dir(client)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let out = wait_bounded(run, Duration::from_secs(120), "the Foxglove client");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    stdout
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
-        .collect()
+        .current_dir(client);
+    json_lines_of(client_run, Duration::from_secs(120), "the Foxglove client")
 }
 
 /// The client's report of channel `topic`, with at least one message.
@@ -742,25 +748,12 @@ fn replay_publishes_what_was_recorded() {
     let port = free_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let ns = "replay-wire";
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    let (session, everything) = rt.block_on(async {
-        let mut config = zenoh::Config::default();
-        config
-            .insert_json5("listen/endpoints", &format!(r#"["{endpoint}"]"#))
-            .unwrap();
-        config
-            .insert_json5("scouting/multicast/enabled", "false")
-            .unwrap();
-        let session = zenoh::open(config).await.unwrap();
-        let everything = session
+    let (rt, session) = bare_stack(&endpoint);
+    let everything = rt.block_on(async {
+        session
             .declare_subscriber(format!("peppy/{ns}/**"))
             .await
-            .unwrap();
-        (session, everything)
+            .unwrap()
     });
     let replay = |extra: &[&str]| {
         let mut args = vec![
@@ -895,20 +888,8 @@ fn a_format_change_mid_run_gets_a_new_channel() {
                 .fingerprint()
         })
         .collect();
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    let (session, _answers) = rt.block_on(async {
-        let mut config = zenoh::Config::default();
-        config
-            .insert_json5("listen/endpoints", &format!(r#"["{endpoint}"]"#))
-            .unwrap();
-        config
-            .insert_json5("scouting/multicast/enabled", "false")
-            .unwrap();
-        let session = zenoh::open(config).await.unwrap();
+    let (rt, session) = bare_stack(&endpoint);
+    let _answers = rt.block_on(async {
         let mut answers = Vec::new();
         for (format, fp) in formats.iter().zip(&fingerprints) {
             let text = format.to_string();
@@ -925,7 +906,7 @@ fn a_format_change_mid_run_gets_a_new_channel() {
                     .unwrap(),
             );
         }
-        (session, answers)
+        answers
     });
     let mut recorder = Launch::start(
         &[],
