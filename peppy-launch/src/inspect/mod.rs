@@ -7,7 +7,7 @@
 //! without generated code.
 
 pub(crate) mod calls;
-pub(crate) mod dynamic;
+pub(crate) use peppy_wire::dynamic;
 pub(crate) mod live_graph;
 pub(crate) mod nodes;
 pub(crate) mod pairs;

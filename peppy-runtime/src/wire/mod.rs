@@ -1,7 +1,7 @@
-//! The wire format: key expressions, attachments and the payload codec.
-//! docs/WIRE.md describes it for implementers in other languages.
+//! The wire format: key expressions, attachments and the payload codec
+//! (the `peppy-wire` crate), and the `codec!` macro generated message
+//! structs implement the codec by. docs/WIRE.md describes it for
+//! implementers in other languages.
 
-pub mod attachment;
-pub mod codec;
-pub mod keys;
+pub use peppy_wire::{attachment, codec, keys};
 pub mod struct_codec;

@@ -367,7 +367,7 @@ pub fn liveliness_key(ns: &str, core: &str, instance: &str, node: &str, tag: &st
 }
 
 /// `peppy/<ns>/describe/<core>/<instance>`: where an instance answers its
-/// [`InstanceInfo`](crate::describe::InstanceInfo).
+/// `InstanceInfo` (`peppy_runtime::describe`).
 pub fn describe_key(ns: &str, core: &str, instance: &str) -> String {
     key(ns, Space::Describe, &[core, instance])
 }

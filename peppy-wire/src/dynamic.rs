@@ -11,7 +11,7 @@ use std::fmt::{self, Write as _};
 use std::sync::Arc;
 use std::time::SystemTime;
 
-use peppy_runtime::wire::codec::{Decode, DecodeError, Decoder, Encode, Writer};
+use crate::codec::{Decode, DecodeError, Decoder, Encode, Writer};
 use peppy_schema::json::{Node, Number, Value as J5};
 use peppy_schema::{
     Code, Diagnostic, Diagnostics, Field, FieldType, MessageFormat, Primitive, SourceFile, Span,
@@ -21,7 +21,7 @@ use serde_json::Value;
 
 /// A decoded message value.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) enum Dyn {
+pub enum Dyn {
     /// `bool`
     Bool(bool),
     /// `i8` to `i64`
@@ -55,7 +55,7 @@ pub(crate) enum Dyn {
 /// Decodes a payload as docs/WIRE.md section 5 lays it out; trailing
 /// bytes are an error. Never panics, and no length allocates more than the
 /// payload could hold.
-pub(crate) fn decode(format: &MessageFormat, payload: &[u8]) -> Result<Dyn, DecodeError> {
+pub fn decode(format: &MessageFormat, payload: &[u8]) -> Result<Dyn, DecodeError> {
     let mut d = Decoder::new(payload);
     let value = decode_fields(&mut d, &format.fields)?;
     d.finish()?;
@@ -201,7 +201,7 @@ fn min_size(ty: &FieldType) -> usize {
 /// What kind of mistake a [`FieldError`] is; it picks the diagnostic code
 /// and what to underline.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum FieldErrorKind {
+pub enum FieldErrorKind {
     /// A field the format does not have (the key is underlined).
     UnknownField,
     /// A required field is not given (its object is underlined).
@@ -214,14 +214,14 @@ pub(crate) enum FieldErrorKind {
 
 /// Why a value does not fit a message format.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) struct FieldError {
+pub struct FieldError {
     /// Where, e.g. `header.stamp` or `points[2].x`; empty for the message
     /// itself.
-    pub(crate) path: String,
+    pub path: String,
     /// What is wrong there.
-    pub(crate) message: String,
+    pub message: String,
     /// The kind of mistake.
-    pub(crate) kind: FieldErrorKind,
+    pub kind: FieldErrorKind,
     /// `path` as steps, to find the value in the text the user wrote (a
     /// key may itself hold `.` or `[`).
     steps: Vec<Step>,
@@ -344,14 +344,14 @@ fn type_name(ty: &FieldType) -> String {
 /// `[u8]` take an array of 0 to 255 or a string (its UTF-8 bytes), and
 /// `time` takes `{secs, nanos}`, seconds since the epoch or `"now"`. A
 /// message with no fields takes `{}` or `null`.
-pub(crate) fn encode(format: &MessageFormat, value: &Value) -> Result<Vec<u8>, FieldError> {
+pub fn encode(format: &MessageFormat, value: &Value) -> Result<Vec<u8>, FieldError> {
     encode_as(format, value, JsonForm::Cli)
 }
 
 /// Which JSON a message is written in: what a user types (and `topic echo
 /// --format json` prints), or what a recording holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum JsonForm {
+pub enum JsonForm {
     /// `bytes` and `[u8]` as arrays of 0 to 255 or a string's UTF-8 bytes;
     /// `time` as `{secs, nanos}`, seconds since the epoch or `"now"`.
     Cli,
@@ -362,7 +362,7 @@ pub(crate) enum JsonForm {
 }
 
 /// [`encode`] of a value written in `form`.
-pub(crate) fn encode_as(
+pub fn encode_as(
     format: &MessageFormat,
     value: &Value,
     form: JsonForm,
@@ -697,14 +697,14 @@ fn field(name: &str, p: Primitive, optional: bool) -> Field {
 /// A JSON5 value the user wrote, kept with its text so that a
 /// [`FieldError`] can be shown under the field it is about.
 #[derive(Debug)]
-pub(crate) struct Written {
+pub struct Written {
     file: Arc<SourceFile>,
     root: Node,
 }
 
 /// Parses the JSON5 text a user gave for a message. `origin` names the
 /// text in diagnostics (e.g. `request`, `goal`).
-pub(crate) fn parse_json5(origin: &str, text: &str) -> Result<Written, Diagnostics> {
+pub fn parse_json5(origin: &str, text: &str) -> Result<Written, Diagnostics> {
     let file = SourceFile::new(origin, text);
     let (root, diags) = peppy_schema::json::parse(&file)?;
     // Duplicate keys are reported without failing the parse.
@@ -718,7 +718,7 @@ impl Written {
     /// The value as JSON. Unlike `Node::to_json`, `NaN` and `±Infinity`
     /// become the strings that [`encode`] reads as those floats, rather than
     /// `null`.
-    pub(crate) fn value(&self) -> Value {
+    pub fn value(&self) -> Value {
         fn convert(node: &Node) -> Value {
             match &node.value {
                 J5::Number(Number::Float(f)) if !f.is_finite() => float_word(*f).into(),
@@ -738,7 +738,7 @@ impl Written {
     /// The text to underline for an error: the value at its path, the key
     /// of an unknown field, or the nearest enclosing value that exists
     /// (the object a missing field belongs in).
-    pub(crate) fn span_of(&self, error: &FieldError) -> Span {
+    pub fn span_of(&self, error: &FieldError) -> Span {
         let mut node = &self.root;
         for (i, step) in error.steps.iter().enumerate() {
             let last = i + 1 == error.steps.len();
@@ -764,7 +764,7 @@ impl Written {
     }
 
     /// A located diagnostic for an error in this text.
-    pub(crate) fn diagnostic(&self, error: &FieldError) -> Diagnostic {
+    pub fn diagnostic(&self, error: &FieldError) -> Diagnostic {
         let code = match error.kind {
             FieldErrorKind::UnknownField => Code::UnknownKey,
             FieldErrorKind::MissingField => Code::MissingKey,
@@ -781,7 +781,7 @@ impl Written {
 /// `format`. Errors are located in the text (print them with
 /// `report::print_human`): a syntax error, or the field that does not fit
 /// underlined.
-pub(crate) fn encode_text(
+pub fn encode_text(
     format: &MessageFormat,
     origin: &str,
     text: &str,
@@ -809,7 +809,7 @@ const JSON_BYTES: usize = 16;
 /// A value for people: YAML-like, two-space indent, one `field: value` per
 /// line, absent optionals as `~`, byte arrays summarised, times in RFC 3339
 /// UTC.
-pub(crate) fn to_text(value: &Dyn) -> String {
+pub fn to_text(value: &Dyn) -> String {
     let mut out = String::new();
     match value {
         Dyn::Object(fields) if !fields.is_empty() => write_fields(&mut out, fields, 0),
@@ -970,7 +970,7 @@ fn bytes_summary(b: &[u8]) -> String {
 }
 
 /// RFC 3339 in UTC with nanoseconds, e.g. `2026-12-01T23:00:00.000000123Z`.
-pub(crate) fn rfc3339(secs: i64, nanos: u32) -> String {
+pub fn rfc3339(secs: i64, nanos: u32) -> String {
     let (y, m, d) = civil_from_days(secs.div_euclid(86_400));
     let s = secs.rem_euclid(86_400);
     format!(
@@ -1000,7 +1000,7 @@ fn civil_from_days(days: i64) -> (i64, i64, i64) {
 /// bytes are `{"len", "head"}` (the first 16 in hex), times are
 /// `{"secs", "nanos"}`, absent optionals `null`, and non-finite floats the
 /// strings `"NaN"`, `"Infinity"`, `"-Infinity"`.
-pub(crate) fn to_json(value: &Dyn) -> Value {
+pub fn to_json(value: &Dyn) -> Value {
     match value {
         Dyn::Bool(b) => Value::Bool(*b),
         Dyn::Int(i) => (*i).into(),
@@ -1033,7 +1033,7 @@ pub(crate) fn to_json(value: &Dyn) -> Value {
 /// [`to_json`], but `bytes` and `[u8]` whole, in base64, times as
 /// `{sec, nsec}` (which Foxglove reads as times), and absent optional
 /// fields left out (the schema does not require them).
-pub(crate) fn to_recording_json(value: &Dyn) -> Value {
+pub fn to_recording_json(value: &Dyn) -> Value {
     use base64::Engine as _;
     match value {
         Dyn::Bytes(b) => Value::String(base64::engine::general_purpose::STANDARD.encode(b)),
@@ -1054,7 +1054,7 @@ pub(crate) fn to_recording_json(value: &Dyn) -> Value {
 /// frame's base64 goes into the buffer without a string of its own, and no
 /// JSON value is built (what a recorder does ninety times a second with a
 /// megabyte each time).
-pub(crate) fn write_recording_json(value: &Dyn, out: &mut Vec<u8>) {
+pub fn write_recording_json(value: &Dyn, out: &mut Vec<u8>) {
     use base64::Engine as _;
     use std::io::Write as _;
     match value {
