@@ -82,23 +82,36 @@ impl SourceFile {
         let fail = |message: String| {
             Box::new(Diagnostic::error(Code::CannotRead, message).with_file_path(path))
         };
-        let meta = std::fs::metadata(path)
-            .map_err(|e| fail(format!("cannot read `{}`: {e}", path.display())))?;
-        if meta.len() > MAX_DOCUMENT_BYTES as u64 {
-            return Err(Box::new(
+        use std::io::Read as _;
+        let too_large = |size: String| {
+            Box::new(
                 Diagnostic::error(
                     Code::DocumentTooLarge,
                     format!(
-                        "document is {} bytes; peppy documents may be at most {} bytes",
-                        meta.len(),
-                        MAX_DOCUMENT_BYTES
+                        "document is {size} bytes; peppy documents may be at most {MAX_DOCUMENT_BYTES} bytes"
                     ),
                 )
                 .with_file_path(path),
-            ));
-        }
-        let bytes = std::fs::read(path)
+            )
+        };
+        let file = std::fs::File::open(path)
             .map_err(|e| fail(format!("cannot read `{}`: {e}", path.display())))?;
+        let meta = file
+            .metadata()
+            .map_err(|e| fail(format!("cannot read `{}`: {e}", path.display())))?;
+        if meta.len() > MAX_DOCUMENT_BYTES as u64 {
+            return Err(too_large(meta.len().to_string()));
+        }
+        // The size a file's metadata gives is not a bound: a device such as
+        // /dev/zero, a pipe or a file still being written says less than it
+        // holds. Reading stops one byte past the limit.
+        let mut bytes = Vec::new();
+        file.take(MAX_DOCUMENT_BYTES as u64 + 1)
+            .read_to_end(&mut bytes)
+            .map_err(|e| fail(format!("cannot read `{}`: {e}", path.display())))?;
+        if bytes.len() > MAX_DOCUMENT_BYTES {
+            return Err(too_large("more than that".into()));
+        }
         let sha = sha256_hex(&bytes);
         let text = String::from_utf8(bytes).map_err(|e| {
             Box::new(

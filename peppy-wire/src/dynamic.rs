@@ -568,7 +568,10 @@ fn float(p: Primitive, v: &Value) -> Result<f64, FieldError> {
         },
         _ => return Err(FieldError::wrong_type(&format!("`{}`", p.name()), v)),
     };
-    if p == Primitive::F32 && x.is_finite() && x.abs() > f64::from(f32::MAX) {
+    // Out of range is what rounds to no finite `f32`: the shortest text of
+    // `f32::MAX` (3.4028235e38) reads as an `f64` just above it, and must
+    // still encode as the value it was written from.
+    if p == Primitive::F32 && x.is_finite() && !(x as f32).is_finite() {
         return Err(FieldError::invalid(format!(
             "{x} is out of range for `f32`"
         )));
@@ -1567,6 +1570,23 @@ mod tests {
         let g = format("{x:f64}");
         let bytes = encode_text(&g, "request", "{ x: -Infinity }").unwrap();
         assert_eq!(bytes, f64::NEG_INFINITY.to_le_bytes());
+    }
+
+    /// Found by the `payload` fuzz target (fuzz/regressions/payload): the
+    /// extreme finite `f32`s, written as their shortest text, read back as
+    /// themselves; only what rounds past them is out of range.
+    #[test]
+    fn the_extreme_f32s_read_back_from_their_shortest_text() {
+        let f = format("{a:f32,b:f32}");
+        let mut bytes = f32::MAX.to_le_bytes().to_vec();
+        bytes.extend(f32::MIN.to_le_bytes());
+        let value = decode(&f, &bytes).unwrap();
+        for json in [to_json(&value), to_recording_json(&value)] {
+            assert_eq!(json, json!({"a": 3.4028235e38, "b": -3.4028235e38}));
+            assert_eq!(encode_as(&f, &json, JsonForm::Recording).unwrap(), bytes);
+        }
+        let err = encode_err("{a:f32,b:f32}", json!({"a": 3.5e38, "b": 0}));
+        assert_eq!(err.kind, FieldErrorKind::InvalidValue, "{err:?}");
     }
 
     #[test]
