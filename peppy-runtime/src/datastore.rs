@@ -591,6 +591,49 @@ mod tests {
         assert!(s.answer(&get).is_err());
     }
 
+    /// The datastore lives in its launch's memory (no disk to fill): a
+    /// store that would take it past [`MAX_STORE_BYTES`] is refused with
+    /// the figures, the values already kept stay readable, and overwriting
+    /// or removing a key gives its room back.
+    #[test]
+    fn a_full_store_refuses_more_and_keeps_what_it_holds() {
+        let s = Store::default();
+        let value = vec![7u8; MAX_VALUE_BYTES];
+        let fits = MAX_STORE_BYTES / (MAX_VALUE_BYTES + 16);
+        for i in 0..fits {
+            assert_eq!(store(&s, &format!("k{i:02}"), &value, "w"), Reply::Done);
+        }
+        let over = Request::Store {
+            key: "one_more".into(),
+            value: value.clone(),
+            encoding: "text/plain".into(),
+            writer: "w".into(),
+        };
+        let refusal = s.answer(&to_bytes(&over)).unwrap_err();
+        assert!(
+            refusal.contains("would make the datastore hold")
+                && refusal.contains(&MAX_STORE_BYTES.to_string()),
+            "{refusal}"
+        );
+        let Reply::Value(Some((kept, _, _))) = ask(&s, Request::Get { key: "k00".into() }) else {
+            panic!("a value stored before the store filled is gone");
+        };
+        assert_eq!(kept, value);
+        // Overwriting with a smaller value frees room the refused one fits.
+        assert_eq!(store(&s, "k00", b"small", "w"), Reply::Done);
+        assert_eq!(store(&s, "one_more", &value, "w"), Reply::Done);
+        assert_eq!(
+            ask(
+                &s,
+                Request::Remove {
+                    key: "one_more".into()
+                }
+            ),
+            Reply::Removed(true)
+        );
+        assert_eq!(store(&s, "one_more", &value, "w"), Reply::Done);
+    }
+
     #[test]
     fn encodings_compare_with_their_tags() {
         assert_eq!(Encoding::APPLICATION_JSON, "application/json");

@@ -91,6 +91,21 @@ pub enum Error {
         /// The topic the message was built for.
         message: String,
     },
+    /// A message larger than a receiving node accepts
+    /// ([`MAX_MESSAGE_BYTES`](crate::MAX_MESSAGE_BYTES)): refused
+    /// here rather than sent to be dropped unseen by every reader.
+    #[error(
+        "a message of {bytes} bytes cannot be published on topic `{topic}`: \
+         nodes receive messages of at most {limit} bytes"
+    )]
+    MessageTooLarge {
+        /// The topic.
+        topic: String,
+        /// The encoded message's size.
+        bytes: usize,
+        /// The largest message a node receives.
+        limit: usize,
+    },
     /// The node's own setup code failed.
     #[error("{0}")]
     User(String),

@@ -94,6 +94,7 @@ pub use startup::{
 };
 pub use subscription::Subscription;
 pub use tokio_util::sync::CancellationToken;
+pub use topics::MAX_MESSAGE_BYTES;
 pub use topics::{Payload, Senders};
 
 /// What generated code calls. Not a stable API for hand-written code.
@@ -124,9 +125,9 @@ pub mod codegen {
         Senders, emit, next_message, next_message_from, next_payload, next_payload_from,
     };
     pub use crate::wire::codec::{
-        Counted, Decode, DecodeError, Decoder, Encode, MessageData, Writer, from_bytes, to_bytes,
+        Counted, Decode, DecodeError, Decoder, Encode, Writer, from_bytes, to_bytes,
     };
-    pub use crate::wire::struct_codec::{min_counted_size_of, min_size_of};
+    pub use crate::wire::struct_codec::{MessageData, min_counted_size_of, min_size_of};
     pub use peppy_schema::QosProfile;
     pub use serde;
     pub use serde_json;

@@ -423,6 +423,35 @@ impl std::fmt::Debug for NodeRunner {
     }
 }
 
+/// Opens the node's session. With shared memory on, Zenoh makes a segment
+/// of its own in /dev/shm as it opens; a /dev/shm that is full, tiny or
+/// read-only fails that, and the node would not start at all. It starts
+/// with shared memory off instead (said once): large messages then go as
+/// ordinary buffers, as the pool's own fallbacks send them.
+async fn open_session(
+    config: zenoh::Config,
+    shared_memory: SharedMemory,
+) -> Result<(zenoh::Session, SharedMemory)> {
+    if !shared_memory.enabled() {
+        return Ok((zenoh::open(config).await?, shared_memory));
+    }
+    let mut without = config.clone();
+    match zenoh::open(config).await {
+        Ok(session) => Ok((session, shared_memory)),
+        Err(e) if e.to_string().to_lowercase().contains("shm") => {
+            warn!(
+                error = %e,
+                "cannot set up shared memory (is /dev/shm full or read-only?); large messages are sent as ordinary buffers"
+            );
+            without
+                .insert_json5("transport/shared_memory/enabled", "false")
+                .map_err(|e| Error::Startup(format!("cannot turn shared memory off: {e}")))?;
+            Ok((zenoh::open(without).await?, SharedMemory::off()))
+        }
+        Err(e) => Err(e.into()),
+    }
+}
+
 impl NodeRunner {
     pub(crate) async fn open(
         doc: &NodeModel,
@@ -447,7 +476,7 @@ impl NodeRunner {
         config
             .insert_json5(key, value)
             .map_err(|e| Error::Startup(format!("invalid shared-memory setting `{key}`: {e}")))?;
-        let session = zenoh::open(config).await?;
+        let (session, shared_memory) = open_session(config, shared_memory).await?;
         let pair_plans = std::mem::take(&mut startup.pairs);
         let mut runner = NodeRunner {
             session,

@@ -110,7 +110,7 @@ impl SourceFile {
             .read_to_end(&mut bytes)
             .map_err(|e| fail(format!("cannot read `{}`: {e}", path.display())))?;
         if bytes.len() > MAX_DOCUMENT_BYTES {
-            return Err(too_large("more than that".into()));
+            return Err(too_large(format!("more than {MAX_DOCUMENT_BYTES}")));
         }
         let sha = sha256_hex(&bytes);
         let text = String::from_utf8(bytes).map_err(|e| {

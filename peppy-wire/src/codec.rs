@@ -458,12 +458,6 @@ impl<T: Decode> Decode for Option<T> {
     }
 }
 
-/// A message struct generated from a format (every struct `codec!`
-/// implements), as opposed to `()`, which stands for "no payload" where a
-/// service or action declares none. Test mocks take their shapes from it:
-/// `respond(response)` where a response is declared, `respond()` where not.
-pub trait MessageData: Encode + Decode {}
-
 /// A fixed-size array that travels as a variable one: a field whose length
 /// a node pins with `refine` (the current `node/v1` spelling). The node's
 /// type is `[T; N]`, the wire that of the open array the document declares

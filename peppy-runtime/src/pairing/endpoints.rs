@@ -30,6 +30,7 @@ impl PairedSender {
             message,
             self.readers_known.load(Ordering::Relaxed),
         );
+        crate::topics::check_size(self.spec.topic.name, payload.len())?;
         match self
             .publisher
             .put(payload)

@@ -27,7 +27,8 @@ use crate::spec::{
     OwnerSpec, ServiceSpec, TopicSpec,
 };
 use crate::startup::{self, StandaloneConfig};
-use crate::wire::codec::{Decode, Encode, MessageData, from_bytes, to_bytes};
+use crate::wire::codec::{Decode, Encode, from_bytes, to_bytes};
+use crate::wire::struct_codec::MessageData;
 
 /// How long a mock's first publish waits for the node's subscription.
 pub const SUBSCRIBER_WAIT: Duration = Duration::from_secs(10);

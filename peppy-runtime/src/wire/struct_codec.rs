@@ -9,6 +9,16 @@
 //! `#[peppy::node]` attribute hands every one to the compiler. Written once
 //! here, a message costs its struct declaration and one line.
 
+/// A message struct generated from a format (every struct `codec!`
+/// implements), as opposed to `()`, which stands for "no payload" where a
+/// service or action declares none. Test mocks take their shapes from it:
+/// `respond(response)` where a response is declared, `respond()` where not.
+/// Defined here, not beside `Encode` in `peppy-wire`: the mocks' two
+/// shapes (`impl<T: MessageData>` and `impl ... <()>`) may coexist only
+/// while the trait is this crate's, so that no other crate can implement
+/// it for `()`.
+pub trait MessageData: super::codec::Encode + super::codec::Decode {}
+
 /// The fewest bytes a field of type `T` takes, named through an accessor
 /// (`|m: &Message| &m.header`) so that the codec macro needs no field
 /// types. Never calls the accessor.

@@ -6,7 +6,9 @@
 mod actions;
 mod bindings;
 mod clock;
+mod faults;
 mod golden;
+mod host_faults;
 mod pairings;
 mod process;
 mod routing;

@@ -18,12 +18,12 @@ use serde_json::json;
 
 use crate::support::{Hub, WAIT, hub, namespace, start};
 
-const VALUE: FormatSpec = FormatSpec {
+pub(crate) const VALUE: FormatSpec = FormatSpec {
     fingerprint: 0x5e79_0147,
     canonical: "{position:u64}",
 };
 
-static SETPOINT_OUT: PairedTopicSpec = PairedTopicSpec {
+pub(crate) static SETPOINT_OUT: PairedTopicSpec = PairedTopicSpec {
     link_id: "arm",
     topic: TopicSpec {
         owner: OwnerSpec::Any,
@@ -51,7 +51,7 @@ static STATE_OUT: PairedTopicSpec = PairedTopicSpec {
         format: VALUE,
     },
 };
-static SETPOINT_IN: ConsumedPairedTopicSpec = ConsumedPairedTopicSpec {
+pub(crate) static SETPOINT_IN: ConsumedPairedTopicSpec = ConsumedPairedTopicSpec {
     link_id: "commander",
     topic: ConsumedTopicSpec {
         link_id: None,
@@ -93,7 +93,7 @@ fn slot(link_id: &str, role: &str, counterpart: &str, observer: bool) -> serde_j
 macro_rules! pairing_node {
     ($ty:ident, $node:literal, $slots:expr) => {
         #[derive(Debug, serde::Deserialize)]
-        struct $ty {}
+        pub(crate) struct $ty {}
         impl NodeParameters for $ty {
             fn descriptor() -> &'static NodeDescriptor {
                 static D: std::sync::LazyLock<NodeDescriptor> =
@@ -127,15 +127,15 @@ pairing_node!(
     json!([slot("arms", "arm", "commander", true)])
 );
 
-async fn commander(hub: &Hub, ns: &str, id: &str, link: &[&str]) -> Arc<NodeRunner> {
+pub(crate) async fn commander(hub: &Hub, ns: &str, id: &str, link: &[&str]) -> Arc<NodeRunner> {
     start::<Commander>(hub, ns, id, link).await.1
 }
 
-async fn arm(hub: &Hub, ns: &str, id: &str, link: &[&str]) -> Arc<NodeRunner> {
+pub(crate) async fn arm(hub: &Hub, ns: &str, id: &str, link: &[&str]) -> Arc<NodeRunner> {
     start::<Arm>(hub, ns, id, link).await.1
 }
 
-async fn paired_with(runner: &NodeRunner, slot: &str) -> PeerInfo {
+pub(crate) async fn paired_with(runner: &NodeRunner, slot: &str) -> PeerInfo {
     tokio::time::timeout(WAIT, wait_paired(runner, slot))
         .await
         .expect("the pair forms")

@@ -447,7 +447,7 @@ async fn beats_pass(flood: &NodeRunner, station: &NodeRunner) {
 }
 
 /// Starts `P` with these shared-memory settings.
-async fn start_shm<P: peppy_runtime::codegen::NodeParameters>(
+pub(crate) async fn start_shm<P: peppy_runtime::codegen::NodeParameters>(
     hub: &crate::support::Hub,
     ns: &str,
     instance: &str,
@@ -461,7 +461,7 @@ async fn start_shm<P: peppy_runtime::codegen::NodeParameters>(
 }
 
 /// A frame whose bytes differ from one frame to the next.
-fn patterned(seq: u32, len: usize) -> crate::support::Frame {
+pub(crate) fn patterned(seq: u32, len: usize) -> crate::support::Frame {
     crate::support::Frame {
         seq,
         data: (0..len)
