@@ -22,6 +22,7 @@ mod local_links;
 mod manage;
 mod migrate;
 mod node_init;
+mod open_files;
 mod output;
 mod placement;
 mod presence;
@@ -62,6 +63,7 @@ pub use up::RouterError;
 
 /// Runs one parsed command line.
 pub fn run(cli: Cli) -> Result {
+    open_files::raise();
     match cli.command {
         cli::Command::Validate(args) => validate::run(&args),
         cli::Command::Check(mut args) => {

@@ -3,7 +3,7 @@
 //! copied to one log file per instance.
 
 use std::io::{IsTerminal, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use tokio::io::{AsyncBufReadExt, AsyncRead, BufReader};
@@ -67,7 +67,7 @@ pub(crate) async fn pump(
     stream: impl AsyncRead + Unpin,
     id: String,
     out: std::sync::Arc<Output>,
-    log: std::sync::Arc<Mutex<std::fs::File>>,
+    log: std::sync::Arc<Mutex<Log>>,
 ) {
     let mut reader = BufReader::with_capacity(64 * 1024, stream);
     let mut buf = Vec::with_capacity(1024);
@@ -82,9 +82,9 @@ pub(crate) async fn pump(
                 }
                 let line = String::from_utf8_lossy(&buf);
                 out.line(&id, &line);
-                let mut f = log.lock().unwrap_or_else(|p| p.into_inner());
-                let _ = f.write_all(&buf);
-                let _ = f.write_all(b"\n");
+                log.lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .append(&buf, &id, &out);
             }
         }
     }
@@ -121,14 +121,48 @@ async fn read_line_capped<R: AsyncBufReadExt + Unpin>(
     }
 }
 
-/// Opens (appending) an instance's log file.
-pub(crate) fn open_log(path: &Path) -> std::io::Result<std::fs::File> {
-    use std::os::unix::fs::OpenOptionsExt as _;
-    // Readable by the launching user only: a node's log may hold what its
-    // libraries print about its session, login included.
-    std::fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .mode(0o600)
-        .open(path)
+/// An instance's log file, shared by its stdout and stderr pumps.
+pub(crate) struct Log {
+    file: std::fs::File,
+    path: PathBuf,
+    /// A write has failed (a full disk): said once, not at every line.
+    failed: bool,
+}
+
+impl Log {
+    /// Opens (appending) an instance's log file.
+    pub(crate) fn open(path: &Path) -> std::io::Result<Log> {
+        use std::os::unix::fs::OpenOptionsExt as _;
+        // Readable by the launching user only: a node's log may hold what
+        // its libraries print about its session, login included.
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .mode(0o600)
+            .open(path)?;
+        Ok(Log {
+            file,
+            path: path.to_path_buf(),
+            failed: false,
+        })
+    }
+
+    /// Appends one line. The instance runs on when its log cannot be
+    /// written (its lines still reach `out`), but a log with lines missing
+    /// is said to be so: `logs` would otherwise show it as whole.
+    fn append(&mut self, line: &[u8], id: &str, out: &Output) {
+        let written = self
+            .file
+            .write_all(line)
+            .and_then(|()| self.file.write_all(b"\n"));
+        if let Err(e) = written
+            && !self.failed
+        {
+            self.failed = true;
+            out.note(&format!(
+                "cannot write the log of `{id}` ({}): {e}; its output still shows here, and lines are missing from the log",
+                self.path.display()
+            ));
+        }
+    }
 }

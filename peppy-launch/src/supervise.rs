@@ -18,7 +18,7 @@ use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
 use tokio_util::sync::CancellationToken;
 
-use crate::output::{Output, open_log, pump};
+use crate::output::{Log, Output, pump};
 
 /// How long after SIGTERM before SIGKILL.
 pub(crate) const TERM_TIMEOUT: Duration = Duration::from_secs(5);
@@ -143,9 +143,14 @@ pub(crate) fn spawn(
             if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) != 0 {
                 return Err(std::io::Error::last_os_error());
             }
-            Ok(())
+            crate::open_files::restore_in_child()
         });
     }
+    // Opened before the process starts: an instance whose log cannot be
+    // created (a full disk, no file descriptor left) must not run on,
+    // unsupervised, after its start was reported as failed.
+    let log = Log::open(&spec.log)
+        .map_err(|e| std::io::Error::new(e.kind(), format!("cannot open its log: {e}")))?;
     let mut child = cmd.spawn().map_err(|e| {
         std::io::Error::new(
             e.kind(),
@@ -156,7 +161,7 @@ pub(crate) fn spawn(
     if let Some(pid) = child.id() {
         let _ = std::fs::write(spec.log.with_extension("pid"), format!("{pid}\n"));
     }
-    let log = Arc::new(Mutex::new(open_log(&spec.log)?));
+    let log = Arc::new(Mutex::new(log));
     let mut pumps = Vec::new();
     if let Some(o) = child.stdout.take() {
         pumps.push(tokio::spawn(pump(

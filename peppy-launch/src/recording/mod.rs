@@ -341,7 +341,7 @@ pub enum RecordingError {
         source: std::io::Error,
     },
     /// Writing the recording failed (a full disk, a removed file).
-    #[error("writing {} failed: {source}", path.display())]
+    #[error("writing {} failed: {}", path.display(), mcap_reason(source))]
     Write {
         /// The file.
         path: PathBuf,
@@ -375,7 +375,7 @@ pub enum RecordingError {
         path: PathBuf,
     },
     /// The file is MCAP but cannot be read as one.
-    #[error("{} is not a readable MCAP file: {source}", path.display())]
+    #[error("{} is not a readable MCAP file: {}", path.display(), mcap_reason(source))]
     Unreadable {
         /// The file.
         path: PathBuf,
@@ -427,7 +427,7 @@ pub enum RecordingError {
         arg: String,
     },
     /// The recording ended in the middle (not at its end).
-    #[error("{} is damaged after {replayed} messages: {source}", path.display())]
+    #[error("{} is damaged after {replayed} messages: {}", path.display(), mcap_reason(source))]
     Damaged {
         /// The file.
         path: PathBuf,
@@ -436,6 +436,16 @@ pub enum RecordingError {
         /// What the MCAP reader said.
         source: mcap::McapError,
     },
+}
+
+/// What an MCAP error says, with the system's own reason when it is an I/O
+/// error: the crate's message for those ("I/O error from writing, or
+/// reading a compression stream") does not say that the disk is full.
+fn mcap_reason(e: &mcap::McapError) -> String {
+    match e {
+        mcap::McapError::Io(io) => io.to_string(),
+        other => other.to_string(),
+    }
 }
 
 /// Which samples to take: `NAME` matches a topic name, `INSTANCE/NAME` a

@@ -241,8 +241,15 @@ pub(crate) async fn run(args: RecordArgs) -> Result {
     let written = progress.written.load(Ordering::Relaxed);
     let counts = progress.snapshot();
     eprint!("{}", summary_table(&counts));
+    // After a failed write the writer was handed messages the file never
+    // got: the count is what was taken, not what was recorded.
+    let (verb, whole) = if outcome.is_ok() {
+        ("recorded", "")
+    } else {
+        ("took", "; the file holds those written before the failure")
+    };
     eprintln!(
-        "recorded {} messages on {} channels in {:.1} s into {} ({}); stopped: {why}",
+        "{verb} {} messages on {} channels in {:.1} s into {} ({}{whole}); stopped: {why}",
         counts.values().map(|c| c.messages).sum::<u64>(),
         counts.len(),
         started.elapsed().as_secs_f64(),

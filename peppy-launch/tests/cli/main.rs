@@ -5,6 +5,7 @@ mod check;
 mod clock;
 mod composed;
 mod detached;
+mod faults;
 mod inspect;
 mod machines;
 mod migrate;

@@ -77,7 +77,7 @@ fn json_lines_of(mut command: Command, bound: Duration, what: &str) -> Vec<serde
 
 /// A bare Zenoh peer listening on `endpoint`: a stand-in for a stack that
 /// replay publishes into or a recorder reads, on a runtime of its own.
-fn bare_stack(endpoint: &str) -> (tokio::runtime::Runtime, zenoh::Session) {
+pub(crate) fn bare_stack(endpoint: &str) -> (tokio::runtime::Runtime, zenoh::Session) {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()

@@ -37,7 +37,7 @@ fn secured_cameras(dir: &Path) -> PathBuf {
 }
 
 /// The running launch's record in the test's registry.
-fn record(state: &Path) -> Value {
+pub(crate) fn record(state: &Path) -> Value {
     let dir = state.join("launches");
     let entry = std::fs::read_dir(&dir)
         .unwrap()
@@ -48,7 +48,7 @@ fn record(state: &Path) -> Value {
 }
 
 /// An instance's login, from the runtime configuration its launch wrote.
-fn login_of(record: &Value, instance: &str) -> (String, String) {
+pub(crate) fn login_of(record: &Value, instance: &str) -> (String, String) {
     let path = Path::new(record["run_dir"].as_str().unwrap()).join(format!("{instance}.json"));
     let config: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
     // Secured, every message goes through the router: no link past it.
@@ -61,7 +61,10 @@ fn login_of(record: &Value, instance: &str) -> (String, String) {
 }
 
 /// A raw Zenoh client of `endpoint`, with or without a login.
-async fn attacker(endpoint: &str, login: Option<(&str, &str)>) -> zenoh::Result<zenoh::Session> {
+pub(crate) async fn attacker(
+    endpoint: &str,
+    login: Option<(&str, &str)>,
+) -> zenoh::Result<zenoh::Session> {
     let mut config = zenoh::Config::default();
     config.insert_json5("mode", r#""client""#).unwrap();
     config
@@ -81,7 +84,7 @@ async fn attacker(endpoint: &str, login: Option<(&str, &str)>) -> zenoh::Result<
     zenoh::open(config).await
 }
 
-fn runtime() -> tokio::runtime::Runtime {
+pub(crate) fn runtime() -> tokio::runtime::Runtime {
     tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()

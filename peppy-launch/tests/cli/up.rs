@@ -7,7 +7,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// A node directory whose `run_cmd` is `sh -c script`.
-fn shell_node(dir: &Path, name: &str, script: &str) {
+pub(crate) fn shell_node(dir: &Path, name: &str, script: &str) {
     std::fs::create_dir_all(dir.join(name)).unwrap();
     let doc = serde_json::json!({
         "peppy_schema": "node_v1",
@@ -71,7 +71,7 @@ fn alive(pid: &str) -> bool {
 /// Whether process `pid` is alive and still the one that ran in `dir`: the
 /// machine's pids wrap (32768 here), and a busy test run may hand a dead
 /// instance's pid to another process at once.
-fn alive_in(pid: &str, dir: &Path) -> bool {
+pub(crate) fn alive_in(pid: &str, dir: &Path) -> bool {
     alive(pid)
         && std::fs::read_link(format!("/proc/{}/cwd", pid.trim()))
             .is_ok_and(|cwd| cwd == dir || cwd.canonicalize().ok() == dir.canonicalize().ok())

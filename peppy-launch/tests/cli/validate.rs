@@ -123,6 +123,30 @@ fn hostile_input_is_an_error_not_a_crash() {
     assert_eq!(codes, ["NestingTooDeep", "Syntax", "Syntax"]);
 }
 
+/// A document that never ends (a device whose size says 0, as a pipe or a
+/// file still being written may) is refused as too large once it passes
+/// the size limit, instead of being read until memory runs out.
+#[test]
+fn a_document_that_never_ends_is_refused_as_too_large() {
+    let limit = peppy_schema::MAX_DOCUMENT_BYTES;
+    let run = peppy_launch(&root(), &["validate", "/dev/zero"]);
+    assert_eq!(run.code, 2, "{}", run.stderr);
+    assert!(
+        run.stderr.contains(&format!(
+            "document is more than {limit} bytes; peppy documents may be at most {limit} bytes"
+        )),
+        "{}",
+        run.stderr
+    );
+    let run = peppy_launch(&root(), &["validate", "--format", "json", "/dev/zero"]);
+    assert_eq!(run.code, 2, "{}", run.stderr);
+    let v: serde_json::Value = serde_json::from_str(&run.stdout).unwrap();
+    assert_eq!(
+        v["documents"][0]["diagnostics"][0]["code"], "DocumentTooLarge",
+        "{v}"
+    );
+}
+
 #[test]
 fn usage_errors_exit_2() {
     assert_eq!(peppy_launch(&root(), &["validate"]).code, 2);
