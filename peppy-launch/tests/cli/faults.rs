@@ -676,3 +676,57 @@ fn a_flood_of_bad_logins_leaves_a_secured_stack_serving() {
     assert_eq!(code, 0, "{}", lines.join("\n"));
     assert!(!lines.iter().any(|l| l.contains("panicked")));
 }
+
+/// docs/FAULTS.md promises what peppy survives and names the test that
+/// shows each promise: at least 26 scenarios, and every test it names
+/// exists where its prefix says (a renamed or removed test would leave a
+/// promise nobody checks).
+#[test]
+fn the_fault_catalogue_names_only_tests_that_exist() {
+    let repo = root();
+    let catalogue = std::fs::read_to_string(repo.join("docs/FAULTS.md")).unwrap();
+    let scenarios = catalogue.lines().filter(|l| l.starts_with("### ")).count();
+    assert!(scenarios >= 26, "{scenarios} scenarios");
+    let mut named = 0;
+    let prefixes = ["`cli::", "`runtime::", "`schema::", "`e2e::", "`unit: "];
+    let quoted = catalogue.match_indices('`').filter_map(|(at, _)| {
+        let rest = &catalogue[at..];
+        prefixes.iter().any(|p| rest.starts_with(p)).then(|| {
+            let rest = &rest[1..];
+            &rest[..rest.find('`').unwrap_or(rest.len())]
+        })
+    });
+    // The legend's bare prefixes (`cli::`) name no test.
+    for quoted in quoted.filter(|q| !q.ends_with("::")) {
+        let (file, name) = if let Some(rest) = quoted.strip_prefix("unit: ") {
+            let Some((path, name)) = rest.rsplit_once("::") else {
+                panic!("`{quoted}`: a unit test is `unit: path::name`");
+            };
+            (repo.join(path), name)
+        } else {
+            let parts: Vec<&str> = quoted.split("::").collect();
+            let dir = match parts.first() {
+                Some(&"cli") => "peppy-launch/tests/cli",
+                Some(&"runtime") => "peppy-runtime/tests/runtime",
+                Some(&"schema") => "peppy-schema/tests/schema",
+                _ => "tests/e2e",
+            };
+            let [_, module, name] = parts[..] else {
+                panic!("`{quoted}`: a test is `prefix::module::name`");
+            };
+            (repo.join(dir).join(format!("{module}.rs")), name)
+        };
+        let text = std::fs::read_to_string(&file)
+            .unwrap_or_else(|e| panic!("`{quoted}`: {}: {e}", file.display()));
+        assert!(
+            text.contains(&format!("fn {name}(")),
+            "docs/FAULTS.md names `{quoted}`, which {} does not hold",
+            file.display()
+        );
+        named += 1;
+    }
+    assert!(
+        named >= scenarios,
+        "{named} tests named for {scenarios} scenarios"
+    );
+}
