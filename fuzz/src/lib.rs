@@ -93,7 +93,7 @@ fn compose(composition: &Result<Composition, Diagnostics>, clean: bool) {
                     resolved.text
                 );
             }
-            if !(clean && !composition.is_composed()) {
+            if !clean || composition.is_composed() {
                 return;
             }
             if let Err(errors) = parse_document(&again, "0") {
