@@ -257,17 +257,13 @@ fn a_full_disk_for_logs_keeps_the_stack_running() {
     assert_not_mounted(&runs);
 }
 
-/// A launch whose run directory is on a disk full before it starts
-/// starts nothing: it fails (exit 1) naming the file it could not write
-/// and the reason, and the node never runs.
-#[test]
-fn a_launch_on_a_full_disk_starts_nothing_and_says_why() {
-    if !can_mount() {
-        return;
-    }
+/// A stack of one shell node, `marker`, running `script` (which touches
+/// `marker/ran`), in a fresh directory: the directory, a state directory,
+/// and the run directory (`.peppy`) made for a test's tmpfs.
+fn marker_stack(script: &str) -> (tempfile::TempDir, tempfile::TempDir, std::path::PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let state = tempfile::tempdir().unwrap();
-    shell_node(dir.path(), "marker", "touch ran; exec sleep 1000");
+    shell_node(dir.path(), "marker", script);
     std::fs::write(
         dir.path().join("stack.json5"),
         r#"{ peppy_schema: "launcher_v1", deployments: [
@@ -276,6 +272,18 @@ fn a_launch_on_a_full_disk_starts_nothing_and_says_why() {
     .unwrap();
     let runs = dir.path().join(".peppy");
     std::fs::create_dir(&runs).unwrap();
+    (dir, state, runs)
+}
+
+/// A launch whose run directory is on a disk full before it starts
+/// starts nothing: it fails (exit 1) naming the file it could not write
+/// and the reason, and the node never runs.
+#[test]
+fn a_launch_on_a_full_disk_starts_nothing_and_says_why() {
+    if !can_mount() {
+        return;
+    }
+    let (dir, state, runs) = marker_stack("touch ran; exec sleep 1000");
     // Filled to the last byte before the launch starts (the filling
     // itself fails with ENOSPC, as it should).
     let wrapper = on_tmpfs(
@@ -316,17 +324,7 @@ fn an_instance_whose_log_cannot_be_created_never_runs() {
     if !can_mount() {
         return;
     }
-    let dir = tempfile::tempdir().unwrap();
-    let state = tempfile::tempdir().unwrap();
-    shell_node(dir.path(), "marker", "touch ran");
-    std::fs::write(
-        dir.path().join("stack.json5"),
-        r#"{ peppy_schema: "launcher_v1", deployments: [
-            { source: { local: "marker" }, instances: [{ instance_id: "marker" }] } ] }"#,
-    )
-    .unwrap();
-    let runs = dir.path().join(".peppy");
-    std::fs::create_dir(&runs).unwrap();
+    let (dir, state, runs) = marker_stack("touch ran");
     let ran = dir.path().join("marker/ran");
     let mut log_refused = false;
     for inodes in 2..=7 {

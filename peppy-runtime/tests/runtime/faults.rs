@@ -4,8 +4,6 @@
 //! stops or goes back, a launch's wall clock that jumps).
 
 use std::hash::Hasher;
-use std::io::Read;
-use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -27,7 +25,9 @@ use zenoh::query::{ConsolidationMode, QueryTarget};
 
 use crate::pairings::{SETPOINT_IN, SETPOINT_OUT, VALUE, arm, commander, paired_with};
 use crate::shutdown::Hooked;
-use crate::support::{Frame, Hub, WAIT, hub, namespace, start, start_configured, test_node};
+use crate::support::{
+    Frame, Hub, TestChild, WAIT, hub, namespace, start, start_configured, test_node,
+};
 use crate::topics::{patterned, start_shm};
 
 const N: FormatSpec = FormatSpec {
@@ -753,11 +753,12 @@ async fn next_blob(sink: &NodeRunner) -> (u32, usize, u64, bool) {
 /// shared memory off (as on another host) whether its producer has shared
 /// memory off, on with a pool too small for it (it then goes as bytes,
 /// logged once), or on with room for it (then in place to the local
-/// reader); and a small message after it follows it in order. peppy sets
-/// no size limit of its own; Zenoh's (1 GiB a message, its default
-/// `transport/link/rx/max_message_size`) is far above this one. Past that
-/// limit the receiving Zenoh drops the message and the sender's `emit`
-/// still returns `Ok`: not loud, and so not asserted here (docs/FAULTS.md).
+/// reader); and a small message after it follows it in order. The limit
+/// is Zenoh's receive limit (1 GiB a message, its default
+/// `transport/link/rx/max_message_size`), far above this one; past it
+/// `emit` refuses the message (`Error::MessageTooLarge`, the unit test
+/// `topics::tests::a_message_no_node_would_receive_is_refused_with_figures`)
+/// where every reader would drop it unseen.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_oversize_message_arrives_whole_or_fails_loudly() {
     const SIZE: usize = 64 << 20;
@@ -832,50 +833,9 @@ const CHILD_ENV: &str = "PEPPY_RUNTIME_TEST_FAULTS_CHILD";
 /// `clock` bind it in this one), and fails unless it passes and says
 /// `done`.
 fn run_child(entry: &str, done: &str) {
-    // Linux runs the running binary even once a rebuild has replaced the
-    // file under its path (another `cargo test` in the same target).
-    let binary = if cfg!(target_os = "linux") {
-        "/proc/self/exe".into()
-    } else {
-        std::env::current_exe().unwrap()
-    };
-    let mut child = Command::new(binary)
-        .args([
-            "--exact",
-            &format!("faults::{entry}"),
-            "--ignored",
-            "--nocapture",
-            "--test-threads",
-            "1",
-        ])
-        .env(CHILD_ENV, entry)
-        .env("NO_COLOR", "1")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let drain = |mut r: Box<dyn Read + Send>| {
-        std::thread::spawn(move || {
-            let mut s = String::new();
-            let _ = r.read_to_string(&mut s);
-            s
-        })
-    };
-    let out = drain(Box::new(child.stdout.take().unwrap()));
-    let err = drain(Box::new(child.stderr.take().unwrap()));
-    let deadline = Instant::now() + Duration::from_secs(120);
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if Instant::now() >= deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("the child `{entry}` did not end within 120 s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let text = format!("{}\n{}", out.join().unwrap(), err.join().unwrap());
+    let mut child = TestChild::spawn(&format!("faults::{entry}"), &[(CHILD_ENV, entry)], &[]);
+    let status = child.exit(Duration::from_secs(120));
+    let text = child.seen.join("\n");
     assert!(status.success(), "the child `{entry}` failed:\n{text}");
     assert!(
         text.contains(done),

@@ -5,8 +5,8 @@
 //! continued and killed by signal), so are the Unix sockets between them
 //! and the tmpfs mounted over `/dev/shm` in a private mount namespace.
 
-use std::io::{BufRead, BufReader, Write};
-use std::process::{Command, Stdio};
+use std::io::Write;
+use std::process::Command;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::mpsc::Receiver;
 use std::sync::{Arc, Mutex};
@@ -18,7 +18,9 @@ use peppy_runtime::codegen::{
 use peppy_runtime::wire::keys::{Channel, Owner, entry_key};
 use peppy_runtime::{NodeBuilder, NodeRunner, SharedMemory};
 
-use crate::support::{Frame, Hub, WAIT, hub, namespace, start_configured, test_node};
+use crate::support::{
+    Frame, Hub, TestChild as Child, WAIT, hub, namespace, start_configured, test_node,
+};
 
 const CHILD_ENV: &str = "PEPPY_RUNTIME_TEST_HOST_FAULT_CHILD";
 
@@ -209,130 +211,49 @@ fn child_pump() {
     result.expect("the node ran and stopped cleanly");
 }
 
-/// A child process running `entry` with `plan`, its stderr read as it
-/// comes; killed when dropped (a failed test leaves none behind, stopped
-/// or not).
-struct Child {
-    process: std::process::Child,
-    lines: Receiver<String>,
-    /// The lines read so far.
-    seen: Vec<String>,
+/// A child process running `entry` of this module with `plan`, once set
+/// up; `wrapper` runs before the binary (`unshare …`; empty: none).
+fn start_child(entry: &str, plan: &Plan, wrapper: &[&str]) -> Child {
+    let plan = serde_json::to_string(plan).unwrap();
+    let mut child = Child::spawn(
+        &format!("host_faults::{entry}"),
+        &[(CHILD_ENV, &plan)],
+        wrapper,
+    );
+    child.until(WAIT, "its setup", |l| l.contains("CHILD SETUP DONE"));
+    child
 }
 
-impl Child {
-    /// `wrapper` runs before the binary (`unshare …`); empty: none.
-    fn start(entry: &str, plan: &Plan, wrapper: &[&str]) -> Child {
-        let exe = std::env::current_exe().unwrap();
-        let (program, mut args) = match wrapper.split_first() {
-            Some((first, rest)) => {
-                let mut args: Vec<String> = rest.iter().map(|s| s.to_string()).collect();
-                args.push(exe.display().to_string());
-                (first.to_string(), args)
+/// What a `child_sink` reports.
+trait SinkReports {
+    /// Reads lines until its report of frame `seq` of `topic`, unless
+    /// already read.
+    fn until_read(&mut self, topic: &str, seq: u32);
+
+    /// Reads lines until two frames of `topic` past `seq` in a row came
+    /// over a link (its count of frames read over links grew).
+    fn until_linked_past(&mut self, topic: &str, seq: u32, what: &str);
+}
+
+impl SinkReports for Child {
+    fn until_linked_past(&mut self, topic: &str, past: u32, what: &str) {
+        let mut last_direct = None;
+        self.until(WAIT, what, |l| match got(l, topic) {
+            Some((seq, direct)) if seq > past => {
+                let more = last_direct.is_some_and(|d| direct > d);
+                last_direct = Some(direct);
+                more
             }
-            None => (exe.display().to_string(), Vec::new()),
-        };
-        args.extend(
-            [
-                "--exact",
-                &format!("host_faults::{entry}"),
-                "--ignored",
-                "--nocapture",
-                "--test-threads",
-                "1",
-            ]
-            .map(String::from),
-        );
-        let mut process = Command::new(program)
-            .args(args)
-            .env(CHILD_ENV, serde_json::to_string(plan).unwrap())
-            .env("NO_COLOR", "1")
-            .env_remove("RUST_LOG")
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let stderr = process.stderr.take().unwrap();
-        let (tx, lines) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-                let _ = tx.send(line);
-            }
+            _ => false,
         });
-        let mut child = Child {
-            process,
-            lines,
-            seen: Vec::new(),
-        };
-        child.until(WAIT, "its setup", |l| l.contains("CHILD SETUP DONE"));
-        child
     }
 
-    /// Reads lines until `wanted` holds for one (which it returns), within
-    /// `bound`.
-    fn until(
-        &mut self,
-        bound: Duration,
-        what: &str,
-        mut wanted: impl FnMut(&str) -> bool,
-    ) -> String {
-        let deadline = Instant::now() + bound;
-        loop {
-            let line = self
-                .lines
-                .recv_timeout(deadline.saturating_duration_since(Instant::now()))
-                .unwrap_or_else(|_| {
-                    let exit = self.process.try_wait();
-                    let tail = &self.seen[self.seen.len().saturating_sub(30)..];
-                    panic!(
-                        "no {what} from the child within {bound:?} (exit: {exit:?}); its last lines: {tail:#?}"
-                    )
-                });
-            self.seen.push(line.clone());
-            if wanted(&line) {
-                return line;
-            }
-        }
-    }
-
-    /// Reads lines until a `child_sink`'s report of frame `seq` of
-    /// `topic`, unless already read.
     fn until_read(&mut self, topic: &str, seq: u32) {
         if !reported(&self.seen, topic).iter().any(|&(s, _)| s == seq) {
             self.until(WAIT, &format!("{topic} {seq}"), |l| {
                 got(l, topic).is_some_and(|(s, _)| s == seq)
             });
         }
-    }
-
-    fn signal(&self, signal: &str) {
-        let status = Command::new("kill")
-            .args([&format!("-{signal}"), &self.process.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(status.success(), "kill -{signal}");
-    }
-
-    /// Its exit status, within `bound`.
-    fn exit(&mut self, bound: Duration) -> std::process::ExitStatus {
-        let deadline = Instant::now() + bound;
-        loop {
-            if let Some(s) = self.process.try_wait().unwrap() {
-                self.seen.extend(self.lines.try_iter());
-                return s;
-            }
-            assert!(
-                Instant::now() < deadline,
-                "the child did not exit within {bound:?}"
-            );
-            std::thread::sleep(Duration::from_millis(5));
-        }
-    }
-}
-
-impl Drop for Child {
-    fn drop(&mut self) {
-        let _ = self.process.kill();
-        let _ = self.process.wait();
     }
 }
 
@@ -537,7 +458,7 @@ impl LinkedReaders {
             gap_us: 0,
             run: 0,
         };
-        let mut frozen = Child::start("child_sink", &plan, &[]);
+        let mut frozen = start_child("child_sink", &plan, &[]);
         let (_, pump) = rt.block_on(start_configured::<Pump>(
             &hub,
             &ns,
@@ -586,7 +507,7 @@ impl LinkedReaders {
 #[test]
 fn a_stalled_consumer_with_a_full_socket_costs_a_reliable_producer_its_link_not_its_messages() {
     let mut on = LinkedReaders::start("stalled-reliable", &COUNTS_OUT, &COUNTS_IN);
-    on.frozen.seen.extend(on.frozen.lines.try_iter());
+    on.frozen.read_available();
     let before_freeze = reported(&on.frozen.seen, "counts")
         .last()
         .map(|&(seq, _)| seq)
@@ -624,17 +545,8 @@ fn a_stalled_consumer_with_a_full_socket_costs_a_reliable_producer_its_link_not_
     // then reads new frames over a link again.
     let continued_at = on.emitter.next();
     on.frozen.signal("CONT");
-    let mut last_direct = None;
-    on.frozen.until(WAIT, "frames read over a new link", |l| {
-        match got(l, "counts") {
-            Some((seq, direct)) if seq > continued_at + 1000 => {
-                let more = last_direct.is_some_and(|d| direct > d);
-                last_direct = Some(direct);
-                more
-            }
-            _ => false,
-        }
-    });
+    on.frozen
+        .until_linked_past("counts", continued_at + 1000, "frames read over a new link");
     let (end, _) = on.emitter.finish();
     let later: Vec<(u32, Duration)> = on.emitter.held.try_iter().collect();
     assert!(
@@ -724,17 +636,8 @@ fn a_stalled_consumer_on_a_dropping_topic_costs_its_link_frames_and_holds_no_emi
         .filter(|&&(_, at)| at > frozen_at)
         .count();
     on.frozen.signal("CONT");
-    let mut last_direct = None;
-    on.frozen.until(WAIT, "new frames over the same link", |l| {
-        match got(l, "drips") {
-            Some((seq, direct)) if seq > continued_at + 500 => {
-                let more = last_direct.is_some_and(|d| direct > d);
-                last_direct = Some(direct);
-                more
-            }
-            _ => false,
-        }
-    });
+    on.frozen
+        .until_linked_past("drips", continued_at + 500, "new frames over the same link");
     let (end, longest) = on.emitter.finish();
     eprintln!(
         "longest emit {longest:?}; the near reader read {near_meanwhile} frames during the freeze"
@@ -842,7 +745,7 @@ fn a_producer_killed_mid_flood_on_a_direct_link_leaves_its_consumer_whole() {
     };
     let direct = || sink.received_over_direct_links(&COUNTS_IN).unwrap();
 
-    let pump = Child::start("child_pump", &plan(1), &[]);
+    let pump = start_child("child_pump", &plan(1), &[]);
     read_until(&runs, 3000, WAIT);
     assert!(direct() > 0, "the first producer is read over its link");
     pump.signal("KILL");
@@ -872,7 +775,7 @@ fn a_producer_killed_mid_flood_on_a_direct_link_leaves_its_consumer_whole() {
     assert!(!sink.cancellation_token().is_cancelled());
 
     let linked_before = direct();
-    let pump = Child::start("child_pump", &plan(2), &[]);
+    let pump = start_child("child_pump", &plan(2), &[]);
     read_until(&runs, first.len() + 3000, WAIT);
     let second: Vec<u32> = runs.lock().unwrap()[first.len()..]
         .iter()
@@ -978,7 +881,7 @@ fn small_dev_shm(size: &str, said: &str, detail: Option<&str>) {
         "-c",
         &script,
     ];
-    let mut pump = Child::start("child_pump", &plan, &wrapper);
+    let mut pump = start_child("child_pump", &plan, &wrapper);
     let shm = pump
         .seen
         .iter()

@@ -3,8 +3,6 @@
 //! panicking one skipped; `run` returning Ok after a stop by token; and a
 //! real node process running its hooks on SIGTERM and exiting 0.
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -13,7 +11,7 @@ use peppy_runtime::codegen::{FormatSpec, OwnerSpec, QosProfile, TopicSpec, emit}
 use peppy_runtime::wire::keys::{Channel, Owner, entry_key};
 use peppy_runtime::{Error, NodeBuilder};
 
-use crate::support::{WAIT, hub, namespace, start, start_configured};
+use crate::support::{TestChild, WAIT, hub, namespace, start, start_configured};
 
 const CHILD_ENV: &str = "PEPPY_RUNTIME_TEST_HOOKED_CHILD";
 
@@ -305,107 +303,35 @@ fn child_hooked_node() {
     result.expect("the node ran and stopped cleanly");
 }
 
-/// A `child_hooked_node` process, up and visible on the hub.
-struct Child {
-    process: std::process::Child,
-    /// Its stderr lines, as they come.
-    lines: std::sync::mpsc::Receiver<String>,
-    /// The lines read so far.
-    seen: Vec<String>,
-}
-
-impl Child {
-    fn start(
-        rt: &tokio::runtime::Runtime,
-        hub: &crate::support::Hub,
-        ns: &str,
-        grace: &str,
-    ) -> Child {
-        let args = serde_json::to_string(&[
-            "hooked",
-            "--instance-id",
-            "hooked_child",
-            "--namespace",
-            ns,
-            "--connect",
-            &hub.endpoint,
-        ])
-        .unwrap();
-        let mut process = Command::new(std::env::current_exe().unwrap())
-            .args([
-                "--exact",
-                "shutdown::child_hooked_node",
-                "--ignored",
-                "--nocapture",
-                "--test-threads",
-                "1",
-            ])
-            .env(CHILD_ENV, args)
-            // Overrides the code's 600 s.
-            .env("PEPPY_SHUTDOWN_GRACE_SECS", grace)
-            .env("NO_COLOR", "1")
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let stderr = process.stderr.take().unwrap();
-        let (tx, lines) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-                let _ = tx.send(line);
-            }
-        });
-        let mut child = Child {
-            process,
-            lines,
-            seen: Vec::new(),
-        };
-        let line = child.until("CHILD SETUP DONE");
-        assert!(line.contains(&format!("grace={grace}s")), "{line}");
-        // The child is visible on the network.
-        rt.block_on(hub.sees_a_node(ns));
-        child
-    }
-
-    /// Reads lines until one holds `text`, and returns it.
-    fn until(&mut self, text: &str) -> String {
-        let deadline = Instant::now() + WAIT;
-        loop {
-            let line = self
-                .lines
-                .recv_timeout(deadline.saturating_duration_since(Instant::now()))
-                .unwrap_or_else(|_| panic!("no `{text}` from the child: {:?}", self.seen));
-            self.seen.push(line.clone());
-            if line.contains(text) {
-                return line;
-            }
-        }
-    }
-
-    fn signal(&self, signal: &str) {
-        let status = Command::new("kill")
-            .args([&format!("-{signal}"), &self.process.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(status.success());
-    }
-
-    /// Its exit status, within `bound`, and every line it wrote.
-    fn exit(mut self, bound: Duration) -> (std::process::ExitStatus, Vec<String>) {
-        let deadline = Instant::now() + bound;
-        let exit = loop {
-            if let Some(s) = self.process.try_wait().unwrap() {
-                break s;
-            }
-            if Instant::now() >= deadline {
-                let _ = self.process.kill();
-                panic!("the child did not stop within {bound:?}");
-            }
-            std::thread::sleep(Duration::from_millis(5));
-        };
-        self.seen.extend(self.lines.iter());
-        (exit, self.seen)
-    }
+/// A `child_hooked_node` process, up and visible on the hub, with the
+/// grace window `grace` (seconds).
+fn start_child(
+    rt: &tokio::runtime::Runtime,
+    hub: &crate::support::Hub,
+    ns: &str,
+    grace: &str,
+) -> TestChild {
+    let args = serde_json::to_string(&[
+        "hooked",
+        "--instance-id",
+        "hooked_child",
+        "--namespace",
+        ns,
+        "--connect",
+        &hub.endpoint,
+    ])
+    .unwrap();
+    let mut child = TestChild::spawn(
+        "shutdown::child_hooked_node",
+        // The grace overrides the code's 600 s.
+        &[(CHILD_ENV, &args), ("PEPPY_SHUTDOWN_GRACE_SECS", grace)],
+        &[],
+    );
+    let line = child.until(WAIT, "its setup", |l| l.contains("CHILD SETUP DONE"));
+    assert!(line.contains(&format!("grace={grace}s")), "{line}");
+    // The child is visible on the network.
+    rt.block_on(hub.sees_a_node(ns));
+    child
 }
 
 #[test]
@@ -414,9 +340,10 @@ fn a_node_process_runs_its_hooks_on_sigterm_and_exits_0() {
     let hub = rt.block_on(hub());
     let ns = namespace("hooks-proc");
     let (_sub, mut byes) = rt.block_on(watch_byes(&hub.session, &ns, "hooked_child"));
-    let child = Child::start(&rt, &hub, &ns, "1");
+    let mut child = start_child(&rt, &hub, &ns, "1");
     child.signal("TERM");
-    let (exit, lines) = child.exit(Duration::from_secs(15));
+    let exit = child.exit(Duration::from_secs(15));
+    let lines = child.seen.clone();
     assert_eq!(exit.code(), Some(0), "the child exits 0: {exit:?}");
     let text = lines.join("\n");
     assert!(text.contains("CHILD GOODBYE SENT"), "{text}");
@@ -464,12 +391,15 @@ fn a_second_signal_during_the_hooks_exits_at_once() {
     let rt = tokio::runtime::Runtime::new().unwrap();
     let hub = rt.block_on(hub());
     let ns = namespace("hooks-twice");
-    let mut child = Child::start(&rt, &hub, &ns, "600");
+    let mut child = start_child(&rt, &hub, &ns, "600");
     child.signal("TERM");
-    child.until("CHILD OVERRUNNING HOOK STARTED");
+    child.until(WAIT, "CHILD OVERRUNNING HOOK STARTED", |l| {
+        l.contains("CHILD OVERRUNNING HOOK STARTED")
+    });
     child.signal("INT");
     // Well inside the 600 s window.
-    let (exit, lines) = child.exit(WAIT);
+    let exit = child.exit(WAIT);
+    let lines = child.seen.clone();
     assert_eq!(exit.code(), Some(130), "{exit:?}: {lines:?}");
     assert!(!lines.iter().any(|l| l.contains("CHILD SKIPPED HOOK RAN")));
 }

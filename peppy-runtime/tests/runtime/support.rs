@@ -201,3 +201,142 @@ pub(crate) fn keep_emitting<M: Encode + Send + 'static>(
         }
     });
 }
+
+/// This test binary run again as a child process, for one `#[ignore]`d
+/// entry test (`module::entry`): what a test needs a process of its own
+/// for (a signal, a kill, a freeze, a mount namespace, the one stack clock
+/// of a process). Its stderr is read line by line as it comes; it is
+/// killed when dropped, so a failed test leaves none behind.
+pub(crate) struct TestChild {
+    process: std::process::Child,
+    lines: std::sync::mpsc::Receiver<String>,
+    /// The lines read so far.
+    pub(crate) seen: Vec<String>,
+}
+
+impl TestChild {
+    /// Runs `entry` with `env` set, behind `wrapper` (`unshare …`, which
+    /// must exec what follows; empty: none).
+    pub(crate) fn spawn(entry: &str, env: &[(&str, &str)], wrapper: &[&str]) -> TestChild {
+        use std::io::BufRead as _;
+        // Linux runs the running binary even once a rebuild has replaced
+        // the file under its path (another `cargo test` in the same
+        // target); a wrapper needs the path itself.
+        let exe = if wrapper.is_empty() && cfg!(target_os = "linux") {
+            "/proc/self/exe".into()
+        } else {
+            std::env::current_exe().unwrap()
+        };
+        let mut command = match wrapper.split_first() {
+            Some((first, rest)) => {
+                let mut c = std::process::Command::new(first);
+                c.args(rest).arg(exe);
+                c
+            }
+            None => std::process::Command::new(exe),
+        };
+        command
+            .args([
+                "--exact",
+                entry,
+                "--ignored",
+                "--nocapture",
+                "--test-threads",
+                "1",
+            ])
+            .envs(env.iter().copied())
+            .env("NO_COLOR", "1")
+            .env_remove("RUST_LOG")
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped());
+        let mut process = command.spawn().unwrap();
+        let stderr = process.stderr.take().unwrap();
+        let (tx, lines) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in std::io::BufReader::new(stderr)
+                .lines()
+                .map_while(Result::ok)
+            {
+                let _ = tx.send(line);
+            }
+        });
+        TestChild {
+            process,
+            lines,
+            seen: Vec::new(),
+        }
+    }
+
+    /// Reads lines until `wanted` holds for one (which it returns), within
+    /// `bound`; `what` names it when it does not come.
+    pub(crate) fn until(
+        &mut self,
+        bound: Duration,
+        what: &str,
+        mut wanted: impl FnMut(&str) -> bool,
+    ) -> String {
+        let deadline = std::time::Instant::now() + bound;
+        loop {
+            let line = self
+                .lines
+                .recv_timeout(deadline.saturating_duration_since(std::time::Instant::now()))
+                .unwrap_or_else(|_| {
+                    let exit = self.process.try_wait();
+                    let tail = &self.seen[self.seen.len().saturating_sub(30)..];
+                    panic!(
+                        "no {what} from the child within {bound:?} (exit: {exit:?}); its last lines: {tail:#?}"
+                    )
+                });
+            self.seen.push(line.clone());
+            if wanted(&line) {
+                return line;
+            }
+        }
+    }
+
+    /// The lines it wrote that have come since they were last read.
+    pub(crate) fn read_available(&mut self) {
+        self.seen.extend(self.lines.try_iter());
+    }
+
+    /// Sends it `signal` (`TERM`, `KILL`, `STOP`, ...).
+    pub(crate) fn signal(&self, signal: &str) {
+        let status = std::process::Command::new("kill")
+            .args([&format!("-{signal}"), &self.process.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success(), "kill -{signal}");
+    }
+
+    /// Its exit status, within `bound` (a failure past it), with every line
+    /// it wrote read into [`seen`](Self::seen).
+    pub(crate) fn exit(&mut self, bound: Duration) -> std::process::ExitStatus {
+        let deadline = std::time::Instant::now() + bound;
+        loop {
+            if let Some(s) = self.process.try_wait().unwrap() {
+                // Every line, up to the pipe's end (or the bound, should a
+                // grandchild still hold it).
+                while let Ok(line) = self
+                    .lines
+                    .recv_timeout(deadline.saturating_duration_since(std::time::Instant::now()))
+                {
+                    self.seen.push(line);
+                }
+                return s;
+            }
+            assert!(
+                std::time::Instant::now() < deadline,
+                "the child did not exit within {bound:?}: {:#?}",
+                self.seen
+            );
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+}
+
+impl Drop for TestChild {
+    fn drop(&mut self) {
+        let _ = self.process.kill();
+        let _ = self.process.wait();
+    }
+}
