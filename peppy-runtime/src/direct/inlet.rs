@@ -116,12 +116,15 @@ impl Inlet {
             None => {
                 let lane = Lane::new(arrival.key.clone(), id, number);
                 lanes.insert(arrival.key.as_str().into(), lane.clone());
-                // Queued before the link can answer: its answer takes the
-                // lane's lock.
-                if let Ok(mut state) = lane.state.lock() {
-                    self.connect_locked(&lane, &mut state);
-                }
+                // Queued under the lane's lock, before the link can bring
+                // the next message (which takes that lock): queued after
+                // it, on another thread, this message was read after the
+                // link's next one.
+                let Ok(mut state) = lane.state.lock() else {
+                    return Route::Take(arrival);
+                };
                 intake.queue(arrival);
+                self.connect_locked(&lane, &mut state);
                 return Route::Handled;
             }
         };
