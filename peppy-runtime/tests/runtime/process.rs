@@ -3,8 +3,6 @@
 //! stop. The child is this test binary itself, re-run with an environment
 //! variable that selects `child_node` or `child_stubborn_node`.
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
@@ -17,7 +15,7 @@ use peppy_runtime::wire::keys::{Space, space_selector};
 use peppy_runtime::{Error, NodeBuilder, NodeRunner};
 
 use crate::routing::CAM_VIDEO;
-use crate::support::{Frame, WAIT, hub, namespace, start};
+use crate::support::{Frame, TestChild, WAIT, hub, namespace, start};
 
 const CHILD_ENV: &str = "PEPPY_RUNTIME_TEST_CHILD";
 
@@ -188,64 +186,22 @@ fn stop_child_with(signal: &str, entry: &str) -> Duration {
         &hub.endpoint,
     ])
     .unwrap();
-    let mut child = Command::new(std::env::current_exe().unwrap())
-        .args([
-            "--exact",
-            &format!("process::{entry}"),
-            "--ignored",
-            "--nocapture",
-            "--test-threads",
-            "1",
-        ])
-        .env(CHILD_ENV, args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let stderr = child.stderr.take().unwrap();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            let _ = tx.send(line);
-        }
-    });
-    let deadline = Instant::now() + WAIT;
-    loop {
-        let line = rx
-            .recv_timeout(deadline.saturating_duration_since(Instant::now()))
-            .expect("the child reports its setup");
-        if line.contains("CHILD SETUP DONE") {
-            break;
-        }
-    }
+    let mut child = TestChild::spawn(&format!("process::{entry}"), &[(CHILD_ENV, &args)], &[]);
+    child.until(WAIT, "its setup", |l| l.contains("CHILD SETUP DONE"));
     // The child is visible on the network.
     rt.block_on(hub.sees_a_node(&ns));
-    let status = Command::new("kill")
-        .args([&format!("-{signal}"), &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success());
+    child.signal(signal);
     let signalled = Instant::now();
-    let deadline = signalled + Duration::from_secs(10);
-    let exit = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if Instant::now() >= deadline {
-            let _ = child.kill();
-            panic!("the child did not stop within 10 s of SIG{signal}");
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    };
+    let exit = child.exit(Duration::from_secs(10));
     let took = signalled.elapsed();
     assert!(
         exit.success(),
         "the child exits 0 after SIG{signal}: {exit:?}"
     );
-    let lines: Vec<String> = rx.try_iter().collect();
     assert!(
-        lines.iter().any(|l| l.contains("shutting down")),
-        "{lines:?}"
+        child.seen.iter().any(|l| l.contains("shutting down")),
+        "{:?}",
+        child.seen
     );
     // Its token is withdrawn.
     let live = space_selector(&ns, Space::Live);
