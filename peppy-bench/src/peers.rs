@@ -47,10 +47,20 @@ pub(crate) struct Peers {
     pub(crate) floor: Option<PathBuf>,
 }
 
+static PEERS: OnceLock<Peers> = OnceLock::new();
+
+/// Leaves every peer out of this run (`--without-peers`).
+pub(crate) fn leave_out() {
+    eprintln!("peppy-bench: --without-peers: dora-rs and the hand-off floor rows left out");
+    let _ = PEERS.set(Peers {
+        dora: None,
+        floor: None,
+    });
+}
+
 /// The peers, set up on first use (printing one line for each that
 /// cannot be, whose rows are then left out).
 pub(crate) fn peers() -> &'static Peers {
-    static PEERS: OnceLock<Peers> = OnceLock::new();
     PEERS.get_or_init(|| {
         let dora = set_up_dora()
             .map_err(|e| eprintln!("peppy-bench: dora-rs {DORA_VERSION} rows skipped: {e}"))

@@ -167,6 +167,9 @@ async fn run_build(
     if cargo {
         build.envs(CARGO_PROGRESS_ENV);
     }
+    if let Some(shared) = crate::shared_build::for_build(cmd, dir) {
+        build.env("CARGO_BUILD_BUILD_DIR", shared);
+    }
     let mut child = build.spawn().map_err(spawn_failed)?;
     let progress = BuildProgress::start(label.to_string());
     let mut out_pipe = child.stdout.take().expect("stdout is piped");

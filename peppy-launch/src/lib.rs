@@ -36,6 +36,7 @@ mod run_node;
 mod runs;
 mod rust_libs;
 mod security;
+mod shared_build;
 mod sources;
 mod supervise;
 mod up;

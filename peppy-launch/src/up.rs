@@ -391,6 +391,7 @@ async fn prepare_all(
         .count();
     let mut programs = HashMap::new();
     let mut built = 0;
+    let mut shared_noted = false;
     for d in here() {
         let node = &d.resolved.node;
         let identity = node.identity();
@@ -398,6 +399,14 @@ async fn prepare_all(
         if build && let Some(cmd) = executable::build_of(&node.execution) {
             built += 1;
             label = format!("{identity} ({built}/{total})");
+            if !shared_noted && let Some(dir) = crate::shared_build::for_build(&cmd, &d.dir) {
+                shared_noted = true;
+                out.note(&format!(
+                    "Rust nodes build what they share once, in {} ({}=off: each in its own target/)",
+                    dir.display(),
+                    crate::shared_build::BUILD_DIR_ENV
+                ));
+            }
             out.note(&format!("building {label}: {}", cmd.join(" ")));
         }
         if crate::python_sync::is_python(&d.resolved) {
