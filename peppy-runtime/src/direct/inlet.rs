@@ -9,6 +9,15 @@
 //! waits until Zenoh has brought those before it (messages the producer
 //! sent through Zenoh alone: large ones, the rest of a burst, those from
 //! before the link).
+//!
+//! Only a message the producer also wrote to a link carries its number
+//! through Zenoh; the consumer counts the others, which Zenoh delivers in
+//! the publisher's order. The count is exact once a numbered message has
+//! come through Zenoh from the publisher the lane follows, and until a
+//! wait runs out (messages handed on without those before them) or the
+//! publisher changes; until then a link's messages wait for the next
+//! numbered one, so a count that is not known never hands a message on
+//! early, and a message Zenoh alone carried is never taken for a copy.
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::PathBuf;
@@ -98,12 +107,9 @@ impl Inlet {
     }
 
     /// Routes a message that came through Zenoh, with the publisher and
-    /// number its source info carries (a producer with direct links
-    /// numbers every message; any other is taken as it comes).
+    /// number its source info carries (a producer numbers the messages it
+    /// also wrote to a link; the others are counted).
     pub(crate) fn route(&self, arrival: Arrival, source: Option<(SourceId, u32)>) -> Route {
-        let Some((id, number)) = source else {
-            return Route::Take(arrival);
-        };
         let Some(intake) = self.intake.get().and_then(Weak::upgrade) else {
             return Route::Take(arrival);
         };
@@ -114,7 +120,7 @@ impl Inlet {
             Some(lane) => lane.clone(),
             None if lanes.len() >= MAX_LINKS => return Route::Take(arrival),
             None => {
-                let lane = Lane::new(arrival.key.clone(), id, number);
+                let lane = Lane::new(arrival.key.clone(), source);
                 lanes.insert(arrival.key.as_str().into(), lane.clone());
                 // Queued under the lane's lock, before the link can bring
                 // the next message (which takes that lock): queued after
@@ -132,7 +138,20 @@ impl Inlet {
         let Ok(mut state) = lane.state.lock() else {
             return Route::Take(arrival);
         };
-        if state.source != id {
+        let Some((id, number)) = source else {
+            state.zenoh_counted(arrival, &intake);
+            if state.link == LinkState::Closed && state.retry_due() {
+                self.connect_locked(&lane, &mut state);
+            }
+            return Route::Handled;
+        };
+        if state.source.is_none() {
+            // The first numbered message of a lane that has only counted
+            // (no link answered yet, so nothing is held): the lane follows
+            // its publisher from here.
+            state.follow(id, number);
+            intake.queue(arrival);
+        } else if state.source != Some(id) {
             if state.previous == Some(id) {
                 // The last messages of a publisher already replaced.
                 return Route::Take(arrival);
@@ -143,8 +162,9 @@ impl Inlet {
             intake.queue(arrival);
             self.connect_locked(&lane, &mut state);
             return Route::Handled;
+        } else {
+            state.zenoh_brought(number, arrival, &intake);
         }
-        state.zenoh_brought(number, arrival, &intake);
         if state.link == LinkState::Closed && state.retry_due() {
             self.connect_locked(&lane, &mut state);
         }
@@ -205,10 +225,12 @@ struct Lane {
 }
 
 impl Lane {
-    fn new(key: KeyExpr<'static>, source: SourceId, number: u32) -> Arc<Lane> {
+    /// The lane of a producer Zenoh just brought a message of (numbered or
+    /// not).
+    fn new(key: KeyExpr<'static>, source: Option<(SourceId, u32)>) -> Arc<Lane> {
         Arc::new(Lane {
             key,
-            state: Mutex::new(LaneState::new(source, number)),
+            state: Mutex::new(LaneState::new(source)),
         })
     }
 
@@ -246,13 +268,18 @@ enum LinkState {
 
 #[derive(Debug)]
 struct LaneState {
-    /// The producer's Zenoh publisher whose numbers `next` follows.
-    source: SourceId,
+    /// The producer's Zenoh publisher whose numbers `next` follows (none
+    /// until a numbered message or the link's answer names it).
+    source: Option<SourceId>,
     /// The publisher it replaced (a restarted producer's last messages).
     previous: Option<SourceId>,
     /// The number of the next message to hand on, unwrapped: the `u32`
     /// numbers on the wire are read as the nearest value to it.
     next: i64,
+    /// Whether `next` is exact: a numbered message of `source` came
+    /// through Zenoh, and every message since was counted. Until it is,
+    /// a link's messages wait.
+    counted: bool,
     /// Whether a link to this publisher was ever answered: only then can
     /// a Zenoh message be a copy of one already handed on.
     linked: bool,
@@ -270,12 +297,15 @@ struct LaneState {
 }
 
 impl LaneState {
-    /// The state of a producer whose message `number` Zenoh just brought.
-    fn new(source: SourceId, number: u32) -> LaneState {
+    /// The state of a producer Zenoh just brought a message of: numbered,
+    /// the lane follows its publisher from there; else it has yet to
+    /// learn where the numbers are.
+    fn new(source: Option<(SourceId, u32)>) -> LaneState {
         LaneState {
-            source,
+            source: source.map(|(id, _)| id),
             previous: None,
-            next: i64::from(number) + 1,
+            next: source.map_or(0, |(_, number)| i64::from(number) + 1),
+            counted: source.is_some(),
             linked: false,
             link: LinkState::Closed,
             generation: 0,
@@ -300,12 +330,18 @@ impl LaneState {
     /// A new publisher under the key, whose message `number` was just
     /// taken.
     fn restart(&mut self, source: SourceId, number: u32) {
-        self.previous = Some(self.source);
-        self.source = source;
-        self.next = i64::from(number) + 1;
+        self.previous = self.source;
+        self.follow(source, number);
         self.linked = false;
         self.held.clear();
         self.held_since = None;
+    }
+
+    /// Follows `source`'s numbers from its message `number`, just taken.
+    fn follow(&mut self, source: SourceId, number: u32) {
+        self.source = Some(source);
+        self.next = i64::from(number) + 1;
+        self.counted = true;
     }
 
     /// The producer answered: its link is open.
@@ -313,14 +349,15 @@ impl LaneState {
         self.attachment = Some(attachment);
         self.link = LinkState::Open;
         self.linked = true;
-        if source != self.source {
-            // The socket is a restarted producer's, of which Zenoh has
-            // brought nothing yet: from its first message on, whichever
-            // Zenoh still brings (the first Zenoh message past what the
-            // link holds lets those go).
-            self.previous = Some(self.source);
-            self.source = source;
+        if self.source != Some(source) {
+            // A publisher the lane has not followed (a restarted producer,
+            // or one whose messages were only counted): its numbers are
+            // learnt from its first numbered message through Zenoh, which
+            // lets what the link holds go.
+            self.previous = self.source;
+            self.source = Some(source);
             self.next = 1;
+            self.counted = false;
             self.held.clear();
             self.held_since = None;
         }
@@ -331,6 +368,7 @@ impl LaneState {
     /// link's messages held before it go first, then it, or the link's
     /// copy of it if that came first.
     fn zenoh_brought(&mut self, number: u32, arrival: Arrival, intake: &Intake) {
+        self.counted = true;
         let number = self.unwrap(number);
         if number < self.next {
             if !self.linked {
@@ -357,10 +395,25 @@ impl LaneState {
         self.drain(intake);
     }
 
+    /// A message through Zenoh without a number: the next of its
+    /// publisher (Zenoh keeps a publisher's order), which the link never
+    /// carried.
+    fn zenoh_counted(&mut self, arrival: Arrival, intake: &Intake) {
+        intake.queue(arrival);
+        if self.counted {
+            self.next += 1;
+            self.drain(intake);
+        }
+    }
+
     /// A message from the link.
     fn link_brought(&mut self, number: u32, arrival: Arrival, intake: &Intake) {
         let number = self.unwrap(number);
-        if number == self.next {
+        if !self.counted {
+            // Zenoh may still bring messages before it.
+            self.held.insert(number, arrival);
+            self.held_since.get_or_insert_with(Instant::now);
+        } else if number == self.next {
             intake.queue(arrival);
             self.next = number + 1;
             self.drain(intake);
@@ -409,6 +462,9 @@ impl LaneState {
             self.next = number + 1;
         }
         self.held_since = None;
+        // Zenoh may yet bring messages from before those: counted, they
+        // would be taken for later ones.
+        self.counted = false;
     }
 }
 
@@ -571,7 +627,7 @@ mod tests {
     /// A linked lane whose Zenoh brought message `last` (the next is
     /// `last + 1`).
     fn lane(last: u32) -> LaneState {
-        let mut state = LaneState::new(SOURCE, last);
+        let mut state = LaneState::new(Some((SOURCE, last)));
         state.linked = true;
         state
     }
@@ -579,7 +635,7 @@ mod tests {
     #[test]
     fn without_a_link_nothing_zenoh_brings_is_dropped() {
         let (intake, inbox) = intake();
-        let mut s = LaneState::new(SOURCE, 0);
+        let mut s = LaneState::new(Some((SOURCE, 0)));
         for n in [1, 3, 2, 4] {
             s.zenoh_brought(n, message(n), &intake);
         }
@@ -673,5 +729,63 @@ mod tests {
         s.link_brought(3, message(3), &intake);
         assert_eq!(queued(&inbox), [2, 3]);
         assert_eq!(s.previous, Some(SOURCE));
+    }
+
+    #[test]
+    fn messages_zenoh_alone_carried_are_counted_between_numbered_ones() {
+        let (intake, inbox) = intake();
+        let mut s = lane(0);
+        // 1 and 2 went through Zenoh alone (a burst); 3 over the link too.
+        s.link_brought(3, message(3), &intake);
+        assert_eq!(queued(&inbox), Vec::<u32>::new(), "1 and 2 have not come");
+        s.zenoh_counted(message(1), &intake);
+        assert_eq!(queued(&inbox), [1]);
+        s.zenoh_counted(message(2), &intake);
+        assert_eq!(queued(&inbox), [2, 3], "3 follows 2 at once");
+        s.zenoh_brought(3, message(3), &intake);
+        s.zenoh_counted(message(4), &intake);
+        s.link_brought(5, message(5), &intake);
+        s.zenoh_brought(5, message(5), &intake);
+        assert_eq!(queued(&inbox), [4, 5], "each once, in order");
+    }
+
+    #[test]
+    fn until_a_numbered_message_comes_through_zenoh_a_link_waits() {
+        let (intake, inbox) = intake();
+        // A lane that has only counted: the producer numbered nothing yet.
+        let mut s = LaneState::new(None);
+        s.zenoh_counted(message(1), &intake);
+        s.answered(SOURCE, ZBytes::default());
+        // Zenoh has not brought 2 yet; the link's 3 must not overtake it,
+        // whatever `next` guessed.
+        s.link_brought(3, message(3), &intake);
+        s.zenoh_counted(message(2), &intake);
+        assert_eq!(queued(&inbox), [1, 2]);
+        s.zenoh_brought(3, message(3), &intake);
+        s.zenoh_counted(message(4), &intake);
+        s.link_brought(5, message(5), &intake);
+        assert_eq!(queued(&inbox), [3, 4, 5], "counted from 3 on");
+    }
+
+    #[test]
+    fn after_a_wait_runs_out_the_count_is_learnt_again() {
+        let (intake, inbox) = intake();
+        let key = KeyExpr::try_from(KEY).unwrap();
+        let mut s = lane(0);
+        s.link_brought(4, message(4), &intake);
+        let deadline = s.deadline(false).expect("4 waits");
+        s.expire(deadline, &key, &intake);
+        assert_eq!(queued(&inbox), [4]);
+        // Zenoh's 1 to 3 come late: handed on, but not counted as 5 to 7,
+        // so the link's 6 waits for Zenoh's numbered copy of 6.
+        for n in 1..=3 {
+            s.zenoh_counted(message(n), &intake);
+        }
+        s.zenoh_counted(message(5), &intake);
+        s.link_brought(6, message(6), &intake);
+        assert_eq!(queued(&inbox), [1, 2, 3, 5]);
+        s.zenoh_brought(6, message(6), &intake);
+        s.zenoh_counted(message(7), &intake);
+        assert_eq!(queued(&inbox), [6, 7], "6 once");
     }
 }

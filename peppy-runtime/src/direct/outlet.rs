@@ -61,9 +61,10 @@ impl DirectOutlet {
         }
     }
 
-    /// Publishes `payload` through Zenoh, numbered in its source info, and
-    /// over every link of the topic when it is small and not part of a
-    /// burst.
+    /// Publishes `payload` through Zenoh, and over every link of the topic
+    /// when it is small and not part of a burst; then its Zenoh copy
+    /// carries its number in its source info. Every message counts
+    /// towards the numbers.
     pub(crate) fn publish(
         &self,
         publisher: &Publisher<'static>,
@@ -75,6 +76,7 @@ impl DirectOutlet {
         };
         links.sequence = links.sequence.wrapping_add(1);
         let number = links.sequence;
+        let mut linked = false;
         if !links.open.is_empty() && payload.len() < INLINE_MAX {
             let now = Instant::now();
             let burst = links.last.is_some_and(|t| now - t < BURST_GAP);
@@ -85,13 +87,20 @@ impl DirectOutlet {
                 let bytes = payload.to_bytes();
                 let head = header(FRAME_MESSAGE, number, bytes.len() as u32);
                 links.write(&head, &bytes, self.drops());
+                linked = true;
             }
         }
-        publisher
-            .put(payload)
-            .attachment(attachment)
-            .source_info(SourceInfo::new(publisher.id(), number))
-            .wait()
+        let put = publisher.put(payload).attachment(attachment);
+        if linked {
+            // Its consumers tell the two copies apart by this number.
+            put.source_info(SourceInfo::new(publisher.id(), number))
+                .wait()
+        } else {
+            // Zenoh alone carries it: no number on the wire (in a flood,
+            // Zenoh's source info costs a quarter of the rate), its
+            // consumers count it.
+            put.wait()
+        }
     }
 
     /// Closes every link (the node stops): each consumer reads the rest of
