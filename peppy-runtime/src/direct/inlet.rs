@@ -80,8 +80,34 @@ impl Consumer {
 #[derive(Debug)]
 pub(crate) struct Inlet {
     consumer: Arc<Consumer>,
-    lanes: Mutex<HashMap<Box<str>, Arc<Lane>, foldhash::fast::FixedState>>,
+    lanes: Mutex<Lanes>,
     intake: OnceLock<Weak<Intake>>,
+}
+
+/// A consumed topic's lanes by producer key.
+#[derive(Debug, Default)]
+struct Lanes {
+    by_key: HashMap<Box<str>, Arc<Lane>, foldhash::fast::FixedState>,
+    /// The lane found last: a topic read from one producer (or a flood
+    /// from one of several) finds it by comparing the key, without
+    /// hashing it for every message.
+    last: Option<Arc<Lane>>,
+}
+
+impl Lanes {
+    fn get(&mut self, key: &str) -> Option<Arc<Lane>> {
+        if let Some(last) = self.last.as_ref().filter(|l| l.key.as_str() == key) {
+            return Some(last.clone());
+        }
+        let lane = self.by_key.get(key)?.clone();
+        self.last = Some(lane.clone());
+        Some(lane)
+    }
+
+    fn insert(&mut self, lane: Arc<Lane>) {
+        self.by_key.insert(lane.key.as_str().into(), lane.clone());
+        self.last = Some(lane);
+    }
 }
 
 /// What a message that came through Zenoh is to its reader.
@@ -96,7 +122,7 @@ impl Inlet {
     pub(crate) fn new(consumer: Arc<Consumer>) -> Inlet {
         Inlet {
             consumer,
-            lanes: Mutex::new(HashMap::default()),
+            lanes: Mutex::new(Lanes::default()),
             intake: OnceLock::new(),
         }
     }
@@ -117,11 +143,11 @@ impl Inlet {
             return Route::Take(arrival);
         };
         let lane = match lanes.get(arrival.key.as_str()) {
-            Some(lane) => lane.clone(),
-            None if lanes.len() >= MAX_LINKS => return Route::Take(arrival),
+            Some(lane) => lane,
+            None if lanes.by_key.len() >= MAX_LINKS => return Route::Take(arrival),
             None => {
                 let lane = Lane::new(arrival.key.clone(), source);
-                lanes.insert(arrival.key.as_str().into(), lane.clone());
+                lanes.insert(lane.clone());
                 // Queued under the lane's lock, before the link can bring
                 // the next message (which takes that lock): queued after
                 // it, on another thread, this message was read after the

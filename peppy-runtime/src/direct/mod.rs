@@ -17,7 +17,9 @@
 //! doubling or reordering a message:
 //!
 //! 1. A producer with direct links numbers every message of each emitted
-//!    topic, and its Zenoh copy carries the number in its source info.
+//!    topic; a message it also writes to a link carries its number in its
+//!    Zenoh copy's source info, the others go without (in a flood that
+//!    would cost a quarter of the rate) and are counted by the consumer.
 //! 2. The first message a consumed topic receives through Zenoh from a
 //!    producer makes the consumer connect to that producer's socket in the
 //!    launch's directory (named after its core node and instance:
@@ -36,7 +38,7 @@
 //!    the next message comes first is handed on, the other dropped; a link
 //!    message ahead of it waits until Zenoh has brought those before it.
 //! 6. When the link breaks (the producer stopped, a write timed out) Zenoh
-//!    alone goes on with the same numbers; a message from another
+//!    alone goes on, counted as before; a message from another
 //!    publisher under the same key (the producer restarted) starts the
 //!    numbers afresh and links the new one.
 
