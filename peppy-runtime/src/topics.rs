@@ -168,6 +168,18 @@ impl std::fmt::Debug for Admission {
 }
 
 impl Admission {
+    /// Whether the slot routes the producer publishing under `key` to the
+    /// reader (its format aside).
+    fn routes(&self, key: &str) -> bool {
+        self.producers.of(key).is_some_and(|producer| {
+            self.filter.accepts(&producer.instance)
+                && self
+                    .members
+                    .as_ref()
+                    .is_none_or(|m| m.contains(&producer.core, &producer.instance))
+        })
+    }
+
     /// The producer of a message under `key`, if the reader is to have it.
     fn admit(
         &self,
@@ -288,6 +300,13 @@ impl Intake {
     #[cfg(unix)]
     pub(crate) fn counted_direct(&self) {
         self.backlog.direct.fetch_add(1, Relaxed);
+    }
+
+    /// Whether the slot routes the producer publishing under `key` to this
+    /// topic's reader: a direct link is made only to such a producer.
+    #[cfg(unix)]
+    pub(crate) fn routes(&self, key: &str) -> bool {
+        self.admission.routes(key)
     }
 
     /// The topic's direct links, if it has them.

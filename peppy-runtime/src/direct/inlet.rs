@@ -145,6 +145,11 @@ impl Inlet {
         let lane = match lanes.get(arrival.key.as_str()) {
             Some(lane) => lane,
             None if lanes.by_key.len() >= MAX_LINKS => return Route::Take(arrival),
+            // A producer the slot does not route here (yet: a node slot's
+            // members can grow) is not linked: its messages are dropped
+            // by the reader's admission, and a link would have the
+            // producer write each one for nothing.
+            None if !intake.routes(arrival.key.as_str()) => return Route::Take(arrival),
             None => {
                 let lane = Lane::new(arrival.key.clone(), source);
                 lanes.insert(lane.clone());
@@ -813,5 +818,40 @@ mod tests {
         s.zenoh_brought(6, message(6), &intake);
         s.zenoh_counted(message(7), &intake);
         assert_eq!(queued(&inbox), [6, 7], "6 once");
+    }
+
+    #[tokio::test]
+    async fn only_a_producer_the_slot_routes_here_is_linked() {
+        let dir = tempfile::tempdir().unwrap();
+        let consumer = Consumer::new(
+            dir.path().to_path_buf(),
+            "core/sink".into(),
+            tokio::runtime::Handle::current(),
+            CancellationToken::new(),
+        );
+        let routed = ["ticker"].map(String::from).into_iter().collect();
+        let (intake, _inbox) = Intake::new(
+            &TEST_TICKS,
+            RouteFilter::OnlyFrom(routed),
+            None,
+            Declarer::none(),
+            Arc::new(|_, _, _| {}),
+        );
+        let intake = Arc::new(intake.with_direct(Inlet::new(consumer)));
+        let inlet = intake.direct().unwrap();
+        inlet.bind(&intake);
+        let from = |instance: &str| {
+            let key = KEY.replace("/ticker", &format!("/{instance}"));
+            Arrival::new(KeyExpr::try_from(key).unwrap(), ZBytes::default(), None)
+        };
+        assert!(matches!(inlet.route(from("other"), None), Route::Take(_)));
+        assert!(matches!(inlet.route(from("ticker"), None), Route::Handled));
+        let lanes = inlet.lanes.lock().unwrap();
+        let linked: Vec<&str> = lanes.by_key.keys().map(|k| &**k).collect();
+        assert_eq!(
+            linked,
+            [KEY],
+            "a lane, and a link tried, for the routed producer alone"
+        );
     }
 }
