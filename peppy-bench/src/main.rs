@@ -44,11 +44,11 @@ struct Cli {
     /// Fewer samples: a quick look, not a figure to record.
     #[arg(long)]
     quick: bool,
-    /// Leave the peers (dora-rs, the hand-off floor) out, without setting
-    /// them up: peppy and raw Zenoh alone, for a look at peppy's own
-    /// figures on a machine where the peers are not built yet.
-    #[arg(long)]
-    without_peers: bool,
+    /// Which peers to set up and measure beside peppy and raw Zenoh
+    /// (default: both; `none` for peppy's own figures on a machine where
+    /// the peers are not built yet).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [peers::Peer::Dora, peers::Peer::Floor])]
+    peers: Vec<peers::Peer>,
     /// Run the whole table this many times, the groups taking turns, and
     /// report each figure's median run with its range over the runs (on a
     /// small shared machine one run moves 10 to 20 %).
@@ -118,9 +118,7 @@ fn workspace() -> PathBuf {
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
-    if cli.without_peers {
-        peers::leave_out();
-    }
+    peers::choose(&cli.peers);
     if let Some(Command::Child { role }) = cli.command {
         return children::run(role);
     }

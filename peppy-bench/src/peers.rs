@@ -49,30 +49,54 @@ pub(crate) struct Peers {
 
 static PEERS: OnceLock<Peers> = OnceLock::new();
 
-/// Leaves every peer out of this run (`--without-peers`).
-pub(crate) fn leave_out() {
-    eprintln!("peppy-bench: --without-peers: dora-rs and the hand-off floor rows left out");
-    let _ = PEERS.set(Peers {
-        dora: None,
-        floor: None,
-    });
+/// The peers `--peers` chose.
+static CHOSEN: OnceLock<Vec<Peer>> = OnceLock::new();
+
+/// A peer `--peers` can name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum Peer {
+    /// dora-rs.
+    Dora,
+    /// The hand-off floor (iceoryx2).
+    Floor,
+    /// Neither.
+    None,
+}
+
+/// Sets which peers are set up and measured (`--peers`).
+pub(crate) fn choose(peers: &[Peer]) {
+    let _ = CHOSEN.set(peers.to_vec());
+}
+
+fn chosen(peer: Peer) -> bool {
+    CHOSEN.get().is_none_or(|c| c.contains(&peer))
 }
 
 /// The peers, set up on first use (printing one line for each that
 /// cannot be, whose rows are then left out).
 pub(crate) fn peers() -> &'static Peers {
     PEERS.get_or_init(|| {
-        let dora = set_up_dora()
-            .map_err(|e| eprintln!("peppy-bench: dora-rs {DORA_VERSION} rows skipped: {e}"))
-            .ok();
-        let floor = build("peppy-bench-iceoryx2", &["peppy-bench-iceoryx2"])
-            .map(|mut bins| bins.remove(0))
-            .map_err(|e| {
-                eprintln!(
-                    "peppy-bench: hand-off floor (iceoryx2 {ICEORYX2_VERSION}) rows skipped: {e}"
-                )
-            })
-            .ok();
+        let dora = if chosen(Peer::Dora) {
+            set_up_dora()
+                .map_err(|e| eprintln!("peppy-bench: dora-rs {DORA_VERSION} rows skipped: {e}"))
+                .ok()
+        } else {
+            eprintln!("peppy-bench: dora-rs rows left out (--peers)");
+            None
+        };
+        let floor = if chosen(Peer::Floor) {
+            build("peppy-bench-iceoryx2", &["peppy-bench-iceoryx2"])
+                .map(|mut bins| bins.remove(0))
+                .map_err(|e| {
+                    eprintln!(
+                        "peppy-bench: hand-off floor (iceoryx2 {ICEORYX2_VERSION}) rows skipped: {e}"
+                    )
+                })
+                .ok()
+        } else {
+            eprintln!("peppy-bench: hand-off floor rows left out (--peers)");
+            None
+        };
         Peers { dora, floor }
     })
 }

@@ -556,7 +556,7 @@ async fn read_link(
         _ => return Outcome::Stopped,
     }
     debug!(topic = %lane.key, "reading a producer over a direct link");
-    let mut buf = bytes::BytesMut::with_capacity(64 * 1024);
+    let mut buf = bytes::BytesMut::with_capacity(INLINE_MAX + HEADER);
     loop {
         let Some(dropping) = intake.upgrade().map(|i| i.drops()) else {
             return Outcome::Stopped;

@@ -606,7 +606,7 @@ async fn direct_links_hand_every_message_once_in_order() {
     // and takes its place among the small ones the link carries.
     let frame = |seq: u32| {
         let len = if seq % 7 == 3 {
-            100 << 10
+            200 << 10
         } else {
             16 + (seq as usize * 37) % 2000
         };
