@@ -1234,6 +1234,15 @@ impl NodeRunner {
         Ok(self.inbox(topic)?.backlog.direct.load(Ordering::Relaxed))
     }
 
+    /// How many consumers of this launch on this host read `topic` from
+    /// this instance over a direct link now (one per consumer instance,
+    /// however many of its entries read the topic).
+    pub fn direct_links_served(&self, topic: &'static TopicSpec) -> usize {
+        self.outlet(topic)
+            .and_then(|o| o.direct.as_ref())
+            .map_or(0, |d| d.links())
+    }
+
     pub(crate) fn shm(&self) -> &Shm {
         &self.shm
     }

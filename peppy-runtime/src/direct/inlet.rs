@@ -49,8 +49,8 @@ const MAX_LINKS: usize = 256;
 /// topic that drops: Zenoh may have dropped them.
 const DROPPING_HOLD: Duration = Duration::from_millis(50);
 
-/// A node's direct links as a consumer: where producers' sockets are, and
-/// who it is.
+/// A node's direct links as a consumer: where producers' sockets are, who
+/// it is, and the links it reads.
 #[derive(Debug)]
 pub(crate) struct Consumer {
     dir: PathBuf,
@@ -58,6 +58,10 @@ pub(crate) struct Consumer {
     name: String,
     runtime: tokio::runtime::Handle,
     token: CancellationToken,
+    /// One link per producer key, whatever the number of the node's
+    /// entries reading that key: the producer writes each message once to
+    /// this node, and every entry's lane is handed it.
+    links: Mutex<HashMap<Box<str>, Arc<Link>, foldhash::fast::FixedState>>,
 }
 
 impl Consumer {
@@ -72,7 +76,126 @@ impl Consumer {
             name,
             runtime,
             token,
+            links: Mutex::new(HashMap::default()),
         })
+    }
+
+    /// Makes `member`'s lane (its state locked by the caller, as `state`)
+    /// read its producer over this node's link to it: the link already
+    /// open (or opening) to the same publisher, else a new one.
+    fn join(self: &Arc<Self>, member: Member, state: &mut LaneState, path: PathBuf) {
+        let key = member.lane.key.clone();
+        let Ok(mut links) = self.links.lock() else {
+            state.link = LinkState::Closed;
+            return;
+        };
+        if let Some(link) = links.get(key.as_str())
+            && let Ok(mut shared) = link.shared.lock()
+        {
+            // A link answered by another publisher than the one the lane
+            // follows is a restarted producer's predecessor, about to end.
+            let same = match &shared.answer {
+                Some((source, _)) => state.source.is_none_or(|s| s == *source),
+                None => true,
+            };
+            if !shared.ended && same {
+                if let Some((source, attachment)) = &shared.answer {
+                    state.answered(*source, attachment.clone());
+                }
+                shared.members.push(member);
+                return;
+            }
+        }
+        let link = Arc::new(Link {
+            key: key.clone(),
+            shared: Mutex::new(Shared {
+                members: vec![member],
+                answer: None,
+                ended: false,
+            }),
+        });
+        links.insert(key.as_str().into(), link.clone());
+        drop(links);
+        let hello = Hello {
+            key: key.as_str().to_string(),
+            consumer: self.name.clone(),
+        };
+        let consumer = self.clone();
+        self.runtime.spawn(async move {
+            let outcome = read_link(&consumer, &link, path, hello).await;
+            if let Ok(mut links) = consumer.links.lock()
+                && links
+                    .get(key.as_str())
+                    .is_some_and(|l| Arc::ptr_eq(l, &link))
+            {
+                links.remove(key.as_str());
+            }
+            let members = match link.shared.lock() {
+                Ok(mut shared) => {
+                    shared.ended = true;
+                    std::mem::take(&mut shared.members)
+                }
+                Err(_) => Vec::new(),
+            };
+            for member in members {
+                let (consumer, outcome) = (consumer.clone(), outcome.clone());
+                tokio::spawn(async move { member.ended(&consumer, outcome).await });
+            }
+        });
+    }
+}
+
+/// A consumer node's link to one producer's topic.
+#[derive(Debug)]
+struct Link {
+    key: KeyExpr<'static>,
+    shared: Mutex<Shared>,
+}
+
+/// What a link's reader and the lanes joining it share.
+#[derive(Debug)]
+struct Shared {
+    /// The lanes it hands its messages to.
+    members: Vec<Member>,
+    /// The producer's answer (its publisher and the topic's attachment),
+    /// once it came: a lane joining later takes it at once.
+    answer: Option<(SourceId, ZBytes)>,
+    /// It ended: a lane must open another.
+    ended: bool,
+}
+
+/// A lane reading a link, as of one of its connections.
+#[derive(Debug, Clone)]
+struct Member {
+    lane: Arc<Lane>,
+    intake: Weak<Intake>,
+    /// The lane's connection this is: a lane that moved on (to a
+    /// restarted producer) is dropped from the link.
+    generation: u64,
+}
+
+impl Member {
+    /// The link ended as `outcome`: the lane goes back to Zenoh alone, and
+    /// what the link brought ahead of Zenoh is handed on once Zenoh
+    /// catches up, or when the wait runs out.
+    async fn ended(&self, consumer: &Consumer, outcome: Outcome) {
+        if !self.lane.ended(self.generation, outcome) {
+            return; // Replaced by a link to a restarted producer.
+        }
+        while let Some(intake) = self.intake.upgrade() {
+            let deadline = match self.lane.state.lock() {
+                Ok(state) => state.deadline(intake.drops()),
+                Err(_) => None,
+            };
+            let Some(deadline) = deadline else { break };
+            tokio::select! {
+                () = tokio::time::sleep_until(deadline.into()) => {}
+                () = consumer.token.cancelled() => break,
+            }
+            if let Ok(mut state) = self.lane.state.lock() {
+                state.expire(Instant::now(), &self.lane.key, &intake);
+            }
+        }
     }
 }
 
@@ -216,35 +339,13 @@ impl Inlet {
         state.link = LinkState::Connecting;
         state.retry_at = None;
         state.generation += 1;
-        let generation = state.generation;
-        let path = super::socket_path(&self.consumer.dir, sender.core, sender.instance);
-        let hello = Hello {
-            key: lane.key.as_str().to_string(),
-            consumer: self.consumer.name.clone(),
+        let member = Member {
+            lane: lane.clone(),
+            intake,
+            generation: state.generation,
         };
-        let (consumer, lane) = (self.consumer.clone(), lane.clone());
-        self.consumer.runtime.spawn(async move {
-            let outcome = read_link(&consumer, &lane, generation, path, hello, &intake).await;
-            if !lane.ended(generation, outcome) {
-                return; // Replaced by a link to a restarted producer.
-            }
-            // What the link brought ahead of Zenoh is handed on once Zenoh
-            // catches up, or when the wait runs out.
-            while let Some(intake) = intake.upgrade() {
-                let deadline = match lane.state.lock() {
-                    Ok(state) => state.deadline(intake.drops()),
-                    Err(_) => None,
-                };
-                let Some(deadline) = deadline else { break };
-                tokio::select! {
-                    () = tokio::time::sleep_until(deadline.into()) => {}
-                    () = consumer.token.cancelled() => break,
-                }
-                if let Ok(mut state) = lane.state.lock() {
-                    state.expire(Instant::now(), &lane.key, &intake);
-                }
-            }
-        });
+        let path = super::socket_path(&self.consumer.dir, sender.core, sender.instance);
+        self.consumer.join(member, state, path);
     }
 }
 
@@ -500,6 +601,7 @@ impl LaneState {
 }
 
 /// How a link's reading ended.
+#[derive(Debug, Clone)]
 enum Outcome {
     /// The producer has no socket, or refused.
     Unavailable(String),
@@ -509,15 +611,9 @@ enum Outcome {
     Stopped,
 }
 
-/// Connects to a producer and reads its link until it ends.
-async fn read_link(
-    consumer: &Consumer,
-    lane: &Arc<Lane>,
-    generation: u64,
-    path: PathBuf,
-    hello: Hello,
-    intake: &Weak<Intake>,
-) -> Outcome {
+/// Connects to a producer and reads its link until it ends, handing each
+/// message to every lane the link has.
+async fn read_link(consumer: &Consumer, link: &Link, path: PathBuf, hello: Hello) -> Outcome {
     let handshake = async {
         let mut stream = tokio::net::UnixStream::connect(&path)
             .await
@@ -549,25 +645,37 @@ async fn read_link(
         Ok(Err(e)) => return Outcome::Unavailable(e),
         Err(_) => return Outcome::Unavailable("no answer".into()),
     };
-    match lane.state.lock() {
-        Ok(mut state) if state.generation == generation => {
-            state.answered(source, ZBytes::from(attachment));
+    let attachment = ZBytes::from(attachment);
+    let members = match link.shared.lock() {
+        Ok(mut shared) => {
+            shared.answer = Some((source, attachment.clone()));
+            shared.members.clone()
         }
-        _ => return Outcome::Stopped,
+        Err(_) => return Outcome::Stopped,
+    };
+    for member in &members {
+        if let Ok(mut state) = member.lane.state.lock()
+            && state.generation == member.generation
+        {
+            state.answered(source, attachment.clone());
+        }
     }
-    debug!(topic = %lane.key, "reading a producer over a direct link");
+    debug!(topic = %link.key, "reading a producer over a direct link");
     let mut buf = bytes::BytesMut::with_capacity(INLINE_MAX + HEADER);
+    let mut frames = Vec::new();
     loop {
-        let Some(dropping) = intake.upgrade().map(|i| i.drops()) else {
+        let Ok(members) = link.shared.lock().map(|s| s.members.clone()) else {
             return Outcome::Stopped;
         };
-        let deadline = lane.state.lock().ok().and_then(|s| s.deadline(dropping));
+        if members.is_empty() {
+            return Outcome::Stopped;
+        }
+        let deadline = members.iter().filter_map(Member::deadline).min();
         let read = tokio::select! {
             read = stream.read_buf(&mut buf) => read,
             () = sleep_until(deadline) => {
-                let Some(intake) = intake.upgrade() else { return Outcome::Stopped };
-                if let Ok(mut state) = lane.state.lock() {
-                    state.expire(Instant::now(), &lane.key, &intake);
+                for member in &members {
+                    member.expire();
                 }
                 continue;
             }
@@ -578,28 +686,25 @@ async fn read_link(
             Ok(_) => {}
             Err(e) => return Outcome::Closed(e.to_string()),
         }
-        let Some(intake) = intake.upgrade() else {
-            return Outcome::Stopped;
-        };
-        if let Err(why) = take_frames(&mut buf, lane, generation, &intake) {
+        if let Err(why) = whole_frames(&mut buf, &mut frames) {
             return Outcome::Closed(why);
+        }
+        let gone: Vec<(usize, u64)> = members
+            .iter()
+            .filter(|member| !member.take(&frames))
+            .map(Member::id)
+            .collect();
+        frames.clear();
+        if !gone.is_empty()
+            && let Ok(mut shared) = link.shared.lock()
+        {
+            shared.members.retain(|m| !gone.contains(&m.id()));
         }
     }
 }
 
-/// Hands on every whole frame in `buf`.
-fn take_frames(
-    buf: &mut bytes::BytesMut,
-    lane: &Lane,
-    generation: u64,
-    intake: &Intake,
-) -> Result<(), String> {
-    let Ok(mut state) = lane.state.lock() else {
-        return Err("poisoned".into());
-    };
-    if state.generation != generation {
-        return Err("replaced by a link to a restarted producer".into());
-    }
+/// Moves every whole frame in `buf` to `frames` (its number and message).
+fn whole_frames(buf: &mut bytes::BytesMut, frames: &mut Vec<(u32, ZBytes)>) -> Result<(), String> {
     while buf.len() >= HEADER {
         let number = u32::from_le_bytes([buf[1], buf[2], buf[3], buf[4]]);
         let len = u32::from_le_bytes([buf[5], buf[6], buf[7], buf[8]]) as usize;
@@ -614,12 +719,54 @@ fn take_frames(
             break;
         }
         let _ = buf.split_to(HEADER);
-        let payload = ZBytes::from(buf.split_to(len).freeze());
-        let arrival = Arrival::new(lane.key.clone(), payload, state.attachment.clone());
-        intake.counted_direct();
-        state.link_brought(number, arrival, intake);
+        frames.push((number, ZBytes::from(buf.split_to(len).freeze())));
     }
     Ok(())
+}
+
+impl Member {
+    /// Which lane, as of which connection.
+    fn id(&self) -> (usize, u64) {
+        (Arc::as_ptr(&self.lane) as usize, self.generation)
+    }
+
+    /// When the oldest message its lane holds stops waiting.
+    fn deadline(&self) -> Option<Instant> {
+        let dropping = self.intake.upgrade()?.drops();
+        self.lane.state.lock().ok()?.deadline(dropping)
+    }
+
+    /// Ends its lane's waits that have run out.
+    fn expire(&self) {
+        if let (Some(intake), Ok(mut state)) = (self.intake.upgrade(), self.lane.state.lock()) {
+            state.expire(Instant::now(), &self.lane.key, &intake);
+        }
+    }
+
+    /// Hands `frames` to its lane; `false` when the lane no longer reads
+    /// this link (its reader is gone, or it moved on to a restarted
+    /// producer's).
+    fn take(&self, frames: &[(u32, ZBytes)]) -> bool {
+        let Some(intake) = self.intake.upgrade() else {
+            return false;
+        };
+        let Ok(mut state) = self.lane.state.lock() else {
+            return false;
+        };
+        if state.generation != self.generation {
+            return false;
+        }
+        for (number, payload) in frames {
+            let arrival = Arrival::new(
+                self.lane.key.clone(),
+                payload.clone(),
+                state.attachment.clone(),
+            );
+            intake.counted_direct();
+            state.link_brought(*number, arrival, &intake);
+        }
+        true
+    }
 }
 
 async fn sleep_until(deadline: Option<Instant>) {

@@ -115,6 +115,11 @@ impl DirectOutlet {
         }
     }
 
+    /// How many links the topic has open.
+    pub(crate) fn links(&self) -> usize {
+        self.links.lock().map_or(0, |l| l.open.len())
+    }
+
     /// Closes every link (the node stops): each consumer reads the rest of
     /// its link, then goes back to Zenoh.
     pub(crate) fn close(&self) {
@@ -153,7 +158,24 @@ impl DirectOutlet {
 impl Links {
     /// Writes one frame to every link, closing the links that fail.
     fn write(&mut self, head: &[u8], body: &[u8], may_drop: bool) {
-        self.open.retain_mut(|link| match write_frame(&link.stream, head, body, may_drop) {
+        let large = body.len() >= LARGE;
+        self.open.retain_mut(|link| {
+            if large && unread(&link.stream) != Some(0) {
+                // The consumer has not read the link's last frames: it is
+                // busy, not waiting, and Zenoh's shared memory moves a
+                // large message there without a copy through the socket.
+                return true;
+            }
+            link.write(head, body, may_drop)
+        });
+    }
+}
+
+impl Link {
+    /// Writes one frame; `false` to close the link.
+    fn write(&mut self, head: &[u8], body: &[u8], may_drop: bool) -> bool {
+        let link = self;
+        match write_frame(&link.stream, head, body, may_drop) {
             Ok(true) => {
                 if link.dropped > 0 {
                     debug!(consumer = %link.consumer, dropped = link.dropped, "a direct link has room again");
@@ -176,7 +198,33 @@ impl Links {
                 warn!(consumer = %link.consumer, error = %e, "closing a direct link: the consumer reads this topic through Zenoh alone");
                 false
             }
-        });
+        }
+    }
+}
+
+/// A message of this size or more goes over a link only to a consumer that
+/// has read everything the link brought it (one waiting for a message, not
+/// one behind in a flood). Measured without it, a flood of 64 KiB
+/// messages on a link lost a fifth of its rate: each pause of the
+/// producer longer than a burst's gap wrote a message through the socket.
+const LARGE: usize = 16 * 1024;
+
+/// The bytes written to `stream` that its reader has not read yet; `None`
+/// where the system cannot say.
+fn unread(stream: &UnixStream) -> Option<usize> {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        let mut queued: libc::c_int = 0;
+        // SAFETY: TIOCOUTQ (SIOCOUTQ) writes one c_int through the pointer,
+        // which points at a live local; the descriptor is the stream's own.
+        let done = unsafe { libc::ioctl(stream.as_raw_fd(), libc::TIOCOUTQ, &mut queued) };
+        (done == 0).then(|| usize::try_from(queued).unwrap_or(0))
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = stream;
+        None
     }
 }
 

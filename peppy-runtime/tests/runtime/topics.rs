@@ -357,6 +357,24 @@ test_node!(
     emits: [], consumes: [FLOOD_IN, BEAT_IN], serves: [PING], actions: []
 );
 
+static FLOOD_ALSO: ConsumedTopicSpec = ConsumedTopicSpec {
+    link_id: Some("also"),
+    owner: FLOOD_NODE,
+    name: "frames",
+    qos: QosProfile::Reliable,
+    format: FLOOD_FRAME,
+};
+
+test_node!(
+    Watch,
+    r#"{ peppy_schema: "node_v1", manifest: { name: "watch", tag: "v1", depends_on: { nodes: [
+             { name: "flood", tag: "v1", link_id: "src" }, { name: "flood", tag: "v1", link_id: "also" } ] } },
+         interfaces: { topics: { consumes: [
+             { link_id: "src", name: "frames" }, { link_id: "also", name: "frames" }, { link_id: "src", name: "beats" } ] } },
+         execution: { language: "rust", run_cmd: ["x"] } }"#,
+    emits: [], consumes: [FLOOD_IN, FLOOD_ALSO, BEAT_IN], serves: [], actions: []
+);
+
 /// One slow reader of one reliable topic must not hold up the rest of its
 /// node: Zenoh delivers every subscription and query of a session on the
 /// same threads, so an inbox that blocked there when full would stall the
@@ -568,10 +586,21 @@ async fn read_in_order(
     n: u32,
     frame: impl Fn(u32) -> crate::support::Frame,
 ) {
+    read_entry_in_order(reader, &FLOOD_IN, first, n, frame).await;
+}
+
+/// [`read_in_order`] from the consumed entry `entry`.
+async fn read_entry_in_order(
+    reader: &NodeRunner,
+    entry: &'static ConsumedTopicSpec,
+    first: u32,
+    n: u32,
+    frame: impl Fn(u32) -> crate::support::Frame,
+) {
     tokio::time::timeout(WAIT, async {
         for seq in first..first + n {
             let (_, got): (String, crate::support::Frame) =
-                next_message(reader, &FLOOD_IN, None).await.unwrap();
+                next_message(reader, entry, None).await.unwrap();
             assert_eq!(
                 got.seq,
                 seq,
@@ -676,6 +705,54 @@ async fn direct_links_hand_every_message_once_in_order() {
     .await
     .expect("the restarted producer is read over a direct link again");
     for r in [station, remote, flood] {
+        r.shutdown().await;
+    }
+}
+
+/// A consumer reading one producer's topic through two entries opens one
+/// direct link to it: the producer writes each message once for that
+/// consumer, and each entry gets every message once, in order.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_entries_on_one_key_share_one_direct_link() {
+    let hub = hub().await;
+    let ns = namespace("direct-shared");
+    let dir = tempfile::tempdir().unwrap();
+    let links = dir.path().display().to_string();
+    let args = [
+        "--bind",
+        "src@flood",
+        "--bind",
+        "also@flood",
+        "--direct-links",
+        links.as_str(),
+    ];
+    let watch = start_configured::<Watch>(&hub, &ns, "watch", &args, |b| b)
+        .await
+        .1;
+    let flood = start_direct::<Flood>(&hub, &ns, "flood", "st@station", &links).await;
+    beats_pass(&flood, &watch).await;
+    let frame = |seq: u32| patterned(seq, 16 + seq as usize % 300);
+    // A millisecond apart (no burst): the first frames link the entries,
+    // the rest come over the link too.
+    for seq in 0..200 {
+        emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    for entry in [&FLOOD_IN, &FLOOD_ALSO] {
+        read_entry_in_order(&watch, entry, 0, 200, frame).await;
+        let direct = watch.received_over_direct_links(entry).unwrap();
+        assert!(
+            direct > 100,
+            "{}: {direct} of 200 over the link",
+            entry.link_id.unwrap()
+        );
+    }
+    assert_eq!(
+        flood.direct_links_served(&FLOOD_OUT),
+        1,
+        "one link to the consumer, for both of its entries"
+    );
+    for r in [watch, flood] {
         r.shutdown().await;
     }
 }
