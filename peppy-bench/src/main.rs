@@ -45,9 +45,9 @@ struct Cli {
     #[arg(long)]
     quick: bool,
     /// Which peers to set up and measure beside peppy and raw Zenoh
-    /// (default: both; `none` for peppy's own figures on a machine where
+    /// (default: all; `none` for peppy's own figures on a machine where
     /// the peers are not built yet).
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [peers::Peer::Dora, peers::Peer::Floor])]
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [peers::Peer::Dora, peers::Peer::Floor, peers::Peer::Python])]
     peers: Vec<peers::Peer>,
     /// Run the whole table this many times, the groups taking turns, and
     /// report each figure's median run with its range over the runs (on a
@@ -109,7 +109,7 @@ pub(crate) fn cargo() -> std::ffi::OsString {
 }
 
 /// The workspace root (the benchmark builds and launches its examples).
-fn workspace() -> PathBuf {
+pub(crate) fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
         .expect("the workspace root")

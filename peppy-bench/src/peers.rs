@@ -1,7 +1,8 @@
 //! The peers peppy is measured against beside raw Zenoh, set up by the
 //! benchmark itself: dora-rs (its CLI from PyPI, its Rust node API from
-//! crates.io, both pinned to [`DORA_VERSION`]) and the hand-off floor
-//! (an iceoryx2 ping-pong, [`ICEORYX2_VERSION`]). Their nodes live in
+//! crates.io, both pinned to [`DORA_VERSION`]), the hand-off floor
+//! (an iceoryx2 ping-pong, [`ICEORYX2_VERSION`]), and peppy's own Python
+//! runtime (the source as a Python node, `peppy-bench/python`). Their nodes live in
 //! `peppy-bench/peers`, a cargo workspace of its own that peppy's CI
 //! never builds. What cannot be set up is said in one line, and its rows
 //! are left out.
@@ -45,6 +46,32 @@ pub(crate) struct Peers {
     pub(crate) dora: Option<Dora>,
     /// The floor's binary.
     pub(crate) floor: Option<PathBuf>,
+    /// The source as a Python node.
+    pub(crate) python: Option<PythonSource>,
+}
+
+/// The benchmark's source as a Python node, ready to start.
+pub(crate) struct PythonSource {
+    /// The `uv` that runs it on peppy's Python runtime.
+    pub(crate) uv: PathBuf,
+    /// The directory holding its generated package, `bench_source_gen`.
+    pub(crate) packages: PathBuf,
+}
+
+impl PythonSource {
+    /// The command that starts it with the runtime config at `plan`.
+    pub(crate) fn command(&self, plan: &Path) -> Command {
+        let root = crate::workspace();
+        let mut command = Command::new(&self.uv);
+        command
+            .args(["run", "--quiet", "--project"])
+            .arg(root.join("python/peppy-runtime"))
+            .arg("python")
+            .arg(root.join("peppy-bench/python/bench_source.py"))
+            .arg(plan)
+            .env("PYTHONPATH", &self.packages);
+        command
+    }
 }
 
 static PEERS: OnceLock<Peers> = OnceLock::new();
@@ -59,7 +86,9 @@ pub(crate) enum Peer {
     Dora,
     /// The hand-off floor (iceoryx2).
     Floor,
-    /// Neither.
+    /// The source as a Python node (peppy's Python runtime).
+    Python,
+    /// None of them.
     None,
 }
 
@@ -97,8 +126,75 @@ pub(crate) fn peers() -> &'static Peers {
             eprintln!("peppy-bench: hand-off floor rows left out (--peers)");
             None
         };
-        Peers { dora, floor }
+        let python = if chosen(Peer::Python) {
+            set_up_python()
+                .map_err(|e| eprintln!("peppy-bench: Python source rows skipped: {e}"))
+                .ok()
+        } else {
+            eprintln!("peppy-bench: Python source rows left out (--peers)");
+            None
+        };
+        Peers {
+            dora,
+            floor,
+            python,
+        }
     })
+}
+
+/// Generates the source node's Python package and makes the runtime's
+/// environment (`uv sync` of `python/peppy-runtime`, once).
+fn set_up_python() -> Res<PythonSource> {
+    let mut config = peppy_build::Config::new();
+    config
+        .manifest_dir(crate::workspace().join("peppy-bench/nodes/source"))
+        .repositories_env(None);
+    let generated = config.generate().map_err(|e| e.to_string())?;
+    let files =
+        peppy_build::python_package(&generated.check.resolved).map_err(|e| e.to_string())?;
+    let packages = peers_dir().join("python-source");
+    for (path, text) in files {
+        let path = packages.join("bench_source_gen").join(path);
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir)?;
+        }
+        std::fs::write(path, text)?;
+    }
+    let uv = uv();
+    let synced = Command::new(&uv)
+        .args(["sync", "--quiet", "--project"])
+        .arg(crate::workspace().join("python/peppy-runtime"))
+        .output()
+        .map_err(|e| format!("cannot run {}: {e}", uv.display()))?;
+    if !synced.status.success() {
+        return Err(format!("uv sync: {}", last_line(&synced.stderr)).into());
+    }
+    Ok(PythonSource { uv, packages })
+}
+
+/// The `uv` to use: `UV`, else `uv` on `PATH`, else the one peppy-launch
+/// installed for its Python nodes (under `~/.cache/peppy/tools`).
+fn uv() -> PathBuf {
+    if let Some(uv) = std::env::var_os("UV") {
+        return PathBuf::from(uv);
+    }
+    let on_path = std::env::var_os("PATH")
+        .is_some_and(|path| std::env::split_paths(&path).any(|dir| dir.join("uv").is_file()));
+    if on_path {
+        return PathBuf::from("uv");
+    }
+    let tools = std::env::var_os("HOME")
+        .map(|home| PathBuf::from(home).join(".cache/peppy/tools"))
+        .and_then(|dir| std::fs::read_dir(dir).ok());
+    let mut installed: Vec<PathBuf> = tools
+        .into_iter()
+        .flatten()
+        .filter_map(Result::ok)
+        .map(|e| e.path().join("bin/uv"))
+        .filter(|p| p.is_file())
+        .collect();
+    installed.sort();
+    installed.pop().unwrap_or_else(|| PathBuf::from("uv"))
 }
 
 /// Where the peers are installed and built.
@@ -173,7 +269,7 @@ fn install_dora_cli() -> Res<(PathBuf, Vec<(OsString, OsString)>)> {
         }
     }
     eprintln!("peppy-bench: installing dora-rs-cli {DORA_VERSION} from PyPI…");
-    let uv = std::env::var_os("UV").map_or_else(|| PathBuf::from("uv"), PathBuf::from);
+    let uv = uv();
     let by_uv = Command::new(&uv)
         .args(["tool", "install", "--force", &package])
         .env("UV_TOOL_DIR", dir.join("tools"))

@@ -57,6 +57,9 @@ enum Peer {
     Dora,
     /// The hand-off floor: an iceoryx2 ping-pong with event wake-ups.
     Floor,
+    /// The source as a Python node on peppy's Python runtime, pinged by
+    /// the Rust sink over a Unix socket.
+    Python,
 }
 
 const RAW_TCP: Mode = Mode {
@@ -154,6 +157,13 @@ const DORA: Mode = Mode {
     ..RAW_SHM
 };
 
+/// The source as a Python node, over a Unix socket with shared memory on
+/// as `up` runs a launch's instances (a Python node has no direct links).
+const PYTHON_UNIX: Mode = Mode {
+    peer: Some(Peer::Python),
+    ..PEPPY_UNIX
+};
+
 /// The hand-off floor (iceoryx2).
 const FLOOR: Mode = Mode {
     peer: Some(Peer::Floor),
@@ -218,6 +228,27 @@ impl Source {
                 proc.next_with("ready", Duration::from_secs(30))?;
                 Some(proc)
             }
+            Some(Peer::Python) => {
+                let python = peers::peers()
+                    .python
+                    .as_ref()
+                    .ok_or("the Python source is not set up")?;
+                let plan = socket_dir()?.join(format!("{ns}.plan.json"));
+                let text = serde_json::json!({
+                    "instance_id": "source",
+                    "core_node": "bench",
+                    "namespace": ns,
+                    "zenoh": {
+                        "mode": "peer",
+                        "listen": [endpoint],
+                        "multicast_scouting": false,
+                    },
+                });
+                std::fs::write(&plan, text.to_string())?;
+                let mut proc = Proc::spawn(python.command(&plan), "the Python source")?;
+                proc.next_with("ready", Duration::from_secs(120))?;
+                Some(proc)
+            }
             None => {
                 let mut proc = Proc::child(&place_args("source", mode, &ns, &endpoint))?;
                 proc.next_with("ready", Duration::from_secs(30))?;
@@ -243,7 +274,7 @@ impl Source {
         let mut source = Source::start(mode, case)?;
         let args = sink_args(&source);
         let sink = match mode.peer {
-            None => Proc::child(&args)?,
+            None | Some(Peer::Python) => Proc::child(&args)?,
             Some(Peer::Floor) => {
                 let bin = peers::peers()
                     .floor
@@ -556,6 +587,9 @@ pub(crate) fn links(quick: bool) -> Res<Vec<Row>> {
     if peers::peers().floor.is_some() {
         modes.push(FLOOR);
     }
+    if peers::peers().python.is_some() {
+        modes.push(PYTHON_UNIX);
+    }
     let sizes_arg: Vec<String> = sizes.iter().map(ToString::to_string).collect();
     let got = in_turns(
         &modes,
@@ -585,10 +619,13 @@ pub(crate) fn links(quick: bool) -> Res<Vec<Row>> {
                 .collect()
         })
         .collect();
+    let at = |mode| modes.iter().position(|m| *m == mode).unwrap_or(usize::MAX);
     let cases = [
         (LINKS_DIRECT, 1, 5, "TCP", "direct"),
         (LINKS_DIRECT_UNIX, 3, 5, "Unix", "direct"),
-        (LINKS_DIRECT_FLOOR, 6, 5, "floor", "direct"),
+        (LINKS_DIRECT_FLOOR, at(FLOOR), 5, "floor", "direct"),
+        (LINKS_PYTHON, 5, at(PYTHON_UNIX), "Rust", "Python"),
+        (LINKS_PYTHON_UNIX, 3, at(PYTHON_UNIX), "Rust", "Python"),
         (LINKS_PEPPY, 1, 3, "TCP", "Unix"),
         (LINKS_RAW, 0, 2, "TCP", "Unix"),
         (LINKS_LOWLATENCY, 2, 4, "default", "low-latency"),
@@ -596,7 +633,7 @@ pub(crate) fn links(quick: bool) -> Res<Vec<Row>> {
     ];
     let mut rows = Vec::new();
     for (group, base, subject, base_name, subject_name) in cases {
-        if base >= modes.len() {
+        if base >= modes.len() || subject >= modes.len() {
             continue;
         }
         for (i, &bytes) in sizes.iter().enumerate() {
@@ -620,6 +657,8 @@ const LINKS_DIRECT_UNIX: &str = "links on one host, peppy: direct links vs a Uni
 const LINKS_DIRECT_FLOOR: &str =
     "links on one host: the hand-off floor (iceoryx2) vs peppy with direct links";
 const LINKS_PEPPY: &str = "links on one host, peppy: Unix socket vs loopback TCP";
+const LINKS_PYTHON: &str = "links on one host: a Python consumer of a Rust producer (its answer back over a Unix socket) vs a Rust one with direct links";
+const LINKS_PYTHON_UNIX: &str = "links on one host: a Python consumer of a Rust producer vs a Rust one, both over a Unix socket alone";
 const LINKS_RAW: &str = "links on one host, raw Zenoh: Unix socket vs loopback TCP";
 const LINKS_LOWLATENCY: &str =
     "links on one host, raw Zenoh over a Unix socket: the low-latency transport vs the default";

@@ -31,9 +31,12 @@
 //!    link.
 //! 4. From then on a message below [`INLINE_MAX`] bytes goes over the link
 //!    too, unless it follows the topic's previous one within
-//!    [`BURST_GAP`] (in a burst, Zenoh's batching moves more). A large
-//!    message goes through Zenoh alone, through shared memory without a
-//!    copy.
+//!    [`BURST_GAP`] (in a burst, Zenoh's batching moves more), or it is
+//!    16 KiB or more and the consumer has not read the link's last frames
+//!    yet (`outlet`). A larger message goes through Zenoh alone, through
+//!    shared memory without a copy. A consumer instance has one link per
+//!    producer key, shared by its entries on that key, and links only the
+//!    producers its slots route to it.
 //! 5. The consumer merges the two by number (`inlet`): whichever copy of
 //!    the next message comes first is handed on, the other dropped; a link
 //!    message ahead of it waits until Zenoh has brought those before it.
