@@ -496,6 +496,58 @@ impl LinkedReaders {
     }
 }
 
+/// A consumer process on a direct link is killed (SIGKILL) while a
+/// reliable topic's producer emits to it and to another consumer, both
+/// linked. peppy promises: the producer's next write to the dead link
+/// fails, that link is closed and the producer goes on, its other link
+/// open; the other consumer reads every frame once, in order.
+#[test]
+fn a_consumer_killed_on_a_direct_link_costs_its_producer_that_link_alone() {
+    let mut on = LinkedReaders::start("killed-consumer", &COUNTS_OUT, &COUNTS_IN);
+    assert_eq!(
+        on.pump.direct_links_served(&COUNTS_OUT),
+        2,
+        "a link to each consumer"
+    );
+    on.frozen.signal("KILL");
+    let deadline = Instant::now() + WAIT;
+    while on.pump.direct_links_served(&COUNTS_OUT) != 1 {
+        assert!(
+            Instant::now() < deadline,
+            "the dead consumer's link is never closed: {}",
+            on.emitter.log.text()
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // Past the close, the other link carries on.
+    let closed_at = on.emitter.next();
+    let linked = on.near.received_over_direct_links(&COUNTS_IN).unwrap();
+    wait_for(&on.near_arrivals, "frames past the close", |a| {
+        a.last().is_some_and(|&(seq, _)| seq > closed_at + 200)
+    });
+    let (end, _) = on.emitter.finish();
+    wait_for(&on.near_arrivals, "the last frame", |a| {
+        a.last().is_some_and(|&(seq, _)| seq + 1 == end)
+    });
+    let seqs: Vec<u32> = on
+        .near_arrivals
+        .lock()
+        .unwrap()
+        .iter()
+        .map(|&(s, _)| s)
+        .collect();
+    // From its first frame (the emitter starts before Zenoh may have
+    // matched this reader: a start-up race, not the fault's).
+    assert!(seqs[0] < closed_at, "read before the kill");
+    assert_whole(&seqs, seqs[0], end, "the other consumer");
+    assert!(
+        on.near.received_over_direct_links(&COUNTS_IN).unwrap() > linked,
+        "the other consumer is still read over its link"
+    );
+    assert_eq!(on.pump.direct_links_served(&COUNTS_OUT), 1);
+    on.shutdown();
+}
+
 /// A consumer process that stops reading (SIGSTOP) while a reliable
 /// topic's producer keeps emitting small messages fills its direct link's
 /// socket. peppy promises: the producer's emit waits for room for at most
