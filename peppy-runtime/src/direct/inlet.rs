@@ -92,15 +92,18 @@ impl Consumer {
         if let Some(link) = links.get(key.as_str())
             && let Ok(mut shared) = link.shared.lock()
         {
-            // A link answered by another publisher than the one the lane
-            // follows is a restarted producer's predecessor, about to end.
-            let same = match &shared.answer {
-                Some((source, _)) => state.source.is_none_or(|s| s == *source),
+            // A link answered by the publisher the lane has moved on from
+            // is a restarted producer's predecessor, about to end; any
+            // other (the lane's own publisher, or the one that replaced
+            // it) is the one to read.
+            let current = match &shared.answer {
+                Some((source, _)) => state.previous != Some(*source),
                 None => true,
             };
-            if !shared.ended && same {
+            if !shared.ended && current {
                 if let Some((source, attachment)) = &shared.answer {
-                    state.answered(*source, attachment.clone());
+                    let intake = member.intake.upgrade();
+                    state.answered(*source, attachment.clone(), intake.as_deref());
                 }
                 shared.members.push(member);
                 return;
@@ -312,7 +315,7 @@ impl Inlet {
             }
             // Another publisher under this key: the producer restarted.
             // Its numbers start afresh, and it is linked anew.
-            state.restart(id, number);
+            state.restart(id, number, &intake);
             intake.queue(arrival);
             self.connect_locked(&lane, &mut state);
             return Route::Handled;
@@ -408,6 +411,12 @@ struct LaneState {
     /// The number of the next message to hand on, unwrapped: the `u32`
     /// numbers on the wire are read as the nearest value to it.
     next: i64,
+    /// Whether `next` is among the publisher's numbers at all: not until a
+    /// numbered message of it came through Zenoh (or a wait ran out), so
+    /// a number is never read against a guess.
+    located: bool,
+    /// Link messages that came while the lane was not located, in order.
+    unplaced: Vec<(u32, Arrival)>,
     /// Whether `next` is exact: a numbered message of `source` came
     /// through Zenoh, and every message since was counted. Until it is,
     /// a link's messages wait.
@@ -437,6 +446,8 @@ impl LaneState {
             source: source.map(|(id, _)| id),
             previous: None,
             next: source.map_or(0, |(_, number)| i64::from(number) + 1),
+            located: source.is_some(),
+            unplaced: Vec::new(),
             counted: source.is_some(),
             linked: false,
             link: LinkState::Closed,
@@ -459,39 +470,66 @@ impl LaneState {
         self.next + i64::from(distance)
     }
 
-    /// A new publisher under the key, whose message `number` was just
-    /// taken.
-    fn restart(&mut self, source: SourceId, number: u32) {
+    /// A new publisher under the key, whose message `number` is about to
+    /// be queued: what the link brought of the one it replaces goes first.
+    fn restart(&mut self, source: SourceId, number: u32, intake: &Intake) {
+        self.release(Some(intake));
         self.previous = self.source;
         self.follow(source, number);
         self.linked = false;
-        self.held.clear();
-        self.held_since = None;
     }
 
     /// Follows `source`'s numbers from its message `number`, just taken.
     fn follow(&mut self, source: SourceId, number: u32) {
         self.source = Some(source);
         self.next = i64::from(number) + 1;
+        self.located = true;
         self.counted = true;
     }
 
+    /// Hands on, in order, what the link brought and still waits (the
+    /// messages of a publisher the lane stops following: Zenoh may never
+    /// bring them); with no reader left, drops it.
+    fn release(&mut self, intake: Option<&Intake>) {
+        let held = std::mem::take(&mut self.held).into_values();
+        let unplaced = std::mem::take(&mut self.unplaced)
+            .into_iter()
+            .map(|(_, a)| a);
+        if let Some(intake) = intake {
+            for arrival in held.chain(unplaced) {
+                intake.queue(arrival);
+            }
+        }
+        self.held_since = None;
+    }
+
     /// The producer answered: its link is open.
-    fn answered(&mut self, source: SourceId, attachment: ZBytes) {
+    fn answered(&mut self, source: SourceId, attachment: ZBytes, intake: Option<&Intake>) {
         self.attachment = Some(attachment);
         self.link = LinkState::Open;
         self.linked = true;
         if self.source != Some(source) {
             // A publisher the lane has not followed (a restarted producer,
-            // or one whose messages were only counted): its numbers are
-            // learnt from its first numbered message through Zenoh, which
-            // lets what the link holds go.
+            // or one whose messages were only counted): where its numbers
+            // are is learnt from its first numbered message through Zenoh,
+            // which lets what the link holds go.
+            self.release(intake);
             self.previous = self.source;
             self.source = Some(source);
-            self.next = 1;
+            self.located = false;
             self.counted = false;
-            self.held.clear();
-            self.held_since = None;
+        }
+    }
+
+    /// Places the lane among its publisher's numbers at `number`, that of
+    /// the first numbered message through Zenoh: the link's messages that
+    /// came before it are read against it.
+    fn locate(&mut self, number: u32) {
+        self.next = i64::from(number);
+        self.located = true;
+        for (n, arrival) in std::mem::take(&mut self.unplaced) {
+            let n = self.unwrap(n);
+            self.held.insert(n, arrival);
         }
     }
 
@@ -500,9 +538,17 @@ impl LaneState {
     /// link's messages held before it go first, then it, or the link's
     /// copy of it if that came first.
     fn zenoh_brought(&mut self, number: u32, arrival: Arrival, intake: &Intake) {
-        self.counted = true;
+        if !self.located {
+            self.locate(number);
+        }
         let number = self.unwrap(number);
         if number < self.next {
+            // Late: the count is known again only once Zenoh has brought
+            // the last message handed on (a wait that ran out handed on
+            // some ahead of it).
+            if number + 1 == self.next {
+                self.counted = true;
+            }
             if !self.linked {
                 // No link has brought anything: a message Zenoh itself
                 // delivered late is still the reader's.
@@ -510,6 +556,7 @@ impl LaneState {
             }
             return; // Else the link brought it.
         }
+        self.counted = true;
         while let Some(entry) = self.held.first_entry() {
             if *entry.key() > number {
                 break;
@@ -540,6 +587,11 @@ impl LaneState {
 
     /// A message from the link.
     fn link_brought(&mut self, number: u32, arrival: Arrival, intake: &Intake) {
+        if !self.located {
+            self.unplaced.push((number, arrival));
+            self.held_since.get_or_insert_with(Instant::now);
+            return;
+        }
         let number = self.unwrap(number);
         if !self.counted {
             // Zenoh may still bring messages before it.
@@ -588,6 +640,14 @@ impl LaneState {
         }
         if !intake.drops() {
             warn!(topic = %key, "messages from a direct link waited too long for the ones before them through Zenoh; going on without those");
+        }
+        if let Some(&(last, _)) = self.unplaced.last() {
+            // Handed on in the link's order; the lane is placed past them.
+            for (_, arrival) in std::mem::take(&mut self.unplaced) {
+                intake.queue(arrival);
+            }
+            self.next = i64::from(last) + 1;
+            self.located = true;
         }
         for (number, arrival) in std::mem::take(&mut self.held) {
             intake.queue(arrival);
@@ -657,7 +717,11 @@ async fn read_link(consumer: &Consumer, link: &Link, path: PathBuf, hello: Hello
         if let Ok(mut state) = member.lane.state.lock()
             && state.generation == member.generation
         {
-            state.answered(source, attachment.clone());
+            state.answered(
+                source,
+                attachment.clone(),
+                member.intake.upgrade().as_deref(),
+            );
         }
     }
     debug!(topic = %link.key, "reading a producer over a direct link");
@@ -901,7 +965,7 @@ mod tests {
     fn a_restarted_publisher_starts_the_numbers_afresh() {
         let (intake, inbox) = intake();
         let mut s = lane(500);
-        s.restart(([8; 16], 3), 1);
+        s.restart(([8; 16], 3), 1, &intake);
         s.linked = true;
         s.zenoh_brought(2, message(2), &intake);
         s.link_brought(3, message(3), &intake);
@@ -933,7 +997,7 @@ mod tests {
         // A lane that has only counted: the producer numbered nothing yet.
         let mut s = LaneState::new(None);
         s.zenoh_counted(message(1), &intake);
-        s.answered(SOURCE, ZBytes::default());
+        s.answered(SOURCE, ZBytes::default(), Some(&intake));
         // Zenoh has not brought 2 yet; the link's 3 must not overtake it,
         // whatever `next` guessed.
         s.link_brought(3, message(3), &intake);
@@ -1000,5 +1064,61 @@ mod tests {
             [KEY],
             "a lane, and a link tried, for the routed producer alone"
         );
+    }
+
+    #[test]
+    fn a_late_numbered_message_after_a_wait_does_not_make_the_count_known() {
+        let (intake, inbox) = intake();
+        let key = KeyExpr::try_from(KEY).unwrap();
+        let mut s = lane(8);
+        // 9 and 11 through Zenoh alone; 10 and 12 over the link too, held
+        // until the wait runs out.
+        s.link_brought(10, message(10), &intake);
+        s.link_brought(12, message(12), &intake);
+        let deadline = s.deadline(false).expect("held");
+        s.expire(deadline, &key, &intake);
+        assert_eq!(queued(&inbox), [10, 12]);
+        s.zenoh_counted(message(9), &intake);
+        s.zenoh_brought(10, message(10), &intake);
+        // Not counted as 13: Zenoh is still behind what the wait handed on.
+        s.zenoh_counted(message(11), &intake);
+        s.zenoh_brought(12, message(12), &intake);
+        s.link_brought(13, message(13), &intake);
+        s.zenoh_brought(13, message(13), &intake);
+        s.zenoh_counted(message(14), &intake);
+        assert_eq!(queued(&inbox), [9, 11, 13, 14], "none lost, none twice");
+    }
+
+    #[test]
+    fn a_publisher_far_into_its_numbers_is_located_by_its_first_numbered_message() {
+        let (intake, inbox) = intake();
+        let far = 3_000_000_000u32;
+        // Counted only, then linked: nothing says where its numbers are.
+        let mut s = LaneState::new(None);
+        s.zenoh_counted(message(far - 2), &intake);
+        s.answered(SOURCE, ZBytes::default(), Some(&intake));
+        s.link_brought(far, message(far), &intake);
+        s.zenoh_counted(message(far - 1), &intake);
+        s.zenoh_brought(far, message(far), &intake);
+        s.zenoh_counted(message(far + 1), &intake);
+        s.link_brought(far + 2, message(far + 2), &intake);
+        s.zenoh_brought(far + 2, message(far + 2), &intake);
+        assert_eq!(
+            queued(&inbox),
+            [far - 2, far - 1, far, far + 1, far + 2],
+            "each once, in order"
+        );
+    }
+
+    #[test]
+    fn what_the_link_held_of_a_replaced_publisher_is_handed_on() {
+        let (intake, inbox) = intake();
+        let mut s = lane(7);
+        // 8 and 9 went through Zenoh alone and died with the producer.
+        s.link_brought(10, message(10), &intake);
+        assert_eq!(queued(&inbox), Vec::<u32>::new());
+        s.restart(([8; 16], 3), 1, &intake);
+        assert_eq!(queued(&inbox), [10], "not thrown away");
+        assert!(s.deadline(false).is_none(), "nothing waits");
     }
 }
