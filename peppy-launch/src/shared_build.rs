@@ -45,7 +45,11 @@ fn for_build_in(
         return None;
     }
     let chosen = |key: &str| var(key).is_some_and(|v| !v.is_empty());
-    if CHOSEN_BY_CARGO_ENV.iter().any(|key| chosen(key)) || config_chooses(dir) {
+    let cargo_home = var("CARGO_HOME")
+        .filter(|v| !v.is_empty())
+        .map(PathBuf::from)
+        .or_else(|| var("HOME").map(|home| PathBuf::from(home).join(".cargo")));
+    if CHOSEN_BY_CARGO_ENV.iter().any(|key| chosen(key)) || config_chooses(dir, cargo_home) {
         return None;
     }
     match var(BUILD_DIR_ENV) {
@@ -70,11 +74,13 @@ fn is_cargo_build(cmd: &[String]) -> bool {
 }
 
 /// Whether a cargo configuration file that applies in `dir` (its own or an
-/// ancestor's `.cargo/config.toml`) says where builds go.
-fn config_chooses(dir: &Path) -> bool {
-    dir.ancestors().any(|d| {
+/// ancestor's `.cargo/config.toml`, or the user's in `cargo_home`) says
+/// where builds go.
+fn config_chooses(dir: &Path, cargo_home: Option<PathBuf>) -> bool {
+    let places = dir.ancestors().map(|d| d.join(".cargo")).chain(cargo_home);
+    places.into_iter().any(|place| {
         ["config.toml", "config"].iter().any(|name| {
-            std::fs::read_to_string(d.join(".cargo").join(name)).is_ok_and(|text| {
+            std::fs::read_to_string(place.join(name)).is_ok_and(|text| {
                 text.lines().any(|line| {
                     let line = line.trim_start();
                     let line = line.strip_prefix("build.").unwrap_or(line);
@@ -139,6 +145,18 @@ mod tests {
         let node = dir.path().join("nodes/cam");
         std::fs::create_dir_all(&node).unwrap();
         assert!(for_build_in(&cmd, &node, env(&[])).is_some());
+        let home = tempfile::tempdir().unwrap();
+        std::fs::write(
+            home.path().join("config.toml"),
+            "[build]\nbuild-dir = \"/b\"\n",
+        )
+        .unwrap();
+        let in_home = |key: &str| (key == "CARGO_HOME").then(|| home.path().as_os_str().to_owned());
+        assert_eq!(
+            for_build_in(&cmd, &node, in_home),
+            None,
+            "the user's own cargo config"
+        );
         std::fs::create_dir_all(dir.path().join(".cargo")).unwrap();
         std::fs::write(
             dir.path().join(".cargo/config.toml"),
