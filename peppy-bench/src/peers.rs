@@ -104,42 +104,27 @@ fn chosen(peer: Peer) -> bool {
 /// The peers, set up on first use (printing one line for each that
 /// cannot be, whose rows are then left out).
 pub(crate) fn peers() -> &'static Peers {
-    PEERS.get_or_init(|| {
-        let dora = if chosen(Peer::Dora) {
-            set_up_dora()
-                .map_err(|e| eprintln!("peppy-bench: dora-rs {DORA_VERSION} rows skipped: {e}"))
-                .ok()
-        } else {
-            eprintln!("peppy-bench: dora-rs rows left out (--peers)");
-            None
-        };
-        let floor = if chosen(Peer::Floor) {
-            build("peppy-bench-iceoryx2", &["peppy-bench-iceoryx2"])
-                .map(|mut bins| bins.remove(0))
-                .map_err(|e| {
-                    eprintln!(
-                        "peppy-bench: hand-off floor (iceoryx2 {ICEORYX2_VERSION}) rows skipped: {e}"
-                    )
-                })
-                .ok()
-        } else {
-            eprintln!("peppy-bench: hand-off floor rows left out (--peers)");
-            None
-        };
-        let python = if chosen(Peer::Python) {
-            set_up_python()
-                .map_err(|e| eprintln!("peppy-bench: Python source rows skipped: {e}"))
-                .ok()
-        } else {
-            eprintln!("peppy-bench: Python source rows left out (--peers)");
-            None
-        };
-        Peers {
-            dora,
-            floor,
-            python,
-        }
+    PEERS.get_or_init(|| Peers {
+        dora: set_up(Peer::Dora, &format!("dora-rs {DORA_VERSION}"), set_up_dora),
+        floor: set_up(
+            Peer::Floor,
+            &format!("hand-off floor (iceoryx2 {ICEORYX2_VERSION})"),
+            || build("peppy-bench-iceoryx2", &["peppy-bench-iceoryx2"]).map(|mut b| b.remove(0)),
+        ),
+        python: set_up(Peer::Python, "Python source", set_up_python),
     })
+}
+
+/// `peer` set up by `how`, if `--peers` chose it; one line naming `what`
+/// when it is left out or cannot be set up.
+fn set_up<T>(peer: Peer, what: &str, how: impl FnOnce() -> Res<T>) -> Option<T> {
+    if !chosen(peer) {
+        eprintln!("peppy-bench: {what} rows left out (--peers)");
+        return None;
+    }
+    how()
+        .map_err(|e| eprintln!("peppy-bench: {what} rows skipped: {e}"))
+        .ok()
 }
 
 /// Generates the source node's Python package and makes the runtime's
@@ -173,7 +158,10 @@ fn set_up_python() -> Res<PythonSource> {
 }
 
 /// The `uv` to use: `UV`, else `uv` on `PATH`, else the one peppy-launch
-/// installed for its Python nodes (under `~/.cache/peppy/tools`).
+/// installed for its Python nodes (under `~/.cache/peppy/tools`). Not
+/// `peppy_launch::uv`, which also installs one: the benchmark does not
+/// link the launcher (its release build would build all the launcher's
+/// dependencies), and a machine that ran `up` of a Python node has it.
 fn uv() -> PathBuf {
     if let Some(uv) = std::env::var_os("UV") {
         return PathBuf::from(uv);

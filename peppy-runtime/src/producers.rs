@@ -18,7 +18,7 @@
 //! makes it a resource with a route cache; later messages find both.
 
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex, RwLock};
+use std::sync::{Arc, RwLock};
 
 use tokio_util::sync::CancellationToken;
 use tracing::debug;
@@ -38,8 +38,6 @@ pub(crate) struct Producer {
     pub(crate) core: Box<str>,
     /// Its instance id.
     pub(crate) instance: Box<str>,
-    /// The key it publishes under.
-    key: Box<str>,
 }
 
 impl Producer {
@@ -48,7 +46,6 @@ impl Producer {
             return Some(Producer {
                 core: sender.core.into(),
                 instance: sender.instance.into(),
-                key: key.into(),
             });
         }
         // A pairing's topic: the sender's slot is pinned by the
@@ -57,7 +54,6 @@ impl Producer {
         Some(Producer {
             core: sender.core.into(),
             instance: sender.instance.into(),
-            key: key.into(),
         })
     }
 }
@@ -66,9 +62,6 @@ impl Producer {
 #[derive(Debug)]
 pub(crate) struct Producers {
     known: RwLock<HashMap<Box<str>, Arc<Producer>, foldhash::fast::FixedState>>,
-    /// The producer found last, with its key: a flood from one producer
-    /// finds it by comparing the key, without hashing it per message.
-    last: Mutex<Option<Arc<Producer>>>,
     declarer: Declarer,
 }
 
@@ -76,7 +69,6 @@ impl Producers {
     pub(crate) fn new(declarer: Declarer) -> Self {
         Producers {
             known: RwLock::new(HashMap::default()),
-            last: Mutex::new(None),
             declarer,
         }
     }
@@ -84,18 +76,7 @@ impl Producers {
     /// The producer publishing under `key`; `None` for a key that does not
     /// name one.
     pub(crate) fn of(&self, key: &str) -> Option<Arc<Producer>> {
-        let mut last = self.last.try_lock().ok();
-        if let Some(p) = last
-            .as_deref()
-            .and_then(Option::as_ref)
-            .filter(|p| *p.key == *key)
-        {
-            return Some(p.clone());
-        }
         if let Some(p) = self.known.read().ok()?.get(key) {
-            if let Some(last) = last.as_mut() {
-                **last = Some(p.clone());
-            }
             return Some(p.clone());
         }
         let producer = Arc::new(Producer::parse(key)?);

@@ -171,13 +171,19 @@ impl Admission {
     /// Whether the slot routes the producer publishing under `key` to the
     /// reader (its format aside).
     fn routes(&self, key: &str) -> bool {
-        self.producers.of(key).is_some_and(|producer| {
-            self.filter.accepts(&producer.instance)
-                && self
-                    .members
-                    .as_ref()
-                    .is_none_or(|m| m.contains(&producer.core, &producer.instance))
-        })
+        self.producers
+            .of(key)
+            .is_some_and(|producer| self.routes_producer(&producer))
+    }
+
+    /// Whether the slot routes `producer` to the reader: its filter, and a
+    /// node slot's members.
+    fn routes_producer(&self, producer: &Producer) -> bool {
+        self.filter.accepts(&producer.instance)
+            && self
+                .members
+                .as_ref()
+                .is_none_or(|m| m.contains(&producer.core, &producer.instance))
     }
 
     /// The producer of a message under `key`, if the reader is to have it.
@@ -191,12 +197,7 @@ impl Admission {
             debug!(key, "dropping a sample with a malformed key");
             return None;
         };
-        if !self.filter.accepts(&producer.instance)
-            || self
-                .members
-                .as_ref()
-                .is_some_and(|m| !m.contains(&producer.core, &producer.instance))
-        {
+        if !self.routes_producer(&producer) {
             return None;
         }
         let fingerprint = attachment.and_then(|a| attachment::parse_topic(&a.to_bytes()));

@@ -295,32 +295,28 @@ impl Inlet {
         let Ok(mut state) = lane.state.lock() else {
             return Route::Take(arrival);
         };
-        let Some((id, number)) = source else {
-            state.zenoh_counted(arrival, &intake);
-            if state.link == LinkState::Closed && state.retry_due() {
-                self.connect_locked(&lane, &mut state);
+        match source {
+            None => state.zenoh_counted(arrival, &intake),
+            Some((id, number)) if state.source.is_none() => {
+                // The first numbered message of a lane that has only
+                // counted (no link answered yet, so nothing is held): the
+                // lane follows its publisher from here.
+                state.follow(id, number);
+                intake.queue(arrival);
             }
-            return Route::Handled;
-        };
-        if state.source.is_none() {
-            // The first numbered message of a lane that has only counted
-            // (no link answered yet, so nothing is held): the lane follows
-            // its publisher from here.
-            state.follow(id, number);
-            intake.queue(arrival);
-        } else if state.source != Some(id) {
-            if state.previous == Some(id) {
-                // The last messages of a publisher already replaced.
+            // The last messages of a publisher already replaced.
+            Some((id, _)) if state.source != Some(id) && state.previous == Some(id) => {
                 return Route::Take(arrival);
             }
-            // Another publisher under this key: the producer restarted.
-            // Its numbers start afresh, and it is linked anew.
-            state.restart(id, number, &intake);
-            intake.queue(arrival);
-            self.connect_locked(&lane, &mut state);
-            return Route::Handled;
-        } else {
-            state.zenoh_brought(number, arrival, &intake);
+            Some((id, number)) if state.source != Some(id) => {
+                // Another publisher under this key: the producer restarted.
+                // Its numbers start afresh, and it is linked anew.
+                state.restart(id, number, &intake);
+                intake.queue(arrival);
+                self.connect_locked(&lane, &mut state);
+                return Route::Handled;
+            }
+            Some((_, number)) => state.zenoh_brought(number, arrival, &intake),
         }
         if state.link == LinkState::Closed && state.retry_due() {
             self.connect_locked(&lane, &mut state);

@@ -403,13 +403,22 @@ fn read_all(
     arrivals
 }
 
-/// Waits (bounded) until `done` holds of what `arrivals` holds.
-fn wait_for(arrivals: &Arrivals, what: &str, done: impl Fn(&[(u32, Instant)]) -> bool) {
-    let deadline = Instant::now() + WAIT;
-    while !done(&arrivals.lock().unwrap()) {
-        assert!(Instant::now() < deadline, "{what}: not within {WAIT:?}");
+/// Waits until `done` holds, failing with `why()` past `bound`.
+fn poll_until(bound: Duration, mut done: impl FnMut() -> bool, why: impl Fn() -> String) {
+    let deadline = Instant::now() + bound;
+    while !done() {
+        assert!(Instant::now() < deadline, "{}", why());
         std::thread::sleep(Duration::from_millis(10));
     }
+}
+
+/// Waits (bounded) until `done` holds of what `arrivals` holds.
+fn wait_for(arrivals: &Arrivals, what: &str, done: impl Fn(&[(u32, Instant)]) -> bool) {
+    poll_until(
+        WAIT,
+        || done(&arrivals.lock().unwrap()),
+        || format!("{what}: not within {WAIT:?}"),
+    );
 }
 
 /// Checks `seqs` are `from..to`, each once, in order.
@@ -471,11 +480,11 @@ impl LinkedReaders {
         frozen.until(WAIT, "a frame read over a direct link", |l| {
             got(l, spec.name).is_some_and(|(_, direct)| direct > 0)
         });
-        let deadline = Instant::now() + WAIT;
-        while near.received_over_direct_links(spec).unwrap() == 0 {
-            assert!(Instant::now() < deadline, "the near reader is never linked");
-            std::thread::sleep(Duration::from_millis(10));
-        }
+        poll_until(
+            WAIT,
+            || near.received_over_direct_links(spec).unwrap() > 0,
+            || "the near reader is never linked".into(),
+        );
         LinkedReaders {
             rt,
             _hub: hub,
@@ -510,15 +519,16 @@ fn a_consumer_killed_on_a_direct_link_costs_its_producer_that_link_alone() {
         "a link to each consumer"
     );
     on.frozen.signal("KILL");
-    let deadline = Instant::now() + WAIT;
-    while on.pump.direct_links_served(&COUNTS_OUT) != 1 {
-        assert!(
-            Instant::now() < deadline,
-            "the dead consumer's link is never closed: {}",
-            on.emitter.log.text()
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    poll_until(
+        WAIT,
+        || on.pump.direct_links_served(&COUNTS_OUT) == 1,
+        || {
+            format!(
+                "the dead consumer's link is never closed: {}",
+                on.emitter.log.text()
+            )
+        },
+    );
     // Past the close, the other link carries on.
     let closed_at = on.emitter.next();
     let linked = on.near.received_over_direct_links(&COUNTS_IN).unwrap();
@@ -665,22 +675,23 @@ fn a_stalled_consumer_on_a_dropping_topic_costs_its_link_frames_and_holds_no_emi
     on.frozen.signal("STOP");
     let frozen_at = Instant::now();
     // Well inside Zenoh's 10 s lease: the frozen session outlives this.
-    let deadline = frozen_at + Duration::from_secs(5);
     let dropping = "a direct link's reader is behind: dropping as the topic's profile says";
-    while !on
-        .emitter
-        .log
-        .lines_with(dropping)
-        .iter()
-        .any(|l| l.contains("consumer=standalone/frozen dropped=64"))
-    {
-        assert!(
-            Instant::now() < deadline,
-            "64 frames not dropped within 5 s of the freeze: {}",
-            on.emitter.log.text()
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    poll_until(
+        Duration::from_secs(5),
+        || {
+            on.emitter
+                .log
+                .lines_with(dropping)
+                .iter()
+                .any(|l| l.contains("consumer=standalone/frozen dropped=64"))
+        },
+        || {
+            format!(
+                "64 frames not dropped within 5 s of the freeze: {}",
+                on.emitter.log.text()
+            )
+        },
+    );
     let continued_at = on.emitter.next();
     let near_meanwhile = on
         .near_arrivals
