@@ -385,6 +385,8 @@ pub struct NodeRunner {
     direct_dir: Option<PathBuf>,
     /// This node's socket for direct links, while it is up.
     direct_listener: Option<crate::direct::outlet::Listener>,
+    /// The topics that socket serves.
+    direct_outlets: Arc<crate::direct::outlet::Outlets>,
 }
 
 /// A shutdown hook and where it was registered (its name in the logs).
@@ -505,13 +507,20 @@ impl NodeRunner {
             pairings: Pairings::default(),
             direct_dir: startup.direct_links.take(),
             direct_listener: None,
+            direct_outlets: Arc::default(),
         };
         let mut entities = Entities::default();
         let started_at_ms = describe::now_ms();
         runner.declare_publishers(descriptor, &mut entities).await?;
-        runner.serve_direct_links();
+        // A participant's pairing topics are served once their publishers
+        // are declared, so its socket is up from the start too.
+        runner.serve_direct_links(doc.pairings.iter().any(|p| !p.observer));
         runner.serve_formats(descriptor, &mut entities).await?;
-        let consumes = runner.subscribe(descriptor, &mut entities).await?;
+        let direct = runner
+            .direct_consumer(!descriptor.consumed_topics.is_empty() || !doc.pairings.is_empty());
+        let consumes = runner
+            .subscribe(descriptor, direct.as_ref(), &mut entities)
+            .await?;
         runner.serve_services(descriptor, &mut entities).await?;
         runner
             .serve_actions(descriptor, retention, &mut entities)
@@ -530,6 +539,7 @@ impl NodeRunner {
         let tools = pairing::Tools {
             declarer: Declarer::start(runner.session.clone(), runner.token.clone()),
             mismatch: mismatch_reporter(runner.session.clone(), runner.namespace.clone()),
+            direct,
         };
         let own = pairing::Own {
             session: &runner.session,
@@ -632,21 +642,53 @@ impl NodeRunner {
     }
 
     /// Listens for consumers on this host that read the node's topics over
-    /// direct links (docs/WIRE.md, "Direct links").
-    fn serve_direct_links(&mut self) {
+    /// direct links (docs/WIRE.md, "Direct links"): its emitted topics, and
+    /// its pairing topics when it `pairs`.
+    fn serve_direct_links(&mut self, pairs: bool) {
         let Some(dir) = &self.direct_dir else {
             return;
         };
-        let outlets: Vec<_> = self
-            .publishers
-            .values()
-            .filter_map(|o| o.direct.clone())
-            .collect();
-        if outlets.is_empty() {
+        let mut served = pairs;
+        for outlet in self.publishers.values().filter_map(|o| o.direct.as_ref()) {
+            self.direct_outlets.add(outlet);
+            served = true;
+        }
+        if !served {
             return;
         }
         let path = crate::direct::socket_path(dir, &self.core_node, &self.instance_id);
-        self.direct_listener = crate::direct::outlet::serve(&path, outlets, self.token.clone());
+        self.direct_listener =
+            crate::direct::outlet::serve(&path, self.direct_outlets.clone(), self.token.clone());
+    }
+
+    /// Where the node reads producers on this host over direct links, when
+    /// the launch gives it a directory for them and it `consumes` topics.
+    fn direct_consumer(&self, consumes: bool) -> Option<Arc<crate::direct::inlet::Consumer>> {
+        let dir = self.direct_dir.as_ref().filter(|_| consumes)?;
+        Some(crate::direct::inlet::Consumer::new(
+            dir.clone(),
+            format!("{}/{}", self.core_node, self.instance_id),
+            tokio::runtime::Handle::current(),
+            self.token.clone(),
+        ))
+    }
+
+    /// A pairing topic's direct links, for its publisher under `publisher`
+    /// (none without a directory of direct links): served by the node's
+    /// socket while the publisher lives.
+    pub(crate) fn paired_outlet(
+        &self,
+        publisher: &zenoh::pubsub::Publisher<'static>,
+        spec: &'static TopicSpec,
+    ) -> Option<Arc<crate::direct::outlet::DirectOutlet>> {
+        self.direct_listener.as_ref()?;
+        let outlet = Arc::new(crate::direct::outlet::DirectOutlet::new(
+            publisher,
+            spec.qos,
+            spec.format.fingerprint,
+        ));
+        self.direct_outlets.add(&outlet);
+        Some(outlet)
     }
 
     /// The format queryables of emitted topics.
@@ -684,6 +726,7 @@ impl NodeRunner {
     async fn subscribe(
         &mut self,
         descriptor: &'static NodeDescriptor,
+        direct: Option<&Arc<crate::direct::inlet::Consumer>>,
         entities: &mut Entities,
     ) -> Result<Vec<ConsumedTopic>> {
         let own = Identity::new(&self.node_name, &self.node_tag);
@@ -691,17 +734,6 @@ impl NodeRunner {
         let mismatch = mismatch_reporter(self.session.clone(), self.namespace.clone());
         let declarer = Declarer::start(self.session.clone(), self.token.clone());
         let mut trackers = HashMap::new();
-        let direct = match &self.direct_dir {
-            Some(dir) if !descriptor.consumed_topics.is_empty() => {
-                Some(crate::direct::inlet::Consumer::new(
-                    dir.clone(),
-                    format!("{}/{}", self.core_node, self.instance_id),
-                    tokio::runtime::Handle::current(),
-                    self.token.clone(),
-                ))
-            }
-            _ => None,
-        };
         for spec in descriptor.consumed_topics {
             let filter = match spec.link_id {
                 Some(link) => self.slot(link)?.filter.clone(),
@@ -730,7 +762,7 @@ impl NodeRunner {
             });
             let (mut intake, inbox) =
                 Intake::new(spec, filter, members, declarer.clone(), mismatch.clone());
-            if let Some(consumer) = &direct {
+            if let Some(consumer) = direct {
                 intake = intake.with_direct(crate::direct::inlet::Inlet::new(consumer.clone()));
             }
             let intake = Arc::new(intake);

@@ -83,9 +83,9 @@ impl std::fmt::Debug for TopicPublisher {
 }
 
 impl TopicPublisher {
-    pub(crate) fn paired(sender: PairedSender) -> Self {
+    pub(crate) fn paired(sender: Arc<PairedSender>) -> Self {
         TopicPublisher {
-            route: Route::Paired(Arc::new(sender)),
+            route: Route::Paired(sender),
         }
     }
 
@@ -129,6 +129,16 @@ impl TopicPublisher {
         match &self.route {
             Route::Emitted { .. } => None,
             Route::Paired(p) => p.peer(),
+        }
+    }
+
+    /// How many consumers of this launch on this host read this topic
+    /// from this node over a direct link now (for a pairing topic: its
+    /// peer and observers there).
+    pub fn direct_links_served(&self) -> usize {
+        match &self.route {
+            Route::Emitted { runner, topic } => runner.direct_links_served(topic),
+            Route::Paired(p) => p.direct_links_served(),
         }
     }
 

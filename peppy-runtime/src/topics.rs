@@ -233,6 +233,9 @@ pub(crate) struct Intake {
     /// The producers read over direct links (instances of one launch on
     /// this host), when the launch gives the node a directory for them.
     direct: Option<crate::direct::inlet::Inlet>,
+    /// Told of every message queued, for a reader that waits on several
+    /// inboxes (a pairing's fan-in) rather than on this one's channel.
+    notify: Option<Arc<tokio::sync::Notify>>,
 }
 
 impl std::fmt::Debug for Intake {
@@ -274,6 +277,7 @@ impl Intake {
                 policy,
                 backlog: backlog.clone(),
                 direct: None,
+                notify: None,
             },
             Inbox {
                 rx,
@@ -287,6 +291,13 @@ impl Intake {
     /// Reads the producers that offer it over direct links.
     pub(crate) fn with_direct(mut self, inlet: crate::direct::inlet::Inlet) -> Self {
         self.direct = Some(inlet);
+        self
+    }
+
+    /// Tells `notify` of every message queued, whether Zenoh or a direct
+    /// link brought it.
+    pub(crate) fn with_notify(mut self, notify: Arc<tokio::sync::Notify>) -> Self {
+        self.notify = Some(notify);
         self
     }
 
@@ -342,7 +353,7 @@ impl Intake {
     /// Queues a message, as the topic's profile says.
     pub(crate) fn queue(&self, mut arrival: Arrival) {
         let size = arrival.payload.len();
-        match self.policy {
+        let queued = match self.policy {
             QueuePolicy::KeepAll { warn_at, max_bytes } => {
                 self.keep(arrival, size, warn_at, max_bytes)
             }
@@ -358,7 +369,7 @@ impl Intake {
                 self.backlog.queueing(size);
                 loop {
                     match self.tx.try_send(arrival) {
-                        Ok(()) => break,
+                        Ok(()) => break true,
                         Err(flume::TrySendError::Full(a)) => {
                             if let Ok(oldest) = self.rx.try_recv() {
                                 self.backlog.unqueued(oldest.payload.len());
@@ -367,18 +378,21 @@ impl Intake {
                         }
                         Err(flume::TrySendError::Disconnected(_)) => {
                             self.backlog.unqueued(size);
-                            break;
+                            break false;
                         }
                     }
                 }
             }
+        };
+        if queued && let Some(notify) = &self.notify {
+            notify.notify_one();
         }
     }
 
     /// Queues a message of a keep-all topic without ever blocking, warning
     /// as the backlog grows eightfold and dropping (counted, logged) only
-    /// past `max_bytes` unread.
-    fn keep(&self, arrival: Arrival, size: usize, warn_at: usize, max_bytes: usize) {
+    /// past `max_bytes` unread. Whether it was queued.
+    fn keep(&self, arrival: Arrival, size: usize, warn_at: usize, max_bytes: usize) -> bool {
         let topic = self.admission.spec.name;
         let (queued, unread) = self.backlog.queueing(size);
         if queued > max_bytes {
@@ -392,11 +406,11 @@ impl Intake {
                     "the reader of this reliable topic is not reading; dropping what arrives until it does"
                 );
             }
-            return;
+            return false;
         }
         if self.tx.send(arrival).is_err() {
             self.backlog.unqueued(size);
-            return;
+            return false;
         }
         let next = self.backlog.next_warning.load(Relaxed);
         let threshold = if next == 0 { warn_at } else { next };
@@ -414,6 +428,7 @@ impl Intake {
                 "the reader of this reliable topic is falling behind; every message is kept, the node's other traffic goes on"
             );
         }
+        true
     }
 }
 

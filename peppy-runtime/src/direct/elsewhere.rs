@@ -55,9 +55,17 @@ pub(crate) mod outlet {
     #[derive(Debug)]
     pub(crate) struct Listener;
 
+    /// No topic is served.
+    #[derive(Debug, Default)]
+    pub(crate) struct Outlets;
+
+    impl Outlets {
+        pub(crate) fn add(&self, _outlet: &Arc<DirectOutlet>) {}
+    }
+
     pub(crate) fn serve(
         _path: &Path,
-        _outlets: Vec<Arc<DirectOutlet>>,
+        _outlets: Arc<Outlets>,
         _token: CancellationToken,
     ) -> Option<Listener> {
         None

@@ -32,7 +32,7 @@ use zenoh::key_expr::KeyExpr;
 
 use super::{FRAME_MESSAGE, HEADER, HOLD_LIMIT, Hello, INLINE_MAX, SourceId};
 use crate::topics::{Arrival, Intake};
-use crate::wire::keys::split_entry_key;
+use crate::wire::keys::{parse_pairing_topic_key, split_entry_key};
 
 /// How long a producer without a socket is left on Zenoh before the next
 /// of its messages tries again (a producer restarted with direct links).
@@ -327,10 +327,9 @@ impl Inlet {
     /// Starts reading `lane`'s producer over a link (its state locked by
     /// the caller).
     fn connect_locked(&self, lane: &Arc<Lane>, state: &mut LaneState) {
-        let (Some(sender), Some(intake)) = (
-            split_entry_key(lane.key.as_str()),
-            self.intake.get().cloned(),
-        ) else {
+        let (Some((core, instance)), Some(intake)) =
+            (sender_of(lane.key.as_str()), self.intake.get().cloned())
+        else {
             state.link = LinkState::Closed;
             state.retry_at = Some(Instant::now() + Duration::from_secs(3600));
             return;
@@ -343,9 +342,18 @@ impl Inlet {
             intake,
             generation: state.generation,
         };
-        let path = super::socket_path(&self.consumer.dir, sender.core, sender.instance);
+        let path = super::socket_path(&self.consumer.dir, core, instance);
         self.consumer.join(member, state, path);
     }
+}
+
+/// The core node and instance publishing under `key`: a topic's producer,
+/// or a pairing topic's sender.
+fn sender_of(key: &str) -> Option<(&str, &str)> {
+    if let Some(sender) = split_entry_key(key) {
+        return Some((sender.core, sender.instance));
+    }
+    parse_pairing_topic_key(key).map(|sender| (sender.core, sender.instance))
 }
 
 /// One producer of a consumed topic, as its consumer merges it.

@@ -4,7 +4,7 @@
 use std::io::{ErrorKind, IoSlice, Write};
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock, Weak};
 use std::time::{Duration, Instant};
 
 use peppy_schema::QosProfile;
@@ -289,6 +289,28 @@ fn write_frame(
     result
 }
 
+/// The topics a node's socket serves: its emitted topics from start-up,
+/// and its pairing topics once their publishers are declared. Held weakly:
+/// a topic whose publisher is gone is not linked.
+#[derive(Debug, Default)]
+pub(crate) struct Outlets(Mutex<Vec<Weak<DirectOutlet>>>);
+
+impl Outlets {
+    /// Serves `outlet` from now on.
+    pub(crate) fn add(&self, outlet: &Arc<DirectOutlet>) {
+        if let Ok(mut all) = self.0.lock() {
+            all.retain(|o| o.strong_count() > 0);
+            all.push(Arc::downgrade(outlet));
+        }
+    }
+
+    /// The topic published under `key`, while its publisher lives.
+    fn find(&self, key: &str) -> Option<Arc<DirectOutlet>> {
+        let all = self.0.lock().ok()?;
+        all.iter().filter_map(Weak::upgrade).find(|o| o.key == key)
+    }
+}
+
 /// A node's socket for direct links, removed when the node stops.
 #[derive(Debug)]
 pub(crate) struct Listener {
@@ -301,12 +323,12 @@ impl Drop for Listener {
     }
 }
 
-/// Listens at `path` for consumers of `outlets` (the node's emitted
-/// topics by key) until `token` fires. `None` (the node's topics stay on
+/// Listens at `path` for consumers of `outlets` (the node's topics by key)
+/// until `token` fires. `None` (the node's topics stay on
 /// Zenoh alone) when the socket cannot be made.
 pub(crate) fn serve(
     path: &Path,
-    outlets: Vec<Arc<DirectOutlet>>,
+    outlets: Arc<Outlets>,
     token: CancellationToken,
 ) -> Option<Listener> {
     // A socket left by an earlier run of this instance (killed) is stale.
@@ -321,7 +343,6 @@ pub(crate) fn serve(
             return None;
         }
     };
-    let outlets = Arc::new(outlets);
     tokio::spawn(async move {
         loop {
             let stream = tokio::select! {
@@ -349,10 +370,7 @@ pub(crate) fn serve(
 }
 
 /// Reads a consumer's hello and links it to the topic it names.
-async fn welcome(
-    mut stream: tokio::net::UnixStream,
-    outlets: &[Arc<DirectOutlet>],
-) -> std::io::Result<()> {
+async fn welcome(mut stream: tokio::net::UnixStream, outlets: &Outlets) -> std::io::Result<()> {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
     let hello = tokio::time::timeout(HOLD_LIMIT, async {
         let len = usize::from(stream.read_u16_le().await?);
@@ -365,7 +383,7 @@ async fn welcome(
     })
     .await
     .map_err(|_| std::io::Error::from(ErrorKind::TimedOut))??;
-    let Some(outlet) = outlets.iter().find(|o| o.key == hello.key) else {
+    let Some(outlet) = outlets.find(&hello.key) else {
         stream.write_all(&[1]).await?;
         return Err(std::io::Error::other(format!(
             "no emitted topic under `{}`",
@@ -374,7 +392,6 @@ async fn welcome(
     };
     let stream = stream.into_std()?;
     stream.set_nonblocking(false)?;
-    let outlet = outlet.clone();
     let Hello { key, consumer } = hello;
     let who = consumer.clone();
     tokio::task::spawn_blocking(move || outlet.attach(stream, who))

@@ -14,6 +14,9 @@ pub(crate) struct PairedSender {
     publisher: Publisher<'static>,
     readers_known: Arc<AtomicBool>,
     attachment: ZBytes,
+    /// Its direct links to a peer on this host, when the launch gives the
+    /// node a directory for them.
+    direct: Option<Arc<crate::direct::outlet::DirectOutlet>>,
 }
 
 impl PairedSender {
@@ -31,12 +34,15 @@ impl PairedSender {
             self.readers_known.load(Ordering::Relaxed),
         );
         crate::topics::check_size(self.spec.topic.name, payload.len())?;
-        match self
-            .publisher
-            .put(payload)
-            .attachment(self.attachment.clone())
-            .wait()
-        {
+        let sent = match &self.direct {
+            Some(direct) => direct.publish(&self.publisher, payload, self.attachment.clone()),
+            None => self
+                .publisher
+                .put(payload)
+                .attachment(self.attachment.clone())
+                .wait(),
+        };
+        match sent {
             Ok(()) => Ok(()),
             Err(_) if self.runner.session().is_closed() => Err(stop::refused().await),
             Err(e) => Err(Error::from(e)),
@@ -52,6 +58,12 @@ impl PairedSender {
     /// observer's).
     pub(crate) fn has_readers(&self) -> bool {
         self.readers_known.load(Ordering::Relaxed)
+    }
+
+    /// How many consumers on this host read this topic from it over a
+    /// direct link now.
+    pub(crate) fn direct_links_served(&self) -> usize {
+        self.direct.as_ref().map_or(0, |d| d.links())
     }
 
     /// The topic this sender sends on.
@@ -72,6 +84,10 @@ pub async fn declare_paired_publisher(
     spec: &'static PairedTopicSpec,
 ) -> Result<TopicPublisher> {
     let participant = runner.pairings().participant(spec.link_id)?.clone();
+    let mut senders = participant.senders.lock().await;
+    if let Some(sender) = senders.get(spec.topic.name).and_then(Weak::upgrade) {
+        return Ok(TopicPublisher::paired(sender));
+    }
     let slot = &participant.slot;
     let key = pairing_topic_key(
         runner.namespace(),
@@ -103,14 +119,18 @@ pub async fn declare_paired_publisher(
         .callback(move |status| flag.store(status.matching(), Ordering::Relaxed))
         .background()
         .await?;
-    Ok(TopicPublisher::paired(PairedSender {
+    let sender = Arc::new(PairedSender {
         runner: runner.arc()?,
         spec,
-        participant,
+        participant: participant.clone(),
+        direct: runner.paired_outlet(&publisher, &spec.topic),
         publisher,
         readers_known: known,
         attachment: ZBytes::from(attachment::topic(spec.topic.format.fingerprint)),
-    }))
+    });
+    senders.retain(|_, s| s.strong_count() > 0);
+    senders.insert(spec.topic.name, Arc::downgrade(&sender));
+    Ok(TopicPublisher::paired(sender))
 }
 
 /// A held subscription to one of the peer's pairing topics: only the
@@ -155,6 +175,12 @@ impl<M: Decode> PairedSubscription<M> {
     /// The topic this subscription reads.
     pub fn topic(&self) -> &'static str {
         self.spec.topic.name
+    }
+
+    /// How many of the current pair's messages came over a direct link (a
+    /// peer of the same launch on this host), read or not.
+    pub fn received_over_direct_links(&self) -> u64 {
+        self.fan_in.received_over_direct_links()
     }
 }
 
@@ -222,6 +248,12 @@ impl<M: Decode> ObservedSubscription<M> {
     /// The topic this subscription reads.
     pub fn topic(&self) -> &'static str {
         self.spec.topic.name
+    }
+
+    /// How many messages of the sources' current runs came over a direct
+    /// link (sources of the same launch on this host), read or not.
+    pub fn received_over_direct_links(&self) -> u64 {
+        self.fan_in.received_over_direct_links()
     }
 }
 

@@ -12,7 +12,9 @@ pub(super) enum Label {
 
 /// The inbox of the current pair (or source run) of one lane.
 pub(super) struct Current {
-    pub(super) intake: Intake,
+    /// Shared with the direct links it reads (they hold it weakly, so a
+    /// new pair's intake ends the old one's reading).
+    pub(super) intake: Arc<Intake>,
     pub(super) inbox: Inbox,
     pub(super) label: Label,
 }
@@ -44,20 +46,12 @@ impl Lane {
         })
     }
 
-    /// Zenoh's callback: queued only while a pair (or run) is current.
+    /// Zenoh's callback: queued only while a pair (or run) is current (the
+    /// intake tells the fan-in).
     pub(super) fn accept(&self, sample: Sample) {
-        let queued = {
-            let current = self.current.lock().unwrap_or_else(|p| p.into_inner());
-            match current.as_ref() {
-                Some(c) => {
-                    c.intake.accept(sample);
-                    true
-                }
-                None => false,
-            }
-        };
-        if queued {
-            self.notify.notify_one();
+        let current = self.current.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(c) = current.as_ref() {
+            c.intake.accept(sample);
         }
     }
 
@@ -90,14 +84,24 @@ impl Lane {
     }
 
     /// A fresh inbox: whatever the previous one held is dropped with it.
+    /// On a launch's host the sender is read over a direct link, as a
+    /// consumed topic's producer is.
     pub(super) fn reset(&self, label: Label, instance: &str) {
-        let (intake, inbox) = Intake::new(
+        let (mut intake, inbox) = Intake::new(
             self.spec,
             RouteFilter::Pin(instance.to_string()),
             None,
             self.tools.declarer.clone(),
             self.tools.mismatch.clone(),
         );
+        intake = intake.with_notify(self.notify.clone());
+        if let Some(consumer) = &self.tools.direct {
+            intake = intake.with_direct(crate::direct::inlet::Inlet::new(consumer.clone()));
+        }
+        let intake = Arc::new(intake);
+        if let Some(inlet) = intake.direct() {
+            inlet.bind(&intake);
+        }
         *self.current.lock().unwrap_or_else(|p| p.into_inner()) = Some(Current {
             intake,
             inbox,
@@ -108,6 +112,18 @@ impl Lane {
     /// No pair: nothing is queued, and what was is dropped.
     pub(super) fn clear(&self) {
         *self.current.lock().unwrap_or_else(|p| p.into_inner()) = None;
+    }
+
+    /// How many of the current pair's (or run's) messages came over a
+    /// direct link.
+    pub(super) fn received_over_direct_links(&self) -> u64 {
+        let current = self.current.lock().unwrap_or_else(|p| p.into_inner());
+        current.as_ref().map_or(0, |c| {
+            c.inbox
+                .backlog
+                .direct
+                .load(std::sync::atomic::Ordering::Relaxed)
+        })
     }
 
     /// The next queued message, without waiting.
@@ -126,6 +142,15 @@ pub(super) struct FanIn {
 }
 
 impl FanIn {
+    /// How many messages of its lanes' current pairs came over a direct
+    /// link.
+    pub(super) fn received_over_direct_links(&self) -> u64 {
+        self.lanes
+            .iter()
+            .map(|l| l.received_over_direct_links())
+            .sum()
+    }
+
     /// The next message of any lane; `None` once the node stops.
     pub(super) async fn next(&mut self, stop: &CancellationToken) -> Option<(Label, Delivery)> {
         loop {

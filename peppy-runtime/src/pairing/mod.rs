@@ -73,6 +73,8 @@ pub(crate) type Mismatch = Arc<dyn Fn(&'static ConsumedTopicSpec, String, u64) +
 pub(crate) struct Tools {
     pub(crate) declarer: Declarer,
     pub(crate) mismatch: Mismatch,
+    /// The node's reader of direct links, when the launch gives it some.
+    pub(crate) direct: Option<Arc<crate::direct::inlet::Consumer>>,
 }
 
 mod endpoints;
@@ -169,6 +171,7 @@ impl Pairings {
                     claiming: Mutex::new(None),
                     lanes: Mutex::new(Vec::new()),
                     transitions: tokio::sync::Mutex::new(()),
+                    senders: tokio::sync::Mutex::new(HashMap::new()),
                 });
                 participant
                     .start(peers.first().cloned(), stop.clone())

@@ -58,6 +58,11 @@ pub(crate) struct Participant {
     /// Held while lanes are attached: a new pair and a new subscription
     /// never interleave.
     pub(super) transitions: tokio::sync::Mutex<()>,
+    /// The publisher of each of its topics, by name, while a handle holds
+    /// it: handles declared for one topic share one publisher, as an
+    /// emitted topic's do, so the peer hears one sender (one numbering on
+    /// a direct link).
+    pub(super) senders: tokio::sync::Mutex<HashMap<&'static str, Weak<PairedSender>>>,
 }
 
 impl Participant {

@@ -383,3 +383,115 @@ async fn a_pair_dissolves_with_a_side_and_a_restarted_or_new_peer_pairs_again() 
         .unwrap();
     assert!(matches!(ended, Ok(None)), "{ended:?}");
 }
+
+/// Waits (bounded) until `publisher` has `links` direct links.
+async fn until_links(publisher: &peppy_runtime::codegen::TopicPublisher, links: usize) {
+    tokio::time::timeout(WAIT, async {
+        while publisher.direct_links_served() != links {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    })
+    .await
+    .unwrap_or_else(|_| {
+        panic!(
+            "{} direct links, not {links}",
+            publisher.direct_links_served()
+        )
+    });
+}
+
+/// A message sent until the peer hears one: its subscription is then up.
+const PROBE: u64 = u64::MAX;
+
+/// Sends probes (bounded) until `sub` reads one.
+async fn until_heard(
+    publisher: &peppy_runtime::codegen::TopicPublisher,
+    sub: &mut PairedSubscription<u64>,
+) {
+    tokio::time::timeout(WAIT, async {
+        loop {
+            publisher
+                .publish(OutgoingMessage::new(&SETPOINT_OUT.topic, PROBE))
+                .await
+                .unwrap();
+            if let Ok(got) = tokio::time::timeout(Duration::from_millis(50), sub.next()).await {
+                assert_eq!(got.unwrap().unwrap().1, PROBE);
+                return;
+            }
+        }
+    })
+    .await
+    .expect("the peer hears the publisher");
+}
+
+/// Sends `range` a millisecond apart (no burst, so each may go over a
+/// link) and reads it back in order, once, from `from` (probes still on
+/// their way are passed over).
+async fn send_and_read(
+    publisher: &peppy_runtime::codegen::TopicPublisher,
+    sub: &mut PairedSubscription<u64>,
+    range: std::ops::Range<u64>,
+    from: &str,
+) {
+    for n in range.clone() {
+        publisher
+            .publish(OutgoingMessage::new(&SETPOINT_OUT.topic, n))
+            .await
+            .unwrap();
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    let mut want = range.start;
+    while want < range.end {
+        let (peer, got) = next(sub).await;
+        if got == PROBE && want == range.start {
+            continue;
+        }
+        assert_eq!((peer.producer.instance_id.as_str(), got), (from, want));
+        want += 1;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn a_pair_on_one_host_talks_over_a_direct_link_and_a_new_pair_links_again() {
+    let hub = hub().await;
+    let ns = namespace("pair-direct");
+    let dir = tempfile::tempdir().unwrap();
+    let links = dir.path().display().to_string();
+    let direct = ["--direct-links", links.as_str()];
+    let claim = |peer| [direct[0], direct[1], "--link", peer];
+    let c1 = commander(&hub, &ns, "c1", &claim("arm@arm_1/commander")).await;
+    let arm_1 = arm(&hub, &ns, "arm_1", &direct).await;
+    paired_with(&c1, "arm").await;
+    let mut setpoints = subscribe_paired::<u64>(&arm_1, &SETPOINT_IN).await.unwrap();
+    let publisher = declare_paired_publisher(&c1, &SETPOINT_OUT).await.unwrap();
+    until_heard(&publisher, &mut setpoints).await;
+
+    // Every message once and in order, most of them over the link; a
+    // second handle on the topic is the same publisher on the same link.
+    send_and_read(&publisher, &mut setpoints, 0..200, "c1").await;
+    let over_link = setpoints.received_over_direct_links();
+    assert!(over_link > 100, "{over_link} of 200 over the link");
+    assert_eq!(publisher.direct_links_served(), 1);
+    let again = declare_paired_publisher(&c1, &SETPOINT_OUT).await.unwrap();
+    send_and_read(&again, &mut setpoints, 200..220, "c1").await;
+    assert_eq!(again.direct_links_served(), 1);
+
+    // The arm stops and a new one claims the commander: its link replaces
+    // the old one (dropped at the first message that finds it closed), and
+    // it reads the new pair's messages, over it.
+    arm_1.shutdown().await;
+    until_paired(&c1, "arm", None).await;
+    let arm_2 = arm(&hub, &ns, "arm_2", &claim("commander@c1")).await;
+    paired_with(&arm_2, "commander").await;
+    until_paired(&c1, "arm", Some("arm_2")).await;
+    let mut setpoints = subscribe_paired::<u64>(&arm_2, &SETPOINT_IN).await.unwrap();
+    until_heard(&publisher, &mut setpoints).await;
+    send_and_read(&publisher, &mut setpoints, 1_000..1_200, "c1").await;
+    let over_link = setpoints.received_over_direct_links();
+    assert!(over_link > 100, "{over_link} of 200 over the new link");
+    until_links(&publisher, 1).await;
+
+    for r in [c1, arm_2] {
+        r.shutdown().await;
+    }
+}
