@@ -1339,13 +1339,10 @@ impl NodeRunner {
         // could overtake the last messages the shutdown hooks emitted,
         // which the router could then no longer name.
         let queryables = entities.queryables;
-        // Consumers on this host read what the hooks sent over the links,
-        // then hear of the end at once rather than when the process exits.
-        for outlet in self.publishers.values() {
-            if let Some(direct) = &outlet.direct {
-                direct.close();
-            }
-        }
+        // Consumers on this host read what the hooks sent over the links
+        // (emitted and pairing topics alike), then hear of the end at once
+        // rather than when the process exits.
+        self.direct_outlets.close_all();
         if let Some(token) = entities.liveliness {
             let _ = token.undeclare().await;
         }

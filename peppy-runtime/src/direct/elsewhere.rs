@@ -41,6 +41,10 @@ pub(crate) mod outlet {
 
         pub(crate) fn close(&self) {}
 
+        pub(crate) fn links(&self) -> usize {
+            0
+        }
+
         pub(crate) fn publish(
             &self,
             publisher: &Publisher<'static>,
@@ -61,6 +65,8 @@ pub(crate) mod outlet {
 
     impl Outlets {
         pub(crate) fn add(&self, _outlet: &Arc<DirectOutlet>) {}
+
+        pub(crate) fn close_all(&self) {}
     }
 
     pub(crate) fn serve(

@@ -493,14 +493,13 @@ impl LaneState {
 
     /// Hands on, in order, what the link brought and still waits (the
     /// messages of a publisher the lane stops following: Zenoh may never
-    /// bring them); with no reader left, drops it.
+    /// bring them); with no reader left, drops it. What was never placed
+    /// is dropped (`expire`).
     fn release(&mut self, intake: Option<&Intake>) {
         let held = std::mem::take(&mut self.held).into_values();
-        let unplaced = std::mem::take(&mut self.unplaced)
-            .into_iter()
-            .map(|(_, a)| a);
+        self.unplaced.clear();
         if let Some(intake) = intake {
-            for arrival in held.chain(unplaced) {
+            for arrival in held {
                 intake.queue(arrival);
             }
         }
@@ -527,13 +526,20 @@ impl LaneState {
 
     /// Places the lane among its publisher's numbers at `number`, that of
     /// the first numbered message through Zenoh: the link's messages that
-    /// came before it are read against it.
+    /// came before it are read against it. One numbered below it is not
+    /// the reader's: its Zenoh copy (numbered, as every linked message's
+    /// is) would have placed the lane already, had it come since the
+    /// lane's first message, so it is older than that (a link the lane
+    /// joined already open: another entry's, or a previous pair's), or a
+    /// message Zenoh dropped on a topic that drops.
     fn locate(&mut self, number: u32) {
         self.next = i64::from(number);
         self.located = true;
         for (n, arrival) in std::mem::take(&mut self.unplaced) {
             let n = self.unwrap(n);
-            self.held.insert(n, arrival);
+            if n >= self.next {
+                self.held.insert(n, arrival);
+            }
         }
     }
 
@@ -645,14 +651,10 @@ impl LaneState {
         if !intake.drops() {
             warn!(topic = %key, "messages from a direct link waited too long for the ones before them through Zenoh; going on without those");
         }
-        if let Some(&(last, _)) = self.unplaced.last() {
-            // Handed on in the link's order; the lane is placed past them.
-            for (_, arrival) in std::mem::take(&mut self.unplaced) {
-                intake.queue(arrival);
-            }
-            self.next = i64::from(last) + 1;
-            self.located = true;
-        }
+        // Never placed, a link message cannot be told from one older than
+        // the lane's first (a link joined already open): it is dropped,
+        // and its Zenoh copy, numbered, places the lane when it comes.
+        self.unplaced.clear();
         for (number, arrival) in std::mem::take(&mut self.held) {
             intake.queue(arrival);
             self.next = number + 1;
@@ -1112,6 +1114,38 @@ mod tests {
             [far - 2, far - 1, far, far + 1, far + 2],
             "each once, in order"
         );
+    }
+
+    #[test]
+    fn a_lane_joining_an_open_link_never_hands_on_what_came_before_it() {
+        let (intake, inbox) = intake();
+        let key = KeyExpr::try_from(KEY).unwrap();
+        // A fresh lane (a new pair, a second entry) whose first message
+        // through Zenoh is 2, unnumbered; it joins the link already open,
+        // whose reader is behind and still brings 1 (another pair's, or
+        // read already by the other entry).
+        let mut s = LaneState::new(None);
+        s.zenoh_counted(message(2), &intake);
+        s.answered(SOURCE, ZBytes::default(), Some(&intake));
+        s.link_brought(1, message(1), &intake);
+        s.link_brought(3, message(3), &intake);
+        s.zenoh_brought(3, message(3), &intake);
+        assert_eq!(queued(&inbox), [2, 3], "1 is not the lane's");
+
+        // The same, with no numbered message through Zenoh before the wait
+        // runs out: what never was placed is dropped, and Zenoh's numbered
+        // copy places the lane when it comes.
+        let mut s = LaneState::new(None);
+        s.zenoh_counted(message(2), &intake);
+        s.answered(SOURCE, ZBytes::default(), Some(&intake));
+        s.link_brought(1, message(1), &intake);
+        s.link_brought(3, message(3), &intake);
+        s.held_since = Some(Instant::now() - HOLD_LIMIT);
+        s.expire(Instant::now(), &key, &intake);
+        assert_eq!(queued(&inbox), [2]);
+        s.zenoh_brought(3, message(3), &intake);
+        s.zenoh_counted(message(4), &intake);
+        assert_eq!(queued(&inbox), [3, 4]);
     }
 
     #[test]

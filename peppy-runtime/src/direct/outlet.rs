@@ -304,6 +304,15 @@ impl Outlets {
         }
     }
 
+    /// Closes every link of every topic served (the node stops).
+    pub(crate) fn close_all(&self) {
+        if let Ok(all) = self.0.lock() {
+            for outlet in all.iter().filter_map(Weak::upgrade) {
+                outlet.close();
+            }
+        }
+    }
+
     /// The topic published under `key`, while its publisher lives.
     fn find(&self, key: &str) -> Option<Arc<DirectOutlet>> {
         let all = self.0.lock().ok()?;
