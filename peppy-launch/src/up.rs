@@ -1092,6 +1092,13 @@ pub(crate) async fn run_instances(
             running.spawn(async move { (ended_id, task.await) });
             Ok(id)
         };
+    // An instance added later (`run --join`) reads and serves the others
+    // over the launch's direct links as they do (none for a secured launch,
+    // whose instances have none).
+    let direct_links = planned
+        .iter()
+        .filter_map(|p| p.as_ref().ok())
+        .find_map(|p| p.config.direct_links.clone());
     let mut start_failure = None;
     for p in planned {
         match p.and_then(|p| start(p, &mut running)) {
@@ -1149,8 +1156,10 @@ pub(crate) async fn run_instances(
                     continue;
                 }
                 let node = addition.node.clone();
+                let mut config = addition.config;
+                config.direct_links = direct_links.clone();
                 let planned = Planned {
-                    config: addition.config,
+                    config,
                     node: addition.node,
                     dir: addition.dir,
                     argv: addition.argv,

@@ -205,6 +205,13 @@ fn a_detached_stack_is_managed_from_other_commands_and_stopped_whole() {
         Duration::from_secs(20),
         || std::fs::read_to_string(&side.2).is_ok_and(|l| l.contains("first frame from rs_right")),
     );
+    // It takes the launch's direct links, as the instances `up` started.
+    let plan = |log: &PathBuf| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(log.with_extension("json")).unwrap()).unwrap()
+    };
+    let links = plan(&viewer_log)["direct_links"].clone();
+    assert!(links.is_string(), "{links}");
+    assert_eq!(plan(&side.2)["direct_links"], links);
     // A link to what the stack does not run is refused before anything starts.
     let refused = shell.run(&[
         "run",
