@@ -673,9 +673,9 @@ impl NodeRunner {
         ))
     }
 
-    /// A pairing topic's direct links, for its publisher under `publisher`
-    /// (none without a directory of direct links): served by the node's
-    /// socket while the publisher lives.
+    /// The direct links of a pairing topic published by `publisher`, served
+    /// by the node's socket while the publisher lives (none when the node
+    /// has no socket).
     pub(crate) fn paired_outlet(
         &self,
         publisher: &zenoh::pubsub::Publisher<'static>,

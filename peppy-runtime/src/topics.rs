@@ -496,19 +496,31 @@ pub fn emit<'a, M: Encode + ?Sized>(
             return Err(Error::Undeclared(format!("emitted topic `{}`", spec.name)));
         };
         check_size(spec.name, payload.len())?;
-        let sent = match &outlet.direct {
-            Some(direct) => direct.publish(&outlet.publisher, payload, outlet.attachment.clone()),
-            None => outlet
-                .publisher
-                .put(payload)
-                .attachment(outlet.attachment.clone())
-                .wait(),
-        };
+        let sent = put(
+            outlet.direct.as_deref(),
+            &outlet.publisher,
+            payload,
+            outlet.attachment.clone(),
+        );
         match sent {
             Ok(()) => Ok(()),
             Err(_) if runner.session().is_closed() => Err(Box::pin(stop::refused()).await),
             Err(e) => Err(Error::from(e)),
         }
+    }
+}
+
+/// Publishes a topic's message through Zenoh, and over the topic's direct
+/// links when it has them (an emitted topic's or a pairing topic's).
+pub(crate) fn put(
+    direct: Option<&crate::direct::outlet::DirectOutlet>,
+    publisher: &zenoh::pubsub::Publisher<'static>,
+    payload: ZBytes,
+    attachment: ZBytes,
+) -> zenoh::Result<()> {
+    match direct {
+        Some(direct) => direct.publish(publisher, payload, attachment),
+        None => publisher.put(payload).attachment(attachment).wait(),
     }
 }
 

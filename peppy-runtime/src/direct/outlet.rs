@@ -395,7 +395,7 @@ async fn welcome(mut stream: tokio::net::UnixStream, outlets: &Outlets) -> std::
     let Some(outlet) = outlets.find(&hello.key) else {
         stream.write_all(&[1]).await?;
         return Err(std::io::Error::other(format!(
-            "no emitted topic under `{}`",
+            "no topic published under `{}`",
             hello.key
         )));
     };

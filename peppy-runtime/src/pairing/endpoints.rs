@@ -34,14 +34,12 @@ impl PairedSender {
             self.readers_known.load(Ordering::Relaxed),
         );
         crate::topics::check_size(self.spec.topic.name, payload.len())?;
-        let sent = match &self.direct {
-            Some(direct) => direct.publish(&self.publisher, payload, self.attachment.clone()),
-            None => self
-                .publisher
-                .put(payload)
-                .attachment(self.attachment.clone())
-                .wait(),
-        };
+        let sent = crate::topics::put(
+            self.direct.as_deref(),
+            &self.publisher,
+            payload,
+            self.attachment.clone(),
+        );
         match sent {
             Ok(()) => Ok(()),
             Err(_) if self.runner.session().is_closed() => Err(stop::refused().await),

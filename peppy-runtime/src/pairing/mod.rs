@@ -20,7 +20,6 @@ use peppy_schema::{PairEnd, PairPlan, PairingSlot, RouteFilter};
 use tokio::sync::{Notify, watch};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, info, warn};
-use zenoh::Wait;
 use zenoh::bytes::ZBytes;
 use zenoh::handlers::FifoChannelHandler;
 use zenoh::liveliness::LivelinessToken;
