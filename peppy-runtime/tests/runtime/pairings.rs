@@ -476,6 +476,24 @@ async fn a_pair_on_one_host_talks_over_a_direct_link_and_a_new_pair_links_again(
     send_and_read(&again, &mut setpoints, 200..220, "c1").await;
     assert_eq!(again.direct_links_served(), 1);
 
+    // A second subscription of the arm joins the link already open: each
+    // reads every message from its first on, once and in order, the new
+    // one over the link too, and the arm still has one link.
+    let mut second = subscribe_paired::<u64>(&arm_1, &SETPOINT_IN).await.unwrap();
+    until_heard(&publisher, &mut second).await;
+    send_and_read(&publisher, &mut second, 300..400, "c1").await;
+    let mut want = 300;
+    while want < 400 {
+        let (_, got) = next(&mut setpoints).await;
+        if got != PROBE {
+            assert_eq!(got, want);
+            want += 1;
+        }
+    }
+    let over_link = second.received_over_direct_links();
+    assert!(over_link > 50, "{over_link} of 100 over the joined link");
+    assert_eq!(publisher.direct_links_served(), 1);
+
     // The arm stops and a new one claims the commander: its link replaces
     // the old one (dropped at the first message that finds it closed), and
     // it reads the new pair's messages, over it.
