@@ -216,7 +216,10 @@ pub(crate) fn run(child: Child) -> std::process::ExitCode {
             .await
             .unwrap_or_else(|e| Err(format!("the role's task failed: {e}").into()))
     };
-    match runtime.block_on(role) {
+    let outcome = runtime.block_on(role);
+    // Not waiting for a read of stdin still blocked (a source's stop).
+    runtime.shutdown_background();
+    match outcome {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("peppy-bench child: {e}");

@@ -1140,12 +1140,21 @@ mod tests {
         s.answered(SOURCE, ZBytes::default(), Some(&intake));
         s.link_brought(1, message(1), &intake);
         s.link_brought(3, message(3), &intake);
-        s.held_since = Some(Instant::now() - HOLD_LIMIT);
-        s.expire(Instant::now(), &key, &intake);
+        s.expire(s.deadline(false).unwrap(), &key, &intake);
         assert_eq!(queued(&inbox), [2]);
         s.zenoh_brought(3, message(3), &intake);
         s.zenoh_counted(message(4), &intake);
         assert_eq!(queued(&inbox), [3, 4]);
+
+        // Across the numbers' wrap: the link's u32::MAX is before 0.
+        let mut s = LaneState::new(None);
+        s.zenoh_counted(message(7), &intake);
+        s.answered(SOURCE, ZBytes::default(), Some(&intake));
+        s.link_brought(u32::MAX, message(u32::MAX), &intake);
+        s.link_brought(1, message(1), &intake);
+        s.zenoh_brought(0, message(0), &intake);
+        s.zenoh_brought(1, message(1), &intake);
+        assert_eq!(queued(&inbox), [7, 0, 1]);
     }
 
     #[test]
