@@ -388,6 +388,11 @@ impl Drop for Emitter {
 /// `(seq, when)` of every frame an in-process reader reads on `spec`.
 type Arrivals = Arc<Mutex<Vec<(u32, Instant)>>>;
 
+/// The sequence numbers read so far, in the order they were read.
+fn seqs_of(arrivals: &Arrivals) -> Vec<u32> {
+    arrivals.lock().unwrap().iter().map(|&(s, _)| s).collect()
+}
+
 fn read_all(
     rt: &tokio::runtime::Runtime,
     runner: &Arc<NodeRunner>,
@@ -539,13 +544,7 @@ fn a_consumer_killed_on_a_direct_link_costs_its_producer_that_link_alone() {
     wait_for(&on.near_arrivals, "the last frame", |a| {
         a.last().is_some_and(|&(seq, _)| seq + 1 == end)
     });
-    let seqs: Vec<u32> = on
-        .near_arrivals
-        .lock()
-        .unwrap()
-        .iter()
-        .map(|&(s, _)| s)
-        .collect();
+    let seqs = seqs_of(&on.near_arrivals);
     // From its first frame (the emitter starts before Zenoh may have
     // matched this reader: a start-up race, not the fault's).
     assert!(seqs[0] < closed_at, "read before the kill");
@@ -729,13 +728,7 @@ fn a_stalled_consumer_on_a_dropping_topic_costs_its_link_frames_and_holds_no_emi
         disorder.is_empty(),
         "each frame once, in order; out of order (seq, read over links so far): {disorder:?}"
     );
-    let near: Vec<u32> = on
-        .near_arrivals
-        .lock()
-        .unwrap()
-        .iter()
-        .map(|&(s, _)| s)
-        .collect();
+    let near = seqs_of(&on.near_arrivals);
     assert!(
         near.windows(2).all(|w| w[0] < w[1]),
         "each frame once, in order"
