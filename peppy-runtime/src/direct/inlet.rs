@@ -30,7 +30,9 @@ use tracing::{debug, warn};
 use zenoh::bytes::ZBytes;
 use zenoh::key_expr::KeyExpr;
 
-use super::{FRAME_MESSAGE, HEADER, HOLD_LIMIT, Hello, INLINE_MAX, SourceId};
+use super::{
+    FRAME_MESSAGE, FRAME_SHARED, HEADER, HOLD_LIMIT, Hello, INLINE_MAX, SHARED_HEADER, SourceId,
+};
 use crate::topics::{Arrival, Intake};
 use crate::wire::keys::{parse_pairing_topic_key, split_entry_key};
 
@@ -688,7 +690,7 @@ async fn read_link(consumer: &Consumer, link: &Link, path: PathBuf, hello: Hello
             .write_all(&hello.encode())
             .await
             .map_err(|e| e.to_string())?;
-        let status = stream.read_u8().await.map_err(|e| e.to_string())?;
+        let (status, memory) = read_status(&stream).await.map_err(|e| e.to_string())?;
         if status != 0 {
             return Err(format!("refused ({status})"));
         }
@@ -704,13 +706,14 @@ async fn read_link(consumer: &Consumer, link: &Link, path: PathBuf, hello: Hello
             .await
             .map_err(|e| e.to_string())?;
         let eid = stream.read_u32_le().await.map_err(|e| e.to_string())?;
-        Ok::<_, String>((stream, attachment, (zid, eid)))
+        Ok::<_, String>((stream, attachment, (zid, eid), memory))
     };
-    let (mut stream, attachment, source) = match tokio::time::timeout(HOLD_LIMIT, handshake).await {
-        Ok(Ok(linked)) => linked,
-        Ok(Err(e)) => return Outcome::Unavailable(e),
-        Err(_) => return Outcome::Unavailable("no answer".into()),
-    };
+    let (mut stream, attachment, source, memory) =
+        match tokio::time::timeout(HOLD_LIMIT, handshake).await {
+            Ok(Ok(linked)) => linked,
+            Ok(Err(e)) => return Outcome::Unavailable(e),
+            Err(_) => return Outcome::Unavailable("no answer".into()),
+        };
     let attachment = ZBytes::from(attachment);
     let members = match link.shared.lock() {
         Ok(mut shared) => {
@@ -756,7 +759,7 @@ async fn read_link(consumer: &Consumer, link: &Link, path: PathBuf, hello: Hello
             Ok(_) => {}
             Err(e) => return Outcome::Closed(e.to_string()),
         }
-        if let Err(why) = whole_frames(&mut buf, &mut frames) {
+        if let Err(why) = whole_frames(&mut buf, &mut frames, memory.as_ref()) {
             return Outcome::Closed(why);
         }
         let gone: Vec<(usize, u64)> = members
@@ -773,25 +776,97 @@ async fn read_link(consumer: &Consumer, link: &Link, path: PathBuf, hello: Hello
     }
 }
 
-/// Moves every whole frame in `buf` to `frames` (its number and message).
-fn whole_frames(buf: &mut bytes::BytesMut, frames: &mut Vec<(u32, ZBytes)>) -> Result<(), String> {
+/// Moves every whole frame in `buf` to `frames` (its number and message),
+/// taking shared frames' messages from the link's `memory`.
+fn whole_frames(
+    buf: &mut bytes::BytesMut,
+    frames: &mut Vec<(u32, ZBytes)>,
+    memory: Option<&LinkMemory>,
+) -> Result<(), String> {
     while buf.len() >= HEADER {
         let number = u32::from_le_bytes([buf[1], buf[2], buf[3], buf[4]]);
-        let len = u32::from_le_bytes([buf[5], buf[6], buf[7], buf[8]]) as usize;
-        if buf[0] != FRAME_MESSAGE || len >= INLINE_MAX {
-            return Err(format!(
+        let len = u32::from_le_bytes([buf[5], buf[6], buf[7], buf[8]]);
+        let malformed = || {
+            format!(
                 "a malformed frame (kind {}, {len} bytes) on a direct link",
                 buf[0]
-            ));
+            )
+        };
+        match buf[0] {
+            FRAME_MESSAGE if (len as usize) < INLINE_MAX => {
+                let len = len as usize;
+                if buf.len() < HEADER + len {
+                    buf.reserve(HEADER + len - buf.len());
+                    break;
+                }
+                let _ = buf.split_to(HEADER);
+                frames.push((number, ZBytes::from(buf.split_to(len).freeze())));
+            }
+            FRAME_SHARED => {
+                if buf.len() < SHARED_HEADER {
+                    break;
+                }
+                let offset = u32::from_le_bytes([buf[9], buf[10], buf[11], buf[12]]);
+                let message = memory
+                    .and_then(|m| m.take(offset, len))
+                    .ok_or_else(malformed)?;
+                let _ = buf.split_to(SHARED_HEADER);
+                frames.push((number, ZBytes::from(message)));
+            }
+            _ => return Err(malformed()),
         }
-        if buf.len() < HEADER + len {
-            buf.reserve(HEADER + len - buf.len());
-            break;
-        }
-        let _ = buf.split_to(HEADER);
-        frames.push((number, ZBytes::from(buf.split_to(len).freeze())));
     }
     Ok(())
+}
+
+/// A link's shared memory, as its consumer reads it.
+#[cfg(target_os = "linux")]
+type LinkMemory = super::segment::Segment;
+
+/// No shared memory off Linux: a shared frame is malformed.
+#[cfg(not(target_os = "linux"))]
+#[derive(Debug)]
+struct LinkMemory;
+
+#[cfg(not(target_os = "linux"))]
+impl LinkMemory {
+    fn take(&self, _offset: u32, _len: u32) -> Option<bytes::Bytes> {
+        None
+    }
+}
+
+/// Reads the producer's answer's first byte, and the link's shared memory
+/// sent with it (none from a producer that could not make it).
+#[cfg(target_os = "linux")]
+async fn read_status(stream: &tokio::net::UnixStream) -> std::io::Result<(u8, Option<LinkMemory>)> {
+    use std::os::fd::AsFd;
+    let (status, fd) = loop {
+        stream.readable().await?;
+        match stream.try_io(tokio::io::Interest::READABLE, || {
+            super::segment::recv_with_fd(stream.as_fd())
+        }) {
+            Ok(got) => break got,
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+            Err(e) => return Err(e),
+        }
+    };
+    let memory = fd.map(super::segment::Segment::open).transpose()?;
+    Ok((status, memory))
+}
+
+/// Reads the producer's answer's first byte.
+#[cfg(not(target_os = "linux"))]
+async fn read_status(stream: &tokio::net::UnixStream) -> std::io::Result<(u8, Option<LinkMemory>)> {
+    let mut byte = [0];
+    loop {
+        stream.readable().await?;
+        match stream.try_read(&mut byte) {
+            Ok(0) => return Err(std::io::ErrorKind::UnexpectedEof.into()),
+            Ok(_) => return Ok((byte[0], None)),
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+            Err(e) => return Err(e),
+        }
+    }
 }
 
 impl Member {

@@ -47,16 +47,20 @@
 
 pub(crate) mod inlet;
 pub(crate) mod outlet;
+#[cfg(target_os = "linux")]
+pub(crate) mod segment;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-/// Messages of this size or more travel through Zenoh alone (its shared
-/// memory on one host carries them without a copy). Below it a link is
-/// faster: measured round trips over a link against Zenoh's shared
-/// memory were 76 to 97 µs against 150 µs at 64 KiB, and no faster at
-/// 128 KiB (a socket buffer holds about 200 KiB; a larger message is
-/// written in several turns, each a wake-up).
+/// Where a link has no shared memory (not Linux, or its segment could
+/// not be made), messages of this size or more travel through Zenoh alone
+/// (its shared memory on one host carries them without a copy). Below it
+/// the socket is faster: measured round trips over a link against Zenoh's
+/// shared memory were 76 to 97 µs against 150 µs at 64 KiB, and no faster
+/// at 128 KiB (a socket buffer holds about 200 KiB; a larger message is
+/// written in several turns, each a wake-up). It is also the longest
+/// message frame a consumer reads.
 pub(crate) const INLINE_MAX: usize = 128 * 1024;
 
 /// How long a link's message waits for the messages before it to come
@@ -83,11 +87,18 @@ pub(crate) const WRITE_LIMIT: Duration = Duration::from_millis(250);
 /// The first bytes of a consumer's hello.
 const MAGIC: &[u8; 4] = b"PPYD";
 
-/// The version of the direct link's framing.
-const VERSION: u8 = 1;
+/// The version of the direct link's framing: 2 added shared frames.
+const VERSION: u8 = 2;
 
 /// A frame's kind: a message follows.
 pub(crate) const FRAME_MESSAGE: u8 = 0;
+
+/// A frame's kind: the message is in the link's shared memory, at the
+/// offset (`u32` little-endian) that follows the header.
+pub(crate) const FRAME_SHARED: u8 = 2;
+
+/// A shared frame: the header, then the message's offset.
+pub(crate) const SHARED_HEADER: usize = HEADER + 4;
 
 /// A frame's header: its kind, the message's number (the one its Zenoh
 /// copy carries in its source info), and the length of the message that

@@ -16,7 +16,9 @@ use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::SourceInfo;
 
-use super::{BURST_GAP, FRAME_MESSAGE, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT, header};
+use super::{BURST_GAP, FRAME_MESSAGE, HEADER, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT, header};
+#[cfg(target_os = "linux")]
+use super::{FRAME_SHARED, SHARED_HEADER};
 use crate::qos;
 
 /// One emitted topic's direct links. Every publication of the topic takes
@@ -55,6 +57,9 @@ struct Link {
     consumer: String,
     /// Messages of a dropping topic not written since the last report.
     dropped: u64,
+    /// The link's shared memory, where its large messages go.
+    #[cfg(target_os = "linux")]
+    ring: Option<super::segment::Ring>,
 }
 
 impl DirectOutlet {
@@ -85,21 +90,19 @@ impl DirectOutlet {
         links.sequence = links.sequence.wrapping_add(1);
         let number = links.sequence;
         let mut linked = false;
+        let len = payload.len();
         if let (false, Some(clock)) = (links.open.is_empty(), self.clock.get())
-            && payload.len() < INLINE_MAX
+            && (len < INLINE_MAX || shared(len))
         {
             let now = clock.raw();
             let burst = links
                 .last
-                .is_some_and(|t| clock.delta_as_nanos(t, now) < burst_gap_ns(payload.len()));
+                .is_some_and(|t| clock.delta_as_nanos(t, now) < burst_gap_ns(len));
             links.last = Some(now);
             if !burst {
                 // The links first: they are what a consumer on this host
                 // reads.
-                let bytes = payload.to_bytes();
-                let head = header(FRAME_MESSAGE, number, bytes.len() as u32);
-                links.write(&head, &bytes, self.drops());
-                linked = true;
+                linked = links.write(number, &payload.to_bytes(), self.drops());
             }
         }
         let put = publisher.put(payload).attachment(attachment);
@@ -143,37 +146,93 @@ impl DirectOutlet {
             .lock()
             .map_err(|_| std::io::Error::other("a publisher panicked"))?;
         let attachment = crate::wire::attachment::topic(self.fingerprint);
+        let answer = super::answer(&attachment, self.source);
         stream.set_write_timeout(Some(HOLD_LIMIT))?;
-        stream.write_all(&super::answer(&attachment, self.source))?;
+        #[cfg(target_os = "linux")]
+        let ring = match super::segment::Ring::create() {
+            Ok((ring, fd)) => {
+                use std::os::fd::AsFd;
+                super::segment::send_with_fd(&stream, &answer, fd.as_fd())?;
+                Some(ring)
+            }
+            Err(e) => {
+                debug!(consumer, error = %e, "a direct link without shared memory: its large messages go through Zenoh alone");
+                stream.write_all(&answer)?;
+                None
+            }
+        };
+        #[cfg(not(target_os = "linux"))]
+        stream.write_all(&answer)?;
         stream.set_nonblocking(true)?;
         links.open.push(Link {
             stream,
             consumer,
             dropped: 0,
+            #[cfg(target_os = "linux")]
+            ring,
         });
         Ok(())
     }
 }
 
 impl Links {
-    /// Writes one frame to every link, closing the links that fail.
-    fn write(&mut self, head: &[u8], body: &[u8], may_drop: bool) {
+    /// Writes message `number` to every link that takes it, closing the
+    /// links that fail: whether any link got it.
+    fn write(&mut self, number: u32, body: &[u8], may_drop: bool) -> bool {
         let large = body.len() >= LARGE;
+        let mut any = false;
         self.open.retain_mut(|link| {
             if large && unread(&link.stream) != Some(0) {
                 // The consumer has not read the link's last frames: it is
                 // busy, not waiting, and Zenoh's shared memory moves a
-                // large message there without a copy through the socket.
+                // large message there without a copy.
                 return true;
             }
-            link.write(head, body, may_drop)
+            let (written, keep) = link.send(number, body, may_drop);
+            any |= written;
+            keep
         });
+        any
     }
 }
 
 impl Link {
-    /// Writes one frame; `false` to close the link.
-    fn write(&mut self, head: &[u8], body: &[u8], may_drop: bool) -> bool {
+    /// Sends message `number`: in the link's shared memory when it is
+    /// large and there is room, else through the socket when it is small
+    /// enough. Whether it was written, and whether to keep the link.
+    fn send(&mut self, number: u32, body: &[u8], may_drop: bool) -> (bool, bool) {
+        #[cfg(target_os = "linux")]
+        if shared(body.len())
+            && let Some(ring) = &mut self.ring
+        {
+            // No room (the consumer holds too much): Zenoh alone.
+            let Some(offset) = ring.put(body) else {
+                return (false, true);
+            };
+            let mut head = [0; SHARED_HEADER];
+            head[..HEADER].copy_from_slice(&header(FRAME_SHARED, number, body.len() as u32));
+            head[HEADER..].copy_from_slice(&offset.to_le_bytes());
+            let sent = self.write(&head, &[], may_drop);
+            if !sent.0
+                && let Some(ring) = &mut self.ring
+            {
+                ring.unput(offset);
+            }
+            return sent;
+        }
+        if body.len() >= INLINE_MAX {
+            return (false, true);
+        }
+        self.write(
+            &header(FRAME_MESSAGE, number, body.len() as u32),
+            body,
+            may_drop,
+        )
+    }
+
+    /// Writes one frame: whether it was written, and whether to keep the
+    /// link.
+    fn write(&mut self, head: &[u8], body: &[u8], may_drop: bool) -> (bool, bool) {
         let link = self;
         match write_frame(&link.stream, head, body, may_drop) {
             Ok(true) => {
@@ -181,34 +240,51 @@ impl Link {
                     debug!(consumer = %link.consumer, dropped = link.dropped, "a direct link has room again");
                     link.dropped = 0;
                 }
-                true
+                (true, true)
             }
             Ok(false) => {
                 link.dropped += 1;
                 if link.dropped.is_power_of_two() {
                     debug!(consumer = %link.consumer, dropped = link.dropped, "a direct link's reader is behind: dropping as the topic's profile says");
                 }
-                true
+                (false, true)
             }
             Err(e) if matches!(e.kind(), ErrorKind::BrokenPipe | ErrorKind::ConnectionReset) => {
                 debug!(consumer = %link.consumer, "a consumer closed its direct link");
-                false
+                (false, false)
             }
             Err(e) => {
                 warn!(consumer = %link.consumer, error = %e, "closing a direct link: the consumer reads this topic through Zenoh alone");
-                false
+                (false, false)
             }
         }
     }
 }
 
+/// Whether a message of `len` bytes goes over a link through its shared
+/// memory (where the link has some).
+fn shared(len: usize) -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        (super::segment::SHARED_MIN..=super::segment::MAX_MESSAGE).contains(&len)
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = len;
+        false
+    }
+}
+
 /// How soon after the topic's previous message one of `len` bytes is part
-/// of a burst: [`BURST_GAP`], and half a nanosecond more per byte (32 µs
-/// more at 64 KiB). A large message takes a copy through the socket, so
-/// only one that follows a longer pause (a consumer answering, not a
-/// producer flooding) is worth it.
+/// of a burst: [`BURST_GAP`], and for a message the socket carries half a
+/// nanosecond more per byte (8 µs more at 16 KiB). A larger message takes
+/// a copy through the socket, so only one that follows a longer pause (a
+/// consumer answering, not a producer flooding) is worth it; a message in
+/// shared memory costs the producer one copy, as Zenoh's shared memory
+/// does.
 fn burst_gap_ns(len: usize) -> u64 {
-    BURST_GAP.as_nanos() as u64 + len as u64 / 2
+    let per_byte = if shared(len) { 0 } else { len as u64 / 2 };
+    BURST_GAP.as_nanos() as u64 + per_byte
 }
 
 /// A message of this size or more goes over a link only to a consumer that

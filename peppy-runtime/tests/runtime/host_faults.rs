@@ -771,13 +771,28 @@ fn read_until(runs: &Runs, n: usize, quiet: Duration) {
 /// read from its first frame, in order.
 #[test]
 fn a_producer_killed_mid_flood_on_a_direct_link_leaves_its_consumer_whole() {
+    producer_killed_mid_flood("killed-producer", 16);
+}
+
+/// As [`a_producer_killed_mid_flood_on_a_direct_link_leaves_its_consumer_whole`],
+/// with frames the link carries through its shared memory (32 KiB): the
+/// consumer reads in place what a killed process wrote, and its mapping
+/// outlives the process.
+#[test]
+fn a_producer_killed_mid_flood_of_shared_memory_frames_leaves_its_consumer_whole() {
+    producer_killed_mid_flood("killed-shm-producer", 32 << 10);
+}
+
+/// Kills a pump of `bytes`-byte frames on a direct link mid-flood, then
+/// starts another: the sink reads each run whole.
+fn producer_killed_mid_flood(name: &str, bytes: usize) {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
         .build()
         .unwrap();
     let hub = rt.block_on(hub());
-    let ns = namespace("killed-producer");
+    let ns = namespace(name);
     let dir = tempfile::tempdir().unwrap();
     let links = dir.path().display().to_string();
     let linked = ["--bind", "src@pump", "--direct-links", &links];
@@ -795,7 +810,7 @@ fn a_producer_killed_mid_flood_on_a_direct_link_leaves_its_consumer_whole() {
     let plan = |run| Plan {
         args: node_args(&hub, &ns, "pump", &["--direct-links", &links]),
         frames: None,
-        bytes: 16,
+        bytes,
         gap_us: 50,
         run,
     };

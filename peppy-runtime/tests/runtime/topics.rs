@@ -615,8 +615,9 @@ async fn read_entry_in_order(
 }
 
 /// Two nodes given one directory for direct links (as `up` gives the
-/// instances of one launch) hand small messages over it and large ones
-/// (and bursts) through Zenoh, and the reader gets each once, in order,
+/// instances of one launch) hand small messages over it (through the
+/// socket, or its shared memory from 16 KiB) and the largest ones (and
+/// bursts) through Zenoh, and the reader gets each once, in order,
 /// across the switch from Zenoh to the link and back when the producer
 /// restarts; a reader without the directory gets the same through Zenoh.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -631,13 +632,15 @@ async fn direct_links_hand_every_message_once_in_order() {
     let flood = start_direct::<Flood>(&hub, &ns, "flood", "st@station", &links).await;
     beats_pass(&flood, &station).await;
     beats_pass(&flood, &remote).await;
-    // Every seventh frame is large: it goes through Zenoh (shared memory)
-    // and takes its place among the small ones the link carries.
+    // Every seventh frame is larger than a link's shared memory takes: it
+    // goes through Zenoh (its shared memory) and takes its place among
+    // the others the link carries, one in seven of those through the
+    // link's shared memory.
     let frame = |seq: u32| {
-        let len = if seq % 7 == 3 {
-            200 << 10
-        } else {
-            16 + (seq as usize * 37) % 2000
+        let len = match seq % 7 {
+            3 => 1600 << 10,
+            5 => 40 << 10,
+            _ => 16 + (seq as usize * 37) % 2000,
         };
         patterned(seq, len)
     };
@@ -651,8 +654,8 @@ async fn direct_links_hand_every_message_once_in_order() {
     read_in_order(&remote, 0, 300, frame).await;
     assert_eq!(direct(&remote), 0, "no directory, no direct link");
 
-    // Linked, and a millisecond apart (no burst): every small frame comes
-    // over the link.
+    // Linked, and a millisecond apart (no burst): every frame but the
+    // largest comes over the link.
     let before = direct(&station);
     for seq in 300..400 {
         emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
@@ -664,7 +667,7 @@ async fn direct_links_hand_every_message_once_in_order() {
     assert_eq!(
         direct(&station) - before,
         small,
-        "small frames over the link"
+        "all but the largest frames over the link"
     );
     assert!(
         std::fs::read_dir(dir.path()).unwrap().count() >= 1,
@@ -705,6 +708,73 @@ async fn direct_links_hand_every_message_once_in_order() {
     .await
     .expect("the restarted producer is read over a direct link again");
     for r in [station, remote, flood] {
+        r.shutdown().await;
+    }
+}
+
+/// Messages from 16 KiB go over a link through its shared memory and are
+/// read in place: a reader that keeps them holds the producer's regions,
+/// the producer never writes over one held, and once the reader holds too
+/// much the rest come through Zenoh; let go, the link carries them again.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn messages_a_reader_keeps_from_a_links_shared_memory_stay_intact() {
+    let hub = hub().await;
+    let ns = namespace("direct-held");
+    let dir = tempfile::tempdir().unwrap();
+    let links = dir.path().display().to_string();
+    let station = start_direct::<Station>(&hub, &ns, "station", "src@flood", &links).await;
+    let flood = start_direct::<Flood>(&hub, &ns, "flood", "st@station", &links).await;
+    beats_pass(&flood, &station).await;
+    let direct = |r: &NodeRunner| r.received_over_direct_links(&FLOOD_IN).unwrap();
+    let frame = |seq: u32| patterned(seq, 256 << 10);
+
+    // Linked first, with one frame read and dropped.
+    tokio::time::timeout(WAIT, async {
+        let mut seq = 0;
+        while direct(&station) == 0 {
+            emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+            read_in_order(&station, seq, 1, frame).await;
+            seq += 1;
+        }
+    })
+    .await
+    .expect("the reader is linked");
+
+    // 100 frames of 256 KiB kept undecoded: 25 MiB, more than a link
+    // holds for its reader, so the later ones come through Zenoh.
+    let (first, before) = (1000, direct(&station));
+    let mut kept = Vec::new();
+    for seq in first..first + 100 {
+        emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+        let (_, payload) = tokio::time::timeout(WAIT, next_payload(&station, &FLOOD_IN, None))
+            .await
+            .expect("the frame arrives")
+            .unwrap();
+        kept.push(payload);
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    let over_link = direct(&station) - before;
+    assert!(
+        (10..100).contains(&over_link),
+        "{over_link} of 100 kept frames over the link: some, until it held too much"
+    );
+    // Every message in between was written by the producer; none of them
+    // over a region still held.
+    for (seq, payload) in (first..).zip(&kept) {
+        let got: crate::support::Frame = payload.decode().unwrap();
+        assert!(got == frame(seq), "kept frame {seq} is intact");
+    }
+    drop(kept);
+
+    // Let go: the link carries them again.
+    let before = direct(&station);
+    for seq in 2000..2020 {
+        emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+        read_in_order(&station, seq, 1, frame).await;
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    assert_eq!(direct(&station) - before, 20, "over the link again");
+    for r in [station, flood] {
         r.shutdown().await;
     }
 }
