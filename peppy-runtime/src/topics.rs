@@ -29,6 +29,8 @@ use crate::wire::keys::{Channel, entry_selector};
 pub(crate) struct Delivery {
     pub(crate) producer: Arc<Producer>,
     pub(crate) payload: ZBytes,
+    /// Whether the payload is read in place from shared memory.
+    pub(crate) in_place: bool,
 }
 
 /// One message as queued. Zenoh's receiving thread runs the subscription
@@ -43,6 +45,9 @@ pub(crate) struct Arrival {
     pub(crate) key: KeyExpr<'static>,
     payload: ZBytes,
     attachment: Option<ZBytes>,
+    /// Whether the payload is read in place from shared memory (Zenoh's,
+    /// or a direct link's).
+    in_place: bool,
 }
 
 impl Arrival {
@@ -58,9 +63,17 @@ impl Arrival {
         Arrival {
             producer: None,
             key,
+            in_place: payload.as_shm().is_some(),
             payload,
             attachment,
         }
+    }
+
+    /// The same message, its payload read in place from a direct link's
+    /// shared memory.
+    pub(crate) fn read_in_place(mut self) -> Self {
+        self.in_place = true;
+        self
     }
 }
 
@@ -191,7 +204,7 @@ impl Admission {
         &self,
         key: &str,
         attachment: Option<&ZBytes>,
-        payload: &ZBytes,
+        in_place: bool,
     ) -> Option<Arc<Producer>> {
         let Some(producer) = self.producers.of(key) else {
             debug!(key, "dropping a sample with a malformed key");
@@ -216,7 +229,7 @@ impl Admission {
             }
             return None;
         }
-        if payload.as_shm().is_some() && self.backlog.shared.fetch_add(1, Relaxed) == 0 {
+        if in_place && self.backlog.shared.fetch_add(1, Relaxed) == 0 {
             info!(topic = self.spec.name, producer = %producer.instance, "receiving this topic through shared memory");
         }
         Some(producer)
@@ -361,7 +374,7 @@ impl Intake {
                 arrival.producer = self.admission.admit(
                     arrival.key.as_str(),
                     arrival.attachment.as_ref(),
-                    &arrival.payload,
+                    arrival.in_place,
                 );
                 if arrival.producer.is_none() {
                     return;
@@ -625,7 +638,10 @@ pub async fn next_payload_from(
     let delivery = next_delivery(runner, spec, senders).await?;
     Ok((
         String::from(&*delivery.producer.instance),
-        Payload(delivery.payload),
+        Payload {
+            bytes: delivery.payload,
+            in_place: delivery.in_place,
+        },
     ))
 }
 
@@ -640,7 +656,7 @@ pub(crate) fn take_ready(inbox: &Inbox, spec: &'static ConsumedTopicSpec) -> Opt
             None => match inbox.admission.admit(
                 arrival.key.as_str(),
                 arrival.attachment.as_ref(),
-                &arrival.payload,
+                arrival.in_place,
             ) {
                 Some(p) => p,
                 None => continue,
@@ -649,6 +665,7 @@ pub(crate) fn take_ready(inbox: &Inbox, spec: &'static ConsumedTopicSpec) -> Opt
         return Some(Delivery {
             producer,
             payload: arrival.payload,
+            in_place: arrival.in_place,
         });
     }
 }
@@ -678,7 +695,7 @@ async fn next_delivery(
             None => match inbox.admission.admit(
                 arrival.key.as_str(),
                 arrival.attachment.as_ref(),
-                &arrival.payload,
+                arrival.in_place,
             ) {
                 Some(p) => p,
                 None => continue,
@@ -688,6 +705,7 @@ async fn next_delivery(
             return Ok(Delivery {
                 producer,
                 payload: arrival.payload,
+                in_place: arrival.in_place,
             });
         }
     }
@@ -700,29 +718,33 @@ async fn next_delivery(
 /// fields (`Decoder::take`) as slices of those pages: a camera frame read
 /// without one copy. [`Payload::decode`] gives the owned message.
 #[derive(Debug, Clone)]
-pub struct Payload(ZBytes);
+pub struct Payload {
+    bytes: ZBytes,
+    in_place: bool,
+}
 
 impl Payload {
     /// The encoded message (docs/WIRE.md §5). Borrowed whenever it is one
     /// piece, which a shared-memory message always is; a message the
     /// network split into pieces is joined into one copy.
     pub fn bytes(&self) -> std::borrow::Cow<'_, [u8]> {
-        self.0.to_bytes()
+        self.bytes.to_bytes()
     }
 
-    /// Whether the bytes are in shared memory (mapped, never copied).
+    /// Whether the bytes are in shared memory (mapped, never copied):
+    /// Zenoh's, or a direct link's (docs/WIRE.md, "Direct links").
     pub fn in_shared_memory(&self) -> bool {
-        self.0.as_shm().is_some()
+        self.in_place
     }
 
     /// The encoded length.
     pub fn len(&self) -> usize {
-        self.0.len()
+        self.bytes.len()
     }
 
     /// Whether the message has no bytes (a format with no payload).
     pub fn is_empty(&self) -> bool {
-        self.0.is_empty()
+        self.bytes.is_empty()
     }
 
     /// Decodes the whole message.
@@ -769,6 +791,7 @@ mod tests {
             key: KeyExpr::try_from(TICKER).unwrap(),
             payload: ZBytes::from(vec![byte; 100]),
             attachment: None,
+            in_place: false,
         }
     }
 
@@ -841,7 +864,7 @@ mod tests {
                 assert!(a.producer.is_none());
                 inbox
                     .admission
-                    .admit(a.key.as_str(), a.attachment.as_ref(), &a.payload)
+                    .admit(a.key.as_str(), a.attachment.as_ref(), a.in_place)
                     .is_some()
             })
             .collect();

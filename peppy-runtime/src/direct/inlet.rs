@@ -776,11 +776,12 @@ async fn read_link(consumer: &Consumer, link: &Link, path: PathBuf, hello: Hello
     }
 }
 
-/// Moves every whole frame in `buf` to `frames` (its number and message),
-/// taking shared frames' messages from the link's `memory`.
+/// Moves every whole frame in `buf` to `frames` (its number, its message,
+/// and whether the message is read in place), taking shared frames'
+/// messages from the link's `memory`.
 fn whole_frames(
     buf: &mut bytes::BytesMut,
-    frames: &mut Vec<(u32, ZBytes)>,
+    frames: &mut Vec<(u32, ZBytes, bool)>,
     memory: Option<&LinkMemory>,
 ) -> Result<(), String> {
     while buf.len() >= HEADER {
@@ -800,7 +801,7 @@ fn whole_frames(
                     break;
                 }
                 let _ = buf.split_to(HEADER);
-                frames.push((number, ZBytes::from(buf.split_to(len).freeze())));
+                frames.push((number, ZBytes::from(buf.split_to(len).freeze()), false));
             }
             FRAME_SHARED => {
                 if buf.len() < SHARED_HEADER {
@@ -811,7 +812,7 @@ fn whole_frames(
                     .and_then(|m| m.take(offset, len))
                     .ok_or_else(malformed)?;
                 let _ = buf.split_to(SHARED_HEADER);
-                frames.push((number, ZBytes::from(message)));
+                frames.push((number, ZBytes::from(message), true));
             }
             _ => return Err(malformed()),
         }
@@ -891,7 +892,7 @@ impl Member {
     /// Hands `frames` to its lane; `false` when the lane no longer reads
     /// this link (its reader is gone, or it moved on to a restarted
     /// producer's).
-    fn take(&self, frames: &[(u32, ZBytes)]) -> bool {
+    fn take(&self, frames: &[(u32, ZBytes, bool)]) -> bool {
         let Some(intake) = self.intake.upgrade() else {
             return false;
         };
@@ -901,12 +902,15 @@ impl Member {
         if state.generation != self.generation {
             return false;
         }
-        for (number, payload) in frames {
-            let arrival = Arrival::new(
+        for (number, payload, in_place) in frames {
+            let mut arrival = Arrival::new(
                 self.lane.key.clone(),
                 payload.clone(),
                 state.attachment.clone(),
             );
+            if *in_place {
+                arrival = arrival.read_in_place();
+            }
             intake.counted_direct();
             state.link_brought(*number, arrival, &intake);
         }

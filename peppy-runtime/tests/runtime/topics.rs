@@ -758,6 +758,9 @@ async fn messages_a_reader_keeps_from_a_links_shared_memory_stay_intact() {
         (10..100).contains(&over_link),
         "{over_link} of 100 kept frames over the link: some, until it held too much"
     );
+    // Read in place, from the link's memory or (once it held too much)
+    // Zenoh's.
+    assert!(kept.iter().all(|p| p.in_shared_memory()));
     // Every message in between was written by the producer; none of them
     // over a region still held.
     for (seq, payload) in (first..).zip(&kept) {
