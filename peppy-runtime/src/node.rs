@@ -657,8 +657,12 @@ impl NodeRunner {
             return;
         }
         let path = crate::direct::socket_path(dir, &self.core_node, &self.instance_id);
-        self.direct_listener =
-            crate::direct::outlet::serve(&path, self.direct_outlets.clone(), self.token.clone());
+        self.direct_listener = crate::direct::outlet::serve(
+            &path,
+            self.direct_outlets.clone(),
+            self.shm.settings().enabled(),
+            self.token.clone(),
+        );
     }
 
     /// Where the node reads producers on this host over direct links, when
@@ -668,6 +672,7 @@ impl NodeRunner {
         Some(crate::direct::inlet::Consumer::new(
             dir.clone(),
             format!("{}/{}", self.core_node, self.instance_id),
+            self.shm.settings().enabled(),
             tokio::runtime::Handle::current(),
             self.token.clone(),
         ))

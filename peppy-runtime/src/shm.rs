@@ -60,7 +60,8 @@ impl SharedMemory {
     pub const POOL_MESSAGES: usize = 16;
 
     /// Never: every message is sent as bytes, and Zenoh's own shared-memory
-    /// transport is turned off, so the node behaves as on a remote host.
+    /// transport and the shared memory of the node's direct links are
+    /// turned off, so the node behaves as on a remote host.
     pub const fn off() -> Self {
         SharedMemory {
             threshold: None,

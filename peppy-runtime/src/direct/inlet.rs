@@ -58,6 +58,9 @@ pub(crate) struct Consumer {
     dir: PathBuf,
     /// `<core node>/<instance>`, for the producers' logs.
     name: String,
+    /// Whether its links take a segment of shared memory (the node's
+    /// shared memory is on).
+    shared: bool,
     runtime: tokio::runtime::Handle,
     token: CancellationToken,
     /// One link per producer key, whatever the number of the node's
@@ -70,12 +73,14 @@ impl Consumer {
     pub(crate) fn new(
         dir: PathBuf,
         name: String,
+        shared: bool,
         runtime: tokio::runtime::Handle,
         token: CancellationToken,
     ) -> Arc<Consumer> {
         Arc::new(Consumer {
             dir,
             name,
+            shared,
             runtime,
             token,
             links: Mutex::new(HashMap::default()),
@@ -124,6 +129,7 @@ impl Consumer {
         let hello = Hello {
             key: key.as_str().to_string(),
             consumer: self.name.clone(),
+            shared: self.shared,
         };
         let consumer = self.clone();
         self.runtime.spawn(async move {
@@ -1122,6 +1128,7 @@ mod tests {
         let consumer = Consumer::new(
             dir.path().to_path_buf(),
             "core/sink".into(),
+            true,
             tokio::runtime::Handle::current(),
             CancellationToken::new(),
         );

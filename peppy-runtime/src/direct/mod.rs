@@ -30,9 +30,10 @@
 //!    answers with the publisher's id its Zenoh copies carry, and adds the
 //!    link.
 //! 4. From then on a message goes over the link too, unless it follows the
-//!    topic's previous one within [`BURST_GAP`] (in a burst, Zenoh's
-//!    batching moves more), or it is 16 KiB or more and the consumer has
-//!    not read the link's last frames yet (`outlet`). Below 16 KiB the
+//!    topic's previous one within [`BURST_GAP`] and a little more the
+//!    larger it is (in a burst, Zenoh's batching moves more), or it is
+//!    16 KiB or more and the consumer has not read the link's last frames
+//!    yet (`outlet`). Below 16 KiB the
 //!    socket carries it; from 16 KiB to 1.5 MiB (on Linux) the link's own
 //!    shared memory does, the socket carrying only where it is
 //!    (`segment`). A larger message goes through Zenoh alone, through its
@@ -136,13 +137,18 @@ pub(crate) struct Hello {
     pub(crate) key: String,
     /// Who asks (`<core node>/<instance>`), for the producer's log.
     pub(crate) consumer: String,
+    /// Whether the consumer maps a segment of shared memory for the link
+    /// (its node's shared memory is on).
+    pub(crate) shared: bool,
 }
 
 impl Hello {
     /// The longest hello a producer reads.
     pub(crate) const MAX: usize = 4096;
 
-    /// The hello as sent: its length (`u16`, little-endian), then it.
+    /// The hello as sent: its length (`u16`, little-endian), then it:
+    /// the magic, the version, the two strings and a flags byte (bit 0:
+    /// [`Hello::shared`]).
     pub(crate) fn encode(&self) -> Vec<u8> {
         let mut out = Vec::with_capacity(11 + self.key.len() + self.consumer.len());
         out.extend_from_slice(&[0, 0]);
@@ -152,6 +158,7 @@ impl Hello {
             out.extend_from_slice(&(text.len().min(Self::MAX) as u16).to_le_bytes());
             out.extend_from_slice(&text.as_bytes()[..text.len().min(Self::MAX)]);
         }
+        out.push(u8::from(self.shared));
         let len = (out.len() - 2).min(usize::from(u16::MAX)) as u16;
         out[..2].copy_from_slice(&len.to_le_bytes());
         out
@@ -172,7 +179,12 @@ impl Hello {
         };
         let key = text()?;
         let consumer = text()?;
-        rest.is_empty().then_some(Hello { key, consumer })
+        let (&flags, rest) = rest.split_first()?;
+        (rest.is_empty() && flags <= 1).then_some(Hello {
+            key,
+            consumer,
+            shared: flags == 1,
+        })
     }
 }
 
@@ -205,6 +217,7 @@ mod tests {
         let hello = Hello {
             key: "peppy/ns/topic/cam/v1/frames/core/cam-1".into(),
             consumer: "core/sink".into(),
+            shared: true,
         };
         let sent = hello.encode();
         assert_eq!(

@@ -16,9 +16,9 @@ use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::SourceInfo;
 
-use super::{BURST_GAP, FRAME_MESSAGE, HEADER, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT, header};
+use super::{BURST_GAP, FRAME_MESSAGE, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT, header};
 #[cfg(target_os = "linux")]
-use super::{FRAME_SHARED, SHARED_HEADER};
+use super::{FRAME_SHARED, HEADER, SHARED_HEADER};
 use crate::qos;
 
 /// One emitted topic's direct links. Every publication of the topic takes
@@ -138,8 +138,14 @@ impl DirectOutlet {
     }
 
     /// Adds the link a consumer asked for, under the lock (between two
-    /// publications).
-    fn attach(&self, mut stream: UnixStream, consumer: String) -> std::io::Result<()> {
+    /// publications), with a segment of shared memory when `shared` (both
+    /// nodes' shared memory is on).
+    fn attach(
+        &self,
+        mut stream: UnixStream,
+        consumer: String,
+        shared: bool,
+    ) -> std::io::Result<()> {
         self.clock.get_or_init(quanta::Clock::new);
         let mut links = self
             .links
@@ -149,20 +155,31 @@ impl DirectOutlet {
         let answer = super::answer(&attachment, self.source);
         stream.set_write_timeout(Some(HOLD_LIMIT))?;
         #[cfg(target_os = "linux")]
-        let ring = match super::segment::Ring::create() {
-            Ok((ring, fd)) => {
+        let ring = match shared.then(super::segment::Ring::create) {
+            Some(Ok((ring, fd))) => {
                 use std::os::fd::AsFd;
                 super::segment::send_with_fd(&stream, &answer, fd.as_fd())?;
                 Some(ring)
             }
-            Err(e) => {
-                debug!(consumer, error = %e, "a direct link without shared memory: its large messages go through Zenoh alone");
+            Some(Err(e)) => {
+                static SAID: std::sync::atomic::AtomicBool =
+                    std::sync::atomic::AtomicBool::new(false);
+                if !SAID.swap(true, std::sync::atomic::Ordering::Relaxed) {
+                    warn!(consumer, error = %e, "direct links without shared memory: their messages of 16 KiB or more go through Zenoh alone, or the socket (logged once)");
+                }
+                stream.write_all(&answer)?;
+                None
+            }
+            None => {
                 stream.write_all(&answer)?;
                 None
             }
         };
         #[cfg(not(target_os = "linux"))]
-        stream.write_all(&answer)?;
+        {
+            let _ = shared;
+            stream.write_all(&answer)?;
+        }
         stream.set_nonblocking(true)?;
         links.open.push(Link {
             stream,
@@ -283,11 +300,12 @@ fn shared(len: usize) -> bool {
 }
 
 /// How soon after the topic's previous message one of `len` bytes is part
-/// of a burst: [`BURST_GAP`], and more the larger it is. A message the
-/// socket carries takes a copy through the kernel: half a nanosecond more
-/// per byte (8 µs at 16 KiB). One in the link's shared memory takes the
-/// producer one copy more than Zenoh's path: an eighth of a nanosecond per
-/// byte (131 µs at 1 MiB). Either is worth it to a consumer waiting for the
+/// of a burst: [`BURST_GAP`], and more the larger it is. Below 16 KiB the
+/// socket carries a message, a copy through the kernel: half a nanosecond
+/// more per byte (8 µs at 16 KiB). From 16 KiB a link's shared memory
+/// does (where a link has none, the socket up to 128 KiB), one copy more
+/// for the producer than Zenoh's path: an eighth of a nanosecond per byte
+/// (131 µs at 1 MiB). Either is worth it to a consumer waiting for the
 /// message (round trips of 1 MiB came 270 µs apart), not in a producer's
 /// flood (1 MiB messages about 100 µs apart went at ×0.79 of raw Zenoh's
 /// rate over links, where Zenoh alone carried them at its rate).
@@ -418,11 +436,14 @@ impl Drop for Listener {
 }
 
 /// Listens at `path` for consumers of `outlets` (the node's topics by key)
-/// until `token` fires. `None` (the node's topics stay on
-/// Zenoh alone) when the socket cannot be made.
+/// until `token` fires, giving each link a segment of shared memory when
+/// `shared` (the node's shared memory is on) and its consumer takes one.
+/// `None` (the node's topics stay on Zenoh alone) when the socket cannot
+/// be made.
 pub(crate) fn serve(
     path: &Path,
     outlets: Arc<Outlets>,
+    shared: bool,
     token: CancellationToken,
 ) -> Option<Listener> {
     // A socket left by an earlier run of this instance (killed) is stale.
@@ -452,7 +473,7 @@ pub(crate) fn serve(
             };
             let outlets = outlets.clone();
             tokio::spawn(async move {
-                if let Err(e) = welcome(stream, &outlets).await {
+                if let Err(e) = welcome(stream, &outlets, shared).await {
                     debug!(error = %e, "a direct link was not made");
                 }
             });
@@ -464,7 +485,11 @@ pub(crate) fn serve(
 }
 
 /// Reads a consumer's hello and links it to the topic it names.
-async fn welcome(mut stream: tokio::net::UnixStream, outlets: &Outlets) -> std::io::Result<()> {
+async fn welcome(
+    mut stream: tokio::net::UnixStream,
+    outlets: &Outlets,
+    shared: bool,
+) -> std::io::Result<()> {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
     let hello = tokio::time::timeout(HOLD_LIMIT, async {
         let len = usize::from(stream.read_u16_le().await?);
@@ -486,9 +511,14 @@ async fn welcome(mut stream: tokio::net::UnixStream, outlets: &Outlets) -> std::
     };
     let stream = stream.into_std()?;
     stream.set_nonblocking(false)?;
-    let Hello { key, consumer } = hello;
+    let Hello {
+        key,
+        consumer,
+        shared: takes_shared,
+    } = hello;
     let who = consumer.clone();
-    tokio::task::spawn_blocking(move || outlet.attach(stream, who))
+    let shared = shared && takes_shared;
+    tokio::task::spawn_blocking(move || outlet.attach(stream, who, shared))
         .await
         .map_err(std::io::Error::other)??;
     debug!(

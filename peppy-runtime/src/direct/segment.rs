@@ -19,10 +19,12 @@
 //! reuses regions in the order it gave them; a region held longer than
 //! the ones after it (a reader keeping a message) holds those back too,
 //! and when nothing fits the message goes through Zenoh alone. The
-//! segment is [`CAPACITY`] bytes of address space; memory is taken only
-//! as regions are first written, and placing starts again at its
-//! beginning whenever every region is free, so a link whose reader keeps
-//! up touches about one message's worth.
+//! segment is [`CAPACITY`] bytes of address space, and memory is taken
+//! as regions are first written (and kept until the link ends). Placing
+//! goes back to the segment's beginning whenever the message fits below
+//! the oldest region held, so a link whose reader keeps a message or two
+//! touches only a few messages' worth, and one whose reader holds more
+//! touches at most about [`IN_FLIGHT`] and two messages more.
 
 use std::collections::VecDeque;
 use std::io;
@@ -41,8 +43,8 @@ use nix::sys::mman::{MapFlags, ProtFlags, mmap, munmap};
 pub(crate) const SHARED_MIN: usize = 16 * 1024;
 
 /// A segment's size: address space, of which only the regions written
-/// take memory.
-pub(crate) const CAPACITY: usize = 64 << 20;
+/// take memory (see the module's documentation for how much).
+pub(crate) const CAPACITY: usize = 32 << 20;
 
 /// The largest message a segment carries; a larger one goes through
 /// Zenoh alone. A message in shared memory costs the producer a copy
@@ -52,9 +54,8 @@ pub(crate) const CAPACITY: usize = 64 << 20;
 /// 1.5 MiB, and 494 to 522 µs against 419 to 434 µs at 2 MiB.
 pub(crate) const MAX_MESSAGE: usize = 3 << 19;
 
-/// The most bytes of a link's regions held at once (unless one message
-/// alone is more): what a link may keep of the producer's memory while
-/// its reader holds messages.
+/// The most bytes of a link's regions held at once: past it, while its
+/// reader holds messages, the link's messages go through Zenoh alone.
 const IN_FLIGHT: usize = 16 << 20;
 
 /// A region's header: its busy flag, then padding to a cache line.
@@ -139,10 +140,15 @@ impl Ring {
     /// Makes a link's segment: the ring, and the descriptor to send the
     /// consumer.
     pub(crate) fn create() -> io::Result<(Ring, OwnedFd)> {
+        let flags = MemFdCreateFlag::MFD_CLOEXEC | MemFdCreateFlag::MFD_ALLOW_SEALING;
+        let name = c"peppy-direct-link";
+        // Not executable: a kernel with `vm.memfd_noexec=2` refuses any
+        // other memfd, one before Linux 6.3 does not know the flag.
         let fd = memfd_create(
-            c"peppy-direct-link",
-            MemFdCreateFlag::MFD_CLOEXEC | MemFdCreateFlag::MFD_ALLOW_SEALING,
-        )?;
+            name,
+            flags | MemFdCreateFlag::from_bits_retain(libc::MFD_NOEXEC_SEAL),
+        )
+        .or_else(|_| memfd_create(name, flags))?;
         nix::unistd::ftruncate(&fd, CAPACITY as i64)?;
         // Sealed at its size: a consumer maps all of it without a fault to
         // fear, whatever the producer does later.
@@ -217,17 +223,18 @@ impl Ring {
         }
     }
 
-    /// Where a region of `size` bytes fits after the newest, wrapping to
-    /// the beginning when the end is short of room.
+    /// Where a region of `size` bytes fits after the newest: back at the
+    /// beginning when it fits below the oldest region held (the memory
+    /// already touched), else after the newest.
     fn place(&self, size: usize) -> Option<usize> {
         let Some(&(tail, _)) = self.regions.front() else {
             return (size <= CAPACITY).then_some(0);
         };
         if self.head > tail {
-            if self.head + size <= CAPACITY {
-                Some(self.head)
+            if size <= tail {
+                Some(0)
             } else {
-                (size <= tail).then_some(0)
+                (self.head + size <= CAPACITY).then_some(self.head)
             }
         } else {
             (self.head + size <= tail).then_some(self.head)
@@ -331,7 +338,9 @@ pub(crate) fn recv_with_fd(stream: BorrowedFd<'_>) -> io::Result<(u8, Option<Own
     use nix::sys::socket::{ControlMessageOwned, MsgFlags, recvmsg};
     use std::os::fd::{FromRawFd, RawFd};
     let mut byte = [0u8; 1];
-    let mut space = nix::cmsg_space!([RawFd; 2]);
+    // Room for as many descriptors as one message can carry (the kernel's
+    // `SCM_MAX_FD`): none is left installed unowned by a truncation.
+    let mut space = nix::cmsg_space!([RawFd; 253]);
     let mut iov = [io::IoSliceMut::new(&mut byte)];
     let message = recvmsg::<()>(
         stream.as_raw_fd(),
@@ -409,6 +418,26 @@ mod tests {
         held.remove(0);
         assert!(ring.put(&message).is_some());
         assert!(ring.put(&vec![0u8; MAX_MESSAGE + 1]).is_none());
+    }
+
+    #[test]
+    fn a_reader_keeping_one_message_touches_two_regions_not_the_segment() {
+        let (mut ring, fd) = Ring::create().unwrap();
+        let segment = Segment::open(fd).unwrap();
+        let size = 100_000;
+        let mut kept = None;
+        let mut highest = 0;
+        for i in 0..1000u32 {
+            let at = ring.put(&vec![i as u8; size]).unwrap();
+            highest = highest.max(at as usize);
+            // The newest kept, the one before let go.
+            kept = Some(segment.take(at, size as u32).unwrap());
+        }
+        assert!(kept.is_some());
+        assert!(
+            highest < 2 * (size + REGION_HEAD + ALIGN),
+            "regions went up to {highest}"
+        );
     }
 
     #[test]

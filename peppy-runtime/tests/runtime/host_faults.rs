@@ -14,6 +14,7 @@ use std::time::{Duration, Instant};
 
 use peppy_runtime::codegen::{
     ConsumedTopicSpec, FormatSpec, OwnerSpec, QosProfile, TopicSpec, emit, next_message,
+    next_payload,
 };
 use peppy_runtime::wire::keys::{Channel, Owner, entry_key};
 use peppy_runtime::{NodeBuilder, NodeRunner, SharedMemory};
@@ -776,8 +777,9 @@ fn a_producer_killed_mid_flood_on_a_direct_link_leaves_its_consumer_whole() {
 
 /// As [`a_producer_killed_mid_flood_on_a_direct_link_leaves_its_consumer_whole`],
 /// with frames the link carries through its shared memory (32 KiB): the
-/// consumer reads in place what a killed process wrote, and its mapping
-/// outlives the process.
+/// consumer maps the link's segment, and the messages it still holds when
+/// the producer is killed (read in place from the dead process's memory)
+/// stay intact.
 #[test]
 fn a_producer_killed_mid_flood_of_shared_memory_frames_leaves_its_consumer_whole() {
     producer_killed_mid_flood("killed-shm-producer", 32 << 10);
@@ -798,11 +800,19 @@ fn producer_killed_mid_flood(name: &str, bytes: usize) {
     let linked = ["--bind", "src@pump", "--direct-links", &links];
     let (_, sink) = rt.block_on(start_configured::<Sink>(&hub, &ns, "sink", &linked, |b| b));
     let runs = Runs::default();
+    // The newest messages read, kept undecoded (held where they arrived).
+    let kept = Arc::new(Mutex::new(std::collections::VecDeque::new()));
     rt.spawn({
-        let (sink, runs) = (sink.clone(), runs.clone());
+        let (sink, runs, kept) = (sink.clone(), runs.clone(), kept.clone());
         async move {
-            while let Ok((_, f)) = next_message::<Frame>(&sink, &COUNTS_IN, None).await {
+            while let Ok((_, p)) = next_payload(&sink, &COUNTS_IN, None).await {
+                let f: Frame = p.decode().expect("a frame");
                 runs.lock().unwrap().push((f.data[0], f.seq));
+                let mut kept = kept.lock().unwrap();
+                kept.push_back(p);
+                if kept.len() > 32 {
+                    kept.pop_front();
+                }
             }
         }
     });
@@ -819,10 +829,28 @@ fn producer_killed_mid_flood(name: &str, bytes: usize) {
     let pump = start_child("child_pump", &plan(1), &[]);
     read_until(&runs, 3000, WAIT);
     assert!(direct() > 0, "the first producer is read over its link");
+    if bytes >= 16 << 10 {
+        let maps = std::fs::read_to_string("/proc/self/maps").unwrap();
+        assert!(
+            maps.contains("memfd:peppy-direct-link"),
+            "the link's shared memory is mapped"
+        );
+    }
     pump.signal("KILL");
     drop(pump);
     // Past the 2 s a link frame may wait for Zenoh's before it.
     read_until(&runs, usize::MAX, Duration::from_secs(3));
+    let held: Vec<_> = kept.lock().unwrap().drain(..).collect();
+    assert!(!held.is_empty());
+    for p in &held {
+        let f: Frame = p.decode().unwrap();
+        assert!(
+            f == frame(1, f.seq, bytes),
+            "frame {} held past the kill is intact",
+            f.seq
+        );
+    }
+    drop(held);
     let first: Vec<u32> = runs
         .lock()
         .unwrap()

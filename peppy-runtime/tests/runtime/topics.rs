@@ -654,8 +654,9 @@ async fn direct_links_hand_every_message_once_in_order() {
     read_in_order(&remote, 0, 300, frame).await;
     assert_eq!(direct(&remote), 0, "no directory, no direct link");
 
-    // Linked, and a millisecond apart (no burst): every frame but the
-    // largest comes over the link.
+    // Linked, and a millisecond apart (no burst): every small frame comes
+    // over the link, and a 40 KiB one whenever the link's reader has read
+    // the frame before it.
     let before = direct(&station);
     for seq in 300..400 {
         emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
@@ -663,11 +664,12 @@ async fn direct_links_hand_every_message_once_in_order() {
     }
     read_in_order(&station, 300, 100, frame).await;
     read_in_order(&remote, 300, 100, frame).await;
-    let small = (300..400).filter(|s| s % 7 != 3).count() as u64;
-    assert_eq!(
-        direct(&station) - before,
-        small,
-        "all but the largest frames over the link"
+    let small = (300..400).filter(|s| s % 7 != 3 && s % 7 != 5).count() as u64;
+    let medium = (300..400).filter(|s| s % 7 == 5).count() as u64;
+    let linked = direct(&station) - before;
+    assert!(
+        (small..=small + medium).contains(&linked),
+        "{linked} over the link: every small frame, and none of the largest"
     );
     assert!(
         std::fs::read_dir(dir.path()).unwrap().count() >= 1,
@@ -777,6 +779,42 @@ async fn messages_a_reader_keeps_from_a_links_shared_memory_stay_intact() {
         tokio::time::sleep(Duration::from_millis(1)).await;
     }
     assert_eq!(direct(&station) - before, 20, "over the link again");
+    for r in [station, flood] {
+        r.shutdown().await;
+    }
+}
+
+/// A consumer whose shared memory is off still reads its producer over a
+/// direct link, through the socket: nothing it reads is in shared memory,
+/// the link's or Zenoh's.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_link_to_a_consumer_with_shared_memory_off_carries_bytes() {
+    let hub = hub().await;
+    let ns = namespace("direct-noshm");
+    let dir = tempfile::tempdir().unwrap();
+    let links = dir.path().display().to_string();
+    let args = ["--bind", "src@flood", "--direct-links", links.as_str()];
+    let off = |b: NodeBuilder<Station>| b.shared_memory(SharedMemory::off());
+    let (_, station) = start_configured::<Station>(&hub, &ns, "station", &args, off).await;
+    let flood = start_direct::<Flood>(&hub, &ns, "flood", "st@station", &links).await;
+    beats_pass(&flood, &station).await;
+    let direct = |r: &NodeRunner| r.received_over_direct_links(&FLOOD_IN).unwrap();
+    let frame = |seq: u32| patterned(seq, 40 << 10);
+    tokio::time::timeout(WAIT, async {
+        let mut seq = 0;
+        while direct(&station) < 20 {
+            emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+            let (_, payload) = next_payload(&station, &FLOOD_IN, None).await.unwrap();
+            assert!(!payload.in_shared_memory(), "frame {seq} is bytes");
+            let got: crate::support::Frame = payload.decode().unwrap();
+            assert!(got == frame(seq), "frame {seq} arrives intact");
+            seq += 1;
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+    })
+    .await
+    .expect("the consumer is linked and reads over its link");
+    assert_eq!(station.received_in_shared_memory(&FLOOD_IN).unwrap(), 0);
     for r in [station, flood] {
         r.shutdown().await;
     }
