@@ -72,6 +72,7 @@ pub(crate) mod outlet {
     pub(crate) fn serve(
         _path: &Path,
         _outlets: Arc<Outlets>,
+        _shared: bool,
         _token: CancellationToken,
     ) -> Option<Listener> {
         None
@@ -94,6 +95,7 @@ pub(crate) mod inlet {
         pub(crate) fn new(
             _dir: PathBuf,
             _name: String,
+            _shared: bool,
             _runtime: tokio::runtime::Handle,
             _token: CancellationToken,
         ) -> Arc<Consumer> {
