@@ -765,15 +765,9 @@ impl NodeRunner {
                     .flatten()
                     .map(|s| s.target.clone()),
             });
-            let (mut intake, inbox) =
+            let (intake, inbox) =
                 Intake::new(spec, filter, members, declarer.clone(), mismatch.clone());
-            if let Some(consumer) = direct {
-                intake = intake.with_direct(crate::direct::inlet::Inlet::new(consumer.clone()));
-            }
-            let intake = Arc::new(intake);
-            if let Some(inlet) = intake.direct() {
-                inlet.bind(&intake);
-            }
+            let intake = intake.linked(direct);
             let subscriber = self
                 .session
                 .declare_subscriber(selector)

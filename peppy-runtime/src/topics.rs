@@ -301,10 +301,19 @@ impl Intake {
         )
     }
 
-    /// Reads the producers that offer it over direct links.
-    pub(crate) fn with_direct(mut self, inlet: crate::direct::inlet::Inlet) -> Self {
-        self.direct = Some(inlet);
-        self
+    /// The intake, shared, reading the producers that offer it over
+    /// `consumer`'s direct links (when the node has them): its inlet is
+    /// bound to it, so the links queue into it.
+    pub(crate) fn linked(
+        mut self,
+        consumer: Option<&Arc<crate::direct::inlet::Consumer>>,
+    ) -> Arc<Self> {
+        self.direct = consumer.map(|c| crate::direct::inlet::Inlet::new(c.clone()));
+        let intake = Arc::new(self);
+        if let Some(inlet) = intake.direct() {
+            inlet.bind(&intake);
+        }
+        intake
     }
 
     /// Tells `notify` of every message queued, whether Zenoh or a direct

@@ -1140,9 +1140,8 @@ mod tests {
             Declarer::none(),
             Arc::new(|_, _, _| {}),
         );
-        let intake = Arc::new(intake.with_direct(Inlet::new(consumer)));
+        let intake = intake.linked(Some(&consumer));
         let inlet = intake.direct().unwrap();
-        inlet.bind(&intake);
         let from = |instance: &str| {
             let key = KEY.replace("/ticker", &format!("/{instance}"));
             Arrival::new(KeyExpr::try_from(key).unwrap(), ZBytes::default(), None)

@@ -87,21 +87,16 @@ impl Lane {
     /// On a launch's host the sender is read over a direct link, as a
     /// consumed topic's producer is.
     pub(super) fn reset(&self, label: Label, instance: &str) {
-        let (mut intake, inbox) = Intake::new(
+        let (intake, inbox) = Intake::new(
             self.spec,
             RouteFilter::Pin(instance.to_string()),
             None,
             self.tools.declarer.clone(),
             self.tools.mismatch.clone(),
         );
-        intake = intake.with_notify(self.notify.clone());
-        if let Some(consumer) = &self.tools.direct {
-            intake = intake.with_direct(crate::direct::inlet::Inlet::new(consumer.clone()));
-        }
-        let intake = Arc::new(intake);
-        if let Some(inlet) = intake.direct() {
-            inlet.bind(&intake);
-        }
+        let intake = intake
+            .with_notify(self.notify.clone())
+            .linked(self.tools.direct.as_ref());
         *self.current.lock().unwrap_or_else(|p| p.into_inner()) = Some(Current {
             intake,
             inbox,
