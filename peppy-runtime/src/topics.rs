@@ -364,7 +364,7 @@ impl Intake {
         let arrival = Arrival::new(key_expr, payload, attachment);
         let arrival = match &self.direct {
             None => arrival,
-            Some(direct) => match direct.route(arrival, source) {
+            Some(direct) => match direct.route(self, arrival, source) {
                 crate::direct::inlet::Route::Take(a) => a,
                 crate::direct::inlet::Route::Handled => return,
             },

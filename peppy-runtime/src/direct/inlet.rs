@@ -229,13 +229,16 @@ struct Lanes {
 }
 
 impl Lanes {
-    fn get(&mut self, key: &str) -> Option<Arc<Lane>> {
-        if let Some(last) = self.last.as_ref().filter(|l| l.key.as_str() == key) {
-            return Some(last.clone());
+    /// Makes the lane of `key` the last found; whether there is one.
+    fn find(&mut self, key: &str) -> bool {
+        if self.last.as_ref().is_some_and(|l| l.key.as_str() == key) {
+            return true;
         }
-        let lane = self.by_key.get(key)?.clone();
+        let Some(lane) = self.by_key.get(key) else {
+            return false;
+        };
         self.last = Some(lane.clone());
-        Some(lane)
+        true
     }
 
     fn insert(&mut self, lane: Arc<Lane>) {
@@ -269,42 +272,49 @@ impl Inlet {
     /// Routes a message that came through Zenoh, with the publisher and
     /// number its source info carries (a producer numbers the messages it
     /// also wrote to a link; the others are counted).
-    pub(crate) fn route(&self, arrival: Arrival, source: Option<(SourceId, u32)>) -> Route {
-        let Some(intake) = self.intake.get().and_then(Weak::upgrade) else {
-            return Route::Take(arrival);
-        };
+    ///
+    /// Every message of the topic comes through here (a flood's too), so
+    /// it takes its two locks and no reference count: the lane is used
+    /// under the lanes' lock (the only order the two are taken in) rather
+    /// than cloned out of it, and `intake` is the caller's.
+    pub(crate) fn route(
+        &self,
+        intake: &Intake,
+        arrival: Arrival,
+        source: Option<(SourceId, u32)>,
+    ) -> Route {
         let Ok(mut lanes) = self.lanes.lock() else {
             return Route::Take(arrival);
         };
-        let lane = match lanes.get(arrival.key.as_str()) {
-            Some(lane) => lane,
-            None if lanes.by_key.len() >= MAX_LINKS => return Route::Take(arrival),
+        if !lanes.find(arrival.key.as_str()) {
             // A producer the slot does not route here (yet: a node slot's
             // members can grow) is not linked: its messages are dropped
             // by the reader's admission, and a link would have the
             // producer write each one for nothing.
-            None if !intake.routes(arrival.key.as_str()) => return Route::Take(arrival),
-            None => {
-                let lane = Lane::new(arrival.key.clone(), source);
-                lanes.insert(lane.clone());
-                // Queued under the lane's lock, before the link can bring
-                // the next message (which takes that lock): queued after
-                // it, on another thread, this message was read after the
-                // link's next one.
-                let Ok(mut state) = lane.state.lock() else {
-                    return Route::Take(arrival);
-                };
-                intake.queue(arrival);
-                self.connect_locked(&lane, &mut state);
-                return Route::Handled;
+            if lanes.by_key.len() >= MAX_LINKS || !intake.routes(arrival.key.as_str()) {
+                return Route::Take(arrival);
             }
+            let lane = Lane::new(arrival.key.clone(), source);
+            lanes.insert(lane.clone());
+            // Queued under the lane's lock, before the link can bring the
+            // next message (which takes that lock): queued after it, on
+            // another thread, this message was read after the link's next
+            // one.
+            let Ok(mut state) = lane.state.lock() else {
+                return Route::Take(arrival);
+            };
+            intake.queue(arrival);
+            self.connect_locked(&lane, &mut state);
+            return Route::Handled;
+        }
+        let Some(lane) = lanes.last.as_ref() else {
+            return Route::Take(arrival);
         };
-        drop(lanes);
         let Ok(mut state) = lane.state.lock() else {
             return Route::Take(arrival);
         };
         match source {
-            None => state.zenoh_counted(arrival, &intake),
+            None => state.zenoh_counted(arrival, intake),
             Some((id, number)) if state.source.is_none() => {
                 // The first numbered message of a lane that has only
                 // counted (no link answered yet, so nothing is held): the
@@ -319,15 +329,15 @@ impl Inlet {
             Some((id, number)) if state.source != Some(id) => {
                 // Another publisher under this key: the producer restarted.
                 // Its numbers start afresh, and it is linked anew.
-                state.restart(id, number, &intake);
+                state.restart(id, number, intake);
                 intake.queue(arrival);
-                self.connect_locked(&lane, &mut state);
+                self.connect_locked(lane, &mut state);
                 return Route::Handled;
             }
-            Some((_, number)) => state.zenoh_brought(number, arrival, &intake),
+            Some((_, number)) => state.zenoh_brought(number, arrival, intake),
         }
         if state.link == LinkState::Closed && state.retry_due() {
-            self.connect_locked(&lane, &mut state);
+            self.connect_locked(lane, &mut state);
         }
         Route::Handled
     }
@@ -1146,8 +1156,14 @@ mod tests {
             let key = KEY.replace("/ticker", &format!("/{instance}"));
             Arrival::new(KeyExpr::try_from(key).unwrap(), ZBytes::default(), None)
         };
-        assert!(matches!(inlet.route(from("other"), None), Route::Take(_)));
-        assert!(matches!(inlet.route(from("ticker"), None), Route::Handled));
+        assert!(matches!(
+            inlet.route(&intake, from("other"), None),
+            Route::Take(_)
+        ));
+        assert!(matches!(
+            inlet.route(&intake, from("ticker"), None),
+            Route::Handled
+        ));
         let lanes = inlet.lanes.lock().unwrap();
         let linked: Vec<&str> = lanes.by_key.keys().map(|k| &**k).collect();
         assert_eq!(
