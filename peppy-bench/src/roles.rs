@@ -140,6 +140,71 @@ pub(crate) fn cpu_ms_of(pid: &str) -> f64 {
     (ticks(11) + ticks(12)) * 10.0
 }
 
+/// CPU time this process's threads have used, in nanoseconds: Zenoh's
+/// (its runtimes' `app`, `acc`, `tx`, `rx` and `net` threads and its shared
+/// memory's watchdogs) and the rest (the node's runtime, the main thread).
+/// Linux's per-thread `schedstat`; (0, 0) where there is none.
+pub(crate) fn thread_cpu() -> ThreadCpu {
+    let mut split = ThreadCpu::default();
+    let Ok(tasks) = std::fs::read_dir("/proc/self/task") else {
+        return split;
+    };
+    for task in tasks.flatten() {
+        let path = task.path();
+        let (Ok(name), Ok(stat)) = (
+            std::fs::read_to_string(path.join("comm")),
+            std::fs::read_to_string(path.join("schedstat")),
+        ) else {
+            continue; // The thread ended meanwhile.
+        };
+        let ns: u64 = stat
+            .split_whitespace()
+            .next()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(0);
+        if is_zenoh_thread(name.trim()) {
+            split.zenoh += ns;
+        } else {
+            split.other += ns;
+        }
+    }
+    split
+}
+
+/// Whether a thread of this name is one of Zenoh's.
+fn is_zenoh_thread(name: &str) -> bool {
+    let runtime = name.split_once('-').is_some_and(|(runtime, index)| {
+        matches!(runtime, "app" | "acc" | "tx" | "rx" | "net")
+            && index.bytes().all(|b| b.is_ascii_digit())
+    });
+    runtime || name.starts_with("Watchdog")
+}
+
+/// CPU time of a process's threads, Zenoh's apart (ns).
+#[derive(Debug, Default, Clone, Copy)]
+pub(crate) struct ThreadCpu {
+    pub(crate) zenoh: u64,
+    pub(crate) other: u64,
+}
+
+impl ThreadCpu {
+    /// What was used since `before`, per one of `n` operations, in µs.
+    fn per(self, before: ThreadCpu, n: usize) -> CpuPer {
+        let per = |now: u64, then: u64| now.saturating_sub(then) as f64 / 1e3 / n.max(1) as f64;
+        CpuPer {
+            zenoh_us: per(self.zenoh, before.zenoh),
+            other_us: per(self.other, before.other),
+        }
+    }
+}
+
+/// CPU time per operation (µs), Zenoh's threads apart.
+#[derive(Debug, Serialize)]
+pub(crate) struct CpuPer {
+    pub(crate) zenoh_us: f64,
+    pub(crate) other_us: f64,
+}
+
 /// A source's report that a flood has been sent: its CPU time and wall
 /// time meanwhile.
 pub(crate) fn flood_done(cpu_from: f64, started: Instant) {
@@ -183,6 +248,9 @@ pub(crate) struct RoundTrips {
     pub(crate) size: usize,
     pub(crate) spread: Option<Spread>,
     pub(crate) lost: usize,
+    /// This process's CPU time per round trip, its warm-up pings counted
+    /// in (a handful per batch).
+    pub(crate) cpu: CpuPer,
 }
 
 /// `count` ping-pongs of `size` bytes, one in flight at a time, paced by
@@ -197,6 +265,7 @@ pub(crate) async fn round_trips<S: Sink>(
     let data = vec![0xa5u8; size];
     pace.before(0, count).await?;
     warm_up(s, qos, &data).await?;
+    let cpu_from = thread_cpu();
     let (mut samples, mut lost) = (Vec::with_capacity(count), 0);
     for i in 0..count {
         if i > 0 && pace.before(i, count).await? {
@@ -227,6 +296,7 @@ pub(crate) async fn round_trips<S: Sink>(
         size,
         spread: Spread::of(&mut samples),
         lost,
+        cpu: thread_cpu().per(cpu_from, count),
     })
 }
 

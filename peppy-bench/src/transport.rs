@@ -434,6 +434,27 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
             },
             |_, _, sink| Ok(vec![sink.next_with("spread", BOUND)?]),
         )?;
+        // Per mode and size: the rounds' median CPU time per round trip in
+        // the consumer's process, Zenoh's threads and the rest (µs).
+        let cpu: Vec<Vec<(f64, f64)>> = got
+            .iter()
+            .map(|cases| {
+                cases
+                    .iter()
+                    .map(|runs| {
+                        let median = |what: &str| {
+                            let mut v: Vec<f64> = runs
+                                .iter()
+                                .filter_map(|r| r["cpu"][what].as_f64())
+                                .collect();
+                            v.sort_by(f64::total_cmp);
+                            v.get(v.len() / 2).copied().unwrap_or(0.0)
+                        };
+                        (median("zenoh_us"), median("other_us"))
+                    })
+                    .collect()
+            })
+            .collect();
         // Per mode and size: the rounds' spreads, and their unanswered pings.
         let got: Vec<Vec<(Option<Spread>, u64, usize)>> = got
             .iter()
@@ -512,6 +533,25 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
                 rows.push(row);
             }
         }
+        // What a round trip costs the consumer's process in CPU, where
+        // links carry the message and Zenoh still carries its copy.
+        if let (Qos::Reliable, Some(z), Some(p)) = (qos, at(RAW_UNIX), at(PEPPY_DIRECT)) {
+            for (case, bytes) in got[p].iter().map(|g| g.2).enumerate() {
+                let us = |value: f64| Figure::Value {
+                    value,
+                    unit: "µs".into(),
+                };
+                let ((zz, zo), (pz, po)) = (cpu[z][case], cpu[p][case]);
+                for (threads, raw, peppy) in [("Zenoh's threads", zz, pz), ("the rest", zo, po)] {
+                    rows.push(Row::new(
+                        RT_CPU,
+                        format!("{} {}, {threads}", qos.name(), size(bytes)),
+                        Some(us(raw)),
+                        Some(us(peppy)),
+                    ));
+                }
+            }
+        }
         rows.push(Row::new(
             MACHINE,
             format!("{}: four 1 MiB copies between two threads", qos.name()),
@@ -532,6 +572,7 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
             "topic round trip, shared memory, read",
             RT_UNIX,
             RT_UNIX_VS_TCP,
+            RT_CPU,
             MACHINE,
             "topic round trip, peppy",
             "topic round trip, raw",
@@ -561,6 +602,7 @@ const RT_DORA_UNIX: &str =
 const RT_FLOOR: &str =
     "topic round trip, the hand-off floor (iceoryx2, event wake-ups) vs peppy over a Unix socket";
 const RT_UNIX: &str = "topic round trip, Unix socket, shared memory both sides";
+const RT_CPU: &str = "CPU time per round trip in the consumer's process, raw Zenoh vs peppy with direct links (Unix socket)";
 const RT_UNIX_VS_TCP: &str =
     "topic round trip, peppy over a Unix socket vs over loopback TCP (shared memory)";
 
