@@ -48,11 +48,15 @@ pub(crate) const CAPACITY: usize = 32 << 20;
 
 /// The largest message a segment carries; a larger one goes through
 /// Zenoh alone. A message in shared memory costs the producer a copy
-/// Zenoh's shared memory does not, and that copy outweighs Zenoh's path
-/// from about here: round trips over a link's shared memory against
-/// Zenoh's were 266 to 273 µs against 279 to 302 µs at 1 MiB, even at
-/// 1.5 MiB, and 494 to 522 µs against 419 to 434 µs at 2 MiB.
-pub(crate) const MAX_MESSAGE: usize = 3 << 19;
+/// Zenoh's shared memory does not, and what a copy costs here moves two-
+/// to threefold with the host (docs/PERFORMANCE.md, "Large messages and
+/// the memory floor"): with fast copies the segment still won at 1 MiB
+/// (round trips of 266 to 273 µs against 279 to 302 µs through Zenoh),
+/// with slow ones it lost from 512 KiB (282 to 304 µs against 260 to
+/// 274 µs; 1 MiB 766 to 1058 µs against 458 to 539 µs). At 384 KiB it
+/// was even with slow copies (227 to 242 µs against 229 to 233 µs) and
+/// ahead with fast ones, so no host pays for it.
+pub(crate) const MAX_MESSAGE: usize = 3 << 17;
 
 /// The most bytes of a link's regions held at once: past it, while its
 /// reader holds messages, the link's messages go through Zenoh alone.
@@ -407,7 +411,7 @@ mod tests {
     fn a_reader_holding_too_much_sends_the_rest_through_zenoh() {
         let (mut ring, fd) = Ring::create().unwrap();
         let segment = Segment::open(fd).unwrap();
-        let message = vec![0u8; 1 << 20];
+        let message = vec![0u8; MAX_MESSAGE];
         let mut held = Vec::new();
         while let Some(at) = ring.put(&message) {
             held.push(segment.take(at, message.len() as u32).unwrap());
@@ -444,7 +448,7 @@ mod tests {
     fn regions_wrap_around_the_end_and_never_overlap_a_held_one() {
         let (mut ring, fd) = Ring::create().unwrap();
         let segment = Segment::open(fd).unwrap();
-        let size = 1 << 20;
+        let size = MAX_MESSAGE;
         let mut held: VecDeque<(bytes::Bytes, u32)> = VecDeque::new();
         let mut wrapped = false;
         for i in 0..400u32 {
