@@ -140,14 +140,12 @@ pub(crate) fn cpu_ms_of(pid: &str) -> f64 {
     (ticks(11) + ticks(12)) * 10.0
 }
 
-/// CPU time this process's threads have used, in nanoseconds: Zenoh's
-/// (its runtimes' `app`, `acc`, `tx`, `rx` and `net` threads and its shared
-/// memory's watchdogs) and the rest (the node's runtime, the main thread).
-/// Linux's per-thread `schedstat`; (0, 0) where there is none.
+/// What each of this process's threads has run so far (Linux's
+/// per-thread `schedstat`; empty where there is none).
 pub(crate) fn thread_cpu() -> ThreadCpu {
-    let mut split = ThreadCpu::default();
+    let mut threads = std::collections::HashMap::new();
     let Ok(tasks) = std::fs::read_dir("/proc/self/task") else {
-        return split;
+        return ThreadCpu(threads);
     };
     for task in tasks.flatten() {
         let path = task.path();
@@ -162,16 +160,13 @@ pub(crate) fn thread_cpu() -> ThreadCpu {
             .next()
             .and_then(|v| v.parse().ok())
             .unwrap_or(0);
-        if is_zenoh_thread(name.trim()) {
-            split.zenoh += ns;
-        } else {
-            split.other += ns;
-        }
+        threads.insert(task.file_name(), (is_zenoh_thread(name.trim()), ns));
     }
-    split
+    ThreadCpu(threads)
 }
 
-/// Whether a thread of this name is one of Zenoh's.
+/// Whether a thread of this name is one of Zenoh's: its runtimes' `app`,
+/// `acc`, `tx`, `rx` and `net` threads and its shared memory's watchdogs.
 fn is_zenoh_thread(name: &str) -> bool {
     let runtime = name.split_once('-').is_some_and(|(runtime, index)| {
         matches!(runtime, "app" | "acc" | "tx" | "rx" | "net")
@@ -180,21 +175,27 @@ fn is_zenoh_thread(name: &str) -> bool {
     runtime || name.starts_with("Watchdog")
 }
 
-/// CPU time of a process's threads, Zenoh's apart (ns).
-#[derive(Debug, Default, Clone, Copy)]
-pub(crate) struct ThreadCpu {
-    pub(crate) zenoh: u64,
-    pub(crate) other: u64,
-}
+/// CPU time of each of a process's threads (by thread id): whether it is
+/// one of Zenoh's, and the nanoseconds it has run.
+#[derive(Debug, Default)]
+pub(crate) struct ThreadCpu(std::collections::HashMap<std::ffi::OsString, (bool, u64)>);
 
 impl ThreadCpu {
-    /// What was used since `before`, per one of `n` operations, in µs.
-    fn per(self, before: ThreadCpu, n: usize) -> CpuPer {
-        let per = |now: u64, then: u64| now.saturating_sub(then) as f64 / 1e3 / n.max(1) as f64;
-        CpuPer {
-            zenoh_us: per(self.zenoh, before.zenoh),
-            other_us: per(self.other, before.other),
+    /// What the threads ran since `before` (a thread started since counts
+    /// from 0; one that ended meanwhile is not counted), in nanoseconds:
+    /// Zenoh's threads, then the others.
+    fn since(&self, before: &ThreadCpu) -> (u64, u64) {
+        let mut used = (0, 0);
+        for (id, &(zenoh, now)) in &self.0 {
+            let then = before.0.get(id).map_or(0, |&(_, ns)| ns);
+            let ran = now.saturating_sub(then);
+            if zenoh {
+                used.0 += ran;
+            } else {
+                used.1 += ran;
+            }
         }
+        used
     }
 }
 
@@ -203,6 +204,17 @@ impl ThreadCpu {
 pub(crate) struct CpuPer {
     pub(crate) zenoh_us: f64,
     pub(crate) other_us: f64,
+}
+
+impl CpuPer {
+    /// `used` nanoseconds (Zenoh's threads, the others) per one of `n`.
+    fn of(used: (u64, u64), n: usize) -> CpuPer {
+        let per = |ns: u64| ns as f64 / 1e3 / n.max(1) as f64;
+        CpuPer {
+            zenoh_us: per(used.0),
+            other_us: per(used.1),
+        }
+    }
 }
 
 /// A source's report that a flood has been sent: its CPU time and wall
@@ -248,8 +260,8 @@ pub(crate) struct RoundTrips {
     pub(crate) size: usize,
     pub(crate) spread: Option<Spread>,
     pub(crate) lost: usize,
-    /// This process's CPU time per round trip, its warm-up pings counted
-    /// in (a handful per batch).
+    /// This process's CPU time per round trip (the warm-ups before each
+    /// batch left out).
     pub(crate) cpu: CpuPer,
 }
 
@@ -266,10 +278,15 @@ pub(crate) async fn round_trips<S: Sink>(
     pace.before(0, count).await?;
     warm_up(s, qos, &data).await?;
     let cpu_from = thread_cpu();
+    // CPU the later batches' warm-ups used, taken out of the figure.
+    let mut warming = (0, 0);
     let (mut samples, mut lost) = (Vec::with_capacity(count), 0);
     for i in 0..count {
         if i > 0 && pace.before(i, count).await? {
+            let before = thread_cpu();
             warm_up(s, qos, &data).await?;
+            let used = thread_cpu().since(&before);
+            warming = (warming.0 + used.0, warming.1 + used.1);
         }
         let seq = 1_000_000 + i as u64;
         let payload = data.clone();
@@ -296,7 +313,14 @@ pub(crate) async fn round_trips<S: Sink>(
         size,
         spread: Spread::of(&mut samples),
         lost,
-        cpu: thread_cpu().per(cpu_from, count),
+        cpu: {
+            let used = thread_cpu().since(&cpu_from);
+            let used = (
+                used.0.saturating_sub(warming.0),
+                used.1.saturating_sub(warming.1),
+            );
+            CpuPer::of(used, count)
+        },
     })
 }
 

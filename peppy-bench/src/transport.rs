@@ -435,7 +435,7 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
             |_, _, sink| Ok(vec![sink.next_with("spread", BOUND)?]),
         )?;
         // Per mode and size: the rounds' median CPU time per round trip in
-        // the consumer's process, Zenoh's threads and the rest (µs).
+        // the pinging process, Zenoh's threads and the rest (µs).
         let cpu: Vec<Vec<(f64, f64)>> = got
             .iter()
             .map(|cases| {
@@ -533,8 +533,8 @@ pub(crate) fn round_trips(quick: bool) -> Res<Vec<Row>> {
                 rows.push(row);
             }
         }
-        // What a round trip costs the consumer's process in CPU, where
-        // links carry the message and Zenoh still carries its copy.
+        // What a round trip costs the pinging process in CPU, where links
+        // carry the message and Zenoh still carries its copy.
         if let (Qos::Reliable, Some(z), Some(p)) = (qos, at(RAW_UNIX), at(PEPPY_DIRECT)) {
             for (case, bytes) in got[p].iter().map(|g| g.2).enumerate() {
                 let us = |value: f64| Figure::Value {
@@ -602,7 +602,7 @@ const RT_DORA_UNIX: &str =
 const RT_FLOOR: &str =
     "topic round trip, the hand-off floor (iceoryx2, event wake-ups) vs peppy over a Unix socket";
 const RT_UNIX: &str = "topic round trip, Unix socket, shared memory both sides";
-const RT_CPU: &str = "CPU time per round trip in the consumer's process, raw Zenoh vs peppy with direct links (Unix socket)";
+const RT_CPU: &str = "CPU time per round trip in the pinging process, raw Zenoh vs peppy with direct links (Unix socket)";
 const RT_UNIX_VS_TCP: &str =
     "topic round trip, peppy over a Unix socket vs over loopback TCP (shared memory)";
 

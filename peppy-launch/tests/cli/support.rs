@@ -82,8 +82,12 @@ pub(crate) fn empty_user_config() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/empty_user_config")
 }
 
-/// The longest a single command of a test may take.
-pub(crate) const COMMAND_BOUND: Duration = Duration::from_secs(180);
+/// The longest a single command of a test may take. A command that
+/// builds a node may be the first to build it cold, or wait on cargo's
+/// lock while another test does: on a slow day of the two-core CI
+/// machine such an `up --detach` was still compiling after 180 s. This
+/// only stops a hang; nothing here is timed.
+pub(crate) const COMMAND_BOUND: Duration = Duration::from_secs(600);
 
 /// Waits for `child` (its output read as it comes), killing it and failing
 /// the test once `bound` has passed.

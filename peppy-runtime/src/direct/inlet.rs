@@ -283,9 +283,9 @@ impl Inlet {
         arrival: Arrival,
         source: Option<(SourceId, u32)>,
     ) -> Route {
-        let Ok(mut lanes) = self.lanes.lock() else {
-            return Route::Take(arrival);
-        };
+        // A lane's state poisoned under this lock falls back to Zenoh
+        // (below) on its own; the others' lanes go on being read.
+        let mut lanes = self.lanes.lock().unwrap_or_else(|p| p.into_inner());
         if !lanes.find(arrival.key.as_str()) {
             // A producer the slot does not route here (yet: a node slot's
             // members can grow) is not linked: its messages are dropped

@@ -305,10 +305,11 @@ fn shared(len: usize) -> bool {
 /// more per byte (8 µs at 16 KiB). From 16 KiB a link's shared memory
 /// does (where a link has none, the socket up to 128 KiB), one copy more
 /// for the producer than Zenoh's path: an eighth of a nanosecond per byte
-/// (131 µs at 1 MiB). Either is worth it to a consumer waiting for the
-/// message (round trips of 1 MiB came 270 µs apart), not in a producer's
-/// flood (1 MiB messages about 100 µs apart went at ×0.79 of raw Zenoh's
-/// rate over links, where Zenoh alone carried them at its rate).
+/// (69 µs at 384 KiB). Either is worth it to a consumer waiting for the
+/// message, not in a producer's flood: when the segment took messages up
+/// to 1.5 MiB, round trips of 1 MiB came 270 µs apart, and a flood of
+/// them (about 100 µs apart) went at ×0.79 of raw Zenoh's rate over links
+/// with a flat gap, where Zenoh alone carried them at its rate.
 fn burst_gap_ns(len: usize) -> u64 {
     let per_byte = if shared(len) { len / 8 } else { len / 2 };
     BURST_GAP.as_nanos() as u64 + per_byte as u64

@@ -49,13 +49,14 @@ pub(crate) const CAPACITY: usize = 32 << 20;
 /// The largest message a segment carries; a larger one goes through
 /// Zenoh alone. A message in shared memory costs the producer a copy
 /// Zenoh's shared memory does not, and what a copy costs here moves two-
-/// to threefold with the host (docs/PERFORMANCE.md, "Large messages and
-/// the memory floor"): with fast copies the segment still won at 1 MiB
-/// (round trips of 266 to 273 µs against 279 to 302 µs through Zenoh),
-/// with slow ones it lost from 512 KiB (282 to 304 µs against 260 to
-/// 274 µs; 1 MiB 766 to 1058 µs against 458 to 539 µs). At 384 KiB it
-/// was even with slow copies (227 to 242 µs against 229 to 233 µs) and
-/// ahead with fast ones, so no host pays for it.
+/// to threefold with the host (docs/PERFORMANCE_HISTORY.md, "The Zenoh
+/// copy, floods, and the segment's bound"): with fast copies the segment
+/// still won at 1 MiB (round trips of 266 to 273 µs against 279 to
+/// 302 µs through Zenoh) and at 256 and 512 KiB, with slow ones it lost
+/// from 512 KiB (282 to 304 µs against 260 to 274 µs; 1 MiB 766 to
+/// 1058 µs against 458 to 539 µs). At 384 KiB it was even with slow
+/// copies (227 to 242 µs against 229 to 233 µs), and with fast ones
+/// (not measured at 384 KiB) it won on both sides of it.
 pub(crate) const MAX_MESSAGE: usize = 3 << 17;
 
 /// The most bytes of a link's regions held at once: past it, while its
