@@ -271,6 +271,14 @@ fn a_killed_supervisor_leaves_no_instance_behind() {
                 .all(|&pid| !runs(pid, "realsense_d405") && !runs(pid, "camera_viewer"))
         },
     );
+    // An instance dies with the supervisor's thread that started it, which
+    // may be before the supervisor's last thread lets go of the launch's
+    // registry entry: the launch is listed until then.
+    wait_until(
+        "the killed launch leaves the registry",
+        Duration::from_secs(10),
+        || instances(&shell.ok(&["ps"]).stdout).is_empty(),
+    );
     let none = shell.run(&["stop"]);
     assert_eq!(none.code, 2, "{}", none.stderr);
     assert!(
