@@ -406,6 +406,9 @@ struct Hooks {
 #[derive(Default)]
 struct Entities {
     subscribers: Vec<Subscriber<()>>,
+    /// Pinned entries' subscriptions, which sole links move.
+    #[cfg(unix)]
+    feeds: Vec<Arc<crate::direct::feed::Feed>>,
     queryables: Vec<Queryable<()>>,
     /// Declared key expressions: dropping one undeclares it.
     keys: Vec<KeyExpr<'static>>,
@@ -627,6 +630,7 @@ impl NodeRunner {
                 Outlet {
                     direct: self.direct_dir.as_ref().map(|_| {
                         Arc::new(crate::direct::outlet::DirectOutlet::new(
+                            &self.session,
                             &publisher,
                             spec.qos,
                             spec.format.fingerprint,
@@ -688,6 +692,7 @@ impl NodeRunner {
     ) -> Option<Arc<crate::direct::outlet::DirectOutlet>> {
         self.direct_listener.as_ref()?;
         let outlet = Arc::new(crate::direct::outlet::DirectOutlet::new(
+            &self.session,
             publisher,
             spec.qos,
             spec.format.fingerprint,
@@ -765,14 +770,31 @@ impl NodeRunner {
                     .flatten()
                     .map(|s| s.target.clone()),
             });
+            let pinned = matches!(filter, peppy_schema::RouteFilter::Pin(_));
             let (intake, inbox) =
                 Intake::new(spec, filter, members, declarer.clone(), mismatch.clone());
             let intake = intake.linked(direct);
+            let reader = intake.clone();
             let subscriber = self
                 .session
-                .declare_subscriber(selector)
-                .callback(move |s| intake.accept(s))
+                .declare_subscriber(selector.clone())
+                .callback(move |s| reader.accept(s))
                 .await?;
+            #[cfg(unix)]
+            if let Some(inlet) = intake.direct().filter(|_| pinned) {
+                // Pinned to one producer: a sole link to it moves this
+                // subscription to the producer's side key.
+                let feed = crate::direct::feed::Feed::new(
+                    self.session.clone(),
+                    selector,
+                    &intake,
+                    subscriber,
+                );
+                inlet.bind_feed(&feed);
+                entities.feeds.push(feed);
+                self.inboxes.insert(address(*spec), inbox);
+                continue;
+            }
             entities.subscribers.push(subscriber);
             self.inboxes.insert(address(*spec), inbox);
         }
@@ -1396,9 +1418,11 @@ pub(crate) struct Outlet {
 }
 
 impl Outlet {
-    /// Whether Zenoh knows a subscriber of this topic.
+    /// Whether Zenoh knows a subscriber of this topic, or a consumer
+    /// reads it through a sole link's side key.
     pub(crate) fn readers_known(&self) -> bool {
         self.readers_known.load(Ordering::Relaxed)
+            || self.direct.as_ref().is_some_and(|d| d.sole_readers())
     }
 }
 

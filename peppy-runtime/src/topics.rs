@@ -372,6 +372,40 @@ impl Intake {
         self.queue(arrival);
     }
 
+    /// The callback of a sole link's side key: a copy of a message of the
+    /// producer publishing under `key`, numbered in its attachment.
+    #[cfg(unix)]
+    pub(crate) fn accept_side(
+        &self,
+        key: &KeyExpr<'static>,
+        source: crate::direct::SourceId,
+        sample: Sample,
+    ) {
+        let Some(direct) = &self.direct else {
+            return;
+        };
+        let SampleFields {
+            payload,
+            attachment,
+            ..
+        } = sample.into();
+        let split = attachment.as_ref().and_then(|a| {
+            let bytes = a.to_bytes();
+            crate::direct::split_side_attachment(&bytes)
+                .map(|(topic, number)| (ZBytes::from(topic.to_vec()), number))
+        });
+        let Some((attachment, number)) = split else {
+            debug!(topic = %key, "dropping a side copy without its number");
+            return;
+        };
+        let arrival = Arrival::new(key.clone(), payload, Some(attachment));
+        if let crate::direct::inlet::Route::Take(a) =
+            direct.route_side(self, arrival, (source, number))
+        {
+            self.queue(a);
+        }
+    }
+
     /// Queues a message, as the topic's profile says.
     pub(crate) fn queue(&self, mut arrival: Arrival) {
         let size = arrival.payload.len();

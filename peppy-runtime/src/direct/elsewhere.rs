@@ -32,6 +32,7 @@ pub(crate) mod outlet {
 
     impl DirectOutlet {
         pub(crate) fn new(
+            _session: &zenoh::Session,
             _publisher: &Publisher<'static>,
             _qos: QosProfile,
             _fingerprint: u64,
@@ -43,6 +44,10 @@ pub(crate) mod outlet {
 
         pub(crate) fn links(&self) -> usize {
             0
+        }
+
+        pub(crate) fn sole_readers(&self) -> bool {
+            false
         }
 
         pub(crate) fn publish(

@@ -30,6 +30,7 @@ use tracing::{debug, warn};
 use zenoh::bytes::ZBytes;
 use zenoh::key_expr::KeyExpr;
 
+use super::feed::{Feed, Sole};
 use super::{
     FRAME_MESSAGE, FRAME_SHARED, HEADER, HOLD_LIMIT, Hello, INLINE_MAX, SHARED_HEADER, SourceId,
 };
@@ -111,13 +112,21 @@ impl Consumer {
                 if let Some((source, attachment)) = &shared.answer {
                     let intake = member.intake.upgrade();
                     state.answered(*source, attachment.clone(), intake.as_deref());
+                    if link.sole && member.sole {
+                        state.side = Some(super::side_key(key.as_str(), &self.name));
+                        if let Some(intake) = &intake {
+                            settle_sole(intake, &member.lane, state);
+                        }
+                    }
                 }
                 shared.members.push(member);
                 return;
             }
         }
+        let sole = member.sole;
         let link = Arc::new(Link {
             key: key.clone(),
+            sole,
             shared: Mutex::new(Shared {
                 members: vec![member],
                 answer: None,
@@ -130,6 +139,7 @@ impl Consumer {
             key: key.as_str().to_string(),
             consumer: self.name.clone(),
             shared: self.shared,
+            sole,
         };
         let consumer = self.clone();
         self.runtime.spawn(async move {
@@ -160,6 +170,9 @@ impl Consumer {
 #[derive(Debug)]
 struct Link {
     key: KeyExpr<'static>,
+    /// Whether it was asked as a sole link: the producer publishes what it
+    /// does not carry under this node's side key too.
+    sole: bool,
     shared: Mutex<Shared>,
 }
 
@@ -183,6 +196,9 @@ struct Member {
     /// The lane's connection this is: a lane that moved on (to a
     /// restarted producer) is dropped from the link.
     generation: u64,
+    /// Whether its entry can read the producer through the link and a
+    /// side key alone (it is pinned to the producer).
+    sole: bool,
 }
 
 impl Member {
@@ -190,8 +206,12 @@ impl Member {
     /// what the link brought ahead of Zenoh is handed on once Zenoh
     /// catches up, or when the wait runs out.
     async fn ended(&self, consumer: &Consumer, outcome: Outcome) {
-        if !self.lane.ended(self.generation, outcome) {
+        let Some(switched) = self.lane.ended(self.generation, outcome) else {
             return; // Replaced by a link to a restarted producer.
+        };
+        if switched && let Some(feed) = self.intake.upgrade().and_then(|i| i.direct()?.feed()) {
+            // Back to the topic's own key, before the side key is left.
+            feed.switch(None);
         }
         while let Some(intake) = self.intake.upgrade() {
             let deadline = match self.lane.state.lock() {
@@ -216,6 +236,9 @@ pub(crate) struct Inlet {
     consumer: Arc<Consumer>,
     lanes: Mutex<Lanes>,
     intake: OnceLock<Weak<Intake>>,
+    /// The entry's subscription, when it is pinned to one producer: a sole
+    /// link moves it to the producer's side key.
+    feed: OnceLock<Weak<Feed>>,
 }
 
 /// A consumed topic's lanes by producer key.
@@ -261,7 +284,19 @@ impl Inlet {
             consumer,
             lanes: Mutex::new(Lanes::default()),
             intake: OnceLock::new(),
+            feed: OnceLock::new(),
         }
+    }
+
+    /// The entry's subscription, which sole links move: the entry is
+    /// pinned to one producer.
+    pub(crate) fn bind_feed(&self, feed: &Arc<Feed>) {
+        let _ = self.feed.set(Arc::downgrade(feed));
+    }
+
+    /// The entry's subscription, if it is pinned and still read.
+    fn feed(&self) -> Option<Arc<Feed>> {
+        self.feed.get()?.upgrade()
     }
 
     /// The intake the links queue into, once it is shared.
@@ -334,10 +369,44 @@ impl Inlet {
                 self.connect_locked(lane, &mut state);
                 return Route::Handled;
             }
-            Some((_, number)) => state.zenoh_brought(number, arrival, intake),
+            Some((_, number)) => {
+                state.zenoh_brought(number, arrival, intake);
+                if state.side.is_some() {
+                    settle_sole(intake, lane, &mut state);
+                }
+            }
         }
         if state.link == LinkState::Closed && state.retry_due() {
             self.connect_locked(lane, &mut state);
+        }
+        Route::Handled
+    }
+
+    /// Routes a copy that came through a sole link's side key, numbered:
+    /// like the link's own messages, it is one of the producer's messages
+    /// the link did not carry, not the whole stream (which the topic's own
+    /// key is), so one ahead of the next waits for those before it rather
+    /// than taking them for lost.
+    /// A copy of a publisher the lane no longer follows (a restarted
+    /// producer's predecessor) is dropped: its numbers are not the lane's.
+    pub(crate) fn route_side(
+        &self,
+        intake: &Intake,
+        arrival: Arrival,
+        (source, number): (SourceId, u32),
+    ) -> Route {
+        let mut lanes = self.lanes.lock().unwrap_or_else(|p| p.into_inner());
+        if !lanes.find(arrival.key.as_str()) {
+            return Route::Take(arrival);
+        }
+        let Some(lane) = lanes.last.as_ref() else {
+            return Route::Take(arrival);
+        };
+        let Ok(mut state) = lane.state.lock() else {
+            return Route::Take(arrival);
+        };
+        if state.source == Some(source) {
+            state.link_brought(number, arrival, intake);
         }
         Route::Handled
     }
@@ -359,9 +428,27 @@ impl Inlet {
             lane: lane.clone(),
             intake,
             generation: state.generation,
+            sole: self.feed.get().is_some(),
         };
         let path = super::socket_path(&self.consumer.dir, core, instance);
         self.consumer.join(member, state, path);
+    }
+}
+
+/// Moves `lane`'s entry to its producer's side key once the lane knows
+/// where the link's numbers stand (its state locked by the caller): from
+/// then on every message of the producer comes numbered, over the link or
+/// through the side key.
+fn settle_sole(intake: &Intake, lane: &Lane, state: &mut LaneState) {
+    let Some(feed) = intake.direct().and_then(Inlet::feed) else {
+        return;
+    };
+    if let (Some(side), Some(source)) = (state.sole_due(), state.source) {
+        feed.switch(Some(Sole {
+            side,
+            key: lane.key.clone(),
+            source,
+        }));
     }
 }
 
@@ -391,14 +478,15 @@ impl Lane {
         })
     }
 
-    /// Link `generation` ended as `outcome`; `false` if the lane has moved
-    /// on to a newer link.
-    fn ended(&self, generation: u64, outcome: Outcome) -> bool {
+    /// Link `generation` ended as `outcome`: whether the lane read its
+    /// producer through the side key (and goes back to the topic's own);
+    /// `None` if the lane has moved on to a newer link.
+    fn ended(&self, generation: u64, outcome: Outcome) -> Option<bool> {
         let Ok(mut state) = self.state.lock() else {
-            return false;
+            return None;
         };
         if state.generation != generation {
-            return false;
+            return None;
         }
         match outcome {
             Outcome::Stopped => {}
@@ -412,7 +500,8 @@ impl Lane {
             }
         }
         state.link = LinkState::Closed;
-        true
+        state.side = None;
+        Some(std::mem::take(&mut state.switched))
     }
 }
 
@@ -453,6 +542,12 @@ struct LaneState {
     retry_at: Option<Instant>,
     /// The producer's topic attachment, from its answer.
     attachment: Option<ZBytes>,
+    /// The producer's side key for this node, once a sole link to it is
+    /// answered and the entry can read through it.
+    side: Option<String>,
+    /// Whether the entry reads the producer through the link and the side
+    /// key alone: then every message comes numbered.
+    switched: bool,
     /// Link messages ahead of `next`, by number.
     held: BTreeMap<i64, Arrival>,
     /// Since when the oldest held message waits.
@@ -476,6 +571,8 @@ impl LaneState {
             generation: 0,
             retry_at: None,
             attachment: None,
+            side: None,
+            switched: false,
             held: BTreeMap::new(),
             held_since: None,
         }
@@ -524,11 +621,25 @@ impl LaneState {
         self.held_since = None;
     }
 
+    /// The entry moves to the side key now, if it waits for that and the
+    /// lane knows where the link's numbers stand: the side key it moves
+    /// to.
+    fn sole_due(&mut self) -> Option<String> {
+        if self.switched || self.link != LinkState::Open || !self.located || !self.counted {
+            return None;
+        }
+        let side = self.side.clone()?;
+        self.switched = true;
+        Some(side)
+    }
+
     /// The producer answered: its link is open.
     fn answered(&mut self, source: SourceId, attachment: ZBytes, intake: Option<&Intake>) {
         self.attachment = Some(attachment);
         self.link = LinkState::Open;
         self.linked = true;
+        self.side = None;
+        self.switched = false;
         if self.source != Some(source) {
             // A publisher the lane has not followed (a restarted producer,
             // or one whose messages were only counted): where its numbers
@@ -679,8 +790,9 @@ impl LaneState {
         }
         self.held_since = None;
         // Zenoh may yet bring messages from before those: counted, they
-        // would be taken for later ones.
-        self.counted = false;
+        // would be taken for later ones. Read through the side key, every
+        // message comes numbered: nothing is counted.
+        self.counted = self.switched;
     }
 }
 
@@ -742,11 +854,14 @@ async fn read_link(consumer: &Consumer, link: &Link, path: PathBuf, hello: Hello
         if let Ok(mut state) = member.lane.state.lock()
             && state.generation == member.generation
         {
-            state.answered(
-                source,
-                attachment.clone(),
-                member.intake.upgrade().as_deref(),
-            );
+            let intake = member.intake.upgrade();
+            state.answered(source, attachment.clone(), intake.as_deref());
+            if link.sole && member.sole {
+                state.side = Some(super::side_key(link.key.as_str(), &consumer.name));
+                if let Some(intake) = &intake {
+                    settle_sole(intake, &member.lane, &mut state);
+                }
+            }
         }
     }
     debug!(topic = %link.key, "reading a producer over a direct link");

@@ -48,6 +48,7 @@
 //!    publisher under the same key (the producer restarted) starts the
 //!    numbers afresh and links the new one.
 
+pub(crate) mod feed;
 pub(crate) mod inlet;
 pub(crate) mod outlet;
 #[cfg(target_os = "linux")]
@@ -90,8 +91,12 @@ pub(crate) const WRITE_LIMIT: Duration = Duration::from_millis(250);
 /// The first bytes of a consumer's hello.
 const MAGIC: &[u8; 4] = b"PPYD";
 
-/// The version of the direct link's framing: 2 added shared frames.
-const VERSION: u8 = 2;
+/// The version of the direct link's framing: 2 added shared frames, 3
+/// the hello's `sole` flag. A producer still reads a hello of version 2.
+const VERSION: u8 = 3;
+
+/// The oldest hello a producer reads.
+const OLDEST_VERSION: u8 = 2;
 
 /// A frame's kind: a message follows.
 pub(crate) const FRAME_MESSAGE: u8 = 0;
@@ -122,11 +127,7 @@ pub(crate) fn source_id(id: &zenoh::session::EntityGlobalId) -> SourceId {
 /// directory: named by a hash of its core node and instance, since an
 /// instance id can be longer than a socket path allows.
 pub(crate) fn socket_path(dir: &Path, core: &str, instance: &str) -> PathBuf {
-    // FNV-1a: the same name in every process, whatever its build.
-    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
-    for byte in core.bytes().chain([0]).chain(instance.bytes()) {
-        hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
-    }
+    let hash = fnv(core.bytes().chain([0]).chain(instance.bytes()));
     dir.join(format!("d{hash:016x}.sock"))
 }
 
@@ -140,6 +141,11 @@ pub(crate) struct Hello {
     /// Whether the consumer maps a segment of shared memory for the link
     /// (its node's shared memory is on).
     pub(crate) shared: bool,
+    /// Whether the consumer reads this producer through the link and the
+    /// producer's side key alone once linked (its entry is pinned to the
+    /// producer): the producer then publishes every message the link does
+    /// not carry under [`side_key`] too.
+    pub(crate) sole: bool,
 }
 
 impl Hello {
@@ -148,7 +154,7 @@ impl Hello {
 
     /// The hello as sent: its length (`u16`, little-endian), then it:
     /// the magic, the version, the two strings and a flags byte (bit 0:
-    /// [`Hello::shared`]).
+    /// [`Hello::shared`], bit 1: [`Hello::sole`]).
     pub(crate) fn encode(&self) -> Vec<u8> {
         let mut out = Vec::with_capacity(11 + self.key.len() + self.consumer.len());
         out.extend_from_slice(&[0, 0]);
@@ -158,7 +164,7 @@ impl Hello {
             out.extend_from_slice(&(text.len().min(Self::MAX) as u16).to_le_bytes());
             out.extend_from_slice(&text.as_bytes()[..text.len().min(Self::MAX)]);
         }
-        out.push(u8::from(self.shared));
+        out.push(u8::from(self.shared) | u8::from(self.sole) << 1);
         let len = (out.len() - 2).min(usize::from(u16::MAX)) as u16;
         out[..2].copy_from_slice(&len.to_le_bytes());
         out
@@ -168,9 +174,10 @@ impl Hello {
     /// malformed.
     pub(crate) fn decode(bytes: &[u8]) -> Option<Hello> {
         let rest = bytes.strip_prefix(MAGIC)?;
-        let (&VERSION, mut rest) = rest.split_first()? else {
+        let (&version, mut rest) = rest.split_first()?;
+        if !(OLDEST_VERSION..=VERSION).contains(&version) {
             return None;
-        };
+        }
         let mut text = || -> Option<String> {
             let n = u16::from_le_bytes(rest.get(..2)?.try_into().ok()?) as usize;
             let s = std::str::from_utf8(rest.get(2..2 + n)?).ok()?.to_string();
@@ -180,12 +187,50 @@ impl Hello {
         let key = text()?;
         let consumer = text()?;
         let (&flags, rest) = rest.split_first()?;
-        (rest.is_empty() && flags <= 1).then_some(Hello {
+        let known = if version == OLDEST_VERSION { 1 } else { 3 };
+        (rest.is_empty() && flags <= known).then_some(Hello {
             key,
             consumer,
-            shared: flags == 1,
+            shared: flags & 1 == 1,
+            sole: flags & 2 == 2,
         })
     }
+}
+
+/// The key a producer publishes a topic's messages under, beside its own,
+/// for the consumer (`<core node>/<instance>`) that reads it through a
+/// sole link and this key alone: what the link does not carry. One of its
+/// chunks is verbatim (`@direct`), so no wildcard subscription of the
+/// topic (`*`, `**`) matches it: only the consumer that names it gets
+/// these copies.
+pub(crate) fn side_key(key: &str, consumer: &str) -> String {
+    format!("{key}/@direct/{:016x}", fnv(consumer.bytes()))
+}
+
+/// FNV-1a: the same hash in every process, whatever its build.
+fn fnv(bytes: impl Iterator<Item = u8>) -> u64 {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    for byte in bytes {
+        hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+    }
+    hash
+}
+
+/// A side copy's attachment: the topic's, then the message's number
+/// (`u32` little-endian). The number goes here, not in Zenoh's source
+/// info, which would cost a flood a quarter of its rate.
+pub(crate) fn side_attachment(attachment: &[u8], number: u32) -> Vec<u8> {
+    let mut out = Vec::with_capacity(attachment.len() + 4);
+    out.extend_from_slice(attachment);
+    out.extend_from_slice(&number.to_le_bytes());
+    out
+}
+
+/// Splits a side copy's attachment into the topic's and the number.
+pub(crate) fn split_side_attachment(bytes: &[u8]) -> Option<(&[u8], u32)> {
+    let at = bytes.len().checked_sub(4)?;
+    let (attachment, number) = bytes.split_at(at);
+    Some((attachment, u32::from_le_bytes(number.try_into().ok()?)))
 }
 
 /// A frame's header.
@@ -218,6 +263,7 @@ mod tests {
             key: "peppy/ns/topic/cam/v1/frames/core/cam-1".into(),
             consumer: "core/sink".into(),
             shared: true,
+            sole: true,
         };
         let sent = hello.encode();
         assert_eq!(
@@ -225,16 +271,46 @@ mod tests {
             sent.len() - 2
         );
         let bytes = sent[2..].to_vec();
-        assert_eq!(Hello::decode(&bytes), Some(hello));
+        assert_eq!(Hello::decode(&bytes), Some(hello.clone()));
         for cut in 0..bytes.len() {
             assert_eq!(Hello::decode(&bytes[..cut]), None, "cut at {cut}");
         }
         let mut longer = bytes.clone();
         longer.push(0);
         assert_eq!(Hello::decode(&longer), None);
-        let mut other = bytes;
+        let mut other = bytes.clone();
         other[4] = VERSION + 1;
         assert_eq!(Hello::decode(&other), None);
+        // A hello of version 2 (no `sole` flag) is still read.
+        let mut older = bytes.clone();
+        older[4] = OLDEST_VERSION;
+        *older.last_mut().unwrap() = 1;
+        assert_eq!(
+            Hello::decode(&older),
+            Some(Hello {
+                sole: false,
+                ..hello
+            })
+        );
+        *older.last_mut().unwrap() = 3;
+        assert_eq!(Hello::decode(&older), None, "version 2 knew one flag");
+    }
+
+    #[test]
+    fn a_side_key_is_matched_by_no_wildcard_of_the_topic() {
+        let key = "peppy/ns/topic/cam/v1/frames/core/cam-1";
+        let side = zenoh::key_expr::KeyExpr::try_from(side_key(key, "core/sink")).unwrap();
+        for wildcard in [
+            "peppy/ns/topic/cam/v1/frames/*/*",
+            "peppy/ns/topic/cam/v1/frames/*/cam-1",
+            "peppy/ns/topic/cam/v1/frames/**",
+            "peppy/**",
+        ] {
+            let wildcard = zenoh::key_expr::KeyExpr::try_from(wildcard).unwrap();
+            assert!(!wildcard.intersects(&side), "{wildcard}");
+        }
+        assert!(side.intersects(&side));
+        assert_ne!(side_key(key, "core/sink"), side_key(key, "core/sink-2"));
     }
 
     #[test]

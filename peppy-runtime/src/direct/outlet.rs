@@ -4,6 +4,7 @@
 use std::io::{ErrorKind, IoSlice, Write};
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, OnceLock, Weak};
 use std::time::{Duration, Instant};
 
@@ -15,6 +16,7 @@ use zenoh::bytes::ZBytes;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::SourceInfo;
+use zenoh::session::Session;
 
 use super::{BURST_GAP, FRAME_MESSAGE, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT, header};
 #[cfg(target_os = "linux")]
@@ -31,7 +33,13 @@ pub(crate) struct DirectOutlet {
     fingerprint: u64,
     /// The Zenoh publisher's id, which its samples carry.
     source: super::SourceId,
+    /// Where a sole link's side publisher is declared.
+    session: Session,
     links: Mutex<Links>,
+    /// Whether a consumer reads the topic through a side key (a sole
+    /// link's, open or ended): then a large message goes into Zenoh's
+    /// shared memory even with no subscriber of the topic's own key.
+    sole_readers: AtomicBool,
     /// The clock a burst is told by, made when the first link is added
     /// (making it calibrates the CPU's counter, which takes a few
     /// milliseconds). `Instant::now` cost a flood of small messages a
@@ -48,13 +56,49 @@ struct Links {
     /// When the last small message was published while linked (the
     /// clock's raw counter).
     last: Option<u64>,
+    /// The side keys of sole links that ended, while their consumer may
+    /// still read them: every message goes there until it has gone back
+    /// to the topic's own key.
+    orphans: Vec<Side>,
 }
 
+/// A sole link's side key: what the link does not carry is published
+/// there for its consumer, which reads the producer through the link and
+/// this key alone.
+#[derive(Debug)]
+struct Side {
+    publisher: Publisher<'static>,
+    /// Whether Zenoh knows the consumer's subscription to it.
+    matching: Arc<AtomicBool>,
+    /// Whether it has been seen matching since its link ended: its
+    /// consumer is gone from it once it no longer matches.
+    seen: bool,
+    /// When its link ended.
+    ended: Option<Instant>,
+}
+
+impl Side {
+    /// Whether an ended link's side key is still to be published to: its
+    /// consumer has not been seen to leave it, and (if it was never seen
+    /// on it) its subscription may still be on its way.
+    fn wanted(&mut self, now: Instant) -> bool {
+        let matching = self.matching.load(Ordering::Relaxed);
+        self.seen |= matching;
+        matching || (!self.seen && self.ended.is_none_or(|t| now - t < ORPHAN_GRACE))
+    }
+}
+
+/// How long an ended sole link's side key is published to while its
+/// consumer's subscription to it has never been seen: a subscription
+/// declared just before the link ended reaches the producer within it.
+const ORPHAN_GRACE: Duration = Duration::from_secs(5);
 #[derive(Debug)]
 struct Link {
     stream: UnixStream,
     /// The consumer (`<core node>/<instance>`), for the log.
     consumer: String,
+    /// A sole link's side key.
+    side: Option<Side>,
     /// Messages of a dropping topic not written since the last report.
     dropped: u64,
     /// The link's shared memory, where its large messages go.
@@ -63,15 +107,27 @@ struct Link {
 }
 
 impl DirectOutlet {
-    pub(crate) fn new(publisher: &Publisher<'static>, qos: QosProfile, fingerprint: u64) -> Self {
+    pub(crate) fn new(
+        session: &Session,
+        publisher: &Publisher<'static>,
+        qos: QosProfile,
+        fingerprint: u64,
+    ) -> Self {
         DirectOutlet {
             key: publisher.key_expr().to_string(),
             qos,
             fingerprint,
             source: super::source_id(&publisher.id()),
+            session: session.clone(),
             links: Mutex::new(Links::default()),
+            sole_readers: AtomicBool::new(false),
             clock: OnceLock::new(),
         }
+    }
+
+    /// Whether a consumer reads the topic through a side key.
+    pub(crate) fn sole_readers(&self) -> bool {
+        self.sole_readers.load(Ordering::Relaxed)
     }
 
     /// Publishes `payload` through Zenoh, and over every link of the topic
@@ -89,7 +145,7 @@ impl DirectOutlet {
         };
         links.sequence = links.sequence.wrapping_add(1);
         let number = links.sequence;
-        let mut linked = false;
+        let mut carried = Carried::default();
         let len = payload.len();
         if let (false, Some(clock)) = (links.open.is_empty(), self.clock.get())
             && (len < INLINE_MAX || shared(len))
@@ -102,12 +158,23 @@ impl DirectOutlet {
             if !burst {
                 // The links first: they are what a consumer on this host
                 // reads.
-                linked = links.write(number, &payload.to_bytes(), self.drops());
+                carried = links.write(number, &payload.to_bytes(), self.drops());
+            }
+        }
+        let sides = links.has_sides();
+        if sides {
+            // Sole consumers that did not get it over their link get it
+            // under their side key, numbered like its other copies.
+            links.publish_sides(&payload, &attachment, number, &carried.sole);
+            if !links.has_sides() {
+                self.sole_readers.store(false, Ordering::Relaxed);
             }
         }
         let put = publisher.put(payload).attachment(attachment);
-        if linked {
-            // Its consumers tell the two copies apart by this number.
+        if carried.any || sides {
+            // Its consumers tell its copies apart by this number: a sole
+            // consumer reads the topic's own key too while it moves to its
+            // side key and back.
             put.source_info(SourceInfo::new(publisher.id(), number))
                 .wait()
         } else {
@@ -127,7 +194,9 @@ impl DirectOutlet {
     /// its link, then goes back to Zenoh.
     pub(crate) fn close(&self) {
         if let Ok(mut links) = self.links.lock() {
-            links.open.clear();
+            for link in std::mem::take(&mut links.open) {
+                links.ended(link);
+            }
         }
     }
 
@@ -139,14 +208,17 @@ impl DirectOutlet {
 
     /// Adds the link a consumer asked for, under the lock (between two
     /// publications), with a segment of shared memory when `shared` (both
-    /// nodes' shared memory is on).
+    /// nodes' shared memory is on), and a side key when `sole`.
     fn attach(
         &self,
         mut stream: UnixStream,
         consumer: String,
         shared: bool,
+        sole: bool,
     ) -> std::io::Result<()> {
         self.clock.get_or_init(quanta::Clock::new);
+        // Declared before the lock: Zenoh's calls are not made under it.
+        let side = sole.then(|| self.side(&consumer)).transpose()?;
         let mut links = self
             .links
             .lock()
@@ -181,35 +253,141 @@ impl DirectOutlet {
             stream.write_all(&answer)?;
         }
         stream.set_nonblocking(true)?;
+        if side.is_some() {
+            self.sole_readers.store(true, Ordering::Relaxed);
+        }
         links.open.push(Link {
             stream,
             consumer,
+            side,
             dropped: 0,
             #[cfg(target_os = "linux")]
             ring,
         });
         Ok(())
     }
+
+    /// The side key of a sole link to `consumer`, and its publisher:
+    /// published like the topic's own key.
+    fn side(&self, consumer: &str) -> std::io::Result<Side> {
+        let publisher = self
+            .session
+            .declare_publisher(super::side_key(&self.key, consumer))
+            .congestion_control(qos::congestion(self.qos))
+            .priority(qos::priority(self.qos))
+            .express(qos::express(self.qos))
+            .wait()
+            .map_err(std::io::Error::other)?;
+        let matching = Arc::new(AtomicBool::new(false));
+        let flag = matching.clone();
+        publisher
+            .matching_listener()
+            .callback(move |status| flag.store(status.matching(), Ordering::Relaxed))
+            .background()
+            .wait()
+            .map_err(std::io::Error::other)?;
+        Ok(Side {
+            publisher,
+            matching,
+            seen: false,
+            ended: None,
+        })
+    }
+}
+
+/// Which links got a message.
+#[derive(Debug, Default)]
+struct Carried {
+    /// Whether any link got it.
+    any: bool,
+    /// Per open link after the write, whether it got it.
+    sole: Vec<bool>,
 }
 
 impl Links {
     /// Writes message `number` to every link that takes it, closing the
-    /// links that fail: whether any link got it.
-    fn write(&mut self, number: u32, body: &[u8], may_drop: bool) -> bool {
+    /// links that fail: which got it.
+    fn write(&mut self, number: u32, body: &[u8], may_drop: bool) -> Carried {
         let large = body.len() >= LARGE;
-        let mut any = false;
-        self.open.retain_mut(|link| {
+        let mut carried = Carried::default();
+        let mut ended = Vec::new();
+        for mut link in std::mem::take(&mut self.open) {
             if large && unread(&link.stream) != Some(0) {
                 // The consumer has not read the link's last frames: it is
                 // busy, not waiting, and Zenoh's shared memory moves a
                 // large message there without a copy.
-                return true;
+                carried.sole.push(false);
+                self.open.push(link);
+                continue;
             }
             let (written, keep) = link.send(number, body, may_drop);
-            any |= written;
-            keep
-        });
-        any
+            carried.any |= written;
+            if keep {
+                carried.sole.push(written);
+                self.open.push(link);
+            } else {
+                ended.push(link);
+            }
+        }
+        for link in ended {
+            self.ended(link);
+        }
+        carried
+    }
+
+    /// A link ended: its side key, if it has one, is published to until
+    /// its consumer has gone back to the topic's own key.
+    fn ended(&mut self, link: Link) {
+        if let Some(mut side) = link.side {
+            side.ended = Some(Instant::now());
+            self.orphans.push(side);
+        }
+    }
+
+    /// Whether any side key is published to.
+    fn has_sides(&self) -> bool {
+        !self.orphans.is_empty() || self.open.iter().any(|l| l.side.is_some())
+    }
+
+    /// Publishes message `number` under the side keys of the open sole
+    /// links that did not get it (`carried`, per open link) and of the
+    /// ended ones still read; forgets the ended ones no longer read.
+    fn publish_sides(
+        &mut self,
+        payload: &ZBytes,
+        attachment: &ZBytes,
+        number: u32,
+        carried: &[bool],
+    ) {
+        let side_attachment =
+            || ZBytes::from(super::side_attachment(&attachment.to_bytes(), number));
+        for (i, link) in self.open.iter().enumerate() {
+            if let Some(side) = &link.side
+                && !carried.get(i).copied().unwrap_or(false)
+            {
+                side.put(payload, side_attachment());
+            }
+        }
+        if self.orphans.is_empty() {
+            return;
+        }
+        let now = Instant::now();
+        self.orphans.retain_mut(|side| side.wanted(now));
+        for side in &self.orphans {
+            side.put(payload, side_attachment());
+        }
+    }
+}
+
+impl Side {
+    /// Publishes a message under the side key; a failure (the session
+    /// closing) is the topic's own put's to report.
+    fn put(&self, payload: &ZBytes, attachment: ZBytes) {
+        let _ = self
+            .publisher
+            .put(payload.clone())
+            .attachment(attachment)
+            .wait();
     }
 }
 
@@ -516,10 +694,12 @@ async fn welcome(
         key,
         consumer,
         shared: takes_shared,
+        ..
     } = hello;
     let who = consumer.clone();
     let shared = shared && takes_shared;
-    tokio::task::spawn_blocking(move || outlet.attach(stream, who, shared))
+    let sole = hello.sole;
+    tokio::task::spawn_blocking(move || outlet.attach(stream, who, shared, sole))
         .await
         .map_err(std::io::Error::other)??;
     debug!(

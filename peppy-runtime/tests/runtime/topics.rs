@@ -714,6 +714,138 @@ async fn direct_links_hand_every_message_once_in_order() {
     }
 }
 
+/// Whether Zenoh knows a subscriber of `flood`'s frames (the hub asks, as
+/// a publisher of the same key).
+async fn frames_subscribed(hub: &crate::support::Hub, ns: &str) -> bool {
+    use peppy_runtime::wire::keys::{Channel, Owner, entry_key};
+    let owner = Owner::Node {
+        name: "flood",
+        tag: "v1",
+    };
+    let key = entry_key(ns, Channel::Topic, &owner, "frames", "standalone", "flood");
+    let probe = hub.session.declare_publisher(key).await.unwrap();
+    probe.matching_status().await.unwrap().matching()
+}
+
+/// Waits (bounded) until the hub sees `flood`'s frames subscribed or not.
+async fn until_frames_subscribed(hub: &crate::support::Hub, ns: &str, yes: bool, what: &str) {
+    tokio::time::timeout(WAIT, async {
+        while frames_subscribed(hub, ns).await != yes {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    })
+    .await
+    .expect(what);
+}
+
+/// A consumer pinned to its producer, once linked, reads it through the
+/// link and the producer's side key alone: no subscription of the topic's
+/// own key is left (Zenoh no longer brings it a copy of what the link
+/// carries), and every message still comes once, in order, whether the
+/// link carries it (small, or through its shared memory) or Zenoh does
+/// (larger than the link takes, or in a burst). When the producer stops,
+/// the consumer subscribes to the topic's key again, and a restarted
+/// producer is read from its first message and linked anew.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_pinned_consumer_on_a_link_reads_through_it_and_its_side_key_alone() {
+    let hub = hub().await;
+    let ns = namespace("direct-sole");
+    let dir = tempfile::tempdir().unwrap();
+    let links = dir.path().display().to_string();
+    let station = start_direct::<Station>(&hub, &ns, "station", "src@flood", &links).await;
+    let flood = start_direct::<Flood>(&hub, &ns, "flood", "st@station", &links).await;
+    beats_pass(&flood, &station).await;
+    assert!(
+        frames_subscribed(&hub, &ns).await,
+        "read through Zenoh first"
+    );
+    let frame = |seq: u32| {
+        let len = match seq % 5 {
+            1 => 1600 << 10,
+            3 => 40 << 10,
+            _ => 16 + (seq as usize * 37) % 2000,
+        };
+        patterned(seq, len)
+    };
+    let direct = |r: &NodeRunner| r.received_over_direct_links(&FLOOD_IN).unwrap();
+
+    // Linked: the topic's own key is left once the link's numbers are
+    // known.
+    let mut seq = 0;
+    tokio::time::timeout(WAIT, async {
+        while direct(&station) == 0 || frames_subscribed(&hub, &ns).await {
+            emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+            read_in_order(&station, seq, 1, frame).await;
+            seq += 1;
+            tokio::time::sleep(Duration::from_millis(2)).await;
+        }
+    })
+    .await
+    .expect("the consumer reads through the link and side key alone");
+
+    // Paced, then in a burst: every frame once, in order, the small ones
+    // over the link.
+    let before = direct(&station);
+    for s in seq..seq + 50 {
+        emit(&flood, &FLOOD_OUT, &frame(s)).await.unwrap();
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    read_in_order(&station, seq, 50, frame).await;
+    let small = (seq..seq + 50).filter(|s| s % 5 != 1 && s % 5 != 3).count() as u64;
+    assert!(
+        direct(&station) - before >= small,
+        "every small frame over the link"
+    );
+    seq += 50;
+    for s in seq..seq + 300 {
+        emit(&flood, &FLOOD_OUT, &frame(s)).await.unwrap();
+    }
+    read_in_order(&station, seq, 300, frame).await;
+    seq += 300;
+    assert!(!frames_subscribed(&hub, &ns).await, "still on the side key");
+
+    // The producer stops: its last messages come, and the consumer goes
+    // back to the topic's key.
+    for s in seq..seq + 5 {
+        emit(&flood, &FLOOD_OUT, &frame(s)).await.unwrap();
+    }
+    flood.shutdown().await;
+    drop(flood);
+    read_in_order(&station, seq, 5, frame).await;
+    until_frames_subscribed(&hub, &ns, true, "back on the topic's key").await;
+    while tokio::time::timeout(
+        Duration::from_millis(200),
+        next_message::<u32>(&station, &BEAT_IN, None),
+    )
+    .await
+    .is_ok()
+    {}
+
+    // Restarted, it is read from its first message, and linked again.
+    let flood = start_direct::<Flood>(&hub, &ns, "flood", "st@station", &links).await;
+    beats_pass(&flood, &station).await;
+    let before = direct(&station);
+    for s in 0..20 {
+        emit(&flood, &FLOOD_OUT, &frame(s)).await.unwrap();
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    read_in_order(&station, 0, 20, frame).await;
+    let mut seq = 20;
+    tokio::time::timeout(WAIT, async {
+        while direct(&station) == before || frames_subscribed(&hub, &ns).await {
+            emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+            read_in_order(&station, seq, 1, frame).await;
+            seq += 1;
+            tokio::time::sleep(Duration::from_millis(2)).await;
+        }
+    })
+    .await
+    .expect("the restarted producer is read through a link and side key alone");
+    for r in [station, flood] {
+        r.shutdown().await;
+    }
+}
+
 /// Messages from 16 KiB go over a link through its shared memory and are
 /// read in place: a reader that keeps them holds the producer's regions,
 /// the producer never writes over one held, and once the reader holds too
