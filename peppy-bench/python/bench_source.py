@@ -1,4 +1,5 @@
-"""The benchmark's source as a Python node: answers `ping_reliable` with
+"""The benchmark's source as a Python node: answers `ping_reliable` (from
+the sink, through the slot `sink`) with
 `pong_reliable`, the ping decoded into its generated dataclass and the pong
 encoded from it, as the Rust source does. A Rust sink pinging it measures
 a Python consumer of a Rust producer (and the Rust consumer of a Python
@@ -22,7 +23,7 @@ from bench_source_gen import emitted_topics as emitted
 async def answer(node) -> None:
     try:
         while True:
-            _, ping = await consumed.ping_reliable.on_next_message_received(node)
+            _, ping = await consumed.sink.ping_reliable.on_next_message_received(node)
             await emitted.pong_reliable.emit(node, ping.seq, ping.sent_ns, ping.data)
     except asyncio.CancelledError:
         raise

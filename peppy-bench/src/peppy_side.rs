@@ -42,19 +42,26 @@ async fn start<P: peppy::codegen::NodeParameters>(
 
 /// Serves pings, echo, flood and the work action until `stop` resolves.
 pub(crate) async fn source(ns: &str, listen: &str, stop: impl Future<Output = ()>) -> Res<()> {
-    use source_node::consumed_topics::{ping_reliable, ping_sensor};
+    use source_node::consumed_topics::{
+        sink_ping_reliable as ping_reliable, sink_ping_sensor as ping_sensor,
+    };
     use source_node::emitted_topics::{pong_reliable, pong_sensor, stream};
     use source_node::exposed_services::{echo, flood};
 
-    let runner = start::<source_node::Parameters>("source", ns, &["--listen", listen]).await?;
+    let runner = start::<source_node::Parameters>(
+        "source",
+        ns,
+        &["--listen", listen, "--bind", "sink@sink"],
+    )
+    .await?;
     let r = runner.clone();
     tokio::spawn(async move {
         if crate::children::in_place() {
-            while let Ok((_, p)) = ping_reliable::on_next_payload_received(&r, None, None).await {
+            while let Ok((_, p)) = ping_reliable::on_next_payload_received(&r, None).await {
                 let _ = answer_in_place(&r, &pong_reliable::SPEC, &p).await;
             }
         } else {
-            while let Ok((_, m)) = ping_reliable::on_next_message_received(&r, None, None).await {
+            while let Ok((_, m)) = ping_reliable::on_next_message_received(&r, None).await {
                 let _ = pong_reliable::emit(&r, m.seq, m.sent_ns, m.data).await;
             }
         }
@@ -62,11 +69,11 @@ pub(crate) async fn source(ns: &str, listen: &str, stop: impl Future<Output = ()
     let r = runner.clone();
     tokio::spawn(async move {
         if crate::children::in_place() {
-            while let Ok((_, p)) = ping_sensor::on_next_payload_received(&r, None, None).await {
+            while let Ok((_, p)) = ping_sensor::on_next_payload_received(&r, None).await {
                 let _ = answer_in_place(&r, &pong_sensor::SPEC, &p).await;
             }
         } else {
-            while let Ok((_, m)) = ping_sensor::on_next_message_received(&r, None, None).await {
+            while let Ok((_, m)) = ping_sensor::on_next_message_received(&r, None).await {
                 let _ = pong_sensor::emit(&r, m.seq, m.sent_ns, m.data).await;
             }
         }

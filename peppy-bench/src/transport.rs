@@ -243,6 +243,14 @@ impl Source {
                         "listen": [endpoint],
                         "multicast_scouting": false,
                     },
+                    // The sink's pings, pinned to it as in the Rust source.
+                    "slots": [{
+                        "link_id": "sink",
+                        "kind": "node",
+                        "target": { "name": "bench_sink", "tag": "v1" },
+                        "binding": { "kind": "pinned", "producer": "sink" },
+                        "filter": { "kind": "pin", "producers": "sink" },
+                    }],
                 });
                 std::fs::write(&plan, text.to_string())?;
                 let mut proc = Proc::spawn(python.command(&plan), "the Python source")?;

@@ -53,6 +53,10 @@ pub(crate) struct Feed {
     want: Mutex<Option<Sole>>,
     /// What it reads through, changed by one move at a time.
     held: tokio::sync::Mutex<Held>,
+    /// The side key for which the own key may be left before the linger
+    /// ends: the entry has every message the own key alone brought.
+    left: Mutex<Option<String>>,
+    left_now: tokio::sync::Notify,
 }
 
 #[derive(Debug, Default)]
@@ -79,7 +83,40 @@ impl Feed {
                 own: Some(own),
                 side: None,
             }),
+            left: Mutex::new(None),
+            left_now: tokio::sync::Notify::new(),
         })
+    }
+
+    /// The entry has every message the own key alone brought before its
+    /// producer started publishing to `side` what the link does not
+    /// carry: the own key can be left now.
+    pub(crate) fn leave_own(&self, side: &str) {
+        if let Ok(mut left) = self.left.lock() {
+            *left = Some(side.to_string());
+        }
+        self.left_now.notify_waiters();
+    }
+
+    /// Waits until the own key may be left for `side`, or the linger ends.
+    async fn until_own_left(&self, side: &str) {
+        let deadline = tokio::time::Instant::now() + LINGER;
+        loop {
+            let notified = self.left_now.notified();
+            tokio::pin!(notified);
+            notified.as_mut().enable();
+            if self
+                .left
+                .lock()
+                .map_or(true, |l| l.as_deref() == Some(side))
+            {
+                return;
+            }
+            tokio::select! {
+                () = tokio::time::sleep_until(deadline) => return,
+                () = &mut notified => {}
+            }
+        }
     }
 
     /// Moves the entry to `sole`'s side key (`None`: back to its own key),
@@ -88,6 +125,11 @@ impl Feed {
         match self.want.lock() {
             Ok(mut want) => *want = sole,
             Err(_) => return,
+        }
+        // A leave for an earlier move to the same side key is not this
+        // one's.
+        if let Ok(mut left) = self.left.lock() {
+            *left = None;
         }
         let feed = self.clone();
         self.runtime.spawn(async move { feed.settle().await });
@@ -104,7 +146,13 @@ impl Feed {
         let Some(want) = self.declare().await else {
             return;
         };
-        tokio::time::sleep(LINGER).await;
+        match &want {
+            // The own key is left as soon as nothing can be on its way
+            // through it alone (the producer says from which message on
+            // it publishes to the side key).
+            Some(sole) => self.until_own_left(&sole.side).await,
+            None => tokio::time::sleep(LINGER).await,
+        }
         let mut held = self.held.lock().await;
         if self.want.lock().ok().as_deref() != Some(&want) {
             return; // Another move came meanwhile: it ends the old.

@@ -32,7 +32,8 @@ use zenoh::key_expr::KeyExpr;
 
 use super::feed::{Feed, Sole};
 use super::{
-    FRAME_MESSAGE, FRAME_SHARED, HEADER, HOLD_LIMIT, Hello, INLINE_MAX, SHARED_HEADER, SourceId,
+    FRAME_MESSAGE, FRAME_SHARED, FRAME_SIDE, HEADER, HOLD_LIMIT, Hello, INLINE_MAX, SHARED_HEADER,
+    SourceId,
 };
 use crate::topics::{Arrival, Intake};
 use crate::wire::keys::{parse_pairing_topic_key, split_entry_key};
@@ -374,6 +375,9 @@ impl Inlet {
                 if state.side.is_some() {
                     settle_sole(intake, lane, &mut state);
                 }
+                if state.side_from.is_some() {
+                    leave_own(intake, &mut state);
+                }
             }
         }
         if state.link == LinkState::Closed && state.retry_due() {
@@ -407,6 +411,9 @@ impl Inlet {
         };
         if state.source == Some(source) {
             state.link_brought(number, arrival, intake);
+            if state.side_from.is_some() {
+                leave_own(intake, &mut state);
+            }
         }
         Route::Handled
     }
@@ -449,6 +456,19 @@ fn settle_sole(intake: &Intake, lane: &Lane, state: &mut LaneState) {
             key: lane.key.clone(),
             source,
         }));
+    }
+}
+
+/// Lets `lane`'s entry leave the topic's own key (its state locked by
+/// the caller) once it has every message before the one from which the
+/// producer publishes to its side key: none is left on the way through
+/// the own key alone.
+fn leave_own(intake: &Intake, state: &mut LaneState) {
+    if state.side_from.is_some_and(|n| state.next >= n)
+        && let (Some(feed), Some(side)) = (intake.direct().and_then(Inlet::feed), &state.side)
+    {
+        state.side_from = None;
+        feed.leave_own(side);
     }
 }
 
@@ -501,6 +521,7 @@ impl Lane {
         }
         state.link = LinkState::Closed;
         state.side = None;
+        state.side_from = None;
         Some(std::mem::take(&mut state.switched))
     }
 }
@@ -548,6 +569,9 @@ struct LaneState {
     /// Whether the entry reads the producer through the link and the side
     /// key alone: then every message comes numbered.
     switched: bool,
+    /// The message from which the producer publishes to the side key what
+    /// the link does not carry, until the lane has every one before it.
+    side_from: Option<i64>,
     /// Link messages ahead of `next`, by number.
     held: BTreeMap<i64, Arrival>,
     /// Since when the oldest held message waits.
@@ -573,6 +597,7 @@ impl LaneState {
             attachment: None,
             side: None,
             switched: false,
+            side_from: None,
             held: BTreeMap::new(),
             held_since: None,
         }
@@ -640,6 +665,7 @@ impl LaneState {
         self.linked = true;
         self.side = None;
         self.switched = false;
+        self.side_from = None;
         if self.source != Some(source) {
             // A publisher the lane has not followed (a restarted producer,
             // or one whose messages were only counted): where its numbers
@@ -890,8 +916,14 @@ async fn read_link(consumer: &Consumer, link: &Link, path: PathBuf, hello: Hello
             Ok(_) => {}
             Err(e) => return Outcome::Closed(e.to_string()),
         }
-        if let Err(why) = whole_frames(&mut buf, &mut frames, memory.as_ref()) {
+        let mut side_from = None;
+        if let Err(why) = whole_frames(&mut buf, &mut frames, &mut side_from, memory.as_ref()) {
             return Outcome::Closed(why);
+        }
+        if let Some(number) = side_from {
+            for member in &members {
+                member.side_from(number);
+            }
         }
         let gone: Vec<(usize, u64)> = members
             .iter()
@@ -909,10 +941,12 @@ async fn read_link(consumer: &Consumer, link: &Link, path: PathBuf, hello: Hello
 
 /// Moves every whole frame in `buf` to `frames` (its number, its message,
 /// and whether the message is read in place), taking shared frames'
-/// messages from the link's `memory`.
+/// messages from the link's `memory`; a side frame's number goes to
+/// `side_from`.
 fn whole_frames(
     buf: &mut bytes::BytesMut,
     frames: &mut Vec<(u32, ZBytes, bool)>,
+    side_from: &mut Option<u32>,
     memory: Option<&LinkMemory>,
 ) -> Result<(), String> {
     while buf.len() >= HEADER {
@@ -944,6 +978,10 @@ fn whole_frames(
                     .ok_or_else(malformed)?;
                 let _ = buf.split_to(SHARED_HEADER);
                 frames.push((number, ZBytes::from(message), true));
+            }
+            FRAME_SIDE if len == 0 => {
+                let _ = buf.split_to(HEADER);
+                *side_from = Some(number);
             }
             _ => return Err(malformed()),
         }
@@ -1020,6 +1058,19 @@ impl Member {
         }
     }
 
+    /// The producer publishes what the link does not carry to the side key
+    /// from message `number` on: the lane leaves the topic's own key once
+    /// it has every message before that.
+    fn side_from(&self, number: u32) {
+        let (Some(intake), Ok(mut state)) = (self.intake.upgrade(), self.lane.state.lock()) else {
+            return;
+        };
+        if state.generation == self.generation && state.switched {
+            state.side_from = Some(state.unwrap(number));
+            leave_own(&intake, &mut state);
+        }
+    }
+
     /// Hands `frames` to its lane; `false` when the lane no longer reads
     /// this link (its reader is gone, or it moved on to a restarted
     /// producer's).
@@ -1044,6 +1095,9 @@ impl Member {
             }
             intake.counted_direct();
             state.link_brought(*number, arrival, &intake);
+        }
+        if state.side_from.is_some() {
+            leave_own(&intake, &mut state);
         }
         true
     }

@@ -105,6 +105,12 @@ pub(crate) const FRAME_MESSAGE: u8 = 0;
 /// offset (`u32` little-endian) that follows the header.
 pub(crate) const FRAME_SHARED: u8 = 2;
 
+/// A frame's kind, with no message: from the number it carries on, every
+/// message the link does not carry goes to the consumer's side key (the
+/// producer has seen its subscription there), so once the consumer has
+/// every message before it, it can leave the topic's own key.
+pub(crate) const FRAME_SIDE: u8 = 3;
+
 /// A shared frame: the header, then the message's offset.
 pub(crate) const SHARED_HEADER: usize = HEADER + 4;
 

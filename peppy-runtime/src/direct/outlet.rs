@@ -18,7 +18,9 @@ use zenoh::qos::CongestionControl;
 use zenoh::sample::SourceInfo;
 use zenoh::session::Session;
 
-use super::{BURST_GAP, FRAME_MESSAGE, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT, header};
+use super::{
+    BURST_GAP, FRAME_MESSAGE, FRAME_SIDE, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT, header,
+};
 #[cfg(target_os = "linux")]
 use super::{FRAME_SHARED, HEADER, SHARED_HEADER};
 use crate::qos;
@@ -70,8 +72,9 @@ struct Side {
     publisher: Publisher<'static>,
     /// Whether Zenoh knows the consumer's subscription to it.
     matching: Arc<AtomicBool>,
-    /// Whether it has been seen matching since its link ended: its
-    /// consumer is gone from it once it no longer matches.
+    /// Whether it has been seen matching (since its link ended, for an
+    /// ended link's): its consumer is gone from it once it no longer
+    /// matches.
     seen: bool,
     /// When its link ended.
     ended: Option<Instant>,
@@ -163,6 +166,7 @@ impl DirectOutlet {
         }
         let sides = links.has_sides();
         if sides {
+            links.announce_sides(number);
             // Sole consumers that did not get it over their link get it
             // under their side key, numbered like its other copies.
             links.publish_sides(&payload, &attachment, number, &carried.sole);
@@ -335,11 +339,39 @@ impl Links {
         carried
     }
 
+    /// Tells each sole link whose consumer's side key subscription has
+    /// just been seen that from message `number` on, what it does not
+    /// carry goes there.
+    fn announce_sides(&mut self, number: u32) {
+        let mut ended = Vec::new();
+        for mut link in std::mem::take(&mut self.open) {
+            let due = link
+                .side
+                .as_mut()
+                .is_some_and(|s| !s.seen && s.matching.load(Ordering::Relaxed));
+            if due {
+                if let Some(side) = &mut link.side {
+                    side.seen = true;
+                }
+                let (_, keep) = link.write(&header(FRAME_SIDE, number, 0), &[], false);
+                if !keep {
+                    ended.push(link);
+                    continue;
+                }
+            }
+            self.open.push(link);
+        }
+        for link in ended {
+            self.ended(link);
+        }
+    }
+
     /// A link ended: its side key, if it has one, is published to until
     /// its consumer has gone back to the topic's own key.
     fn ended(&mut self, link: Link) {
         if let Some(mut side) = link.side {
             side.ended = Some(Instant::now());
+            side.seen = false;
             self.orphans.push(side);
         }
     }
