@@ -632,6 +632,7 @@ impl NodeRunner {
                         Arc::new(crate::direct::outlet::DirectOutlet::new(
                             &self.session,
                             &publisher,
+                            known.clone(),
                             spec.qos,
                             spec.format.fingerprint,
                         ))
@@ -688,12 +689,14 @@ impl NodeRunner {
     pub(crate) fn paired_outlet(
         &self,
         publisher: &zenoh::pubsub::Publisher<'static>,
+        readers: &Arc<AtomicBool>,
         spec: &'static TopicSpec,
     ) -> Option<Arc<crate::direct::outlet::DirectOutlet>> {
         self.direct_listener.as_ref()?;
         let outlet = Arc::new(crate::direct::outlet::DirectOutlet::new(
             &self.session,
             publisher,
+            readers.clone(),
             spec.qos,
             spec.format.fingerprint,
         ));
@@ -770,6 +773,7 @@ impl NodeRunner {
                     .flatten()
                     .map(|s| s.target.clone()),
             });
+            #[cfg(unix)]
             let pinned = matches!(filter, peppy_schema::RouteFilter::Pin(_));
             let (intake, inbox) =
                 Intake::new(spec, filter, members, declarer.clone(), mismatch.clone());

@@ -373,7 +373,7 @@ impl Intake {
     }
 
     /// The callback of a sole link's side key: a copy of a message of the
-    /// producer publishing under `key`, numbered in its attachment.
+    /// producer publishing under `key`, numbered in its source info.
     #[cfg(unix)]
     pub(crate) fn accept_side(
         &self,
@@ -384,21 +384,16 @@ impl Intake {
         let Some(direct) = &self.direct else {
             return;
         };
+        let Some(number) = sample.source_info().map(|i| i.source_sn()) else {
+            debug!(topic = %key, "dropping a side copy without its number");
+            return;
+        };
         let SampleFields {
             payload,
             attachment,
             ..
         } = sample.into();
-        let split = attachment.as_ref().and_then(|a| {
-            let bytes = a.to_bytes();
-            crate::direct::split_side_attachment(&bytes)
-                .map(|(topic, number)| (ZBytes::from(topic.to_vec()), number))
-        });
-        let Some((attachment, number)) = split else {
-            debug!(topic = %key, "dropping a side copy without its number");
-            return;
-        };
-        let arrival = Arrival::new(key.clone(), payload, Some(attachment));
+        let arrival = Arrival::new(key.clone(), payload, attachment);
         if let crate::direct::inlet::Route::Take(a) =
             direct.route_side(self, arrival, (source, number))
         {

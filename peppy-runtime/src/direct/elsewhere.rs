@@ -34,6 +34,7 @@ pub(crate) mod outlet {
         pub(crate) fn new(
             _session: &zenoh::Session,
             _publisher: &Publisher<'static>,
+            _readers: std::sync::Arc<std::sync::atomic::AtomicBool>,
             _qos: QosProfile,
             _fingerprint: u64,
         ) -> Self {

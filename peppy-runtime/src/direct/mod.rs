@@ -2,9 +2,9 @@
 //! launch on one host over a Unix socket of their own, beside Zenoh.
 //!
 //! Zenoh stays the one engine: every message is still published through
-//! it (other consumers, other hosts, inspection tools and Python nodes get
-//! it there), and discovery, routing, formats and security are Zenoh's as
-//! before. What a direct link removes is the cost of a small message on
+//! it whenever it has a subscriber (other consumers, other hosts,
+//! inspection tools and Python nodes get it there), and discovery,
+//! routing, formats and security are Zenoh's as before. What a direct link removes is the cost of a small message on
 //! one host: Zenoh hands it from the publishing task to its transmit
 //! queue, a link task, the socket, the receiving link task, the
 //! subscription callback and the reader's task, each hand-off a thread
@@ -43,8 +43,15 @@
 //! 5. The consumer merges the two by number (`inlet`): whichever copy of
 //!    the next message comes first is handed on, the other dropped; a link
 //!    message ahead of it waits until Zenoh has brought those before it.
+//!    A consumer whose entry is pinned to the producer asks for a *sole*
+//!    link: the producer publishes what the link does not carry under the
+//!    consumer's [`side_key`] too, and the consumer moves its
+//!    subscription there (`feed`), so Zenoh no longer brings it a copy of
+//!    what the link carried; with no subscriber of the topic's own key
+//!    left, the producer does not publish there.
 //! 6. When the link breaks (the producer stopped, a write timed out) Zenoh
-//!    alone goes on, counted as before; a message from another
+//!    alone goes on (a sole link's consumer subscribes to the topic's key
+//!    again first), counted as before; a message from another
 //!    publisher under the same key (the producer restarted) starts the
 //!    numbers afresh and links the new one.
 
@@ -220,23 +227,6 @@ fn fnv(bytes: impl Iterator<Item = u8>) -> u64 {
         hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
     }
     hash
-}
-
-/// A side copy's attachment: the topic's, then the message's number
-/// (`u32` little-endian). The number goes here, not in Zenoh's source
-/// info, which would cost a flood a quarter of its rate.
-pub(crate) fn side_attachment(attachment: &[u8], number: u32) -> Vec<u8> {
-    let mut out = Vec::with_capacity(attachment.len() + 4);
-    out.extend_from_slice(attachment);
-    out.extend_from_slice(&number.to_le_bytes());
-    out
-}
-
-/// Splits a side copy's attachment into the topic's and the number.
-pub(crate) fn split_side_attachment(bytes: &[u8]) -> Option<(&[u8], u32)> {
-    let at = bytes.len().checked_sub(4)?;
-    let (attachment, number) = bytes.split_at(at);
-    Some((attachment, u32::from_le_bytes(number.try_into().ok()?)))
 }
 
 /// A frame's header.

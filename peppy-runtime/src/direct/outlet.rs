@@ -37,6 +37,10 @@ pub(crate) struct DirectOutlet {
     source: super::SourceId,
     /// Where a sole link's side publisher is declared.
     session: Session,
+    /// Whether Zenoh knows a subscriber of the topic's own key: with none
+    /// (its consumers all read through sole links), the own key's copy is
+    /// not published.
+    readers: Arc<AtomicBool>,
     links: Mutex<Links>,
     /// Whether a consumer reads the topic through a side key (a sole
     /// link's, open or ended): then a large message goes into Zenoh's
@@ -113,6 +117,7 @@ impl DirectOutlet {
     pub(crate) fn new(
         session: &Session,
         publisher: &Publisher<'static>,
+        readers: Arc<AtomicBool>,
         qos: QosProfile,
         fingerprint: u64,
     ) -> Self {
@@ -122,6 +127,7 @@ impl DirectOutlet {
             fingerprint,
             source: super::source_id(&publisher.id()),
             session: session.clone(),
+            readers,
             links: Mutex::new(Links::default()),
             sole_readers: AtomicBool::new(false),
             clock: OnceLock::new(),
@@ -148,6 +154,12 @@ impl DirectOutlet {
         };
         links.sequence = links.sequence.wrapping_add(1);
         let number = links.sequence;
+        let sides = links.has_sides();
+        if sides {
+            // Before the write, so that `carried` lists the links open
+            // when the side keys are published to.
+            links.announce_sides(number);
+        }
         let mut carried = Carried::default();
         let len = payload.len();
         if let (false, Some(clock)) = (links.open.is_empty(), self.clock.get())
@@ -164,14 +176,22 @@ impl DirectOutlet {
                 carried = links.write(number, &payload.to_bytes(), self.drops());
             }
         }
-        let sides = links.has_sides();
         if sides {
-            links.announce_sides(number);
             // Sole consumers that did not get it over their link get it
             // under their side key, numbered like its other copies.
-            links.publish_sides(&payload, &attachment, number, &carried.sole);
+            let sent = links.publish_sides(&payload, &attachment, number, &carried.sole);
             if !links.has_sides() {
                 self.sole_readers.store(false, Ordering::Relaxed);
+            }
+            if links.only_sides() && !self.readers.load(Ordering::Relaxed) {
+                // Every consumer on a link reads through its side key, and
+                // Zenoh knows no other subscriber of the topic's key: its
+                // copy would go nowhere, at the cost of a put (a flood of
+                // small messages lost a tenth of its rate to it). That
+                // status is trusted only here: by the time a side key's
+                // subscription is seen, every subscription declared before
+                // it is known too (Zenoh passes them on in order).
+                return sent;
             }
         }
         let put = publisher.put(payload).attachment(attachment);
@@ -343,6 +363,14 @@ impl Links {
     /// just been seen that from message `number` on, what it does not
     /// carry goes there.
     fn announce_sides(&mut self, number: u32) {
+        let due = |link: &Link| {
+            link.side
+                .as_ref()
+                .is_some_and(|s| !s.seen && s.matching.load(Ordering::Relaxed))
+        };
+        if !self.open.iter().any(due) {
+            return;
+        }
         let mut ended = Vec::new();
         for mut link in std::mem::take(&mut self.open) {
             let due = link
@@ -376,6 +404,16 @@ impl Links {
         }
     }
 
+    /// Whether every open link is a sole one whose consumer's side key
+    /// subscription has been seen, and some side key is published to.
+    fn only_sides(&self) -> bool {
+        self.has_sides()
+            && self
+                .open
+                .iter()
+                .all(|l| l.side.as_ref().is_some_and(|s| s.seen))
+    }
+
     /// Whether any side key is published to.
     fn has_sides(&self) -> bool {
         !self.orphans.is_empty() || self.open.iter().any(|l| l.side.is_some())
@@ -390,36 +428,36 @@ impl Links {
         attachment: &ZBytes,
         number: u32,
         carried: &[bool],
-    ) {
-        let side_attachment =
-            || ZBytes::from(super::side_attachment(&attachment.to_bytes(), number));
+    ) -> zenoh::Result<()> {
+        let mut sent = Ok(());
         for (i, link) in self.open.iter().enumerate() {
             if let Some(side) = &link.side
                 && !carried.get(i).copied().unwrap_or(false)
             {
-                side.put(payload, side_attachment());
+                sent = sent.and(side.put(payload, attachment, number));
             }
         }
         if self.orphans.is_empty() {
-            return;
+            return sent;
         }
         let now = Instant::now();
         self.orphans.retain_mut(|side| side.wanted(now));
         for side in &self.orphans {
-            side.put(payload, side_attachment());
+            sent = sent.and(side.put(payload, attachment, number));
         }
+        sent
     }
 }
 
 impl Side {
-    /// Publishes a message under the side key; a failure (the session
-    /// closing) is the topic's own put's to report.
-    fn put(&self, payload: &ZBytes, attachment: ZBytes) {
-        let _ = self
-            .publisher
+    /// Publishes message `number` under the side key, its number in its
+    /// source info.
+    fn put(&self, payload: &ZBytes, attachment: &ZBytes, number: u32) -> zenoh::Result<()> {
+        self.publisher
             .put(payload.clone())
-            .attachment(attachment)
-            .wait();
+            .attachment(attachment.clone())
+            .source_info(SourceInfo::new(self.publisher.id(), number))
+            .wait()
     }
 }
 

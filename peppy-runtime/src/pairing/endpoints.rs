@@ -121,7 +121,7 @@ pub async fn declare_paired_publisher(
         runner: runner.arc()?,
         spec,
         participant: participant.clone(),
-        direct: runner.paired_outlet(&publisher, &spec.topic),
+        direct: runner.paired_outlet(&publisher, &known, &spec.topic),
         publisher,
         readers_known: known,
         attachment: ZBytes::from(attachment::topic(spec.topic.format.fingerprint)),
