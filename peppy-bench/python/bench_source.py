@@ -23,7 +23,7 @@ from bench_source_gen import emitted_topics as emitted
 async def answer(node) -> None:
     try:
         while True:
-            _, ping = await consumed.sink.ping_reliable.on_next_message_received(node)
+            _, ping = await consumed.sink_ping_reliable.on_next_message_received(node)
             await emitted.pong_reliable.emit(node, ping.seq, ping.sent_ns, ping.data)
     except asyncio.CancelledError:
         raise
