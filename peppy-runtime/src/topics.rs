@@ -373,7 +373,8 @@ impl Intake {
     }
 
     /// The callback of a sole link's side key: a copy of a message of the
-    /// producer publishing under `key`, numbered in its source info.
+    /// producer publishing under `key`, numbered in its source info or
+    /// following the one before it.
     #[cfg(unix)]
     pub(crate) fn accept_side(
         &self,
@@ -384,10 +385,7 @@ impl Intake {
         let Some(direct) = &self.direct else {
             return;
         };
-        let Some(number) = sample.source_info().map(|i| i.source_sn()) else {
-            debug!(topic = %key, "dropping a side copy without its number");
-            return;
-        };
+        let number = sample.source_info().map(|i| i.source_sn());
         let SampleFields {
             payload,
             attachment,

@@ -391,13 +391,16 @@ impl Inlet {
     /// the link did not carry, not the whole stream (which the topic's own
     /// key is), so one ahead of the next waits for those before it rather
     /// than taking them for lost.
-    /// A copy of a publisher the lane no longer follows (a restarted
-    /// producer's predecessor) is dropped: its numbers are not the lane's.
+    /// A copy without a number follows the one before it on the side
+    /// key (the producer numbers a copy whose predecessor went over the
+    /// link). A copy of a publisher the lane no longer follows (a
+    /// restarted producer's predecessor) is dropped: its numbers are not
+    /// the lane's.
     pub(crate) fn route_side(
         &self,
         intake: &Intake,
         arrival: Arrival,
-        (source, number): (SourceId, u32),
+        (source, number): (SourceId, Option<u32>),
     ) -> Route {
         let mut lanes = self.lanes.lock().unwrap_or_else(|p| p.into_inner());
         if !lanes.find(arrival.key.as_str()) {
@@ -409,7 +412,19 @@ impl Inlet {
         let Ok(mut state) = lane.state.lock() else {
             return Route::Take(arrival);
         };
-        if state.source == Some(source) {
+        if state.source != Some(source) {
+            return Route::Handled;
+        }
+        let number = match (number, state.side_last) {
+            (Some(n), _) => n,
+            (None, Some(last)) => last.wrapping_add(1),
+            (None, None) => {
+                debug!(topic = %lane.key, "dropping a side copy with nothing to count it from");
+                return Route::Handled;
+            }
+        };
+        state.side_last = Some(number);
+        {
             state.link_brought(number, arrival, intake);
             if state.side_from.is_some() {
                 leave_own(intake, &mut state);
@@ -572,6 +587,9 @@ struct LaneState {
     /// The message from which the producer publishes to the side key what
     /// the link does not carry, until the lane has every one before it.
     side_from: Option<i64>,
+    /// The number of the last copy through the side key: one without a
+    /// number follows it.
+    side_last: Option<u32>,
     /// Link messages ahead of `next`, by number.
     held: BTreeMap<i64, Arrival>,
     /// Since when the oldest held message waits.
@@ -598,6 +616,7 @@ impl LaneState {
             side: None,
             switched: false,
             side_from: None,
+            side_last: None,
             held: BTreeMap::new(),
             held_since: None,
         }
@@ -666,6 +685,7 @@ impl LaneState {
         self.side = None;
         self.switched = false;
         self.side_from = None;
+        self.side_last = None;
         if self.source != Some(source) {
             // A publisher the lane has not followed (a restarted producer,
             // or one whose messages were only counted): where its numbers

@@ -82,6 +82,10 @@ struct Side {
     seen: bool,
     /// When its link ended.
     ended: Option<Instant>,
+    /// The number of the last message published under it (while its
+    /// link is open and its subscription seen): the next one goes
+    /// without a number (the consumer counts it).
+    last: Option<u32>,
 }
 
 impl Side {
@@ -106,6 +110,9 @@ struct Link {
     consumer: String,
     /// A sole link's side key.
     side: Option<Side>,
+    /// The number of the last message written to it: one it did not get
+    /// goes to its side key.
+    carried: Option<u32>,
     /// Messages of a dropping topic not written since the last report.
     dropped: u64,
     /// The link's shared memory, where its large messages go.
@@ -156,11 +163,9 @@ impl DirectOutlet {
         let number = links.sequence;
         let sides = links.has_sides();
         if sides {
-            // Before the write, so that `carried` lists the links open
-            // when the side keys are published to.
             links.announce_sides(number);
         }
-        let mut carried = Carried::default();
+        let mut linked = false;
         let len = payload.len();
         if let (false, Some(clock)) = (links.open.is_empty(), self.clock.get())
             && (len < INLINE_MAX || shared(len))
@@ -173,13 +178,13 @@ impl DirectOutlet {
             if !burst {
                 // The links first: they are what a consumer on this host
                 // reads.
-                carried = links.write(number, &payload.to_bytes(), self.drops());
+                linked = links.write(number, &payload.to_bytes(), self.drops());
             }
         }
         if sides {
             // Sole consumers that did not get it over their link get it
             // under their side key, numbered like its other copies.
-            let sent = links.publish_sides(&payload, &attachment, number, &carried.sole);
+            let sent = links.publish_sides(&payload, &attachment, number, !self.drops());
             if !links.has_sides() {
                 self.sole_readers.store(false, Ordering::Relaxed);
             }
@@ -195,7 +200,7 @@ impl DirectOutlet {
             }
         }
         let put = publisher.put(payload).attachment(attachment);
-        if carried.any || sides {
+        if linked || sides {
             // Its consumers tell its copies apart by this number: a sole
             // consumer reads the topic's own key too while it moves to its
             // side key and back.
@@ -218,9 +223,11 @@ impl DirectOutlet {
     /// its link, then goes back to Zenoh.
     pub(crate) fn close(&self) {
         if let Ok(mut links) = self.links.lock() {
-            for link in std::mem::take(&mut links.open) {
-                links.ended(link);
-            }
+            let ended = std::mem::take(&mut links.open)
+                .into_iter()
+                .filter_map(|link| link.side)
+                .collect();
+            links.orphan(ended);
         }
     }
 
@@ -277,13 +284,20 @@ impl DirectOutlet {
             stream.write_all(&answer)?;
         }
         stream.set_nonblocking(true)?;
-        if side.is_some() {
+        if let Some(side) = &side {
             self.sole_readers.store(true, Ordering::Relaxed);
+            // The consumer's earlier link's side key is this one's: the
+            // new link's publishes there from now on, numbered until its
+            // subscription is seen, so the consumer never meets two
+            // publishers' counts on one key.
+            let key = side.publisher.key_expr();
+            links.orphans.retain(|o| o.publisher.key_expr() != key);
         }
         links.open.push(Link {
             stream,
             consumer,
             side,
+            carried: None,
             dropped: 0,
             #[cfg(target_os = "linux")]
             ring,
@@ -315,48 +329,37 @@ impl DirectOutlet {
             matching,
             seen: false,
             ended: None,
+            last: None,
         })
     }
 }
 
-/// Which links got a message.
-#[derive(Debug, Default)]
-struct Carried {
-    /// Whether any link got it.
-    any: bool,
-    /// Per open link after the write, whether it got it.
-    sole: Vec<bool>,
-}
-
 impl Links {
     /// Writes message `number` to every link that takes it, closing the
-    /// links that fail: which got it.
-    fn write(&mut self, number: u32, body: &[u8], may_drop: bool) -> Carried {
+    /// links that fail: whether any got it.
+    fn write(&mut self, number: u32, body: &[u8], may_drop: bool) -> bool {
         let large = body.len() >= LARGE;
-        let mut carried = Carried::default();
+        let mut any = false;
         let mut ended = Vec::new();
-        for mut link in std::mem::take(&mut self.open) {
+        self.open.retain_mut(|link| {
             if large && unread(&link.stream) != Some(0) {
                 // The consumer has not read the link's last frames: it is
                 // busy, not waiting, and Zenoh's shared memory moves a
                 // large message there without a copy.
-                carried.sole.push(false);
-                self.open.push(link);
-                continue;
+                return true;
             }
             let (written, keep) = link.send(number, body, may_drop);
-            carried.any |= written;
-            if keep {
-                carried.sole.push(written);
-                self.open.push(link);
-            } else {
-                ended.push(link);
+            any |= written;
+            if written {
+                link.carried = Some(number);
             }
-        }
-        for link in ended {
-            self.ended(link);
-        }
-        carried
+            if !keep {
+                ended.extend(link.side.take());
+            }
+            keep
+        });
+        self.orphan(ended);
+        any
     }
 
     /// Tells each sole link whose consumer's side key subscription has
@@ -372,32 +375,28 @@ impl Links {
             return;
         }
         let mut ended = Vec::new();
-        for mut link in std::mem::take(&mut self.open) {
-            let due = link
-                .side
-                .as_mut()
-                .is_some_and(|s| !s.seen && s.matching.load(Ordering::Relaxed));
-            if due {
-                if let Some(side) = &mut link.side {
-                    side.seen = true;
-                }
-                let (_, keep) = link.write(&header(FRAME_SIDE, number, 0), &[], false);
-                if !keep {
-                    ended.push(link);
-                    continue;
-                }
+        self.open.retain_mut(|link| {
+            if !due(link) {
+                return true;
             }
-            self.open.push(link);
-        }
-        for link in ended {
-            self.ended(link);
-        }
+            if let Some(side) = &mut link.side {
+                side.seen = true;
+                // The first copy its consumer surely gets is numbered.
+                side.last = None;
+            }
+            let (_, keep) = link.write(&header(FRAME_SIDE, number, 0), &[], false);
+            if !keep {
+                ended.extend(link.side.take());
+            }
+            keep
+        });
+        self.orphan(ended);
     }
 
-    /// A link ended: its side key, if it has one, is published to until
-    /// its consumer has gone back to the topic's own key.
-    fn ended(&mut self, link: Link) {
-        if let Some(mut side) = link.side {
+    /// Sole links ended: their side keys are published to until their
+    /// consumers have gone back to the topic's own key.
+    fn orphan(&mut self, sides: Vec<Side>) {
+        for mut side in sides {
             side.ended = Some(Instant::now());
             side.seen = false;
             self.orphans.push(side);
@@ -420,21 +419,21 @@ impl Links {
     }
 
     /// Publishes message `number` under the side keys of the open sole
-    /// links that did not get it (`carried`, per open link) and of the
-    /// ended ones still read; forgets the ended ones no longer read.
+    /// links that did not get it and of the ended ones still read;
+    /// forgets the ended ones no longer read.
     fn publish_sides(
         &mut self,
         payload: &ZBytes,
         attachment: &ZBytes,
         number: u32,
-        carried: &[bool],
+        counted: bool,
     ) -> zenoh::Result<()> {
         let mut sent = Ok(());
-        for (i, link) in self.open.iter().enumerate() {
-            if let Some(side) = &link.side
-                && !carried.get(i).copied().unwrap_or(false)
+        for link in &mut self.open {
+            if let Some(side) = &mut link.side
+                && link.carried != Some(number)
             {
-                sent = sent.and(side.put(payload, attachment, number));
+                sent = sent.and(side.put(payload, attachment, number, counted));
             }
         }
         if self.orphans.is_empty() {
@@ -442,8 +441,9 @@ impl Links {
         }
         let now = Instant::now();
         self.orphans.retain_mut(|side| side.wanted(now));
-        for side in &self.orphans {
-            sent = sent.and(side.put(payload, attachment, number));
+        for side in &mut self.orphans {
+            // Numbered: its consumer may meet a new link's copies there.
+            sent = sent.and(side.put(payload, attachment, number, false));
         }
         sent
     }
@@ -451,13 +451,30 @@ impl Links {
 
 impl Side {
     /// Publishes message `number` under the side key, its number in its
-    /// source info.
-    fn put(&self, payload: &ZBytes, attachment: &ZBytes, number: u32) -> zenoh::Result<()> {
-        self.publisher
+    /// source info; without it when `counted` allows (a topic that never
+    /// drops, the consumer's subscription seen) and the message before
+    /// it went there too: the consumer counts it from that one (Zenoh
+    /// keeps one publisher's order), as a flood's source info would cost
+    /// it a fifth of its rate.
+    fn put(
+        &mut self,
+        payload: &ZBytes,
+        attachment: &ZBytes,
+        number: u32,
+        counted: bool,
+    ) -> zenoh::Result<()> {
+        let follows = counted && self.seen && self.last == Some(number.wrapping_sub(1));
+        self.last = Some(number);
+        let put = self
+            .publisher
             .put(payload.clone())
-            .attachment(attachment.clone())
-            .source_info(SourceInfo::new(self.publisher.id(), number))
-            .wait()
+            .attachment(attachment.clone());
+        if follows {
+            put.wait()
+        } else {
+            put.source_info(SourceInfo::new(self.publisher.id(), number))
+                .wait()
+        }
     }
 }
 
