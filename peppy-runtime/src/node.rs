@@ -1359,6 +1359,10 @@ impl NodeRunner {
         for s in entities.subscribers {
             let _ = s.undeclare().await;
         }
+        #[cfg(unix)]
+        for feed in entities.feeds {
+            feed.close().await;
+        }
         // The queryables go with the session: one declares each emitted
         // key (WIRE.md §1), and its undeclaration, sent ahead of data,
         // could overtake the last messages the shutdown hooks emitted,

@@ -373,28 +373,26 @@ impl Intake {
     }
 
     /// The callback of a sole link's side key: a copy of a message of the
-    /// producer publishing under `key`, numbered in its source info or
-    /// following the one before it.
+    /// producer publishing under `key`, numbered in its source info.
     #[cfg(unix)]
-    pub(crate) fn accept_side(
-        &self,
-        key: &KeyExpr<'static>,
-        source: crate::direct::SourceId,
-        sample: Sample,
-    ) {
+    pub(crate) fn accept_side(&self, key: &KeyExpr<'static>, sample: Sample) {
         let Some(direct) = &self.direct else {
             return;
         };
-        let number = sample.source_info().map(|i| i.source_sn());
+        let Some(numbered) = sample.source_info().map(|i| {
+            let source = crate::direct::source_id(i.source_id());
+            (source.0, i.source_sn())
+        }) else {
+            debug!(topic = %key, "dropping a side copy without its number");
+            return;
+        };
         let SampleFields {
             payload,
             attachment,
             ..
         } = sample.into();
         let arrival = Arrival::new(key.clone(), payload, attachment);
-        if let crate::direct::inlet::Route::Take(a) =
-            direct.route_side(self, arrival, (source, number))
-        {
+        if let crate::direct::inlet::Route::Take(a) = direct.route_side(self, arrival, numbered) {
             self.queue(a);
         }
     }

@@ -57,6 +57,8 @@ pub(crate) struct Feed {
     /// ends: the entry has every message the own key alone brought.
     left: Mutex<Option<String>>,
     left_now: tokio::sync::Notify,
+    /// The node stopped: nothing is declared again.
+    closed: std::sync::atomic::AtomicBool,
 }
 
 #[derive(Debug, Default)]
@@ -85,7 +87,22 @@ impl Feed {
             }),
             left: Mutex::new(None),
             left_now: tokio::sync::Notify::new(),
+            closed: std::sync::atomic::AtomicBool::new(false),
         })
+    }
+
+    /// Undeclares the entry's subscriptions (the node stops), with the
+    /// node's others.
+    pub(crate) async fn close(&self) {
+        self.closed
+            .store(true, std::sync::atomic::Ordering::Relaxed);
+        let mut held = self.held.lock().await;
+        if let Some(own) = held.own.take() {
+            let _ = own.undeclare().await;
+        }
+        if let Some((_, side)) = held.side.take() {
+            let _ = side.undeclare().await;
+        }
     }
 
     /// The entry has every message the own key alone brought before its
@@ -175,17 +192,20 @@ impl Feed {
     /// `None` if nothing is (left) to do.
     async fn declare(&self) -> Option<Option<Sole>> {
         let mut held = self.held.lock().await;
+        if self.closed.load(std::sync::atomic::Ordering::Relaxed) {
+            return None;
+        }
         let want = self.want.lock().ok()?.clone();
         let intake = self.intake.upgrade()?;
         match &want {
             Some(sole) => {
                 if held.side.as_ref().map(|(s, _)| s) != Some(sole) {
-                    let (key, source) = (sole.key.clone(), sole.source);
+                    let key = sole.key.clone();
                     let reader = intake.clone();
                     let declared = self
                         .session
                         .declare_subscriber(sole.side.clone())
-                        .callback(move |sample| reader.accept_side(&key, source, sample))
+                        .callback(move |sample| reader.accept_side(&key, sample))
                         .await;
                     match declared {
                         Ok(subscriber) => {

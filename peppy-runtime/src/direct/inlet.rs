@@ -112,12 +112,13 @@ impl Consumer {
             if !shared.ended && current {
                 if let Some((source, attachment)) = &shared.answer {
                     let intake = member.intake.upgrade();
+                    let was_switched = state.switched;
                     state.answered(*source, attachment.clone(), intake.as_deref());
                     if link.sole && member.sole {
                         state.side = Some(super::side_key(key.as_str(), &self.name));
-                        if let Some(intake) = &intake {
-                            settle_sole(intake, &member.lane, state);
-                        }
+                    }
+                    if let Some(intake) = &intake {
+                        settle_sole(intake, &member.lane, state, was_switched);
                     }
                 }
                 shared.members.push(member);
@@ -373,7 +374,7 @@ impl Inlet {
             Some((_, number)) => {
                 state.zenoh_brought(number, arrival, intake);
                 if state.side.is_some() {
-                    settle_sole(intake, lane, &mut state);
+                    settle_sole(intake, lane, &mut state, false);
                 }
                 if state.side_from.is_some() {
                     leave_own(intake, &mut state);
@@ -391,16 +392,15 @@ impl Inlet {
     /// the link did not carry, not the whole stream (which the topic's own
     /// key is), so one ahead of the next waits for those before it rather
     /// than taking them for lost.
-    /// A copy without a number follows the one before it on the side
-    /// key (the producer numbers a copy whose predecessor went over the
-    /// link). A copy of a publisher the lane no longer follows (a
-    /// restarted producer's predecessor) is dropped: its numbers are not
-    /// the lane's.
+    /// `session` is the Zenoh session that published the copy (a side
+    /// publisher shares its producer's): a copy from any but the one
+    /// whose publisher the lane follows (a restarted producer's, its
+    /// predecessor's) is dropped, its numbers are not the lane's.
     pub(crate) fn route_side(
         &self,
         intake: &Intake,
         arrival: Arrival,
-        (source, number): (SourceId, Option<u32>),
+        (session, number): ([u8; 16], u32),
     ) -> Route {
         let mut lanes = self.lanes.lock().unwrap_or_else(|p| p.into_inner());
         if !lanes.find(arrival.key.as_str()) {
@@ -412,23 +412,12 @@ impl Inlet {
         let Ok(mut state) = lane.state.lock() else {
             return Route::Take(arrival);
         };
-        if state.source != Some(source) {
+        if state.source.map(|(zid, _)| zid) != Some(session) {
             return Route::Handled;
         }
-        let number = match (number, state.side_last) {
-            (Some(n), _) => n,
-            (None, Some(last)) => last.wrapping_add(1),
-            (None, None) => {
-                debug!(topic = %lane.key, "dropping a side copy with nothing to count it from");
-                return Route::Handled;
-            }
-        };
-        state.side_last = Some(number);
-        {
-            state.link_brought(number, arrival, intake);
-            if state.side_from.is_some() {
-                leave_own(intake, &mut state);
-            }
+        state.link_brought(number, arrival, intake);
+        if state.side_from.is_some() {
+            leave_own(intake, &mut state);
         }
         Route::Handled
     }
@@ -460,11 +449,17 @@ impl Inlet {
 /// Moves `lane`'s entry to its producer's side key once the lane knows
 /// where the link's numbers stand (its state locked by the caller): from
 /// then on every message of the producer comes numbered, over the link or
-/// through the side key.
-fn settle_sole(intake: &Intake, lane: &Lane, state: &mut LaneState) {
+/// through the side key. An entry that read through a side key
+/// (`was_switched`) and is answered by a link that is not sole goes back
+/// to the topic's key.
+fn settle_sole(intake: &Intake, lane: &Lane, state: &mut LaneState, was_switched: bool) {
     let Some(feed) = intake.direct().and_then(Inlet::feed) else {
         return;
     };
+    if was_switched && state.side.is_none() {
+        feed.switch(None);
+        return;
+    }
     if let (Some(side), Some(source)) = (state.sole_due(), state.source) {
         feed.switch(Some(Sole {
             side,
@@ -587,9 +582,6 @@ struct LaneState {
     /// The message from which the producer publishes to the side key what
     /// the link does not carry, until the lane has every one before it.
     side_from: Option<i64>,
-    /// The number of the last copy through the side key: one without a
-    /// number follows it.
-    side_last: Option<u32>,
     /// Link messages ahead of `next`, by number.
     held: BTreeMap<i64, Arrival>,
     /// Since when the oldest held message waits.
@@ -616,7 +608,6 @@ impl LaneState {
             side: None,
             switched: false,
             side_from: None,
-            side_last: None,
             held: BTreeMap::new(),
             held_since: None,
         }
@@ -685,7 +676,6 @@ impl LaneState {
         self.side = None;
         self.switched = false;
         self.side_from = None;
-        self.side_last = None;
         if self.source != Some(source) {
             // A publisher the lane has not followed (a restarted producer,
             // or one whose messages were only counted): where its numbers
@@ -901,12 +891,13 @@ async fn read_link(consumer: &Consumer, link: &Link, path: PathBuf, hello: Hello
             && state.generation == member.generation
         {
             let intake = member.intake.upgrade();
+            let was_switched = state.switched;
             state.answered(source, attachment.clone(), intake.as_deref());
             if link.sole && member.sole {
                 state.side = Some(super::side_key(link.key.as_str(), &consumer.name));
-                if let Some(intake) = &intake {
-                    settle_sole(intake, &member.lane, &mut state);
-                }
+            }
+            if let Some(intake) = &intake {
+                settle_sole(intake, &member.lane, &mut state, was_switched);
             }
         }
     }

@@ -82,10 +82,6 @@ struct Side {
     seen: bool,
     /// When its link ended.
     ended: Option<Instant>,
-    /// The number of the last message published under it (while its
-    /// link is open and its subscription seen): the next one goes
-    /// without a number (the consumer counts it).
-    last: Option<u32>,
 }
 
 impl Side {
@@ -163,7 +159,7 @@ impl DirectOutlet {
         let number = links.sequence;
         let sides = links.has_sides();
         if sides {
-            links.announce_sides(number);
+            links.announce_sides(number, self.drops());
         }
         let mut linked = false;
         let len = payload.len();
@@ -184,7 +180,7 @@ impl DirectOutlet {
         if sides {
             // Sole consumers that did not get it over their link get it
             // under their side key, numbered like its other copies.
-            let sent = links.publish_sides(&payload, &attachment, number, !self.drops());
+            let sent = links.publish_sides(&payload, &attachment, number);
             if !links.has_sides() {
                 self.sole_readers.store(false, Ordering::Relaxed);
             }
@@ -193,9 +189,11 @@ impl DirectOutlet {
                 // Zenoh knows no other subscriber of the topic's key: its
                 // copy would go nowhere, at the cost of a put (a flood of
                 // small messages lost a tenth of its rate to it). That
-                // status is trusted only here: by the time a side key's
-                // subscription is seen, every subscription declared before
-                // it is known too (Zenoh passes them on in order).
+                // status is trusted only here: a linked consumer's own
+                // subscription of the topic's key came before its side
+                // key's (Zenoh passes one session's declarations on in
+                // order), so it is known by now; a producer just started
+                // may not know yet of subscriptions its router routes to.
                 return sent;
             }
         }
@@ -329,7 +327,6 @@ impl DirectOutlet {
             matching,
             seen: false,
             ended: None,
-            last: None,
         })
     }
 }
@@ -365,7 +362,7 @@ impl Links {
     /// Tells each sole link whose consumer's side key subscription has
     /// just been seen that from message `number` on, what it does not
     /// carry goes there.
-    fn announce_sides(&mut self, number: u32) {
+    fn announce_sides(&mut self, number: u32, may_drop: bool) {
         let due = |link: &Link| {
             link.side
                 .as_ref()
@@ -379,12 +376,12 @@ impl Links {
             if !due(link) {
                 return true;
             }
-            if let Some(side) = &mut link.side {
+            // On a topic that drops, a full socket drops the frame too, and
+            // the next message tries again.
+            let (written, keep) = link.write(&header(FRAME_SIDE, number, 0), &[], may_drop);
+            if written && let Some(side) = &mut link.side {
                 side.seen = true;
-                // The first copy its consumer surely gets is numbered.
-                side.last = None;
             }
-            let (_, keep) = link.write(&header(FRAME_SIDE, number, 0), &[], false);
             if !keep {
                 ended.extend(link.side.take());
             }
@@ -426,14 +423,13 @@ impl Links {
         payload: &ZBytes,
         attachment: &ZBytes,
         number: u32,
-        counted: bool,
     ) -> zenoh::Result<()> {
         let mut sent = Ok(());
-        for link in &mut self.open {
-            if let Some(side) = &mut link.side
+        for link in &self.open {
+            if let Some(side) = &link.side
                 && link.carried != Some(number)
             {
-                sent = sent.and(side.put(payload, attachment, number, counted));
+                sent = sent.and(side.put(payload, attachment, number));
             }
         }
         if self.orphans.is_empty() {
@@ -441,9 +437,8 @@ impl Links {
         }
         let now = Instant::now();
         self.orphans.retain_mut(|side| side.wanted(now));
-        for side in &mut self.orphans {
-            // Numbered: its consumer may meet a new link's copies there.
-            sent = sent.and(side.put(payload, attachment, number, false));
+        for side in &self.orphans {
+            sent = sent.and(side.put(payload, attachment, number));
         }
         sent
     }
@@ -451,30 +446,14 @@ impl Links {
 
 impl Side {
     /// Publishes message `number` under the side key, its number in its
-    /// source info; without it when `counted` allows (a topic that never
-    /// drops, the consumer's subscription seen) and the message before
-    /// it went there too: the consumer counts it from that one (Zenoh
-    /// keeps one publisher's order), as a flood's source info would cost
-    /// it a fifth of its rate.
-    fn put(
-        &mut self,
-        payload: &ZBytes,
-        attachment: &ZBytes,
-        number: u32,
-        counted: bool,
-    ) -> zenoh::Result<()> {
-        let follows = counted && self.seen && self.last == Some(number.wrapping_sub(1));
-        self.last = Some(number);
-        let put = self
-            .publisher
+    /// source info (a consumer that subscribes late, or again, places
+    /// every copy it gets by it alone).
+    fn put(&self, payload: &ZBytes, attachment: &ZBytes, number: u32) -> zenoh::Result<()> {
+        self.publisher
             .put(payload.clone())
-            .attachment(attachment.clone());
-        if follows {
-            put.wait()
-        } else {
-            put.source_info(SourceInfo::new(self.publisher.id(), number))
-                .wait()
-        }
+            .attachment(attachment.clone())
+            .source_info(SourceInfo::new(self.publisher.id(), number))
+            .wait()
     }
 }
 
