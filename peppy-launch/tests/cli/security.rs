@@ -336,12 +336,19 @@ fn a_secured_stack_admits_only_what_its_bindings_name() {
     assert_eq!(launch.stop(), 0);
 
     // The control: the same forgery with security off reaches recon_1.
+    // Direct links off: recon_1's slot is pinned to rs_left, so once
+    // linked it reads rs_left through the link and its side key alone
+    // and hears no other publisher under rs_left's key (docs/WIRE.md,
+    // "Direct links"); the control is about Zenoh's open key space.
     let state = tempfile::tempdir().unwrap();
     let st = state.path();
     let mut launch = Launch::up_with(
         launcher,
         &["--namespace", ns, "--insecure"],
-        &[("PEPPY_STATE_DIR", st)],
+        &[
+            ("PEPPY_STATE_DIR", st),
+            ("PEPPY_DIRECT_LINKS", std::path::Path::new("off")),
+        ],
     );
     launch.expect("warning that security is off", BUILD_AND_START, |l| {
         l.contains("WARNING: security is OFF (--insecure)")
