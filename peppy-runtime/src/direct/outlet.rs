@@ -62,6 +62,9 @@ struct Links {
     /// When the last small message was published while linked (the
     /// clock's raw counter).
     last: Option<u64>,
+    /// Whether the last small message was part of a burst: the next one
+    /// goes over the links only after a pause of [`FLOOD_QUIET_NS`].
+    flooding: bool,
     /// The side keys of sole links that ended, while their consumer may
     /// still read them: every message goes there until it has gone back
     /// to the topic's own key.
@@ -167,11 +170,16 @@ impl DirectOutlet {
             && (len < INLINE_MAX || shared(len))
         {
             let now = clock.raw();
-            let burst = links
-                .last
-                .is_some_and(|t| clock.delta_as_nanos(t, now) < burst_gap_ns(len));
+            let gap = links.last.map(|t| clock.delta_as_nanos(t, now));
+            let burst = gap.is_some_and(|gap| gap < burst_gap_ns(len));
+            // The first message after a burst's pause goes with the burst,
+            // unless the pause was a long one: a producer that keeps
+            // pausing between bursts is flooding, a steady one is back on
+            // the links from its next message.
+            let burst_ending = links.flooding && gap.is_some_and(|gap| gap < FLOOD_QUIET_NS);
             links.last = Some(now);
-            if !burst {
+            links.flooding = burst;
+            if !burst && !burst_ending {
                 // The links first: they are what a consumer on this host
                 // reads.
                 linked = links.write(number, &payload.to_bytes(), self.drops());
@@ -180,11 +188,11 @@ impl DirectOutlet {
         if sides {
             // Sole consumers that did not get it over their link get it
             // under their side key, numbered like its other copies.
-            let sent = links.publish_sides(&payload, &attachment, number);
-            if !links.has_sides() {
+            let published = links.publish_sides(&payload, &attachment, number);
+            if !published.any {
                 self.sole_readers.store(false, Ordering::Relaxed);
             }
-            if links.only_sides() && !self.readers.load(Ordering::Relaxed) {
+            if published.only && !self.readers.load(Ordering::Relaxed) {
                 // Every consumer on a link reads through its side key, and
                 // Zenoh knows no other subscriber of the topic's key: its
                 // copy would go nowhere, at the cost of a put (a flood of
@@ -194,7 +202,7 @@ impl DirectOutlet {
                 // key's (Zenoh passes one session's declarations on in
                 // order), so it is known by now; a producer just started
                 // may not know yet of subscriptions its router routes to.
-                return sent;
+                return published.sent;
             }
         }
         let put = publisher.put(payload).attachment(attachment);
@@ -400,16 +408,6 @@ impl Links {
         }
     }
 
-    /// Whether every open link is a sole one whose consumer's side key
-    /// subscription has been seen, and some side key is published to.
-    fn only_sides(&self) -> bool {
-        self.has_sides()
-            && self
-                .open
-                .iter()
-                .all(|l| l.side.as_ref().is_some_and(|s| s.seen))
-    }
-
     /// Whether any side key is published to.
     fn has_sides(&self) -> bool {
         !self.orphans.is_empty() || self.open.iter().any(|l| l.side.is_some())
@@ -417,30 +415,55 @@ impl Links {
 
     /// Publishes message `number` under the side keys of the open sole
     /// links that did not get it and of the ended ones still read;
-    /// forgets the ended ones no longer read.
-    fn publish_sides(
-        &mut self,
-        payload: &ZBytes,
-        attachment: &ZBytes,
-        number: u32,
-    ) -> zenoh::Result<()> {
-        let mut sent = Ok(());
+    /// forgets the ended ones no longer read. One pass over the links,
+    /// which also tells what the topic's own key is for.
+    fn publish_sides(&mut self, payload: &ZBytes, attachment: &ZBytes, number: u32) -> Published {
+        let mut published = Published {
+            sent: Ok(()),
+            any: false,
+            only: true,
+        };
         for link in &self.open {
-            if let Some(side) = &link.side
-                && link.carried != Some(number)
-            {
-                sent = sent.and(side.put(payload, attachment, number));
+            let Some(side) = &link.side else {
+                published.only = false;
+                continue;
+            };
+            published.any = true;
+            published.only &= side.seen;
+            if link.carried != Some(number) {
+                published.keep_first_error(side.put(payload, attachment, number));
             }
         }
-        if self.orphans.is_empty() {
-            return sent;
+        if !self.orphans.is_empty() {
+            let now = Instant::now();
+            self.orphans.retain_mut(|side| side.wanted(now));
+            for side in &self.orphans {
+                published.keep_first_error(side.put(payload, attachment, number));
+            }
         }
-        let now = Instant::now();
-        self.orphans.retain_mut(|side| side.wanted(now));
-        for side in &self.orphans {
-            sent = sent.and(side.put(payload, attachment, number));
+        published.any |= !self.orphans.is_empty();
+        published.only &= published.any;
+        published
+    }
+}
+
+/// What publishing a message under the side keys did and found.
+struct Published {
+    /// The first put that failed, if one did (the others are still made).
+    sent: zenoh::Result<()>,
+    /// Whether a side key is still published to.
+    any: bool,
+    /// Whether every open link is a sole one whose consumer's side key
+    /// subscription has been seen, and some side key is published to:
+    /// then the topic's own key has no reader on a link.
+    only: bool,
+}
+
+impl Published {
+    fn keep_first_error(&mut self, put: zenoh::Result<()>) {
+        if self.sent.is_ok() {
+            self.sent = put;
         }
-        sent
     }
 }
 
@@ -558,6 +581,15 @@ fn burst_gap_ns(len: usize) -> u64 {
     let per_byte = if shared(len) { len / 8 } else { len / 2 };
     BURST_GAP.as_nanos() as u64 + per_byte as u64
 }
+
+/// How long a producer in a burst must pause for its next message to go
+/// over the links (otherwise the one after it does, if it is not part of
+/// a burst either). Zenoh's queue makes a flooding producer pause now and
+/// then; the message after such a pause, written to a link, reached its
+/// consumer before the ones before it (still in Zenoh's batches), woke
+/// the link's reader and waited in the merge for them. A consumer
+/// waiting for each message is not in a flood.
+const FLOOD_QUIET_NS: u64 = 1_000_000;
 
 /// A message of this size or more goes over a link only to a consumer that
 /// has read everything the link brought it (one waiting for a message, not

@@ -771,17 +771,7 @@ async fn a_pinned_consumer_on_a_link_reads_through_it_and_its_side_key_alone() {
 
     // Linked: the topic's own key is left once the link's numbers are
     // known.
-    let mut seq = 0;
-    tokio::time::timeout(WAIT, async {
-        while direct(&station) == 0 || frames_subscribed(&hub, &ns).await {
-            emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
-            read_in_order(&station, seq, 1, frame).await;
-            seq += 1;
-            tokio::time::sleep(Duration::from_millis(2)).await;
-        }
-    })
-    .await
-    .expect("the consumer reads through the link and side key alone");
+    let mut seq = until_sole(&hub, &ns, (&flood, &station), (0, 0), frame).await;
 
     // Paced, then in a burst: every frame once, in order, the small ones
     // over the link.
@@ -830,20 +820,35 @@ async fn a_pinned_consumer_on_a_link_reads_through_it_and_its_side_key_alone() {
         tokio::time::sleep(Duration::from_millis(1)).await;
     }
     read_in_order(&station, 0, 20, frame).await;
-    let mut seq = 20;
-    tokio::time::timeout(WAIT, async {
-        while direct(&station) == before || frames_subscribed(&hub, &ns).await {
-            emit(&flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
-            read_in_order(&station, seq, 1, frame).await;
-            seq += 1;
-            tokio::time::sleep(Duration::from_millis(2)).await;
-        }
-    })
-    .await
-    .expect("the restarted producer is read through a link and side key alone");
+    until_sole(&hub, &ns, (&flood, &station), (20, before), frame).await;
     for r in [station, flood] {
         r.shutdown().await;
     }
+}
+
+/// Emits `flood`'s frames one at a time from `seq`, `station` reading each
+/// in order, until `station` has read more than `before` over direct
+/// links and no longer subscribes to the topic's own key: the next
+/// frame's number.
+async fn until_sole(
+    hub: &crate::support::Hub,
+    ns: &str,
+    (flood, station): (&NodeRunner, &NodeRunner),
+    (mut seq, before): (u32, u64),
+    frame: impl Fn(u32) -> crate::support::Frame + Copy,
+) -> u32 {
+    let linked = || station.received_over_direct_links(&FLOOD_IN).unwrap() > before;
+    tokio::time::timeout(WAIT, async {
+        while !linked() || frames_subscribed(hub, ns).await {
+            emit(flood, &FLOOD_OUT, &frame(seq)).await.unwrap();
+            read_in_order(station, seq, 1, frame).await;
+            seq += 1;
+            tokio::time::sleep(Duration::from_millis(2)).await;
+        }
+        seq
+    })
+    .await
+    .expect("the consumer reads through the link and side key alone")
 }
 
 /// Messages from 16 KiB go over a link through its shared memory and are
