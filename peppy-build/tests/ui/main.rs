@@ -1,0 +1,39 @@
+//! The `#[peppy::node]` attribute through rustc (trybuild): every compile
+//! error a schema mistake produces, located in the JSON5 file. Node code
+//! that must compile (and run) against every generated API shape lives in
+//! the facade's e2e tests (`tests/e2e/api`): with no passing case here,
+//! trybuild only checks, which spares CI a second full build and link of
+//! every dependency.
+//!
+//! The cases live beside the generator they test, not in the proc-macro
+//! crate (which only forwards to `peppy_build::macro_support`): a
+//! proc-macro's dev-dependencies are built for the host, so the facade
+//! there was a second build of the runtime and Zenoh in every workspace
+//! test build.
+//!
+//! Cases live in `tests/ui/<category>/<case>.rs` with their document in
+//! `<case>.json5` and the expected compiler output in `<case>.stderr`
+//! (regenerate with `TRYBUILD=overwrite cargo test -p peppy-build --test ui`
+//! and review the diff). Document paths in the cases are relative to this
+//! directory, through `PEPPY_MACRO_MANIFEST_DIR`.
+
+#[test]
+fn ui() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ui");
+    // SAFETY: this binary has this one test, so no other thread reads the
+    // environment while it is set; trybuild's cargo inherits it.
+    unsafe { std::env::set_var(peppy_build::macro_support::MANIFEST_DIR_OVERRIDE, &dir) };
+    let t = trybuild::TestCases::new();
+    for category in [
+        "attribute",
+        "formats",
+        "links",
+        "names",
+        "params",
+        "resolution",
+        "syntax",
+        "usage",
+    ] {
+        t.compile_fail(format!("tests/ui/{category}/*.rs"));
+    }
+}
