@@ -59,12 +59,9 @@ struct Links {
     open: Vec<Link>,
     /// The last message's number.
     sequence: u32,
-    /// When the last small message was published while linked (the
+    /// When the last small message published while linked was out (the
     /// clock's raw counter).
     last: Option<u64>,
-    /// Whether the last small message was part of a burst: the next one
-    /// goes over the links only after a pause of [`FLOOD_QUIET_NS`].
-    flooding: bool,
     /// The side keys of sole links that ended, while their consumer may
     /// still read them: every message goes there until it has gone back
     /// to the topic's own key.
@@ -146,7 +143,8 @@ impl DirectOutlet {
     }
 
     /// Publishes `payload` through Zenoh, and over every link of the topic
-    /// when it is small and not part of a burst; then its Zenoh copy
+    /// when it is small and not part of a burst (it comes within a burst's
+    /// gap of the end of the topic's previous publication); then its Zenoh copy
     /// carries its number in its source info. Every message counts
     /// towards the numbers.
     pub(crate) fn publish(
@@ -158,28 +156,45 @@ impl DirectOutlet {
         let Ok(mut links) = self.links.lock() else {
             return publisher.put(payload).attachment(attachment).wait();
         };
+        let (sent, timed) = self.publish_locked(&mut links, publisher, payload, attachment);
+        if timed && let Some(clock) = self.clock.get() {
+            // A burst is told by the producer's time between two messages
+            // out of here: a flooding producer's put waits now and then for
+            // Zenoh's full queue, and counted as a pause that wait put the
+            // next message on the links, where it reached its consumer
+            // before its predecessors (still in Zenoh's batches) and waited
+            // for them.
+            links.last = Some(clock.raw());
+        }
+        sent
+    }
+
+    /// [`Self::publish`] under the topic's lock: what it sent, and whether
+    /// the message counts towards telling a burst.
+    fn publish_locked(
+        &self,
+        links: &mut Links,
+        publisher: &Publisher<'static>,
+        payload: ZBytes,
+        attachment: ZBytes,
+    ) -> (zenoh::Result<()>, bool) {
         links.sequence = links.sequence.wrapping_add(1);
         let number = links.sequence;
         let sides = links.has_sides();
         if sides {
             links.announce_sides(number, self.drops());
         }
-        let mut linked = false;
+        let (mut linked, mut timed) = (false, false);
         let len = payload.len();
         if let (false, Some(clock)) = (links.open.is_empty(), self.clock.get())
             && (len < INLINE_MAX || shared(len))
         {
+            timed = true;
             let now = clock.raw();
-            let gap = links.last.map(|t| clock.delta_as_nanos(t, now));
-            let burst = gap.is_some_and(|gap| gap < burst_gap_ns(len));
-            // The first message after a burst's pause goes with the burst,
-            // unless the pause was a long one: a producer that keeps
-            // pausing between bursts is flooding, a steady one is back on
-            // the links from its next message.
-            let burst_ending = links.flooding && gap.is_some_and(|gap| gap < FLOOD_QUIET_NS);
-            links.last = Some(now);
-            links.flooding = burst;
-            if !burst && !burst_ending {
+            let burst = links
+                .last
+                .is_some_and(|t| clock.delta_as_nanos(t, now) < burst_gap_ns(len));
+            if !burst {
                 // The links first: they are what a consumer on this host
                 // reads.
                 linked = links.write(number, &payload.to_bytes(), self.drops());
@@ -202,11 +217,11 @@ impl DirectOutlet {
                 // key's (Zenoh passes one session's declarations on in
                 // order), so it is known by now; a producer just started
                 // may not know yet of subscriptions its router routes to.
-                return published.sent;
+                return (published.sent, timed);
             }
         }
         let put = publisher.put(payload).attachment(attachment);
-        if linked || sides {
+        let sent = if linked || sides {
             // Its consumers tell its copies apart by this number: a sole
             // consumer reads the topic's own key too while it moves to its
             // side key and back.
@@ -217,7 +232,8 @@ impl DirectOutlet {
             // Zenoh's source info costs a quarter of the rate), its
             // consumers count it.
             put.wait()
-        }
+        };
+        (sent, timed)
     }
 
     /// How many links the topic has open.
@@ -581,15 +597,6 @@ fn burst_gap_ns(len: usize) -> u64 {
     let per_byte = if shared(len) { len / 8 } else { len / 2 };
     BURST_GAP.as_nanos() as u64 + per_byte as u64
 }
-
-/// How long a producer in a burst must pause for its next message to go
-/// over the links (otherwise the one after it does, if it is not part of
-/// a burst either). Zenoh's queue makes a flooding producer pause now and
-/// then; the message after such a pause, written to a link, reached its
-/// consumer before the ones before it (still in Zenoh's batches), woke
-/// the link's reader and waited in the merge for them. A consumer
-/// waiting for each message is not in a flood.
-const FLOOD_QUIET_NS: u64 = 1_000_000;
 
 /// A message of this size or more goes over a link only to a consumer that
 /// has read everything the link brought it (one waiting for a message, not

@@ -771,7 +771,8 @@ async fn a_pinned_consumer_on_a_link_reads_through_it_and_its_side_key_alone() {
 
     // Linked: the topic's own key is left once the link's numbers are
     // known.
-    let mut seq = until_sole(&hub, &ns, (&flood, &station), (0, 0), frame).await;
+    let linked = "the consumer reads through the link and side key alone";
+    let mut seq = until_sole(&hub, &ns, (&flood, &station), (0, 0), frame, linked).await;
 
     // Paced, then in a burst: every frame once, in order, the small ones
     // over the link.
@@ -820,7 +821,8 @@ async fn a_pinned_consumer_on_a_link_reads_through_it_and_its_side_key_alone() {
         tokio::time::sleep(Duration::from_millis(1)).await;
     }
     read_in_order(&station, 0, 20, frame).await;
-    until_sole(&hub, &ns, (&flood, &station), (20, before), frame).await;
+    let relinked = "the restarted producer is read through a link and side key alone";
+    until_sole(&hub, &ns, (&flood, &station), (20, before), frame, relinked).await;
     for r in [station, flood] {
         r.shutdown().await;
     }
@@ -829,13 +831,14 @@ async fn a_pinned_consumer_on_a_link_reads_through_it_and_its_side_key_alone() {
 /// Emits `flood`'s frames one at a time from `seq`, `station` reading each
 /// in order, until `station` has read more than `before` over direct
 /// links and no longer subscribes to the topic's own key: the next
-/// frame's number.
+/// frame's number. It fails with `what` after [`WAIT`].
 async fn until_sole(
     hub: &crate::support::Hub,
     ns: &str,
     (flood, station): (&NodeRunner, &NodeRunner),
     (mut seq, before): (u32, u64),
     frame: impl Fn(u32) -> crate::support::Frame + Copy,
+    what: &str,
 ) -> u32 {
     let linked = || station.received_over_direct_links(&FLOOD_IN).unwrap() > before;
     tokio::time::timeout(WAIT, async {
@@ -848,7 +851,7 @@ async fn until_sole(
         seq
     })
     .await
-    .expect("the consumer reads through the link and side key alone")
+    .expect(what)
 }
 
 /// Messages from 16 KiB go over a link through its shared memory and are
