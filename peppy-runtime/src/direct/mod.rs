@@ -33,9 +33,9 @@
 //!    end of the topic's previous publication within [`BURST_GAP`] and a
 //!    little more the larger it is (in a burst, Zenoh's batching moves
 //!    more), or it is 16 KiB or more and the consumer has not read the
-//!    link's last frames yet (`outlet`). Below 16 KiB the socket carries it; from 16 KiB to 384 KiB (on Linux) the link's own
-//!    shared memory does, the socket carrying only where it is
-//!    (`segment`). A larger message goes through Zenoh alone, through its
+//!    link's last frames yet (`outlet`). Below 16 KiB the socket carries
+//!    it; from 16 KiB to 384 KiB (on Linux) the link's own shared memory
+//!    does, the socket carrying only where it is (`segment`). A larger message goes through Zenoh alone, through its
 //!    shared memory. A consumer instance has one link per producer key,
 //!    shared by its entries on that key, and links only the producers its
 //!    slots route to it.
