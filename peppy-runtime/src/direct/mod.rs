@@ -29,16 +29,17 @@
 //!    holding the topic's lock (so no message is published meanwhile),
 //!    answers with the publisher's id its Zenoh copies carry, and adds the
 //!    link.
-//! 4. From then on a message goes over the link too, unless it follows the
-//!    end of the topic's previous publication within [`BURST_GAP`] and a
-//!    little more the larger it is (in a burst, Zenoh's batching moves
-//!    more), or it is 16 KiB or more and the consumer has not read the
-//!    link's last frames yet (`outlet`). Below 16 KiB the socket carries
-//!    it; from 16 KiB to 384 KiB (on Linux) the link's own shared memory
-//!    does, the socket carrying only where it is (`segment`). A larger message goes through Zenoh alone, through its
-//!    shared memory. A consumer instance has one link per producer key,
-//!    shared by its entries on that key, and links only the producers its
-//!    slots route to it.
+//! 4. From then on a message goes over the link too, unless it follows
+//!    the end of the topic's previous publication within [`BURST_GAP`]
+//!    and a little more the larger it is (in a burst, Zenoh's batching
+//!    moves more), or it is 16 KiB or more and the consumer has not read
+//!    the link's last frames yet (`outlet`). Below 16 KiB the socket
+//!    carries it; from 16 KiB to 384 KiB (on Linux) the link's own
+//!    shared memory does, the socket carrying only where it is
+//!    (`segment`). A larger message goes through Zenoh alone, through
+//!    its shared memory. A consumer instance has one link per producer
+//!    key, shared by its entries on that key, and links only the
+//!    producers its slots route to it.
 //! 5. The consumer merges the two by number (`inlet`): whichever copy of
 //!    the next message comes first is handed on, the other dropped; a link
 //!    message ahead of it waits until Zenoh has brought those before it.
