@@ -23,6 +23,10 @@ fn ui() {
     // SAFETY: this binary has this one test, so no other thread reads the
     // environment while it is set; trybuild's cargo inherits it.
     unsafe { std::env::set_var(peppy_build::macro_support::MANIFEST_DIR_OVERRIDE, &dir) };
+    if std::env::var_os("CARGO_ENCODED_RUSTFLAGS").is_none() {
+        // SAFETY: as above.
+        unsafe { std::env::set_var("CARGO_ENCODED_RUSTFLAGS", case_rustflags().join("\x1f")) };
+    }
     let t = trybuild::TestCases::new();
     for category in [
         "attribute",
@@ -36,4 +40,31 @@ fn ui() {
     ] {
         t.compile_fail(format!("tests/ui/{category}/*.rs"));
     }
+}
+
+/// The flags trybuild (1.0.122) gives rustc for the cases, for every crate
+/// it checks.
+///
+/// trybuild checks the dependencies first with its flags, then the cases
+/// with `--diagnostic-width=140` added; rustflags are part of cargo's
+/// fingerprint, so every dependency (the runtime and Zenoh among them) was
+/// checked a second time, two of the test's five minutes on two cores.
+/// Cargo takes `CARGO_ENCODED_RUSTFLAGS` before the `--config` flags
+/// trybuild passes, so with the cases' flags there both passes use them
+/// and each dependency is checked once. A caller's own
+/// `CARGO_ENCODED_RUSTFLAGS` is left as it is (it already won both).
+fn case_rustflags() -> Vec<&'static str> {
+    let mut flags = vec![
+        "--cfg",
+        "trybuild",
+        "--verbose",
+        "-A",
+        "dead_code",
+        "--diagnostic-width=140",
+    ];
+    // trybuild's own exception: a coverage build stays one.
+    if std::env::var("RUSTFLAGS").is_ok_and(|f| f.contains("-C instrument-coverage")) {
+        flags.extend(["-C", "instrument-coverage"]);
+    }
+    flags
 }
