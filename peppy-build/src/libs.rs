@@ -92,7 +92,11 @@ pub fn rust_libs(
              publish = false\n\
              description = \"{what}\"\n\n\
              [lib]\n\
-             path = \"src/lib.rs\"\n\n\
+             path = \"src/lib.rs\"\n\
+             # Generated: no tests of its own, so a workspace that holds the node\n\
+             # builds no empty test binary for it.\n\
+             test = false\n\
+             doctest = false\n\n\
              [dependencies]\n\
              peppy = {{ path = {peppy}, default-features = false }}\n\
              \n\

@@ -4,7 +4,7 @@
 //! tool on the hub's session plays a side no generated node takes) and
 //! checks what came back. The seeds' snippets only compile: they are the
 //! seed pages' text. (The attribute's compile errors are checked through
-//! rustc in peppy-build's trybuild cases, `peppy-build/tests/ui`.)
+//! rustc in trybuild cases of their own, `peppy-ui-tests/tests/ui`.)
 
 mod actions;
 mod conformance;

@@ -5,24 +5,24 @@
 //! trybuild only checks, which spares CI a second full build and link of
 //! every dependency.
 //!
-//! The cases live beside the generator they test, not in the proc-macro
-//! crate (which only forwards to `peppy_build::macro_support`): a
-//! proc-macro's dev-dependencies are built for the host, so the facade
-//! there was a second build of the runtime and Zenoh in every workspace
-//! test build.
-//!
 //! Cases live in `tests/ui/<category>/<case>.rs` with their document in
 //! `<case>.json5` and the expected compiler output in `<case>.stderr`
-//! (regenerate with `TRYBUILD=overwrite cargo test -p peppy-build --test ui`
-//! and review the diff). Document paths in the cases are relative to this
+//! (regenerate with `TRYBUILD=overwrite cargo test -p peppy-ui-tests` and
+//! review the diff). Document paths in the cases are relative to this
 //! directory, through `PEPPY_MACRO_MANIFEST_DIR`.
+
+/// Where the attribute reads documents from instead of the crate's own
+/// directory (`peppy_build::macro_support::MANIFEST_DIR_OVERRIDE`: trybuild
+/// compiles each case away from its document). A wrong name here fails
+/// every case that names a document.
+const MANIFEST_DIR_OVERRIDE: &str = "PEPPY_MACRO_MANIFEST_DIR";
 
 #[test]
 fn ui() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ui");
     // SAFETY: this binary has this one test, so no other thread reads the
     // environment while it is set; trybuild's cargo inherits it.
-    unsafe { std::env::set_var(peppy_build::macro_support::MANIFEST_DIR_OVERRIDE, &dir) };
+    unsafe { std::env::set_var(MANIFEST_DIR_OVERRIDE, &dir) };
     if std::env::var_os("CARGO_ENCODED_RUSTFLAGS").is_none() {
         // SAFETY: as above.
         unsafe { std::env::set_var("CARGO_ENCODED_RUSTFLAGS", case_rustflags().join("\x1f")) };
