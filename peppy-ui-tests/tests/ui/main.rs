@@ -13,8 +13,10 @@
 
 /// Where the attribute reads documents from instead of the crate's own
 /// directory (`peppy_build::macro_support::MANIFEST_DIR_OVERRIDE`: trybuild
-/// compiles each case away from its document). A wrong name here fails
-/// every case that names a document.
+/// compiles each case away from its document). Copied, not imported: a
+/// dev-dependency on peppy-build would add the generator's tree to what
+/// trybuild checks. A wrong name here fails every case that names a
+/// document.
 const MANIFEST_DIR_OVERRIDE: &str = "PEPPY_MACRO_MANIFEST_DIR";
 
 #[test]
@@ -52,19 +54,15 @@ fn ui() {
 /// Cargo takes `CARGO_ENCODED_RUSTFLAGS` before the `--config` flags
 /// trybuild passes, so with the cases' flags there both passes use them
 /// and each dependency is checked once. A caller's own
-/// `CARGO_ENCODED_RUSTFLAGS` is left as it is (it already won both).
+/// `CARGO_ENCODED_RUSTFLAGS` is left as it is (it already won both). The
+/// price: rustflags from the caller's cargo configuration, which trybuild
+/// would have merged with its own, are not given to the cases.
 fn case_rustflags() -> Vec<&'static str> {
-    let mut flags = vec![
-        "--cfg",
-        "trybuild",
-        "--verbose",
-        "-A",
-        "dead_code",
-        "--diagnostic-width=140",
-    ];
+    let mut flags = vec!["--cfg", "trybuild", "--verbose", "-A", "dead_code"];
     // trybuild's own exception: a coverage build stays one.
     if std::env::var("RUSTFLAGS").is_ok_and(|f| f.contains("-C instrument-coverage")) {
         flags.extend(["-C", "instrument-coverage"]);
     }
+    flags.push("--diagnostic-width=140");
     flags
 }
