@@ -65,3 +65,41 @@ fn a_node_links_no_document_parser_generator_or_tls() {
         assert!(launcher.contains(p), "the launcher links no {p}");
     }
 }
+
+/// The files cargo names for the `zenoh` library that `package`'s build
+/// links (building it first when it is not built yet).
+fn zenoh_built_for(package: &str) -> Vec<String> {
+    let out = cargo(&["build", "-p", package, "--message-format=json"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let zenoh = stdout
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .find(|m| {
+            m["reason"] == "compiler-artifact"
+                && m["target"]["name"] == "zenoh"
+                && m["target"]["kind"] == serde_json::json!(["lib"])
+        })
+        .unwrap_or_else(|| panic!("no zenoh artifact in the build of {package}:\n{stdout}"));
+    let files: Vec<String> = zenoh["filenames"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|f| f.as_str().map(String::from))
+        .collect();
+    assert!(!files.is_empty(), "{zenoh}");
+    files
+}
+
+/// A node whose build script runs the generator and a node laid out as
+/// PeppyOS lays them out (`.peppy/libs`, no build script) build the same
+/// Zenoh: a stack mixing them builds it once. The generator turns on serde
+/// features on the host that Zenoh's proc-macro sees; peppy-runtime's
+/// build-dependencies turn them on for the other layout too.
+#[test]
+fn both_node_layouts_build_one_zenoh() {
+    assert_eq!(
+        zenoh_built_for("camera_viewer"),
+        zenoh_built_for("peppylib_camera"),
+        "the two layouts build Zenoh with different features (see peppy-runtime's build-dependencies)"
+    );
+}
