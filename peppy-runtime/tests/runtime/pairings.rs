@@ -403,7 +403,8 @@ async fn until_links(publisher: &peppy_runtime::codegen::TopicPublisher, links: 
 /// A message sent until the peer hears one: its subscription is then up.
 const PROBE: u64 = u64::MAX;
 
-/// Sends probes (bounded) until `sub` reads one.
+/// Sends probes (bounded) until `sub` reads one, passing over messages
+/// published before it.
 async fn until_heard(
     publisher: &peppy_runtime::codegen::TopicPublisher,
     sub: &mut PairedSubscription<u64>,
@@ -415,8 +416,12 @@ async fn until_heard(
                 .await
                 .unwrap();
             if let Ok(got) = tokio::time::timeout(Duration::from_millis(50), sub.next()).await {
-                assert_eq!(got.unwrap().unwrap().1, PROBE);
-                return;
+                // A message published just before the subscription was up
+                // may still reach it (its Zenoh copy in flight, seen under
+                // a loaded CI run): it is older than the probes, not one.
+                if got.unwrap().unwrap().1 == PROBE {
+                    return;
+                }
             }
         }
     })
