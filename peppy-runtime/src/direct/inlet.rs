@@ -760,8 +760,13 @@ impl LaneState {
         }
     }
 
-    /// A message from the link.
+    /// A message from the link, or a copy through a side key.
     fn link_brought(&mut self, number: u32, arrival: Arrival, intake: &Intake) {
+        // Zenoh's copy of what this hands on is a copy from now on, also
+        // when a side key brought it before the lane's link was answered
+        // (a restarted producer read through the side key its predecessor
+        // was read through): queued as a late message, it came twice.
+        self.linked = true;
         if !self.located {
             self.unplaced.push((number, arrival));
             self.held_since.get_or_insert_with(Instant::now);
@@ -1436,6 +1441,20 @@ mod tests {
         s.zenoh_brought(0, message(0), &intake);
         s.zenoh_brought(1, message(1), &intake);
         assert_eq!(queued(&inbox), [7, 0, 1]);
+    }
+
+    #[test]
+    fn a_side_copy_before_the_link_answers_is_not_handed_on_twice() {
+        let (intake, inbox) = intake();
+        let mut s = lane(500);
+        // A restarted producer's first numbered message through Zenoh; its
+        // link to this node is not answered yet, but the side key of its
+        // predecessor's link is still read and brings its copy of 2.
+        s.restart(([8; 16], 3), 1, &intake);
+        s.link_brought(2, message(2), &intake);
+        s.zenoh_brought(2, message(2), &intake);
+        s.zenoh_brought(3, message(3), &intake);
+        assert_eq!(queued(&inbox), [2, 3], "each once, in order");
     }
 
     #[test]
