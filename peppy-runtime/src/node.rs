@@ -466,21 +466,17 @@ impl NodeRunner {
         shared_memory: SharedMemory,
         grace: Duration,
     ) -> Result<Arc<NodeRunner>> {
+        // Zenoh's own copying of large payloads into a second pool is off
+        // in every session peppy opens (`Endpoints::zenoh_config`): with
+        // shared memory on, the node's threshold decides.
         let mut config = startup.zenoh.zenoh_config()?;
-        // Off: no shared memory at all, as on another host. On: the
-        // threshold decides, so Zenoh's own copying of every payload over
-        // 3 KiB into a second pool is turned off.
-        let (key, value) = if shared_memory.enabled() {
-            (
-                "transport/shared_memory/transport_optimization/enabled",
-                "false",
-            )
-        } else {
-            ("transport/shared_memory/enabled", "false")
-        };
-        config
-            .insert_json5(key, value)
-            .map_err(|e| Error::Startup(format!("invalid shared-memory setting `{key}`: {e}")))?;
+        if !shared_memory.enabled() {
+            // No shared memory at all, as on another host.
+            let key = "transport/shared_memory/enabled";
+            config.insert_json5(key, "false").map_err(|e| {
+                Error::Startup(format!("invalid shared-memory setting `{key}`: {e}"))
+            })?;
+        }
         let (session, shared_memory) = open_session(config, shared_memory).await?;
         let pair_plans = std::mem::take(&mut startup.pairs);
         let mut runner = NodeRunner {

@@ -197,6 +197,17 @@ impl Endpoints {
             "scouting/multicast/enabled",
             Json::from(self.multicast_scouting),
         )?;
+        // Zenoh copies every ordinary payload of 3 KiB or more that a
+        // session forwards into a pool of its own, which frees a chunk
+        // once its reader's watchdog lapses, even while the reader still
+        // holds it: under load, a router doing so handed a slow reader
+        // thousands of messages overwritten by later ones. A node's own
+        // pool (crate::shm) puts large messages in shared memory instead.
+        set(
+            &mut c,
+            "transport/shared_memory/transport_optimization/enabled",
+            Json::from(false),
+        )?;
         if let Some(login) = &self.login {
             login.apply(&mut c)?;
         }
@@ -836,6 +847,24 @@ mod tests {
     fn model(text: &str) -> NodeModel {
         let (doc, _) = NodeDoc::parse("peppy.json5", text).unwrap();
         NodeModel::from_json(&NodeModel::of(&doc).to_json()).unwrap()
+    }
+
+    #[test]
+    fn no_session_copies_payloads_into_zenohs_own_pool() {
+        for mode in ["peer", "client", "router"] {
+            let endpoints = Endpoints {
+                mode: Some(mode.into()),
+                ..Endpoints::default()
+            };
+            let config = endpoints.zenoh_config().unwrap();
+            assert_eq!(
+                config
+                    .get_json("transport/shared_memory/transport_optimization/enabled")
+                    .unwrap(),
+                "false",
+                "{mode}"
+            );
+        }
     }
 
     fn doc() -> NodeModel {

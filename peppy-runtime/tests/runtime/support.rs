@@ -21,14 +21,14 @@ pub(crate) async fn hub() -> Hub {
         .unwrap()
         .port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
-    let mut config = zenoh::Config::default();
-    config.insert_json5("mode", "\"router\"").unwrap();
-    config
-        .insert_json5("listen/endpoints", &format!("[\"{endpoint}\"]"))
-        .unwrap();
-    config
-        .insert_json5("scouting/multicast/enabled", "false")
-        .unwrap();
+    // Configured as peppy configures the routers it starts.
+    let config = peppy_runtime::Endpoints {
+        mode: Some("router".into()),
+        listen: vec![endpoint.clone()],
+        ..Default::default()
+    }
+    .zenoh_config()
+    .unwrap();
     let session = zenoh::open(config).await.unwrap();
     Hub { session, endpoint }
 }
