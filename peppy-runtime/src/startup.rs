@@ -198,11 +198,12 @@ impl Endpoints {
             Json::from(self.multicast_scouting),
         )?;
         // Zenoh copies every ordinary payload of 3 KiB or more that a
-        // session forwards into a pool of its own, which frees a chunk
-        // once its reader's watchdog lapses, even while the reader still
-        // holds it: under load, a router doing so handed a slow reader
-        // thousands of messages overwritten by later ones. A node's own
-        // pool (crate::shm) puts large messages in shared memory instead.
+        // session sends (a router forwarding a Python node's frame, say)
+        // into a pool of its own, whose allocator frees a chunk once its
+        // reader's watchdog lapses, even while the reader still holds it;
+        // on a loaded host the watchdogs of held chunks were seen to lapse
+        // (docs/FAULTS.md, L2). A node's own pool (crate::shm) frees a
+        // chunk only once no one holds it.
         set(
             &mut c,
             "transport/shared_memory/transport_optimization/enabled",
