@@ -563,8 +563,9 @@ struct LaneState {
     /// through Zenoh, and every message since was counted. Until it is,
     /// a link's messages wait.
     counted: bool,
-    /// Whether a link to this publisher was ever answered: only then can
-    /// a Zenoh message be a copy of one already handed on.
+    /// Whether a link to this publisher was ever answered, or a link
+    /// message or side copy of it handed on: only then can a Zenoh
+    /// message be a copy of one already handed on.
     linked: bool,
     link: LinkState,
     /// Which connection is the lane's: an older one's reader stops.
