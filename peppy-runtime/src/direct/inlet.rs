@@ -564,8 +564,8 @@ struct LaneState {
     /// a link's messages wait.
     counted: bool,
     /// Whether a link to this publisher was ever answered, or a link
-    /// message or side copy of it handed on: only then can a Zenoh
-    /// message be a copy of one already handed on.
+    /// message or side copy of it came: only then can a Zenoh message be
+    /// a copy of one already handed on.
     linked: bool,
     link: LinkState,
     /// Which connection is the lane's: an older one's reader stops.
