@@ -199,11 +199,12 @@ impl Endpoints {
         )?;
         // Zenoh copies every ordinary payload of 3 KiB or more that a
         // session sends over a connection with shared memory (a router
-        // forwarding a Python node's frame, say) into a pool of its own, whose allocator frees a chunk once its
-        // reader's watchdog lapses, even while the reader still holds it;
-        // on a loaded host the watchdogs of held chunks were seen to lapse
-        // (docs/FAULTS.md, L2). A node's own pool (crate::shm) frees a
-        // chunk only once no one holds it.
+        // forwarding a Python node's frame, say) into a pool of its own,
+        // whose allocator frees a chunk once its reader's watchdog
+        // lapses, even while the reader still holds it; on a loaded host
+        // the watchdogs of held chunks were seen to lapse (docs/FAULTS.md,
+        // L2). A node's own pool (crate::shm) frees a chunk only once no
+        // one holds it.
         set(
             &mut c,
             "transport/shared_memory/transport_optimization/enabled",
