@@ -55,6 +55,7 @@
 //!    publisher under the same key (the producer restarted) starts the
 //!    numbers afresh and links the new one.
 
+pub(crate) mod burst;
 pub(crate) mod feed;
 pub(crate) mod inlet;
 pub(crate) mod outlet;

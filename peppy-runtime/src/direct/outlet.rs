@@ -18,6 +18,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::sample::SourceInfo;
 use zenoh::session::Session;
 
+use super::burst::{Burst, Pushed, SideCopies};
 use super::{
     BURST_GAP, FRAME_MESSAGE, FRAME_SIDE, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT, header,
 };
@@ -73,7 +74,9 @@ struct Links {
 /// this key alone.
 #[derive(Debug)]
 struct Side {
-    publisher: Publisher<'static>,
+    /// Shared with the link's writer, which publishes here what it could
+    /// not write.
+    publisher: Arc<Publisher<'static>>,
     /// Whether Zenoh knows the consumer's subscription to it.
     matching: Arc<AtomicBool>,
     /// Whether it has been seen matching (since its link ended, for an
@@ -101,7 +104,9 @@ impl Side {
 const ORPHAN_GRACE: Duration = Duration::from_secs(5);
 #[derive(Debug)]
 struct Link {
-    stream: UnixStream,
+    /// Shared with its writer ([`Burst`]), which writes while the producer
+    /// does not.
+    stream: Arc<UnixStream>,
     /// The consumer (`<core node>/<instance>`), for the log.
     consumer: String,
     /// A sole link's side key.
@@ -111,6 +116,8 @@ struct Link {
     carried: Option<u32>,
     /// Messages of a dropping topic not written since the last report.
     dropped: u64,
+    /// The writer of a sole link's bursts, from its first burst on.
+    burst: Option<Burst>,
     /// The link's shared memory, where its large messages go.
     #[cfg(target_os = "linux")]
     ring: Option<super::segment::Ring>,
@@ -198,6 +205,10 @@ impl DirectOutlet {
                 // The links first: they are what a consumer on this host
                 // reads.
                 linked = links.write(number, &payload.to_bytes(), self.drops());
+            } else if sides && len < LARGE {
+                // In a burst a sole link's writer gathers the messages into
+                // large writes; the other links leave it to Zenoh's batches.
+                linked = links.gather(number, &payload.to_bytes(), self.drops(), &attachment);
             }
         }
         if sides {
@@ -316,11 +327,12 @@ impl DirectOutlet {
             links.orphans.retain(|o| o.publisher.key_expr() != key);
         }
         links.open.push(Link {
-            stream,
+            stream: Arc::new(stream),
             consumer,
             side,
             carried: None,
             dropped: 0,
+            burst: None,
             #[cfg(target_os = "linux")]
             ring,
         });
@@ -347,7 +359,7 @@ impl DirectOutlet {
             .wait()
             .map_err(std::io::Error::other)?;
         Ok(Side {
-            publisher,
+            publisher: Arc::new(publisher),
             matching,
             seen: false,
             ended: None,
@@ -378,6 +390,51 @@ impl Links {
                 ended.extend(link.side.take());
             }
             keep
+        });
+        self.orphan(ended);
+        any
+    }
+
+    /// Hands message `number`, one of a burst, to the writer of every sole
+    /// link whose consumer reads its side key (starting it at the link's
+    /// first burst), closing the links whose writer failed: whether any
+    /// took it. The other links do not carry it.
+    fn gather(&mut self, number: u32, body: &[u8], may_drop: bool, attachment: &ZBytes) -> bool {
+        let mut any = false;
+        let mut ended = Vec::new();
+        self.open.retain_mut(|link| {
+            let Some(side) = link.side.as_ref().filter(|side| side.seen) else {
+                return true;
+            };
+            if link.burst.is_none() {
+                let copies = SideCopies {
+                    publisher: side.publisher.clone(),
+                    attachment: attachment.clone(),
+                };
+                match Burst::start(link.stream.clone(), copies, link.consumer.clone()) {
+                    Ok(burst) => link.burst = Some(burst),
+                    Err(e) => {
+                        debug!(consumer = %link.consumer, error = %e, "no writer for a direct link's bursts: Zenoh carries them");
+                        return true;
+                    }
+                }
+            }
+            let pushed = link
+                .burst
+                .as_ref()
+                .map_or(Pushed::Refused, |b| b.push(number, body, may_drop));
+            match pushed {
+                Pushed::Carried => {
+                    link.carried = Some(number);
+                    any = true;
+                    true
+                }
+                Pushed::Refused => true,
+                Pushed::Failed => {
+                    ended.extend(link.side.take());
+                    false
+                }
+            }
         });
         self.orphan(ended);
         any
@@ -501,6 +558,24 @@ impl Link {
     /// large and there is room, else through the socket when it is small
     /// enough. Whether it was written, and whether to keep the link.
     fn send(&mut self, number: u32, body: &[u8], may_drop: bool) -> (bool, bool) {
+        if let Some(burst) = &self.burst {
+            if burst.failed() {
+                return (false, false);
+            }
+            if !burst.idle() {
+                // Its writer still has a burst to write: a write of the
+                // producer's own would overtake it. A small message joins
+                // the burst; a larger one goes under the side key.
+                if body.len() >= LARGE {
+                    return (false, true);
+                }
+                return match burst.push(number, body, may_drop) {
+                    Pushed::Carried => (true, true),
+                    Pushed::Refused => (false, true),
+                    Pushed::Failed => (false, false),
+                };
+            }
+        }
         #[cfg(target_os = "linux")]
         if shared(body.len())
             && let Some(ring) = &mut self.ring

@@ -1,0 +1,455 @@
+//! A sole link's bursts: the messages a producer publishes one right after
+//! another go over the link too, gathered into large writes by a thread of
+//! the link's own, so a flood costs the producer a copy into memory per
+//! message rather than a Zenoh put (or a write of its own) per message.
+//!
+//! Only a sole link whose consumer reads its side key takes bursts: every
+//! message then reaches that consumer through the link or the side key
+//! alone, both numbered, and it merges them by number. A message the link
+//! cannot take (no room within [`WRITE_LIMIT`], a dropping topic's full
+//! queue) goes under the side key instead; messages the writer could not
+//! write when its link failed are published there too, so none is lost.
+
+use std::io::{ErrorKind, Write};
+use std::os::unix::net::UnixStream;
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::Instant;
+
+use tracing::{debug, warn};
+use zenoh::Wait;
+use zenoh::bytes::ZBytes;
+use zenoh::pubsub::Publisher;
+use zenoh::sample::SourceInfo;
+
+use super::{FRAME_MESSAGE, HEADER, WRITE_LIMIT, header};
+
+/// How many bytes of frames wait for the writer before a producer waits
+/// for room (or, on a topic that drops, sends the message under the side
+/// key): about a socket buffer's worth, so the writer always has a whole
+/// write ready while the consumer reads the last one.
+const PENDING_MAX: usize = 256 * 1024;
+
+/// What a producer told the link about one message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Pushed {
+    /// The link carries it.
+    Carried,
+    /// The link has no room for it: the side key carries it.
+    Refused,
+    /// The link failed: it is to be closed, and the side key carries this
+    /// message and the ones after it.
+    Failed,
+}
+
+/// A sole link's writer: frames pushed by the producer (under the topic's
+/// lock), written in order by the link's own thread.
+#[derive(Debug)]
+pub(crate) struct Burst {
+    shared: Arc<Shared>,
+}
+
+#[derive(Debug)]
+struct Shared {
+    state: Mutex<State>,
+    /// Frames were pushed, or the link ends.
+    work: Condvar,
+    /// The writer took the pending frames.
+    room: Condvar,
+}
+
+#[derive(Debug, Default)]
+struct State {
+    /// Whole frames not yet taken by the writer.
+    pending: Vec<u8>,
+    /// The writer holds frames it took and has not written yet.
+    writing: bool,
+    /// The writer failed: nothing more is pushed.
+    failed: bool,
+    /// The link ended: the writer writes what is pending, then stops.
+    stop: bool,
+}
+
+/// Where a failed writer publishes what it could not write.
+pub(crate) struct SideCopies {
+    /// The side key's publisher.
+    pub(crate) publisher: Arc<Publisher<'static>>,
+    /// The topic's attachment, which every copy carries.
+    pub(crate) attachment: ZBytes,
+}
+
+impl Burst {
+    /// Starts the writer of the link on `stream` (non-blocking, shared with
+    /// the producer's own writes, which it makes only while
+    /// [`Burst::idle`]), for `consumer` (for the log).
+    pub(crate) fn start(
+        stream: Arc<UnixStream>,
+        side: SideCopies,
+        consumer: String,
+    ) -> std::io::Result<Burst> {
+        let shared = Arc::new(Shared {
+            state: Mutex::new(State::default()),
+            work: Condvar::new(),
+            room: Condvar::new(),
+        });
+        let writer = shared.clone();
+        std::thread::Builder::new()
+            .name("peppy-link".into())
+            .spawn(move || writer.run(&stream, &side, &consumer))?;
+        Ok(Burst { shared })
+    }
+
+    /// Whether the producer may write to the link itself: nothing pushed
+    /// waits or is being written (a write of its own would overtake it).
+    pub(crate) fn idle(&self) -> bool {
+        self.shared
+            .state
+            .lock()
+            .is_ok_and(|s| s.pending.is_empty() && !s.writing && !s.failed)
+    }
+
+    /// Whether the writer failed (the link is to be closed).
+    pub(crate) fn failed(&self) -> bool {
+        self.shared.state.lock().map_or(true, |s| s.failed)
+    }
+
+    /// Pushes message `number` for the writer. With no room, a topic that
+    /// never drops waits up to [`WRITE_LIMIT`] for the writer to take what
+    /// is pending.
+    pub(crate) fn push(&self, number: u32, body: &[u8], may_drop: bool) -> Pushed {
+        let Ok(mut state) = self.shared.state.lock() else {
+            return Pushed::Failed;
+        };
+        let deadline = Instant::now() + WRITE_LIMIT;
+        while !state.failed && state.pending.len() >= PENDING_MAX {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if may_drop || left.is_zero() {
+                return Pushed::Refused;
+            }
+            state = match self.shared.room.wait_timeout(state, left) {
+                Ok((state, _)) => state,
+                Err(_) => return Pushed::Failed,
+            };
+        }
+        if state.failed {
+            return Pushed::Failed;
+        }
+        let wake = state.pending.is_empty() && !state.writing;
+        state.pending.reserve(HEADER + body.len());
+        state
+            .pending
+            .extend_from_slice(&header(FRAME_MESSAGE, number, body.len() as u32));
+        state.pending.extend_from_slice(body);
+        drop(state);
+        if wake {
+            self.shared.work.notify_one();
+        }
+        Pushed::Carried
+    }
+}
+
+impl Drop for Burst {
+    /// The link ends: the writer writes what is pending, then stops (the
+    /// consumer reads the rest of the link, then goes back to Zenoh).
+    fn drop(&mut self) {
+        if let Ok(mut state) = self.shared.state.lock() {
+            state.stop = true;
+        }
+        self.shared.work.notify_one();
+    }
+}
+
+impl Shared {
+    /// The writer's thread: takes what is pending and writes it, until the
+    /// link ends or a write fails.
+    fn run(&self, stream: &UnixStream, side: &SideCopies, consumer: &str) {
+        let mut frames = Vec::new();
+        loop {
+            let Some(state) = self.next(&mut frames) else {
+                return;
+            };
+            drop(state);
+            self.room.notify_one();
+            let written = write_all(stream, &frames);
+            if written == frames.len() {
+                frames.clear();
+                continue;
+            }
+            // A write failed (the consumer went, or read nothing for the
+            // whole limit): what the consumer will not read goes under the
+            // side key, in order, and the consumer, finding the link
+            // closed, goes back to Zenoh.
+            let mut state = match self.state.lock() {
+                Ok(state) => state,
+                Err(e) => e.into_inner(),
+            };
+            state.failed = true;
+            state.writing = false;
+            let rest = std::mem::take(&mut state.pending);
+            drop(state);
+            self.room.notify_all();
+            let _ = stream.shutdown(std::net::Shutdown::Write);
+            let unwritten = unwritten_frames(&frames, written).chain(unwritten_frames(&rest, 0));
+            let mut count = 0_usize;
+            for (number, body) in unwritten {
+                count += 1;
+                if let Err(e) = side
+                    .publisher
+                    .put(body.to_vec())
+                    .attachment(side.attachment.clone())
+                    .source_info(SourceInfo::new(side.publisher.id(), number))
+                    .wait()
+                {
+                    warn!(consumer, error = %e, "a message a direct link could not carry was not published under its side key either");
+                }
+            }
+            debug!(
+                consumer,
+                count, "a direct link failed: what it had not written went under its side key"
+            );
+            return;
+        }
+    }
+
+    /// Waits for pending frames and takes them into `frames` (the lock
+    /// still held, `writing` set); `None` when the link ended with
+    /// nothing pending.
+    fn next(&self, frames: &mut Vec<u8>) -> Option<MutexGuard<'_, State>> {
+        let mut state = self.state.lock().ok()?;
+        state.writing = false;
+        loop {
+            if !state.pending.is_empty() {
+                std::mem::swap(&mut state.pending, frames);
+                state.writing = true;
+                return Some(state);
+            }
+            if state.stop {
+                return None;
+            }
+            state = self.work.wait(state).ok()?;
+        }
+    }
+}
+
+/// Writes `bytes` to the non-blocking `stream`, waiting for room while the
+/// consumer reads on: how many bytes were written (all of them, unless the
+/// link failed or the consumer read nothing for [`WRITE_LIMIT`]).
+fn write_all(mut stream: &UnixStream, bytes: &[u8]) -> usize {
+    let mut done = 0;
+    let mut since = Instant::now();
+    while done < bytes.len() {
+        match stream.write(&bytes[done..]) {
+            Ok(0) => return done,
+            Ok(n) => {
+                done += n;
+                since = Instant::now();
+            }
+            Err(e) if e.kind() == ErrorKind::Interrupted => {}
+            Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                let left = WRITE_LIMIT.saturating_sub(since.elapsed());
+                if left.is_zero() || !writable(stream, left) {
+                    return done;
+                }
+            }
+            Err(_) => return done,
+        }
+    }
+    done
+}
+
+/// Waits up to `limit` for room in `stream`.
+fn writable(stream: &UnixStream, limit: std::time::Duration) -> bool {
+    use std::os::fd::AsRawFd;
+    let mut poll = libc::pollfd {
+        fd: stream.as_raw_fd(),
+        events: libc::POLLOUT,
+        revents: 0,
+    };
+    let ms = libc::c_int::try_from(limit.as_millis().max(1)).unwrap_or(libc::c_int::MAX);
+    // SAFETY: one pollfd, a live local, for the stream's own descriptor.
+    let ready = unsafe { libc::poll(&mut poll, 1, ms) };
+    ready > 0 && poll.revents & libc::POLLOUT != 0
+}
+
+/// The messages of the whole frames in `frames` that start at or after
+/// `written` bytes, or that began before it and were cut there: the
+/// consumer reads only whole frames.
+fn unwritten_frames(frames: &[u8], written: usize) -> impl Iterator<Item = (u32, &[u8])> {
+    let mut at = 0;
+    std::iter::from_fn(move || {
+        loop {
+            let head = frames.get(at..at + HEADER)?;
+            let number = u32::from_le_bytes([head[1], head[2], head[3], head[4]]);
+            let len = u32::from_le_bytes([head[5], head[6], head[7], head[8]]) as usize;
+            let body = frames.get(at + HEADER..at + HEADER + len)?;
+            let end = at + HEADER + len;
+            at = end;
+            if end > written {
+                return Some((number, body));
+            }
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::io::Read;
+    use std::time::Duration;
+
+    use super::*;
+
+    /// A session of its own, reaching nothing: a side key's copies come
+    /// back to its own subscriber.
+    async fn lone_session() -> zenoh::Session {
+        let mut config = zenoh::Config::default();
+        for (key, value) in [
+            ("mode", r#""peer""#),
+            ("listen/endpoints", "[]"),
+            ("scouting/multicast/enabled", "false"),
+            ("transport/shared_memory/enabled", "false"),
+        ] {
+            config.insert_json5(key, value).unwrap();
+        }
+        zenoh::open(config).await.unwrap()
+    }
+
+    /// The numbers of the whole frames in `bytes`, checking each body.
+    fn whole_numbers(bytes: &[u8]) -> Vec<u32> {
+        unwritten_frames(bytes, 0)
+            .map(|(number, body)| {
+                assert_eq!(body, &body_of(number)[..], "frame {number}'s body");
+                number
+            })
+            .collect()
+    }
+
+    fn body_of(number: u32) -> Vec<u8> {
+        let len = 1 + (number as usize * 131) % 1500;
+        (0..len).map(|i| (number as usize + i) as u8).collect()
+    }
+
+    async fn side(session: &zenoh::Session, key: &str) -> SideCopies {
+        SideCopies {
+            publisher: Arc::new(session.declare_publisher(key.to_string()).await.unwrap()),
+            attachment: ZBytes::from(vec![7_u8]),
+        }
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_burst_reaches_the_reader_whole_and_in_order_and_the_rest_on_drop() {
+        let session = lone_session().await;
+        let (producer, mut reader) = UnixStream::pair().unwrap();
+        producer.set_nonblocking(true).unwrap();
+        let producer = Arc::new(producer);
+        let side = side(&session, "test/burst/whole").await;
+        let burst = Burst::start(producer.clone(), side, "core/sink".into()).unwrap();
+        let reading = std::thread::spawn(move || {
+            let mut bytes = Vec::new();
+            reader.read_to_end(&mut bytes).unwrap();
+            bytes
+        });
+        for number in 1..=20_000 {
+            assert_eq!(burst.push(number, &body_of(number), false), Pushed::Carried);
+        }
+        // Dropped with frames still pending: they are written before the
+        // writer stops and the socket closes.
+        drop(burst);
+        drop(producer);
+        let bytes = tokio::task::spawn_blocking(move || reading.join().unwrap())
+            .await
+            .unwrap();
+        assert_eq!(whole_numbers(&bytes), (1..=20_000).collect::<Vec<_>>());
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn what_a_stalled_reader_never_got_goes_under_the_side_key_once() {
+        let session = lone_session().await;
+        let key = "test/burst/stalled";
+        let copies = Arc::new(Mutex::new(Vec::new()));
+        let seen = copies.clone();
+        let _subscriber = session
+            .declare_subscriber(key)
+            .callback(move |sample| {
+                let info = sample.source_info().expect("a side copy is numbered");
+                assert_eq!(sample.payload().to_bytes(), &body_of(info.source_sn())[..]);
+                assert_eq!(sample.attachment().unwrap().to_bytes(), &[7_u8][..]);
+                seen.lock().unwrap().push(info.source_sn());
+            })
+            .await
+            .unwrap();
+        let (producer, mut reader) = UnixStream::pair().unwrap();
+        producer.set_nonblocking(true).unwrap();
+        let burst = Burst::start(
+            Arc::new(producer),
+            side(&session, key).await,
+            "core/sink".into(),
+        )
+        .unwrap();
+        // The reader reads nothing: the socket fills, then what is pending,
+        // and the writer gives up after the limit.
+        let mut carried = Vec::new();
+        let pushing = tokio::task::spawn_blocking(move || {
+            for number in 1.. {
+                match burst.push(number, &body_of(number), false) {
+                    Pushed::Carried => carried.push(number),
+                    Pushed::Refused => panic!("a topic that never drops waits, then fails"),
+                    Pushed::Failed => return (carried, burst),
+                }
+            }
+            unreachable!()
+        });
+        let (carried, burst) = tokio::time::timeout(Duration::from_secs(10), pushing)
+            .await
+            .expect("the writer gives up within its limit")
+            .unwrap();
+        assert!(burst.failed() && !burst.idle());
+        assert!(carried.len() > 200, "{} carried", carried.len());
+        // The link's whole frames, then its end (the writer shut it).
+        let mut bytes = Vec::new();
+        reader.read_to_end(&mut bytes).unwrap();
+        let over_link = whole_numbers(&bytes);
+        assert!(!over_link.is_empty());
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while over_link.len() + copies.lock().unwrap().len() < carried.len()
+            && Instant::now() < deadline
+        {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        let side_copies = copies.lock().unwrap().clone();
+        assert!(
+            !side_copies.is_empty(),
+            "what was pending went under the side key"
+        );
+        let mut every = over_link.clone();
+        every.extend(&side_copies);
+        assert_eq!(every, carried, "each once, the link's first, in order");
+    }
+
+    fn frames(messages: &[(u32, &[u8])]) -> Vec<u8> {
+        let mut out = Vec::new();
+        for (number, body) in messages {
+            out.extend_from_slice(&header(FRAME_MESSAGE, *number, body.len() as u32));
+            out.extend_from_slice(body);
+        }
+        out
+    }
+
+    #[test]
+    fn what_a_cut_write_left_is_every_frame_not_written_whole() {
+        let all = frames(&[(1, b"ab"), (2, b""), (3, b"cdef")]);
+        let numbers = |written| {
+            unwritten_frames(&all, written)
+                .map(|(n, body)| (n, body.to_vec()))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(numbers(0).len(), 3);
+        // Cut inside the first frame: it is not whole at the consumer.
+        assert_eq!(numbers(HEADER + 1)[0], (1, b"ab".to_vec()));
+        // The first written whole; the second (empty) cut in its header.
+        assert_eq!(
+            numbers(HEADER + 2 + 1),
+            vec![(2, vec![]), (3, b"cdef".to_vec())]
+        );
+        assert_eq!(numbers(2 * HEADER + 2), vec![(3, b"cdef".to_vec())]);
+        assert!(numbers(all.len()).is_empty());
+    }
+}
