@@ -37,7 +37,9 @@
 //!    carries it; from 16 KiB to 384 KiB (on Linux) the link's own
 //!    shared memory does, the socket carrying only where it is
 //!    (`segment`). A larger message goes through Zenoh alone, through
-//!    its shared memory. A consumer instance has one link per producer
+//!    its shared memory. A sole link (below) takes a burst's small
+//!    messages too, gathered into large writes by a thread of its own
+//!    (`burst`): a flood then costs the producer a copy per message. A consumer instance has one link per producer
 //!    key, shared by its entries on that key, and links only the
 //!    producers its slots route to it.
 //! 5. The consumer merges the two by number (`inlet`): whichever copy of

@@ -151,7 +151,8 @@ impl DirectOutlet {
 
     /// Publishes `payload` through Zenoh, and over every link of the topic
     /// when it is small and not part of a burst (it comes within a burst's
-    /// gap of the end of the topic's previous publication); then its Zenoh
+    /// gap of the end of the topic's previous publication), or over the
+    /// sole links when it is part of one and below 16 KiB; then its Zenoh
     /// copy carries its number in its source info. Every message counts
     /// towards the numbers.
     pub(crate) fn publish(

@@ -793,6 +793,17 @@ async fn a_pinned_consumer_on_a_link_reads_through_it_and_its_side_key_alone() {
     }
     read_in_order(&station, seq, 300, frame).await;
     seq += 300;
+    // A flood of small frames, made beforehand so they leave back to
+    // back: the link's writer gathers them, and every one comes over it.
+    let tiny = |seq: u32| patterned(seq, 8);
+    let burst: Vec<_> = (seq..seq + 2000).map(tiny).collect();
+    let before = direct(&station);
+    for f in &burst {
+        emit(&flood, &FLOOD_OUT, f).await.unwrap();
+    }
+    read_in_order(&station, seq, 2000, tiny).await;
+    assert_eq!(direct(&station) - before, 2000, "a flood over the link");
+    seq += 2000;
     assert!(!frames_subscribed(&hub, &ns).await, "still on the side key");
 
     // The producer stops: its last messages come, and the consumer goes
