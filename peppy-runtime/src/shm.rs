@@ -152,6 +152,16 @@ fn parse_size(s: &str) -> Option<usize> {
     n.checked_mul(1 << shift)
 }
 
+/// How many nodes of this process have their shared memory on. With more
+/// than one, a node makes its pool whole at once rather than growing it:
+/// making a pool locks its pages, and while the process does so Zenoh's
+/// watchdog thread, which every reader in the process shares, was seen to
+/// miss its 100 ms deadline; Zenoh then marks the chunks a reader holds or
+/// is about to map as lapsed, and drops the messages not yet mapped. In a
+/// process of its own a node's readers are elsewhere and its pool grows as
+/// it needs (docs/FAULTS.md, L2).
+static NODES_SHARING: AtomicUsize = AtomicUsize::new(0);
+
 /// A node's shared-memory state: its settings, per-topic overrides and the
 /// pool, made when first needed.
 pub(crate) struct Shm {
@@ -170,6 +180,9 @@ pub(crate) struct Shm {
     warned_full: AtomicBool,
     warned_size: AtomicBool,
     warned_encode: AtomicBool,
+    /// Whether it counts among [`NODES_SHARING`] (its node's shared memory
+    /// is on).
+    counted: bool,
 }
 
 impl fmt::Debug for Shm {
@@ -180,9 +193,22 @@ impl fmt::Debug for Shm {
     }
 }
 
+impl Drop for Shm {
+    fn drop(&mut self) {
+        if self.counted {
+            NODES_SHARING.fetch_sub(1, Relaxed);
+        }
+    }
+}
+
 impl Shm {
     pub(crate) fn new(settings: SharedMemory) -> Self {
+        let counted = settings.enabled();
+        if counted {
+            NODES_SHARING.fetch_add(1, Relaxed);
+        }
         Shm {
+            counted,
             settings,
             overrides: RwLock::new(HashMap::new()),
             lowest: AtomicUsize::new(settings.threshold().map_or(usize::MAX, |t| t.max(1))),
@@ -262,7 +288,8 @@ impl Shm {
         let mut pools = self.pools.lock().ok()?;
         let stuck = self.cannot_grow.load(Relaxed);
         let newest = pools.last().map(|p| p.bytes);
-        match next_pool(newest, len, self.settings.pool_bytes, stuck) {
+        let whole = self.counted && NODES_SHARING.load(Relaxed) > 1;
+        match next_pool(newest, len, self.settings.pool_bytes, stuck, whole) {
             Some(size) => self.open_next(&mut pools, size),
             None => pools.last().cloned(),
         }
@@ -401,12 +428,20 @@ impl Pool {
 /// The size of the pool to make for a message of `len` bytes when the
 /// newest pool has `newest` bytes (`None`: no pool yet); `None` when the
 /// newest will do or no pool can be made. Growing at least doubles, so
-/// slowly growing messages make a few pools, not one each.
-fn next_pool(newest: Option<usize>, len: usize, most: usize, stuck: bool) -> Option<usize> {
+/// slowly growing messages make a few pools, not one each; `whole` (other
+/// nodes of the process share its memory) makes the largest at once.
+fn next_pool(
+    newest: Option<usize>,
+    len: usize,
+    most: usize,
+    stuck: bool,
+    whole: bool,
+) -> Option<usize> {
     let wanted = pool_size(len, most);
     match newest {
         _ if stuck => None,
         Some(n) if n >= wanted || n >= most => None,
+        _ if whole => Some(most),
         Some(n) => Some(wanted.max(n.saturating_mul(2)).min(most)),
         None => Some(wanted),
     }
@@ -593,21 +628,36 @@ mod tests {
     fn a_pool_grows_when_it_holds_too_few_of_the_messages_sent() {
         let most = SharedMemory::DEFAULT_POOL;
         let min = SharedMemory::MIN_POOL;
-        assert_eq!(next_pool(None, 64 << 10, most, false), Some(min));
-        assert_eq!(next_pool(Some(min), 64 << 10, most, false), None);
+        assert_eq!(next_pool(None, 64 << 10, most, false, false), Some(min));
+        assert_eq!(next_pool(Some(min), 64 << 10, most, false, false), None);
         assert_eq!(
-            next_pool(Some(min), 1 << 20, most, false),
+            next_pool(Some(min), 1 << 20, most, false, false),
             Some(16 << 20),
             "64 KiB made it, 1 MiB frames need room for sixteen"
         );
         assert_eq!(
-            next_pool(Some(16 << 20), (1 << 20) + 1, most, false),
+            next_pool(Some(16 << 20), (1 << 20) + 1, most, false, false),
             Some(most),
             "at least doubles"
         );
-        assert_eq!(next_pool(Some(most), 4 << 20, most, false), None);
-        assert_eq!(next_pool(Some(min), 1 << 20, most, true), None);
-        assert_eq!(next_pool(None, 1 << 20, most, true), None);
+        assert_eq!(next_pool(Some(most), 4 << 20, most, false, false), None);
+        assert_eq!(next_pool(Some(min), 1 << 20, most, true, false), None);
+        assert_eq!(next_pool(None, 1 << 20, most, true, false), None);
+    }
+
+    #[test]
+    fn beside_other_nodes_of_its_process_a_pool_is_made_whole() {
+        let most = SharedMemory::DEFAULT_POOL;
+        let min = SharedMemory::MIN_POOL;
+        assert_eq!(next_pool(None, 4 << 10, most, false, true), Some(most));
+        assert_eq!(
+            next_pool(Some(min), 1 << 20, most, false, true),
+            Some(most),
+            "one made alone grows to the largest at once"
+        );
+        assert_eq!(next_pool(Some(min), 64 << 10, most, false, true), None);
+        assert_eq!(next_pool(Some(most), 4 << 20, most, false, true), None);
+        assert_eq!(next_pool(None, 4 << 10, most, true, true), None);
     }
 
     /// A topic whose messages the pool tests encode.
@@ -618,13 +668,24 @@ mod tests {
         format: crate::spec::FormatSpec::EMPTY,
     };
 
+    /// A node's shared memory as in a process of its own, whatever else the
+    /// tests running beside it make.
+    fn alone(settings: SharedMemory) -> Shm {
+        let mut shm = Shm::new(settings);
+        if shm.counted {
+            NODES_SHARING.fetch_sub(1, Relaxed);
+            shm.counted = false;
+        }
+        shm
+    }
+
     /// Readers holding every chunk make the pool double, up to the node's
     /// bound; past it messages go as bytes, and in shared memory again
     /// once readers let go.
     #[test]
     fn a_full_pool_grows_to_its_bound_then_messages_go_as_bytes() {
         let most = 8 << 20;
-        let shm = Shm::new(SharedMemory::default().pool(most));
+        let shm = alone(SharedMemory::default().pool(most));
         let frame = vec![7u8; 64 << 10];
         let mut held = Vec::new();
         let mut shared = 0;
@@ -662,7 +723,7 @@ mod tests {
     /// cache, not after the whole pool has been walked.
     #[test]
     fn released_chunks_are_written_again_soon() {
-        let shm = Shm::new(SharedMemory::default());
+        let shm = alone(SharedMemory::default());
         // Where the message went (then it is dropped: every reader let go).
         let chunk_of = |frame: &Vec<u8>| {
             let bytes = shm.payload(&FRAMES, frame, true);

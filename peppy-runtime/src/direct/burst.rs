@@ -13,7 +13,7 @@
 use std::io::{ErrorKind, Write};
 use std::os::unix::net::UnixStream;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use tracing::{debug, warn};
 use zenoh::Wait;
@@ -50,6 +50,9 @@ pub(crate) struct Burst {
 
 #[derive(Debug)]
 struct Shared {
+    /// Whether the topic drops a message rather than wait for a slow
+    /// reader: then a consumer that stops reading does not end the link.
+    drops: bool,
     state: Mutex<State>,
     /// Frames were pushed, or the link ends.
     work: Condvar,
@@ -85,8 +88,10 @@ impl Burst {
         stream: Arc<UnixStream>,
         side: SideCopies,
         consumer: String,
+        drops: bool,
     ) -> std::io::Result<Burst> {
         let shared = Arc::new(Shared {
+            drops,
             state: Mutex::new(State::default()),
             work: Condvar::new(),
             room: Condvar::new(),
@@ -175,14 +180,12 @@ impl Shared {
             };
             drop(state);
             self.room.notify_one();
-            let written = write_all(stream, &frames);
-            if written == frames.len() {
+            let Err((written, end)) = self.write_all(stream, &frames) else {
                 frames.clear();
                 continue;
-            }
-            // A write failed (the consumer went, or read nothing for the
-            // whole limit): what the consumer will not read goes under the
-            // side key, in order, and the consumer, finding the link
+            };
+            // The link failed: what the consumer will not read goes under
+            // the side key, in order, and the consumer, finding the link
             // closed, goes back to Zenoh.
             let mut state = match self.state.lock() {
                 Ok(state) => state,
@@ -218,13 +221,18 @@ impl Shared {
                     }
                 }
             }
-            match error {
-                None => debug!(
+            match (error, end) {
+                (None, End::Stalled) => warn!(
                     consumer,
                     published,
-                    "a direct link failed: what it had not written went under its side key"
+                    "closing a direct link: its consumer read nothing for {WRITE_LIMIT:?}; what the link had not written went under its side key, and the consumer reads this topic through Zenoh alone"
                 ),
-                Some(e) => warn!(
+                (None, End::Gone | End::Ended) => debug!(
+                    consumer,
+                    published,
+                    "a direct link ended: what it had not written went under its side key"
+                ),
+                (Some(e), _) => warn!(
                     consumer,
                     published,
                     lost,
@@ -256,34 +264,62 @@ impl Shared {
     }
 }
 
-/// Writes `bytes` to the non-blocking `stream`, waiting for room while the
-/// consumer reads on: how many bytes were written (all of them, unless the
-/// link failed or the consumer read nothing for [`WRITE_LIMIT`]).
-fn write_all(mut stream: &UnixStream, bytes: &[u8]) -> usize {
-    let mut done = 0;
-    let mut since = Instant::now();
-    while done < bytes.len() {
-        match stream.write(&bytes[done..]) {
-            Ok(0) => return done,
-            Ok(n) => {
-                done += n;
-                since = Instant::now();
-            }
-            Err(e) if e.kind() == ErrorKind::Interrupted => {}
-            Err(e) if e.kind() == ErrorKind::WouldBlock => {
-                let left = WRITE_LIMIT.saturating_sub(since.elapsed());
-                if left.is_zero() || !writable(stream, left) {
-                    return done;
+/// Why a link's writer stopped before writing everything.
+#[derive(Debug, Clone, Copy)]
+enum End {
+    /// The consumer closed the link (or the socket failed).
+    Gone,
+    /// The consumer of a topic that never drops read nothing for
+    /// [`WRITE_LIMIT`].
+    Stalled,
+    /// The link ended (the producer dropped it) while the consumer read
+    /// nothing.
+    Ended,
+}
+
+impl Shared {
+    /// Writes `bytes` to the non-blocking `stream`, waiting for room while
+    /// the consumer reads on; on a topic that drops, also while it does
+    /// not, until the link ends. Else how many bytes were written, and
+    /// why no more.
+    fn write_all(&self, mut stream: &UnixStream, bytes: &[u8]) -> Result<(), (usize, End)> {
+        let mut done = 0;
+        let mut since = Instant::now();
+        while done < bytes.len() {
+            match stream.write(&bytes[done..]) {
+                Ok(0) => return Err((done, End::Gone)),
+                Ok(n) => {
+                    done += n;
+                    since = Instant::now();
                 }
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                    let left = WRITE_LIMIT.saturating_sub(since.elapsed());
+                    if writable(stream, left.max(Duration::from_millis(1))) {
+                        continue;
+                    }
+                    if self.state.lock().map_or(true, |s| s.stop) {
+                        return Err((done, End::Ended));
+                    }
+                    if !self.drops && since.elapsed() >= WRITE_LIMIT {
+                        return Err((done, End::Stalled));
+                    }
+                    if self.drops {
+                        // What the producer pushes meanwhile goes under the
+                        // side key; this waits for the reader, a limit at a
+                        // time, noticing the link's end.
+                        since = Instant::now();
+                    }
+                }
+                Err(_) => return Err((done, End::Gone)),
             }
-            Err(_) => return done,
         }
+        Ok(())
     }
-    done
 }
 
 /// Waits up to `limit` for room in `stream`.
-fn writable(stream: &UnixStream, limit: std::time::Duration) -> bool {
+fn writable(stream: &UnixStream, limit: Duration) -> bool {
     use std::os::fd::AsRawFd;
     let mut poll = libc::pollfd {
         fd: stream.as_raw_fd(),
@@ -367,7 +403,7 @@ mod tests {
         producer.set_nonblocking(true).unwrap();
         let producer = Arc::new(producer);
         let side = side(&session, "test/burst/whole").await;
-        let burst = Burst::start(producer.clone(), side, "core/sink".into()).unwrap();
+        let burst = Burst::start(producer.clone(), side, "core/sink".into(), false).unwrap();
         let reading = std::thread::spawn(move || {
             let mut bytes = Vec::new();
             reader.read_to_end(&mut bytes).unwrap();
@@ -408,6 +444,7 @@ mod tests {
             Arc::new(producer),
             side(&session, key).await,
             "core/sink".into(),
+            false,
         )
         .unwrap();
         // The reader reads nothing: the socket fills, then what is pending,
@@ -457,6 +494,57 @@ mod tests {
             out.extend_from_slice(body);
         }
         out
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_dropping_topic_keeps_its_link_through_a_stalled_reader() {
+        let session = lone_session().await;
+        let (producer, mut reader) = UnixStream::pair().unwrap();
+        producer.set_nonblocking(true).unwrap();
+        let side = side(&session, "test/burst/dropping").await;
+        let burst = Burst::start(Arc::new(producer), side, "core/sink".into(), true).unwrap();
+        // The reader reads nothing: once the socket and the pending frames
+        // are full, what comes is refused at once (it goes under the side
+        // key), and the link stays.
+        let mut carried = Vec::new();
+        let mut number = 0;
+        let began = Instant::now();
+        loop {
+            number += 1;
+            match burst.push(number, &body_of(number), true) {
+                Pushed::Carried => carried.push(number),
+                Pushed::Refused => break,
+                Pushed::Failed => panic!("a full link of a dropping topic refuses"),
+            }
+            assert!(began.elapsed() < Duration::from_secs(5), "never full");
+        }
+        assert!(carried.len() > 200, "{} carried", carried.len());
+        tokio::time::sleep(WRITE_LIMIT * 2).await;
+        assert!(
+            !burst.failed(),
+            "a stalled reader of a dropping topic does not end its link"
+        );
+        // The reader reads on: every carried frame, in order, then more.
+        let more = number + 1;
+        let reading = std::thread::spawn(move || {
+            let mut bytes = Vec::new();
+            reader.read_to_end(&mut bytes).unwrap();
+            bytes
+        });
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while burst.push(more, &body_of(more), true) != Pushed::Carried {
+            assert!(
+                Instant::now() < deadline,
+                "room again once the reader reads"
+            );
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+        carried.push(more);
+        drop(burst);
+        let bytes = tokio::task::spawn_blocking(move || reading.join().unwrap())
+            .await
+            .unwrap();
+        assert_eq!(whole_numbers(&bytes), carried);
     }
 
     #[test]

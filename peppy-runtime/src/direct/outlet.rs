@@ -412,7 +412,7 @@ impl Links {
                     publisher: side.publisher.clone(),
                     attachment: attachment.clone(),
                 };
-                match Burst::start(link.stream.clone(), copies, link.consumer.clone()) {
+                match Burst::start(link.stream.clone(), copies, link.consumer.clone(), may_drop) {
                     Ok(burst) => link.burst = Some(burst),
                     Err(e) => {
                         debug!(consumer = %link.consumer, error = %e, "no writer for a direct link's bursts: Zenoh carries them");
