@@ -82,7 +82,9 @@ impl SharedMemory {
     /// for [`Self::POOL_MESSAGES`] of its size, at least
     /// [`Self::MIN_POOL`] and at most this: every reader on the host maps
     /// and locks it, so a small camera does not take 32 MiB of everyone's
-    /// memory. Capped by what the host allows too.
+    /// memory. A node whose process hosts other nodes with shared memory
+    /// on makes it this large at once (docs/FAULTS.md, L2). Capped by what
+    /// the host allows too.
     pub const fn pool(mut self, bytes: usize) -> Self {
         self.pool_bytes = bytes;
         self
