@@ -290,15 +290,14 @@ impl Shm {
         let mut pools = self.pools.lock().ok()?;
         let stuck = self.cannot_grow.load(Relaxed);
         let newest = pools.last().map(|p| p.bytes);
-        let whole = self.counted && NODES_SHARING.load(Relaxed) > 1;
-        match next_pool(newest, len, self.settings.pool_bytes, stuck, whole) {
+        match next_pool(newest, len, self.settings.pool_bytes, stuck, self.whole()) {
             Some(size) => self.open_next(&mut pools, size),
             None => pools.last().cloned(),
         }
     }
 
     /// A larger pool than `full`, whose every chunk readers still hold:
-    /// double it, up to the node's bound. A stream read a little behind
+    /// double it, up to the node's bound (or the bound at once, made whole). A stream read a little behind
     /// holds more chunks than its first sixteen (64 KiB messages flooding
     /// a 2 MiB pool went as ordinary buffers at half raw Zenoh's rate).
     /// `None` once the bound is reached: what follows goes as bytes until
@@ -314,7 +313,18 @@ impl Shm {
         if self.cannot_grow.load(Relaxed) || full.bytes >= most {
             return None;
         }
-        self.open_next(&mut pools, full.bytes.saturating_mul(2).min(most))
+        let size = if self.whole() {
+            most
+        } else {
+            full.bytes.saturating_mul(2).min(most)
+        };
+        self.open_next(&mut pools, size)
+    }
+
+    /// Whether a pool is made whole at once: other nodes of the process
+    /// share its memory ([`NODES_SHARING`]).
+    fn whole(&self) -> bool {
+        self.counted && NODES_SHARING.load(Relaxed) > 1
     }
 
     /// Opens a pool of `size` bytes as the newest of `pools` (the one

@@ -70,6 +70,8 @@ struct State {
     failed: bool,
     /// The link ended: the writer writes what is pending, then stops.
     stop: bool,
+    /// The writer's thread is done.
+    exited: bool,
 }
 
 /// Where a failed writer publishes what it could not write.
@@ -99,8 +101,42 @@ impl Burst {
         let writer = shared.clone();
         std::thread::Builder::new()
             .name("peppy-link".into())
-            .spawn(move || writer.run(&stream, &side, &consumer))?;
+            .spawn(move || {
+                writer.run(&stream, &side, &consumer);
+                if let Ok(mut state) = writer.state.lock() {
+                    state.exited = true;
+                }
+                writer.room.notify_all();
+            })?;
         Ok(Burst { shared })
+    }
+
+    /// Ends the link: the writer writes what is pending, then stops.
+    pub(crate) fn end(&self) {
+        if let Ok(mut state) = self.shared.state.lock() {
+            state.stop = true;
+        }
+        self.shared.work.notify_one();
+    }
+
+    /// Waits, up to `deadline`, for the writer of an ended link to be
+    /// done: the pending frames written, or published under the side key
+    /// if the consumer reads nothing (the node stops, and closes its
+    /// session next).
+    pub(crate) fn wait_done(&self, deadline: Instant) {
+        let Ok(mut state) = self.shared.state.lock() else {
+            return;
+        };
+        while !state.exited {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return;
+            }
+            state = match self.shared.room.wait_timeout(state, left) {
+                Ok((state, _)) => state,
+                Err(_) => return,
+            };
+        }
     }
 
     /// Whether the producer may write to the link itself: nothing pushed
@@ -112,14 +148,18 @@ impl Burst {
             .is_ok_and(|s| s.pending.is_empty() && !s.writing && !s.failed)
     }
 
-    /// Whether the writer failed (the link is to be closed).
+    /// Whether the writer failed (the link is to be closed). A writer that
+    /// failed holds the lock until it has published what it had not
+    /// written, so a message the producer sends under the side key after
+    /// asking comes after those.
     pub(crate) fn failed(&self) -> bool {
         self.shared.state.lock().map_or(true, |s| s.failed)
     }
 
     /// Pushes message `number` for the writer. With no room, a topic that
-    /// never drops waits up to [`WRITE_LIMIT`] for the writer to take what
-    /// is pending.
+    /// never drops waits for the writer to take what is pending, or to
+    /// fail (within [`WRITE_LIMIT`] of its last progress), up to twice
+    /// that limit.
     pub(crate) fn push(&self, number: u32, body: &[u8], may_drop: bool) -> Pushed {
         let Ok(mut state) = self.shared.state.lock() else {
             return Pushed::Failed;
@@ -131,7 +171,7 @@ impl Burst {
             if may_drop {
                 return Pushed::Refused;
             }
-            let until = *deadline.get_or_insert_with(|| Instant::now() + WRITE_LIMIT);
+            let until = *deadline.get_or_insert_with(|| Instant::now() + 2 * WRITE_LIMIT);
             let left = until.saturating_duration_since(Instant::now());
             if left.is_zero() {
                 return Pushed::Refused;
@@ -162,10 +202,7 @@ impl Drop for Burst {
     /// The link ends: the writer writes what is pending, then stops (the
     /// consumer reads the rest of the link, then goes back to Zenoh).
     fn drop(&mut self) {
-        if let Ok(mut state) = self.shared.state.lock() {
-            state.stop = true;
-        }
-        self.shared.work.notify_one();
+        self.end();
     }
 }
 
@@ -185,18 +222,16 @@ impl Shared {
                 continue;
             };
             // The link failed: what the consumer will not read goes under
-            // the side key, in order, and the consumer, finding the link
-            // closed, goes back to Zenoh.
+            // the side key, in order, before the socket is shut (finding
+            // the link closed, the consumer goes back to the topic's own
+            // key, where a newer message must not come before these). The
+            // lock is held meanwhile: the producer, which asks it before
+            // anything under the side key, waits.
             let mut state = match self.state.lock() {
                 Ok(state) => state,
                 Err(e) => e.into_inner(),
             };
-            state.failed = true;
-            state.writing = false;
             let rest = std::mem::take(&mut state.pending);
-            drop(state);
-            self.room.notify_all();
-            let _ = stream.shutdown(std::net::Shutdown::Write);
             let unwritten = unwritten_frames(&frames, written).chain(unwritten_frames(&rest, 0));
             let (mut published, mut lost) = (0_usize, 0_usize);
             let mut error = None;
@@ -221,6 +256,11 @@ impl Shared {
                     }
                 }
             }
+            state.failed = true;
+            state.writing = false;
+            drop(state);
+            self.room.notify_all();
+            let _ = stream.shutdown(std::net::Shutdown::Write);
             match (error, end) {
                 (None, End::Stalled) => warn!(
                     consumer,
@@ -471,12 +511,8 @@ mod tests {
         reader.read_to_end(&mut bytes).unwrap();
         let over_link = whole_numbers(&bytes);
         assert!(!over_link.is_empty());
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while over_link.len() + copies.lock().unwrap().len() < carried.len()
-            && Instant::now() < deadline
-        {
-            tokio::time::sleep(Duration::from_millis(20)).await;
-        }
+        // A session hands its own subscriber a put before the put returns:
+        // every side copy is out by the time the link ends.
         let side_copies = copies.lock().unwrap().clone();
         assert!(
             !side_copies.is_empty(),
@@ -485,6 +521,50 @@ mod tests {
         let mut every = over_link.clone();
         every.extend(&side_copies);
         assert_eq!(every, carried, "each once, the link's first, in order");
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn an_ended_link_of_a_stalled_reader_hands_its_rest_to_the_side_key_in_time() {
+        let session = lone_session().await;
+        let key = "test/burst/ended";
+        let copies = Arc::new(Mutex::new(Vec::new()));
+        let seen = copies.clone();
+        let _subscriber = session
+            .declare_subscriber(key)
+            .callback(move |sample| {
+                seen.lock()
+                    .unwrap()
+                    .push(sample.source_info().unwrap().source_sn());
+            })
+            .await
+            .unwrap();
+        let (producer, mut reader) = UnixStream::pair().unwrap();
+        producer.set_nonblocking(true).unwrap();
+        let burst = Burst::start(
+            Arc::new(producer),
+            side(&session, key).await,
+            "core/sink".into(),
+            false,
+        )
+        .unwrap();
+        // More than the socket holds, less than the pending frames' room.
+        let carried: Vec<u32> = (1..=450).collect();
+        for &number in &carried {
+            assert_eq!(burst.push(number, &body_of(number), false), Pushed::Carried);
+        }
+        // The node stops: its writer gives up on the reader within the
+        // limit and is done before the session would close.
+        let began = Instant::now();
+        burst.end();
+        burst.wait_done(Instant::now() + Duration::from_secs(5));
+        assert!(began.elapsed() < WRITE_LIMIT * 3, "{:?}", began.elapsed());
+        let mut bytes = Vec::new();
+        reader.read_to_end(&mut bytes).unwrap();
+        let mut every = whole_numbers(&bytes);
+        let side_copies = copies.lock().unwrap().clone();
+        assert!(!side_copies.is_empty(), "some were still pending");
+        every.extend(side_copies);
+        assert_eq!(every, carried);
     }
 
     fn frames(messages: &[(u32, &[u8])]) -> Vec<u8> {

@@ -255,14 +255,22 @@ impl DirectOutlet {
 
     /// Closes every link (the node stops): each consumer reads the rest of
     /// its link, then goes back to Zenoh.
-    pub(crate) fn close(&self) {
-        if let Ok(mut links) = self.links.lock() {
-            let ended = std::mem::take(&mut links.open)
-                .into_iter()
-                .filter_map(|link| link.side)
-                .collect();
-            links.orphan(ended);
+    /// The writers of its sole links' bursts are told to end, and handed
+    /// back to be waited for (once every topic's are told).
+    fn close(&self) -> Vec<Burst> {
+        let Ok(mut links) = self.links.lock() else {
+            return Vec::new();
+        };
+        let (mut ended, mut writers) = (Vec::new(), Vec::new());
+        for link in std::mem::take(&mut links.open) {
+            ended.extend(link.side);
+            if let Some(burst) = link.burst {
+                burst.end();
+                writers.push(burst);
+            }
         }
+        links.orphan(ended);
+        writers
     }
 
     /// Whether the topic drops a message rather than wait for a slow
@@ -505,6 +513,11 @@ impl Links {
             published.any = true;
             published.only &= side.seen;
             if link.carried != Some(number) {
+                if let Some(burst) = &link.burst {
+                    // A writer that failed publishes what it held under the
+                    // side key first: asking waits for it.
+                    let _ = burst.failed();
+                }
                 published.keep_first_error(side.put(payload, attachment, number));
             }
         }
@@ -768,11 +781,19 @@ impl Outlets {
     }
 
     /// Closes every link of every topic served (the node stops).
+    ///
+    /// Waits, up to [`CLOSE_LIMIT`] in all, for the links' writers to be
+    /// done with the bursts they hold: the node closes its session next,
+    /// and what a writer could not write goes under a side key through it.
     pub(crate) fn close_all(&self) {
-        if let Ok(all) = self.0.lock() {
-            for outlet in all.iter().filter_map(Weak::upgrade) {
-                outlet.close();
-            }
+        let outlets: Vec<_> = match self.0.lock() {
+            Ok(all) => all.iter().filter_map(Weak::upgrade).collect(),
+            Err(_) => return,
+        };
+        let writers: Vec<Burst> = outlets.iter().flat_map(|o| o.close()).collect();
+        let deadline = Instant::now() + CLOSE_LIMIT;
+        for writer in &writers {
+            writer.wait_done(deadline);
         }
     }
 
@@ -782,6 +803,11 @@ impl Outlets {
         all.iter().filter_map(Weak::upgrade).find(|o| o.key == key)
     }
 }
+
+/// How long a stopping node waits for its links' writers, in all: a
+/// writer gives up on a consumer that reads nothing within
+/// [`WRITE_LIMIT`], then publishes what it holds under the side key.
+const CLOSE_LIMIT: Duration = Duration::from_secs(2);
 
 /// A node's socket for direct links, removed when the node stops.
 #[derive(Debug)]
