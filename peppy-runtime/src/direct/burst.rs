@@ -6,9 +6,10 @@
 //! Only a sole link whose consumer reads its side key takes bursts: every
 //! message then reaches that consumer through the link or the side key
 //! alone, both numbered, and it merges them by number. A message the link
-//! cannot take (no room within [`WRITE_LIMIT`], a dropping topic's full
-//! queue) goes under the side key instead; messages the writer could not
-//! write when its link failed are published there too, so none is lost.
+//! cannot take (no room in time, a dropping topic's full pending frames)
+//! goes under the side key instead; messages the writer could not write
+//! when its link failed are published there too, before the link ends, so
+//! none is lost.
 
 use std::io::{ErrorKind, Write};
 use std::os::unix::net::UnixStream;

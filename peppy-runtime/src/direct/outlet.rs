@@ -255,6 +255,7 @@ impl DirectOutlet {
 
     /// Closes every link (the node stops): each consumer reads the rest of
     /// its link, then goes back to Zenoh.
+    ///
     /// The writers of its sole links' bursts are told to end, and handed
     /// back to be waited for (once every topic's are told).
     fn close(&self) -> Vec<Burst> {
