@@ -42,6 +42,31 @@ pub(crate) enum Pushed {
     Failed,
 }
 
+impl Pushed {
+    /// Whether the link carries the message, and whether to keep the link.
+    pub(crate) fn carried_kept(self) -> (bool, bool) {
+        match self {
+            Pushed::Carried => (true, true),
+            Pushed::Refused => (false, true),
+            Pushed::Failed => (false, false),
+        }
+    }
+}
+
+/// Where the link's writer is, as the producer asks before a write of
+/// its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Writer {
+    /// Nothing pushed waits or is being written: the producer may write
+    /// to the link itself.
+    Idle,
+    /// It has frames to write: a write of the producer's own would
+    /// overtake them.
+    Busy,
+    /// It failed: the link is to be closed.
+    Failed,
+}
+
 /// A sole link's writer: frames pushed by the producer (under the topic's
 /// lock), written in order by the link's own thread.
 #[derive(Debug)]
@@ -86,7 +111,7 @@ pub(crate) struct SideCopies {
 impl Burst {
     /// Starts the writer of the link on `stream` (non-blocking, shared with
     /// the producer's own writes, which it makes only while
-    /// [`Burst::idle`]), for `consumer` (for the log).
+    /// [`Writer::Idle`]), for `consumer` (for the log).
     pub(crate) fn start(
         stream: Arc<UnixStream>,
         side: SideCopies,
@@ -140,21 +165,16 @@ impl Burst {
         }
     }
 
-    /// Whether the producer may write to the link itself: nothing pushed
-    /// waits or is being written (a write of its own would overtake it).
-    pub(crate) fn idle(&self) -> bool {
-        self.shared
-            .state
-            .lock()
-            .is_ok_and(|s| s.pending.is_empty() && !s.writing && !s.failed)
-    }
-
-    /// Whether the writer failed (the link is to be closed). A writer that
-    /// failed holds the lock until it has published what it had not
-    /// written, so a message the producer sends under the side key after
-    /// asking comes after those.
-    pub(crate) fn failed(&self) -> bool {
-        self.shared.state.lock().map_or(true, |s| s.failed)
+    /// Where the writer is. A writer that failed holds the lock until it
+    /// has published what it had not written, so a message the producer
+    /// sends under the side key after asking comes after those.
+    pub(crate) fn writer(&self) -> Writer {
+        match self.shared.state.lock() {
+            Err(_) => Writer::Failed,
+            Ok(s) if s.failed => Writer::Failed,
+            Ok(s) if s.pending.is_empty() && !s.writing => Writer::Idle,
+            Ok(_) => Writer::Busy,
+        }
     }
 
     /// Pushes message `number` for the writer. With no room, a topic that
@@ -430,21 +450,45 @@ mod tests {
         (0..len).map(|i| (number as usize + i) as u8).collect()
     }
 
-    async fn side(session: &zenoh::Session, key: &str) -> SideCopies {
-        SideCopies {
+    /// A link's writer on one end of a socket pair, its side key `key`:
+    /// the writer and the reader's end.
+    async fn linked(session: &zenoh::Session, key: &str, drops: bool) -> (Burst, UnixStream) {
+        let (producer, reader) = UnixStream::pair().unwrap();
+        producer.set_nonblocking(true).unwrap();
+        let side = SideCopies {
             publisher: Arc::new(session.declare_publisher(key.to_string()).await.unwrap()),
             attachment: ZBytes::from(vec![7_u8]),
-        }
+        };
+        let burst = Burst::start(Arc::new(producer), side, "core/sink".into(), drops).unwrap();
+        (burst, reader)
+    }
+
+    /// The numbers of the copies published under `key`, as they come,
+    /// each checked for its body and attachment; the subscriber lives as
+    /// long as the first.
+    async fn side_copies(
+        session: &zenoh::Session,
+        key: &str,
+    ) -> (zenoh::pubsub::Subscriber<()>, Arc<Mutex<Vec<u32>>>) {
+        let copies = Arc::new(Mutex::new(Vec::new()));
+        let seen = copies.clone();
+        let subscriber = session
+            .declare_subscriber(key.to_string())
+            .callback(move |sample| {
+                let info = sample.source_info().expect("a side copy is numbered");
+                assert_eq!(sample.payload().to_bytes(), &body_of(info.source_sn())[..]);
+                assert_eq!(sample.attachment().unwrap().to_bytes(), &[7_u8][..]);
+                seen.lock().unwrap().push(info.source_sn());
+            })
+            .await
+            .unwrap();
+        (subscriber, copies)
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn a_burst_reaches_the_reader_whole_and_in_order_and_the_rest_on_drop() {
         let session = lone_session().await;
-        let (producer, mut reader) = UnixStream::pair().unwrap();
-        producer.set_nonblocking(true).unwrap();
-        let producer = Arc::new(producer);
-        let side = side(&session, "test/burst/whole").await;
-        let burst = Burst::start(producer.clone(), side, "core/sink".into(), false).unwrap();
+        let (burst, mut reader) = linked(&session, "test/burst/whole", false).await;
         let reading = std::thread::spawn(move || {
             let mut bytes = Vec::new();
             reader.read_to_end(&mut bytes).unwrap();
@@ -456,7 +500,6 @@ mod tests {
         // Dropped with frames still pending: they are written before the
         // writer stops and the socket closes.
         drop(burst);
-        drop(producer);
         let bytes = tokio::task::spawn_blocking(move || reading.join().unwrap())
             .await
             .unwrap();
@@ -467,27 +510,8 @@ mod tests {
     async fn what_a_stalled_reader_never_got_goes_under_the_side_key_once() {
         let session = lone_session().await;
         let key = "test/burst/stalled";
-        let copies = Arc::new(Mutex::new(Vec::new()));
-        let seen = copies.clone();
-        let _subscriber = session
-            .declare_subscriber(key)
-            .callback(move |sample| {
-                let info = sample.source_info().expect("a side copy is numbered");
-                assert_eq!(sample.payload().to_bytes(), &body_of(info.source_sn())[..]);
-                assert_eq!(sample.attachment().unwrap().to_bytes(), &[7_u8][..]);
-                seen.lock().unwrap().push(info.source_sn());
-            })
-            .await
-            .unwrap();
-        let (producer, mut reader) = UnixStream::pair().unwrap();
-        producer.set_nonblocking(true).unwrap();
-        let burst = Burst::start(
-            Arc::new(producer),
-            side(&session, key).await,
-            "core/sink".into(),
-            false,
-        )
-        .unwrap();
+        let (_subscriber, copies) = side_copies(&session, key).await;
+        let (burst, mut reader) = linked(&session, key, false).await;
         // The reader reads nothing: the socket fills, then what is pending,
         // and the writer gives up after the limit.
         let mut carried = Vec::new();
@@ -505,7 +529,7 @@ mod tests {
             .await
             .expect("the writer gives up within its limit")
             .unwrap();
-        assert!(burst.failed() && !burst.idle());
+        assert_eq!(burst.writer(), Writer::Failed);
         assert!(carried.len() > 200, "{} carried", carried.len());
         // The link's whole frames, then its end (the writer shut it).
         let mut bytes = Vec::new();
@@ -528,26 +552,8 @@ mod tests {
     async fn an_ended_link_of_a_stalled_reader_hands_its_rest_to_the_side_key_in_time() {
         let session = lone_session().await;
         let key = "test/burst/ended";
-        let copies = Arc::new(Mutex::new(Vec::new()));
-        let seen = copies.clone();
-        let _subscriber = session
-            .declare_subscriber(key)
-            .callback(move |sample| {
-                seen.lock()
-                    .unwrap()
-                    .push(sample.source_info().unwrap().source_sn());
-            })
-            .await
-            .unwrap();
-        let (producer, mut reader) = UnixStream::pair().unwrap();
-        producer.set_nonblocking(true).unwrap();
-        let burst = Burst::start(
-            Arc::new(producer),
-            side(&session, key).await,
-            "core/sink".into(),
-            false,
-        )
-        .unwrap();
+        let (_subscriber, copies) = side_copies(&session, key).await;
+        let (burst, mut reader) = linked(&session, key, false).await;
         // More than the socket holds, less than the pending frames' room.
         let carried: Vec<u32> = (1..=450).collect();
         for &number in &carried {
@@ -580,10 +586,7 @@ mod tests {
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn a_dropping_topic_keeps_its_link_through_a_stalled_reader() {
         let session = lone_session().await;
-        let (producer, mut reader) = UnixStream::pair().unwrap();
-        producer.set_nonblocking(true).unwrap();
-        let side = side(&session, "test/burst/dropping").await;
-        let burst = Burst::start(Arc::new(producer), side, "core/sink".into(), true).unwrap();
+        let (burst, mut reader) = linked(&session, "test/burst/dropping", true).await;
         // The reader reads nothing: once the socket and the pending frames
         // are full, what comes is refused at once (it goes under the side
         // key), and the link stays.
@@ -601,8 +604,9 @@ mod tests {
         }
         assert!(carried.len() > 200, "{} carried", carried.len());
         tokio::time::sleep(WRITE_LIMIT * 2).await;
-        assert!(
-            !burst.failed(),
+        assert_ne!(
+            burst.writer(),
+            Writer::Failed,
             "a stalled reader of a dropping topic does not end its link"
         );
         // The reader reads on: every carried frame, in order, then more.

@@ -18,7 +18,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::sample::SourceInfo;
 use zenoh::session::Session;
 
-use super::burst::{Burst, Pushed, SideCopies};
+use super::burst::{Burst, Pushed, SideCopies, Writer};
 use super::{
     BURST_GAP, FRAME_MESSAGE, FRAME_SIDE, HOLD_LIMIT, Hello, INLINE_MAX, WRITE_LIMIT, header,
 };
@@ -429,22 +429,19 @@ impl Links {
                     }
                 }
             }
-            let pushed = link
+            let (carried, keep) = link
                 .burst
                 .as_ref()
-                .map_or(Pushed::Refused, |b| b.push(number, body, may_drop));
-            match pushed {
-                Pushed::Carried => {
-                    link.carried = Some(number);
-                    any = true;
-                    true
-                }
-                Pushed::Refused => true,
-                Pushed::Failed => {
-                    ended.extend(link.side.take());
-                    false
-                }
+                .map_or(Pushed::Refused, |b| b.push(number, body, may_drop))
+                .carried_kept();
+            if carried {
+                link.carried = Some(number);
+                any = true;
             }
+            if !keep {
+                ended.extend(link.side.take());
+            }
+            keep
         });
         self.orphan(ended);
         any
@@ -517,7 +514,7 @@ impl Links {
                 if let Some(burst) = &link.burst {
                     // A writer that failed publishes what it held under the
                     // side key first: asking waits for it.
-                    let _ = burst.failed();
+                    burst.writer();
                 }
                 published.keep_first_error(side.put(payload, attachment, number));
             }
@@ -574,21 +571,14 @@ impl Link {
     /// enough. Whether it was written, and whether to keep the link.
     fn send(&mut self, number: u32, body: &[u8], may_drop: bool) -> (bool, bool) {
         if let Some(burst) = &self.burst {
-            if burst.failed() {
-                return (false, false);
-            }
-            if !burst.idle() {
+            match burst.writer() {
+                Writer::Idle => {}
+                Writer::Failed => return (false, false),
                 // Its writer still has a burst to write: a write of the
                 // producer's own would overtake it. A small message joins
                 // the burst; a larger one goes under the side key.
-                if body.len() >= LARGE {
-                    return (false, true);
-                }
-                return match burst.push(number, body, may_drop) {
-                    Pushed::Carried => (true, true),
-                    Pushed::Refused => (false, true),
-                    Pushed::Failed => (false, false),
-                };
+                Writer::Busy if body.len() >= LARGE => return (false, true),
+                Writer::Busy => return burst.push(number, body, may_drop).carried_kept(),
             }
         }
         #[cfg(target_os = "linux")]
