@@ -24,7 +24,7 @@ use zenoh::bytes::ZBytes;
 use zenoh::shm::{GarbageCollect, PosixShmProviderBackend, ShmProvider, ShmProviderBuilder};
 
 use crate::spec::TopicSpec;
-use crate::wire::codec::{Encode, Writer, encoded_len};
+use crate::wire::codec::{Encode, Writer};
 
 /// The environment variable that sets a node's shared-memory use: `off`,
 /// `on` (the defaults), or the size from which a message goes through
@@ -254,22 +254,22 @@ impl Shm {
         }
     }
 
-    /// Encodes `message` for `spec`: into a shared-memory chunk when it is
-    /// large enough, a subscriber is known (`readers_known`) and a chunk is
-    /// free, else into an ordinary buffer.
+    /// Encodes `message` for `spec`, `len` bytes encoded
+    /// ([`encoded_len`](crate::wire::codec::encoded_len)): into a
+    /// shared-memory chunk when it is large enough, a chunk is free and
+    /// Zenoh carries it to a reader (`through_zenoh`, asked only of a
+    /// message large enough), else into an ordinary buffer.
     pub(crate) fn payload<M: Encode + ?Sized>(
         &self,
         spec: &'static TopicSpec,
         message: &M,
-        readers_known: bool,
+        len: usize,
+        through_zenoh: impl FnOnce() -> bool,
     ) -> ZBytes {
-        // Sizing is a pass over the message without writing; it saves the
-        // buffer's regrowth (a copy of all written so far each time).
-        let len = encoded_len(message);
-        if readers_known
-            && len >= self.lowest.load(Relaxed)
+        if len >= self.lowest.load(Relaxed)
             && let Some(threshold) = self.threshold(spec)
             && len >= threshold.max(1)
+            && through_zenoh()
             && let Some(bytes) = self.encode_shared(spec, message, len)
         {
             return bytes;
@@ -604,6 +604,7 @@ fn shm_free() -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::wire::codec::encoded_len;
 
     #[test]
     fn settings_parse_from_the_environment_spellings() {
@@ -702,7 +703,7 @@ mod tests {
         let mut held = Vec::new();
         let mut shared = 0;
         while held.len() < 400 {
-            let bytes = shm.payload(&FRAMES, &frame, true);
+            let bytes = shm.payload(&FRAMES, &frame, encoded_len(&frame), || true);
             if bytes.as_shm().is_none() {
                 break;
             }
@@ -721,12 +722,14 @@ mod tests {
             shared > (6 << 20) && shared <= (14 << 20),
             "{shared} bytes held in shared memory"
         );
-        let over = shm.payload(&FRAMES, &frame, true);
+        let over = shm.payload(&FRAMES, &frame, encoded_len(&frame), || true);
         assert!(over.as_shm().is_none(), "past the bound: bytes");
         assert_eq!(over.to_bytes().len(), encoded_len(&frame));
         held.clear();
         assert!(
-            shm.payload(&FRAMES, &frame, true).as_shm().is_some(),
+            shm.payload(&FRAMES, &frame, encoded_len(&frame), || true)
+                .as_shm()
+                .is_some(),
             "readers let go: shared memory again"
         );
     }
@@ -738,7 +741,7 @@ mod tests {
         let shm = alone(SharedMemory::default());
         // Where the message went (then it is dropped: every reader let go).
         let chunk_of = |frame: &Vec<u8>| {
-            let bytes = shm.payload(&FRAMES, frame, true);
+            let bytes = shm.payload(&FRAMES, frame, encoded_len(frame), || true);
             bytes.as_shm().map(|chunk| chunk.as_ptr() as usize)
         };
         let large = vec![1u8; 1 << 20];

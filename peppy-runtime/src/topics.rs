@@ -531,8 +531,13 @@ pub fn emit<'a, M: Encode + ?Sized>(
     message: &M,
 ) -> impl Future<Output = Result<()>> + Send + use<'a, M> {
     let outlet = runner.outlet(spec);
-    let readers_known = outlet.is_some_and(Outlet::readers_known);
-    let payload = runner.shm().payload(spec, message, readers_known);
+    let encoded = encode(
+        runner,
+        spec,
+        message,
+        outlet.and_then(|o| o.direct.as_deref()),
+        outlet.is_some_and(Outlet::readers_known),
+    );
     // This future is built and moved for every message, so it holds little:
     // Zenoh's put is synchronous (its future is `ready(put.wait())`) and is
     // waited for here, keeping the publication builder out of it; the
@@ -542,11 +547,11 @@ pub fn emit<'a, M: Encode + ?Sized>(
         let Some(outlet) = outlet else {
             return Err(Error::Undeclared(format!("emitted topic `{}`", spec.name)));
         };
-        check_size(spec.name, payload.len())?;
+        check_size(spec.name, encoded.len())?;
         let sent = put(
             outlet.direct.as_deref(),
             &outlet.publisher,
-            payload,
+            encoded,
             outlet.attachment.clone(),
         );
         match sent {
@@ -557,17 +562,76 @@ pub fn emit<'a, M: Encode + ?Sized>(
     }
 }
 
+/// A message encoded for publication on an emitted or pairing topic.
+#[derive(Debug)]
+pub(crate) enum Encoded {
+    /// Into the shared memory of the topic's one direct link, whose consumer
+    /// alone reads it.
+    Placed(crate::direct::outlet::Placed),
+    /// For Zenoh: into the node's shared memory or an ordinary buffer.
+    Payload(ZBytes),
+}
+
+impl Encoded {
+    /// The encoded message's length.
+    pub(crate) fn len(&self) -> usize {
+        match self {
+            Encoded::Placed(placed) => placed.len(),
+            Encoded::Payload(payload) => payload.len(),
+        }
+    }
+}
+
+/// Encodes `message` for `spec`: straight into a direct link's shared
+/// memory when that link's consumer alone reads the topic
+/// ([`DirectOutlet::place`](crate::direct::outlet::DirectOutlet::place)),
+/// else for Zenoh (`readers_known`: whether anyone reads the topic through
+/// Zenoh or a sole link's side key), into the node's shared memory only
+/// when Zenoh is to carry it: not when a sole link that alone reads the
+/// topic takes it over its socket.
+pub(crate) fn encode<M: Encode + ?Sized>(
+    runner: &NodeRunner,
+    spec: &'static TopicSpec,
+    message: &M,
+    direct: Option<&crate::direct::outlet::DirectOutlet>,
+    readers_known: bool,
+) -> Encoded {
+    // Sizing is a pass over the message without writing; it saves the
+    // buffer's regrowth (a copy of all written so far each time).
+    let len = crate::wire::codec::encoded_len(message);
+    let placed = direct.and_then(|d| {
+        d.place(len, |region| {
+            let mut w = crate::wire::codec::Writer::fill(region);
+            message.encode(&mut w);
+            w.filled()
+        })
+    });
+    if let Some(placed) = placed {
+        return Encoded::Placed(placed);
+    }
+    let through_zenoh = || readers_known && !direct.is_some_and(|d| d.carries_alone(len));
+    Encoded::Payload(runner.shm().payload(spec, message, len, through_zenoh))
+}
+
 /// Publishes a topic's message through Zenoh, and over the topic's direct
 /// links when it has them (an emitted topic's or a pairing topic's).
 pub(crate) fn put(
     direct: Option<&crate::direct::outlet::DirectOutlet>,
     publisher: &zenoh::pubsub::Publisher<'static>,
-    payload: ZBytes,
+    encoded: Encoded,
     attachment: ZBytes,
 ) -> zenoh::Result<()> {
-    match direct {
-        Some(direct) => direct.publish(publisher, payload, attachment),
-        None => publisher.put(payload).attachment(attachment).wait(),
+    match (encoded, direct) {
+        (Encoded::Payload(payload), Some(direct)) => direct.publish(publisher, payload, attachment),
+        (Encoded::Payload(payload), None) => publisher.put(payload).attachment(attachment).wait(),
+        (Encoded::Placed(placed), Some(direct)) => {
+            direct.publish_placed(publisher, placed, attachment)
+        }
+        // Only a topic's direct links place a message; were one placed
+        // elsewhere, Zenoh still gets it.
+        (Encoded::Placed(placed), None) => {
+            publisher.put(placed.copied()).attachment(attachment).wait()
+        }
     }
 }
 

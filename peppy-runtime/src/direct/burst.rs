@@ -414,7 +414,7 @@ fn unwritten_frames(frames: &[u8], written: usize) -> impl Iterator<Item = (u32,
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use std::io::Read;
     use std::time::Duration;
 
@@ -422,7 +422,7 @@ mod tests {
 
     /// A session of its own, reaching nothing: a side key's copies come
     /// back to its own subscriber.
-    async fn lone_session() -> zenoh::Session {
+    pub(in crate::direct) async fn lone_session() -> zenoh::Session {
         let mut config = zenoh::Config::default();
         for (key, value) in [
             ("mode", r#""peer""#),

@@ -59,6 +59,41 @@ pub(crate) mod outlet {
         ) -> zenoh::Result<()> {
             publisher.put(payload).attachment(attachment).wait()
         }
+
+        pub(crate) fn carries_alone(&self, _len: usize) -> bool {
+            false
+        }
+
+        pub(crate) fn place(
+            &self,
+            _len: usize,
+            _encode: impl FnOnce(&mut [u8]) -> bool,
+        ) -> Option<Placed> {
+            None
+        }
+
+        pub(crate) fn publish_placed(
+            &self,
+            _publisher: &Publisher<'static>,
+            placed: Placed,
+            _attachment: ZBytes,
+        ) -> zenoh::Result<()> {
+            match placed {}
+        }
+    }
+
+    /// No message is placed in a link's memory.
+    #[derive(Debug)]
+    pub(crate) enum Placed {}
+
+    impl Placed {
+        pub(crate) fn len(&self) -> usize {
+            match *self {}
+        }
+
+        pub(crate) fn copied(self) -> ZBytes {
+            match self {}
+        }
     }
 
     /// No socket.

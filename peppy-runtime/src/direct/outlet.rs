@@ -58,6 +58,8 @@ pub(crate) struct DirectOutlet {
 #[derive(Debug, Default)]
 struct Links {
     open: Vec<Link>,
+    /// The id the next link gets.
+    next_id: u64,
     /// The last message's number.
     sequence: u32,
     /// When the last small message published while linked was out (the
@@ -104,6 +106,9 @@ impl Side {
 const ORPHAN_GRACE: Duration = Duration::from_secs(5);
 #[derive(Debug)]
 struct Link {
+    /// Which link of the topic it is: a message placed in its memory is
+    /// sent over it alone.
+    id: u64,
     /// Shared with its writer ([`Burst`]), which writes while the producer
     /// does not.
     stream: Arc<UnixStream>,
@@ -172,6 +177,111 @@ impl DirectOutlet {
             // next message on the links, where it reached its consumer
             // before its predecessors (still in Zenoh's batches) and waited
             // for them.
+            links.last = Some(clock.raw());
+        }
+        sent
+    }
+
+    /// Encodes a message of `len` bytes straight into the shared memory of
+    /// the topic's one link (`encode` fills the region it is given, and
+    /// says whether it filled it exactly), when that link's consumer alone
+    /// reads the topic and would be sent the message over it: a sole link
+    /// whose side key is read, with no subscriber of the topic's own key,
+    /// no ended link's side key still read, no burst being written and
+    /// nothing unread, and the message not part of a burst. Then the
+    /// message costs the producer one copy, its encoding, as through
+    /// Zenoh's shared memory, and no Zenoh put; [`Self::publish_placed`]
+    /// sends it.
+    ///
+    /// `None` (and `encode` not called, or its region let go) otherwise:
+    /// the message is encoded for Zenoh as any other.
+    #[cfg(target_os = "linux")]
+    pub(crate) fn place(
+        &self,
+        len: usize,
+        encode: impl FnOnce(&mut [u8]) -> bool,
+    ) -> Option<Placed> {
+        if !placed(len) || self.readers.load(Ordering::Relaxed) {
+            return None;
+        }
+        let clock = self.clock.get()?;
+        let mut links = self.links.lock().ok()?;
+        let now = clock.raw();
+        if links.orphans.len() + links.open.len() != 1
+            || links
+                .last
+                .is_some_and(|t| clock.delta_as_nanos(t, now) < burst_gap_ns(len))
+        {
+            return None;
+        }
+        let link = links.open.first_mut()?;
+        if !link.alone() {
+            return None;
+        }
+        let region = link.ring.as_mut()?.put_with(len, encode)?;
+        Some(Placed {
+            link: link.id,
+            region,
+        })
+    }
+
+    /// Where a message is encoded without direct links' shared memory: never
+    /// in a link's.
+    #[cfg(not(target_os = "linux"))]
+    pub(crate) fn place(
+        &self,
+        _len: usize,
+        _encode: impl FnOnce(&mut [u8]) -> bool,
+    ) -> Option<Placed> {
+        None
+    }
+
+    /// Whether a message of `len` bytes would go over the topic's one link,
+    /// through its socket, to a consumer that reads the topic through that
+    /// link and its side key alone: then Zenoh carries it only if the link
+    /// does not take it (a full socket), and the node's shared memory is
+    /// not worth a chunk for it (a 4 KiB round trip went from 61 to
+    /// 50 µs without).
+    pub(crate) fn carries_alone(&self, len: usize) -> bool {
+        if len >= INLINE_MAX || shared(len) || self.readers.load(Ordering::Relaxed) {
+            return false;
+        }
+        let Ok(links) = self.links.lock() else {
+            return false;
+        };
+        links.orphans.is_empty()
+            && links.open.len() == 1
+            && links.open[0].side.as_ref().is_some_and(|s| s.seen)
+    }
+
+    /// Publishes a message [placed](Self::place) in a link's memory: over
+    /// that link, numbered like every other, when its consumer still reads
+    /// the topic alone; else, copied out of the link's memory, as
+    /// [`Self::publish`] publishes any message.
+    pub(crate) fn publish_placed(
+        &self,
+        publisher: &Publisher<'static>,
+        placed: Placed,
+        attachment: ZBytes,
+    ) -> zenoh::Result<()> {
+        let Ok(mut links) = self.links.lock() else {
+            return publisher.put(placed.copied()).attachment(attachment).wait();
+        };
+        let placed = if self.readers.load(Ordering::Relaxed) {
+            placed
+        } else {
+            match links.carry_placed(placed, self.drops()) {
+                Ok(()) => {
+                    if let Some(clock) = self.clock.get() {
+                        links.last = Some(clock.raw());
+                    }
+                    return Ok(());
+                }
+                Err(placed) => placed,
+            }
+        };
+        let (sent, timed) = self.publish_locked(&mut links, publisher, placed.copied(), attachment);
+        if timed && let Some(clock) = self.clock.get() {
             links.last = Some(clock.raw());
         }
         sent
@@ -336,7 +446,10 @@ impl DirectOutlet {
             let key = side.publisher.key_expr();
             links.orphans.retain(|o| o.publisher.key_expr() != key);
         }
+        links.next_id += 1;
+        let id = links.next_id;
         links.open.push(Link {
+            id,
             stream: Arc::new(stream),
             consumer,
             side,
@@ -403,6 +516,45 @@ impl Links {
         });
         self.orphan(ended);
         any
+    }
+
+    /// Sends the next message, placed in a link's memory, over that link
+    /// when it is still the topic's only one and its consumer reads nothing
+    /// else (see [`DirectOutlet::place`]); the message back when it was not
+    /// written. A link that failed is closed.
+    fn carry_placed(&mut self, placed: Placed, may_drop: bool) -> Result<(), Placed> {
+        #[cfg(target_os = "linux")]
+        {
+            let number = self.sequence.wrapping_add(1);
+            if !self.orphans.is_empty() || self.open.len() != 1 {
+                return Err(placed);
+            }
+            let link = &mut self.open[0];
+            if link.id != placed.link || !link.alone() {
+                return Err(placed);
+            }
+            let region = &placed.region;
+            let head = shared_head(number, region.len(), region.offset());
+            let (written, keep) = link.write(&head, &[], may_drop);
+            if written {
+                link.carried = Some(number);
+                self.sequence = number;
+            }
+            if !keep {
+                let ended: Vec<Side> = self.open.drain(..).filter_map(|l| l.side).collect();
+                self.orphan(ended);
+            }
+            if !written {
+                return Err(placed);
+            }
+            placed.region.sent();
+            Ok(())
+        }
+        #[cfg(not(target_os = "linux"))]
+        {
+            let _ = may_drop;
+            match placed {}
+        }
     }
 
     /// Hands message `number`, one of a burst, to the writer of every sole
@@ -566,6 +718,18 @@ impl Side {
 }
 
 impl Link {
+    /// Whether its consumer reads the topic through it and its side key
+    /// alone and would be sent a large message over it now: its side key
+    /// is read, it has no burst to write, and nothing written is unread.
+    fn alone(&self) -> bool {
+        self.side.as_ref().is_some_and(|s| s.seen)
+            && self
+                .burst
+                .as_ref()
+                .is_none_or(|b| b.writer() == Writer::Idle)
+            && unread(&self.stream) == Some(0)
+    }
+
     /// Sends message `number`: in the link's shared memory when it is
     /// large and there is room, else through the socket when it is small
     /// enough. Whether it was written, and whether to keep the link.
@@ -648,6 +812,57 @@ fn shared_head(number: u32, len: usize, offset: u32) -> [u8; SHARED_HEADER] {
     head
 }
 
+/// A message encoded into a link's shared memory, to be sent over that
+/// link ([`DirectOutlet::place`]). Dropped unsent, its region is let go.
+#[cfg(target_os = "linux")]
+#[derive(Debug)]
+pub(crate) struct Placed {
+    link: u64,
+    region: super::segment::Region,
+}
+
+/// No link has shared memory here.
+#[cfg(not(target_os = "linux"))]
+#[derive(Debug)]
+pub(crate) enum Placed {}
+
+impl Placed {
+    /// Its message's length.
+    pub(crate) fn len(&self) -> usize {
+        #[cfg(target_os = "linux")]
+        {
+            self.region.len()
+        }
+        #[cfg(not(target_os = "linux"))]
+        match *self {}
+    }
+
+    /// Its message, copied out of the link's memory for Zenoh (the link
+    /// did not take it), its region let go.
+    pub(crate) fn copied(self) -> ZBytes {
+        #[cfg(target_os = "linux")]
+        {
+            ZBytes::from(self.region.bytes().to_vec())
+        }
+        #[cfg(not(target_os = "linux"))]
+        match self {}
+    }
+}
+
+/// Whether a message of `len` bytes may be encoded straight into a link's
+/// shared memory (where the link has some).
+fn placed(len: usize) -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        (super::segment::SHARED_MIN..=super::segment::PLACED_MAX).contains(&len)
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = len;
+        false
+    }
+}
+
 /// Whether a message of `len` bytes goes over a link through its shared
 /// memory (where the link has some).
 fn shared(len: usize) -> bool {
@@ -665,16 +880,33 @@ fn shared(len: usize) -> bool {
 /// How soon after the topic's previous message one of `len` bytes is part
 /// of a burst: [`BURST_GAP`], and more the larger it is. Below 16 KiB the
 /// socket carries a message, a copy through the kernel: half a nanosecond
-/// more per byte (8 µs at 16 KiB). From 16 KiB a link's shared memory
-/// does (where a link has none, the socket up to 128 KiB), one copy more
-/// for the producer than Zenoh's path: an eighth of a nanosecond per byte
-/// (69 µs at 384 KiB). Either is worth it to a consumer waiting for the
-/// message, not in a producer's flood: when the segment took messages up
-/// to 1.5 MiB, round trips of 1 MiB came 270 µs apart, and a flood of
-/// them (about 100 µs apart) went at ×0.79 of raw Zenoh's rate over links
-/// with a flat gap, where Zenoh alone carried them at its rate.
+/// more per byte (8 µs at 16 KiB). From 16 KiB to 384 KiB a link's shared
+/// memory does (where a link has none, the socket up to 128 KiB), one copy
+/// more for the producer than Zenoh's path when the message was encoded
+/// for Zenoh: an eighth of a nanosecond per byte (69 µs at 384 KiB).
+/// Either is worth it to a consumer waiting for the message, not in a
+/// producer's flood: when the segment took messages up to 1.5 MiB that
+/// way, round trips of 1 MiB came 270 µs apart, and a flood of them (about
+/// 100 µs apart) went at ×0.79 of raw Zenoh's rate over links with a flat
+/// gap, where Zenoh alone carried them at its rate.
+///
+/// Above 384 KiB only a message placed in the link's memory goes over it
+/// ([`DirectOutlet::place`]), which costs the producer no copy Zenoh's
+/// path does not: a 32nd of a nanosecond per byte (53 µs at 1 MiB). With
+/// an eighth, 1 MiB round trips on a fast day (100 to 150 µs from one
+/// message's end to the next's start) counted as bursts and went through
+/// Zenoh; with a 32nd, part of a 1 MiB flood goes over the link (what
+/// comes while its consumer is behind goes through Zenoh), and the flood
+/// went at ×1.19 of raw Zenoh's rate, peppy on the socket alone at ×1.17
+/// in the same run.
 fn burst_gap_ns(len: usize) -> u64 {
-    let per_byte = if shared(len) { len / 8 } else { len / 2 };
+    let per_byte = if shared(len) {
+        len / 8
+    } else if placed(len) {
+        len / 32
+    } else {
+        len / 2
+    };
     BURST_GAP.as_nanos() as u64 + per_byte as u64
 }
 
@@ -906,4 +1138,271 @@ async fn welcome(
         "a consumer on this host reads a topic over a direct link"
     );
     Ok(())
+}
+
+#[cfg(all(test, target_os = "linux"))]
+mod tests {
+    use std::io::Read;
+    use std::os::fd::AsFd;
+    use std::sync::atomic::AtomicBool;
+
+    use super::*;
+    use crate::direct::burst::tests::lone_session;
+    use crate::direct::segment::{PLACED_MAX, Segment};
+
+    /// A topic with one sole link whose side key is read: the topic, its
+    /// publisher, the consumer's end of the link, the link's memory as the
+    /// consumer maps it, and the side key's copies (number, body) as they
+    /// come.
+    struct Linked {
+        outlet: DirectOutlet,
+        publisher: Publisher<'static>,
+        reader: UnixStream,
+        memory: Segment,
+        copies: Arc<Mutex<Vec<SideCopy>>>,
+        _side: zenoh::pubsub::Subscriber<()>,
+    }
+
+    /// A side key's copy: its number and body.
+    type SideCopy = (u32, Vec<u8>);
+
+    async fn linked(session: &Session, key: &str) -> Linked {
+        let publisher = session.declare_publisher(key.to_string()).await.unwrap();
+        let readers = Arc::new(AtomicBool::new(false));
+        let outlet = DirectOutlet::new(session, &publisher, readers, QosProfile::Reliable, 1);
+        let (producer, mut reader) = UnixStream::pair().unwrap();
+        outlet
+            .attach(producer, "core/sink".into(), true, true)
+            .unwrap();
+        // The answer: `0`, the attachment (a length byte, then it), the
+        // source id; the segment's descriptor with its first byte.
+        let (first, fd) = super::super::segment::recv_with_fd(reader.as_fd()).unwrap();
+        assert_eq!(first, 0);
+        let memory = Segment::open(fd.expect("a segment")).unwrap();
+        let mut len = [0u8];
+        reader.read_exact(&mut len).unwrap();
+        let mut rest = vec![0u8; usize::from(len[0]) + 16 + 4];
+        reader.read_exact(&mut rest).unwrap();
+        let copies = Arc::new(Mutex::new(Vec::new()));
+        let seen = copies.clone();
+        let side = session
+            .declare_subscriber(super::super::side_key(key, "core/sink"))
+            .callback(move |sample| {
+                let number = sample.source_info().expect("numbered").source_sn();
+                let body = sample.payload().to_bytes().to_vec();
+                seen.lock().unwrap().push((number, body));
+            })
+            .await
+            .unwrap();
+        let linked = Linked {
+            outlet,
+            publisher,
+            reader,
+            memory,
+            copies,
+            _side: side,
+        };
+        // Small messages until the side key's subscription is seen (its
+        // frame announces it).
+        tokio::time::timeout(Duration::from_secs(10), async {
+            while !linked.outlet.links.lock().unwrap().open[0]
+                .side
+                .as_ref()
+                .unwrap()
+                .seen
+            {
+                linked.publish(&[1, 2, 3]);
+                tokio::time::sleep(Duration::from_millis(10)).await;
+            }
+        })
+        .await
+        .expect("the side key's subscription is seen");
+        linked.drain();
+        linked
+    }
+
+    impl Linked {
+        fn publish(&self, body: &[u8]) {
+            let payload = ZBytes::from(body.to_vec());
+            let attachment = ZBytes::from(vec![7u8]);
+            self.outlet
+                .publish(&self.publisher, payload, attachment)
+                .unwrap();
+        }
+
+        /// Reads what the link brought so far (whole frames: the producer
+        /// writes each at once): a large message goes over a link only to
+        /// a consumer that has read everything.
+        fn drain(&self) {
+            let mut reader = &self.reader;
+            reader.set_nonblocking(true).unwrap();
+            let mut buf = [0u8; 4096];
+            while reader.read(&mut buf).is_ok_and(|n| n > 0) {}
+            reader.set_nonblocking(false).unwrap();
+        }
+
+        /// Places `body` as [`crate::topics::encode`] would.
+        fn place(&self, body: &[u8]) -> Option<Placed> {
+            self.outlet.place(body.len(), |region| {
+                region.copy_from_slice(body);
+                true
+            })
+        }
+
+        /// The frames on the link from here until `number`: (kind, number,
+        /// length, offset of a shared frame).
+        fn frames_until(&mut self, number: u32) -> Vec<(u8, u32, u32, Option<u32>)> {
+            self.reader
+                .set_read_timeout(Some(Duration::from_secs(10)))
+                .unwrap();
+            let mut frames = Vec::new();
+            loop {
+                let mut head = [0u8; HEADER];
+                self.reader.read_exact(&mut head).unwrap();
+                let n = u32::from_le_bytes(head[1..5].try_into().unwrap());
+                let len = u32::from_le_bytes(head[5..9].try_into().unwrap());
+                let offset = match head[0] {
+                    FRAME_SHARED => {
+                        let mut offset = [0u8; 4];
+                        self.reader.read_exact(&mut offset).unwrap();
+                        Some(u32::from_le_bytes(offset))
+                    }
+                    FRAME_MESSAGE => {
+                        let mut body = vec![0u8; len as usize];
+                        self.reader.read_exact(&mut body).unwrap();
+                        None
+                    }
+                    _ => None,
+                };
+                frames.push((head[0], n, len, offset));
+                if n == number && head[0] != FRAME_SIDE {
+                    return frames;
+                }
+            }
+        }
+
+        fn sequence(&self) -> u32 {
+            self.outlet.links.lock().unwrap().sequence
+        }
+    }
+
+    fn body(len: usize, seed: u8) -> Vec<u8> {
+        (0..len)
+            .map(|i| (i as u8).wrapping_mul(31) ^ seed)
+            .collect()
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_message_placed_in_a_sole_links_memory_is_sent_over_it_in_place() {
+        let session = lone_session().await;
+        let mut link = linked(&session, "test/placed/sent").await;
+        let message = body(1 << 20, 5);
+        let placed = link.place(&message).expect("placed: the link alone reads");
+        let number = link.sequence() + 1;
+        link.outlet
+            .publish_placed(&link.publisher, placed, ZBytes::from(vec![7u8]))
+            .unwrap();
+        let frames = link.frames_until(number);
+        let &(kind, _, len, offset) = frames.last().unwrap();
+        assert_eq!((kind, len as usize), (FRAME_SHARED, message.len()));
+        let got = link
+            .memory
+            .take(offset.unwrap(), len)
+            .expect("a region held");
+        assert!(got[..] == message[..], "the message as it was encoded");
+        assert!(
+            link.copies
+                .lock()
+                .unwrap()
+                .iter()
+                .all(|(n, _)| *n != number),
+            "no copy under the side key"
+        );
+        // Let go by the consumer: the next is placed where it was.
+        drop(got);
+        let next = link.place(&body(1 << 20, 6)).unwrap();
+        assert_eq!(Some(next.region.offset()), offset);
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_placed_message_never_sent_lets_its_region_go() {
+        let session = lone_session().await;
+        let link = linked(&session, "test/placed/dropped").await;
+        let first = link.place(&body(64 << 10, 1)).unwrap();
+        let offset = first.region.offset();
+        drop(first);
+        let again = link.place(&body(64 << 10, 2)).unwrap();
+        assert_eq!(again.region.offset(), offset, "its region was let go");
+        // An encoding that does not fill its region places nothing.
+        drop(again);
+        assert!(link.outlet.place(64 << 10, |_| false).is_none());
+        assert_eq!(
+            link.place(&body(64 << 10, 3)).unwrap().region.offset(),
+            offset
+        );
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn nothing_is_placed_for_a_topic_zenoh_also_carries_or_out_of_bounds() {
+        let session = lone_session().await;
+        let link = linked(&session, "test/placed/refused").await;
+        assert!(link.place(&body(16 << 10, 1)).is_some());
+        assert!(
+            link.place(&body((16 << 10) - 1, 1)).is_none(),
+            "small: the socket"
+        );
+        assert!(link.place(&body(PLACED_MAX + 1, 1)).is_none(), "too large");
+        assert!(link.outlet.carries_alone(4096), "4 KiB: the socket alone");
+        link.publish(&[1]);
+        assert!(
+            link.place(&body(1 << 20, 1)).is_none(),
+            "the consumer has not read the link's last frame"
+        );
+        link.drain();
+        tokio::time::sleep(Duration::from_millis(5)).await;
+        assert!(
+            link.place(&body(1 << 20, 1)).is_some(),
+            "read: placed again"
+        );
+        link.outlet.readers.store(true, Ordering::Relaxed);
+        assert!(
+            link.place(&body(1 << 20, 1)).is_none(),
+            "a subscriber of the topic's own key needs Zenoh's copy"
+        );
+        assert!(!link.outlet.carries_alone(4096));
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_placed_message_whose_link_ended_goes_under_the_side_key_whole() {
+        let session = lone_session().await;
+        let link = linked(&session, "test/placed/ended").await;
+        let message = body(1 << 20, 9);
+        let placed = link.place(&message).unwrap();
+        let number = link.sequence() + 1;
+        // The consumer goes before the message is sent.
+        let Linked {
+            outlet,
+            publisher,
+            reader,
+            copies,
+            _side,
+            ..
+        } = link;
+        drop(reader);
+        outlet
+            .publish_placed(&publisher, placed, ZBytes::from(vec![7u8]))
+            .unwrap();
+        assert_eq!(outlet.links(), 0, "the ended link is closed");
+        tokio::time::timeout(Duration::from_secs(10), async {
+            loop {
+                if let Some((_, got)) = copies.lock().unwrap().iter().find(|(n, _)| *n == number) {
+                    assert!(got[..] == message[..], "whole, as it was encoded");
+                    return;
+                }
+                tokio::time::sleep(Duration::from_millis(10)).await;
+            }
+        })
+        .await
+        .expect("the message comes under the side key");
+    }
 }

@@ -59,6 +59,13 @@ pub(crate) const CAPACITY: usize = 32 << 20;
 /// (not measured at 384 KiB) it won on both sides of it.
 pub(crate) const MAX_MESSAGE: usize = 3 << 17;
 
+/// The largest message encoded straight into a segment
+/// ([`Ring::put_with`]): with no copy of the producer's own, the segment
+/// costs no more memory traffic than Zenoh's shared memory at any size, and
+/// takes its threads' wake-ups out of the way. A quarter of the segment, so
+/// a reader holding one such message leaves room for the next.
+pub(crate) const PLACED_MAX: usize = CAPACITY / 4;
+
 /// The most bytes of a link's regions held at once: past it, while its
 /// reader holds messages, the link's messages go through Zenoh alone.
 const IN_FLIGHT: usize = 16 << 20;
@@ -132,7 +139,8 @@ impl Mapping {
 /// and the regions its consumer may still hold.
 #[derive(Debug)]
 pub(crate) struct Ring {
-    map: Mapping,
+    /// Shared with the regions given out and not yet sent ([`Region`]).
+    map: Arc<Mapping>,
     /// Regions given out, oldest first: (offset, bytes taken).
     regions: VecDeque<(usize, usize)>,
     /// Where the next region goes when it fits there.
@@ -163,7 +171,7 @@ impl Ring {
                 SealFlag::F_SEAL_SHRINK | SealFlag::F_SEAL_GROW | SealFlag::F_SEAL_SEAL,
             ),
         )?;
-        let map = Mapping::map(fd.as_fd(), CAPACITY)?;
+        let map = Arc::new(Mapping::map(fd.as_fd(), CAPACITY)?);
         let ring = Ring {
             map,
             regions: VecDeque::new(),
@@ -179,28 +187,56 @@ impl Ring {
         if bytes.len() > MAX_MESSAGE {
             return None;
         }
+        let region = self.put_with(bytes.len(), |dst| {
+            dst.copy_from_slice(bytes);
+            true
+        })?;
+        Some(region.sent())
+    }
+
+    /// Lets `write` fill a free region of `len` bytes (at most
+    /// [`PLACED_MAX`]), marked held: the region, or `None` when no region
+    /// is free for it or `write` says it did not fill it. A region dropped
+    /// before it is [sent](Region::sent) is free again.
+    pub(crate) fn put_with(
+        &mut self,
+        len: usize,
+        write: impl FnOnce(&mut [u8]) -> bool,
+    ) -> Option<Region> {
+        if len > PLACED_MAX {
+            return None;
+        }
         self.reclaim();
-        let size = (REGION_HEAD + bytes.len()).next_multiple_of(ALIGN);
+        let size = (REGION_HEAD + len).next_multiple_of(ALIGN);
         if self.held > 0 && self.held + size > IN_FLIGHT {
             return None;
         }
         let offset = self.place(size)?;
-        // SAFETY: the region [offset, offset + size) is within the mapping
-        // (`place`) and free: its consumer cleared its flag, or never had
-        // it. Nothing else in this process refers to it.
-        unsafe {
-            std::ptr::copy_nonoverlapping(
-                bytes.as_ptr(),
-                self.map.base.as_ptr().add(offset + REGION_HEAD),
-                bytes.len(),
-            );
-        }
-        // Release: the consumer that sees the flag set sees the bytes.
-        self.map.flag(offset).store(1, Ordering::Release);
+        let region = Region {
+            map: self.map.clone(),
+            offset: u32::try_from(offset).ok()?,
+            len,
+            sent: false,
+        };
+        // Held before it is written: dropped unfilled, it is let go like
+        // any region its consumer is done with.
+        self.map.flag(offset).store(1, Ordering::Relaxed);
         self.regions.push_back((offset, size));
         self.held += size;
         self.head = offset + size;
-        u32::try_from(offset).ok()
+        // SAFETY: the region [offset, offset + size) is within the mapping
+        // (`place`) and was free: its consumer cleared its flag, or never
+        // had it. Nothing else in this process refers to its bytes until
+        // the region is sent, and no consumer reads them before.
+        let bytes = unsafe {
+            std::slice::from_raw_parts_mut(self.map.base.as_ptr().add(offset + REGION_HEAD), len)
+        };
+        if !write(bytes) {
+            return None;
+        }
+        // Release: the consumer that sees the flag set sees the bytes.
+        self.map.flag(offset).store(1, Ordering::Release);
+        Some(region)
     }
 
     /// Frees the region at `offset`, which its consumer never got (the
@@ -243,6 +279,61 @@ impl Ring {
             }
         } else {
             (self.head + size <= tail).then_some(self.head)
+        }
+    }
+}
+
+/// A region the producer has filled and not yet named to its consumer:
+/// its bytes stay as written while it is held, and it is let go when
+/// dropped unless [sent](Region::sent).
+#[derive(Debug)]
+pub(crate) struct Region {
+    map: Arc<Mapping>,
+    offset: u32,
+    len: usize,
+    sent: bool,
+}
+
+impl Region {
+    /// Where it is in the segment.
+    pub(crate) fn offset(&self) -> u32 {
+        self.offset
+    }
+
+    /// Its message's length.
+    pub(crate) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Its message.
+    pub(crate) fn bytes(&self) -> &[u8] {
+        // SAFETY: within the mapping (`Ring::put_with`), which `map` keeps
+        // alive; held, so no one else writes it.
+        unsafe {
+            std::slice::from_raw_parts(
+                self.map
+                    .base
+                    .as_ptr()
+                    .add(self.offset as usize + REGION_HEAD),
+                self.len,
+            )
+        }
+    }
+
+    /// Its frame is written: the consumer lets it go from now on. Its
+    /// offset.
+    pub(crate) fn sent(mut self) -> u32 {
+        self.sent = true;
+        self.offset
+    }
+}
+
+impl Drop for Region {
+    fn drop(&mut self) {
+        if !self.sent {
+            self.map
+                .flag(self.offset as usize)
+                .store(0, Ordering::Release);
         }
     }
 }

@@ -28,16 +28,18 @@ impl PairedSender {
         if !self.participant.is_paired() {
             return Ok(());
         }
-        let payload = self.runner.shm().payload(
+        let encoded = crate::topics::encode(
+            &self.runner,
             &self.spec.topic,
             message,
+            self.direct.as_deref(),
             self.readers_known.load(Ordering::Relaxed),
         );
-        crate::topics::check_size(self.spec.topic.name, payload.len())?;
+        crate::topics::check_size(self.spec.topic.name, encoded.len())?;
         let sent = crate::topics::put(
             self.direct.as_deref(),
             &self.publisher,
-            payload,
+            encoded,
             self.attachment.clone(),
         );
         match sent {

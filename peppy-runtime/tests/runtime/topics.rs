@@ -742,8 +742,9 @@ async fn until_frames_subscribed(hub: &crate::support::Hub, ns: &str, yes: bool,
 /// link and the producer's side key alone: no subscription of the topic's
 /// own key is left (Zenoh no longer brings it a copy of what the link
 /// carries), and every message still comes once, in order, whether the
-/// link carries it (small, or through its shared memory) or Zenoh does
-/// (larger than the link takes, or in a burst). When the producer stops,
+/// link carries it (small, or through its shared memory, where the
+/// largest are encoded when they come one at a time) or Zenoh does (in a
+/// burst, or while the link's memory is full). When the producer stops,
 /// the consumer subscribes to the topic's key again, and a restarted
 /// producer is read from its first message and linked anew.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -788,6 +789,21 @@ async fn a_pinned_consumer_on_a_link_reads_through_it_and_its_side_key_alone() {
         "every small frame over the link"
     );
     seq += 50;
+    // One at a time, each read before the next (a round trip's pace): the
+    // largest frames come over the link too, encoded straight into its
+    // shared memory.
+    let large = |seq: u32| patterned(seq, 1600 << 10);
+    let before = direct(&station);
+    for s in seq..seq + 10 {
+        emit(&flood, &FLOOD_OUT, &large(s)).await.unwrap();
+        read_in_order(&station, s, 1, large).await;
+    }
+    assert_eq!(
+        direct(&station) - before,
+        10,
+        "every large frame over the link"
+    );
+    seq += 10;
     for s in seq..seq + 300 {
         emit(&flood, &FLOOD_OUT, &frame(s)).await.unwrap();
     }
