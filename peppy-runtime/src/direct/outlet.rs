@@ -185,13 +185,18 @@ impl DirectOutlet {
     /// Encodes a message of `len` bytes straight into the shared memory of
     /// the topic's one link (`encode` fills the region it is given, and
     /// says whether it filled it exactly), when that link's consumer alone
-    /// reads the topic and would be sent the message over it: a sole link
-    /// whose side key is read, with no subscriber of the topic's own key,
-    /// no ended link's side key still read, no burst being written and
-    /// nothing unread, and the message not part of a burst. Then the
-    /// message costs the producer one copy, its encoding, as through
-    /// Zenoh's shared memory, and no Zenoh put; [`Self::publish_placed`]
-    /// sends it.
+    /// reads the topic: a sole link whose side key is read, with no
+    /// subscriber of the topic's own key, no ended link's side key still
+    /// read and no burst of small messages being written, and room in its
+    /// memory. Then the message costs the producer one copy, its encoding,
+    /// as through Zenoh's shared memory, and no Zenoh put;
+    /// [`Self::publish_placed`] sends it.
+    ///
+    /// Neither a burst nor a consumer behind keeps such a message off the
+    /// link, as they keep a message copied into its memory: that copy is
+    /// what they avoid, and a placed message has none. The link then
+    /// carries a flood whole while its memory has room, and a round trip's
+    /// messages never pass for a burst.
     ///
     /// `None` (and `encode` not called, or its region let go) otherwise:
     /// the message is encoded for Zenoh as any other.
@@ -204,14 +209,8 @@ impl DirectOutlet {
         if !placed(len) || self.readers.load(Ordering::Relaxed) {
             return None;
         }
-        let clock = self.clock.get()?;
         let mut links = self.links.lock().ok()?;
-        let now = clock.raw();
-        if links.orphans.len() + links.open.len() != 1
-            || links
-                .last
-                .is_some_and(|t| clock.delta_as_nanos(t, now) < burst_gap_ns(len))
-        {
+        if links.orphans.len() + links.open.len() != 1 {
             return None;
         }
         let link = links.open.first_mut()?;
@@ -719,15 +718,15 @@ impl Side {
 
 impl Link {
     /// Whether its consumer reads the topic through it and its side key
-    /// alone and would be sent a large message over it now: its side key
-    /// is read, it has no burst to write, and nothing written is unread.
+    /// alone, and a frame of the producer's own may be written now: its
+    /// side key is read, and it has no burst to write (a frame written
+    /// now would overtake it).
     fn alone(&self) -> bool {
         self.side.as_ref().is_some_and(|s| s.seen)
             && self
                 .burst
                 .as_ref()
                 .is_none_or(|b| b.writer() == Writer::Idle)
-            && unread(&self.stream) == Some(0)
     }
 
     /// Sends message `number`: in the link's shared memory when it is
@@ -880,33 +879,18 @@ fn shared(len: usize) -> bool {
 /// How soon after the topic's previous message one of `len` bytes is part
 /// of a burst: [`BURST_GAP`], and more the larger it is. Below 16 KiB the
 /// socket carries a message, a copy through the kernel: half a nanosecond
-/// more per byte (8 µs at 16 KiB). From 16 KiB to 384 KiB a link's shared
-/// memory does (where a link has none, the socket up to 128 KiB), one copy
-/// more for the producer than Zenoh's path when the message was encoded
-/// for Zenoh: an eighth of a nanosecond per byte (69 µs at 384 KiB).
-/// Either is worth it to a consumer waiting for the message, not in a
-/// producer's flood: when the segment took messages up to 1.5 MiB that
-/// way, round trips of 1 MiB came 270 µs apart, and a flood of them (about
-/// 100 µs apart) went at ×0.79 of raw Zenoh's rate over links with a flat
-/// gap, where Zenoh alone carried them at its rate.
-///
-/// Above 384 KiB only a message placed in the link's memory goes over it
-/// ([`DirectOutlet::place`]), which costs the producer no copy Zenoh's
-/// path does not: a 32nd of a nanosecond per byte (53 µs at 1 MiB). With
-/// an eighth, 1 MiB round trips on a fast day (100 to 150 µs from one
-/// message's end to the next's start) counted as bursts and went through
-/// Zenoh; with a 32nd, part of a 1 MiB flood goes over the link (what
-/// comes while its consumer is behind goes through Zenoh), and the flood
-/// went at ×1.19 of raw Zenoh's rate, peppy on the socket alone at ×1.17
-/// in the same run.
+/// more per byte (8 µs at 16 KiB). From 16 KiB a link's shared memory
+/// does (where a link has none, the socket up to 128 KiB), one copy more
+/// for the producer than Zenoh's path: an eighth of a nanosecond per byte
+/// (69 µs at 384 KiB). Either is worth it to a consumer waiting for the
+/// message, not in a producer's flood: when the segment took messages up
+/// to 1.5 MiB, round trips of 1 MiB came 270 µs apart, and a flood of
+/// them (about 100 µs apart) went at ×0.79 of raw Zenoh's rate over links
+/// with a flat gap, where Zenoh alone carried them at its rate. A message
+/// placed in the link's memory ([`DirectOutlet::place`]) has no such copy
+/// and no gap.
 fn burst_gap_ns(len: usize) -> u64 {
-    let per_byte = if shared(len) {
-        len / 8
-    } else if placed(len) {
-        len / 32
-    } else {
-        len / 2
-    };
+    let per_byte = if shared(len) { len / 8 } else { len / 2 };
     BURST_GAP.as_nanos() as u64 + per_byte as u64
 }
 
@@ -1217,7 +1201,6 @@ mod tests {
         })
         .await
         .expect("the side key's subscription is seen");
-        linked.drain();
         linked
     }
 
@@ -1228,17 +1211,6 @@ mod tests {
             self.outlet
                 .publish(&self.publisher, payload, attachment)
                 .unwrap();
-        }
-
-        /// Reads what the link brought so far (whole frames: the producer
-        /// writes each at once): a large message goes over a link only to
-        /// a consumer that has read everything.
-        fn drain(&self) {
-            let mut reader = &self.reader;
-            reader.set_nonblocking(true).unwrap();
-            let mut buf = [0u8; 4096];
-            while reader.read(&mut buf).is_ok_and(|n| n > 0) {}
-            reader.set_nonblocking(false).unwrap();
         }
 
         /// Places `body` as [`crate::topics::encode`] would.
@@ -1353,17 +1325,10 @@ mod tests {
         );
         assert!(link.place(&body(PLACED_MAX + 1, 1)).is_none(), "too large");
         assert!(link.outlet.carries_alone(4096), "4 KiB: the socket alone");
+        // Right after another message, not yet read: a placed message
+        // costs no copy a burst or a busy consumer would be spared.
         link.publish(&[1]);
-        assert!(
-            link.place(&body(1 << 20, 1)).is_none(),
-            "the consumer has not read the link's last frame"
-        );
-        link.drain();
-        tokio::time::sleep(Duration::from_millis(5)).await;
-        assert!(
-            link.place(&body(1 << 20, 1)).is_some(),
-            "read: placed again"
-        );
+        assert!(link.place(&body(1 << 20, 1)).is_some(), "in a burst too");
         link.outlet.readers.store(true, Ordering::Relaxed);
         assert!(
             link.place(&body(1 << 20, 1)).is_none(),

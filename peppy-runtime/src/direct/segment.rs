@@ -6,8 +6,8 @@
 //! Each link has a segment of its own: a sealed `memfd` the producer
 //! makes when the consumer links and sends with its answer
 //! (`SCM_RIGHTS`). The producer copies a message into a free region of
-//! it and writes a frame naming the region over the socket, which is the
-//! consumer's wake-up. The consumer hands the region on as the message's
+//! it, or encodes it there ([`Ring::put_with`]), and writes a frame
+//! naming the region over the socket, which is the consumer's wake-up. The consumer hands the region on as the message's
 //! bytes, without a copy, and marks it free when the last handle on those
 //! bytes drops. A segment of its own per link means a link that closes
 //! takes nothing from any other, and a consumer that still holds a
@@ -46,17 +46,18 @@ pub(crate) const SHARED_MIN: usize = 16 * 1024;
 /// take memory (see the module's documentation for how much).
 pub(crate) const CAPACITY: usize = 32 << 20;
 
-/// The largest message a segment carries; a larger one goes through
-/// Zenoh alone. A message in shared memory costs the producer a copy
-/// Zenoh's shared memory does not, and what a copy costs here moves two-
-/// to threefold with the host (docs/PERFORMANCE_HISTORY.md, "The Zenoh
+/// The largest message copied into a segment (one already encoded for
+/// Zenoh); a larger one goes through Zenoh alone, unless it is encoded
+/// straight into the segment ([`PLACED_MAX`]). The copy costs the producer
+/// one Zenoh's shared memory does not, and what a copy costs here moves
+/// two- to threefold with the host (docs/PERFORMANCE_HISTORY.md, "The Zenoh
 /// copy, floods, and the segment's bound"): with fast copies the segment
-/// still won at 1 MiB (round trips of 266 to 273 µs against 279 to
-/// 302 µs through Zenoh) and at 256 and 512 KiB, with slow ones it lost
-/// from 512 KiB (282 to 304 µs against 260 to 274 µs; 1 MiB 766 to
-/// 1058 µs against 458 to 539 µs). At 384 KiB it was even with slow
-/// copies (227 to 242 µs against 229 to 233 µs), and with fast ones
-/// (not measured at 384 KiB) it won on both sides of it.
+/// still won at 1 MiB (round trips of 266 to 273 µs against 279 to 302 µs
+/// through Zenoh) and at 256 and 512 KiB, with slow ones it lost from 512
+/// KiB (282 to 304 µs against 260 to 274 µs; 1 MiB 766 to 1058 µs against
+/// 458 to 539 µs). At 384 KiB it was even with slow copies (227 to 242 µs
+/// against 229 to 233 µs), and with fast ones (not measured at 384 KiB) it
+/// won on both sides of it.
 pub(crate) const MAX_MESSAGE: usize = 3 << 17;
 
 /// The largest message encoded straight into a segment
