@@ -108,6 +108,7 @@ const ORPHAN_GRACE: Duration = Duration::from_secs(5);
 struct Link {
     /// Which link of the topic it is: a message placed in its memory is
     /// sent over it alone.
+    #[cfg_attr(not(target_os = "linux"), allow(dead_code))]
     id: u64,
     /// Shared with its writer ([`Burst`]), which writes while the producer
     /// does not.
@@ -849,17 +850,10 @@ impl Placed {
 }
 
 /// Whether a message of `len` bytes may be encoded straight into a link's
-/// shared memory (where the link has some).
+/// shared memory.
+#[cfg(target_os = "linux")]
 fn placed(len: usize) -> bool {
-    #[cfg(target_os = "linux")]
-    {
-        (super::segment::SHARED_MIN..=super::segment::PLACED_MAX).contains(&len)
-    }
-    #[cfg(not(target_os = "linux"))]
-    {
-        let _ = len;
-        false
-    }
+    (super::segment::SHARED_MIN..=super::segment::PLACED_MAX).contains(&len)
 }
 
 /// Whether a message of `len` bytes goes over a link through its shared
