@@ -210,19 +210,25 @@ impl DirectOutlet {
         if !placed(len) || self.readers.load(Ordering::Relaxed) {
             return None;
         }
-        let mut links = self.links.lock().ok()?;
-        if links.orphans.len() + links.open.len() != 1 {
+        let (link, mut region) = {
+            let mut links = self.links.lock().ok()?;
+            if links.orphans.len() + links.open.len() != 1 {
+                return None;
+            }
+            let link = links.open.first_mut()?;
+            if !link.alone() {
+                return None;
+            }
+            (link.id, link.ring.as_mut()?.reserve(len)?)
+        };
+        // Encoded outside the topic's lock: the region is held, and this
+        // call's alone. Other publications and links go on meanwhile, and
+        // an encoder that panics poisons nothing (its region is let go).
+        if !encode(region.bytes_mut()) {
             return None;
         }
-        let link = links.open.first_mut()?;
-        if !link.alone() {
-            return None;
-        }
-        let region = link.ring.as_mut()?.put_with(len, encode)?;
-        Some(Placed {
-            link: link.id,
-            region,
-        })
+        region.filled();
+        Some(Placed { link, region })
     }
 
     /// Where a message is encoded without direct links' shared memory: never
@@ -722,6 +728,7 @@ impl Link {
     /// alone, and a frame of the producer's own may be written now: its
     /// side key is read, and it has no burst to write (a frame written
     /// now would overtake it).
+    #[cfg(target_os = "linux")]
     fn alone(&self) -> bool {
         self.side.as_ref().is_some_and(|s| s.seen)
             && self
@@ -1322,13 +1329,56 @@ mod tests {
         // Right after another message, not yet read: a placed message
         // costs no copy a burst or a busy consumer would be spared.
         link.publish(&[1]);
-        assert!(link.place(&body(1 << 20, 1)).is_some(), "in a burst too");
+        assert!(
+            link.place(&body(1 << 20, 1)).is_some(),
+            "past a frame not yet read"
+        );
         link.outlet.readers.store(true, Ordering::Relaxed);
         assert!(
             link.place(&body(1 << 20, 1)).is_none(),
             "a subscriber of the topic's own key needs Zenoh's copy"
         );
         assert!(!link.outlet.carries_alone(4096));
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_placed_message_goes_through_zenoh_if_a_reader_came_meanwhile() {
+        let session = lone_session().await;
+        let mut link = linked(&session, "test/placed/reader").await;
+        let message = body(1 << 20, 4);
+        let placed = link.place(&message).unwrap();
+        let number = link.sequence() + 1;
+        // A subscriber of the topic's own key is heard of before the
+        // message is sent: it needs Zenoh's copy, and so the consumer gets
+        // it under its side key, numbered, not over the link.
+        link.outlet.readers.store(true, Ordering::Relaxed);
+        link.outlet
+            .publish_placed(&link.publisher, placed, ZBytes::from(vec![7u8]))
+            .unwrap();
+        assert_eq!(link.sequence(), number, "numbered once");
+        tokio::time::timeout(Duration::from_secs(10), async {
+            loop {
+                let copies = link.copies.lock().unwrap().clone();
+                if let Some((_, got)) = copies.iter().find(|(n, _)| *n == number) {
+                    assert!(got[..] == message[..], "whole, as it was encoded");
+                    return;
+                }
+                drop(copies);
+                tokio::time::sleep(Duration::from_millis(10)).await;
+            }
+        })
+        .await
+        .expect("the message comes under the side key");
+        // The link carried nothing of it: the next small message is the
+        // next frame after the ones before it.
+        link.publish(&[9]);
+        let frames = link.frames_until(number + 1);
+        assert!(
+            frames
+                .iter()
+                .all(|&(kind, n, _, _)| n != number || kind == FRAME_SIDE),
+            "no frame of the placed message: {frames:?}"
+        );
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

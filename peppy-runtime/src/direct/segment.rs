@@ -6,7 +6,7 @@
 //! Each link has a segment of its own: a sealed `memfd` the producer
 //! makes when the consumer links and sends with its answer
 //! (`SCM_RIGHTS`). The producer copies a message into a free region of
-//! it, or encodes it there ([`Ring::put_with`]), and writes a frame
+//! it, or encodes it there ([`Ring::reserve`]), and writes a frame
 //! naming the region over the socket, which is the consumer's wake-up. The consumer hands the region on as the message's
 //! bytes, without a copy, and marks it free when the last handle on those
 //! bytes drops. A segment of its own per link means a link that closes
@@ -61,10 +61,12 @@ pub(crate) const CAPACITY: usize = 32 << 20;
 pub(crate) const MAX_MESSAGE: usize = 3 << 17;
 
 /// The largest message encoded straight into a segment
-/// ([`Ring::put_with`]): with no copy of the producer's own, the segment
+/// ([`Ring::reserve`]): with no copy of the producer's own, the segment
 /// costs no more memory traffic than Zenoh's shared memory at any size, and
-/// takes its threads' wake-ups out of the way. A quarter of the segment, so
-/// a reader holding one such message leaves room for the next.
+/// takes its threads' wake-ups out of the way. A quarter of the segment; a
+/// reader that still holds one message this large when the next comes
+/// gets that next one through Zenoh (the regions held would pass
+/// [`IN_FLIGHT`]).
 pub(crate) const PLACED_MAX: usize = CAPACITY / 4;
 
 /// The most bytes of a link's regions held at once: past it, while its
@@ -188,22 +190,17 @@ impl Ring {
         if bytes.len() > MAX_MESSAGE {
             return None;
         }
-        let region = self.put_with(bytes.len(), |dst| {
-            dst.copy_from_slice(bytes);
-            true
-        })?;
+        let mut region = self.reserve(bytes.len())?;
+        region.bytes_mut().copy_from_slice(bytes);
+        region.filled();
         Some(region.sent())
     }
 
-    /// Lets `write` fill a free region of `len` bytes (at most
-    /// [`PLACED_MAX`]), marked held: the region, or `None` when no region
-    /// is free for it or `write` says it did not fill it. A region dropped
-    /// before it is [sent](Region::sent) is free again.
-    pub(crate) fn put_with(
-        &mut self,
-        len: usize,
-        write: impl FnOnce(&mut [u8]) -> bool,
-    ) -> Option<Region> {
+    /// Takes a free region of `len` bytes (at most [`PLACED_MAX`]), marked
+    /// held, for its holder to fill ([`Region::bytes_mut`]) and mark
+    /// [filled](Region::filled): `None` when no region is free for it. A
+    /// region dropped before it is [sent](Region::sent) is free again.
+    pub(crate) fn reserve(&mut self, len: usize) -> Option<Region> {
         if len > PLACED_MAX {
             return None;
         }
@@ -220,23 +217,11 @@ impl Ring {
             sent: false,
         };
         // Held before it is written: dropped unfilled, it is let go like
-        // any region its consumer is done with.
+        // any region its consumer is done with, and never reclaimed before.
         self.map.flag(offset).store(1, Ordering::Relaxed);
         self.regions.push_back((offset, size));
         self.held += size;
         self.head = offset + size;
-        // SAFETY: the region [offset, offset + size) is within the mapping
-        // (`place`) and was free: its consumer cleared its flag, or never
-        // had it. Nothing else in this process refers to its bytes until
-        // the region is sent, and no consumer reads them before.
-        let bytes = unsafe {
-            std::slice::from_raw_parts_mut(self.map.base.as_ptr().add(offset + REGION_HEAD), len)
-        };
-        if !write(bytes) {
-            return None;
-        }
-        // Release: the consumer that sees the flag set sees the bytes.
-        self.map.flag(offset).store(1, Ordering::Release);
         Some(region)
     }
 
@@ -306,9 +291,35 @@ impl Region {
         self.len
     }
 
+    /// Its bytes, to fill: no one else writes or reads them until it is
+    /// sent.
+    pub(crate) fn bytes_mut(&mut self) -> &mut [u8] {
+        // SAFETY: within the mapping (`Ring::reserve`), which `map` keeps
+        // alive; held (its flag set), so the producer's ring gives it to no
+        // one else, and unsent, so no consumer has been told of it; `&mut
+        // self` makes this the only view of it in this process.
+        unsafe {
+            std::slice::from_raw_parts_mut(
+                self.map
+                    .base
+                    .as_ptr()
+                    .add(self.offset as usize + REGION_HEAD),
+                self.len,
+            )
+        }
+    }
+
+    /// Marks its bytes written: the consumer that sees its flag set sees
+    /// them (the flag's release).
+    pub(crate) fn filled(&self) {
+        self.map
+            .flag(self.offset as usize)
+            .store(1, Ordering::Release);
+    }
+
     /// Its message.
     pub(crate) fn bytes(&self) -> &[u8] {
-        // SAFETY: within the mapping (`Ring::put_with`), which `map` keeps
+        // SAFETY: within the mapping (`Ring::reserve`), which `map` keeps
         // alive; held, so no one else writes it.
         unsafe {
             std::slice::from_raw_parts(
