@@ -3,16 +3,16 @@
 //! would copy them through the kernel twice and Zenoh's path would wake
 //! four threads.
 //!
-//! Each link has a segment of its own: a sealed `memfd` the producer
-//! makes when the consumer links and sends with its answer
-//! (`SCM_RIGHTS`). The producer copies a message into a free region of
-//! it, or encodes it there ([`Ring::reserve`]), and writes a frame
-//! naming the region over the socket, which is the consumer's wake-up. The consumer hands the region on as the message's
-//! bytes, without a copy, and marks it free when the last handle on those
-//! bytes drops. A segment of its own per link means a link that closes
-//! takes nothing from any other, and a consumer that still holds a
-//! message of a closed link keeps it intact: the producer never writes
-//! that segment again.
+//! Each link has a segment of its own: a sealed `memfd` the producer makes
+//! when the consumer links and sends with its answer (`SCM_RIGHTS`). The
+//! producer copies a message into a free region of it, or encodes it there
+//! ([`Ring::reserve`]), and writes a frame naming the region over the
+//! socket, which is the consumer's wake-up. The consumer hands the region
+//! on as the message's bytes, without a copy, and marks it free when the
+//! last handle on those bytes drops. A segment of its own per link means a
+//! link that closes takes nothing from any other, and a consumer that still
+//! holds a message of a closed link keeps it intact: the producer never
+//! writes that segment again.
 //!
 //! A region is 64 bytes of header (its busy flag first, set by the
 //! producer, cleared by the consumer) and the message. The producer
@@ -269,9 +269,9 @@ impl Ring {
     }
 }
 
-/// A region the producer has filled and not yet named to its consumer:
-/// its bytes stay as written while it is held, and it is let go when
-/// dropped unless [sent](Region::sent).
+/// A region the producer holds and has not yet named to its consumer: it
+/// fills the region, marks it [filled](Region::filled), then writes its
+/// frame and marks it [sent](Region::sent). Dropped unsent, it is let go.
 #[derive(Debug)]
 pub(crate) struct Region {
     map: Arc<Mapping>,
