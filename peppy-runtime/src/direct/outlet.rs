@@ -170,7 +170,19 @@ impl DirectOutlet {
         let Ok(mut links) = self.links.lock() else {
             return publisher.put(payload).attachment(attachment).wait();
         };
-        let (sent, timed) = self.publish_locked(&mut links, publisher, payload, attachment);
+        self.publish_timed(&mut links, publisher, payload, attachment)
+    }
+
+    /// [`Self::publish_locked`], and the end of the publication kept for
+    /// telling the next one's burst.
+    fn publish_timed(
+        &self,
+        links: &mut Links,
+        publisher: &Publisher<'static>,
+        payload: ZBytes,
+        attachment: ZBytes,
+    ) -> zenoh::Result<()> {
+        let (sent, timed) = self.publish_locked(links, publisher, payload, attachment);
         if timed && let Some(clock) = self.clock.get() {
             // A burst is told by the producer's time between two messages
             // out of here: a flooding producer's put waits now and then for
@@ -286,11 +298,7 @@ impl DirectOutlet {
                 Err(placed) => placed,
             }
         };
-        let (sent, timed) = self.publish_locked(&mut links, publisher, placed.copied(), attachment);
-        if timed && let Some(clock) = self.clock.get() {
-            links.last = Some(clock.raw());
-        }
-        sent
+        self.publish_timed(&mut links, publisher, placed.copied(), attachment)
     }
 
     /// [`Self::publish`] under the topic's lock: what it sent, and whether

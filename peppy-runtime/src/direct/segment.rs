@@ -291,6 +291,18 @@ impl Region {
         self.len
     }
 
+    /// Where its message starts in this process's mapping.
+    fn start(&self) -> *mut u8 {
+        // SAFETY: `Ring::reserve` placed the region, header and message,
+        // within the mapping.
+        unsafe {
+            self.map
+                .base
+                .as_ptr()
+                .add(self.offset as usize + REGION_HEAD)
+        }
+    }
+
     /// Its bytes, to fill: no one else writes or reads them until it is
     /// sent.
     pub(crate) fn bytes_mut(&mut self) -> &mut [u8] {
@@ -298,15 +310,7 @@ impl Region {
         // alive; held (its flag set), so the producer's ring gives it to no
         // one else, and unsent, so no consumer has been told of it; `&mut
         // self` makes this the only view of it in this process.
-        unsafe {
-            std::slice::from_raw_parts_mut(
-                self.map
-                    .base
-                    .as_ptr()
-                    .add(self.offset as usize + REGION_HEAD),
-                self.len,
-            )
-        }
+        unsafe { std::slice::from_raw_parts_mut(self.start(), self.len) }
     }
 
     /// Marks its bytes written: the consumer that sees its flag set sees
@@ -321,15 +325,7 @@ impl Region {
     pub(crate) fn bytes(&self) -> &[u8] {
         // SAFETY: within the mapping (`Ring::reserve`), which `map` keeps
         // alive; held, so no one else writes it.
-        unsafe {
-            std::slice::from_raw_parts(
-                self.map
-                    .base
-                    .as_ptr()
-                    .add(self.offset as usize + REGION_HEAD),
-                self.len,
-            )
-        }
+        unsafe { std::slice::from_raw_parts(self.start(), self.len) }
     }
 
     /// Its frame is written: the consumer lets it go from now on. Its
