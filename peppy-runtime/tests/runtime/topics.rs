@@ -379,12 +379,35 @@ test_node!(
 /// node: Zenoh delivers every subscription and query of a session on the
 /// same threads, so an inbox that blocked there when full would stall the
 /// node's other topics and services (and, through TCP, the sender).
+///
+/// The frames go as bytes: through shared memory, Zenoh 1.10.2 drops a
+/// frame now and then on a starved host (docs/FAULTS.md, L2), which the
+/// test below reproduces by hand.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_reader_that_never_reads_one_topic_stalls_nothing_else() {
+    a_reader_that_never_reads(SharedMemory::off(), "slow-reader").await;
+}
+
+/// The test above with the producer's frames in shared memory: Zenoh's
+/// watchdog, which has no setting, lapses now and then on a host this
+/// starved and Zenoh drops the frames the reader had not mapped yet
+/// (docs/FAULTS.md, L2, with how often). Not in CI, where it failed a run;
+/// run by hand, several at once, to see whether a Zenoh upgrade ends it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "FAULTS L2: Zenoh 1.10.2 drops shared-memory frames now and then on a starved host; run by hand"]
+async fn a_reader_that_never_reads_loses_no_frame_in_shared_memory() {
+    a_reader_that_never_reads(SharedMemory::default(), "slow-reader-shm").await;
+}
+
+async fn a_reader_that_never_reads(shm: SharedMemory, ns: &str) {
     let hub = hub().await;
-    let ns = namespace("slow-reader");
+    let ns = namespace(ns);
     let (_, station) = start::<Station>(&hub, &ns, "station", &["--bind", "src@flood"]).await;
-    let (_, flood) = start::<Flood>(&hub, &ns, "flood", &["--bind", "st@station"]).await;
+    let (_, flood) =
+        start_configured::<Flood>(&hub, &ns, "flood", &["--bind", "st@station"], |b| {
+            b.shared_memory(shm)
+        })
+        .await;
     tokio::spawn({
         let station = station.clone();
         async move {
