@@ -60,7 +60,7 @@ fn a_new_cargo_node_passes_its_harness_test() {
     let mut test = Command::new(env!("CARGO"));
     // Every core: the build holds the shared target directory's lock, and
     // the tests beside this one wait for it to build their own nodes. With
-    // one job the CLI tests took 164 s warm; with both, 86 s.
+    // one job the CLI tests took 164 s warm on two cores; with both, 86 s.
     test.args(["test", "--quiet"]).current_dir(&node);
     // The workspace's target directory: the runtime's dependencies are
     // built once for the workspace and the node alike (the node's

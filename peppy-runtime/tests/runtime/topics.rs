@@ -389,8 +389,8 @@ async fn a_reader_that_never_reads_one_topic_stalls_nothing_else() {
 }
 
 /// The test above with the producer's frames in shared memory: Zenoh's
-/// watchdog, which has no setting, lapses now and then on a host this
-/// starved and Zenoh drops the frames the reader had not mapped yet
+/// watchdog, which has no setting, lapses now and then on a starved host
+/// and Zenoh drops the frames the reader had not mapped yet
 /// (docs/FAULTS.md, L2, with how often). Not in CI, where it failed a run;
 /// run by hand, several at once, to see whether a Zenoh upgrade ends it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
