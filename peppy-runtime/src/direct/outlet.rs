@@ -224,10 +224,7 @@ impl DirectOutlet {
         }
         let (link, mut region) = {
             let mut links = self.links.lock().ok()?;
-            if links.orphans.len() + links.open.len() != 1 {
-                return None;
-            }
-            let link = links.open.first_mut()?;
+            let link = links.only()?;
             if !link.alone() {
                 return None;
             }
@@ -264,12 +261,12 @@ impl DirectOutlet {
         if len >= INLINE_MAX || shared(len) || self.readers.load(Ordering::Relaxed) {
             return false;
         }
-        let Ok(links) = self.links.lock() else {
+        let Ok(mut links) = self.links.lock() else {
             return false;
         };
-        links.orphans.is_empty()
-            && links.open.len() == 1
-            && links.open[0].side.as_ref().is_some_and(|s| s.seen)
+        links
+            .only()
+            .is_some_and(|l| l.side.as_ref().is_some_and(|s| s.seen))
     }
 
     /// Publishes a message [placed](Self::place) in a link's memory: over
@@ -505,6 +502,15 @@ impl DirectOutlet {
 }
 
 impl Links {
+    /// The topic's one link, when it has one and no ended link is still
+    /// read: the link a message for a sole consumer may go over alone.
+    fn only(&mut self) -> Option<&mut Link> {
+        match (self.orphans.is_empty(), self.open.as_mut_slice()) {
+            (true, [link]) => Some(link),
+            _ => None,
+        }
+    }
+
     /// Writes message `number` to every link that takes it, closing the
     /// links that fail: whether any got it.
     fn write(&mut self, number: u32, body: &[u8], may_drop: bool) -> bool {
@@ -540,13 +546,9 @@ impl Links {
         #[cfg(target_os = "linux")]
         {
             let number = self.sequence.wrapping_add(1);
-            if !self.orphans.is_empty() || self.open.len() != 1 {
+            let Some(link) = self.only().filter(|l| l.id == placed.link && l.alone()) else {
                 return Err(placed);
-            }
-            let link = &mut self.open[0];
-            if link.id != placed.link || !link.alone() {
-                return Err(placed);
-            }
+            };
             let region = &placed.region;
             let head = shared_head(number, region.len(), region.offset());
             let (written, keep) = link.write(&head, &[], may_drop);
