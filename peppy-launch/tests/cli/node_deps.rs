@@ -66,6 +66,47 @@ fn a_node_links_no_document_parser_generator_or_tls() {
     }
 }
 
+/// The feature sets cargo resolves for `syn` and `proc-macro2` in `args`'s
+/// tree: every proc-macro's build rests on them.
+fn proc_macro_roots(args: &[&str]) -> BTreeSet<String> {
+    let mut tree = vec![
+        "tree",
+        "--offline",
+        "--prefix",
+        "none",
+        "--format",
+        "{p}|{f}",
+    ];
+    tree.extend_from_slice(args);
+    let out = cargo(&tree);
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter(|l| l.starts_with("syn ") || l.starts_with("proc-macro2 "))
+        .map(|l| l.trim_end_matches(" (*)").to_string())
+        .collect()
+}
+
+/// A node built in the workspace after `cargo test` builds no proc-macro
+/// again, nor what one builds (serde, stabby, most of Zenoh): its `syn` and
+/// `proc-macro2` have features the workspace's test build gives them
+/// (peppy-runtime's build-dependencies, which the launcher's host side
+/// sets). Without that, an example node's build after the test build took
+/// 127 s against 78 s on two cores (docs/PERFORMANCE.md, "Build time").
+#[test]
+fn a_node_builds_on_the_test_builds_proc_macros() {
+    let workspace = proc_macro_roots(&["--workspace", "-e", "normal,build,dev"]);
+    for node in ["realsense_d405", "peppylib_camera"] {
+        let own = proc_macro_roots(&["-p", node, "-e", "normal,build"]);
+        assert!(own.iter().any(|l| l.starts_with("syn ")), "{own:?}");
+        let apart: Vec<&String> = own.difference(&workspace).collect();
+        assert!(
+            apart.is_empty(),
+            "{node} resolves {apart:?}, which the workspace's test build does not \
+             (it has {workspace:?}): match them in peppy-runtime's build-dependencies"
+        );
+    }
+}
+
 /// The files cargo names for the `zenoh` library that `package`'s build
 /// links (building it first when it is not built yet).
 fn zenoh_built_for(package: &str) -> Vec<String> {
