@@ -1,8 +1,9 @@
 //! A node links what a node needs. Its binary carries the runtime and the
 //! model its build embedded: no document parser, no code generator, and no
 //! TLS (a node reaches its launch's router over TCP; TLS links core nodes'
-//! routers, in the launcher). Nothing in its dependencies is there to match
-//! the launcher's features (docs/PERFORMANCE.md, "Build time").
+//! routers, in the launcher). Nothing it links is there to match the
+//! launcher's features; only its proc-macros' features are (docs/PERFORMANCE.md,
+//! "Build time").
 
 use std::collections::BTreeSet;
 
