@@ -2,7 +2,7 @@
 //! model its build embedded: no document parser, no code generator, and no
 //! TLS (a node reaches its launch's router over TCP; TLS links core nodes'
 //! routers, in the launcher). Nothing it links is there to match the
-//! launcher's features; only its proc-macros' features are (docs/PERFORMANCE.md,
+//! launcher's features; only its proc-macros' are (docs/PERFORMANCE.md,
 //! "Build time").
 
 use std::collections::BTreeSet;
