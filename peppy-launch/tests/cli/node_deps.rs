@@ -89,9 +89,9 @@ fn proc_macro_roots(args: &[&str]) -> BTreeSet<String> {
 
 /// A node built in the workspace after `cargo test` builds no proc-macro
 /// again, nor what one builds (serde, stabby, most of Zenoh): its `syn` and
-/// `proc-macro2` have features the workspace's test build gives them
-/// (peppy-runtime's build-dependencies, which the launcher's host side
-/// sets). Without that, an example node's build after the test build took
+/// `proc-macro2` have the features the workspace's test build gives them
+/// (peppy-runtime's build-dependencies ask for what the launcher's host
+/// side turns on). Without that, an example node's build after the test build took
 /// 127 s against 78 s on two cores (docs/PERFORMANCE.md, "Build time").
 #[test]
 fn a_node_builds_on_the_test_builds_proc_macros() {
