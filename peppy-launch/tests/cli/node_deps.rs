@@ -9,22 +9,22 @@ use std::collections::BTreeSet;
 
 use crate::support::cargo;
 
-/// The packages `package` links (its normal dependencies, every level).
-fn linked(package: &str) -> BTreeSet<String> {
-    let out = cargo(&[
-        "tree",
-        "--offline",
-        "-e",
-        "normal",
-        "--prefix",
-        "none",
-        "--format",
-        "{p}",
-        "-p",
-        package,
-    ]);
+/// The lines of `cargo tree` over `args`, one package per line in `format`,
+/// without the mark of a package already shown.
+fn tree(format: &str, args: &[&str]) -> Vec<String> {
+    let mut tree = vec!["tree", "--offline", "--prefix", "none", "--format", format];
+    tree.extend_from_slice(args);
+    let out = cargo(&tree);
     String::from_utf8_lossy(&out.stdout)
         .lines()
+        .map(|l| l.trim_end_matches(" (*)").to_string())
+        .collect()
+}
+
+/// The packages `package` links (its normal dependencies, every level).
+fn linked(package: &str) -> BTreeSet<String> {
+    tree("{p}", &["-e", "normal", "-p", package])
+        .iter()
         .filter_map(|l| l.split_whitespace().next())
         .map(String::from)
         .collect()
@@ -70,20 +70,9 @@ fn a_node_links_no_document_parser_generator_or_tls() {
 /// The feature sets cargo resolves for `syn` and `proc-macro2` in `args`'s
 /// tree: every proc-macro's build rests on them.
 fn proc_macro_roots(args: &[&str]) -> BTreeSet<String> {
-    let mut tree = vec![
-        "tree",
-        "--offline",
-        "--prefix",
-        "none",
-        "--format",
-        "{p}|{f}",
-    ];
-    tree.extend_from_slice(args);
-    let out = cargo(&tree);
-    String::from_utf8_lossy(&out.stdout)
-        .lines()
+    tree("{p}|{f}", args)
+        .into_iter()
         .filter(|l| l.starts_with("syn ") || l.starts_with("proc-macro2 "))
-        .map(|l| l.trim_end_matches(" (*)").to_string())
         .collect()
 }
 
