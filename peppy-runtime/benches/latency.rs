@@ -27,6 +27,7 @@
 //! ```
 
 use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use peppy_runtime::codegen::{
@@ -40,7 +41,16 @@ use peppy_runtime::wire::keys::{
 use peppy_runtime::{NodeBuilder, NodeRunner};
 
 const WARMUP: usize = 200;
-const SAMPLES: usize = 2_000;
+/// Measured round trips per run, after `WARMUP` unmeasured ones: fewer in
+/// the short run `cargo test` makes (`main`).
+static SAMPLES: AtomicUsize = AtomicUsize::new(2_000);
+/// The short run's samples and how long it may take: it is a test.
+const SHORT_RUN_SAMPLES: usize = 100;
+const SHORT_RUN_BOUND: Duration = Duration::from_secs(60);
+
+fn samples_per_run() -> usize {
+    SAMPLES.load(Ordering::Relaxed)
+}
 const FORMAT: FormatSpec = FormatSpec {
     fingerprint: 0xbe7c,
     canonical: "{seq:u64,pad:[u8]}",
@@ -235,8 +245,8 @@ async fn peppy_pings(join: &Join) -> Vec<Duration> {
             break;
         }
     }
-    let mut samples = Vec::with_capacity(SAMPLES);
-    for seq in 0..(WARMUP + SAMPLES) as u64 {
+    let mut samples = Vec::with_capacity(samples_per_run());
+    for seq in 0..(WARMUP + samples_per_run()) as u64 {
         let start = Instant::now();
         emit(
             &pinger,
@@ -324,8 +334,8 @@ async fn raw_pings(endpoint: &str) -> Vec<Duration> {
             break;
         }
     }
-    let mut samples = Vec::with_capacity(SAMPLES);
-    for seq in 0..(WARMUP + SAMPLES) as u64 {
+    let mut samples = Vec::with_capacity(samples_per_run());
+    for seq in 0..(WARMUP + samples_per_run()) as u64 {
         let start = Instant::now();
         ping_pub.put(message(seq)).await.unwrap();
         loop {
@@ -384,7 +394,10 @@ async fn report(
     let peppy1 = stats(peppy().await);
     let raw2 = stats(raw().await);
     let peppy2 = stats(peppy().await);
-    println!("round trip, {SAMPLES} samples per run, 64-byte payload, reliable, {what}");
+    println!(
+        "round trip, {} samples per run, 64-byte payload, reliable, {what}",
+        samples_per_run()
+    );
     println!("{:<12} {:>10} {:>10} {:>10}", "run", "p50", "p90", "mean");
     for (name, s) in [
         ("raw zenoh 1", &raw1),
@@ -515,12 +528,23 @@ fn main() {
             _ => {
                 let endpoint = free_endpoint();
                 let _router = router(&endpoint).await;
-                report(
+                let both = report(
                     "via a router on loopback",
                     async || raw_round_trips(&endpoint).await,
                     async || peppy_round_trips(&Join::Flags(endpoint.clone())).await,
-                )
-                .await;
+                );
+                // `cargo bench` passes `--bench`. `cargo test` runs this
+                // target too (`test = true` in Cargo.toml), so the
+                // benchmark is built, linted and run with the tests: there
+                // a short run, bounded, whose figures mean nothing.
+                if args.iter().any(|a| a == "--bench") {
+                    both.await;
+                } else {
+                    SAMPLES.store(SHORT_RUN_SAMPLES, Ordering::Relaxed);
+                    tokio::time::timeout(SHORT_RUN_BOUND, both)
+                        .await
+                        .expect("the benchmark's short run did not finish in time");
+                }
             }
         }
     });
@@ -654,7 +678,7 @@ fn secured() {
                 results[i].push(stats(samples));
             }
         }
-        println!("peppy round trip, {SAMPLES} samples per run, 64-byte payload, reliable, via a router on loopback");
+        println!("peppy round trip, {} samples per run, 64-byte payload, reliable, via a router on loopback", samples_per_run());
         println!("{:<32} {:>10} {:>10} {:>10}", "run", "p50", "p90", "mean");
         for (i, (name, _)) in runs.iter().enumerate() {
             for (n, s) in results[i].iter().enumerate() {

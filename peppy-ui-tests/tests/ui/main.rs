@@ -25,6 +25,13 @@ fn ui() {
     // SAFETY: this binary has this one test, so no other thread reads the
     // environment while it is set; trybuild's cargo inherits it.
     unsafe { std::env::set_var(MANIFEST_DIR_OVERRIDE, &dir) };
+    // CI lints this workspace by making clippy its members' compiler
+    // (`.ci/run`); trybuild's project would inherit that, and the cases'
+    // expected output is rustc's alone.
+    for lint_gate in ["RUSTC_WORKSPACE_WRAPPER", "CLIPPY_ARGS"] {
+        // SAFETY: as above.
+        unsafe { std::env::remove_var(lint_gate) };
+    }
     if std::env::var_os("CARGO_ENCODED_RUSTFLAGS").is_none() {
         // SAFETY: as above.
         unsafe { std::env::set_var("CARGO_ENCODED_RUSTFLAGS", case_rustflags().join("\x1f")) };
