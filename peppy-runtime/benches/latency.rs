@@ -41,16 +41,18 @@ use peppy_runtime::wire::keys::{
 use peppy_runtime::{NodeBuilder, NodeRunner};
 
 const WARMUP: usize = 200;
-/// Measured round trips per run, after `WARMUP` unmeasured ones: fewer in
-/// the short run `cargo test` makes (`main`).
+/// Measured round trips per run, after `WARMUP` unmeasured ones; the short
+/// run `cargo test` makes (`main`) sets fewer.
 static SAMPLES: AtomicUsize = AtomicUsize::new(2_000);
-/// The short run's samples and how long it may take: it is a test.
+/// `cargo test`'s short run: its samples per run, and how long it may take
+/// before the test fails.
 const SHORT_RUN_SAMPLES: usize = 100;
 const SHORT_RUN_BOUND: Duration = Duration::from_secs(60);
 
 fn samples_per_run() -> usize {
     SAMPLES.load(Ordering::Relaxed)
 }
+
 const FORMAT: FormatSpec = FormatSpec {
     fingerprint: 0xbe7c,
     canonical: "{seq:u64,pad:[u8]}",
